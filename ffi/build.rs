@@ -1,0 +1,4 @@
+fn main() {
+    println!("cargo:rustc-link-lib=gmsh");
+    println!("cargo:rustc-link-lib=arpack");
+}

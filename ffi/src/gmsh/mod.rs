@@ -1,0 +1,285 @@
+//! Safe layer over the gmsh C API.
+//!
+//! gmsh is one global, non-thread-safe library: a [`Session`] holds a process-wide lock from
+//! `gmshInitialize` to `gmshFinalize` (run by `Drop`), so two sessions never overlap.
+
+mod sys;
+
+use std::ffi::{CStr, CString};
+use std::os::raw::{c_char, c_int};
+use std::path::Path;
+use std::ptr;
+use std::sync::{Mutex, MutexGuard};
+
+/// A gmsh call failed; `message` is gmsh's own last error.
+#[derive(Debug, thiserror::Error)]
+#[error("gmsh {call} failed: {message}")]
+pub struct GmshError {
+    /// The C function that failed.
+    pub call: &'static str,
+    /// gmsh's message (or the reason it is missing).
+    pub message: String,
+}
+
+/// Result of a gmsh call.
+pub type Result<T> = std::result::Result<T, GmshError>;
+
+static GMSH_LOCK: Mutex<()> = Mutex::new(());
+
+/// Element type codes of gmsh.
+pub mod element_type {
+    /// 3-node triangle.
+    pub const TRIANGLE3: i32 = 2;
+    /// 4-node tetrahedron.
+    pub const TET4: i32 = 4;
+    /// 10-node tetrahedron.
+    pub const TET10: i32 = 11;
+}
+
+/// One initialised gmsh library; finalised on drop.
+pub struct Session {
+    _lock: MutexGuard<'static, ()>,
+}
+
+fn cstring(call: &'static str, s: &str) -> Result<CString> {
+    CString::new(s).map_err(|_| GmshError {
+        call,
+        message: format!("argument {s:?} contains a NUL byte"),
+    })
+}
+
+/// Turns a non-zero `ierr` into an error carrying gmsh's last message.
+fn check(call: &'static str, ierr: c_int) -> Result<()> {
+    if ierr == 0 {
+        return Ok(());
+    }
+    let mut msg: *mut c_char = ptr::null_mut();
+    let mut ierr2 = 0;
+    // SAFETY: gmsh allocates the string; we copy it and free it with gmshFree.
+    let message = unsafe {
+        sys::gmshLoggerGetLastError(&mut msg, &mut ierr2);
+        if ierr2 == 0 && !msg.is_null() {
+            let s = CStr::from_ptr(msg).to_string_lossy().into_owned();
+            sys::gmshFree(msg.cast());
+            s
+        } else {
+            String::new()
+        }
+    };
+    let message = if message.is_empty() {
+        format!("error code {ierr} (gmsh gave no message)")
+    } else {
+        message
+    };
+    Err(GmshError { call, message })
+}
+
+/// Copies a gmsh-owned array into a `Vec` and frees the original.
+///
+/// # Safety
+/// `p` must be null or point to `n` initialised values allocated by gmsh.
+unsafe fn take<T: Copy>(p: *mut T, n: usize) -> Vec<T> {
+    if p.is_null() {
+        return Vec::new();
+    }
+    // SAFETY: guaranteed by the caller.
+    let v = unsafe { std::slice::from_raw_parts(p, n).to_vec() };
+    // SAFETY: p was allocated by gmsh.
+    unsafe { sys::gmshFree(p.cast()) };
+    v
+}
+
+/// Axis-aligned bounding box `[min, max]`.
+pub type BoundingBox = ([f64; 3], [f64; 3]);
+
+impl Session {
+    /// Initialises gmsh (waiting for any other session to finish), silenced and without
+    /// reading the user's configuration files, so runs are reproducible.
+    pub fn start() -> Result<Session> {
+        let lock = GMSH_LOCK.lock().unwrap_or_else(|poisoned| poisoned.into_inner());
+        let mut ierr = 0;
+        // SAFETY: argc = 0 with a null argv is accepted by gmshInitialize.
+        unsafe { sys::gmshInitialize(0, ptr::null_mut(), 0, &mut ierr) };
+        check("initialize", ierr)?;
+        let session = Session { _lock: lock };
+        session.set_number("General.Terminal", 0.0)?;
+        Ok(session)
+    }
+
+    /// Sets a numeric option, e.g. `Mesh.MeshSizeMax`.
+    pub fn set_number(&self, name: &str, value: f64) -> Result<()> {
+        let c = cstring("option/setNumber", name)?;
+        let mut ierr = 0;
+        // SAFETY: valid C string; gmsh initialised while self lives.
+        unsafe { sys::gmshOptionSetNumber(c.as_ptr(), value, &mut ierr) };
+        check("option/setNumber", ierr).map_err(|e| GmshError {
+            message: format!("{name}: {}", e.message),
+            ..e
+        })
+    }
+
+    /// Sets a string option, e.g. `Geometry.OCCTargetUnit`.
+    pub fn set_string(&self, name: &str, value: &str) -> Result<()> {
+        let c = cstring("option/setString", name)?;
+        let v = cstring("option/setString", value)?;
+        let mut ierr = 0;
+        // SAFETY: valid C strings.
+        unsafe { sys::gmshOptionSetString(c.as_ptr(), v.as_ptr(), &mut ierr) };
+        check("option/setString", ierr).map_err(|e| GmshError {
+            message: format!("{name}: {}", e.message),
+            ..e
+        })
+    }
+
+    /// Opens a geometry file (STEP, BREP, GEO, …) into a fresh model. gmsh does not fail on a
+    /// missing file, so existence is checked here.
+    pub fn open(&self, path: &Path) -> Result<()> {
+        if !path.is_file() {
+            return Err(GmshError {
+                call: "open",
+                message: format!("{}: no such file", path.display()),
+            });
+        }
+        let c = cstring("open", &path.to_string_lossy())?;
+        let mut ierr = 0;
+        // SAFETY: valid C string.
+        unsafe {
+            sys::gmshClear(&mut ierr);
+            check("clear", ierr)?;
+            sys::gmshOpen(c.as_ptr(), &mut ierr);
+        }
+        check("open", ierr)
+    }
+
+    /// `(dim, tag)` of every entity of dimension `dim` (-1: all).
+    pub fn entities(&self, dim: i32) -> Result<Vec<(i32, i32)>> {
+        let mut p: *mut c_int = ptr::null_mut();
+        let mut n = 0usize;
+        let mut ierr = 0;
+        // SAFETY: out-pointers valid; the array is copied and freed by `take`.
+        let flat = unsafe {
+            sys::gmshModelGetEntities(&mut p, &mut n, dim, &mut ierr);
+            check("model/getEntities", ierr)?;
+            take(p, n)
+        };
+        Ok(flat.chunks_exact(2).map(|c| (c[0], c[1])).collect())
+    }
+
+    /// Bounding box of the whole model.
+    pub fn bounding_box(&self) -> Result<BoundingBox> {
+        let (mut a, mut b) = ([0.0; 3], [0.0; 3]);
+        let mut ierr = 0;
+        // SAFETY: six valid out-pointers.
+        unsafe {
+            let [x0, y0, z0] = &mut a;
+            let [x1, y1, z1] = &mut b;
+            sys::gmshModelGetBoundingBox(-1, -1, x0, y0, z0, x1, y1, z1, &mut ierr);
+        }
+        check("model/getBoundingBox", ierr)?;
+        Ok((a, b))
+    }
+
+    /// Generates the mesh up to dimension `dim`.
+    pub fn generate(&self, dim: i32) -> Result<()> {
+        let mut ierr = 0;
+        // SAFETY: plain call.
+        unsafe { sys::gmshModelMeshGenerate(dim, &mut ierr) };
+        check("model/mesh/generate", ierr)
+    }
+
+    /// Raises the mesh to element order `order` (2: 10-node tets).
+    pub fn set_order(&self, order: i32) -> Result<()> {
+        let mut ierr = 0;
+        // SAFETY: plain call.
+        unsafe { sys::gmshModelMeshSetOrder(order, &mut ierr) };
+        check("model/mesh/setOrder", ierr)
+    }
+
+    /// All mesh nodes: gmsh tags and coordinates (x, y, z per node).
+    pub fn nodes(&self) -> Result<(Vec<usize>, Vec<f64>)> {
+        let (mut tags, mut ntags) = (ptr::null_mut(), 0usize);
+        let (mut coord, mut ncoord) = (ptr::null_mut(), 0usize);
+        let (mut par, mut npar) = (ptr::null_mut(), 0usize);
+        let mut ierr = 0;
+        // SAFETY: out-pointers valid; arrays copied and freed.
+        unsafe {
+            sys::gmshModelMeshGetNodes(
+                &mut tags,
+                &mut ntags,
+                &mut coord,
+                &mut ncoord,
+                &mut par,
+                &mut npar,
+                -1,
+                -1,
+                0,
+                0,
+                &mut ierr,
+            );
+            let (t, c) = (take(tags, ntags), take(coord, ncoord));
+            drop(take(par, npar));
+            check("model/mesh/getNodes", ierr)?;
+            Ok((t, c))
+        }
+    }
+
+    /// Elements of one gmsh type over the whole model: element tags and node tags (flat,
+    /// `nodes_per_element` per element, gmsh node order).
+    pub fn elements_by_type(&self, ty: i32) -> Result<(Vec<usize>, Vec<usize>)> {
+        let (mut et, mut net) = (ptr::null_mut(), 0usize);
+        let (mut nt, mut nnt) = (ptr::null_mut(), 0usize);
+        let mut ierr = 0;
+        // SAFETY: out-pointers valid; arrays copied and freed.
+        unsafe {
+            sys::gmshModelMeshGetElementsByType(ty, &mut et, &mut net, &mut nt, &mut nnt, -1, 0, 1, &mut ierr);
+            let (e, n) = (take(et, net), take(nt, nnt));
+            check("model/mesh/getElementsByType", ierr)?;
+            Ok((e, n))
+        }
+    }
+
+    /// Adds a mesh size field of type `kind` (e.g. "Box", "Min") and returns its tag.
+    pub fn field_add(&self, kind: &str) -> Result<i32> {
+        let c = cstring("model/mesh/field/add", kind)?;
+        let mut ierr = 0;
+        // SAFETY: valid C string; tag -1 lets gmsh choose.
+        let tag = unsafe { sys::gmshModelMeshFieldAdd(c.as_ptr(), -1, &mut ierr) };
+        check("model/mesh/field/add", ierr)?;
+        Ok(tag)
+    }
+
+    /// Sets a numeric option of a size field.
+    pub fn field_set_number(&self, tag: i32, option: &str, value: f64) -> Result<()> {
+        let c = cstring("model/mesh/field/setNumber", option)?;
+        let mut ierr = 0;
+        // SAFETY: valid C string.
+        unsafe { sys::gmshModelMeshFieldSetNumber(tag, c.as_ptr(), value, &mut ierr) };
+        check("model/mesh/field/setNumber", ierr)
+    }
+
+    /// Sets a list option of a size field (e.g. "FieldsList").
+    pub fn field_set_numbers(&self, tag: i32, option: &str, values: &[f64]) -> Result<()> {
+        let c = cstring("model/mesh/field/setNumbers", option)?;
+        let mut v = values.to_vec();
+        let mut ierr = 0;
+        // SAFETY: valid C string and buffer of v.len() values (gmsh copies it).
+        unsafe { sys::gmshModelMeshFieldSetNumbers(tag, c.as_ptr(), v.as_mut_ptr(), v.len(), &mut ierr) };
+        check("model/mesh/field/setNumbers", ierr)
+    }
+
+    /// Uses size field `tag` as the background mesh size.
+    pub fn field_set_as_background(&self, tag: i32) -> Result<()> {
+        let mut ierr = 0;
+        // SAFETY: plain call.
+        unsafe { sys::gmshModelMeshFieldSetAsBackgroundMesh(tag, &mut ierr) };
+        check("model/mesh/field/setAsBackgroundMesh", ierr)
+    }
+}
+
+impl Drop for Session {
+    fn drop(&mut self) {
+        let mut ierr = 0;
+        // SAFETY: gmsh was initialised by `start`; the lock is released after this.
+        unsafe { sys::gmshFinalize(&mut ierr) };
+    }
+}

@@ -1,0 +1,254 @@
+//! Parallel assembly of K and M on one shared sparsity pattern (free DOFs, lower triangle).
+//!
+//! The pattern is built once at node level (3×3 blocks) from the connectivity; each thread
+//! accumulates its share of the elements into its own block arrays, which are then summed and
+//! expanded to DOF level with the supported DOFs removed.
+
+use super::element::{self, BadJacobian, Lame, Shape, tet4::Tet4, tet10::Tet10};
+use crate::mesh::Mesh;
+use crate::supports::Dofs;
+use faer::sparse::SymbolicSparseColMat;
+use rayon::prelude::*;
+
+/// Mass, centre of mass and inertia tensor of the meshed part.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct MassProperties {
+    /// kg.
+    pub mass: f64,
+    /// m.
+    pub center: [f64; 3],
+    /// kg·m², about the centre of mass.
+    pub inertia: [[f64; 3]; 3],
+}
+
+/// Node-level lower-triangular block pattern (CSC over nodes).
+#[derive(Clone, Debug)]
+pub struct NodeGraph {
+    /// Start of each node column in `rows`.
+    pub col_ptr: Vec<usize>,
+    /// Row nodes ≥ column node, ascending within a column.
+    pub rows: Vec<u32>,
+}
+
+impl NodeGraph {
+    fn block(&self, row: u32, col: u32) -> usize {
+        let (s, e) = (self.col_ptr[col as usize], self.col_ptr[col as usize + 1]);
+        // The pattern was built from these very elements: the block exists.
+        s + self.rows[s..e]
+            .binary_search(&row)
+            .unwrap_or_else(|_| unreachable!("block ({row},{col}) missing from pattern"))
+    }
+}
+
+/// Assembled stiffness and mass on the free DOFs.
+pub struct Assembled {
+    /// Lower triangle (with diagonal) of the free-DOF matrices, shared by K and M.
+    pub pattern: SymbolicSparseColMat<usize>,
+    /// Values of K on `pattern`.
+    pub k: Vec<f64>,
+    /// Values of M on `pattern`.
+    pub m: Vec<f64>,
+    /// Node adjacency (for fill-reducing orderings).
+    pub graph: NodeGraph,
+    /// Mass properties of the whole part.
+    pub mass: MassProperties,
+}
+
+/// An element with a non-positive Jacobian was met.
+#[derive(Debug, thiserror::Error)]
+#[error(
+    "element {element} near ({:.6}, {:.6}, {:.6}) m is degenerate or inverted (det J = {det:.3e}); \
+     remesh with a different size or repair the geometry there", at[0], at[1], at[2]
+)]
+pub struct AssemblyError {
+    /// Element index.
+    pub element: usize,
+    /// Its centroid.
+    pub at: [f64; 3],
+    /// The offending Jacobian determinant.
+    pub det: f64,
+}
+
+fn node_graph(mesh: &Mesh) -> NodeGraph {
+    let p = mesh.nodes_per_tet();
+    let mut keys: Vec<u64> = mesh
+        .tets
+        .par_chunks_exact(p)
+        .flat_map_iter(|t| {
+            t.iter().flat_map(move |&a| {
+                t.iter()
+                    .filter(move |&&b| a >= b)
+                    .map(move |&b| ((b as u64) << 32) | a as u64)
+            })
+        })
+        .collect();
+    keys.par_sort_unstable();
+    keys.dedup();
+    let n = mesh.nodes.len();
+    let mut col_ptr = vec![0usize; n + 1];
+    for &k in &keys {
+        col_ptr[(k >> 32) as usize + 1] += 1;
+    }
+    for i in 0..n {
+        col_ptr[i + 1] += col_ptr[i];
+    }
+    let rows = keys.iter().map(|&k| k as u32).collect();
+    NodeGraph { col_ptr, rows }
+}
+
+struct Partial {
+    k: Vec<f64>,
+    m: Vec<f64>,
+    mass: f64,
+    first: [f64; 3],
+    second: [[f64; 3]; 3],
+}
+
+fn accumulate<S: Shape>(
+    mesh: &Mesh,
+    graph: &NodeGraph,
+    lame: &Lame,
+    range: std::ops::Range<usize>,
+) -> Result<Partial, AssemblyError> {
+    let nb = graph.rows.len();
+    let mut part = Partial {
+        k: vec![0.0; 9 * nb],
+        m: vec![0.0; nb],
+        mass: 0.0,
+        first: [0.0; 3],
+        second: [[0.0; 3]; 3],
+    };
+    let p = S::NODES;
+    let n3 = 3 * p;
+    let mut x = vec![[0.0; 3]; p];
+    for e in range {
+        let tet = mesh.tet(e);
+        for (xa, &n) in x.iter_mut().zip(tet) {
+            *xa = mesh.nodes[n as usize];
+        }
+        let em = element::element_matrices::<S>(&x, lame).map_err(|BadJacobian { det }| {
+            let mut at = [0.0; 3];
+            for xa in &x[..4] {
+                for c in 0..3 {
+                    at[c] += xa[c] / 4.0;
+                }
+            }
+            AssemblyError { element: e, at, det }
+        })?;
+        for a in 0..p {
+            for b in 0..p {
+                let (ga, gb) = (tet[a], tet[b]);
+                if ga < gb {
+                    continue;
+                }
+                let blk = graph.block(ga, gb);
+                part.m[blk] += em.m[a * p + b];
+                let kb = &mut part.k[9 * blk..9 * blk + 9];
+                for ci in 0..3 {
+                    for cj in 0..3 {
+                        kb[3 * ci + cj] += em.k[(3 * a + ci) * n3 + 3 * b + cj];
+                    }
+                }
+            }
+        }
+        let (m, f, s) = em.moments;
+        part.mass += m;
+        for r in 0..3 {
+            part.first[r] += f[r];
+            for c in 0..3 {
+                part.second[r][c] += s[r][c];
+            }
+        }
+    }
+    Ok(part)
+}
+
+/// Assembles K and M of the mesh for the material, on the free DOFs of `dofs`.
+pub fn assemble(mesh: &Mesh, young: f64, poisson: f64, density: f64, dofs: &Dofs) -> Result<Assembled, AssemblyError> {
+    let lame = Lame::new(young, poisson, density);
+    let graph = node_graph(mesh);
+    let ne = mesh.tet_count();
+    let chunks = rayon::current_num_threads().max(1) * 2;
+    let step = ne.div_ceil(chunks).max(1);
+    let ranges: Vec<_> = (0..ne).step_by(step).map(|s| s..(s + step).min(ne)).collect();
+    let partials: Vec<Partial> = ranges
+        .into_par_iter()
+        .map(|r| {
+            if mesh.order == 2 {
+                accumulate::<Tet10>(mesh, &graph, &lame, r)
+            } else {
+                accumulate::<Tet4>(mesh, &graph, &lame, r)
+            }
+        })
+        .collect::<Result<_, _>>()?;
+    let mut total = Partial {
+        k: vec![0.0; 9 * graph.rows.len()],
+        m: vec![0.0; graph.rows.len()],
+        mass: 0.0,
+        first: [0.0; 3],
+        second: [[0.0; 3]; 3],
+    };
+    for p in partials {
+        total.k.par_iter_mut().zip(&p.k).for_each(|(a, b)| *a += b);
+        total.m.par_iter_mut().zip(&p.m).for_each(|(a, b)| *a += b);
+        total.mass += p.mass;
+        for r in 0..3 {
+            total.first[r] += p.first[r];
+            for c in 0..3 {
+                total.second[r][c] += p.second[r][c];
+            }
+        }
+    }
+    let mass = mass_properties(total.mass, total.first, total.second);
+
+    // Expand node blocks to the free-DOF lower triangle.
+    let nf = dofs.free_count();
+    let mut col_ptr = Vec::with_capacity(nf + 1);
+    col_ptr.push(0usize);
+    let mut row_idx = Vec::new();
+    let (mut kv, mut mv) = (Vec::new(), Vec::new());
+    for &d in &dofs.free {
+        let (gj, cj) = (d as usize / 3, d as usize % 3);
+        for blk in graph.col_ptr[gj]..graph.col_ptr[gj + 1] {
+            let gi = graph.rows[blk] as usize;
+            for ci in 0..3 {
+                let row = 3 * gi + ci;
+                let r = dofs.free_of[row];
+                if row < d as usize || r == u32::MAX {
+                    continue;
+                }
+                row_idx.push(r as usize);
+                kv.push(total.k[9 * blk + 3 * ci + cj]);
+                mv.push(if ci == cj { total.m[blk] } else { 0.0 });
+            }
+        }
+        col_ptr.push(row_idx.len());
+    }
+    let pattern = SymbolicSparseColMat::new_checked(nf, nf, col_ptr, None, row_idx);
+    Ok(Assembled {
+        pattern,
+        k: kv,
+        m: mv,
+        graph,
+        mass,
+    })
+}
+
+fn mass_properties(mass: f64, first: [f64; 3], second: [[f64; 3]; 3]) -> MassProperties {
+    let center = first.map(|f| f / mass);
+    // ∫ρ r rᵀ about the centre, then I = tr(R)·1 − R.
+    let mut r = [[0.0; 3]; 3];
+    for i in 0..3 {
+        for j in 0..3 {
+            r[i][j] = second[i][j] - mass * center[i] * center[j];
+        }
+    }
+    let tr = r[0][0] + r[1][1] + r[2][2];
+    let mut inertia = [[0.0; 3]; 3];
+    for i in 0..3 {
+        for j in 0..3 {
+            inertia[i][j] = if i == j { tr } else { 0.0 } - r[i][j];
+        }
+    }
+    MassProperties { mass, center, inertia }
+}

@@ -1,0 +1,41 @@
+//! 10-node quadratic tetrahedron, gmsh node order: vertices 0–3, then mid-edge nodes on the
+//! edges 0-1, 1-2, 2-0, 3-0, 3-2, 3-1.
+
+use super::Shape;
+use crate::fem::quadrature::{self, Point};
+
+/// Vertex pairs of the mid-edge nodes 4..9 in gmsh order.
+pub const EDGES: [(usize, usize); 6] = [(0, 1), (1, 2), (2, 0), (3, 0), (3, 2), (3, 1)];
+
+/// Quadratic tetrahedron.
+pub struct Tet10;
+
+impl Shape for Tet10 {
+    const NODES: usize = 10;
+    fn values(l: [f64; 4], n: &mut [f64]) {
+        for a in 0..4 {
+            n[a] = l[a] * (2.0 * l[a] - 1.0);
+        }
+        for (k, (a, b)) in EDGES.iter().enumerate() {
+            n[4 + k] = 4.0 * l[*a] * l[*b];
+        }
+    }
+    fn bary_gradients(l: [f64; 4], g: &mut [[f64; 4]]) {
+        for ga in g.iter_mut() {
+            *ga = [0.0; 4];
+        }
+        for a in 0..4 {
+            g[a][a] = 4.0 * l[a] - 1.0;
+        }
+        for (k, (a, b)) in EDGES.iter().enumerate() {
+            g[4 + k][*a] = 4.0 * l[*b];
+            g[4 + k][*b] = 4.0 * l[*a];
+        }
+    }
+    fn stiffness_rule() -> Vec<Point> {
+        quadrature::degree2()
+    }
+    fn mass_rule() -> Vec<Point> {
+        quadrature::degree5()
+    }
+}

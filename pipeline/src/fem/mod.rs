@@ -1,0 +1,7 @@
+//! Linear elasticity on tetrahedra: element matrices and their assembly into sparse K and M.
+
+pub mod assembly;
+pub mod element;
+pub mod quadrature;
+
+pub use assembly::{Assembled, MassProperties, assemble};

@@ -1,0 +1,15 @@
+//! VES offline pipeline: a scene (STEP geometry, material, supports) becomes a modal basis file.
+//!
+//! Data flows one way: [`scene`] → [`mesh`] → [`supports`] → [`fem`] (K, M) → [`modes`]
+//! (eigen-solve) → [`store`] (HDF5). [`precompute`] strings the stages together.
+
+pub mod fem;
+pub mod linsolve;
+pub mod mesh;
+pub mod modes;
+pub mod precompute;
+pub mod progress;
+pub mod rigid;
+pub mod scene;
+pub mod store;
+pub mod supports;

@@ -1,0 +1,193 @@
+//! Sparse symmetric matrices on the shared pattern: products, and the Cholesky factorisation of
+//! K − σM with a METIS nested-dissection ordering (on 3D elasticity it factors several times
+//! faster than AMD, see DEPENDENCIES.md).
+
+use crate::fem::assembly::NodeGraph;
+use crate::supports::Dofs;
+use faer::dyn_stack::{MemBuffer, MemStack};
+use faer::linalg::cholesky::llt::factor::LltRegularization;
+use faer::perm::PermRef;
+use faer::sparse::linalg::cholesky::{
+    CholeskySymbolicParams, LltRef, SymbolicCholesky, SymmetricOrdering, factorize_symbolic_cholesky,
+};
+use faer::sparse::{SparseColMatRef, SymbolicSparseColMat};
+use faer::{Conj, MatMut, Par, Side};
+
+/// y = A x for a symmetric A stored as its lower triangle.
+pub fn sym_matvec(pattern: &SymbolicSparseColMat<usize>, values: &[f64], x: &[f64], y: &mut [f64]) {
+    y.fill(0.0);
+    let (cp, ri) = (pattern.col_ptr(), pattern.row_idx());
+    for j in 0..x.len() {
+        let xj = x[j];
+        let mut acc = 0.0;
+        for k in cp[j]..cp[j + 1] {
+            let (i, a) = (ri[k], values[k]);
+            y[i] += a * xj;
+            if i != j {
+                acc += a * x[i];
+            }
+        }
+        y[j] += acc;
+    }
+}
+
+/// The factorisation failed.
+#[derive(Debug, thiserror::Error)]
+pub enum FactorError {
+    /// K − σM is not positive definite in floating point.
+    #[error(
+        "K − σM is not positive definite (σ = {sigma:.3e}): the model may be a mechanism or the material data extreme; \
+         check supports and units"
+    )]
+    NotPositiveDefinite {
+        /// The shift used.
+        sigma: f64,
+    },
+    /// Symbolic analysis failed (out of memory or index overflow).
+    #[error("sparse Cholesky analysis failed: {0}")]
+    Symbolic(String),
+}
+
+/// Fill-reducing ordering of the free DOFs: METIS nested dissection of the node graph,
+/// each node's free DOFs kept together. Returns (new→old, old→new).
+pub fn nested_dissection(graph: &NodeGraph, dofs: &Dofs) -> (Vec<usize>, Vec<usize>) {
+    let n = graph.col_ptr.len() - 1;
+    // Full symmetric adjacency without self loops.
+    let mut deg = vec![0i32; n];
+    for j in 0..n {
+        for &i in &graph.rows[graph.col_ptr[j]..graph.col_ptr[j + 1]] {
+            if i as usize != j {
+                deg[i as usize] += 1;
+                deg[j] += 1;
+            }
+        }
+    }
+    let mut xadj = vec![0i32; n + 1];
+    for i in 0..n {
+        xadj[i + 1] = xadj[i] + deg[i];
+    }
+    let mut fill = xadj.clone();
+    let mut adj = vec![0i32; xadj[n] as usize];
+    for j in 0..n {
+        for &i in &graph.rows[graph.col_ptr[j]..graph.col_ptr[j + 1]] {
+            let i = i as usize;
+            if i != j {
+                adj[fill[i] as usize] = j as i32;
+                fill[i] += 1;
+                adj[fill[j] as usize] = i as i32;
+                fill[j] += 1;
+            }
+        }
+    }
+    let mut node_order: Vec<i32> = (0..n as i32).collect();
+    if n > 1 && !adj.is_empty() {
+        let mut nv = n as i32;
+        let mut perm = vec![0i32; n];
+        let mut iperm = vec![0i32; n];
+        // SAFETY: CSR arrays of a valid symmetric graph of nv vertices; outputs have length nv.
+        let status = unsafe {
+            metis_sys::METIS_NodeND(
+                &mut nv,
+                xadj.as_mut_ptr(),
+                adj.as_mut_ptr(),
+                std::ptr::null_mut(),
+                std::ptr::null_mut(),
+                perm.as_mut_ptr(),
+                iperm.as_mut_ptr(),
+            )
+        };
+        if status == metis_sys::rstatus_et_METIS_OK {
+            node_order = perm;
+        }
+        // On failure the natural order is kept: slower, never wrong.
+    }
+    let mut fwd = Vec::with_capacity(dofs.free_count());
+    for &node in &node_order {
+        for c in 0..3 {
+            let f = dofs.free_of[3 * node as usize + c];
+            if f != u32::MAX {
+                fwd.push(f as usize);
+            }
+        }
+    }
+    let mut inv = vec![0usize; fwd.len()];
+    for (new, &old) in fwd.iter().enumerate() {
+        inv[old] = new;
+    }
+    (fwd, inv)
+}
+
+/// Sparse Cholesky factor of a symmetric positive definite matrix.
+pub struct Cholesky {
+    symbolic: SymbolicCholesky<usize>,
+    values: Vec<f64>,
+    stack: MemBuffer,
+    par: Par,
+}
+
+impl Cholesky {
+    /// Symbolic analysis of `pattern` with the given ordering (new→old, old→new).
+    pub fn analyse(
+        pattern: &SymbolicSparseColMat<usize>,
+        ordering: &(Vec<usize>, Vec<usize>),
+    ) -> Result<SymbolicCholesky<usize>, FactorError> {
+        let perm = PermRef::new_checked(&ordering.0, &ordering.1, pattern.nrows());
+        factorize_symbolic_cholesky(
+            pattern.as_ref(),
+            Side::Lower,
+            SymmetricOrdering::Custom(perm),
+            CholeskySymbolicParams::default(),
+        )
+        .map_err(|e| FactorError::Symbolic(format!("{e:?}")))
+    }
+
+    /// Numeric factorisation of A (lower triangle on `pattern`); `sigma` is only for the message.
+    pub fn factor(
+        symbolic: SymbolicCholesky<usize>,
+        pattern: &SymbolicSparseColMat<usize>,
+        values: &[f64],
+        sigma: f64,
+    ) -> Result<Cholesky, FactorError> {
+        let par = Par::rayon(0);
+        let a = SparseColMatRef::new(pattern.as_ref(), values);
+        let mut l = vec![0.0; symbolic.len_val()];
+        let req = symbolic
+            .factorize_numeric_llt_scratch::<f64>(par, Default::default())
+            .or(symbolic.solve_in_place_scratch::<f64>(1, par));
+        let mut stack = MemBuffer::new(req);
+        symbolic
+            .factorize_numeric_llt(
+                &mut l,
+                a,
+                Side::Lower,
+                LltRegularization::default(),
+                par,
+                MemStack::new(&mut stack),
+                Default::default(),
+            )
+            .map_err(|_| FactorError::NotPositiveDefinite { sigma })?;
+        Ok(Cholesky {
+            symbolic,
+            values: l,
+            stack,
+            par,
+        })
+    }
+
+    /// Number of stored values of L (a measure of fill).
+    pub fn factor_len(&self) -> usize {
+        self.values.len()
+    }
+
+    /// x ← A⁻¹ x.
+    pub fn solve_in_place(&mut self, x: &mut [f64]) {
+        let n = x.len();
+        let llt = LltRef::<usize, f64>::new(&self.symbolic, &self.values);
+        llt.solve_in_place_with_conj(
+            Conj::No,
+            MatMut::from_column_major_slice_mut(x, n, 1),
+            self.par,
+            MemStack::new(&mut self.stack),
+        );
+    }
+}

@@ -1,0 +1,258 @@
+//! Meshing with gmsh: geometry file → tetrahedral mesh in metres, corner vertices numbered first.
+
+use crate::scene::{LengthUnit, Scene, Voi};
+use std::collections::HashMap;
+use ves_ffi::gmsh::{self, element_type};
+
+/// A tetrahedral mesh in the layout of the basis file (DESIGN.md §3).
+#[derive(Clone, Debug)]
+pub struct Mesh {
+    /// Node coordinates, metres: corner vertices first, then mid-edge nodes.
+    pub nodes: Vec<[f64; 3]>,
+    /// The first `vertex_count` nodes are corner vertices.
+    pub vertex_count: usize,
+    /// 1: 4-node tets; 2: 10-node tets.
+    pub order: u8,
+    /// Connectivity, `nodes_per_tet()` indices per tet, gmsh node order, positive orientation.
+    pub tets: Vec<u32>,
+    /// Boundary faces on corner vertices, counter-clockwise seen from outside.
+    pub surface: Vec<[u32; 3]>,
+}
+
+/// Meshing failed.
+#[derive(Debug, thiserror::Error)]
+pub enum MeshError {
+    /// gmsh reported an error.
+    #[error("{path}: {source}")]
+    Gmsh {
+        /// Geometry file.
+        path: String,
+        /// gmsh's error.
+        source: gmsh::GmshError,
+    },
+    /// The file opened but holds no usable solid.
+    #[error("{path}: {message}")]
+    Geometry {
+        /// Geometry file.
+        path: String,
+        /// What is wrong.
+        message: String,
+    },
+}
+
+impl Mesh {
+    /// Nodes per tet: 4 or 10.
+    pub fn nodes_per_tet(&self) -> usize {
+        if self.order == 2 { 10 } else { 4 }
+    }
+
+    /// Number of tets.
+    pub fn tet_count(&self) -> usize {
+        self.tets.len() / self.nodes_per_tet()
+    }
+
+    /// Node indices of tet `e`.
+    pub fn tet(&self, e: usize) -> &[u32] {
+        let p = self.nodes_per_tet();
+        &self.tets[e * p..(e + 1) * p]
+    }
+
+    /// Bounding box of the nodes.
+    pub fn bounding_box(&self) -> ([f64; 3], [f64; 3]) {
+        let mut lo = [f64::INFINITY; 3];
+        let mut hi = [f64::NEG_INFINITY; 3];
+        for p in &self.nodes {
+            for c in 0..3 {
+                lo[c] = lo[c].min(p[c]);
+                hi[c] = hi[c].max(p[c]);
+            }
+        }
+        (lo, hi)
+    }
+
+    /// Length of the bounding-box diagonal, metres.
+    pub fn diameter(&self) -> f64 {
+        let (lo, hi) = self.bounding_box();
+        (0..3).map(|c| (hi[c] - lo[c]).powi(2)).sum::<f64>().sqrt()
+    }
+
+    /// Builds a mesh from raw connectivity: keeps only nodes used by tets, numbers corner
+    /// vertices first, orients every tet positively and extracts the boundary.
+    pub fn from_raw(coords: &[[f64; 3]], tets: &[u32], order: u8) -> Mesh {
+        let p = if order == 2 { 10 } else { 4 };
+        let mut new_index = vec![u32::MAX; coords.len()];
+        let mut nodes = Vec::new();
+        let mut vertex_count = 0;
+        // First pass numbers the corner vertices, second the mid-edge nodes.
+        for range in [0..4, 4..p] {
+            for tet in tets.chunks_exact(p) {
+                for &n in &tet[range.clone()] {
+                    if new_index[n as usize] == u32::MAX {
+                        new_index[n as usize] = nodes.len() as u32;
+                        nodes.push(coords[n as usize]);
+                    }
+                }
+            }
+            if vertex_count == 0 {
+                vertex_count = nodes.len();
+            }
+        }
+        let mut out: Vec<u32> = tets.iter().map(|&n| new_index[n as usize]).collect();
+        for tet in out.chunks_exact_mut(p) {
+            if signed_volume(&nodes, tet) < 0.0 {
+                // Swap vertices 1 and 2; mid-edge nodes follow: e01↔e02 (4↔6), e31↔e32 (9↔8).
+                tet.swap(1, 2);
+                if p == 10 {
+                    tet.swap(4, 6);
+                    tet.swap(8, 9);
+                }
+            }
+        }
+        let surface = boundary_faces(&out, p);
+        Mesh {
+            nodes,
+            vertex_count,
+            order,
+            tets: out,
+            surface,
+        }
+    }
+}
+
+fn sub(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
+    [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
+}
+
+fn cross(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
+    [
+        a[1] * b[2] - a[2] * b[1],
+        a[2] * b[0] - a[0] * b[2],
+        a[0] * b[1] - a[1] * b[0],
+    ]
+}
+
+fn dot(a: [f64; 3], b: [f64; 3]) -> f64 {
+    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
+}
+
+/// Six times the signed volume of the corner tet.
+fn signed_volume(nodes: &[[f64; 3]], tet: &[u32]) -> f64 {
+    let x = |i: usize| nodes[tet[i] as usize];
+    dot(sub(x(1), x(0)), cross(sub(x(2), x(0)), sub(x(3), x(0))))
+}
+
+/// Faces that belong to exactly one tet, oriented with the normal away from that tet.
+fn boundary_faces(tets: &[u32], p: usize) -> Vec<[u32; 3]> {
+    // Faces of a positively oriented tet (0,1,2,3), outward.
+    const FACES: [[usize; 3]; 4] = [[1, 2, 3], [0, 3, 2], [0, 1, 3], [0, 2, 1]];
+    let mut count: HashMap<[u32; 3], (u32, [u32; 3])> = HashMap::with_capacity(tets.len() / p * 2);
+    for tet in tets.chunks_exact(p) {
+        for f in FACES {
+            let face = [tet[f[0]], tet[f[1]], tet[f[2]]];
+            let mut key = face;
+            key.sort_unstable();
+            count.entry(key).and_modify(|e| e.0 += 1).or_insert((1, face));
+        }
+    }
+    let mut faces: Vec<[u32; 3]> = count.into_values().filter(|(n, _)| *n == 1).map(|(_, f)| f).collect();
+    faces.sort_unstable();
+    faces
+}
+
+/// Meshes the scene's geometry (with the finer size inside `voi`, if given).
+pub fn generate(scene: &Scene, voi: Option<&Voi>) -> Result<Mesh, MeshError> {
+    let path = scene.geometry.display().to_string();
+    let g = |source| MeshError::Gmsh {
+        path: path.clone(),
+        source,
+    };
+    let session = gmsh::Session::start().map_err(g)?;
+    let scale = scene.unit.to_metres();
+    // STEP/IGES carry their own unit: OpenCASCADE converts it to the scene's unit, so a
+    // millimetre STEP read with unit = "m" is still right. BREP/GEO have no unit: the scene's applies.
+    session
+        .set_string(
+            "Geometry.OCCTargetUnit",
+            if scene.unit == LengthUnit::Metre { "M" } else { "MM" },
+        )
+        .map_err(g)?;
+    session.open(&scene.geometry).map_err(g)?;
+    let volumes = session.entities(3).map_err(g)?;
+    if volumes.is_empty() {
+        return Err(MeshError::Geometry {
+            path,
+            message: "no solid volume found: the file is empty, broken, or holds only surfaces; export a closed solid"
+                .into(),
+        });
+    }
+    let h = scene.mesh.size / scale;
+    session.set_number("Mesh.MeshSizeMax", h).map_err(g)?;
+    session.set_number("Mesh.MeshSizeMin", 0.0).map_err(g)?;
+    session.set_number("Mesh.Algorithm3D", 10.0).map_err(g)?; // HXT: fastest here (DEPENDENCIES.md)
+    let threads = std::thread::available_parallelism().map(|n| n.get()).unwrap_or(1);
+    session.set_number("General.NumThreads", threads as f64).map_err(g)?;
+    if let Some(v) = voi {
+        let f = session.field_add("Box").map_err(g)?;
+        session.field_set_number(f, "VIn", v.size / scale).map_err(g)?;
+        session.field_set_number(f, "VOut", h).map_err(g)?;
+        for (c, axis) in ["X", "Y", "Z"].iter().enumerate() {
+            session
+                .field_set_number(f, &format!("{axis}Min"), v.bbox.min[c] / scale)
+                .map_err(g)?;
+            session
+                .field_set_number(f, &format!("{axis}Max"), v.bbox.max[c] / scale)
+                .map_err(g)?;
+        }
+        // Grade from the fine to the global size over about two global elements.
+        session.field_set_number(f, "Thickness", 2.0 * h).map_err(g)?;
+        session.field_set_as_background(f).map_err(g)?;
+        for opt in [
+            "Mesh.MeshSizeExtendFromBoundary",
+            "Mesh.MeshSizeFromPoints",
+            "Mesh.MeshSizeFromCurvature",
+        ] {
+            session.set_number(opt, 0.0).map_err(g)?;
+        }
+    }
+    session.generate(3).map_err(g)?;
+    if scene.mesh.order == 2 {
+        session.set_order(2).map_err(g)?;
+    }
+    let (tags, coords) = session.nodes().map_err(g)?;
+    let ty = if scene.mesh.order == 2 {
+        element_type::TET10
+    } else {
+        element_type::TET4
+    };
+    let (_, tet_tags) = session.elements_by_type(ty).map_err(g)?;
+    drop(session);
+    if tet_tags.is_empty() {
+        return Err(MeshError::Geometry {
+            path,
+            message: "gmsh produced no tetrahedra; check that the solid is closed".into(),
+        });
+    }
+    let max_tag = tags.iter().copied().max().unwrap_or(0);
+    let mut slot = vec![u32::MAX; max_tag + 1];
+    let mut xyz = Vec::with_capacity(tags.len());
+    for (i, &t) in tags.iter().enumerate() {
+        slot[t] = i as u32;
+        xyz.push([
+            coords[3 * i] * scale,
+            coords[3 * i + 1] * scale,
+            coords[3 * i + 2] * scale,
+        ]);
+    }
+    let mut tets = Vec::with_capacity(tet_tags.len());
+    for &t in &tet_tags {
+        let s = slot.get(t).copied().unwrap_or(u32::MAX);
+        if s == u32::MAX {
+            return Err(MeshError::Geometry {
+                path,
+                message: format!("gmsh returned a tet on unknown node {t}"),
+            });
+        }
+        tets.push(s);
+    }
+    Ok(Mesh::from_raw(&xyz, &tets, scene.mesh.order))
+}

@@ -1,0 +1,237 @@
+//! The generalized eigenproblem K φ = λ M φ on the free DOFs: the lowest modes, rigid ones set
+//! apart, every elastic mode checked (residual, M-orthonormality, finiteness).
+//!
+//! Two solvers behind one trait: [`arpack::Arpack`] (shift-invert Lanczos on a sparse Cholesky
+//! factor, for real meshes) and [`dense::Dense`] (a full generalized eigen-solve, for tiny
+//! problems and as a test oracle).
+
+pub mod arpack;
+pub mod dense;
+
+use crate::linsolve::{FactorError, sym_matvec};
+use crate::supports::Dofs;
+use faer::sparse::SymbolicSparseColMat;
+use std::time::Instant;
+
+/// K and M on the free DOFs (lower triangles on one pattern).
+pub struct EigenProblem<'a> {
+    /// Shared pattern.
+    pub pattern: &'a SymbolicSparseColMat<usize>,
+    /// Values of K.
+    pub k: &'a [f64],
+    /// Values of M.
+    pub m: &'a [f64],
+}
+
+impl EigenProblem<'_> {
+    /// Unknowns.
+    pub fn size(&self) -> usize {
+        self.pattern.nrows()
+    }
+
+    /// mean(diag K) / mean(diag M): the squared angular frequency of the mesh scale, used to
+    /// make shifts and thresholds independent of units.
+    pub fn stiffness_scale(&self) -> f64 {
+        let (cp, ri) = (self.pattern.col_ptr(), self.pattern.row_idx());
+        let (mut dk, mut dm) = (0.0, 0.0);
+        for j in 0..self.size() {
+            if let Some(k) = (cp[j]..cp[j + 1]).find(|&k| ri[k] == j) {
+                dk += self.k[k];
+                dm += self.m[k];
+            }
+        }
+        dk / dm
+    }
+}
+
+/// The lowest eigenpairs a solver found.
+pub struct Spectrum {
+    /// Eigenvalues, ascending.
+    pub values: Vec<f64>,
+    /// Column-major `n × values.len()`.
+    pub vectors: Vec<f64>,
+    /// Seconds spent factorising.
+    pub factorize_s: f64,
+    /// Seconds spent iterating.
+    pub eigensolve_s: f64,
+}
+
+/// A generalized symmetric eigen-solver.
+pub trait EigenSolver {
+    /// The `nev` eigenpairs nearest `sigma` (below the spectrum, so the lowest).
+    fn lowest(&self, problem: &EigenProblem<'_>, nev: usize, sigma: f64) -> Result<Spectrum, ModesError>;
+}
+
+/// Why no basis could be computed.
+#[derive(Debug, thiserror::Error)]
+pub enum ModesError {
+    /// The factorisation failed.
+    #[error(transparent)]
+    Factor(#[from] FactorError),
+    /// ARPACK failed.
+    #[error(transparent)]
+    Arpack(#[from] ves_ffi::arpack::ArpackError),
+    /// Too few unknowns for the modes asked.
+    #[error(
+        "the mesh has {unknowns} free unknowns, too few for {wanted} modes (+{rigid} rigid); refine the mesh or ask fewer modes"
+    )]
+    TooFewUnknowns {
+        /// Free DOFs.
+        unknowns: usize,
+        /// Elastic modes asked.
+        wanted: usize,
+        /// Rigid modes expected.
+        rigid: usize,
+    },
+    /// The rigid modes could not be told apart from the elastic ones.
+    #[error(
+        "expected {rigid} rigid modes but the spectrum does not separate them (eigenvalues {values:?}); \
+         the part may be in several pieces or be a mechanism: check the geometry and supports"
+    )]
+    RigidSeparation {
+        /// Expected rigid count.
+        rigid: usize,
+        /// The lowest eigenvalues found.
+        values: Vec<f64>,
+    },
+    /// A dense decomposition failed.
+    #[error("dense eigen-solve failed: {0}")]
+    Dense(String),
+    /// A computed mode failed its checks.
+    #[error(
+        "mode {mode} failed its check: {what}; the basis is not trustworthy (try a finer mesh or report this case)"
+    )]
+    Check {
+        /// Index of the elastic mode.
+        mode: usize,
+        /// What failed.
+        what: String,
+    },
+}
+
+/// Elastic modes on the free DOFs, with their quality.
+pub struct Modes {
+    /// λ = ω², ascending.
+    pub eigenvalues: Vec<f64>,
+    /// Column-major `free × r`, M-orthonormal.
+    pub vectors: Vec<f64>,
+    /// Rigid modes found and dropped.
+    pub rigid_dropped: usize,
+    /// ‖Kφ − λMφ‖ / ‖Kφ‖ per mode.
+    pub residuals: Vec<f64>,
+    /// max |ΦᵀMΦ − I|.
+    pub orthonormality_error: f64,
+    /// The shift used.
+    pub sigma: f64,
+    /// Seconds spent factorising.
+    pub factorize_s: f64,
+    /// Seconds spent iterating.
+    pub eigensolve_s: f64,
+}
+
+impl Modes {
+    /// Frequencies in Hz.
+    pub fn frequencies_hz(&self) -> Vec<f64> {
+        self.eigenvalues
+            .iter()
+            .map(|l| l.max(0.0).sqrt() / (2.0 * std::f64::consts::PI))
+            .collect()
+    }
+}
+
+/// A mode is rejected when its relative residual exceeds this.
+pub const MAX_RESIDUAL: f64 = 1e-6;
+
+/// Computes `count` elastic modes, dropping the `rigid` rigid ones the supports leave.
+pub fn compute(
+    problem: &EigenProblem<'_>,
+    dofs: &Dofs,
+    rigid: usize,
+    count: usize,
+    solver: &dyn EigenSolver,
+) -> Result<Modes, ModesError> {
+    let n = problem.size();
+    debug_assert_eq!(n, dofs.free_count());
+    let nev = count + rigid;
+    if nev + 1 >= n {
+        return Err(ModesError::TooFewUnknowns {
+            unknowns: n,
+            wanted: count,
+            rigid,
+        });
+    }
+    // σ a little below zero relative to the mesh's stiffness scale: K − σM is SPD even for a
+    // free body, and the lowest modes are the ones nearest σ.
+    let sigma = -1e-8 * problem.stiffness_scale();
+    let spectrum = solver.lowest(problem, nev, sigma)?;
+    let t = Instant::now();
+    let vals = &spectrum.values;
+    if rigid > 0 {
+        let rigid_max = vals[..rigid].iter().fold(0.0f64, |a, v| a.max(v.abs()));
+        let first_elastic = vals[rigid];
+        if !(first_elastic > 1e3 * rigid_max) || !(first_elastic > 0.0) {
+            return Err(ModesError::RigidSeparation {
+                rigid,
+                values: vals[..(rigid + 2).min(vals.len())].to_vec(),
+            });
+        }
+    }
+    let eigenvalues: Vec<f64> = vals[rigid..].to_vec();
+    let mut vectors = spectrum.vectors[rigid * n..].to_vec();
+    let mut kx = vec![0.0; n];
+    let mut mx = vec![0.0; n];
+    let mut residuals = Vec::with_capacity(count);
+    let mut m_phi = Vec::with_capacity(n * count);
+    for (j, &lam) in eigenvalues.iter().enumerate() {
+        let phi = &mut vectors[j * n..(j + 1) * n];
+        if !(lam > 0.0 && lam.is_finite()) || phi.iter().any(|v| !v.is_finite()) {
+            return Err(ModesError::Check {
+                mode: j,
+                what: format!("eigenvalue {lam:e} or its vector is not finite and positive"),
+            });
+        }
+        sym_matvec(problem.pattern, problem.m, phi, &mut mx);
+        let norm = phi.iter().zip(&mx).map(|(a, b)| a * b).sum::<f64>().sqrt();
+        phi.iter_mut().for_each(|v| *v /= norm);
+        mx.iter_mut().for_each(|v| *v /= norm);
+        sym_matvec(problem.pattern, problem.k, phi, &mut kx);
+        let r = kx
+            .iter()
+            .zip(&mx)
+            .map(|(k, m)| (k - lam * m).powi(2))
+            .sum::<f64>()
+            .sqrt();
+        let kn = kx.iter().map(|k| k * k).sum::<f64>().sqrt();
+        let rel = r / kn;
+        if !(rel <= MAX_RESIDUAL) {
+            return Err(ModesError::Check {
+                mode: j,
+                what: format!("relative residual {rel:.2e} > {MAX_RESIDUAL:e}"),
+            });
+        }
+        residuals.push(rel);
+        m_phi.extend_from_slice(&mx);
+    }
+    let mut orthonormality_error = 0.0f64;
+    for a in 0..count {
+        for b in 0..=a {
+            let dot: f64 = vectors[a * n..(a + 1) * n]
+                .iter()
+                .zip(&m_phi[b * n..(b + 1) * n])
+                .map(|(x, y)| x * y)
+                .sum();
+            let target = if a == b { 1.0 } else { 0.0 };
+            orthonormality_error = orthonormality_error.max((dot - target).abs());
+        }
+    }
+    Ok(Modes {
+        eigenvalues,
+        vectors,
+        rigid_dropped: rigid,
+        residuals,
+        orthonormality_error,
+        sigma,
+        factorize_s: spectrum.factorize_s,
+        eigensolve_s: spectrum.eigensolve_s + t.elapsed().as_secs_f64(),
+    })
+}

@@ -1,0 +1,238 @@
+//! `ves precompute`: scene → mesh → K, M → modes → HDF5, for the global space and each VOI.
+
+use crate::fem::{self, MassProperties};
+use crate::linsolve::nested_dissection;
+use crate::mesh::{self, Mesh};
+use crate::modes::{self, EigenProblem, EigenSolver, Modes};
+use crate::rigid::free_rigid_count;
+use crate::scene::{Scene, Voi};
+use crate::store;
+use crate::supports::{self, Dofs};
+use anyhow::{Context, Result};
+use serde::Serialize;
+use std::path::Path;
+use std::time::Instant;
+
+/// Which eigen-solver to use.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub enum SolverChoice {
+    /// Dense for tiny problems (≤ 1500 unknowns), ARPACK otherwise.
+    Auto,
+    /// ARPACK shift-invert with a sparse Cholesky factor.
+    Arpack,
+    /// Dense generalized eigen-solve (small meshes only).
+    Dense,
+}
+
+/// Seconds per stage.
+#[derive(Clone, Copy, Debug, Default, Serialize)]
+pub struct Timings {
+    /// Meshing (gmsh).
+    pub mesh: f64,
+    /// Assembly of K and M.
+    pub assemble: f64,
+    /// Ordering and factorisation of K − σM.
+    pub factorize: f64,
+    /// Lanczos iteration and checks.
+    pub eigensolve: f64,
+    /// Writing the file.
+    pub write: f64,
+    /// Everything.
+    pub total: f64,
+}
+
+impl Timings {
+    fn add(&mut self, o: &Timings) {
+        self.mesh += o.mesh;
+        self.assemble += o.assemble;
+        self.factorize += o.factorize;
+        self.eigensolve += o.eigensolve;
+    }
+}
+
+/// One solved modal space.
+pub struct SolvedSpace {
+    /// "global" or the VOI name.
+    pub name: String,
+    /// The VOI, if any.
+    pub voi: Option<Voi>,
+    /// The mesh.
+    pub mesh: Mesh,
+    /// DOF numbering.
+    pub dofs: Dofs,
+    /// Elastic modes.
+    pub modes: Modes,
+    /// Mass properties.
+    pub mass: MassProperties,
+    /// Stage times.
+    pub timings: Timings,
+}
+
+/// The assembled problem of one space, before the eigen-solve (also used by tests and checks).
+pub struct Discretized {
+    /// The mesh.
+    pub mesh: Mesh,
+    /// DOF numbering.
+    pub dofs: Dofs,
+    /// K, M and the node graph.
+    pub system: fem::Assembled,
+    /// Rigid motions left by the supports.
+    pub rigid: usize,
+}
+
+/// Meshes and assembles one space.
+pub fn discretize(scene: &Scene, voi: Option<&Voi>, timings: &mut Timings) -> Result<Discretized> {
+    let t = Instant::now();
+    let mesh = mesh::generate(scene, voi)?;
+    timings.mesh = t.elapsed().as_secs_f64();
+    tracing::info!(nodes = mesh.nodes.len(), tets = mesh.tet_count(), "meshed");
+    let t = Instant::now();
+    let dofs = supports::select(&mesh, &scene.fixed).with_context(|| scene.path.display().to_string())?;
+    let m = &scene.material;
+    let system = fem::assemble(&mesh, m.young, m.poisson, m.density, &dofs)
+        .with_context(|| scene.geometry.display().to_string())?;
+    let rigid = free_rigid_count(&mesh.nodes, &dofs);
+    timings.assemble = t.elapsed().as_secs_f64();
+    Ok(Discretized {
+        mesh,
+        dofs,
+        system,
+        rigid,
+    })
+}
+
+/// Solves the eigenproblem of a discretized space.
+pub fn solve(d: &Discretized, count: usize, choice: SolverChoice) -> Result<(Modes, f64)> {
+    let t = Instant::now();
+    let problem = EigenProblem {
+        pattern: &d.system.pattern,
+        k: &d.system.k,
+        m: &d.system.m,
+    };
+    let dense = match choice {
+        SolverChoice::Dense => true,
+        SolverChoice::Arpack => false,
+        SolverChoice::Auto => problem.size() <= 1500,
+    };
+    let ordering;
+    let solver: Box<dyn EigenSolver> = if dense {
+        Box::new(modes::dense::Dense)
+    } else {
+        ordering = nested_dissection(&d.system.graph, &d.dofs);
+        Box::new(modes::arpack::Arpack {
+            ordering: &ordering,
+            tol: 1e-12,
+        })
+    };
+    let ordering_s = t.elapsed().as_secs_f64();
+    let modes = modes::compute(&problem, &d.dofs, d.rigid, count, solver.as_ref())?;
+    Ok((modes, ordering_s))
+}
+
+/// Meshes, assembles and solves one space.
+pub fn solve_space(scene: &Scene, voi: Option<&Voi>, choice: SolverChoice) -> Result<SolvedSpace> {
+    let mut timings = Timings::default();
+    let d = discretize(scene, voi, &mut timings)?;
+    let (modes, ordering_s) = solve(&d, scene.modes.count, choice)?;
+    timings.factorize = ordering_s + modes.factorize_s;
+    timings.eigensolve = modes.eigensolve_s;
+    let name = voi.map_or("global".to_string(), |v| v.name.clone());
+    Ok(SolvedSpace {
+        name,
+        voi: voi.cloned(),
+        mass: d.system.mass,
+        mesh: d.mesh,
+        dofs: d.dofs,
+        modes,
+        timings,
+    })
+}
+
+/// The `--json` summary (DESIGN.md §3).
+#[derive(Debug, Serialize)]
+pub struct Summary {
+    /// Output file.
+    pub output: String,
+    /// Spaces, global first.
+    pub spaces: Vec<SpaceSummary>,
+    /// Stage times summed over spaces.
+    pub timings_s: Timings,
+}
+
+/// One space in the summary.
+#[derive(Debug, Serialize)]
+pub struct SpaceSummary {
+    /// Name.
+    pub name: String,
+    /// Mesh nodes.
+    pub nodes: usize,
+    /// Tets.
+    pub tets: usize,
+    /// Free DOFs.
+    pub dofs: usize,
+    /// Elastic frequencies.
+    pub frequencies_hz: Vec<f64>,
+    /// Largest relative residual.
+    pub max_relative_residual: f64,
+    /// max |ΦᵀMΦ − I|.
+    pub orthonormality_error: f64,
+    /// Rigid modes dropped.
+    pub rigid_modes_dropped: usize,
+}
+
+/// Runs the whole pipeline for a scene and writes `out`.
+pub fn run(scene: &Scene, out: &Path, choice: SolverChoice) -> Result<Summary> {
+    let start = Instant::now();
+    let mut spaces = Vec::with_capacity(1 + scene.voi.len());
+    let targets: Vec<Option<&Voi>> = std::iter::once(None).chain(scene.voi.iter().map(Some)).collect();
+    let bar = crate::progress::bar(targets.len() as u64, "spaces");
+    for voi in targets {
+        let name = voi.map_or("global", |v| v.name.as_str());
+        bar.set_message(format!("space {name}"));
+        let s = solve_space(scene, voi, choice).with_context(|| format!("space {name:?}"))?;
+        tracing::info!(
+            space = name,
+            f1_hz = s.modes.frequencies_hz().first().copied().unwrap_or(0.0),
+            "solved"
+        );
+        spaces.push(s);
+        bar.inc(1);
+    }
+    bar.finish_and_clear();
+    let t = Instant::now();
+    let views: Vec<store::Space<'_>> = spaces
+        .iter()
+        .map(|s| store::Space {
+            name: &s.name,
+            voi: s.voi.as_ref(),
+            mesh: &s.mesh,
+            dofs: &s.dofs,
+            modes: &s.modes,
+            mass: &s.mass,
+        })
+        .collect();
+    store::write(out, scene, &views)?;
+    let mut timings = Timings::default();
+    for s in &spaces {
+        timings.add(&s.timings);
+    }
+    timings.write = t.elapsed().as_secs_f64();
+    timings.total = start.elapsed().as_secs_f64();
+    Ok(Summary {
+        output: out.display().to_string(),
+        spaces: spaces
+            .iter()
+            .map(|s| SpaceSummary {
+                name: s.name.clone(),
+                nodes: s.mesh.nodes.len(),
+                tets: s.mesh.tet_count(),
+                dofs: s.dofs.free_count(),
+                frequencies_hz: s.modes.frequencies_hz(),
+                max_relative_residual: s.modes.residuals.iter().fold(0.0, |a: f64, &b| a.max(b)),
+                orthonormality_error: s.modes.orthonormality_error,
+                rigid_modes_dropped: s.modes.rigid_dropped,
+            })
+            .collect(),
+        timings_s: timings,
+    })
+}

@@ -1,0 +1,104 @@
+//! Rigid-body motions: how many the supports leave free, and the vectors themselves.
+
+use crate::supports::Dofs;
+
+/// The six rigid motions sampled at the nodes (full DOF vectors): three translations, then
+/// rotations about the axes through `center`, scaled by 1/`length` so all six are O(1).
+pub fn rigid_motions(nodes: &[[f64; 3]], center: [f64; 3], length: f64) -> [Vec<f64>; 6] {
+    std::array::from_fn(|r| {
+        let mut u = vec![0.0; 3 * nodes.len()];
+        for (i, p) in nodes.iter().enumerate() {
+            let x = [
+                (p[0] - center[0]) / length,
+                (p[1] - center[1]) / length,
+                (p[2] - center[2]) / length,
+            ];
+            let d = match r {
+                0 => [1.0, 0.0, 0.0],
+                1 => [0.0, 1.0, 0.0],
+                2 => [0.0, 0.0, 1.0],
+                3 => [0.0, -x[2], x[1]],
+                4 => [x[2], 0.0, -x[0]],
+                _ => [-x[1], x[0], 0.0],
+            };
+            u[3 * i..3 * i + 3].copy_from_slice(&d);
+        }
+        u
+    })
+}
+
+/// Number of rigid motions the supports do not prevent: 6 − rank of the rigid motions
+/// restricted to the supported DOFs. 6 for a free body, 0 for a clamped one, 3 for a plate
+/// supported only out of plane.
+pub fn free_rigid_count(nodes: &[[f64; 3]], dofs: &Dofs) -> usize {
+    if dofs.fixed.is_empty() {
+        return 6;
+    }
+    let (mut lo, mut hi) = ([f64::INFINITY; 3], [f64::NEG_INFINITY; 3]);
+    for p in nodes {
+        for c in 0..3 {
+            lo[c] = lo[c].min(p[c]);
+            hi[c] = hi[c].max(p[c]);
+        }
+    }
+    let center = [(lo[0] + hi[0]) / 2.0, (lo[1] + hi[1]) / 2.0, (lo[2] + hi[2]) / 2.0];
+    let length = (0..3).map(|c| hi[c] - lo[c]).fold(0.0, f64::max).max(f64::MIN_POSITIVE);
+    let modes = rigid_motions(nodes, center, length);
+    // Gram matrix of the restrictions to the fixed DOFs; its rank is the constrained count.
+    let gram = faer::Mat::<f64>::from_fn(6, 6, |a, b| {
+        dofs.fixed
+            .iter()
+            .map(|&d| modes[a][d as usize] * modes[b][d as usize])
+            .sum()
+    });
+    let eig = match gram.self_adjoint_eigenvalues(faer::Side::Lower) {
+        Ok(e) => e,
+        Err(_) => return 6,
+    };
+    let top = eig.iter().fold(0.0f64, |a, &v| a.max(v.abs()));
+    let rank = eig.iter().filter(|&&v| v > 1e-10 * top).count();
+    6 - rank
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::mesh::Mesh;
+    use crate::scene::{Region, Support};
+    use crate::supports::select;
+
+    fn cube() -> Mesh {
+        // Unit cube split into 6 tets around the diagonal 0–6.
+        let c: Vec<[f64; 3]> = (0..8)
+            .map(|i| [(i & 1) as f64, ((i >> 1) & 1) as f64, ((i >> 2) & 1) as f64])
+            .collect();
+        let tets = [0, 1, 3, 7, 0, 1, 5, 7, 0, 4, 5, 7, 0, 2, 3, 7, 0, 2, 6, 7, 0, 4, 6, 7];
+        Mesh::from_raw(&c, &tets, 1)
+    }
+
+    fn count(supports: &[Support]) -> usize {
+        let m = cube();
+        free_rigid_count(&m.nodes, &select(&m, supports).expect("supports select nodes"))
+    }
+
+    #[test]
+    fn counts_rigid_motions_left_by_supports() {
+        let plane = |axis, value, components| Support {
+            region: Region::Plane { axis, value, tol: None },
+            components,
+        };
+        assert_eq!(count(&[]), 6);
+        assert_eq!(count(&[plane(2, 0.0, [true; 3])]), 0);
+        // Out-of-plane support of a face: in-plane translations and the rotation about z remain.
+        assert_eq!(count(&[plane(2, 0.0, [false, false, true])]), 3);
+        // One clamped edge (x = 0, z = 0 is a line): rotation about it remains.
+        let edge = Support {
+            region: Region::Box(crate::scene::BoxRegion {
+                min: [0.0, -1.0, 0.0],
+                max: [0.0, 2.0, 0.0],
+            }),
+            components: [true; 3],
+        };
+        assert_eq!(count(&[edge]), 1);
+    }
+}

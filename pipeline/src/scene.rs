@@ -1,0 +1,387 @@
+//! Scene file, version 1 (DESIGN.md §3): parsing and validation.
+//!
+//! Parsing is strict: unknown keys are errors, and every error names the file, the key and what
+//! to change. A [`Scene`] that exists has passed validation, and its paths are absolute.
+
+use serde::Deserialize;
+use std::path::{Path, PathBuf};
+
+/// A scene that failed to load; the message names the file, the key and the reason.
+#[derive(Debug, thiserror::Error)]
+#[error("{file}: {message}")]
+pub struct SceneError {
+    /// The scene file.
+    pub file: PathBuf,
+    /// What is wrong and what to change.
+    pub message: String,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawScene {
+    name: Option<String>,
+    geometry: RawGeometry,
+    material: Material,
+    mesh: MeshSettings,
+    #[serde(default)]
+    fixed: Vec<RawFixed>,
+    modes: ModeSettings,
+    #[serde(default)]
+    damping: Damping,
+    #[serde(default)]
+    voi: Vec<Voi>,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawGeometry {
+    step: PathBuf,
+    unit: LengthUnit,
+}
+
+/// Unit of the geometry file's coordinates.
+#[derive(Clone, Copy, Debug, Deserialize, PartialEq, Eq)]
+pub enum LengthUnit {
+    /// Metres.
+    #[serde(rename = "m")]
+    Metre,
+    /// Millimetres.
+    #[serde(rename = "mm")]
+    Millimetre,
+}
+
+impl LengthUnit {
+    /// Metres per unit.
+    pub fn to_metres(self) -> f64 {
+        match self {
+            LengthUnit::Metre => 1.0,
+            LengthUnit::Millimetre => 1e-3,
+        }
+    }
+}
+
+/// Isotropic linear-elastic material (SI units).
+#[derive(Clone, Copy, Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Material {
+    /// Young's modulus, Pa.
+    pub young: f64,
+    /// Poisson's ratio.
+    pub poisson: f64,
+    /// Density, kg/m³.
+    pub density: f64,
+}
+
+/// Meshing settings.
+#[derive(Clone, Copy, Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct MeshSettings {
+    /// Target element size, m.
+    pub size: f64,
+    /// 1 = 4-node tets, 2 = 10-node tets.
+    pub order: u8,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawFixed {
+    plane: Option<RawPlane>,
+    #[serde(rename = "box")]
+    bbox: Option<BoxRegion>,
+    components: Option<Vec<String>>,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawPlane {
+    axis: String,
+    value: f64,
+    tol: Option<f64>,
+}
+
+/// Axis-aligned box, metres.
+#[derive(Clone, Copy, Debug, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct BoxRegion {
+    /// Lower corner.
+    pub min: [f64; 3],
+    /// Upper corner.
+    pub max: [f64; 3],
+}
+
+impl BoxRegion {
+    /// Whether `p` lies in the box (boundary included, widened by `tol`).
+    pub fn contains(&self, p: [f64; 3], tol: f64) -> bool {
+        (0..3).all(|c| p[c] >= self.min[c] - tol && p[c] <= self.max[c] + tol)
+    }
+}
+
+/// Where a support acts.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Region {
+    /// Nodes with |x[axis] − value| ≤ tol; `tol = None` means 1e-6 × part size.
+    Plane {
+        /// 0, 1, 2 for x, y, z.
+        axis: usize,
+        /// Coordinate of the plane, m.
+        value: f64,
+        /// Tolerance, m.
+        tol: Option<f64>,
+    },
+    /// Nodes inside a box.
+    Box(BoxRegion),
+}
+
+/// One supported region: the nodes it selects have `components` fixed to zero.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Support {
+    /// Selected nodes.
+    pub region: Region,
+    /// Fixed displacement components (x, y, z).
+    pub components: [bool; 3],
+}
+
+/// Modes to keep.
+#[derive(Clone, Copy, Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ModeSettings {
+    /// Number of elastic modes kept.
+    pub count: usize,
+}
+
+/// Rayleigh damping D = αM + βK.
+#[derive(Clone, Copy, Debug, Default, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Damping {
+    /// Mass-proportional coefficient, 1/s.
+    #[serde(default)]
+    pub alpha: f64,
+    /// Stiffness-proportional coefficient, s.
+    #[serde(default)]
+    pub beta: f64,
+}
+
+/// A volume of interest: meshed finer, it yields its own modal space.
+#[derive(Clone, Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Voi {
+    /// Name of the space.
+    pub name: String,
+    /// Where it is, m.
+    #[serde(rename = "box")]
+    pub bbox: BoxRegion,
+    /// Element size inside, m.
+    pub size: f64,
+}
+
+/// A validated scene.
+#[derive(Clone, Debug)]
+pub struct Scene {
+    /// Scene name (default: the file stem).
+    pub name: String,
+    /// The scene file itself.
+    pub path: PathBuf,
+    /// Its text, stored verbatim in the basis file.
+    pub toml: String,
+    /// Geometry file, absolute.
+    pub geometry: PathBuf,
+    /// Unit of the geometry file's coordinates.
+    pub unit: LengthUnit,
+    /// Material.
+    pub material: Material,
+    /// Mesh settings.
+    pub mesh: MeshSettings,
+    /// Supports (empty: free body).
+    pub fixed: Vec<Support>,
+    /// Modes kept.
+    pub modes: ModeSettings,
+    /// Damping.
+    pub damping: Damping,
+    /// Volumes of interest.
+    pub voi: Vec<Voi>,
+}
+
+const GEOMETRY_EXTENSIONS: [&str; 5] = ["step", "stp", "brep", "geo", "iges"];
+
+impl Scene {
+    /// Reads and validates a scene file.
+    pub fn load(path: &Path) -> Result<Scene, SceneError> {
+        let err = |message: String| SceneError {
+            file: path.to_path_buf(),
+            message,
+        };
+        let text = std::fs::read_to_string(path).map_err(|e| err(format!("cannot read the scene file: {e}")))?;
+        Self::parse(path, &text)
+    }
+
+    /// Parses scene text as if read from `path` (relative paths resolve beside it).
+    pub fn parse(path: &Path, text: &str) -> Result<Scene, SceneError> {
+        let err = |message: String| SceneError {
+            file: path.to_path_buf(),
+            message,
+        };
+        let raw: RawScene = toml::from_str(text).map_err(|e| err(one_line_toml_error(&e)))?;
+        let dir = path.parent().unwrap_or(Path::new("."));
+        let dir = std::path::absolute(dir).unwrap_or_else(|_| dir.to_path_buf());
+
+        let m = raw.material;
+        finite_positive("material.young", m.young, "Pa").map_err(err)?;
+        finite_positive("material.density", m.density, "kg/m³").map_err(err)?;
+        if !m.poisson.is_finite() || m.poisson <= -1.0 || m.poisson >= 0.5 {
+            return Err(err(format!(
+                "material.poisson = {}: Poisson's ratio must lie in (-1, 0.5); use 0.49 or less for nearly incompressible materials",
+                m.poisson
+            )));
+        }
+        finite_positive("mesh.size", raw.mesh.size, "m").map_err(err)?;
+        if !matches!(raw.mesh.order, 1 | 2) {
+            return Err(err(format!(
+                "mesh.order = {}: must be 1 (4-node tets) or 2 (10-node tets)",
+                raw.mesh.order
+            )));
+        }
+        if raw.modes.count == 0 || raw.modes.count > 2000 {
+            return Err(err(format!(
+                "modes.count = {}: must be between 1 and 2000",
+                raw.modes.count
+            )));
+        }
+        for (key, v) in [("damping.alpha", raw.damping.alpha), ("damping.beta", raw.damping.beta)] {
+            if !v.is_finite() || v < 0.0 {
+                return Err(err(format!(
+                    "{key} = {v}: Rayleigh coefficients must be finite and ≥ 0"
+                )));
+            }
+        }
+
+        let geometry = dir.join(&raw.geometry.step);
+        let ext = geometry
+            .extension()
+            .and_then(|e| e.to_str())
+            .map(str::to_ascii_lowercase)
+            .unwrap_or_default();
+        if !GEOMETRY_EXTENSIONS.contains(&ext.as_str()) {
+            return Err(err(format!(
+                "geometry.step = {:?}: unsupported file type; use a .step/.stp, .iges, .brep or .geo file",
+                raw.geometry.step
+            )));
+        }
+        if !geometry.is_file() {
+            return Err(err(format!(
+                "geometry.step = {:?}: file not found at {}",
+                raw.geometry.step,
+                geometry.display()
+            )));
+        }
+
+        let mut fixed = Vec::with_capacity(raw.fixed.len());
+        for (i, f) in raw.fixed.iter().enumerate() {
+            fixed.push(support(i, f).map_err(err)?);
+        }
+        let mut names = vec!["global".to_string()];
+        for (i, v) in raw.voi.iter().enumerate() {
+            finite_positive(&format!("voi[{i}].size"), v.size, "m").map_err(err)?;
+            check_box(&format!("voi[{i}].box"), &v.bbox).map_err(err)?;
+            if v.name.is_empty() || v.name.contains('/') || names.contains(&v.name) {
+                return Err(err(format!(
+                    "voi[{i}].name = {:?}: names must be non-empty, unique, without '/', and not \"global\"",
+                    v.name
+                )));
+            }
+            names.push(v.name.clone());
+        }
+        let name = raw.name.unwrap_or_else(|| {
+            path.file_stem()
+                .map(|s| s.to_string_lossy().into_owned())
+                .unwrap_or_default()
+        });
+        Ok(Scene {
+            name,
+            path: path.to_path_buf(),
+            toml: text.to_string(),
+            geometry,
+            unit: raw.geometry.unit,
+            material: m,
+            mesh: raw.mesh,
+            fixed,
+            modes: raw.modes,
+            damping: raw.damping,
+            voi: raw.voi,
+        })
+    }
+}
+
+/// toml's messages span several lines (with a source excerpt); keep one line with the key.
+fn one_line_toml_error(e: &toml::de::Error) -> String {
+    let msg = e.message().trim().replace('\n', " ");
+    match e.span() {
+        Some(span) => format!("invalid scene (at byte {}): {msg}", span.start),
+        None => format!("invalid scene: {msg}"),
+    }
+}
+
+fn finite_positive(key: &str, v: f64, unit: &str) -> Result<(), String> {
+    if v.is_finite() && v > 0.0 {
+        Ok(())
+    } else {
+        Err(format!("{key} = {v}: must be a finite number > 0 ({unit})"))
+    }
+}
+
+fn check_box(key: &str, b: &BoxRegion) -> Result<(), String> {
+    if b.min.iter().chain(&b.max).any(|v| !v.is_finite()) || (0..3).any(|c| b.min[c] > b.max[c]) {
+        return Err(format!(
+            "{key}: min {:?} and max {:?} must be finite with min ≤ max on each axis",
+            b.min, b.max
+        ));
+    }
+    Ok(())
+}
+
+fn axis_index(key: &str, s: &str) -> Result<usize, String> {
+    match s {
+        "x" => Ok(0),
+        "y" => Ok(1),
+        "z" => Ok(2),
+        _ => Err(format!("{key} = {s:?}: must be \"x\", \"y\" or \"z\"")),
+    }
+}
+
+fn support(i: usize, f: &RawFixed) -> Result<Support, String> {
+    let region = match (&f.plane, &f.bbox) {
+        (Some(p), None) => {
+            let axis = axis_index(&format!("fixed[{i}].plane.axis"), &p.axis)?;
+            if !p.value.is_finite() {
+                return Err(format!("fixed[{i}].plane.value = {}: must be finite", p.value));
+            }
+            if let Some(t) = p.tol {
+                finite_positive(&format!("fixed[{i}].plane.tol"), t, "m")?;
+            }
+            Region::Plane {
+                axis,
+                value: p.value,
+                tol: p.tol,
+            }
+        }
+        (None, Some(b)) => {
+            check_box(&format!("fixed[{i}].box"), b)?;
+            Region::Box(*b)
+        }
+        _ => return Err(format!("fixed[{i}]: give exactly one of `plane` or `box`")),
+    };
+    let mut components = [false; 3];
+    match &f.components {
+        None => components = [true; 3],
+        Some(list) if list.is_empty() => {
+            return Err(format!(
+                "fixed[{i}].components: empty; list at least one of \"x\", \"y\", \"z\""
+            ));
+        }
+        Some(list) => {
+            for s in list {
+                components[axis_index(&format!("fixed[{i}].components"), s)?] = true;
+            }
+        }
+    }
+    Ok(Support { region, components })
+}

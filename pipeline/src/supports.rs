@@ -1,0 +1,103 @@
+//! Supported degrees of freedom: which DOFs the scene's `[[fixed]]` regions remove.
+
+use crate::mesh::Mesh;
+use crate::scene::{Region, Support};
+
+/// Numbering of the free DOFs (full index `3·node + component`).
+#[derive(Clone, Debug)]
+pub struct Dofs {
+    /// Total DOFs, 3 × nodes.
+    pub total: usize,
+    /// Supported DOFs, ascending.
+    pub fixed: Vec<u32>,
+    /// Full index → free index, or `u32::MAX` when supported.
+    pub free_of: Vec<u32>,
+    /// Free index → full index (ascending, so the map preserves order).
+    pub free: Vec<u32>,
+}
+
+impl Dofs {
+    /// Number of unknowns.
+    pub fn free_count(&self) -> usize {
+        self.free.len()
+    }
+
+    /// Expands a vector over free DOFs to all DOFs (zeros where supported).
+    pub fn expand(&self, reduced: &[f64]) -> Vec<f64> {
+        let mut full = vec![0.0; self.total];
+        for (r, &f) in reduced.iter().zip(&self.free) {
+            full[f as usize] = *r;
+        }
+        full
+    }
+}
+
+/// A support selects nothing; the message says where the part is.
+#[derive(Debug, thiserror::Error)]
+#[error("fixed[{index}] ({what}) selects no node of the mesh; {hint}")]
+pub struct EmptySupport {
+    /// Index of the `[[fixed]]` table.
+    pub index: usize,
+    /// The region, in words.
+    pub what: String,
+    /// Where the part lies, to help fix the value.
+    pub hint: String,
+}
+
+/// Applies the supports to the mesh's nodes (corner and mid-edge alike).
+pub fn select(mesh: &Mesh, supports: &[Support]) -> Result<Dofs, EmptySupport> {
+    let n = mesh.nodes.len();
+    let mut fixed_mask = vec![false; 3 * n];
+    let (lo, hi) = mesh.bounding_box();
+    let default_tol = 1e-6 * mesh.diameter();
+    for (index, s) in supports.iter().enumerate() {
+        let (hits, what, hint): (Box<dyn Fn([f64; 3]) -> bool>, String, String) = match s.region {
+            Region::Plane { axis, value, tol } => {
+                let t = tol.unwrap_or(default_tol);
+                let name = ["x", "y", "z"][axis];
+                (
+                    Box::new(move |p: [f64; 3]| (p[axis] - value).abs() <= t),
+                    format!("plane {name} = {value} m, tol {t:.3e} m"),
+                    format!(
+                        "the part spans {name} from {:.6} to {:.6} m: change `value` (in metres) or raise `tol`",
+                        lo[axis], hi[axis]
+                    ),
+                )
+            }
+            Region::Box(b) => (
+                Box::new(move |p: [f64; 3]| b.contains(p, default_tol)),
+                format!("box {:?}..{:?} m", b.min, b.max),
+                format!("the part spans {lo:.6?} to {hi:.6?} m: move or enlarge the box (in metres)"),
+            ),
+        };
+        let mut any = false;
+        for (i, p) in mesh.nodes.iter().enumerate() {
+            if hits(*p) {
+                any = true;
+                for c in 0..3 {
+                    fixed_mask[3 * i + c] |= s.components[c];
+                }
+            }
+        }
+        if !any {
+            return Err(EmptySupport { index, what, hint });
+        }
+    }
+    let mut free_of = vec![u32::MAX; 3 * n];
+    let mut free = Vec::with_capacity(3 * n);
+    let mut fixed = Vec::new();
+    for (d, &f) in fixed_mask.iter().enumerate() {
+        if f {
+            fixed.push(d as u32);
+        } else {
+            free_of[d] = free.len() as u32;
+            free.push(d as u32);
+        }
+    }
+    Ok(Dofs {
+        total: 3 * n,
+        fixed,
+        free_of,
+        free,
+    })
+}
