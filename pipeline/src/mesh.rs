@@ -188,7 +188,15 @@ pub fn generate(scene: &Scene, voi: Option<&Voi>) -> Result<Mesh, MeshError> {
     let h = scene.mesh.size / scale;
     session.set_number("Mesh.MeshSizeMax", h).map_err(g)?;
     session.set_number("Mesh.MeshSizeMin", 0.0).map_err(g)?;
-    session.set_number("Mesh.Algorithm3D", 10.0).map_err(g)?; // HXT: fastest here (DEPENDENCIES.md)
+    session
+        .set_number(
+            "Mesh.Algorithm3D",
+            std::env::var("VES_ALGO3D")
+                .ok()
+                .and_then(|v| v.parse().ok())
+                .unwrap_or(10.0),
+        )
+        .map_err(g)?; // HXT: fastest here (DEPENDENCIES.md)
     let threads = std::thread::available_parallelism().map(|n| n.get()).unwrap_or(1);
     session.set_number("General.NumThreads", threads as f64).map_err(g)?;
     if let Some(v) = voi {

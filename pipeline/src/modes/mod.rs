@@ -162,7 +162,7 @@ pub fn compute(
     }
     // σ a little below zero relative to the mesh's stiffness scale: K − σM is SPD even for a
     // free body, and the lowest modes are the ones nearest σ.
-    let sigma = -1e-8 * problem.stiffness_scale();
+    let sigma = -1e-6 * problem.stiffness_scale();
     let spectrum = solver.lowest(problem, nev, sigma)?;
     let t = Instant::now();
     let vals = &spectrum.values;
