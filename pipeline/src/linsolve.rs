@@ -153,7 +153,7 @@ impl Cholesky {
         let mut l = vec![0.0; symbolic.len_val()];
         let req = symbolic
             .factorize_numeric_llt_scratch::<f64>(par, Default::default())
-            .or(symbolic.solve_in_place_scratch::<f64>(1, par));
+            .or(symbolic.solve_in_place_scratch::<f64>(1, Par::Seq));
         let mut stack = MemBuffer::new(req);
         symbolic
             .factorize_numeric_llt(
@@ -166,11 +166,13 @@ impl Cholesky {
                 Default::default(),
             )
             .map_err(|_| FactorError::NotPositiveDefinite { sigma })?;
+        tracing::debug!(factor_values = l.len(), "factorised");
+        // One right-hand side: a parallel solve only adds synchronisation.
         Ok(Cholesky {
             symbolic,
             values: l,
             stack,
-            par,
+            par: Par::Seq,
         })
     }
 
