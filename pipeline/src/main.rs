@@ -35,6 +35,14 @@ enum Command {
         #[arg(long, value_enum, default_value_t = SolverChoice::Auto)]
         solver: SolverChoice,
     },
+    /// Export the assembled K and M (global space, free DOFs) to HDF5 for external solvers.
+    Matrices {
+        /// Scene file (TOML, version 1).
+        scene: PathBuf,
+        /// Output file (HDF5).
+        #[arg(short, long)]
+        output: PathBuf,
+    },
     /// Summarise a modal-basis file.
     Info {
         /// Basis file (HDF5).
@@ -74,6 +82,17 @@ fn run(cli: Cli) -> Result<()> {
                 }
                 println!("wrote {} in {:.2} s", summary.output, summary.timings_s.total);
             }
+        }
+        Command::Matrices { scene, output } => {
+            let scene = Scene::load(&scene)?;
+            let d = precompute::discretize(&scene, None, &mut precompute::Timings::default())?;
+            ves_pipeline::export::write_matrices(&output, &d)?;
+            println!(
+                "wrote {} ({} unknowns, {} rigid modes)",
+                output.display(),
+                d.dofs.free_count(),
+                d.rigid
+            );
         }
         Command::Info { basis, json } => {
             let info = store::info(&basis)?;

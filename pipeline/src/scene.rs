@@ -220,7 +220,7 @@ impl Scene {
             file: path.to_path_buf(),
             message,
         };
-        let raw: RawScene = toml::from_str(text).map_err(|e| err(one_line_toml_error(&e)))?;
+        let raw: RawScene = toml::from_str(text).map_err(|e| err(one_line_toml_error(text, &e)))?;
         let dir = path.parent().unwrap_or(Path::new("."));
         let dir = std::path::absolute(dir).unwrap_or_else(|_| dir.to_path_buf());
 
@@ -311,11 +311,17 @@ impl Scene {
     }
 }
 
-/// toml's messages span several lines (with a source excerpt); keep one line with the key.
-fn one_line_toml_error(e: &toml::de::Error) -> String {
+/// toml's messages span several lines (with a source excerpt); keep one line that shows the
+/// offending line of the file, which names the key.
+fn one_line_toml_error(text: &str, e: &toml::de::Error) -> String {
     let msg = e.message().trim().replace('\n', " ");
     match e.span() {
-        Some(span) => format!("invalid scene (at byte {}): {msg}", span.start),
+        Some(span) => {
+            let start = span.start.min(text.len());
+            let line_no = text[..start].matches('\n').count() + 1;
+            let line = text.lines().nth(line_no - 1).unwrap_or("").trim();
+            format!("line {line_no} (`{line}`): {msg}")
+        }
         None => format!("invalid scene: {msg}"),
     }
 }

@@ -1,0 +1,39 @@
+//! `ves matrices`: the assembled K and M of a scene's global space, for external solvers and
+//! benchmarks (scipy reads them with h5py). Lower triangles in CSC form on the free DOFs.
+
+use crate::precompute::Discretized;
+use anyhow::{Context, Result};
+use ndarray::{Array1, Array2};
+use std::path::Path;
+
+/// Writes `col_ptr`, `row_idx`, `k`, `m` (lower-triangle CSC), `free_dofs`, `nodes`, `tets`.
+pub fn write_matrices(out: &Path, d: &Discretized) -> Result<()> {
+    let file = hdf5::File::create(out).with_context(|| format!("cannot create {}", out.display()))?;
+    let p = &d.system.pattern;
+    let as_u64 = |v: &[usize]| Array1::from(v.iter().map(|&x| x as u64).collect::<Vec<_>>());
+    file.new_dataset_builder()
+        .with_data(&as_u64(p.col_ptr()))
+        .create("col_ptr")?;
+    file.new_dataset_builder()
+        .with_data(&as_u64(p.row_idx()))
+        .create("row_idx")?;
+    file.new_dataset_builder()
+        .with_data(&Array1::from(d.system.k.clone()))
+        .create("k")?;
+    file.new_dataset_builder()
+        .with_data(&Array1::from(d.system.m.clone()))
+        .create("m")?;
+    file.new_dataset_builder()
+        .with_data(&Array1::from(d.dofs.free.clone()))
+        .create("free_dofs")?;
+    let n = d.mesh.nodes.len();
+    file.new_dataset_builder()
+        .with_data(&Array2::from_shape_fn((n, 3), |(i, c)| d.mesh.nodes[i][c]))
+        .create("nodes")?;
+    let tets = Array2::from_shape_vec((d.mesh.tet_count(), d.mesh.nodes_per_tet()), d.mesh.tets.clone())?;
+    file.new_dataset_builder().with_data(&tets).create("tets")?;
+    file.new_attr::<u32>()
+        .create("rigid_modes")?
+        .write_scalar(&(d.rigid as u32))?;
+    Ok(())
+}

@@ -1,0 +1,197 @@
+//! The `ves` binary end to end: a good run, and bad input that must give one clear line, a
+//! non-zero exit and no output file (an existing one left untouched).
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+const GOOD: &str = r#"
+name = "beam"
+[geometry]
+step = "beam.step"
+unit = "mm"
+[material]
+young = 2.1e11
+poisson = 0.3
+density = 7850.0
+[mesh]
+size = 0.05
+order = 1
+[[fixed]]
+plane = { axis = "x", value = 0.0 }
+[modes]
+count = 4
+"#;
+
+fn ves(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_ves"))
+        .args(args)
+        .output()
+        .expect("ves runs")
+}
+
+/// A directory holding the cantilever STEP file as `beam.step` and `scene` as `scene.toml`.
+fn workdir(scene: &str) -> (tempfile::TempDir, PathBuf) {
+    let dir = tempfile::tempdir().expect("temp dir");
+    let step = Path::new(env!("CARGO_MANIFEST_DIR")).join("../cases/cantilever/cantilever.step");
+    std::fs::copy(step, dir.path().join("beam.step")).expect("copy step");
+    let path = dir.path().join("scene.toml");
+    std::fs::write(&path, scene).expect("write scene");
+    (dir, path)
+}
+
+/// Runs `ves precompute` on a bad scene and checks the contract for failures.
+fn fails(scene: &str, expect: &[&str]) {
+    let (dir, path) = workdir(scene);
+    let out = dir.path().join("out.h5");
+    std::fs::write(&out, b"previous result").expect("sentinel");
+    let o = ves(&["precompute", path.to_str().unwrap(), "-o", out.to_str().unwrap()]);
+    let stderr = String::from_utf8_lossy(&o.stderr);
+    assert!(!o.status.success(), "should fail: {stderr}");
+    let lines: Vec<&str> = stderr.lines().filter(|l| !l.trim().is_empty()).collect();
+    assert_eq!(lines.len(), 1, "one line expected, got: {stderr}");
+    for e in expect {
+        assert!(lines[0].contains(e), "{:?} should mention {e:?}", lines[0]);
+    }
+    assert_eq!(
+        std::fs::read(&out).expect("sentinel kept"),
+        b"previous result",
+        "existing output overwritten"
+    );
+    let leftovers: Vec<_> = std::fs::read_dir(dir.path())
+        .unwrap()
+        .filter_map(|e| e.ok())
+        .map(|e| e.file_name())
+        .collect();
+    assert_eq!(leftovers.len(), 3, "files left behind: {leftovers:?}");
+}
+
+#[test]
+fn good_scene_writes_a_basis_and_json_summary() {
+    let (dir, path) = workdir(GOOD);
+    let out = dir.path().join("beam.h5");
+    let o = ves(&[
+        "precompute",
+        path.to_str().unwrap(),
+        "-o",
+        out.to_str().unwrap(),
+        "--json",
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let stdout = String::from_utf8_lossy(&o.stdout);
+    let last = stdout.lines().last().expect("json line");
+    let v: serde_json::Value = serde_json::from_str(last).expect("last line is JSON");
+    assert_eq!(v["output"], out.to_str().unwrap());
+    let space = &v["spaces"][0];
+    assert_eq!(space["name"], "global");
+    assert_eq!(space["frequencies_hz"].as_array().map(|a| a.len()), Some(4));
+    assert!(space["max_relative_residual"].as_f64().unwrap() <= 1e-8);
+    for key in ["nodes", "tets", "dofs"] {
+        assert!(space[key].as_u64().unwrap() > 0);
+    }
+    for key in ["mesh", "assemble", "factorize", "eigensolve", "write", "total"] {
+        assert!(v["timings_s"][key].as_f64().is_some(), "timing {key}");
+    }
+
+    let o = ves(&["info", out.to_str().unwrap(), "--json"]);
+    assert!(o.status.success());
+    let info: serde_json::Value = serde_json::from_slice(&o.stdout).expect("info JSON");
+    assert_eq!(info["spaces"][0]["frequencies_hz"], space["frequencies_hz"]);
+    assert_eq!(info["spaces"][0]["nodes"], space["nodes"]);
+}
+
+#[test]
+fn missing_scene_file() {
+    let o = ves(&["precompute", "/nonexistent/scene.toml"]);
+    assert!(!o.status.success());
+    assert!(String::from_utf8_lossy(&o.stderr).contains("/nonexistent/scene.toml"));
+}
+
+#[test]
+fn unknown_key_is_an_error() {
+    fails(
+        &GOOD.replace("young = 2.1e11", "young = 2.1e11\nyoungs = 1.0"),
+        &["scene.toml", "youngs"],
+    );
+}
+
+#[test]
+fn poisson_of_one_half_is_refused() {
+    fails(
+        &GOOD.replace("poisson = 0.3", "poisson = 0.5"),
+        &["material.poisson", "0.5"],
+    );
+}
+
+#[test]
+fn zero_and_negative_young_are_refused() {
+    fails(&GOOD.replace("young = 2.1e11", "young = 0.0"), &["material.young"]);
+    fails(&GOOD.replace("young = 2.1e11", "young = -2.1e11"), &["material.young"]);
+}
+
+#[test]
+fn wrong_type_is_an_error() {
+    fails(&GOOD.replace("count = 4", "count = \"four\""), &["scene.toml", "count"]);
+}
+
+#[test]
+fn support_that_selects_no_node() {
+    fails(
+        &GOOD.replace("value = 0.0", "value = 5.0"),
+        &["fixed[0]", "selects no node", "x from"],
+    );
+}
+
+#[test]
+fn missing_geometry_file() {
+    fails(
+        &GOOD.replace("beam.step", "nothere.step"),
+        &["geometry.step", "nothere.step"],
+    );
+}
+
+#[test]
+fn broken_step_file() {
+    let (dir, path) = workdir(&GOOD.replace("beam.step", "broken.step"));
+    std::fs::write(
+        dir.path().join("broken.step"),
+        "ISO-10303-21;\nHEADER;\nthis is not a STEP file\n",
+    )
+    .unwrap();
+    let out = dir.path().join("out.h5");
+    let o = ves(&["precompute", path.to_str().unwrap(), "-o", out.to_str().unwrap()]);
+    let stderr = String::from_utf8_lossy(&o.stderr);
+    assert!(!o.status.success());
+    assert_eq!(stderr.lines().filter(|l| !l.trim().is_empty()).count(), 1, "{stderr}");
+    assert!(stderr.contains("broken.step"), "{stderr}");
+    assert!(!out.exists());
+}
+
+#[test]
+fn info_refuses_foreign_and_truncated_files() {
+    let dir = tempfile::tempdir().unwrap();
+    let text = dir.path().join("notes.h5");
+    std::fs::write(&text, "not hdf5").unwrap();
+    let o = ves(&["info", text.to_str().unwrap()]);
+    assert!(!o.status.success());
+    assert!(String::from_utf8_lossy(&o.stderr).contains("not a readable HDF5 file"));
+
+    let foreign = dir.path().join("foreign.h5");
+    hdf5::File::create(&foreign).unwrap().create_group("data").unwrap();
+    let o = ves(&["info", foreign.to_str().unwrap()]);
+    assert!(!o.status.success());
+    assert!(String::from_utf8_lossy(&o.stderr).contains("not a VES modal basis"));
+
+    let (wd, path) = workdir(GOOD);
+    let good = wd.path().join("beam.h5");
+    assert!(
+        ves(&["precompute", path.to_str().unwrap(), "-o", good.to_str().unwrap()])
+            .status
+            .success()
+    );
+    let bytes = std::fs::read(&good).unwrap();
+    let cut = dir.path().join("cut.h5");
+    std::fs::write(&cut, &bytes[..bytes.len() / 2]).unwrap();
+    let o = ves(&["info", cut.to_str().unwrap()]);
+    assert!(!o.status.success(), "a truncated file must not read as a basis");
+    assert_eq!(String::from_utf8_lossy(&o.stderr).lines().count(), 1);
+}
