@@ -44,6 +44,34 @@ pub struct EmptySupport {
     pub hint: String,
 }
 
+/// Whether a support region holds point `p` (`default_tol`: 1e-6 × part size).
+fn selects(region: &Region, p: [f64; 3], default_tol: f64) -> bool {
+    match *region {
+        Region::Plane { axis, value, tol } => (p[axis] - value).abs() <= tol.unwrap_or(default_tol),
+        Region::Box(b) => b.contains(p, default_tol),
+    }
+}
+
+/// The region in words, and where the part lies so the user can fix the value.
+fn describe(region: &Region, lo: [f64; 3], hi: [f64; 3], default_tol: f64) -> (String, String) {
+    match *region {
+        Region::Plane { axis, value, tol } => {
+            let name = ["x", "y", "z"][axis];
+            (
+                format!("plane {name} = {value} m, tol {:.3e} m", tol.unwrap_or(default_tol)),
+                format!(
+                    "the part spans {name} from {:.6} to {:.6} m: change `value` (in metres) or raise `tol`",
+                    lo[axis], hi[axis]
+                ),
+            )
+        }
+        Region::Box(b) => (
+            format!("box {:?}..{:?} m", b.min, b.max),
+            format!("the part spans {lo:.6?} to {hi:.6?} m: move or enlarge the box (in metres)"),
+        ),
+    }
+}
+
 /// Applies the supports to the mesh's nodes (corner and mid-edge alike).
 pub fn select(mesh: &Mesh, supports: &[Support]) -> Result<Dofs, EmptySupport> {
     let n = mesh.nodes.len();
@@ -51,28 +79,9 @@ pub fn select(mesh: &Mesh, supports: &[Support]) -> Result<Dofs, EmptySupport> {
     let (lo, hi) = mesh.bounding_box();
     let default_tol = 1e-6 * mesh.diameter();
     for (index, s) in supports.iter().enumerate() {
-        let (hits, what, hint): (Box<dyn Fn([f64; 3]) -> bool>, String, String) = match s.region {
-            Region::Plane { axis, value, tol } => {
-                let t = tol.unwrap_or(default_tol);
-                let name = ["x", "y", "z"][axis];
-                (
-                    Box::new(move |p: [f64; 3]| (p[axis] - value).abs() <= t),
-                    format!("plane {name} = {value} m, tol {t:.3e} m"),
-                    format!(
-                        "the part spans {name} from {:.6} to {:.6} m: change `value` (in metres) or raise `tol`",
-                        lo[axis], hi[axis]
-                    ),
-                )
-            }
-            Region::Box(b) => (
-                Box::new(move |p: [f64; 3]| b.contains(p, default_tol)),
-                format!("box {:?}..{:?} m", b.min, b.max),
-                format!("the part spans {lo:.6?} to {hi:.6?} m: move or enlarge the box (in metres)"),
-            ),
-        };
         let mut any = false;
         for (i, p) in mesh.nodes.iter().enumerate() {
-            if hits(*p) {
+            if selects(&s.region, *p, default_tol) {
                 any = true;
                 for c in 0..3 {
                     fixed_mask[3 * i + c] |= s.components[c];
@@ -80,6 +89,7 @@ pub fn select(mesh: &Mesh, supports: &[Support]) -> Result<Dofs, EmptySupport> {
             }
         }
         if !any {
+            let (what, hint) = describe(&s.region, lo, hi, default_tol);
             return Err(EmptySupport { index, what, hint });
         }
     }

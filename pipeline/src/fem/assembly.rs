@@ -104,6 +104,29 @@ struct Partial {
     second: [[f64; 3]; 3],
 }
 
+impl Partial {
+    fn zeros(blocks: usize) -> Partial {
+        Partial {
+            k: vec![0.0; 9 * blocks],
+            m: vec![0.0; blocks],
+            mass: 0.0,
+            first: [0.0; 3],
+            second: [[0.0; 3]; 3],
+        }
+    }
+
+    /// Adds mass, first and second moments.
+    fn add_moments(&mut self, (mass, first, second): (f64, [f64; 3], [[f64; 3]; 3])) {
+        self.mass += mass;
+        for (r, row) in second.iter().enumerate() {
+            self.first[r] += first[r];
+            for (c, v) in row.iter().enumerate() {
+                self.second[r][c] += v;
+            }
+        }
+    }
+}
+
 fn accumulate<S: Shape>(
     mesh: &Mesh,
     graph: &NodeGraph,
@@ -111,13 +134,7 @@ fn accumulate<S: Shape>(
     range: std::ops::Range<usize>,
 ) -> Result<Partial, AssemblyError> {
     let nb = graph.rows.len();
-    let mut part = Partial {
-        k: vec![0.0; 9 * nb],
-        m: vec![0.0; nb],
-        mass: 0.0,
-        first: [0.0; 3],
-        second: [[0.0; 3]; 3],
-    };
+    let mut part = Partial::zeros(nb);
     let p = S::NODES;
     let n3 = 3 * p;
     let mut x = vec![[0.0; 3]; p];
@@ -151,14 +168,7 @@ fn accumulate<S: Shape>(
                 }
             }
         }
-        let (m, f, s) = em.moments;
-        part.mass += m;
-        for r in 0..3 {
-            part.first[r] += f[r];
-            for c in 0..3 {
-                part.second[r][c] += s[r][c];
-            }
-        }
+        part.add_moments(em.moments);
     }
     Ok(part)
 }
@@ -181,23 +191,11 @@ pub fn assemble(mesh: &Mesh, young: f64, poisson: f64, density: f64, dofs: &Dofs
             }
         })
         .collect::<Result<_, _>>()?;
-    let mut total = Partial {
-        k: vec![0.0; 9 * graph.rows.len()],
-        m: vec![0.0; graph.rows.len()],
-        mass: 0.0,
-        first: [0.0; 3],
-        second: [[0.0; 3]; 3],
-    };
+    let mut total = Partial::zeros(graph.rows.len());
     for p in partials {
         total.k.par_iter_mut().zip(&p.k).for_each(|(a, b)| *a += b);
         total.m.par_iter_mut().zip(&p.m).for_each(|(a, b)| *a += b);
-        total.mass += p.mass;
-        for r in 0..3 {
-            total.first[r] += p.first[r];
-            for c in 0..3 {
-                total.second[r][c] += p.second[r][c];
-            }
-        }
+        total.add_moments((p.mass, p.first, p.second));
     }
     let mass = mass_properties(total.mass, total.first, total.second);
 

@@ -169,7 +169,7 @@ pub fn compute(
     if rigid > 0 {
         let rigid_max = vals[..rigid].iter().fold(0.0f64, |a, v| a.max(v.abs()));
         let first_elastic = vals[rigid];
-        if !(first_elastic > 1e3 * rigid_max) || !(first_elastic > 0.0) {
+        if first_elastic.is_nan() || first_elastic <= 1e3 * rigid_max || first_elastic <= 0.0 {
             return Err(ModesError::RigidSeparation {
                 rigid,
                 values: vals[..(rigid + 2).min(vals.len())].to_vec(),
@@ -203,7 +203,7 @@ pub fn compute(
             .sqrt();
         let kn = kx.iter().map(|k| k * k).sum::<f64>().sqrt();
         let rel = r / kn;
-        if !(rel <= MAX_RESIDUAL) {
+        if rel.is_nan() || rel > MAX_RESIDUAL {
             return Err(ModesError::Check {
                 mode: j,
                 what: format!("relative residual {rel:.2e} > {MAX_RESIDUAL:e}"),

@@ -72,7 +72,7 @@ fn physical_gradients(x: &[[f64; 3]], gl: &[[f64; 4]], grad: &mut [[f64; 3]]) ->
     }
     let det = j[0][0] * (j[1][1] * j[2][2] - j[1][2] * j[2][1]) - j[0][1] * (j[1][0] * j[2][2] - j[1][2] * j[2][0])
         + j[0][2] * (j[1][0] * j[2][1] - j[1][1] * j[2][0]);
-    if !(det > 0.0) || !det.is_finite() {
+    if det.is_nan() || det <= 0.0 || det.is_infinite() {
         return Err(BadJacobian { det });
     }
     // inv(J) by cofactors; ∇N = J⁻ᵀ ∂N/∂ξ.
