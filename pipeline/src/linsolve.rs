@@ -176,9 +176,28 @@ impl Cholesky {
         })
     }
 
+    /// Parallelism of later solves (sequential by default).
+    pub fn set_parallelism(&mut self, par: Par) {
+        self.par = par;
+    }
+
     /// Number of stored values of L (a measure of fill).
     pub fn factor_len(&self) -> usize {
         self.values.len()
+    }
+
+    /// X ← A⁻¹ X for `nrhs` column-major right-hand sides (the factor is read once).
+    pub fn solve_many_in_place(&mut self, x: &mut [f64], nrhs: usize) {
+        let n = x.len() / nrhs;
+        let req = self.symbolic.solve_in_place_scratch::<f64>(nrhs, self.par);
+        let mut stack = MemBuffer::new(req);
+        let llt = LltRef::<usize, f64>::new(&self.symbolic, &self.values);
+        llt.solve_in_place_with_conj(
+            Conj::No,
+            MatMut::from_column_major_slice_mut(x, n, nrhs),
+            self.par,
+            MemStack::new(&mut stack),
+        );
     }
 
     /// x ← A⁻¹ x.

@@ -16,7 +16,7 @@ use std::time::Instant;
 /// Which eigen-solver to use.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
 pub enum SolverChoice {
-    /// Dense for tiny problems (≤ 1500 unknowns), ARPACK otherwise.
+    /// Dense for tiny problems (≤ 500 unknowns), ARPACK otherwise.
     Auto,
     /// ARPACK shift-invert with a sparse Cholesky factor.
     Arpack,
@@ -112,7 +112,7 @@ pub fn solve(d: &Discretized, count: usize, choice: SolverChoice) -> Result<(Mod
     let dense = match choice {
         SolverChoice::Dense => true,
         SolverChoice::Arpack => false,
-        SolverChoice::Auto => problem.size() <= 1500,
+        SolverChoice::Auto => problem.size() <= 500,
     };
     let ordering;
     let solver: Box<dyn EigenSolver> = if dense {
