@@ -1,0 +1,7 @@
+//! VES runtime: modal deformation and force feedback from a precomputed basis.
+//!
+//! Lean by design: no gmsh, no solver, no Python, nothing GPL. A haptic thread (≥ 1 kHz) touches
+//! only the 3×r basis rows of the active vertex; a visualization thread computes the whole
+//! deformed part from a lock-free snapshot of the modal state.
+
+pub mod integrator;
