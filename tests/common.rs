@@ -104,3 +104,16 @@ pub fn rectangle_torsion_constant(b: f64, t: f64) -> f64 {
     }
     b * t.powi(3) / 3.0 * (1.0 - 192.0 / std::f64::consts::PI.powi(5) * t / b * s)
 }
+
+/// Precomputes `cases/<name>` (overriding mesh size, order and mode count) into a basis file in
+/// `dir` and returns its path.
+pub fn precompute_case(name: &str, size: f64, order: u8, modes: usize, dir: &std::path::Path) -> PathBuf {
+    let mut scene = load_case(name);
+    scene.mesh.size = size;
+    scene.mesh.order = order;
+    scene.modes.count = modes;
+    let out = dir.join(format!("{name}.h5"));
+    ves_pipeline::precompute::run(&scene, &out, ves_pipeline::precompute::SolverChoice::Auto)
+        .unwrap_or_else(|e| panic!("{e:#}"));
+    out
+}

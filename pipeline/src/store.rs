@@ -11,10 +11,7 @@ use hdf5::types::VarLenUnicode;
 use ndarray::{Array1, Array2};
 use std::path::{Path, PathBuf};
 
-/// Value of the root `format` attribute.
-pub const FORMAT: &str = "ves-modal-basis";
-/// Version of the layout written here.
-pub const VERSION: u32 = 1;
+pub use ves_runtime::basis::{FORMAT, VERSION};
 
 /// One modal space, as written.
 pub struct Space<'a> {
@@ -216,45 +213,9 @@ fn read_attr_str(loc: &hdf5::Location, name: &str) -> Result<String> {
     Ok(loc.attr(name)?.read_scalar::<VarLenUnicode>()?.as_str().to_string())
 }
 
-/// Opens a basis file and checks that it is a VES basis of a version this build reads.
-pub fn open_checked(path: &Path) -> Result<hdf5::File> {
-    if !path.is_file() {
-        bail!("{}: no such file", path.display());
-    }
-    let file = hdf5::File::open(path).map_err(|_| {
-        anyhow::anyhow!(
-            "{}: not a readable HDF5 file (truncated or another format)",
-            path.display()
-        )
-    })?;
-    let format = read_attr_str(&file, "format").map_err(|_| {
-        anyhow::anyhow!(
-            "{}: not a VES modal basis (no `format` attribute); produce one with `ves precompute`",
-            path.display()
-        )
-    })?;
-    if format != FORMAT {
-        bail!(
-            "{}: format is {format:?}, not {FORMAT:?}; produce a basis with `ves precompute`",
-            path.display()
-        );
-    }
-    let version: u32 = file
-        .attr("version")
-        .and_then(|a| a.read_scalar())
-        .map_err(|_| anyhow::anyhow!("{}: `version` attribute missing or not an integer", path.display()))?;
-    if version > VERSION {
-        bail!(
-            "{}: basis version {version} is newer than this ves reads ({VERSION}); upgrade ves",
-            path.display()
-        );
-    }
-    Ok(file)
-}
-
 /// Reads the summary of a basis file.
 pub fn info(path: &Path) -> Result<BasisInfo> {
-    let file = open_checked(path)?;
+    let file = ves_runtime::basis::open_checked(path)?;
     let bad = |what: &str| anyhow::anyhow!("{}: damaged basis file: {what}", path.display());
     let spaces_group = file.group("spaces").map_err(|_| bad("no /spaces group"))?;
     let mut names = spaces_group.member_names().map_err(|_| bad("cannot list /spaces"))?;

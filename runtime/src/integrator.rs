@@ -55,7 +55,14 @@ impl Transition {
         let (a, b) = (ch - s * sh, sh);
         let (cc, d) = (-lambda * sh, ch + (-c - s) * sh);
         // Constant force: particular solution q = f/λ, so x' = Φ(x − x_p) + x_p.
-        Transition { a, b, c: cc, d, g: (1.0 - a) / lambda, h: -cc / lambda }
+        Transition {
+            a,
+            b,
+            c: cc,
+            d,
+            g: (1.0 - a) / lambda,
+            h: -cc / lambda,
+        }
     }
 
     /// Newmark average-acceleration step written as the same linear map.
@@ -74,13 +81,35 @@ impl Transition {
         // q' = q + dt v + dt²/4 (a0 + a1); v' = v + dt/2 (a0 + a1)
         let q = |k: usize| dt * dt / 4.0 * (a0[k] + a1[k]);
         let v = |k: usize| dt / 2.0 * (a0[k] + a1[k]);
-        Transition { a: 1.0 + q(0), b: dt + q(1), c: v(0), d: 1.0 + v(1), g: q(2), h: v(2) }
+        Transition {
+            a: 1.0 + q(0),
+            b: dt + q(1),
+            c: v(0),
+            d: 1.0 + v(1),
+            g: q(2),
+            h: v(2),
+        }
+    }
+
+    /// The force gains (g, h): how one unit of held modal force moves q and v over a step.
+    #[inline(always)]
+    pub fn force_gains(&self) -> (f64, f64) {
+        (self.g, self.h)
+    }
+
+    /// Free response: (q, v) after one step without force.
+    #[inline(always)]
+    pub fn free(&self, q: f64, v: f64) -> (f64, f64) {
+        (self.a * q + self.b * v, self.c * q + self.d * v)
     }
 
     /// Advances (q, v) by one step under modal force f.
     #[inline(always)]
     pub fn step(&self, q: f64, v: f64, f: f64) -> (f64, f64) {
-        (self.a * q + self.b * v + self.g * f, self.c * q + self.d * v + self.h * f)
+        (
+            self.a * q + self.b * v + self.g * f,
+            self.c * q + self.d * v + self.h * f,
+        )
     }
 }
 
@@ -110,7 +139,14 @@ impl ModalState {
             })
             .collect();
         let r = lambda.len();
-        ModalState { q: vec![0.0; r], v: vec![0.0; r], trans, lambda: lambda.to_vec(), damping, dt }
+        ModalState {
+            q: vec![0.0; r],
+            v: vec![0.0; r],
+            trans,
+            lambda: lambda.to_vec(),
+            damping,
+            dt,
+        }
     }
 
     /// Time step.
@@ -128,7 +164,18 @@ impl ModalState {
 
     /// Modal energy ½ Σ (v² + λ q²) (mass-normalised modes).
     pub fn energy(&self) -> f64 {
-        self.q.iter().zip(&self.v).zip(&self.lambda).map(|((q, v), l)| 0.5 * (v * v + l * q * q)).sum()
+        self.q
+            .iter()
+            .zip(&self.v)
+            .zip(&self.lambda)
+            .map(|((q, v), l)| 0.5 * (v * v + l * q * q))
+            .sum()
+    }
+
+    /// Transition of mode j.
+    #[inline(always)]
+    pub fn transition(&self, j: usize) -> &Transition {
+        &self.trans[j]
     }
 
     /// Modal damping coefficients α + βλᵢ.
@@ -167,7 +214,13 @@ mod tests {
     #[test]
     fn exact_transition_matches_a_fine_reference_in_every_damping_regime() {
         let lambda = 400.0; // ω = 20
-        for (c, what) in [(0.0, "undamped"), (4.0, "under"), (40.0, "critical"), (40.0 + 1e-9, "near-critical"), (200.0, "over")] {
+        for (c, what) in [
+            (0.0, "undamped"),
+            (4.0, "under"),
+            (40.0, "critical"),
+            (40.0 + 1e-9, "near-critical"),
+            (200.0, "over"),
+        ] {
             let dt = 0.05;
             let t = Transition::exact(lambda, c, dt);
             let (mut q, mut v) = (0.01, -0.3);
@@ -175,7 +228,10 @@ mod tests {
                 (q, v) = t.step(q, v, 3.0);
             }
             let (rq, rv) = rk4(lambda, c, 3.0, 0.01, -0.3, 0.5);
-            assert!((q - rq).abs() < 1e-9 && (v - rv).abs() < 1e-8, "{what}: ({q}, {v}) vs ({rq}, {rv})");
+            assert!(
+                (q - rq).abs() < 1e-9 && (v - rv).abs() < 1e-8,
+                "{what}: ({q}, {v}) vs ({rq}, {rv})"
+            );
         }
     }
 
@@ -205,7 +261,12 @@ mod tests {
             s.step(&f);
         }
         for (i, l) in [10.0, 1e4, 1e8].iter().enumerate() {
-            assert!((s.q[i] - f[i] / l).abs() < 1e-9 * (f[i] / l), "mode {i}: {} vs {}", s.q[i], f[i] / l);
+            assert!(
+                (s.q[i] - f[i] / l).abs() < 1e-9 * (f[i] / l),
+                "mode {i}: {} vs {}",
+                s.q[i],
+                f[i] / l
+            );
         }
     }
 
@@ -221,7 +282,10 @@ mod tests {
             for _ in 0..10_000 {
                 s.step(&[0.0; 3]);
                 let e1 = s.energy();
-                assert!(e1.is_finite() && e1 <= e * (1.0 + 1e-12), "{scheme:?}: energy grew {e} -> {e1}");
+                assert!(
+                    e1.is_finite() && e1 <= e * (1.0 + 1e-12),
+                    "{scheme:?}: energy grew {e} -> {e1}"
+                );
                 e = e1;
             }
         }

@@ -4,4 +4,9 @@
 //! only the 3×r basis rows of the active vertex; a visualization thread computes the whole
 //! deformed part from a lock-free snapshot of the modal state.
 
+pub mod basis;
+pub mod haptic;
 pub mod integrator;
+pub mod kdtree;
+
+pub use basis::{Basis, LoadError, LoadOptions};

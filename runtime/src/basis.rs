@@ -1,0 +1,382 @@
+//! A modal basis as the runtime holds it: corner vertices (optionally only the surface ones), the
+//! first r modes in f32, mode-major so the full-field update is a sequence of axpys.
+
+/// Value of the root `format` attribute of a v1 basis file.
+pub const FORMAT: &str = "ves-modal-basis";
+/// Newest file version this build reads.
+pub const VERSION: u32 = 1;
+
+/// Loading failed; the message names the file and what is wrong.
+#[derive(Debug, thiserror::Error)]
+#[error("{path}: {message}")]
+pub struct LoadError {
+    /// The input.
+    pub path: String,
+    /// What is wrong and what to do.
+    pub message: String,
+}
+
+/// Mass properties of a free body.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct RigidProperties {
+    /// kg.
+    pub mass: f64,
+    /// m.
+    pub center: [f64; 3],
+    /// kg·m², about the centre of mass.
+    pub inertia: [[f64; 3]; 3],
+}
+
+/// What to load from a basis file.
+#[derive(Clone, Debug, Default)]
+pub struct LoadOptions {
+    /// Space name (default: the file's default space).
+    pub space: Option<String>,
+    /// Keep only the first r modes (default: all).
+    pub modes: Option<usize>,
+    /// Keep only surface vertices (enough to draw and touch the part).
+    pub surface_only: bool,
+}
+
+/// A modal basis in memory.
+#[derive(Clone, Debug)]
+pub struct Basis {
+    /// Space name.
+    pub space: String,
+    /// Rest positions of the kept vertices, m.
+    pub rest: Vec<[f64; 3]>,
+    /// Index of each kept vertex among the file's nodes.
+    pub node_index: Vec<u32>,
+    /// Surface triangles over kept vertices, outward.
+    pub triangles: Vec<[u32; 3]>,
+    /// Kept vertices on the surface (what the haptic point can touch).
+    pub surface_vertices: Vec<u32>,
+    /// Area-weighted outward unit normal per kept vertex (zero inside).
+    pub normals: Vec<[f64; 3]>,
+    /// λᵢ = ωᵢ², ascending.
+    pub eigenvalues: Vec<f64>,
+    /// Mode-major f32 basis: mode j is `phi[j·3n .. (j+1)·3n]`, entry 3i+c.
+    pub phi: Vec<f32>,
+    /// Rayleigh α (1/s).
+    pub alpha: f64,
+    /// Rayleigh β (s).
+    pub beta: f64,
+    /// Mass properties, for free bodies.
+    pub rigid: Option<RigidProperties>,
+    /// Bytes of basis data held in memory.
+    pub bytes_loaded: usize,
+}
+
+impl Basis {
+    /// Builds a basis from vertex-major f64 rows (`rows[(3i+c)·r + j]`), checking shapes and
+    /// finiteness. `path` names the source in errors.
+    #[allow(clippy::too_many_arguments)]
+    pub fn new(
+        path: &str,
+        space: &str,
+        rest: Vec<[f64; 3]>,
+        node_index: Vec<u32>,
+        triangles: Vec<[u32; 3]>,
+        eigenvalues: Vec<f64>,
+        rows: &[f64],
+        (alpha, beta): (f64, f64),
+        rigid: Option<RigidProperties>,
+    ) -> Result<Basis, LoadError> {
+        let err = |message: String| LoadError {
+            path: path.to_string(),
+            message,
+        };
+        let (n, r) = (rest.len(), eigenvalues.len());
+        if n == 0 || r == 0 {
+            return Err(err(format!(
+                "space {space:?} has {n} vertices and {r} modes; nothing to simulate"
+            )));
+        }
+        if rows.len() != 3 * n * r {
+            return Err(err(format!("basis has {} values, expected 3 × {n} × {r}", rows.len())));
+        }
+        if let Some(t) = triangles.iter().flatten().find(|&&v| v as usize >= n) {
+            return Err(err(format!("a surface triangle refers to vertex {t} of {n}")));
+        }
+        if rest
+            .iter()
+            .flatten()
+            .chain(rows)
+            .chain(&eigenvalues)
+            .any(|v| !v.is_finite())
+        {
+            return Err(err("non-finite values in nodes, modes or eigenvalues".into()));
+        }
+        if let Some(l) = eigenvalues.iter().find(|&&l| l <= 0.0) {
+            return Err(err(format!("elastic eigenvalue {l} is not positive")));
+        }
+        if !(alpha >= 0.0 && beta >= 0.0) {
+            return Err(err(format!(
+                "Rayleigh damping ({alpha}, {beta}) must be finite and ≥ 0"
+            )));
+        }
+        let mut phi = vec![0.0f32; 3 * n * r];
+        for (k, row) in rows.chunks_exact(r).enumerate() {
+            for (j, v) in row.iter().enumerate() {
+                phi[j * 3 * n + k] = *v as f32;
+            }
+        }
+        let (normals, surface_vertices) = vertex_normals(&rest, &triangles);
+        let bytes_loaded =
+            phi.len() * 4 + rest.len() * 24 + triangles.len() * 12 + eigenvalues.len() * 8 + normals.len() * 24;
+        Ok(Basis {
+            space: space.to_string(),
+            rest,
+            node_index,
+            triangles,
+            surface_vertices,
+            normals,
+            eigenvalues,
+            phi,
+            alpha,
+            beta,
+            rigid,
+            bytes_loaded,
+        })
+    }
+
+    /// Kept vertices.
+    pub fn vertex_count(&self) -> usize {
+        self.rest.len()
+    }
+
+    /// Modes.
+    pub fn mode_count(&self) -> usize {
+        self.eigenvalues.len()
+    }
+
+    /// Mode j over all kept vertices (3 values per vertex).
+    pub fn mode(&self, j: usize) -> &[f32] {
+        let m = 3 * self.rest.len();
+        &self.phi[j * m..(j + 1) * m]
+    }
+
+    /// Copies the 3×r rows of vertex `i` into `out[c·r + j]` (f64).
+    #[inline]
+    pub fn gather_rows(&self, i: usize, out: &mut [f64]) {
+        let (m, r) = (3 * self.rest.len(), self.eigenvalues.len());
+        for c in 0..3 {
+            for j in 0..r {
+                out[c * r + j] = f64::from(self.phi[j * m + 3 * i + c]);
+            }
+        }
+    }
+}
+
+/// Area-weighted vertex normals, and the list of vertices on some triangle.
+fn vertex_normals(rest: &[[f64; 3]], triangles: &[[u32; 3]]) -> (Vec<[f64; 3]>, Vec<u32>) {
+    let mut normals = vec![[0.0f64; 3]; rest.len()];
+    for t in triangles {
+        let [a, b, c] = t.map(|v| rest[v as usize]);
+        let u = [b[0] - a[0], b[1] - a[1], b[2] - a[2]];
+        let w = [c[0] - a[0], c[1] - a[1], c[2] - a[2]];
+        let n = [
+            u[1] * w[2] - u[2] * w[1],
+            u[2] * w[0] - u[0] * w[2],
+            u[0] * w[1] - u[1] * w[0],
+        ];
+        for &v in t {
+            for k in 0..3 {
+                normals[v as usize][k] += n[k];
+            }
+        }
+    }
+    let mut surface = Vec::new();
+    for (i, n) in normals.iter_mut().enumerate() {
+        let len = (n[0] * n[0] + n[1] * n[1] + n[2] * n[2]).sqrt();
+        if len > 0.0 {
+            *n = n.map(|x| x / len);
+            surface.push(i as u32);
+        }
+    }
+    (normals, surface)
+}
+
+#[cfg(feature = "hdf5")]
+mod file {
+    use super::*;
+    use hdf5::types::VarLenUnicode;
+    use ndarray::s;
+    use std::path::Path;
+
+    fn read_str(loc: &hdf5::Location, name: &str) -> Option<String> {
+        loc.attr(name)
+            .ok()?
+            .read_scalar::<VarLenUnicode>()
+            .ok()
+            .map(|s| s.as_str().to_string())
+    }
+
+    /// Opens a basis file and checks that it is a VES basis of a version this build reads.
+    pub fn open_checked(path: &Path) -> Result<hdf5::File, LoadError> {
+        let err = |message: String| LoadError {
+            path: path.display().to_string(),
+            message,
+        };
+        if !path.is_file() {
+            return Err(err("no such file".into()));
+        }
+        let file =
+            hdf5::File::open(path).map_err(|_| err("not a readable HDF5 file (truncated or another format)".into()))?;
+        let format = read_str(&file, "format").ok_or_else(|| {
+            err("not a VES modal basis (no `format` attribute); produce one with `ves precompute`".into())
+        })?;
+        if format != FORMAT {
+            return Err(err(format!(
+                "format is {format:?}, not {FORMAT:?}; produce a basis with `ves precompute`"
+            )));
+        }
+        let version: u32 = file
+            .attr("version")
+            .and_then(|a| a.read_scalar())
+            .map_err(|_| err("`version` attribute missing or not an integer".into()))?;
+        if version > VERSION {
+            return Err(err(format!(
+                "basis version {version} is newer than this runtime reads ({VERSION}); upgrade VES"
+            )));
+        }
+        Ok(file)
+    }
+
+    /// Loads what `opts` asks for from a v1 basis file: only corner-vertex rows of the first r
+    /// modes are read from disk.
+    pub fn load(path: &Path, opts: &LoadOptions) -> Result<Basis, LoadError> {
+        let p = path.display().to_string();
+        let err = |message: String| LoadError {
+            path: p.clone(),
+            message,
+        };
+        let file = open_checked(path)?;
+        let space = match &opts.space {
+            Some(s) => s.clone(),
+            None => read_str(&file, "default_space").unwrap_or_else(|| "global".into()),
+        };
+        let g = file
+            .group(&format!("spaces/{space}"))
+            .map_err(|_| err(format!("no space {space:?} in the file")))?;
+        let h5 = |what: &str| err(format!("space {space:?}: {what} missing or damaged"));
+        let nv: u32 = g
+            .group("mesh")
+            .and_then(|m| m.attr("vertex_count"))
+            .and_then(|a| a.read_scalar())
+            .map_err(|_| h5("mesh vertex_count"))?;
+        let nv = nv as usize;
+        let nodes = g.dataset("mesh/nodes").map_err(|_| h5("mesh/nodes"))?;
+        let basis = g.dataset("modes/basis").map_err(|_| h5("modes/basis"))?;
+        let (shape_n, shape_b) = (nodes.shape(), basis.shape());
+        if shape_n.len() != 2
+            || shape_n[1] != 3
+            || nv == 0
+            || nv > shape_n[0]
+            || shape_b.len() != 2
+            || shape_b[0] != 3 * shape_n[0]
+        {
+            return Err(err(format!(
+                "space {space:?}: inconsistent shapes (nodes {shape_n:?}, basis {shape_b:?}, {nv} vertices)"
+            )));
+        }
+        let r_all = shape_b[1];
+        let r = opts.modes.unwrap_or(r_all);
+        if r == 0 || r > r_all {
+            return Err(err(format!("{r} modes asked, the space has {r_all}")));
+        }
+        let xyz: ndarray::Array2<f64> = nodes.read_slice(s![0..nv, ..]).map_err(|_| h5("mesh/nodes data"))?;
+        let tri: ndarray::Array2<u32> = g
+            .dataset("mesh/surface_triangles")
+            .and_then(|d| d.read_2d())
+            .map_err(|_| h5("mesh/surface_triangles"))?;
+        let lam: Vec<f64> = g
+            .dataset("modes/eigenvalues")
+            .and_then(|d| d.read_raw())
+            .map_err(|_| h5("modes/eigenvalues"))?;
+        if lam.len() != r_all || tri.ncols() != 3 {
+            return Err(err(format!(
+                "space {space:?}: eigenvalues or triangles have the wrong shape"
+            )));
+        }
+        let rows: ndarray::Array2<f64> = basis
+            .read_slice(s![0..3 * nv, 0..r])
+            .map_err(|_| h5("modes/basis data"))?;
+        let mut triangles: Vec<[u32; 3]> = tri.rows().into_iter().map(|t| [t[0], t[1], t[2]]).collect();
+        let mut keep: Vec<u32> = (0..nv as u32).collect();
+        if opts.surface_only {
+            let mut used = vec![false; nv];
+            for t in &triangles {
+                for &v in t {
+                    if let Some(u) = used.get_mut(v as usize) {
+                        *u = true;
+                    }
+                }
+            }
+            keep = (0..nv as u32).filter(|&v| used[v as usize]).collect();
+            let mut new = vec![u32::MAX; nv];
+            for (k, &v) in keep.iter().enumerate() {
+                new[v as usize] = k as u32;
+            }
+            for t in &mut triangles {
+                *t = t.map(|v| new.get(v as usize).copied().unwrap_or(u32::MAX));
+            }
+        }
+        let rest: Vec<[f64; 3]> = keep
+            .iter()
+            .map(|&v| [xyz[(v as usize, 0)], xyz[(v as usize, 1)], xyz[(v as usize, 2)]])
+            .collect();
+        let mut flat = Vec::with_capacity(3 * keep.len() * r);
+        for &v in &keep {
+            for c in 0..3 {
+                flat.extend(rows.row(3 * v as usize + c).iter());
+            }
+        }
+        let mat = file.group("material").map_err(|_| err("no /material group".into()))?;
+        let attr = |name: &str| {
+            mat.attr(name)
+                .and_then(|a| a.read_scalar::<f64>())
+                .map_err(|_| err(format!("material attribute {name} missing")))
+        };
+        let damping = (attr("rayleigh_alpha")?, attr("rayleigh_beta")?);
+        let rigid = match g.group("rigid") {
+            Ok(rg) => {
+                let mass: f64 = rg
+                    .attr("mass")
+                    .and_then(|a| a.read_scalar())
+                    .map_err(|_| h5("rigid/mass"))?;
+                let c: Vec<f64> = rg
+                    .attr("center_of_mass")
+                    .and_then(|a| a.read_raw())
+                    .map_err(|_| h5("rigid/center_of_mass"))?;
+                let i: Vec<f64> = rg
+                    .attr("inertia")
+                    .and_then(|a| a.read_raw())
+                    .map_err(|_| h5("rigid/inertia"))?;
+                if c.len() != 3 || i.len() != 9 || mass.is_nan() || mass <= 0.0 {
+                    return Err(h5("rigid properties"));
+                }
+                Some(RigidProperties {
+                    mass,
+                    center: [c[0], c[1], c[2]],
+                    inertia: [[i[0], i[1], i[2]], [i[3], i[4], i[5]], [i[6], i[7], i[8]]],
+                })
+            }
+            Err(_) => None,
+        };
+        Basis::new(
+            &p,
+            &space,
+            rest,
+            keep,
+            triangles,
+            lam[..r].to_vec(),
+            &flat,
+            damping,
+            rigid,
+        )
+    }
+}
+
+#[cfg(feature = "hdf5")]
+pub use file::{load, open_checked};

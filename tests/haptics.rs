@@ -1,0 +1,153 @@
+//! The runtime on a real basis: static response, energy, force limits, abuse.
+
+use std::sync::Arc;
+use ves_runtime::haptic::{Coupling, HandInput, HandOutput, Haptics};
+use ves_runtime::integrator::Scheme;
+use ves_runtime::{Basis, LoadOptions};
+use ves_tests::precompute_case;
+
+fn cantilever(modes: usize) -> (tempfile::TempDir, Arc<Basis>) {
+    let dir = tempfile::tempdir().expect("temp dir");
+    let path = precompute_case("cantilever", 0.05, 1, modes, dir.path());
+    let basis = ves_runtime::basis::load(&path, &LoadOptions::default()).expect("basis loads");
+    (dir, Arc::new(basis))
+}
+
+/// Index of the kept vertex nearest p.
+fn nearest(b: &Basis, p: [f64; 3]) -> usize {
+    (0..b.vertex_count())
+        .min_by(|&i, &j| {
+            let d = |k: usize| (0..3).map(|c| (b.rest[k][c] - p[c]).powi(2)).sum::<f64>();
+            d(i).total_cmp(&d(j))
+        })
+        .unwrap_or(0)
+}
+
+#[test]
+fn grabbed_tip_settles_on_the_modal_static_response() {
+    let (_d, basis) = cantilever(10);
+    let tip = nearest(&basis, [1.0, 0.1, 0.05]);
+    let target = basis.rest[tip];
+    let coupling = Coupling {
+        stiffness: 2e4,
+        damping: 50.0,
+        max_force: 1e3,
+    };
+    let mut h = Haptics::new(basis.clone(), coupling, 1e-3, Scheme::Exact, 1);
+    let hip = [target[0], target[1], target[2] - 0.01]; // pull the tip down 10 mm
+    let input = [HandInput {
+        position: hip,
+        velocity: [0.0; 3],
+        button: true,
+    }];
+    let mut out = [HandOutput::default()];
+    for _ in 0..20_000 {
+        h.step(&input, &mut out);
+    }
+    assert_eq!(out[0].vertex as usize, tip);
+    // Force on the part F = −device force; modal static displacement Σ φφᵀF/λ.
+    let f = out[0].force.map(|v| -v);
+    let r = basis.mode_count();
+    let mut rows = vec![0.0; 3 * r];
+    basis.gather_rows(tip, &mut rows);
+    let mut u_static = [0.0; 3];
+    for j in 0..r {
+        let fj = (0..3).map(|c| rows[c * r + j] * f[c]).sum::<f64>();
+        for c in 0..3 {
+            u_static[c] += rows[c * r + j] * fj / basis.eigenvalues[j];
+        }
+    }
+    let u = h.displacement(tip);
+    for c in 0..3 {
+        assert!(
+            (u[c] - u_static[c]).abs() < 1e-6 * u_static[2].abs() + 1e-12,
+            "u {u:?} vs {u_static:?}"
+        );
+    }
+    // And the coupling is in equilibrium: F = k (x − p).
+    let fz = coupling.stiffness * (hip[2] - (target[2] + u[2]));
+    assert!((f[2] - fz).abs() < 1e-6 * fz.abs(), "{} vs {fz}", f[2]);
+    assert!(u[2] < 0.0 && f[2] < 0.0);
+}
+
+#[test]
+fn released_part_loses_energy_and_forces_respect_the_limit() {
+    let (_d, basis) = cantilever(10);
+    let tip = nearest(&basis, [1.0, 0.05, 0.05]);
+    let p = basis.rest[tip];
+    let coupling = Coupling {
+        stiffness: 1e5,
+        damping: 0.0,
+        max_force: 5.0,
+    };
+    let mut h = Haptics::new(basis.clone(), coupling, 1e-3, Scheme::Exact, 1);
+    let mut out = [HandOutput::default()];
+    // A HIP 1 m below the tip: the spring wants 1e5 N, the device must never see more than 5 N.
+    let pull = [HandInput {
+        position: [p[0], p[1], p[2] - 1.0],
+        velocity: [0.0; 3],
+        button: true,
+    }];
+    for _ in 0..500 {
+        h.step(&pull, &mut out);
+        let mag = out[0].force.iter().map(|v| v * v).sum::<f64>().sqrt();
+        assert!(mag <= 5.0 * (1.0 + 1e-12), "force {mag}");
+        assert!(out[0].clamped);
+    }
+    // Release far away: no contact, the energy decays monotonically (β > 0 in the scene).
+    let away = [HandInput {
+        position: [10.0, 10.0, 10.0],
+        velocity: [0.0; 3],
+        button: false,
+    }];
+    h.step(&away, &mut out);
+    let mut e = h.state().energy();
+    assert!(e > 0.0);
+    for _ in 0..2000 {
+        h.step(&away, &mut out);
+        assert_eq!(out[0].force, [0.0; 3]);
+        let e1 = h.state().energy();
+        assert!(e1 <= e * (1.0 + 1e-12), "energy grew {e} -> {e1}");
+        e = e1;
+    }
+    assert_eq!(h.quarantined, 0);
+}
+
+#[test]
+fn abuse_huge_steps_stiff_coupling_and_nan_input_stay_finite() {
+    let (_d, basis) = cantilever(10);
+    let tip = nearest(&basis, [1.0, 0.05, 0.05]);
+    let p = basis.rest[tip];
+    for dt in [1e-6, 1e-3, 0.1] {
+        for scheme in [Scheme::Exact, Scheme::Newmark] {
+            let coupling = Coupling {
+                stiffness: 1e9,
+                damping: 1e3,
+                max_force: 20.0,
+            };
+            let mut h = Haptics::new(basis.clone(), coupling, dt, scheme, 2);
+            let mut out = [HandOutput::default(); 2];
+            for k in 0..2000 {
+                let z = p[2] - 0.002 * ((k as f64) * 0.37).sin();
+                let inputs = [
+                    HandInput {
+                        position: [p[0], p[1], z],
+                        velocity: [0.0, 0.0, 1e3],
+                        button: k % 300 < 150,
+                    },
+                    HandInput {
+                        position: if k % 7 == 0 { [f64::NAN; 3] } else { [0.5, 0.05, 0.06] },
+                        velocity: [0.0; 3],
+                        button: false,
+                    },
+                ];
+                h.step(&inputs, &mut out);
+                for o in &out {
+                    assert!(o.force.iter().all(|v| v.is_finite()));
+                    assert!(o.force.iter().map(|v| v * v).sum::<f64>().sqrt() <= 20.0 * (1.0 + 1e-12));
+                }
+            }
+            assert!(h.state().q.iter().all(|q| q.is_finite()), "dt {dt} {scheme:?}");
+        }
+    }
+}
