@@ -151,3 +151,35 @@ fn abuse_huge_steps_stiff_coupling_and_nan_input_stay_finite() {
         }
     }
 }
+
+#[test]
+fn scripted_session_runs_two_hands_and_reports() {
+    use ves_runtime::device::{Device, ScriptedDevice};
+    use ves_runtime::session::{SessionConfig, run};
+    let (_d, basis) = cantilever(8);
+    let tip = basis.rest[nearest(&basis, [1.0, 0.05, 0.05])];
+    let mid = basis.rest[nearest(&basis, [0.5, 0.05, 0.05])];
+    // Hand 1 grabs the tip and pulls it up 5 mm; hand 2 presses 1 mm into the middle.
+    let script = |p: [f64; 3], dz: f64, button: u8| {
+        let text = format!(
+            "t,x,y,z,button\n0,{x},{y},{z0},{button}\n0.1,{x},{y},{z1},{button}\n0.3,{x},{y},{z1},{button}\n",
+            x = p[0],
+            y = p[1],
+            z0 = p[2] + if button == 1 { 0.0 } else { 0.001 },
+            z1 = p[2] + dz
+        );
+        ScriptedDevice::parse("hand.csv", &text).expect("script parses")
+    };
+    let devices: Vec<Box<dyn Device>> = vec![Box::new(script(tip, 0.005, 1)), Box::new(script(mid, -0.001, 0))];
+    let cfg = SessionConfig {
+        rate_hz: 1000.0,
+        duration_s: 0.3,
+        ..Default::default()
+    };
+    let stats = run(basis, devices, &cfg);
+    assert_eq!(stats.steps, 300);
+    assert_eq!(stats.quarantined, 0);
+    assert!(stats.peak_force_n > 0.1 && stats.peak_force_n <= cfg.coupling.max_force * (1.0 + 1e-12));
+    assert!(stats.max_energy_j > 0.0 && stats.max_energy_j.is_finite());
+    assert!(stats.visual_updates > 0);
+}

@@ -34,6 +34,49 @@ enum Command {
         /// Eigen-solver.
         #[arg(long, value_enum, default_value_t = SolverChoice::Auto)]
         solver: SolverChoice,
+        /// Elastic modes to keep (overrides the scene's modes.count).
+        #[arg(long)]
+        modes: Option<usize>,
+    },
+    /// Run a real-time haptic session on a basis with scripted devices, and report its timing.
+    Session {
+        /// Basis file (HDF5).
+        basis: PathBuf,
+        /// A device per hand: `script:FILE.csv` (t, x, y, z[, button] in SI units).
+        #[arg(long = "device", required = true)]
+        devices: Vec<String>,
+        /// Haptic rate, Hz.
+        #[arg(long, default_value_t = 1000.0)]
+        rate: f64,
+        /// Session length, s (default: the longest script).
+        #[arg(long)]
+        duration: Option<f64>,
+        /// Modes used (default: all in the file).
+        #[arg(long)]
+        modes: Option<usize>,
+        /// Space (default: the file's default).
+        #[arg(long)]
+        space: Option<String>,
+        /// Coupling stiffness, N/m.
+        #[arg(long, default_value_t = 500.0)]
+        stiffness: f64,
+        /// Force limit of the device, N.
+        #[arg(long, default_value_t = 10.0)]
+        max_force: f64,
+        /// Busy-wait between steps instead of sleeping (lower jitter, one core fully used).
+        #[arg(long)]
+        spin: bool,
+        /// Print the statistics as JSON.
+        #[arg(long)]
+        json: bool,
+    },
+    /// Benchmark the runtime on a basis: haptic step (r = 30 and 100) and full-field update.
+    Bench {
+        /// Basis file (HDF5).
+        basis: PathBuf,
+        /// Print JSON.
+        #[arg(long)]
+        json: bool,
     },
     /// Export the assembled K and M (global space, free DOFs) to HDF5 for external solvers.
     Matrices {
@@ -60,8 +103,13 @@ fn run(cli: Cli) -> Result<()> {
             output,
             json,
             solver,
+            modes,
         } => {
-            let scene = Scene::load(&scene)?;
+            let mut scene = Scene::load(&scene)?;
+            if let Some(m) = modes {
+                anyhow::ensure!((1..=2000).contains(&m), "--modes {m}: must be between 1 and 2000");
+                scene.modes.count = m;
+            }
             let out = output.unwrap_or_else(|| scene.path.with_file_name(format!("{}.h5", scene.name)));
             let summary = precompute::run(&scene, &out, solver)?;
             if json {
@@ -93,6 +141,104 @@ fn run(cli: Cli) -> Result<()> {
                 d.dofs.free_count(),
                 d.rigid
             );
+        }
+        Command::Session {
+            basis,
+            devices,
+            rate,
+            duration,
+            modes,
+            space,
+            stiffness,
+            max_force,
+            spin,
+            json,
+        } => {
+            anyhow::ensure!(
+                (1.0..=10_000.0).contains(&rate),
+                "--rate {rate}: must be between 1 and 10000 Hz"
+            );
+            anyhow::ensure!(
+                stiffness > 0.0 && max_force > 0.0,
+                "--stiffness and --max-force must be > 0"
+            );
+            let b = ves_runtime::basis::load(
+                &basis,
+                &ves_runtime::LoadOptions {
+                    space,
+                    modes,
+                    surface_only: true,
+                },
+            )?;
+            let mut devs: Vec<Box<dyn ves_runtime::device::Device>> = Vec::new();
+            let mut longest = 0.0f64;
+            for d in &devices {
+                let file = d
+                    .strip_prefix("script:")
+                    .ok_or_else(|| anyhow::anyhow!("--device {d:?}: use script:FILE.csv"))?;
+                let dev = ves_runtime::device::ScriptedDevice::load(std::path::Path::new(file))?;
+                longest = longest.max(dev.duration());
+                devs.push(Box::new(dev));
+            }
+            let cfg = ves_runtime::session::SessionConfig {
+                rate_hz: rate,
+                duration_s: duration.unwrap_or(longest).max(1.0 / rate),
+                coupling: ves_runtime::haptic::Coupling {
+                    stiffness,
+                    damping: 2.0 * (stiffness * 1e-3).sqrt(),
+                    max_force,
+                },
+                sleep: !spin,
+                ..Default::default()
+            };
+            let bytes = b.bytes_loaded;
+            let stats = ves_runtime::session::run(std::sync::Arc::new(b), devs, &cfg);
+            if json {
+                let mut v = serde_json::to_value(&stats)?;
+                v["bytes_loaded"] = bytes.into();
+                println!("{v}");
+            } else {
+                println!("{stats:#?}");
+            }
+        }
+        Command::Bench { basis, json } => {
+            let mut report = serde_json::Map::new();
+            for r in [30usize, 100] {
+                let opts = ves_runtime::LoadOptions {
+                    modes: Some(r),
+                    surface_only: true,
+                    ..Default::default()
+                };
+                match ves_runtime::basis::load(&basis, &opts) {
+                    Ok(b) => {
+                        let ns = ves_runtime::bench::haptic_step_ns(std::sync::Arc::new(b), 201, 2000);
+                        report.insert(format!("haptic_step_ns_median_r{r}"), ns.into());
+                    }
+                    Err(e) => {
+                        tracing::warn!("r = {r}: {e}");
+                        report.insert(format!("haptic_step_ns_median_r{r}"), serde_json::Value::Null);
+                    }
+                }
+            }
+            let opts = ves_runtime::LoadOptions {
+                modes: Some(30),
+                ..Default::default()
+            };
+            let b = ves_runtime::basis::load(&basis, &opts)
+                .or_else(|_| ves_runtime::basis::load(&basis, &ves_runtime::LoadOptions::default()))?;
+            report.insert("full_field_modes".into(), b.mode_count().into());
+            report.insert("full_field_vertices".into(), b.vertex_count().into());
+            report.insert(
+                "full_field_ms_median".into(),
+                ves_runtime::bench::full_field_ms(&b, 301).into(),
+            );
+            report.insert("bytes_loaded".into(), b.bytes_loaded.into());
+            let v = serde_json::Value::Object(report);
+            if json {
+                println!("{v}");
+            } else {
+                println!("{}", serde_json::to_string_pretty(&v)?);
+            }
         }
         Command::Info { basis, json } => {
             let info = store::info(&basis)?;

@@ -200,7 +200,9 @@ impl Haptics {
             let force = if hd.grabbed {
                 // (I + kG + bH) F = k(x − p₀) + b(ẋ − v₀)
                 let m: [[f64; 3]; 3] = std::array::from_fn(|a| {
-                    std::array::from_fn(|b| c.stiffness * hd.g[a][b] + c.damping * hd.h[a][b] + f64::from(u8::from(a == b)))
+                    std::array::from_fn(|b| {
+                        c.stiffness * hd.g[a][b] + c.damping * hd.h[a][b] + f64::from(u8::from(a == b))
+                    })
                 });
                 let rhs: [f64; 3] = std::array::from_fn(|a| c.stiffness * (x[a] - p0[a]) + c.damping * (xd[a] - v0[a]));
                 solve3(m, rhs)

@@ -5,8 +5,13 @@
 //! deformed part from a lock-free snapshot of the modal state.
 
 pub mod basis;
+pub mod bench;
+pub mod device;
 pub mod haptic;
 pub mod integrator;
 pub mod kdtree;
+pub mod session;
+pub mod snapshot;
+pub mod visual;
 
 pub use basis::{Basis, LoadError, LoadOptions};

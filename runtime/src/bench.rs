@@ -1,0 +1,59 @@
+//! Micro-benchmarks of the two real-time paths, for `ves bench`: the haptic step and the
+//! full-field update. Medians over batches, so one preempted batch does not skew the figure.
+
+use crate::basis::Basis;
+use crate::haptic::{Coupling, HandInput, HandOutput, Haptics};
+use crate::integrator::Scheme;
+use crate::visual;
+use std::sync::Arc;
+use std::time::Instant;
+
+fn median(mut v: Vec<f64>) -> f64 {
+    v.sort_by(f64::total_cmp);
+    v[v.len() / 2]
+}
+
+/// Median time of one haptic step (one hand grabbing a surface vertex and moving), ns.
+pub fn haptic_step_ns(basis: Arc<Basis>, batches: usize, per_batch: usize) -> f64 {
+    let Some(&v) = basis.surface_vertices.first() else {
+        return f64::NAN;
+    };
+    let p = basis.rest[v as usize];
+    let mut h = Haptics::new(basis, Coupling::default(), 1e-3, Scheme::Exact, 1);
+    let mut out = [HandOutput::default()];
+    let mut samples = Vec::with_capacity(batches);
+    let mut k = 0u64;
+    for _ in 0..batches {
+        let t = Instant::now();
+        for _ in 0..per_batch {
+            k += 1;
+            let z = p[2] + 1e-3 * ((k % 1000) as f64 / 1000.0 - 0.5);
+            h.step(
+                &[HandInput {
+                    position: [p[0], p[1], z],
+                    velocity: [0.0; 3],
+                    button: true,
+                }],
+                &mut out,
+            );
+        }
+        std::hint::black_box(&out);
+        samples.push(t.elapsed().as_nanos() as f64 / per_batch as f64);
+    }
+    median(samples)
+}
+
+/// Median time of one full-field update (deformed positions of all kept vertices), ms.
+pub fn full_field_ms(basis: &Basis, repeats: usize) -> f64 {
+    let q: Vec<f64> = (0..basis.mode_count()).map(|j| 1e-4 / (1.0 + j as f64)).collect();
+    let mut pos = vec![0.0f32; 3 * basis.vertex_count()];
+    let samples = (0..repeats)
+        .map(|_| {
+            let t = Instant::now();
+            visual::positions(basis, &q, &mut pos);
+            std::hint::black_box(&pos);
+            t.elapsed().as_secs_f64() * 1e3
+        })
+        .collect();
+    median(samples)
+}

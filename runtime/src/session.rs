@@ -1,0 +1,193 @@
+//! A real-time session: a haptic thread at a fixed rate (devices in, forces out, modal state
+//! published lock-free) beside a visualization thread computing the whole deformed part.
+
+use crate::basis::Basis;
+use crate::device::Device;
+use crate::haptic::{Coupling, HandInput, HandOutput, Haptics};
+use crate::integrator::Scheme;
+use crate::snapshot::Snapshot;
+use crate::visual;
+use std::sync::Arc;
+use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
+use std::time::{Duration, Instant};
+
+/// Session settings.
+#[derive(Clone, Copy, Debug)]
+pub struct SessionConfig {
+    /// Haptic rate, Hz (1–10 kHz).
+    pub rate_hz: f64,
+    /// Length, s.
+    pub duration_s: f64,
+    /// Virtual coupling.
+    pub coupling: Coupling,
+    /// Integration scheme.
+    pub scheme: Scheme,
+    /// Visualization rate cap, Hz (`None`: as fast as it goes).
+    pub visual_hz: Option<f64>,
+    /// Sleep between haptic steps (frees the core, costs wake-up jitter); `false` spins.
+    pub sleep: bool,
+}
+
+impl Default for SessionConfig {
+    fn default() -> Self {
+        SessionConfig {
+            rate_hz: 1000.0,
+            duration_s: 1.0,
+            coupling: Coupling::default(),
+            scheme: Scheme::Exact,
+            visual_hz: Some(60.0),
+            sleep: true,
+        }
+    }
+}
+
+/// What a session measured.
+#[derive(Clone, Debug, Default, serde::Serialize)]
+pub struct SessionStats {
+    /// Haptic steps run.
+    pub steps: u64,
+    /// Steps per wall-clock second.
+    pub achieved_rate_hz: f64,
+    /// Whole haptic step (devices, simulation, publishing), ns: median.
+    pub step_ns_median: u64,
+    /// 99th percentile step time, ns.
+    pub step_ns_p99: u64,
+    /// Longest step, ns.
+    pub step_ns_max: u64,
+    /// Median of the simulation part alone (picking, coupling, integration), ns.
+    pub haptic_compute_ns_median: u64,
+    /// |wake-up time − deadline|, µs: 99.9th percentile.
+    pub period_error_us_p999: f64,
+    /// Largest period error, µs.
+    pub period_error_us_max: f64,
+    /// Steps that finished after the next deadline.
+    pub missed_deadlines: u64,
+    /// Full-field updates done.
+    pub visual_updates: u64,
+    /// Full-field updates per second.
+    pub visual_rate_hz: f64,
+    /// Largest force sent to a device, N.
+    pub peak_force_n: f64,
+    /// Steps where the force limit acted.
+    pub clamped_steps: u64,
+    /// Largest modal energy seen (½Σ(v² + λq²)), J.
+    pub max_energy_j: f64,
+    /// Modal energy at the end, J.
+    pub final_energy_j: f64,
+    /// Steps rolled back for non-finite state.
+    pub quarantined: u64,
+}
+
+fn percentile(sorted: &[u64], p: f64) -> u64 {
+    if sorted.is_empty() {
+        return 0;
+    }
+    let k = ((sorted.len() - 1) as f64 * p).round() as usize;
+    sorted[k.min(sorted.len() - 1)]
+}
+
+/// Runs a session with one hand per device; returns when `duration_s` has elapsed.
+pub fn run(basis: Arc<Basis>, mut devices: Vec<Box<dyn Device>>, cfg: &SessionConfig) -> SessionStats {
+    let hands = devices.len().max(1);
+    let rate = cfg.rate_hz.clamp(1.0, 1e5);
+    let dt = 1.0 / rate;
+    let steps = (cfg.duration_s * rate).round().max(1.0) as usize;
+    let mut haptics = Haptics::new(basis.clone(), cfg.coupling, dt, cfg.scheme, hands);
+    let snapshot = Arc::new(Snapshot::new(basis.mode_count()));
+    let stop = Arc::new(AtomicBool::new(false));
+    let visual_count = Arc::new(AtomicU64::new(0));
+
+    let viz = {
+        let (basis, snapshot, stop, count) = (basis.clone(), snapshot.clone(), stop.clone(), visual_count.clone());
+        let cap = cfg.visual_hz.map(|hz| Duration::from_secs_f64(1.0 / hz.max(1.0)));
+        std::thread::spawn(move || {
+            let mut q = vec![0.0; basis.mode_count()];
+            let mut pos = vec![0.0f32; 3 * basis.vertex_count()];
+            let start = Instant::now();
+            while !stop.load(Ordering::Relaxed) {
+                let t = Instant::now();
+                snapshot.read(&mut q);
+                visual::positions(&basis, &q, &mut pos);
+                std::hint::black_box(&pos);
+                count.fetch_add(1, Ordering::Relaxed);
+                if let Some(c) = cap {
+                    std::thread::sleep(c.saturating_sub(t.elapsed()));
+                }
+            }
+            start.elapsed().as_secs_f64()
+        })
+    };
+
+    let mut step_ns = vec![0u64; steps];
+    let mut period_err_ns = vec![0u64; steps];
+    let mut compute_ns = vec![0u64; steps];
+    let mut inputs = vec![HandInput::default(); hands];
+    let mut outputs = vec![HandOutput::default(); hands];
+    let (mut missed, mut peak, mut clamped, mut max_energy) = (0u64, 0.0f64, 0u64, 0.0f64);
+    let period = Duration::from_secs_f64(dt);
+    let start = Instant::now();
+    let mut next = start;
+    for k in 0..steps {
+        // Sleep to just before the deadline, then spin: sleep alone overshoots by ~60 µs.
+        let now = Instant::now();
+        if cfg.sleep && next > now + Duration::from_micros(200) {
+            std::thread::sleep(next - now - Duration::from_micros(150));
+        }
+        while Instant::now() < next {
+            std::hint::spin_loop();
+        }
+        let woke = Instant::now();
+        period_err_ns[k] = woke.duration_since(next).as_nanos() as u64;
+        let t = k as f64 * dt;
+        for (inp, dev) in inputs.iter_mut().zip(devices.iter_mut()) {
+            let s = dev.read(t);
+            *inp = HandInput {
+                position: s.position,
+                velocity: s.velocity,
+                button: s.button,
+            };
+        }
+        let c0 = Instant::now();
+        haptics.step(&inputs, &mut outputs);
+        compute_ns[k] = c0.elapsed().as_nanos() as u64;
+        for (out, dev) in outputs.iter().zip(devices.iter_mut()) {
+            dev.write(out.force);
+            let m = (out.force[0].powi(2) + out.force[1].powi(2) + out.force[2].powi(2)).sqrt();
+            peak = peak.max(m);
+            clamped += u64::from(out.clamped);
+        }
+        snapshot.publish(&haptics.state().q, t);
+        max_energy = max_energy.max(haptics.state().energy());
+        let done = Instant::now();
+        step_ns[k] = done.duration_since(woke).as_nanos() as u64;
+        next += period;
+        if done > next {
+            missed += 1;
+        }
+    }
+    let wall = start.elapsed().as_secs_f64();
+    stop.store(true, Ordering::Relaxed);
+    let viz_wall = viz.join().unwrap_or(wall);
+    step_ns.sort_unstable();
+    compute_ns.sort_unstable();
+    period_err_ns.sort_unstable();
+    let updates = visual_count.load(Ordering::Relaxed);
+    SessionStats {
+        steps: steps as u64,
+        achieved_rate_hz: steps as f64 / wall,
+        step_ns_median: percentile(&step_ns, 0.5),
+        step_ns_p99: percentile(&step_ns, 0.99),
+        step_ns_max: step_ns.last().copied().unwrap_or(0),
+        haptic_compute_ns_median: percentile(&compute_ns, 0.5),
+        period_error_us_p999: percentile(&period_err_ns, 0.999) as f64 / 1e3,
+        period_error_us_max: period_err_ns.last().copied().unwrap_or(0) as f64 / 1e3,
+        missed_deadlines: missed,
+        visual_updates: updates,
+        visual_rate_hz: updates as f64 / viz_wall.max(1e-9),
+        peak_force_n: peak,
+        clamped_steps: clamped,
+        max_energy_j: max_energy,
+        final_energy_j: haptics.state().energy(),
+        quarantined: haptics.quarantined,
+    }
+}
