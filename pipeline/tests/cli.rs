@@ -195,3 +195,64 @@ fn info_refuses_foreign_and_truncated_files() {
     assert!(!o.status.success(), "a truncated file must not read as a basis");
     assert_eq!(String::from_utf8_lossy(&o.stderr).lines().count(), 1);
 }
+
+#[test]
+fn session_and_bench_report_json() {
+    let (dir, path) = workdir(GOOD);
+    let basis = dir.path().join("beam.h5");
+    assert!(
+        ves(&["precompute", path.to_str().unwrap(), "-o", basis.to_str().unwrap()])
+            .status
+            .success()
+    );
+    let script = dir.path().join("hand.csv");
+    std::fs::write(&script, "t,x,y,z,button\n0,1.0,0.05,0.05,1\n0.2,1.0,0.05,0.045,1\n").unwrap();
+    let o = ves(&[
+        "session",
+        basis.to_str().unwrap(),
+        "--device",
+        &format!("script:{}", script.display()),
+        "--json",
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let v: serde_json::Value = serde_json::from_slice(&o.stdout).expect("session JSON");
+    assert_eq!(v["steps"], 200);
+    for key in [
+        "achieved_rate_hz",
+        "step_ns_median",
+        "step_ns_p99",
+        "step_ns_max",
+        "missed_deadlines",
+        "visual_rate_hz",
+        "peak_force_n",
+        "max_energy_j",
+        "bytes_loaded",
+    ] {
+        assert!(v[key].is_number(), "{key} missing: {v}");
+    }
+    assert!(v["peak_force_n"].as_f64().unwrap() > 0.0);
+
+    let o = ves(&["bench", basis.to_str().unwrap(), "--json"]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let v: serde_json::Value = serde_json::from_slice(&o.stdout).expect("bench JSON");
+    for key in [
+        "haptic_step_ns_median_r30",
+        "haptic_step_ns_median_r100",
+        "full_field_ms_median",
+        "bytes_loaded",
+    ] {
+        assert!(v.get(key).is_some(), "{key} missing: {v}");
+    }
+    // Only 4 modes in this basis: r = 30 and 100 cannot be measured and say so (null).
+    assert!(v["haptic_step_ns_median_r30"].is_null());
+    assert!(v["full_field_ms_median"].as_f64().unwrap() > 0.0);
+
+    let bad = ves(&[
+        "session",
+        basis.to_str().unwrap(),
+        "--device",
+        "script:/nonexistent.csv",
+    ]);
+    assert!(!bad.status.success());
+    assert!(String::from_utf8_lossy(&bad.stderr).contains("/nonexistent.csv"));
+}

@@ -136,6 +136,11 @@ impl Haptics {
         &self.basis
     }
 
+    /// A shared handle on the basis (for a drawing thread).
+    pub fn basis_arc(&self) -> std::sync::Arc<Basis> {
+        self.basis.clone()
+    }
+
     fn select(&mut self, hand: usize, vertex: u32) {
         let r = self.state.q.len();
         let basis = &self.basis;

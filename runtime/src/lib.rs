@@ -6,6 +6,8 @@
 
 pub mod basis;
 pub mod bench;
+#[cfg(feature = "capi")]
+pub mod capi;
 pub mod device;
 pub mod haptic;
 pub mod integrator;
