@@ -183,3 +183,57 @@ fn scripted_session_runs_two_hands_and_reports() {
     assert!(stats.max_energy_j > 0.0 && stats.max_energy_j.is_finite());
     assert!(stats.visual_updates > 0);
 }
+
+#[test]
+fn free_bracket_lifted_by_one_corner_hangs_below_the_hand() {
+    let dir = tempfile::tempdir().expect("temp dir");
+    let path = precompute_case("bracket", 0.008, 1, 8, dir.path());
+    let basis = Arc::new(ves_runtime::basis::load(&path, &LoadOptions::default()).expect("loads"));
+    let props = basis.rigid.expect("a free body stores its mass properties");
+    let g = 9.81;
+    let coupling = Coupling {
+        stiffness: 3000.0,
+        damping: 20.0,
+        max_force: 50.0,
+    };
+    let mut h = Haptics::new(basis.clone(), coupling, 1e-3, Scheme::Exact, 1)
+        .with_free_body([0.0, 0.0, -g], 3.0)
+        .expect("free body");
+    // Grab the far top corner of the base and lift it 0.1 m over 1 s, then hold for 5 s.
+    let corner = basis.rest[nearest(&basis, [0.08, 0.06, 0.008])];
+    let mut out = [HandOutput::default()];
+    for k in 0..6000 {
+        let s = (k as f64 / 1000.0).min(1.0);
+        let hip = [corner[0], corner[1], corner[2] + 0.1 * s];
+        h.step(
+            &[HandInput {
+                position: hip,
+                velocity: [0.0; 3],
+                button: true,
+            }],
+            &mut out,
+        );
+    }
+    assert_eq!(h.quarantined, 0);
+    let rb = h.rigid_body().expect("free");
+    let weight = props.mass * g;
+    // The hand carries the weight…
+    assert!(
+        (out[0].force[2] + weight).abs() < 0.05 * weight,
+        "device force {:?}, weight {weight}",
+        out[0].force
+    );
+    // …the part hangs: its centre of mass is straight below the grabbed point, and it has risen.
+    let grab = out[0].vertex_position;
+    let horizontal = ((rb.position[0] - grab[0]).powi(2) + (rb.position[1] - grab[1]).powi(2)).sqrt();
+    assert!(
+        horizontal < 0.005,
+        "COM {horizontal} m off the vertical through the hand"
+    );
+    assert!(rb.position[2] < grab[2]);
+    assert!(
+        rb.position[2] > props.center[2] + 0.03,
+        "part lifted: COM z {}",
+        rb.position[2]
+    );
+}

@@ -2,13 +2,15 @@
 //! integration, quarantine of non-finite state. Allocation-free and lock-free after `new`.
 //!
 //! Coupling is solved implicitly: over a step the vertex moves by p = p₀ + G F (G = Σ gⱼ φⱼφⱼᵀ,
-//! gⱼ the exact force gain of mode j), so the spring-damper force F = k(x − p) + b(ẋ − ṗ) is
-//! found from a 3×3 system. That keeps the loop stable for any coupling stiffness, part
-//! stiffness or time step (an explicit coupling goes unstable once √(k/m_eff)·dt > 2).
+//! gⱼ the exact force gain of mode j, plus the rigid compliance of a free body), so the
+//! spring-damper force F = k(x − p) + b(ẋ − (p − p_now)/dt) is found from a 3×3 system. That
+//! keeps the loop stable for any coupling stiffness, part stiffness or time step (an explicit
+//! coupling goes unstable once √(k/m_eff)·dt > 2).
 
 use crate::basis::Basis;
 use crate::integrator::{ModalState, Scheme};
 use crate::kdtree::KdTree;
+use crate::rigid::{RigidBody, cross};
 
 /// Virtual coupling between the haptic interaction point (HIP) and the part.
 #[derive(Clone, Copy, Debug)]
@@ -61,9 +63,8 @@ struct Hand {
     vertex: Option<u32>,
     grabbed: bool,
     rows: Vec<f64>,
-    /// Position and velocity gains of the vertex to its own force over one step.
+    /// How far the vertex moves per newton of its own force over one step (modal part).
     g: [[f64; 3]; 3],
-    h: [[f64; 3]; 3],
 }
 
 /// Haptic simulation of one part.
@@ -75,6 +76,8 @@ pub struct Haptics {
     f: Vec<f64>,
     hands: Vec<Hand>,
     coupling: Coupling,
+    rigid: Option<RigidBody>,
+    saved_rigid: Option<RigidBody>,
     /// Steps whose result was non-finite and was rolled back.
     pub quarantined: u64,
 }
@@ -111,7 +114,6 @@ impl Haptics {
                 grabbed: false,
                 rows: vec![0.0; 3 * r],
                 g: [[0.0; 3]; 3],
-                h: [[0.0; 3]; 3],
             })
             .collect();
         Haptics {
@@ -122,8 +124,30 @@ impl Haptics {
             f: vec![0.0; r],
             hands,
             coupling,
+            rigid: None,
+            saved_rigid: None,
             quarantined: 0,
         }
+    }
+
+    /// Makes the part a free body moving under the hands' forces and `gravity` (m/s²), from the
+    /// basis's mass properties. Inputs and outputs are then in the world frame, which starts
+    /// equal to the part frame. Fails when the basis holds no mass properties (a supported part).
+    /// `damping` (1/s) bleeds both momenta, so a part hanging from a hand stops swinging.
+    pub fn with_free_body(mut self, gravity: [f64; 3], damping: f64) -> Result<Haptics, String> {
+        let props = self
+            .basis
+            .rigid
+            .ok_or("the basis has no rigid-body properties: the part is supported, not free")?;
+        let mut body = RigidBody::new(&props, gravity).ok_or("the stored inertia tensor is singular")?;
+        body.damping = damping.max(0.0);
+        self.rigid = Some(body);
+        Ok(self)
+    }
+
+    /// The rigid-body state of a free part.
+    pub fn rigid_body(&self) -> Option<&RigidBody> {
+        self.rigid.as_ref()
     }
 
     /// Modal state (q, v).
@@ -149,20 +173,17 @@ impl Haptics {
             return;
         }
         basis.gather_rows(vertex as usize, &mut hd.rows);
-        let (mut g, mut h) = ([[0.0; 3]; 3], [[0.0; 3]; 3]);
-        for j in 0..r {
-            let (gj, hj) = self.state.transition(j).force_gains();
-            for a in 0..3 {
-                for b in 0..3 {
-                    let pp = hd.rows[a * r + j] * hd.rows[b * r + j];
-                    g[a][b] += gj * pp;
-                    h[a][b] += hj * pp;
-                }
-            }
-        }
+        let rows = &hd.rows;
+        let state = &self.state;
+        let g: [[f64; 3]; 3] = std::array::from_fn(|a| {
+            std::array::from_fn(|b| {
+                (0..r)
+                    .map(|j| state.transition(j).force_gain() * rows[a * r + j] * rows[b * r + j])
+                    .sum()
+            })
+        });
         hd.vertex = Some(vertex);
         hd.g = g;
-        hd.h = h;
     }
 
     /// One haptic step for every hand in `inputs` (at most the number given to `new`).
@@ -170,9 +191,28 @@ impl Haptics {
         let r = self.state.q.len();
         self.f.fill(0.0);
         let c = self.coupling;
-        for (k, input) in inputs.iter().enumerate().take(self.hands.len()) {
+        let dt = self.state.dt();
+        let (mut total_force, mut total_torque) = ([0.0; 3], [0.0; 3]);
+        for (k, world) in inputs.iter().enumerate().take(self.hands.len()) {
             let out = &mut outputs[k];
             *out = HandOutput::default();
+            // Everything below works in the part (body) frame.
+            let input = match &self.rigid {
+                None => *world,
+                Some(body) => {
+                    // Where the body will be after a step without the hand's force: the
+                    // coupling is then solved at the end of the step, like the modes (implicit).
+                    let mut rb = *body;
+                    rb.step([0.0; 3], [0.0; 3], dt);
+                    let pv = rb.point_velocity(world.position);
+                    HandInput {
+                        position: rb.to_body(world.position),
+                        velocity: rb.vector_to_body(std::array::from_fn(|a| world.velocity[a] - pv[a])),
+                        button: world.button,
+                    }
+                }
+            };
+            let input = &input;
             if !self.hands[k].grabbed {
                 match self.tree.nearest(input.position) {
                     Some((v, _)) => self.select(k, v),
@@ -184,49 +224,51 @@ impl Haptics {
             }
             let hd = &self.hands[k];
             let Some(vertex) = hd.vertex else { continue };
+            // A free body adds its rigid compliance at the vertex to the modal one.
+            let mut g = hd.g;
+            if let Some(rb) = &self.rigid {
+                let cr = rb.step_compliance_body(self.basis.rest[vertex as usize], dt);
+                for a in 0..3 {
+                    for b in 0..3 {
+                        g[a][b] += cr[a][b];
+                    }
+                }
+            }
             // Free prediction of the vertex at the end of the step.
-            let (mut p0, mut v0, mut p_now) = ([0.0; 3], [0.0; 3], [0.0; 3]);
+            let (mut p0, mut p_now) = (self.basis.rest[vertex as usize], self.basis.rest[vertex as usize]);
             for j in 0..r {
-                let (qf, vf) = self.state.transition(j).free(self.state.q[j], self.state.v[j]);
+                let (qf, _) = self.state.transition(j).free(self.state.q[j], self.state.v[j]);
                 for a in 0..3 {
                     let phi = hd.rows[a * r + j];
                     p0[a] += phi * qf;
-                    v0[a] += phi * vf;
                     p_now[a] += phi * self.state.q[j];
                 }
             }
-            let rest = self.basis.rest[vertex as usize];
-            for a in 0..3 {
-                p0[a] += rest[a];
-                p_now[a] += rest[a];
-            }
             let x = input.position;
             let xd = input.velocity;
+            // The damper acts on the vertex's mean velocity over the step, (p − p_now)/dt, not on
+            // its end velocity: modes with ω·dt > π are undamped between samples and their end
+            // velocity aliases, which a damper on it would pump. With p = p₀ + G F, the spring
+            // and damper together give (I + (k + b/dt) G) F = k(x − p₀) + b(ẋ − (p₀ − p_now)/dt).
+            let kb = c.stiffness + c.damping / dt;
             let force = if hd.grabbed {
-                // (I + kG + bH) F = k(x − p₀) + b(ẋ − v₀)
-                let m: [[f64; 3]; 3] = std::array::from_fn(|a| {
-                    std::array::from_fn(|b| {
-                        c.stiffness * hd.g[a][b] + c.damping * hd.h[a][b] + f64::from(u8::from(a == b))
-                    })
+                let m: [[f64; 3]; 3] =
+                    std::array::from_fn(|a| std::array::from_fn(|b| kb * g[a][b] + f64::from(u8::from(a == b))));
+                let rhs: [f64; 3] = std::array::from_fn(|a| {
+                    c.stiffness * (x[a] - p0[a]) + c.damping * (xd[a] - (p0[a] - p_now[a]) / dt)
                 });
-                let rhs: [f64; 3] = std::array::from_fn(|a| c.stiffness * (x[a] - p0[a]) + c.damping * (xd[a] - v0[a]));
                 solve3(m, rhs)
             } else {
                 // Press: only along the outward normal n, only pushing.
                 let n = self.basis.normals[vertex as usize];
                 let depth = (0..3).map(|a| (p0[a] - x[a]) * n[a]).sum::<f64>();
                 if depth > 0.0 {
-                    let rate = (0..3).map(|a| (v0[a] - xd[a]) * n[a]).sum::<f64>();
+                    let rate = (0..3).map(|a| ((p0[a] - p_now[a]) / dt - xd[a]) * n[a]).sum::<f64>();
                     let ngn = (0..3)
                         .flat_map(|a| (0..3).map(move |b| (a, b)))
-                        .map(|(a, b)| n[a] * hd.g[a][b] * n[b])
+                        .map(|(a, b)| n[a] * g[a][b] * n[b])
                         .sum::<f64>();
-                    let nhn = (0..3)
-                        .flat_map(|a| (0..3).map(move |b| (a, b)))
-                        .map(|(a, b)| n[a] * hd.h[a][b] * n[b])
-                        .sum::<f64>();
-                    let fn_ = ((c.stiffness * depth + c.damping * rate) / (1.0 + c.stiffness * ngn + c.damping * nhn))
-                        .max(0.0);
+                    let fn_ = ((c.stiffness * depth + c.damping * rate) / (1.0 + kb * ngn)).max(0.0);
                     Some(n.map(|x| -fn_ * x))
                 } else {
                     Some([0.0; 3])
@@ -243,19 +285,44 @@ impl Haptics {
             for j in 0..r {
                 self.f[j] += hd.rows[j] * force[0] + hd.rows[r + j] * force[1] + hd.rows[2 * r + j] * force[2];
             }
-            out.force = force.map(|v| -v);
+            let (force_w, p_w) = match &self.rigid {
+                None => (force, p_now),
+                Some(rb) => (rb.vector_to_world(force), rb.to_world(p_now)),
+            };
+            if let Some(rb) = &self.rigid {
+                let arm = std::array::from_fn(|a| p_w[a] - rb.position[a]);
+                let t = cross(arm, force_w);
+                for a in 0..3 {
+                    total_force[a] += force_w[a];
+                    total_torque[a] += t[a];
+                }
+            }
+            out.force = force_w.map(|v| -v);
             out.vertex = vertex;
             out.contact = hd.grabbed || mag > 0.0;
-            out.vertex_position = p_now;
+            out.vertex_position = p_w;
         }
         self.saved.0.copy_from_slice(&self.state.q);
         self.saved.1.copy_from_slice(&self.state.v);
+        self.saved_rigid = self.rigid;
         self.state.step(&self.f);
-        let finite = self.state.q.iter().chain(&self.state.v).all(|v| v.is_finite());
+        if let Some(rb) = &mut self.rigid {
+            rb.step(total_force, total_torque, dt);
+        }
+        let rigid_finite = self.rigid.is_none_or(|rb| {
+            rb.position
+                .iter()
+                .chain(&rb.velocity)
+                .chain(&rb.orientation)
+                .chain(&rb.angular_momentum)
+                .all(|v| v.is_finite())
+        });
+        let finite = rigid_finite && self.state.q.iter().chain(&self.state.v).all(|v| v.is_finite());
         if !finite {
             // Roll back; never send a non-finite or stale-state force.
             self.state.q.copy_from_slice(&self.saved.0);
             self.state.v.copy_from_slice(&self.saved.1);
+            self.rigid = self.saved_rigid;
             for o in outputs.iter_mut() {
                 o.force = [0.0; 3];
             }

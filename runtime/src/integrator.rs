@@ -91,10 +91,10 @@ impl Transition {
         }
     }
 
-    /// The force gains (g, h): how one unit of held modal force moves q and v over a step.
+    /// How far one unit of modal force held over a step moves q.
     #[inline(always)]
-    pub fn force_gains(&self) -> (f64, f64) {
-        (self.g, self.h)
+    pub fn force_gain(&self) -> f64 {
+        self.g
     }
 
     /// Free response: (q, v) after one step without force.

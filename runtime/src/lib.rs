@@ -12,6 +12,7 @@ pub mod device;
 pub mod haptic;
 pub mod integrator;
 pub mod kdtree;
+pub mod rigid;
 pub mod session;
 pub mod snapshot;
 pub mod visual;
