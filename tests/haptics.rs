@@ -176,7 +176,7 @@ fn scripted_session_runs_two_hands_and_reports() {
         duration_s: 0.3,
         ..Default::default()
     };
-    let stats = run(basis, devices, &cfg);
+    let stats = run(basis, devices, &cfg).expect("session runs");
     assert_eq!(stats.steps, 300);
     assert_eq!(stats.quarantined, 0);
     assert!(stats.peak_force_n > 0.1 && stats.peak_force_n <= cfg.coupling.max_force * (1.0 + 1e-12));
@@ -196,9 +196,8 @@ fn free_bracket_lifted_by_one_corner_hangs_below_the_hand() {
         damping: 20.0,
         max_force: 50.0,
     };
-    let mut h = Haptics::new(basis.clone(), coupling, 1e-3, Scheme::Exact, 1)
-        .with_free_body([0.0, 0.0, -g], 3.0)
-        .expect("free body");
+    let mut h = Haptics::new(basis.clone(), coupling, 1e-3, Scheme::Exact, 1);
+    h.set_free_body([0.0, 0.0, -g], 3.0).expect("free body");
     // Grab the far top corner of the base and lift it 0.1 m over 1 s, then hold for 5 s.
     let corner = basis.rest[nearest(&basis, [0.08, 0.06, 0.008])];
     let mut out = [HandOutput::default()];

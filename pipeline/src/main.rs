@@ -192,7 +192,8 @@ fn run(cli: Cli) -> Result<()> {
                 ..Default::default()
             };
             let bytes = b.bytes_loaded;
-            let stats = ves_runtime::session::run(std::sync::Arc::new(b), devs, &cfg);
+            let stats = ves_runtime::session::run(std::sync::Arc::new(b), devs, &cfg)
+                .map_err(|e| anyhow::anyhow!("{}: {e}", basis.display()))?;
             if json {
                 let mut v = serde_json::to_value(&stats)?;
                 v["bytes_loaded"] = bytes.into();

@@ -134,7 +134,9 @@ enum VesStatus ves_basis_info(const struct VesBasis *b,
 
 /**
  * Creates a haptic simulation with time step `dt` (s), virtual coupling (N/m, N·s/m), force
- * limit (N) and up to `hands` hands. Release with `ves_haptics_free`.
+ * limit (N) and up to `hands` hands. `free_body` non-zero: the part moves as a free body under
+ * the hands and gravity (−9.81 m/s² along z; the basis must be of a free part). Release with
+ * `ves_haptics_free`.
  *
  * # Safety
  * `b` must be a live basis and `out` a valid pointer.
@@ -145,6 +147,7 @@ enum VesStatus ves_haptics_new(const struct VesBasis *b,
                                double damping,
                                double max_force,
                                uint32_t hands,
+                               int32_t free_body,
                                struct VesHaptics **out);
 
 /**

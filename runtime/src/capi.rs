@@ -37,6 +37,7 @@ pub struct VesBasis(Arc<Basis>);
 pub struct VesHaptics {
     sim: Haptics,
     snapshot: Arc<Snapshot>,
+    published: Vec<f64>,
     time: f64,
 }
 
@@ -173,7 +174,9 @@ pub unsafe extern "C" fn ves_basis_info(
 }
 
 /// Creates a haptic simulation with time step `dt` (s), virtual coupling (N/m, N·s/m), force
-/// limit (N) and up to `hands` hands. Release with `ves_haptics_free`.
+/// limit (N) and up to `hands` hands. `free_body` non-zero: the part moves as a free body under
+/// the hands and gravity (−9.81 m/s² along z; the basis must be of a free part). Release with
+/// `ves_haptics_free`.
 ///
 /// # Safety
 /// `b` must be a live basis and `out` a valid pointer.
@@ -185,6 +188,7 @@ pub unsafe extern "C" fn ves_haptics_new(
     damping: f64,
     max_force: f64,
     hands: u32,
+    free_body: i32,
     out: *mut *mut VesHaptics,
 ) -> VesStatus {
     guard(|| {
@@ -214,15 +218,21 @@ pub unsafe extern "C" fn ves_haptics_new(
             Scheme::Exact,
             hands as usize,
         );
-        let snapshot = Arc::new(Snapshot::new(b.0.mode_count()));
-        // SAFETY: out checked non-null.
-        unsafe {
-            *out = Box::into_raw(Box::new(VesHaptics {
-                sim,
-                snapshot,
-                time: 0.0,
-            }))
+        let mut sim = sim;
+        if free_body != 0 {
+            let free = sim.set_free_body([0.0, 0.0, -9.81], 1.0);
+            free.map_err(|e| (VesStatus::InvalidArgument, format!("ves_haptics_new: {e}")))?;
+        }
+        let published = vec![0.0; sim.published_len()];
+        let snapshot = Arc::new(Snapshot::new(published.len()));
+        let handle = VesHaptics {
+            sim,
+            snapshot,
+            published,
+            time: 0.0,
         };
+        // SAFETY: out checked non-null.
+        unsafe { *out = Box::into_raw(Box::new(handle)) };
         Ok(())
     })
 }
@@ -286,7 +296,8 @@ pub unsafe extern "C" fn ves_haptics_step(
             };
         }
         h.time += h.sim.state().dt();
-        h.snapshot.publish(&h.sim.state().q, h.time);
+        h.sim.write_published(&mut h.published);
+        h.snapshot.publish(&h.published, h.time);
         Ok(())
     })
 }
@@ -304,7 +315,7 @@ pub unsafe extern "C" fn ves_view_new(h: *const VesHaptics, out: *mut *mut VesVi
             return Err((VesStatus::NullArgument, "ves_view_new: null out".into()));
         }
         let basis = h.sim.basis_arc();
-        let q = vec![0.0; basis.mode_count()];
+        let q = vec![0.0; h.published.len()];
         // SAFETY: out checked non-null.
         unsafe {
             *out = Box::into_raw(Box::new(VesView {
@@ -349,7 +360,7 @@ pub unsafe extern "C" fn ves_view_positions(v: *mut VesView, positions: *mut f32
         // SAFETY: the caller provides len floats.
         let out = unsafe { std::slice::from_raw_parts_mut(positions, len) };
         v.snapshot.read(&mut v.q);
-        visual::positions(&v.basis, &v.q, out);
+        visual::posed_positions(&v.basis, &v.q, out);
         Ok(())
     })
 }

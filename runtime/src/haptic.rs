@@ -131,10 +131,10 @@ impl Haptics {
     }
 
     /// Makes the part a free body moving under the hands' forces and `gravity` (m/s²), from the
-    /// basis's mass properties. Inputs and outputs are then in the world frame, which starts
-    /// equal to the part frame. Fails when the basis holds no mass properties (a supported part).
-    /// `damping` (1/s) bleeds both momenta, so a part hanging from a hand stops swinging.
-    pub fn with_free_body(mut self, gravity: [f64; 3], damping: f64) -> Result<Haptics, String> {
+    /// basis's mass properties; `damping` (1/s) bleeds both momenta, so a part hanging from a
+    /// hand stops swinging. Inputs and outputs are then in the world frame, which starts equal
+    /// to the part frame. Fails when the basis holds no mass properties (a supported part).
+    pub fn set_free_body(&mut self, gravity: [f64; 3], damping: f64) -> Result<(), String> {
         let props = self
             .basis
             .rigid
@@ -142,7 +142,7 @@ impl Haptics {
         let mut body = RigidBody::new(&props, gravity).ok_or("the stored inertia tensor is singular")?;
         body.damping = damping.max(0.0);
         self.rigid = Some(body);
-        Ok(self)
+        Ok(())
     }
 
     /// The rigid-body state of a free part.
@@ -328,6 +328,24 @@ impl Haptics {
             }
             self.quarantined += 1;
         }
+    }
+
+    /// Length of the vector [`Haptics::write_published`] fills: r modal coordinates + 7 pose values.
+    pub fn published_len(&self) -> usize {
+        self.state.q.len() + 7
+    }
+
+    /// Writes what a drawing thread needs: q, then the pose (centre of mass in the world, unit
+    /// quaternion body → world). A supported part has the identity pose about the origin.
+    pub fn write_published(&self, out: &mut [f64]) {
+        let r = self.state.q.len();
+        out[..r].copy_from_slice(&self.state.q);
+        let (x, o) = match &self.rigid {
+            Some(rb) => (rb.position, rb.orientation),
+            None => ([0.0; 3], [1.0, 0.0, 0.0, 0.0]),
+        };
+        out[r..r + 3].copy_from_slice(&x);
+        out[r + 3..r + 7].copy_from_slice(&o);
     }
 
     /// Displacement of kept vertex `i` now, m.

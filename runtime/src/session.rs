@@ -26,6 +26,8 @@ pub struct SessionConfig {
     pub visual_hz: Option<f64>,
     /// Sleep between haptic steps (frees the core, costs wake-up jitter); `false` spins.
     pub sleep: bool,
+    /// For a free part (a basis with mass properties): gravity (m/s²) and momentum damping (1/s).
+    pub free_body: Option<([f64; 3], f64)>,
 }
 
 impl Default for SessionConfig {
@@ -37,6 +39,7 @@ impl Default for SessionConfig {
             scheme: Scheme::Exact,
             visual_hz: Some(60.0),
             sleep: true,
+            free_body: Some(([0.0, 0.0, -9.81], 1.0)),
         }
     }
 }
@@ -86,14 +89,19 @@ fn percentile(sorted: &[u64], p: f64) -> u64 {
     sorted[k.min(sorted.len() - 1)]
 }
 
-/// Runs a session with one hand per device; returns when `duration_s` has elapsed.
-pub fn run(basis: Arc<Basis>, mut devices: Vec<Box<dyn Device>>, cfg: &SessionConfig) -> SessionStats {
+/// Runs a session with one hand per device; returns when `duration_s` has elapsed. A part whose
+/// basis holds mass properties moves as a free body when `cfg.free_body` is set.
+pub fn run(basis: Arc<Basis>, mut devices: Vec<Box<dyn Device>>, cfg: &SessionConfig) -> Result<SessionStats, String> {
     let hands = devices.len().max(1);
     let rate = cfg.rate_hz.clamp(1.0, 1e5);
     let dt = 1.0 / rate;
     let steps = (cfg.duration_s * rate).round().max(1.0) as usize;
     let mut haptics = Haptics::new(basis.clone(), cfg.coupling, dt, cfg.scheme, hands);
-    let snapshot = Arc::new(Snapshot::new(basis.mode_count()));
+    if let (Some((gravity, damping)), Some(_)) = (cfg.free_body, basis.rigid) {
+        haptics.set_free_body(gravity, damping)?;
+    }
+    let mut published = vec![0.0; haptics.published_len()];
+    let snapshot = Arc::new(Snapshot::new(published.len()));
     let stop = Arc::new(AtomicBool::new(false));
     let visual_count = Arc::new(AtomicU64::new(0));
 
@@ -101,13 +109,13 @@ pub fn run(basis: Arc<Basis>, mut devices: Vec<Box<dyn Device>>, cfg: &SessionCo
         let (basis, snapshot, stop, count) = (basis.clone(), snapshot.clone(), stop.clone(), visual_count.clone());
         let cap = cfg.visual_hz.map(|hz| Duration::from_secs_f64(1.0 / hz.max(1.0)));
         std::thread::spawn(move || {
-            let mut q = vec![0.0; basis.mode_count()];
+            let mut q = vec![0.0; basis.mode_count() + 7];
             let mut pos = vec![0.0f32; 3 * basis.vertex_count()];
             let start = Instant::now();
             while !stop.load(Ordering::Relaxed) {
                 let t = Instant::now();
                 snapshot.read(&mut q);
-                visual::positions(&basis, &q, &mut pos);
+                visual::posed_positions(&basis, &q, &mut pos);
                 std::hint::black_box(&pos);
                 count.fetch_add(1, Ordering::Relaxed);
                 if let Some(c) = cap {
@@ -156,7 +164,8 @@ pub fn run(basis: Arc<Basis>, mut devices: Vec<Box<dyn Device>>, cfg: &SessionCo
             peak = peak.max(m);
             clamped += u64::from(out.clamped);
         }
-        snapshot.publish(&haptics.state().q, t);
+        haptics.write_published(&mut published);
+        snapshot.publish(&published, t);
         max_energy = max_energy.max(haptics.state().energy());
         let done = Instant::now();
         step_ns[k] = done.duration_since(woke).as_nanos() as u64;
@@ -172,7 +181,7 @@ pub fn run(basis: Arc<Basis>, mut devices: Vec<Box<dyn Device>>, cfg: &SessionCo
     compute_ns.sort_unstable();
     period_err_ns.sort_unstable();
     let updates = visual_count.load(Ordering::Relaxed);
-    SessionStats {
+    Ok(SessionStats {
         steps: steps as u64,
         achieved_rate_hz: steps as f64 / wall,
         step_ns_median: percentile(&step_ns, 0.5),
@@ -189,5 +198,5 @@ pub fn run(basis: Arc<Basis>, mut devices: Vec<Box<dyn Device>>, cfg: &SessionCo
         max_energy_j: max_energy,
         final_energy_j: haptics.state().energy(),
         quarantined: haptics.quarantined,
-    }
+    })
 }

@@ -23,3 +23,44 @@ pub fn positions(basis: &Basis, q: &[f64], pos: &mut [f32]) {
         }
     }
 }
+
+/// Drawn positions from a published state (q followed by the pose, see
+/// `Haptics::write_published`): x + R(p₀ + u − c) for a free body, p₀ + u for a supported one.
+pub fn posed_positions(basis: &Basis, published: &[f64], pos: &mut [f32]) {
+    let r = basis.mode_count();
+    positions(basis, &published[..r], pos);
+    let Some(rigid) = basis.rigid else { return };
+    let x = [published[r], published[r + 1], published[r + 2]];
+    let [w, a, b, c] = [published[r + 3], published[r + 4], published[r + 5], published[r + 6]];
+    let rot = [
+        [
+            1.0 - 2.0 * (b * b + c * c),
+            2.0 * (a * b - w * c),
+            2.0 * (a * c + w * b),
+        ],
+        [
+            2.0 * (a * b + w * c),
+            1.0 - 2.0 * (a * a + c * c),
+            2.0 * (b * c - w * a),
+        ],
+        [
+            2.0 * (a * c - w * b),
+            2.0 * (b * c + w * a),
+            1.0 - 2.0 * (a * a + b * b),
+        ],
+    ];
+    // An all-zero pose (nothing published yet) draws the part where it was meshed.
+    if w == 0.0 && a == 0.0 && b == 0.0 && c == 0.0 {
+        return;
+    }
+    for p in pos.chunks_exact_mut(3) {
+        let d = [
+            f64::from(p[0]) - rigid.center[0],
+            f64::from(p[1]) - rigid.center[1],
+            f64::from(p[2]) - rigid.center[2],
+        ];
+        for k in 0..3 {
+            p[k] = (x[k] + rot[k][0] * d[0] + rot[k][1] * d[1] + rot[k][2] * d[2]) as f32;
+        }
+    }
+}

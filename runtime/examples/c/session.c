@@ -22,7 +22,7 @@ int main(int argc, char **argv) {
     ves_basis_info(basis, &vertices, &modes, &bytes);
 
     VesHaptics *sim = NULL;
-    if (ves_haptics_new(basis, 1e-3, 2e4, 50.0, 1000.0, 1, &sim) != VesStatus_Ok) {
+    if (ves_haptics_new(basis, 1e-3, 2e4, 50.0, 1000.0, 1, 0, &sim) != VesStatus_Ok) {
         fprintf(stderr, "error: %s\n", ves_last_error());
         return 1;
     }
