@@ -14,3 +14,4 @@ pub mod rigid;
 pub mod scene;
 pub mod store;
 pub mod supports;
+pub mod verify;

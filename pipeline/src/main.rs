@@ -86,6 +86,34 @@ enum Command {
         #[arg(short, long)]
         output: PathBuf,
     },
+    /// Cross-check a scene's modes and static response against independent solvers on the
+    /// same mesh. Exit status 2 when a tolerance is exceeded.
+    Verify {
+        /// Scene file (TOML, version 1).
+        scene: PathBuf,
+        /// Reference solver.
+        #[arg(long, value_enum, default_value_t = ves_pipeline::verify::Reference::All)]
+        against: ves_pipeline::verify::Reference,
+        /// Modes compared (default: the scene's count).
+        #[arg(long)]
+        modes: Option<usize>,
+        /// Largest relative frequency difference (default: 1e-6 for scikit-fem; CalculiX 1e-3
+        /// with 10-node tets, 0.1 with 4-node: its mass integration differs).
+        #[arg(long)]
+        tol_freq: Option<f64>,
+        /// Smallest MAC of an isolated mode (default 0.999; CalculiX 4-node 0.99).
+        #[arg(long)]
+        min_mac: Option<f64>,
+        /// Largest principal angle of a group of close frequencies, rad (default 1e-3; CalculiX 1e-2).
+        #[arg(long)]
+        max_angle: Option<f64>,
+        /// Largest relative difference of the static displacement at the load node (default 1e-6).
+        #[arg(long)]
+        tol_static: Option<f64>,
+        /// Print the report as JSON.
+        #[arg(long)]
+        json: bool,
+    },
     /// Summarise a modal-basis file.
     Info {
         /// Basis file (HDF5).
@@ -241,6 +269,66 @@ fn run(cli: Cli) -> Result<()> {
                 println!("{}", serde_json::to_string_pretty(&v)?);
             }
         }
+        Command::Verify {
+            scene,
+            against,
+            modes,
+            tol_freq,
+            min_mac,
+            max_angle,
+            tol_static,
+            json,
+        } => {
+            let scene = Scene::load(&scene)?;
+            let tol = ves_pipeline::verify::ToleranceOverrides {
+                freq: tol_freq,
+                mac: min_mac,
+                angle: max_angle,
+                static_rel: tol_static,
+            };
+            let report = ves_pipeline::verify::verify_scene(&scene, against, modes, &tol)?;
+            if json {
+                println!("{}", serde_json::to_string(&report)?);
+            } else {
+                println!(
+                    "{}: {} nodes, {} tets (order {}), {} unknowns",
+                    report.input, report.nodes, report.tets, report.element_order, report.dofs
+                );
+                for r in &report.references {
+                    println!(
+                        "\n{} ({:.1} s): {}",
+                        r.solver,
+                        r.seconds,
+                        if r.pass { "PASS" } else { "FAIL" }
+                    );
+                    println!(
+                        "  mode     ours (Hz)      reference (Hz)   rel. diff      MAC          group angle (rad)"
+                    );
+                    for m in &r.modes {
+                        println!(
+                            "  {:>4} {:>14.6} {:>18.6} {:>12.2e} {:>14.10} {:>6} {:.2e}",
+                            m.mode + 1,
+                            m.ours_hz,
+                            m.reference_hz,
+                            m.rel_diff,
+                            m.mac,
+                            m.group,
+                            m.group_angle_rad
+                        );
+                    }
+                    let st = r
+                        .static_rel_diff
+                        .map_or("n/a (free body)".to_string(), |s| format!("{s:.2e}"));
+                    println!(
+                        "  max rel. freq. diff {:.2e}, min MAC (isolated) {:.10}, max group angle {:.2e} rad, static {st}",
+                        r.max_rel_freq_diff, r.min_mac_isolated, r.max_group_angle_rad
+                    );
+                }
+            }
+            if !report.pass {
+                return Err(VerifyFailed.into());
+            }
+        }
         Command::Info { basis, json } => {
             let info = store::info(&basis)?;
             if json {
@@ -268,6 +356,21 @@ fn run(cli: Cli) -> Result<()> {
     Ok(())
 }
 
+/// Verification ran but a tolerance was exceeded (exit status 2).
+#[derive(Debug)]
+struct VerifyFailed;
+
+impl std::fmt::Display for VerifyFailed {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(
+            f,
+            "verification failed: a reference differs beyond the tolerances (see the report)"
+        )
+    }
+}
+
+impl std::error::Error for VerifyFailed {}
+
 fn main() -> ExitCode {
     tracing_subscriber::fmt()
         .with_writer(std::io::stderr)
@@ -278,7 +381,7 @@ fn main() -> ExitCode {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) => {
             eprintln!("error: {e:#}");
-            ExitCode::from(1)
+            ExitCode::from(if e.is::<VerifyFailed>() { 2 } else { 1 })
         }
     }
 }

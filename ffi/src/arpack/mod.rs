@@ -1,10 +1,17 @@
 //! Safe layer over ARPACK's symmetric driver (`dsaupd`/`dseupd`) in generalized shift-invert
 //! mode (mode 3): the eigenvalues λ of K φ = λ M φ nearest a shift σ, given two operators the
 //! caller supplies, `y = (K − σM)⁻¹ x` and `y = M x`.
+//!
+//! ARPACK keeps its iteration state in Fortran `SAVE` variables, so two runs at once in one
+//! process corrupt each other (seen as info = 3 when two tests solved in parallel): one lock
+//! serialises whole runs.
 
 mod sys;
 
 use std::os::raw::c_int;
+use std::sync::Mutex;
+
+static ARPACK_LOCK: Mutex<()> = Mutex::new(());
 
 /// ARPACK failed; the text explains the `info` code in words.
 #[derive(Debug, thiserror::Error)]
@@ -158,6 +165,7 @@ where
             "Lanczos basis size {ncv} must exceed nev = {nev}"
         )));
     }
+    let _serial = ARPACK_LOCK.lock().unwrap_or_else(|poisoned| poisoned.into_inner());
     let lworkl = ncv * (ncv + 8);
     let (n_i, nev_i, ncv_i, lworkl_i) = (
         as_int("n", n)?,

@@ -1,0 +1,440 @@
+//! `ves verify`: the same mesh, material and supports through independent, real solvers
+//! (scikit-fem, CalculiX), and how far our modes and static response are from theirs.
+//!
+//! The reference drivers are small Python programs embedded in the binary and written to a
+//! temporary directory at run time, so an installed `ves` needs no source tree.
+
+use crate::linsolve::{Cholesky, nested_dissection, sym_matvec};
+use crate::modes::Modes;
+use crate::precompute::{Discretized, SolverChoice, Timings, discretize, solve};
+use crate::scene::Scene;
+use anyhow::{Context, Result, bail};
+use ndarray::{Array1, Array2};
+use serde::Serialize;
+use std::path::Path;
+use std::process::Command;
+
+/// An independent solver to compare against.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub enum Reference {
+    /// scikit-fem (PyPI) with scipy's eigsh.
+    ScikitFem,
+    /// CalculiX `ccx` (Debian calculix-ccx).
+    Calculix,
+    /// Every available reference.
+    All,
+}
+
+/// Pass/fail thresholds; `None` fields take the reference's default (see [`Tolerances::resolve`]).
+#[derive(Clone, Copy, Debug, Default)]
+pub struct ToleranceOverrides {
+    /// Largest relative frequency difference.
+    pub freq: Option<f64>,
+    /// Smallest MAC of an isolated mode.
+    pub mac: Option<f64>,
+    /// Largest group angle, rad.
+    pub angle: Option<f64>,
+    /// Largest relative static difference.
+    pub static_rel: Option<f64>,
+}
+
+/// Pass/fail thresholds.
+#[derive(Clone, Copy, Debug, Serialize)]
+pub struct Tolerances {
+    /// Largest relative frequency difference.
+    pub freq: f64,
+    /// Smallest MAC of an isolated mode.
+    pub mac: f64,
+    /// Largest principal angle (rad) between the subspaces of a group of close frequencies.
+    pub angle: f64,
+    /// Largest relative difference of the static displacement at the load point.
+    pub static_rel: f64,
+}
+
+impl Tolerances {
+    /// Defaults per reference, then the user's overrides. scikit-fem solves the same discrete
+    /// problem (exact integration on both sides): 1e-6. CalculiX has the same stiffness (static
+    /// agrees to ~1e-7) but integrates its mass its own way: its C3D10 mass differs by up to ~3e-4
+    /// in frequency, its C3D4 mass by several percent (see docs/validation.md).
+    pub fn resolve(reference: Reference, order: u8, o: &ToleranceOverrides) -> Tolerances {
+        let (freq, mac) = match (reference, order) {
+            (Reference::Calculix, 1) => (0.1, 0.99),
+            (Reference::Calculix, _) => (1e-3, 0.999),
+            _ => (1e-6, 0.999),
+        };
+        Tolerances {
+            freq: o.freq.unwrap_or(freq),
+            mac: o.mac.unwrap_or(mac),
+            angle: o
+                .angle
+                .unwrap_or(if reference == Reference::Calculix { 1e-2 } else { 1e-3 }),
+            // CalculiX writes displacements with 6 significant digits (.frd E12.5).
+            static_rel: o
+                .static_rel
+                .unwrap_or(if reference == Reference::Calculix { 1e-5 } else { 1e-6 }),
+        }
+    }
+}
+
+/// One mode compared.
+#[derive(Debug, Serialize)]
+pub struct ModeRow {
+    /// Index (0-based, elastic modes).
+    pub mode: usize,
+    /// Ours, Hz.
+    pub ours_hz: f64,
+    /// Reference, Hz.
+    pub reference_hz: f64,
+    /// |ours − ref| / ref.
+    pub rel_diff: f64,
+    /// Modal assurance criterion with the reference mode of the same index (M-weighted).
+    pub mac: f64,
+    /// Group of (near-)repeated frequencies this mode belongs to.
+    pub group: usize,
+    /// Largest principal angle between the group's subspaces, rad.
+    pub group_angle_rad: f64,
+}
+
+/// One reference's comparison.
+#[derive(Debug, Serialize)]
+pub struct ReferenceReport {
+    /// Solver and version.
+    pub solver: String,
+    /// Per-mode rows.
+    pub modes: Vec<ModeRow>,
+    /// Worst frequency difference.
+    pub max_rel_freq_diff: f64,
+    /// Worst MAC among isolated modes.
+    pub min_mac_isolated: f64,
+    /// Worst group angle, rad.
+    pub max_group_angle_rad: f64,
+    /// Static displacement at the load node, ours vs reference, relative.
+    pub static_rel_diff: Option<f64>,
+    /// Wall time of the reference run, s.
+    pub seconds: f64,
+    /// Tolerances applied.
+    pub tolerances: Tolerances,
+    /// Within tolerances.
+    pub pass: bool,
+}
+
+/// The whole report.
+#[derive(Debug, Serialize)]
+pub struct VerifyReport {
+    /// What was verified.
+    pub input: String,
+    /// Nodes, tets, element order, unknowns.
+    pub nodes: usize,
+    /// Tets.
+    pub tets: usize,
+    /// 1 or 2.
+    pub element_order: u8,
+    /// Free DOFs.
+    pub dofs: usize,
+    /// Load node (index) and direction for the static check.
+    pub load_node: usize,
+    /// Unit force direction.
+    pub load_direction: [f64; 3],
+    /// One entry per reference.
+    pub references: Vec<ReferenceReport>,
+    /// Every reference within tolerances.
+    pub pass: bool,
+}
+
+const SKFEM: &str = include_str!("skfem_ref.py");
+const CCX: &str = include_str!("ccx_ref.py");
+
+/// Relative gap below which two neighbouring frequencies are treated as one group.
+const GROUP_GAP: f64 = 1e-3;
+
+fn python_has(module: &str) -> bool {
+    Command::new("python3")
+        .args(["-c", &format!("import {module}")])
+        .output()
+        .is_ok_and(|o| o.status.success())
+}
+
+/// Runs the comparison for a scene.
+pub fn verify_scene(
+    scene: &Scene,
+    refs: Reference,
+    modes: Option<usize>,
+    overrides: &ToleranceOverrides,
+) -> Result<VerifyReport> {
+    let count = modes.unwrap_or(scene.modes.count);
+    let d = discretize(scene, None, &mut Timings::default())?;
+    let (ours, _) = solve(&d, count, SolverChoice::Arpack)?;
+    let list = match refs {
+        Reference::All => vec![Reference::ScikitFem, Reference::Calculix],
+        r => vec![r],
+    };
+    let n = d.mesh.nodes.len();
+    let nf = d.dofs.free_count();
+    // Load: 1 N at the node that moves most in the first mode, along that motion.
+    let phi1 = d.dofs.expand(&ours.vectors[..nf]);
+    let load_node = (0..n)
+        .max_by(|&a, &b| {
+            let m = |i: usize| (0..3).map(|c| phi1[3 * i + c].powi(2)).sum::<f64>();
+            m(a).total_cmp(&m(b))
+        })
+        .unwrap_or(0);
+    let norm = (0..3)
+        .map(|c| phi1[3 * load_node + c].powi(2))
+        .sum::<f64>()
+        .sqrt()
+        .max(f64::MIN_POSITIVE);
+    let dir = [0, 1, 2].map(|c| phi1[3 * load_node + c] / norm);
+    let mut load = vec![0.0; 3 * n];
+    load[3 * load_node..3 * load_node + 3].copy_from_slice(&dir);
+    let static_ours = if d.rigid == 0 {
+        Some(static_solve(&d, &load)?)
+    } else {
+        None
+    };
+
+    let dir_tmp = std::env::temp_dir().join(format!("ves-verify-{}", std::process::id()));
+    std::fs::create_dir_all(&dir_tmp)?;
+    let cleanup = TempDir(dir_tmp.clone(), std::env::var_os("VES_KEEP_VERIFY").is_none());
+    write_problem(&dir_tmp.join("problem.h5"), &d, scene, &ours, &load, load_node)?;
+
+    let mut reports = Vec::new();
+    for r in list {
+        let t = std::time::Instant::now();
+        let result = dir_tmp.join(format!("{r:?}.h5"));
+        let (script, name, extra): (&str, &str, Vec<String>) = match r {
+            Reference::ScikitFem => {
+                if !python_has("skfem") || !python_has("h5py") {
+                    bail!("scikit-fem is not installed for python3: run `pip install scikit-fem h5py scipy`");
+                }
+                (SKFEM, "skfem_ref.py", vec![])
+            }
+            Reference::Calculix => {
+                if Command::new("ccx").arg("-v").output().is_err() {
+                    bail!("CalculiX (ccx) is not installed: run `apt-get install calculix-ccx`");
+                }
+                if d.rigid > 0 {
+                    tracing::warn!("CalculiX reference skipped: the part has rigid modes");
+                    continue;
+                }
+                (CCX, "ccx_ref.py", vec![dir_tmp.display().to_string()])
+            }
+            Reference::All => unreachable!("expanded above"),
+        };
+        let path = dir_tmp.join(name);
+        std::fs::write(&path, script)?;
+        let out = Command::new("python3")
+            .arg(&path)
+            .arg(dir_tmp.join("problem.h5"))
+            .arg(&result)
+            .args(&extra)
+            .output()?;
+        if !out.status.success() {
+            let err = String::from_utf8_lossy(&out.stderr);
+            bail!(
+                "{name} failed: {}",
+                err.lines().rev().find(|l| !l.trim().is_empty()).unwrap_or("no message")
+            );
+        }
+        let tol = Tolerances::resolve(r, d.mesh.order, overrides);
+        let mut rep = compare(&d, &ours, &result, static_ours.as_deref(), load_node, &tol)?;
+        rep.seconds = t.elapsed().as_secs_f64();
+        reports.push(rep);
+    }
+    drop(cleanup);
+    let pass = reports.iter().all(|r| r.pass);
+    Ok(VerifyReport {
+        input: scene.path.display().to_string(),
+        nodes: n,
+        tets: d.mesh.tet_count(),
+        element_order: d.mesh.order,
+        dofs: nf,
+        load_node,
+        load_direction: dir,
+        references: reports,
+        pass,
+    })
+}
+
+/// Removes the working directory when dropped.
+struct TempDir(std::path::PathBuf, bool);
+
+impl Drop for TempDir {
+    fn drop(&mut self) {
+        if self.1 {
+            let _ = std::fs::remove_dir_all(&self.0);
+        }
+    }
+}
+
+fn static_solve(d: &Discretized, load: &[f64]) -> Result<Vec<f64>> {
+    let ordering = nested_dissection(&d.system.graph, &d.dofs);
+    let sym = Cholesky::analyse(&d.system.pattern, &ordering)?;
+    let mut chol = Cholesky::factor(sym, &d.system.pattern, &d.system.k, 0.0)?;
+    let mut f: Vec<f64> = d.dofs.free.iter().map(|&g| load[g as usize]).collect();
+    chol.solve_in_place(&mut f);
+    Ok(d.dofs.expand(&f))
+}
+
+fn write_problem(
+    path: &Path,
+    d: &Discretized,
+    scene: &Scene,
+    ours: &Modes,
+    load: &[f64],
+    load_node: usize,
+) -> Result<()> {
+    let f = hdf5::File::create(path).with_context(|| format!("cannot create {}", path.display()))?;
+    let n = d.mesh.nodes.len();
+    f.new_dataset_builder()
+        .with_data(&Array2::from_shape_fn((n, 3), |(i, c)| d.mesh.nodes[i][c]))
+        .create("nodes")?;
+    let p = d.mesh.nodes_per_tet();
+    f.new_dataset_builder()
+        .with_data(&Array2::from_shape_vec((d.mesh.tet_count(), p), d.mesh.tets.clone())?)
+        .create("tets")?;
+    f.new_dataset_builder()
+        .with_data(&Array1::from(d.dofs.fixed.clone()))
+        .create("fixed_dofs")?;
+    f.new_dataset_builder()
+        .with_data(&Array1::from(load.to_vec()))
+        .create("load")?;
+    let m = &scene.material;
+    for (k, v) in [
+        ("young", m.young),
+        ("poisson", m.poisson),
+        ("density", m.density),
+        ("sigma", ours.sigma),
+    ] {
+        f.new_attr::<f64>().create(k)?.write_scalar(&v)?;
+    }
+    for (k, v) in [
+        ("order", u64::from(d.mesh.order)),
+        ("vertex_count", d.mesh.vertex_count as u64),
+        ("modes", ours.eigenvalues.len() as u64),
+        ("rigid", d.rigid as u64),
+        ("load_node", load_node as u64),
+    ] {
+        f.new_attr::<u64>().create(k)?.write_scalar(&v)?;
+    }
+    Ok(())
+}
+
+/// M-inner products of full-DOF vectors restricted to the free DOFs.
+fn m_dot(d: &Discretized, a: &[f64], b: &[f64]) -> f64 {
+    let fa: Vec<f64> = d.dofs.free.iter().map(|&g| a[g as usize]).collect();
+    let fb: Vec<f64> = d.dofs.free.iter().map(|&g| b[g as usize]).collect();
+    let mut mb = vec![0.0; fb.len()];
+    sym_matvec(&d.system.pattern, &d.system.m, &fb, &mut mb);
+    fa.iter().zip(&mb).map(|(x, y)| x * y).sum()
+}
+
+/// Largest principal angle between span(A) and span(B) (full-DOF column sets), M-inner product.
+fn principal_angle(d: &Discretized, a: &[Vec<f64>], b: &[Vec<f64>]) -> f64 {
+    let gram =
+        |x: &[Vec<f64>], y: &[Vec<f64>]| faer::Mat::<f64>::from_fn(x.len(), y.len(), |i, j| m_dot(d, &x[i], &y[j]));
+    let (gaa, gbb, gab) = (gram(a, a), gram(b, b), gram(a, b));
+    let (Ok(la), Ok(lb)) = (gaa.llt(faer::Side::Lower), gbb.llt(faer::Side::Lower)) else {
+        return std::f64::consts::FRAC_PI_2;
+    };
+    // C = La⁻¹ Gab Lb⁻ᵀ; its singular values are the cosines of the principal angles.
+    let mut c = gab.clone();
+    faer::linalg::triangular_solve::solve_lower_triangular_in_place(la.L(), c.as_mut(), faer::Par::Seq);
+    let mut ct = c.transpose().to_owned();
+    faer::linalg::triangular_solve::solve_lower_triangular_in_place(lb.L(), ct.as_mut(), faer::Par::Seq);
+    let cos = ct
+        .singular_values()
+        .map(|s| s.iter().copied().fold(f64::INFINITY, f64::min))
+        .unwrap_or(0.0);
+    cos.clamp(-1.0, 1.0).acos()
+}
+
+fn compare(
+    d: &Discretized,
+    ours: &Modes,
+    result: &Path,
+    static_ours: Option<&[f64]>,
+    load_node: usize,
+    tol: &Tolerances,
+) -> Result<ReferenceReport> {
+    let f = hdf5::File::open(result).with_context(|| format!("cannot read {}", result.display()))?;
+    let freqs: Vec<f64> = f.dataset("frequencies_hz")?.read_raw()?;
+    let modes: Array2<f64> = f.dataset("modes")?.read_2d()?;
+    let solver = f
+        .attr("solver")
+        .ok()
+        .and_then(|a| a.read_scalar::<hdf5::types::VarLenUnicode>().ok())
+        .map(|s| s.to_string())
+        .unwrap_or_default();
+    let nf = d.dofs.free_count();
+    let ours_f = ours.frequencies_hz();
+    let r = ours_f.len().min(freqs.len()).min(modes.ncols());
+    let ours_full: Vec<Vec<f64>> = (0..r)
+        .map(|j| d.dofs.expand(&ours.vectors[j * nf..(j + 1) * nf]))
+        .collect();
+    let theirs: Vec<Vec<f64>> = (0..r).map(|j| modes.column(j).to_vec()).collect();
+    // Groups of (near-)repeated frequencies, from our spectrum.
+    let mut group = vec![0usize; r];
+    for j in 1..r {
+        group[j] = if (ours_f[j] - ours_f[j - 1]) / ours_f[j] < GROUP_GAP {
+            group[j - 1]
+        } else {
+            group[j - 1] + 1
+        };
+    }
+    let mut rows = Vec::with_capacity(r);
+    for j in 0..r {
+        let (a, b) = (&ours_full[j], &theirs[j]);
+        let mac = m_dot(d, a, b).powi(2) / (m_dot(d, a, a) * m_dot(d, b, b));
+        let members: Vec<usize> = (0..r).filter(|&k| group[k] == group[j]).collect();
+        let angle = if members.len() > 1 {
+            let sa: Vec<Vec<f64>> = members.iter().map(|&k| ours_full[k].clone()).collect();
+            let sb: Vec<Vec<f64>> = members.iter().map(|&k| theirs[k].clone()).collect();
+            principal_angle(d, &sa, &sb)
+        } else {
+            mac.clamp(0.0, 1.0).sqrt().acos()
+        };
+        rows.push(ModeRow {
+            mode: j,
+            ours_hz: ours_f[j],
+            reference_hz: freqs[j],
+            rel_diff: (ours_f[j] - freqs[j]).abs() / freqs[j],
+            mac,
+            group: group[j],
+            group_angle_rad: angle,
+        });
+    }
+    let isolated = |row: &ModeRow| rows.iter().filter(|o| o.group == row.group).count() == 1;
+    let max_rel = rows.iter().map(|x| x.rel_diff).fold(0.0, f64::max);
+    let min_mac = rows.iter().filter(|x| isolated(x)).map(|x| x.mac).fold(1.0, f64::min);
+    let max_angle = rows
+        .iter()
+        .filter(|x| !isolated(x))
+        .map(|x| x.group_angle_rad)
+        .fold(0.0, f64::max);
+    let static_rel = match static_ours {
+        Some(u) => {
+            let theirs: Vec<f64> = f.dataset("static")?.read_raw()?;
+            let k = 3 * load_node;
+            let diff = (0..3).map(|c| (u[k + c] - theirs[k + c]).powi(2)).sum::<f64>().sqrt();
+            let norm = (0..3).map(|c| u[k + c].powi(2)).sum::<f64>().sqrt();
+            Some(diff / norm)
+        }
+        None => None,
+    };
+    let pass = r == ours_f.len()
+        && max_rel <= tol.freq
+        && min_mac >= tol.mac
+        && max_angle <= tol.angle
+        && static_rel.is_none_or(|s| s <= tol.static_rel);
+    Ok(ReferenceReport {
+        solver,
+        tolerances: *tol,
+        modes: rows,
+        max_rel_freq_diff: max_rel,
+        min_mac_isolated: min_mac,
+        max_group_angle_rad: max_angle,
+        static_rel_diff: static_rel,
+        seconds: 0.0,
+        pass,
+    })
+}
