@@ -256,3 +256,28 @@ fn session_and_bench_report_json() {
     assert!(!bad.status.success());
     assert!(String::from_utf8_lossy(&bad.stderr).contains("/nonexistent.csv"));
 }
+
+#[test]
+fn verify_against_scikit_fem_and_calculix_passes_and_tolerances_bite() {
+    // 10-node tets so both references run their quadratic elements; small mesh.
+    let (dir, path) = workdir(&GOOD.replace("order = 1", "order = 2").replace("size = 0.05", "size = 0.06"));
+    let o = ves(&["verify", path.to_str().unwrap(), "--against", "all", "--json"]);
+    let stderr = String::from_utf8_lossy(&o.stderr);
+    assert!(o.status.success(), "verify failed: {stderr}");
+    let v: serde_json::Value = serde_json::from_slice(&o.stdout).expect("verify JSON");
+    let refs = v["references"].as_array().expect("references");
+    assert_eq!(refs.len(), 2);
+    let skfem = &refs[0];
+    assert!(skfem["solver"].as_str().unwrap().contains("scikit-fem"));
+    assert!(skfem["max_rel_freq_diff"].as_f64().unwrap() < 1e-6);
+    assert!(skfem["min_mac_isolated"].as_f64().unwrap() > 0.999);
+    assert!(skfem["static_rel_diff"].as_f64().unwrap() < 1e-6);
+    let ccx = &refs[1];
+    assert!(ccx["solver"].as_str().unwrap().contains("CalculiX"));
+    assert!(ccx["max_rel_freq_diff"].as_f64().unwrap() < 1e-3);
+    assert!(ccx["static_rel_diff"].as_f64().unwrap() < 1e-5);
+    // An impossible tolerance must fail with exit status 2.
+    let o = ves(&["verify", path.to_str().unwrap(), "--against", "calculix", "--tol-freq", "1e-12"]);
+    assert_eq!(o.status.code(), Some(2), "{}", String::from_utf8_lossy(&o.stderr));
+    drop(dir);
+}
