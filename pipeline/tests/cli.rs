@@ -260,7 +260,11 @@ fn session_and_bench_report_json() {
 #[test]
 fn verify_against_scikit_fem_and_calculix_passes_and_tolerances_bite() {
     // 10-node tets so both references run their quadratic elements; small mesh.
-    let (dir, path) = workdir(&GOOD.replace("order = 1", "order = 2").replace("size = 0.05", "size = 0.06"));
+    let (dir, path) = workdir(
+        &GOOD
+            .replace("order = 1", "order = 2")
+            .replace("size = 0.05", "size = 0.06"),
+    );
     let o = ves(&["verify", path.to_str().unwrap(), "--against", "all", "--json"]);
     let stderr = String::from_utf8_lossy(&o.stderr);
     assert!(o.status.success(), "verify failed: {stderr}");
@@ -277,7 +281,14 @@ fn verify_against_scikit_fem_and_calculix_passes_and_tolerances_bite() {
     assert!(ccx["max_rel_freq_diff"].as_f64().unwrap() < 1e-3);
     assert!(ccx["static_rel_diff"].as_f64().unwrap() < 1e-5);
     // An impossible tolerance must fail with exit status 2.
-    let o = ves(&["verify", path.to_str().unwrap(), "--against", "calculix", "--tol-freq", "1e-12"]);
+    let o = ves(&[
+        "verify",
+        path.to_str().unwrap(),
+        "--against",
+        "calculix",
+        "--tol-freq",
+        "1e-12",
+    ]);
     assert_eq!(o.status.code(), Some(2), "{}", String::from_utf8_lossy(&o.stderr));
     drop(dir);
 }
