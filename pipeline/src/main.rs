@@ -86,11 +86,11 @@ enum Command {
         #[arg(short, long)]
         output: PathBuf,
     },
-    /// Cross-check a scene's modes and static response against independent solvers on the
-    /// same mesh. Exit status 2 when a tolerance is exceeded.
+    /// Cross-check the modes and static response of a scene or a basis file against independent
+    /// solvers on the same mesh. Exit status 2 when a tolerance is exceeded.
     Verify {
-        /// Scene file (TOML, version 1).
-        scene: PathBuf,
+        /// Scene file (TOML, version 1) or basis file (HDF5).
+        input: PathBuf,
         /// Reference solver.
         #[arg(long, value_enum, default_value_t = ves_pipeline::verify::Reference::All)]
         against: ves_pipeline::verify::Reference,
@@ -270,7 +270,7 @@ fn run(cli: Cli) -> Result<()> {
             }
         }
         Command::Verify {
-            scene,
+            input,
             against,
             modes,
             tol_freq,
@@ -279,14 +279,13 @@ fn run(cli: Cli) -> Result<()> {
             tol_static,
             json,
         } => {
-            let scene = Scene::load(&scene)?;
             let tol = ves_pipeline::verify::ToleranceOverrides {
                 freq: tol_freq,
                 mac: min_mac,
                 angle: max_angle,
                 static_rel: tol_static,
             };
-            let report = ves_pipeline::verify::verify_scene(&scene, against, modes, &tol)?;
+            let report = ves_pipeline::verify::verify_input(&input, against, modes, &tol)?;
             if json {
                 println!("{}", serde_json::to_string(&report)?);
             } else {

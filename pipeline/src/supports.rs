@@ -22,6 +22,27 @@ impl Dofs {
         self.free.len()
     }
 
+    /// Numbering from a per-DOF "supported" mask.
+    pub fn from_mask(fixed_mask: &[bool]) -> Dofs {
+        let mut free_of = vec![u32::MAX; fixed_mask.len()];
+        let mut free = Vec::with_capacity(fixed_mask.len());
+        let mut fixed = Vec::new();
+        for (d, &f) in fixed_mask.iter().enumerate() {
+            if f {
+                fixed.push(d as u32);
+            } else {
+                free_of[d] = free.len() as u32;
+                free.push(d as u32);
+            }
+        }
+        Dofs {
+            total: fixed_mask.len(),
+            fixed,
+            free_of,
+            free,
+        }
+    }
+
     /// Expands a vector over free DOFs to all DOFs (zeros where supported).
     pub fn expand(&self, reduced: &[f64]) -> Vec<f64> {
         let mut full = vec![0.0; self.total];
@@ -93,21 +114,5 @@ pub fn select(mesh: &Mesh, supports: &[Support]) -> Result<Dofs, EmptySupport> {
             return Err(EmptySupport { index, what, hint });
         }
     }
-    let mut free_of = vec![u32::MAX; 3 * n];
-    let mut free = Vec::with_capacity(3 * n);
-    let mut fixed = Vec::new();
-    for (d, &f) in fixed_mask.iter().enumerate() {
-        if f {
-            fixed.push(d as u32);
-        } else {
-            free_of[d] = free.len() as u32;
-            free.push(d as u32);
-        }
-    }
-    Ok(Dofs {
-        total: 3 * n,
-        fixed,
-        free_of,
-        free,
-    })
+    Ok(Dofs::from_mask(&fixed_mask))
 }

@@ -21,6 +21,8 @@ pub enum Reference {
     ScikitFem,
     /// CalculiX `ccx` (Debian calculix-ccx).
     Calculix,
+    /// FEniCSx (Debian python3-dolfinx, SLEPc through slepc4py).
+    Fenicsx,
     /// Every available reference.
     All,
 }
@@ -143,6 +145,30 @@ pub struct VerifyReport {
 
 const SKFEM: &str = include_str!("skfem_ref.py");
 const CCX: &str = include_str!("ccx_ref.py");
+const FENICSX: &str = include_str!("fenicsx_ref.py");
+const FX_BRIDGE: &str = include_str!("fx_bridge.py");
+
+/// The Python that has dolfinx (Debian installs it for /usr/bin/python3 only).
+fn fenicsx_python() -> Option<&'static str> {
+    ["python3", "/usr/bin/python3"].into_iter().find(|py| {
+        Command::new(py)
+            .args(["-c", "import dolfinx, slepc4py"])
+            .output()
+            .is_ok_and(|o| o.status.success())
+    })
+}
+
+fn run_checked(what: &str, cmd: &mut Command) -> Result<()> {
+    let out = cmd.output().with_context(|| format!("cannot run {what}"))?;
+    if !out.status.success() {
+        let err = String::from_utf8_lossy(&out.stderr);
+        bail!(
+            "{what} failed: {}",
+            err.lines().rev().find(|l| !l.trim().is_empty()).unwrap_or("no message")
+        );
+    }
+    Ok(())
+}
 
 /// Relative gap below which two neighbouring frequencies are treated as one group.
 const GROUP_GAP: f64 = 1e-3;
@@ -154,18 +180,144 @@ fn python_has(module: &str) -> bool {
         .is_ok_and(|o| o.status.success())
 }
 
-/// Runs the comparison for a scene.
-pub fn verify_scene(
-    scene: &Scene,
+/// Material constants (E, ν, ρ).
+type MaterialConstants = (f64, f64, f64);
+
+/// Runs the comparison (`All`: scikit-fem, CalculiX, and FEniCSx when installed) for a scene (meshed and solved here) or a basis file (its mesh, supports,
+/// material and stored modes).
+pub fn verify_input(
+    input: &Path,
     refs: Reference,
     modes: Option<usize>,
     overrides: &ToleranceOverrides,
 ) -> Result<VerifyReport> {
-    let count = modes.unwrap_or(scene.modes.count);
-    let d = discretize(scene, None, &mut Timings::default())?;
-    let (ours, _) = solve(&d, count, SolverChoice::Arpack)?;
+    let is_scene = input.extension().is_some_and(|e| e.eq_ignore_ascii_case("toml"));
+    let (d, ours, material) = if is_scene {
+        let scene = Scene::load(input)?;
+        let d = discretize(&scene, None, &mut Timings::default())?;
+        let (ours, _) = solve(&d, modes.unwrap_or(scene.modes.count), SolverChoice::Arpack)?;
+        let m = scene.material;
+        (d, ours, (m.young, m.poisson, m.density))
+    } else {
+        from_basis(input, modes)?
+    };
+    verify(&input.display().to_string(), &d, &ours, material, refs, overrides)
+}
+
+/// Rebuilds the discrete problem of a basis file's global space and takes its stored modes.
+fn from_basis(path: &Path, modes: Option<usize>) -> Result<(Discretized, Modes, MaterialConstants)> {
+    let file = ves_runtime::basis::open_checked(path)?;
+    let bad = |what: &str| anyhow::anyhow!("{}: {what} missing or damaged", path.display());
+    let g = file.group("spaces/global").map_err(|_| bad("space global"))?;
+    let nodes: Array2<f64> = g
+        .dataset("mesh/nodes")
+        .and_then(|d| d.read_2d())
+        .map_err(|_| bad("mesh/nodes"))?;
+    let tets: Array2<u32> = g
+        .dataset("mesh/tets")
+        .and_then(|d| d.read_2d())
+        .map_err(|_| bad("mesh/tets"))?;
+    let tri: Array2<u32> = g
+        .dataset("mesh/surface_triangles")
+        .and_then(|d| d.read_2d())
+        .map_err(|_| bad("mesh/surface_triangles"))?;
+    let fixed: Vec<u32> = g
+        .dataset("mesh/fixed_dofs")
+        .and_then(|d| d.read_raw())
+        .map_err(|_| bad("mesh/fixed_dofs"))?;
+    let nv: u32 = g
+        .group("mesh")
+        .and_then(|m| m.attr("vertex_count"))
+        .and_then(|a| a.read_scalar())
+        .map_err(|_| bad("vertex_count"))?;
+    let order: u32 = g
+        .attr("element_order")
+        .and_then(|a| a.read_scalar())
+        .map_err(|_| bad("element_order"))?;
+    let lam: Vec<f64> = g
+        .dataset("modes/eigenvalues")
+        .and_then(|d| d.read_raw())
+        .map_err(|_| bad("modes/eigenvalues"))?;
+    let basis: Array2<f64> = g
+        .dataset("modes/basis")
+        .and_then(|d| d.read_2d())
+        .map_err(|_| bad("modes/basis"))?;
+    let mat = file.group("material").map_err(|_| bad("/material"))?;
+    let attr = |k: &str| mat.attr(k).and_then(|a| a.read_scalar::<f64>()).map_err(|_| bad(k));
+    let material = (attr("young")?, attr("poisson")?, attr("density")?);
+    let n = nodes.nrows();
+    let p = if order == 2 { 10 } else { 4 };
+    if nodes.ncols() != 3 || tets.ncols() != p || basis.nrows() != 3 * n || fixed.iter().any(|&f| f as usize >= 3 * n) {
+        return Err(bad("consistent mesh and basis shapes"));
+    }
+    let mesh = crate::mesh::Mesh {
+        nodes: nodes.rows().into_iter().map(|r| [r[0], r[1], r[2]]).collect(),
+        vertex_count: nv as usize,
+        order: order as u8,
+        tets: tets.iter().copied().collect(),
+        surface: tri.rows().into_iter().map(|t| [t[0], t[1], t[2]]).collect(),
+    };
+    if mesh.tets.iter().any(|&t| t as usize >= n) {
+        return Err(bad("tets (node index out of range)"));
+    }
+    let mut mask = vec![false; 3 * n];
+    for &f in &fixed {
+        mask[f as usize] = true;
+    }
+    let dofs = crate::supports::Dofs::from_mask(&mask);
+    let system = crate::fem::assemble(&mesh, material.0, material.1, material.2, &dofs)?;
+    let rigid = crate::rigid::free_rigid_count(&mesh.nodes, &dofs);
+    let r = modes.unwrap_or(lam.len()).min(lam.len());
+    let nf = dofs.free_count();
+    let mut vectors = Vec::with_capacity(nf * r);
+    for j in 0..r {
+        vectors.extend(dofs.free.iter().map(|&g| basis[(g as usize, j)]));
+    }
+    let problem = crate::modes::EigenProblem {
+        pattern: &system.pattern,
+        k: &system.k,
+        m: &system.m,
+    };
+    let sigma = -1e-8 * problem.stiffness_scale();
+    let ours = Modes {
+        eigenvalues: lam[..r].to_vec(),
+        vectors,
+        rigid_dropped: rigid,
+        residuals: vec![],
+        orthonormality_error: f64::NAN,
+        sigma,
+        factorize_s: 0.0,
+        eigensolve_s: 0.0,
+    };
+    Ok((
+        Discretized {
+            mesh,
+            dofs,
+            system,
+            rigid,
+        },
+        ours,
+        material,
+    ))
+}
+
+/// Compares a discrete problem and our modes with the references.
+fn verify(
+    input: &str,
+    d: &Discretized,
+    ours: &Modes,
+    material: MaterialConstants,
+    refs: Reference,
+    overrides: &ToleranceOverrides,
+) -> Result<VerifyReport> {
     let list = match refs {
-        Reference::All => vec![Reference::ScikitFem, Reference::Calculix],
+        Reference::All => {
+            let mut all = vec![Reference::ScikitFem, Reference::Calculix];
+            if fenicsx_python().is_some() {
+                all.push(Reference::Fenicsx);
+            }
+            all
+        }
         r => vec![r],
     };
     let n = d.mesh.nodes.len();
@@ -195,18 +347,28 @@ pub fn verify_scene(
     let dir_tmp = std::env::temp_dir().join(format!("ves-verify-{}", std::process::id()));
     std::fs::create_dir_all(&dir_tmp)?;
     let cleanup = TempDir(dir_tmp.clone(), std::env::var_os("VES_KEEP_VERIFY").is_none());
-    write_problem(&dir_tmp.join("problem.h5"), &d, scene, &ours, &load, load_node)?;
+    write_problem(&dir_tmp.join("problem.h5"), d, material, ours, &load, load_node)?;
 
     let mut reports = Vec::new();
     for r in list {
         let t = std::time::Instant::now();
         let result = dir_tmp.join(format!("{r:?}.h5"));
-        let (script, name, extra): (&str, &str, Vec<String>) = match r {
+        let problem = dir_tmp.join("problem.h5");
+        let script = |name: &str, text: &str| -> Result<std::path::PathBuf> {
+            let path = dir_tmp.join(name);
+            std::fs::write(&path, text)?;
+            Ok(path)
+        };
+        match r {
             Reference::ScikitFem => {
                 if !python_has("skfem") || !python_has("h5py") {
                     bail!("scikit-fem is not installed for python3: run `pip install scikit-fem h5py scipy`");
                 }
-                (SKFEM, "skfem_ref.py", vec![])
+                let py = script("skfem_ref.py", SKFEM)?;
+                run_checked(
+                    "skfem_ref.py",
+                    Command::new("python3").arg(py).arg(&problem).arg(&result),
+                )?;
             }
             Reference::Calculix => {
                 if Command::new("ccx").arg("-v").output().is_err() {
@@ -216,34 +378,49 @@ pub fn verify_scene(
                     tracing::warn!("CalculiX reference skipped: the part has rigid modes");
                     continue;
                 }
-                (CCX, "ccx_ref.py", vec![dir_tmp.display().to_string()])
+                let py = script("ccx_ref.py", CCX)?;
+                run_checked(
+                    "ccx_ref.py",
+                    Command::new("python3").arg(py).arg(&problem).arg(&result).arg(&dir_tmp),
+                )?;
+            }
+            Reference::Fenicsx => {
+                let Some(fx) = fenicsx_python() else {
+                    bail!(
+                        "FEniCSx is not installed: run `apt-get install python3-dolfinx python3-slepc4py` (Debian 12)"
+                    );
+                };
+                let bridge = script("fx_bridge.py", FX_BRIDGE)?;
+                run_checked(
+                    "fx_bridge.py",
+                    Command::new("python3")
+                        .arg(&bridge)
+                        .arg("in")
+                        .arg(&problem)
+                        .arg(&dir_tmp),
+                )?;
+                let py = script("fenicsx_ref.py", FENICSX)?;
+                run_checked("fenicsx_ref.py", Command::new(fx).arg(py).arg(&dir_tmp))?;
+                run_checked(
+                    "fx_bridge.py",
+                    Command::new("python3")
+                        .arg(&bridge)
+                        .arg("out")
+                        .arg(&dir_tmp)
+                        .arg(&result),
+                )?;
             }
             Reference::All => unreachable!("expanded above"),
-        };
-        let path = dir_tmp.join(name);
-        std::fs::write(&path, script)?;
-        let out = Command::new("python3")
-            .arg(&path)
-            .arg(dir_tmp.join("problem.h5"))
-            .arg(&result)
-            .args(&extra)
-            .output()?;
-        if !out.status.success() {
-            let err = String::from_utf8_lossy(&out.stderr);
-            bail!(
-                "{name} failed: {}",
-                err.lines().rev().find(|l| !l.trim().is_empty()).unwrap_or("no message")
-            );
         }
         let tol = Tolerances::resolve(r, d.mesh.order, overrides);
-        let mut rep = compare(&d, &ours, &result, static_ours.as_deref(), load_node, &tol)?;
+        let mut rep = compare(d, ours, &result, static_ours.as_deref(), load_node, &tol)?;
         rep.seconds = t.elapsed().as_secs_f64();
         reports.push(rep);
     }
     drop(cleanup);
     let pass = reports.iter().all(|r| r.pass);
     Ok(VerifyReport {
-        input: scene.path.display().to_string(),
+        input: input.to_string(),
         nodes: n,
         tets: d.mesh.tet_count(),
         element_order: d.mesh.order,
@@ -278,7 +455,7 @@ fn static_solve(d: &Discretized, load: &[f64]) -> Result<Vec<f64>> {
 fn write_problem(
     path: &Path,
     d: &Discretized,
-    scene: &Scene,
+    material: MaterialConstants,
     ours: &Modes,
     load: &[f64],
     load_node: usize,
@@ -298,11 +475,11 @@ fn write_problem(
     f.new_dataset_builder()
         .with_data(&Array1::from(load.to_vec()))
         .create("load")?;
-    let m = &scene.material;
+    let (young, poisson, density) = material;
     for (k, v) in [
-        ("young", m.young),
-        ("poisson", m.poisson),
-        ("density", m.density),
+        ("young", young),
+        ("poisson", poisson),
+        ("density", density),
         ("sigma", ours.sigma),
     ] {
         f.new_attr::<f64>().create(k)?.write_scalar(&v)?;
