@@ -336,13 +336,15 @@ impl Haptics {
     }
 
     /// Writes what a drawing thread needs: q, then the pose (centre of mass in the world, unit
-    /// quaternion body → world). A supported part has the identity pose about the origin.
+    /// quaternion body → world). A part that is not moving as a free body writes a zero
+    /// quaternion: no pose, drawn where it was meshed.
     pub fn write_published(&self, out: &mut [f64]) {
         let r = self.state.q.len();
         out[..r].copy_from_slice(&self.state.q);
         let (x, o) = match &self.rigid {
             Some(rb) => (rb.position, rb.orientation),
-            None => ([0.0; 3], [1.0, 0.0, 0.0, 0.0]),
+            // No pose: drawn where it was meshed (see visual::posed_positions).
+            None => ([0.0; 3], [0.0; 4]),
         };
         out[r..r + 3].copy_from_slice(&x);
         out[r + 3..r + 7].copy_from_slice(&o);

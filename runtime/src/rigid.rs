@@ -18,6 +18,27 @@ fn transpose(a: &M3) -> M3 {
     std::array::from_fn(|i| std::array::from_fn(|j| a[j][i]))
 }
 
+/// Rotation matrix of a unit quaternion (w, x, y, z).
+pub fn rotation_matrix([w, x, y, z]: [f64; 4]) -> M3 {
+    [
+        [
+            1.0 - 2.0 * (y * y + z * z),
+            2.0 * (x * y - w * z),
+            2.0 * (x * z + w * y),
+        ],
+        [
+            2.0 * (x * y + w * z),
+            1.0 - 2.0 * (x * x + z * z),
+            2.0 * (y * z - w * x),
+        ],
+        [
+            2.0 * (x * z - w * y),
+            2.0 * (y * z + w * x),
+            1.0 - 2.0 * (x * x + y * y),
+        ],
+    ]
+}
+
 /// a × b.
 pub fn cross(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
     [
@@ -85,24 +106,7 @@ impl RigidBody {
 
     /// Rotation matrix body → world.
     pub fn rotation(&self) -> M3 {
-        let [w, x, y, z] = self.orientation;
-        [
-            [
-                1.0 - 2.0 * (y * y + z * z),
-                2.0 * (x * y - w * z),
-                2.0 * (x * z + w * y),
-            ],
-            [
-                2.0 * (x * y + w * z),
-                1.0 - 2.0 * (x * x + z * z),
-                2.0 * (y * z - w * x),
-            ],
-            [
-                2.0 * (x * z - w * y),
-                2.0 * (y * z + w * x),
-                1.0 - 2.0 * (x * x + y * y),
-            ],
-        ]
+        rotation_matrix(self.orientation)
     }
 
     /// World inverse inertia R I⁻¹ Rᵀ.

@@ -31,28 +31,12 @@ pub fn posed_positions(basis: &Basis, published: &[f64], pos: &mut [f32]) {
     positions(basis, &published[..r], pos);
     let Some(rigid) = basis.rigid else { return };
     let x = [published[r], published[r + 1], published[r + 2]];
-    let [w, a, b, c] = [published[r + 3], published[r + 4], published[r + 5], published[r + 6]];
-    let rot = [
-        [
-            1.0 - 2.0 * (b * b + c * c),
-            2.0 * (a * b - w * c),
-            2.0 * (a * c + w * b),
-        ],
-        [
-            2.0 * (a * b + w * c),
-            1.0 - 2.0 * (a * a + c * c),
-            2.0 * (b * c - w * a),
-        ],
-        [
-            2.0 * (a * c - w * b),
-            2.0 * (b * c + w * a),
-            1.0 - 2.0 * (a * a + b * b),
-        ],
-    ];
+    let q = [published[r + 3], published[r + 4], published[r + 5], published[r + 6]];
     // An all-zero pose (nothing published yet) draws the part where it was meshed.
-    if w == 0.0 && a == 0.0 && b == 0.0 && c == 0.0 {
+    if q == [0.0; 4] {
         return;
     }
+    let rot = crate::rigid::rotation_matrix(q);
     for p in pos.chunks_exact_mut(3) {
         let d = [
             f64::from(p[0]) - rigid.center[0],
