@@ -339,7 +339,7 @@ fn verify(
     let mut load = vec![0.0; 3 * n];
     load[3 * load_node..3 * load_node + 3].copy_from_slice(&dir);
     let static_ours = if d.rigid == 0 {
-        Some(static_solve(&d, &load)?)
+        Some(static_solve(d, &load)?)
     } else {
         None
     };
