@@ -167,15 +167,22 @@ pub fn generate(scene: &Scene, voi: Option<&Voi>) -> Result<Mesh, MeshError> {
         cause,
     };
     let session = gmsh::Session::start().map_err(g)?;
-    let scale = scene.unit.to_metres();
-    // STEP/IGES carry their own unit: OpenCASCADE converts it to the scene's unit, so a
-    // millimetre STEP read with unit = "m" is still right. BREP/GEO have no unit: the scene's applies.
-    session
-        .set_string(
-            "Geometry.OCCTargetUnit",
-            if scene.unit == LengthUnit::Metre { "M" } else { "MM" },
-        )
-        .map_err(g)?;
+    // STEP/IGES carry their own unit: OpenCASCADE converts it, always to millimetres, so the
+    // mesh is the same whatever `unit` the scene gives (results independent of units to round-off).
+    // BREP/GEO have no unit: the scene's `unit` says what their numbers are.
+    let ext = scene
+        .geometry
+        .extension()
+        .and_then(|e| e.to_str())
+        .map(str::to_ascii_lowercase)
+        .unwrap_or_default();
+    let has_unit = matches!(ext.as_str(), "step" | "stp" | "iges" | "igs");
+    let scale = if has_unit {
+        LengthUnit::Millimetre.to_metres()
+    } else {
+        scene.unit.to_metres()
+    };
+    session.set_string("Geometry.OCCTargetUnit", "MM").map_err(g)?;
     session.open(&scene.geometry).map_err(g)?;
     let volumes = session.entities(3).map_err(g)?;
     if volumes.is_empty() {
