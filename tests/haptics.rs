@@ -236,3 +236,66 @@ fn free_bracket_lifted_by_one_corner_hangs_below_the_hand() {
         rb.position[2]
     );
 }
+
+#[test]
+fn static_correction_makes_the_felt_stiffness_exact_with_few_modes() {
+    use ves_pipeline::linsolve::factor_stiffness;
+    use ves_pipeline::precompute::{Timings, discretize};
+    let dir = tempfile::tempdir().expect("temp dir");
+    let mut scene = ves_tests::load_case("cantilever");
+    scene.mesh.size = 0.05;
+    scene.mesh.order = 1;
+    scene.modes.count = 6;
+    scene.static_correction = Some(ves_pipeline::scene::StaticCorrection {
+        region: ves_pipeline::scene::CorrectionRegion::Surface,
+    });
+    let path = dir.path().join("c.h5");
+    ves_pipeline::precompute::run(&scene, &path, ves_pipeline::precompute::SolverChoice::Auto).expect("precompute");
+    let basis = Arc::new(ves_runtime::basis::load(&path, &LoadOptions::default()).expect("loads"));
+    assert!(basis.compliance.is_some(), "blocks stored and loaded");
+    // Full static solve on the same mesh for the settled force at the tip vertex.
+    let d = discretize(&scene, None, &mut Timings::default()).expect("discretize");
+    let tip = nearest(&basis, [1.0, 0.1, 0.05]);
+    let node = basis.node_index[tip] as usize;
+    let chol = factor_stiffness(&d.system, &d.dofs).expect("factor");
+    let exact_u = |force: [f64; 3]| -> [f64; 3] {
+        let mut f = vec![0.0; d.dofs.free_count()];
+        for c in 0..3 {
+            f[d.dofs.free_of[3 * node + c] as usize] = force[c];
+        }
+        chol.solve_many_in_place(&mut f, 1);
+        let u = d.dofs.expand(&f);
+        [u[3 * node], u[3 * node + 1], u[3 * node + 2]]
+    };
+    let settle = |correct: bool| {
+        let coupling = Coupling {
+            stiffness: 2e5,
+            damping: 200.0,
+            max_force: 1e4,
+        };
+        let mut h = Haptics::new(basis.clone(), coupling, 1e-3, Scheme::Exact, 1);
+        h.set_static_correction(correct);
+        let p = basis.rest[tip];
+        let input = [HandInput {
+            position: [p[0], p[1], p[2] - 1e-3],
+            velocity: [0.0; 3],
+            button: true,
+        }];
+        let mut out = [HandOutput::default()];
+        for _ in 0..20_000 {
+            h.step(&input, &mut out);
+        }
+        let force = out[0].force.map(|v| -v); // on the part
+        let u: [f64; 3] = std::array::from_fn(|c| out[0].vertex_position[c] - p[c]);
+        let e = exact_u(force);
+        let err = (0..3).map(|c| (u[c] - e[c]).powi(2)).sum::<f64>().sqrt()
+            / (0..3).map(|c| e[c].powi(2)).sum::<f64>().sqrt();
+        (u[2], e[2], err)
+    };
+    let ((u_with, exact, e_with), (u_without, _, e_without)) = (settle(true), settle(false));
+    println!(
+        "tip displacement: exact {exact:.6e} m, corrected {u_with:.6e} (error {e_with:.2e}), 6 modes only {u_without:.6e} (error {e_without:.2e})"
+    );
+    assert!(e_with.abs() < 1e-4, "corrected {e_with}");
+    assert!(e_without.abs() > 10.0 * e_with.abs(), "the correction must matter here");
+}

@@ -117,6 +117,13 @@ pub fn nested_dissection(graph: &NodeGraph, dofs: &Dofs) -> (Vec<usize>, Vec<usi
     (fwd, inv)
 }
 
+/// Factorises the stiffness K of a supported part (METIS ordering).
+pub fn factor_stiffness(system: &crate::fem::Assembled, dofs: &Dofs) -> Result<Cholesky, FactorError> {
+    let ordering = nested_dissection(&system.graph, dofs);
+    let symbolic = Cholesky::analyse(&system.pattern, &ordering)?;
+    Cholesky::factor(symbolic, &system.pattern, &system.k, 0.0)
+}
+
 /// Sparse Cholesky factor of a symmetric positive definite matrix.
 pub struct Cholesky {
     symbolic: SymbolicCholesky<usize>,
@@ -186,11 +193,11 @@ impl Cholesky {
         self.values.len()
     }
 
-    /// X ← A⁻¹ X for `nrhs` column-major right-hand sides (the factor is read once).
-    pub fn solve_many_in_place(&mut self, x: &mut [f64], nrhs: usize) {
+    /// X ← A⁻¹ X for `nrhs` column-major right-hand sides (the factor is read once). Takes its
+    /// own scratch, so several threads can solve with one factor.
+    pub fn solve_many_in_place(&self, x: &mut [f64], nrhs: usize) {
         let n = x.len() / nrhs;
-        let req = self.symbolic.solve_in_place_scratch::<f64>(nrhs, self.par);
-        let mut stack = MemBuffer::new(req);
+        let mut stack = MemBuffer::new(self.symbolic.solve_in_place_scratch::<f64>(nrhs, self.par));
         let llt = LltRef::<usize, f64>::new(&self.symbolic, &self.values);
         llt.solve_in_place_with_conj(
             Conj::No,

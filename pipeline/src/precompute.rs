@@ -35,6 +35,8 @@ pub struct Timings {
     pub factorize: f64,
     /// Lanczos iteration and checks.
     pub eigensolve: f64,
+    /// Static correction blocks (when the scene asks for them).
+    pub static_correction: f64,
     /// Writing the file.
     pub write: f64,
     /// Everything.
@@ -47,6 +49,7 @@ impl Timings {
         self.assemble += o.assemble;
         self.factorize += o.factorize;
         self.eigensolve += o.eigensolve;
+        self.static_correction += o.static_correction;
     }
 }
 
@@ -64,6 +67,8 @@ pub struct SolvedSpace {
     pub modes: Modes,
     /// Mass properties.
     pub mass: MassProperties,
+    /// Static compliance blocks, when the scene asks for a static correction.
+    pub compliance: Option<crate::compliance::Compliance>,
     /// Stage times.
     pub timings: Timings,
 }
@@ -136,11 +141,18 @@ pub fn solve_space(scene: &Scene, voi: Option<&Voi>, choice: SolverChoice) -> Re
     let (modes, ordering_s) = solve(&d, scene.modes.count, choice)?;
     timings.factorize = ordering_s + modes.factorize_s;
     timings.eigensolve = modes.eigensolve_s;
+    let t = Instant::now();
+    let compliance = match scene.static_correction {
+        Some(_) => Some(crate::compliance::surface_compliance(&d)?),
+        None => None,
+    };
+    timings.static_correction = t.elapsed().as_secs_f64();
     let name = voi.map_or("global".to_string(), |v| v.name.clone());
     Ok(SolvedSpace {
         name,
         voi: voi.cloned(),
         mass: d.system.mass,
+        compliance,
         mesh: d.mesh,
         dofs: d.dofs,
         modes,
@@ -209,6 +221,7 @@ pub fn run(scene: &Scene, out: &Path, choice: SolverChoice) -> Result<Summary> {
             dofs: &s.dofs,
             modes: &s.modes,
             mass: &s.mass,
+            compliance: s.compliance.as_ref(),
         })
         .collect();
     store::write(out, scene, &views)?;

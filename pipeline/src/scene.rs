@@ -30,6 +30,25 @@ struct RawScene {
     damping: Damping,
     #[serde(default)]
     voi: Vec<Voi>,
+    static_correction: Option<StaticCorrection>,
+}
+
+/// Optional `[static_correction]` table (a compatible v1 extension): store the exact static
+/// compliance blocks (K⁻¹)ᵢᵢ of the candidate contact vertices, so the runtime can make the
+/// felt stiffness exact whatever the number of modes.
+#[derive(Clone, Copy, Debug, Deserialize, PartialEq, Eq)]
+#[serde(deny_unknown_fields)]
+pub struct StaticCorrection {
+    /// Which vertices: `"surface"` (every corner vertex on the boundary).
+    pub region: CorrectionRegion,
+}
+
+/// Candidate contact vertices for the static correction.
+#[derive(Clone, Copy, Debug, Deserialize, PartialEq, Eq)]
+pub enum CorrectionRegion {
+    /// Every corner vertex of the surface.
+    #[serde(rename = "surface")]
+    Surface,
 }
 
 #[derive(Debug, Deserialize)]
@@ -199,6 +218,8 @@ pub struct Scene {
     pub damping: Damping,
     /// Volumes of interest.
     pub voi: Vec<Voi>,
+    /// Static correction, if asked.
+    pub static_correction: Option<StaticCorrection>,
 }
 
 const GEOMETRY_EXTENSIONS: [&str; 5] = ["step", "stp", "brep", "geo", "iges"];
@@ -307,6 +328,7 @@ impl Scene {
             modes: raw.modes,
             damping: raw.damping,
             voi: raw.voi,
+            static_correction: raw.static_correction,
         })
     }
 }

@@ -27,6 +27,8 @@ pub struct Space<'a> {
     pub modes: &'a Modes,
     /// Mass properties (stored under `rigid/` for free bodies).
     pub mass: &'a MassProperties,
+    /// Static compliance blocks (`compliance/`), if computed.
+    pub compliance: Option<&'a crate::compliance::Compliance>,
 }
 
 fn attr_str(loc: &hdf5::Location, name: &str, value: &str) -> Result<()> {
@@ -109,6 +111,14 @@ fn write_space(file: &hdf5::File, s: &Space<'_>) -> Result<()> {
         .chunk(chunk)
         .create("basis")?;
 
+    if let Some(c) = s.compliance {
+        let grp = g.create_group("compliance")?;
+        grp.new_dataset_builder()
+            .with_data(&Array1::from(c.nodes.clone()))
+            .create("nodes")?;
+        let blocks = ndarray::Array3::from_shape_fn((c.blocks.len(), 3, 3), |(k, a, b)| c.blocks[k][a][b]);
+        grp.new_dataset_builder().with_data(&blocks).create("blocks")?;
+    }
     if s.modes.rigid_dropped > 0 {
         let rigid = g.create_group("rigid")?;
         attr_f64(&rigid, "mass", s.mass.mass)?;

@@ -63,6 +63,9 @@ pub struct Basis {
     pub beta: f64,
     /// Mass properties, for free bodies.
     pub rigid: Option<RigidProperties>,
+    /// Exact static compliance (K⁻¹)ᵢᵢ per kept vertex, m/N, when the file has it (NaN where a
+    /// vertex has no block).
+    pub compliance: Option<Vec<[[f64; 3]; 3]>>,
     /// Bytes of basis data held in memory.
     pub bytes_loaded: usize,
 }
@@ -136,8 +139,30 @@ impl Basis {
             alpha,
             beta,
             rigid,
+            compliance: None,
             bytes_loaded,
         })
+    }
+
+    /// Attaches static compliance blocks, one per kept vertex (NaN: none for that vertex).
+    pub fn with_compliance(mut self, blocks: Vec<[[f64; 3]; 3]>) -> Result<Basis, LoadError> {
+        if blocks.len() != self.rest.len() {
+            return Err(LoadError {
+                path: self.space.clone(),
+                message: format!("{} compliance blocks for {} vertices", blocks.len(), self.rest.len()),
+            });
+        }
+        self.bytes_loaded += blocks.len() * 72;
+        self.compliance = Some(blocks);
+        Ok(self)
+    }
+
+    /// The compliance block of kept vertex `i`, if stored.
+    pub fn compliance_of(&self, i: usize) -> Option<[[f64; 3]; 3]> {
+        self.compliance
+            .as_ref()
+            .and_then(|c| c.get(i).copied())
+            .filter(|b| b[0][0].is_finite())
     }
 
     /// Kept vertices.
@@ -364,17 +389,45 @@ mod file {
             }
             Err(_) => None,
         };
-        Basis::new(
+        let basis = Basis::new(
             &p,
             &space,
             rest,
-            keep,
+            keep.clone(),
             triangles,
             lam[..r].to_vec(),
             &flat,
             damping,
             rigid,
-        )
+        )?;
+        match g.group("compliance") {
+            Ok(cg) => {
+                let nodes: Vec<u32> = cg
+                    .dataset("nodes")
+                    .and_then(|d| d.read_raw())
+                    .map_err(|_| h5("compliance/nodes"))?;
+                let blocks: Vec<f64> = cg
+                    .dataset("blocks")
+                    .and_then(|d| d.read_raw())
+                    .map_err(|_| h5("compliance/blocks"))?;
+                if blocks.len() != 9 * nodes.len() {
+                    return Err(h5("compliance blocks (shape)"));
+                }
+                let mut slot = vec![u32::MAX; nv];
+                for (k, &v) in keep.iter().enumerate() {
+                    slot[v as usize] = k as u32;
+                }
+                let mut per_vertex = vec![[[f64::NAN; 3]; 3]; keep.len()];
+                for (j, &node) in nodes.iter().enumerate() {
+                    if let Some(&k) = slot.get(node as usize).filter(|&&k| k != u32::MAX) {
+                        per_vertex[k as usize] =
+                            std::array::from_fn(|a| std::array::from_fn(|b| blocks[9 * j + 3 * a + b]));
+                    }
+                }
+                basis.with_compliance(per_vertex)
+            }
+            Err(_) => Ok(basis),
+        }
     }
 }
 

@@ -65,6 +65,11 @@ struct Hand {
     rows: Vec<f64>,
     /// How far the vertex moves per newton of its own force over one step (modal part).
     g: [[f64; 3]; 3],
+    /// Static correction Gᵢᵢ − Φᵢ Λ⁻¹ Φᵢᵀ (zero when off or not stored): the compliance the
+    /// truncated modes miss, added instantly.
+    residual: [[f64; 3]; 3],
+    /// Force applied to the part at the vertex last step (part frame).
+    last_force: [f64; 3],
 }
 
 /// Haptic simulation of one part.
@@ -78,6 +83,7 @@ pub struct Haptics {
     coupling: Coupling,
     rigid: Option<RigidBody>,
     saved_rigid: Option<RigidBody>,
+    static_correction: bool,
     /// Steps whose result was non-finite and was rolled back.
     pub quarantined: u64,
 }
@@ -114,6 +120,8 @@ impl Haptics {
                 grabbed: false,
                 rows: vec![0.0; 3 * r],
                 g: [[0.0; 3]; 3],
+                residual: [[0.0; 3]; 3],
+                last_force: [0.0; 3],
             })
             .collect();
         Haptics {
@@ -126,6 +134,7 @@ impl Haptics {
             coupling,
             rigid: None,
             saved_rigid: None,
+            static_correction: true,
             quarantined: 0,
         }
     }
@@ -143,6 +152,15 @@ impl Haptics {
         body.damping = damping.max(0.0);
         self.rigid = Some(body);
         Ok(())
+    }
+
+    /// Uses the stored static compliance blocks at the active vertex (on by default when the
+    /// basis has them): the felt stiffness is then exact whatever the number of modes.
+    pub fn set_static_correction(&mut self, on: bool) {
+        self.static_correction = on;
+        for h in &mut self.hands {
+            h.vertex = None; // recompute the residual at the next pick
+        }
     }
 
     /// The rigid-body state of a free part.
@@ -182,8 +200,22 @@ impl Haptics {
                     .sum()
             })
         });
+        // Residual compliance: exact block minus what the loaded modes already give.
+        let residual = match basis.compliance_of(vertex as usize).filter(|_| self.static_correction) {
+            Some(exact) => std::array::from_fn(|a| {
+                std::array::from_fn(|b| {
+                    exact[a][b]
+                        - (0..r)
+                            .map(|j| rows[a * r + j] * rows[b * r + j] / basis.eigenvalues[j])
+                            .sum::<f64>()
+                })
+            }),
+            None => [[0.0; 3]; 3],
+        };
         hd.vertex = Some(vertex);
         hd.g = g;
+        hd.residual = residual;
+        hd.last_force = [0.0; 3];
     }
 
     /// One haptic step for every hand in `inputs` (at most the number given to `new`).
@@ -224,16 +256,14 @@ impl Haptics {
             }
             let hd = &self.hands[k];
             let Some(vertex) = hd.vertex else { continue };
-            // A free body adds its rigid compliance at the vertex to the modal one.
-            let mut g = hd.g;
-            if let Some(rb) = &self.rigid {
-                let cr = rb.step_compliance_body(self.basis.rest[vertex as usize], dt);
-                for a in 0..3 {
-                    for b in 0..3 {
-                        g[a][b] += cr[a][b];
-                    }
-                }
-            }
+            // The step compliance at the vertex: modes, static correction, and for a free body
+            // the rigid motion.
+            let cr = match &self.rigid {
+                Some(rb) => rb.step_compliance_body(self.basis.rest[vertex as usize], dt),
+                None => [[0.0; 3]; 3],
+            };
+            let g: [[f64; 3]; 3] =
+                std::array::from_fn(|a| std::array::from_fn(|b| hd.g[a][b] + hd.residual[a][b] + cr[a][b]));
             // Free prediction of the vertex at the end of the step.
             let (mut p0, mut p_now) = (self.basis.rest[vertex as usize], self.basis.rest[vertex as usize]);
             for j in 0..r {
@@ -243,6 +273,12 @@ impl Haptics {
                     p0[a] += phi * qf;
                     p_now[a] += phi * self.state.q[j];
                 }
+            }
+            // The static correction is quasi-static: it moved the vertex by R·F_last already.
+            for a in 0..3 {
+                let shift = (0..3).map(|b| hd.residual[a][b] * hd.last_force[b]).sum::<f64>();
+                p_now[a] += shift;
+                p0[a] += shift;
             }
             let x = input.position;
             let xd = input.velocity;
@@ -300,6 +336,7 @@ impl Haptics {
             out.force = force_w.map(|v| -v);
             out.vertex = vertex;
             out.contact = hd.grabbed || mag > 0.0;
+            self.hands[k].last_force = force;
             out.vertex_position = p_w;
         }
         self.saved.0.copy_from_slice(&self.state.q);

@@ -4,7 +4,7 @@
 //! The reference drivers are small Python programs embedded in the binary and written to a
 //! temporary directory at run time, so an installed `ves` needs no source tree.
 
-use crate::linsolve::{Cholesky, nested_dissection, sym_matvec};
+use crate::linsolve::{factor_stiffness, sym_matvec};
 use crate::modes::Modes;
 use crate::precompute::{Discretized, SolverChoice, Timings, discretize, solve};
 use crate::scene::Scene;
@@ -444,11 +444,9 @@ impl Drop for TempDir {
 }
 
 fn static_solve(d: &Discretized, load: &[f64]) -> Result<Vec<f64>> {
-    let ordering = nested_dissection(&d.system.graph, &d.dofs);
-    let sym = Cholesky::analyse(&d.system.pattern, &ordering)?;
-    let mut chol = Cholesky::factor(sym, &d.system.pattern, &d.system.k, 0.0)?;
+    let chol = factor_stiffness(&d.system, &d.dofs)?;
     let mut f: Vec<f64> = d.dofs.free.iter().map(|&g| load[g as usize]).collect();
-    chol.solve_in_place(&mut f);
+    chol.solve_many_in_place(&mut f, 1);
     Ok(d.dofs.expand(&f))
 }
 
