@@ -271,7 +271,11 @@ fn verify_against_scikit_fem_and_calculix_passes_and_tolerances_bite() {
     let v: serde_json::Value = serde_json::from_slice(&o.stdout).expect("verify JSON");
     let refs = v["references"].as_array().expect("references");
     // scikit-fem and CalculiX always; FEniCSx too where it is installed.
-    let find = |name: &str| refs.iter().find(|r| r["solver"].as_str().is_some_and(|s| s.contains(name))).expect(name);
+    let find = |name: &str| {
+        refs.iter()
+            .find(|r| r["solver"].as_str().is_some_and(|s| s.contains(name)))
+            .expect(name)
+    };
     let skfem = find("scikit-fem");
     assert!(skfem["max_rel_freq_diff"].as_f64().unwrap() < 1e-6);
     assert!(skfem["min_mac_isolated"].as_f64().unwrap() > 0.999);
