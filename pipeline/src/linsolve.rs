@@ -80,7 +80,15 @@ pub fn nested_dissection(graph: &NodeGraph, dofs: &Dofs) -> (Vec<usize>, Vec<usi
         }
     }
     let mut node_order: Vec<i32> = (0..n as i32).collect();
+    // METIS draws random numbers from process-wide state: one call at a time, fixed seed, so
+    // the ordering (and the round-off of everything after it) is reproducible.
+    static METIS_LOCK: std::sync::Mutex<()> = std::sync::Mutex::new(());
+    let _serial = METIS_LOCK.lock().unwrap_or_else(|p| p.into_inner());
     if n > 1 && !adj.is_empty() {
+        let mut options = [0 as metis_sys::idx_t; metis_sys::METIS_NOPTIONS as usize];
+        // SAFETY: options has METIS_NOPTIONS entries.
+        unsafe { metis_sys::METIS_SetDefaultOptions(options.as_mut_ptr()) };
+        options[metis_sys::moptions_et_METIS_OPTION_SEED as usize] = 7;
         let mut nv = n as i32;
         let mut perm = vec![0i32; n];
         let mut iperm = vec![0i32; n];
@@ -91,7 +99,7 @@ pub fn nested_dissection(graph: &NodeGraph, dofs: &Dofs) -> (Vec<usize>, Vec<usi
                 xadj.as_mut_ptr(),
                 adj.as_mut_ptr(),
                 std::ptr::null_mut(),
-                std::ptr::null_mut(),
+                options.as_mut_ptr(),
                 perm.as_mut_ptr(),
                 iperm.as_mut_ptr(),
             )

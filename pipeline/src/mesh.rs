@@ -159,8 +159,14 @@ fn boundary_faces(tets: &[u32], p: usize) -> Vec<[u32; 3]> {
     faces
 }
 
-/// Meshes the scene's geometry (with the finer size inside `voi`, if given).
+/// Meshes the scene's geometry (with the finer size inside `voi`, if given), on gmsh's own
+/// thread so the same input always gives the same mesh.
 pub fn generate(scene: &Scene, voi: Option<&Voi>) -> Result<Mesh, MeshError> {
+    let (scene, voi) = (scene.clone(), voi.cloned());
+    gmsh::on_gmsh_thread(move || generate_here(&scene, voi.as_ref()))
+}
+
+fn generate_here(scene: &Scene, voi: Option<&Voi>) -> Result<Mesh, MeshError> {
     let path = scene.geometry.display().to_string();
     let g = |cause| MeshError::Gmsh {
         path: path.clone(),
@@ -199,6 +205,11 @@ pub fn generate(scene: &Scene, voi: Option<&Voi>) -> Result<Mesh, MeshError> {
     // result changes from run to run even on one thread, and a basis must be reproducible
     // (regression numbers, batch up-to-date checks).
     session.set_number("Mesh.Algorithm3D", 1.0).map_err(g)?;
+    session.set_number("Mesh.RandomSeed", 1.0).map_err(g)?;
+    session.set_number("Mesh.ElementOrder", 1.0).map_err(g)?;
+    for opt in ["Mesh.MaxNumThreads1D", "Mesh.MaxNumThreads2D", "Mesh.MaxNumThreads3D"] {
+        session.set_number(opt, 1.0).map_err(g)?;
+    }
     if let Some(v) = voi {
         let f = session.field_add("Box").map_err(g)?;
         session.field_set_number(f, "VIn", v.size / scale).map_err(g)?;

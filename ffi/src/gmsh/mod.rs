@@ -26,6 +26,40 @@ pub type Result<T> = std::result::Result<T, GmshError>;
 
 static GMSH_LOCK: Mutex<()> = Mutex::new(());
 
+type Job = Box<dyn FnOnce() + Send>;
+
+/// Runs `f` on the one thread that makes every gmsh call of the process, and waits for it.
+///
+/// gmsh keeps per-thread state (its mesher gave a slightly different mesh for the same input
+/// when called from another thread, even one session at a time), so a reproducible mesh needs
+/// every session on the same thread.
+pub fn on_gmsh_thread<R: Send + 'static>(f: impl FnOnce() -> R + Send + 'static) -> R {
+    static WORKER: std::sync::OnceLock<Mutex<std::sync::mpsc::Sender<Job>>> = std::sync::OnceLock::new();
+    let sender = WORKER.get_or_init(|| {
+        let (tx, rx) = std::sync::mpsc::channel::<Job>();
+        std::thread::Builder::new()
+            .name("gmsh".into())
+            .spawn(move || {
+                for job in rx {
+                    // A panicking job must not take the worker down with it.
+                    let _ = std::panic::catch_unwind(std::panic::AssertUnwindSafe(job));
+                }
+            })
+            .unwrap_or_else(|e| panic!("cannot start the gmsh thread: {e}"));
+        Mutex::new(tx)
+    });
+    let (rtx, rrx) = std::sync::mpsc::channel();
+    let job: Job = Box::new(move || {
+        let _ = rtx.send(f());
+    });
+    sender
+        .lock()
+        .unwrap_or_else(|p| p.into_inner())
+        .send(job)
+        .unwrap_or_else(|_| panic!("the gmsh thread is gone"));
+    rrx.recv().unwrap_or_else(|_| panic!("a gmsh job panicked"))
+}
+
 /// Element type codes of gmsh.
 pub mod element_type {
     /// 3-node triangle.

@@ -183,16 +183,18 @@ pub fn compute(
         -1e-6 * problem.stiffness_scale()
     };
     let mut spectrum = solver.lowest(problem, nev, sigma)?;
-    if let Some(&l1) = spectrum.values.get(rigid).filter(|_| rigid > 0) {
-        if l1 > 0.0 && -sigma > 0.01 * l1 {
-            sigma = -0.01 * l1;
-            let again = solver.lowest(problem, nev, sigma)?;
-            spectrum = Spectrum {
-                factorize_s: spectrum.factorize_s + again.factorize_s,
-                eigensolve_s: spectrum.eigensolve_s + again.eigensolve_s,
-                ..again
-            };
-        }
+    if let Some(&l1) = spectrum
+        .values
+        .get(rigid)
+        .filter(|&&l1| rigid > 0 && l1 > 0.0 && -sigma > 0.01 * l1)
+    {
+        sigma = -0.01 * l1;
+        let again = solver.lowest(problem, nev, sigma)?;
+        spectrum = Spectrum {
+            factorize_s: spectrum.factorize_s + again.factorize_s,
+            eigensolve_s: spectrum.eigensolve_s + again.eigensolve_s,
+            ..again
+        };
     }
     let t = Instant::now();
     let vals = &spectrum.values;

@@ -1,0 +1,69 @@
+//! Extreme cases (`cases/extreme/`): each against theory or an exact invariant.
+
+use std::f64::consts::PI;
+use ves_pipeline::precompute::{SolverChoice, solve_space};
+use ves_pipeline::scene::Scene;
+use ves_tests::{case_path, timoshenko_cantilever_f1};
+
+fn scene(name: &str) -> Scene {
+    Scene::load(&case_path(&format!("extreme/{name}.toml"))).unwrap_or_else(|e| panic!("{e}"))
+}
+
+fn freqs(s: &Scene) -> Vec<f64> {
+    let solved = solve_space(s, None, SolverChoice::Arpack).unwrap_or_else(|e| panic!("{e:#}"));
+    assert!(solved.modes.residuals.iter().all(|r| r.is_finite()));
+    solved.modes.frequencies_hz()
+}
+
+/// First bending frequency of a square-section cantilever (side h, length l) by Timoshenko.
+fn timoshenko_square(e: f64, nu: f64, rho: f64, l: f64, h: f64) -> f64 {
+    let (a, i) = (h * h, h.powi(4) / 12.0);
+    let kappa = 10.0 * (1.0 + nu) / (12.0 + 11.0 * nu);
+    timoshenko_cantilever_f1(e * i, kappa * e / (2.0 * (1.0 + nu)) * a, rho * a, rho * i, l)
+}
+
+#[test]
+fn millimetre_steel_beam_matches_timoshenko() {
+    let s = scene("beam1mm");
+    let f = freqs(&s);
+    let t = timoshenko_square(2.1e11, 0.3, 7850.0, 0.02, 0.001);
+    println!("1 mm beam: {:.2} Hz vs Timoshenko {t:.2} Hz", f[0]);
+    assert!((f[0] - t).abs() < 0.01 * t && (f[1] - t).abs() < 0.01 * t);
+}
+
+#[test]
+fn soft_foam_is_the_steel_beam_scaled_exactly() {
+    let (steel, foam) = (freqs(&scene("beam1mm")), freqs(&scene("foam")));
+    let ratio = ((2200.0_f64 / 1200.0) / (2.1e11 / 7850.0)).sqrt();
+    for (a, b) in steel.iter().zip(&foam) {
+        assert!((b / a - ratio).abs() < 1e-8 * ratio, "{b} / {a} vs {ratio}");
+    }
+}
+
+#[test]
+fn nearly_incompressible_beam_10_node_is_right_4_node_locks() {
+    let s = scene("nu499");
+    let f = freqs(&s);
+    let t = timoshenko_square(2.1e11, 0.499, 7850.0, 0.02, 0.001);
+    let mut s1 = s.clone();
+    s1.mesh.order = 1;
+    let f1 = freqs(&s1);
+    println!(
+        "ν = 0.499: 10-node {:.1} Hz, 4-node {:.1} Hz, Timoshenko {t:.1} Hz",
+        f[0], f1[0]
+    );
+    assert!((f[0] - t).abs() < 0.015 * t, "10-node {} vs {t}", f[0]);
+    assert!(f1[0] > 1.5 * t, "4-node tets should lock (much too stiff): {}", f1[0]);
+}
+
+#[test]
+fn thin_plate_200_to_1_matches_kirchhoff() {
+    let s = scene("plate200");
+    let f = freqs(&s);
+    let (e, nu, rho, a, h): (f64, f64, f64, f64, f64) = (2.1e11, 0.3, 7850.0, 0.2, 0.001);
+    let d = e * h * h * h / (12.0 * (1.0 - nu * nu));
+    // Leissa, square plate clamped on one edge (ν = 0.3): ω a² √(ρh/D) = 3.492.
+    let leissa = 3.492 / (2.0 * PI * a * a) * (d / (rho * h)).sqrt();
+    println!("200:1 plate: {:.3} Hz vs Kirchhoff {leissa:.3} Hz", f[0]);
+    assert!((f[0] - leissa).abs() < 0.01 * leissa);
+}
