@@ -40,15 +40,12 @@ fn rib_tip_displacement_is_exact_with_correction_and_reported_without() {
         let exact: Vec<f64> = (0..3).map(|c| x[d.dofs.free_of[3 * node + c] as usize]).collect();
         // Truncated modal response Σ φφᵀF/λ, and the correction (G − ΦΛ⁻¹Φᵀ)F on top.
         let mut modal = [0.0; 3];
-        let mut phi = [[0.0; 30]; 3];
-        for j in 0..30 {
+        for (j, lambda) in modes.eigenvalues.iter().enumerate().take(30) {
             let v = &modes.vectors[j * nf..(j + 1) * nf];
+            let phi: [f64; 3] = std::array::from_fn(|c| v[d.dofs.free_of[3 * node + c] as usize]);
+            let fj = (0..3).map(|c| phi[c] * dir[c]).sum::<f64>();
             for c in 0..3 {
-                phi[c][j] = v[d.dofs.free_of[3 * node + c] as usize];
-            }
-            let fj = (0..3).map(|c| phi[c][j] * dir[c]).sum::<f64>();
-            for c in 0..3 {
-                modal[c] += phi[c][j] * fj / modes.eigenvalues[j];
+                modal[c] += phi[c] * fj / lambda;
             }
         }
         let block = compliance.blocks[compliance
