@@ -195,6 +195,7 @@ pub struct SpaceSummary {
 /// Runs the whole pipeline for a scene and writes `out`.
 pub fn run(scene: &Scene, out: &Path, choice: SolverChoice) -> Result<Summary> {
     let start = Instant::now();
+    store::check_output(out)?;
     let mut spaces = Vec::with_capacity(1 + scene.voi.len());
     let targets: Vec<Option<&Voi>> = std::iter::once(None).chain(scene.voi.iter().map(Some)).collect();
     let bar = crate::progress::bar(targets.len() as u64, "spaces");

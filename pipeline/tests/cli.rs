@@ -295,3 +295,154 @@ fn verify_against_scikit_fem_and_calculix_passes_and_tolerances_bite() {
     assert_eq!(o.status.code(), Some(2), "{}", String::from_utf8_lossy(&o.stderr));
     drop(dir);
 }
+
+/// Malformed scene values: each must be one line naming the key, exit 1, output untouched.
+#[test]
+fn malformed_scene_values_are_refused_one_by_one() {
+    let cases: &[(&str, &str, &[&str])] = &[
+        ("young = 2.1e11", "young = nan", &["material.young"]),
+        ("young = 2.1e11", "young = inf", &["material.young"]),
+        ("density = 7850.0", "density = -1.0", &["material.density"]),
+        ("poisson = 0.3", "poisson = -1.0", &["material.poisson"]),
+        ("poisson = 0.3", "poisson = 0.7", &["material.poisson"]),
+        ("order = 1", "order = 3", &["mesh.order"]),
+        ("size = 0.05", "size = 0.0", &["mesh.size"]),
+        ("size = 0.05", "size = -0.05", &["mesh.size"]),
+        ("count = 4", "count = 0", &["modes.count"]),
+        ("count = 4", "count = 1000000000", &["modes.count"]),
+        ("count = 4", "count = -3", &["count"]),
+        ("axis = \"x\"", "axis = \"w\"", &["fixed[0].plane.axis"]),
+        ("[[fixed]]", "[[fixed]]\ncomponents = []", &["fixed[0].components"]),
+        ("[[fixed]]", "[[fixed]]\ncomponents = [\"q\"]", &["fixed[0].components"]),
+        (
+            "plane = { axis = \"x\", value = 0.0 }",
+            "box = { min = [1.0, 0.0, 0.0], max = [0.0, 1.0, 1.0] }",
+            &["fixed[0].box"],
+        ),
+        (
+            "plane = { axis = \"x\", value = 0.0 }",
+            "",
+            &["fixed[0]", "plane", "box"],
+        ),
+        ("unit = \"mm\"", "unit = \"inch\"", &["unit"]),
+        ("beam.step", "beam.stl", &["geometry.step", "unsupported"]),
+        ("[modes]", "[damping]\nbeta = -1.0\n[modes]", &["damping.beta"]),
+        (
+            "[modes]",
+            "[[voi]]\nname = \"global\"\nbox = { min = [0.0, 0.0, 0.0], max = [0.1, 0.1, 0.1] }\nsize = 0.01\n[modes]",
+            &["voi[0].name"],
+        ),
+        (
+            "[modes]",
+            "[[voi]]\nname = \"a\"\nbox = { min = [0.0, 0.0, 0.0], max = [0.1, 0.1, 0.1] }\nsize = 0.0\n[modes]",
+            &["voi[0].size"],
+        ),
+        (
+            "[modes]",
+            "[static_correction]\nregion = \"everywhere\"\n[modes]",
+            &["region"],
+        ),
+        ("[material]", "[material]\ncolour = \"red\"", &["colour"]),
+        ("name = \"beam\"", "name = \"beam\"\nname = \"twice\"", &["name"]),
+    ];
+    for (from, to, expect) in cases {
+        assert!(GOOD.contains(from), "test case does not apply: {from}");
+        fails(&GOOD.replacen(from, to, 1), expect);
+    }
+}
+
+#[test]
+fn garbage_and_empty_scene_files_are_refused() {
+    fails("", &["scene.toml"]);
+    fails("\u{0}\u{1}\u{2}binary", &["scene.toml"]);
+    fails("[geometry\nstep = ", &["scene.toml"]);
+}
+
+#[test]
+fn output_into_a_missing_directory_is_refused_before_work() {
+    let (_dir, path) = workdir(GOOD);
+    let o = ves(&["precompute", path.to_str().unwrap(), "-o", "/nonexistent/dir/out.h5"]);
+    assert!(!o.status.success());
+    assert!(String::from_utf8_lossy(&o.stderr).contains("/nonexistent/dir"));
+}
+
+#[test]
+fn basis_of_a_newer_version_or_missing_pieces_is_refused() {
+    let dir = tempfile::tempdir().unwrap();
+    let newer = dir.path().join("newer.h5");
+    {
+        let f = hdf5::File::create(&newer).unwrap();
+        let v: hdf5::types::VarLenUnicode = "ves-modal-basis".parse().unwrap();
+        f.new_attr::<hdf5::types::VarLenUnicode>()
+            .create("format")
+            .unwrap()
+            .write_scalar(&v)
+            .unwrap();
+        f.new_attr::<u32>()
+            .create("version")
+            .unwrap()
+            .write_scalar(&2u32)
+            .unwrap();
+    }
+    let o = ves(&["info", newer.to_str().unwrap()]);
+    assert!(!o.status.success());
+    assert!(String::from_utf8_lossy(&o.stderr).contains("newer"));
+    let hollow = dir.path().join("hollow.h5");
+    {
+        let f = hdf5::File::create(&hollow).unwrap();
+        let v: hdf5::types::VarLenUnicode = "ves-modal-basis".parse().unwrap();
+        f.new_attr::<hdf5::types::VarLenUnicode>()
+            .create("format")
+            .unwrap()
+            .write_scalar(&v)
+            .unwrap();
+        f.new_attr::<u32>()
+            .create("version")
+            .unwrap()
+            .write_scalar(&1u32)
+            .unwrap();
+    }
+    for cmd in ["info", "bench"] {
+        let o = ves(&[cmd, hollow.to_str().unwrap()]);
+        assert!(!o.status.success(), "{cmd} accepted a hollow file");
+        assert!(
+            String::from_utf8_lossy(&o.stderr).contains("hollow.h5"),
+            "{cmd}: {}",
+            String::from_utf8_lossy(&o.stderr)
+        );
+    }
+}
+
+#[test]
+fn bad_device_scripts_and_session_settings_are_refused() {
+    let (dir, path) = workdir(GOOD);
+    let basis = dir.path().join("beam.h5");
+    assert!(
+        ves(&["precompute", path.to_str().unwrap(), "-o", basis.to_str().unwrap()])
+            .status
+            .success()
+    );
+    let b = basis.to_str().unwrap();
+    for (name, text, expect) in [
+        ("nan.csv", "0,0,0,nan\n", "line 1"),
+        ("back.csv", "0,0,0,0\n0,1,1,1\n", "does not increase"),
+        ("short.csv", "0,0,0\n", "4 or 5"),
+        ("empty.csv", "", "no trajectory"),
+    ] {
+        let p = dir.path().join(name);
+        std::fs::write(&p, text).unwrap();
+        let o = ves(&["session", b, "--device", &format!("script:{}", p.display())]);
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert!(
+            !o.status.success() && err.contains(name) && err.contains(expect),
+            "{name}: {err}"
+        );
+    }
+    let ok = dir.path().join("ok.csv");
+    std::fs::write(&ok, "0,1,0.05,0.05\n").unwrap();
+    let dev = format!("script:{}", ok.display());
+    let o = ves(&["session", b, "--device", &dev, "--rate", "50000"]);
+    assert!(!o.status.success() && String::from_utf8_lossy(&o.stderr).contains("--rate"));
+    let o = ves(&["session", b, "--device", "mouse:0"]);
+    assert!(!o.status.success() && String::from_utf8_lossy(&o.stderr).contains("script:"));
+}
