@@ -129,8 +129,8 @@ fn write_space(file: &hdf5::File, s: &Space<'_>) -> Result<()> {
     Ok(())
 }
 
-/// Writes all spaces of a scene to `out` atomically (temporary file, then rename).
-pub fn write(out: &Path, scene: &Scene, spaces: &[Space<'_>]) -> Result<()> {
+/// Fails early when `out` cannot be written (its directory is missing, or it is a directory).
+pub fn check_output(out: &Path) -> Result<()> {
     let dir = out
         .parent()
         .filter(|d| !d.as_os_str().is_empty())
@@ -141,6 +141,15 @@ pub fn write(out: &Path, scene: &Scene, spaces: &[Space<'_>]) -> Result<()> {
             out.display()
         );
     }
+    if out.is_dir() {
+        bail!("{}: is a directory; give a file name with -o", out.display());
+    }
+    Ok(())
+}
+
+/// Writes all spaces of a scene to `out` atomically (temporary file, then rename).
+pub fn write(out: &Path, scene: &Scene, spaces: &[Space<'_>]) -> Result<()> {
+    check_output(out)?;
     let tmp = temp_name(out);
     let result = (|| -> Result<()> {
         let file = hdf5::File::create(&tmp).with_context(|| format!("cannot create {}", tmp.display()))?;
