@@ -76,6 +76,27 @@ impl Mesh {
         (0..3).map(|c| (hi[c] - lo[c]).powi(2)).sum::<f64>().sqrt()
     }
 
+    /// The worst tet by shape, q = 6√2·V / l_rms³ (1 for a regular tet, → 0 for slivers), and
+    /// its centroid.
+    pub fn worst_quality(&self) -> (f64, [f64; 3]) {
+        let mut worst = (f64::INFINITY, [0.0; 3]);
+        for e in 0..self.tet_count() {
+            let t = self.tet(e);
+            let x: [[f64; 3]; 4] = std::array::from_fn(|k| self.nodes[t[k] as usize]);
+            let vol = signed_volume(&self.nodes, t) / 6.0;
+            let mut l2 = 0.0;
+            for (a, b) in [(0, 1), (0, 2), (0, 3), (1, 2), (1, 3), (2, 3)] {
+                l2 += (0..3).map(|c| (x[a][c] - x[b][c]).powi(2)).sum::<f64>();
+            }
+            let lrms = (l2 / 6.0).sqrt();
+            let q = 6.0 * std::f64::consts::SQRT_2 * vol / lrms.powi(3);
+            if q < worst.0 {
+                worst = (q, std::array::from_fn(|c| x.iter().map(|p| p[c]).sum::<f64>() / 4.0));
+            }
+        }
+        worst
+    }
+
     /// Builds a mesh from raw connectivity: keeps only nodes used by tets, numbers corner
     /// vertices first, orients every tet positively and extracts the boundary.
     pub fn from_raw(coords: &[[f64; 3]], tets: &[u32], order: u8) -> Mesh {
@@ -274,4 +295,22 @@ fn generate_here(scene: &Scene, voi: Option<&Voi>) -> Result<Mesh, MeshError> {
         tets.push(s);
     }
     Ok(Mesh::from_raw(&xyz, &tets, scene.mesh.order))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn shape_quality_is_one_for_a_regular_tet_and_tiny_for_a_sliver() {
+        let regular = [[1.0, 1.0, 1.0], [1.0, -1.0, -1.0], [-1.0, 1.0, -1.0], [-1.0, -1.0, 1.0]];
+        let m = Mesh::from_raw(&regular, &[0, 1, 2, 3], 1);
+        assert!((m.worst_quality().0 - 1.0).abs() < 1e-12);
+        let sliver = [[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [1.0, 1.0, 1e-4]];
+        let m = Mesh::from_raw(&sliver, &[0, 1, 2, 3], 1);
+        let (q, at) = m.worst_quality();
+        assert!(q > 0.0 && q < 1e-3, "{q}");
+        assert!((at[0] - 0.5).abs() < 1e-12 && (at[1] - 0.5).abs() < 1e-12);
+        assert_eq!(m.surface.len(), 4, "a single tet is all boundary");
+    }
 }

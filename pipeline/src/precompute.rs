@@ -90,7 +90,22 @@ pub fn discretize(scene: &Scene, voi: Option<&Voi>, timings: &mut Timings) -> Re
     let t = Instant::now();
     let mesh = mesh::generate(scene, voi)?;
     timings.mesh = t.elapsed().as_secs_f64();
-    tracing::info!(nodes = mesh.nodes.len(), tets = mesh.tet_count(), "meshed");
+    let (quality, at) = mesh.worst_quality();
+    tracing::info!(
+        nodes = mesh.nodes.len(),
+        tets = mesh.tet_count(),
+        worst_quality = quality,
+        "meshed"
+    );
+    if quality < 0.02 {
+        tracing::warn!(
+            "sliver tet (shape quality {quality:.1e}, 1 = regular) near ({:.6}, {:.6}, {:.6}) m: accuracy may suffer there; \
+             change mesh.size or repair the geometry",
+            at[0],
+            at[1],
+            at[2]
+        );
+    }
     let t = Instant::now();
     let dofs = supports::select(&mesh, &scene.fixed).with_context(|| scene.path.display().to_string())?;
     let m = &scene.material;
@@ -190,6 +205,8 @@ pub struct SpaceSummary {
     pub orthonormality_error: f64,
     /// Rigid modes dropped.
     pub rigid_modes_dropped: usize,
+    /// Worst tet shape quality (6√2·V/l_rms³: 1 regular, → 0 sliver).
+    pub min_tet_quality: f64,
 }
 
 /// Runs the whole pipeline for a scene and writes `out`.
@@ -245,6 +262,7 @@ pub fn run(scene: &Scene, out: &Path, choice: SolverChoice) -> Result<Summary> {
                 max_relative_residual: s.modes.residuals.iter().fold(0.0, |a: f64, &b| a.max(b)),
                 orthonormality_error: s.modes.orthonormality_error,
                 rigid_modes_dropped: s.modes.rigid_dropped,
+                min_tet_quality: s.mesh.worst_quality().0,
             })
             .collect(),
         timings_s: timings,
