@@ -24,6 +24,7 @@ fn nearest(ours: &[f64], published: f64) -> (f64, f64) {
 
 #[test]
 fn fv52_hard_support_reproduces_the_published_bending_frequencies() {
+    let _serial = ves_tests::serial();
     let (f, rigid) = frequencies("fv52/scene-hard.toml");
     assert_eq!(rigid, 0);
     for published in [45.897, 109.44, 167.89, 206.19] {
@@ -41,6 +42,7 @@ fn fv52_hard_support_reproduces_the_published_bending_frequencies() {
 
 #[test]
 fn fv52_line_support_keeps_three_rigid_modes_and_the_in_plane_mode() {
+    let _serial = ves_tests::serial();
     let (f, rigid) = frequencies("fv52/scene.toml");
     assert_eq!(rigid, 3, "x, y translation and rotation about z remain");
     let (ours, rel) = nearest(&f, 193.59);

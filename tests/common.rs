@@ -117,3 +117,10 @@ pub fn precompute_case(name: &str, size: f64, order: u8, modes: usize, dir: &std
         .unwrap_or_else(|e| panic!("{e:#}"));
     out
 }
+
+/// Serialises the tests of one binary that need bit-identical meshes: gmsh gave a slightly
+/// different mesh for the same input while other threads of the process were busy.
+pub fn serial() -> std::sync::MutexGuard<'static, ()> {
+    static LOCK: std::sync::Mutex<()> = std::sync::Mutex::new(());
+    LOCK.lock().unwrap_or_else(|p| p.into_inner())
+}

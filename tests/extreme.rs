@@ -24,6 +24,7 @@ fn timoshenko_square(e: f64, nu: f64, rho: f64, l: f64, h: f64) -> f64 {
 
 #[test]
 fn millimetre_steel_beam_matches_timoshenko() {
+    let _serial = ves_tests::serial();
     let s = scene("beam1mm");
     let f = freqs(&s);
     let t = timoshenko_square(2.1e11, 0.3, 7850.0, 0.02, 0.001);
@@ -33,6 +34,7 @@ fn millimetre_steel_beam_matches_timoshenko() {
 
 #[test]
 fn soft_foam_is_the_steel_beam_scaled_exactly() {
+    let _serial = ves_tests::serial();
     let (steel, foam) = (freqs(&scene("beam1mm")), freqs(&scene("foam")));
     let ratio = ((2200.0_f64 / 1200.0) / (2.1e11 / 7850.0)).sqrt();
     for (a, b) in steel.iter().zip(&foam) {
@@ -42,6 +44,7 @@ fn soft_foam_is_the_steel_beam_scaled_exactly() {
 
 #[test]
 fn nearly_incompressible_beam_10_node_is_right_4_node_locks() {
+    let _serial = ves_tests::serial();
     let s = scene("nu499");
     let f = freqs(&s);
     let t = timoshenko_square(2.1e11, 0.499, 7850.0, 0.02, 0.001);
@@ -58,6 +61,7 @@ fn nearly_incompressible_beam_10_node_is_right_4_node_locks() {
 
 #[test]
 fn thin_plate_200_to_1_matches_kirchhoff() {
+    let _serial = ves_tests::serial();
     let s = scene("plate200");
     let f = freqs(&s);
     let (e, nu, rho, a, h): (f64, f64, f64, f64, f64) = (2.1e11, 0.3, 7850.0, 0.2, 0.001);

@@ -7,6 +7,7 @@ use ves_tests::case_path;
 
 #[test]
 fn the_same_step_part_gives_the_same_modes_whatever_the_scene_unit() {
+    let _serial = ves_tests::serial();
     let text = std::fs::read_to_string(case_path("cantilever/scene.toml")).expect("scene");
     let mm = Scene::parse(
         &case_path("cantilever/scene.toml"),
@@ -35,6 +36,7 @@ fn the_same_step_part_gives_the_same_modes_whatever_the_scene_unit() {
 
 #[test]
 fn a_real_inch_based_cad_part_meshes_to_its_published_extent() {
+    let _serial = ves_tests::serial();
     // ../shared/geometry/gmsh_benchmarks_part.step: declared in a metre-converted unit, inch
     // design. SOURCES.md gives OpenCASCADE's bounding box in mm, which pads curved faces: its
     // x-min −41.96 mm is −41.275 mm (−1.625 in) on the part itself, the other five agree.

@@ -240,7 +240,6 @@ fn free_bracket_lifted_by_one_corner_hangs_below_the_hand() {
 #[test]
 fn static_correction_makes_the_felt_stiffness_exact_with_few_modes() {
     use ves_pipeline::linsolve::factor_stiffness;
-    use ves_pipeline::precompute::{Timings, discretize};
     let dir = tempfile::tempdir().expect("temp dir");
     let mut scene = ves_tests::load_case("cantilever");
     scene.mesh.size = 0.05;
@@ -253,8 +252,8 @@ fn static_correction_makes_the_felt_stiffness_exact_with_few_modes() {
     ves_pipeline::precompute::run(&scene, &path, ves_pipeline::precompute::SolverChoice::Auto).expect("precompute");
     let basis = Arc::new(ves_runtime::basis::load(&path, &LoadOptions::default()).expect("loads"));
     assert!(basis.compliance.is_some(), "blocks stored and loaded");
-    // Full static solve on the same mesh for the settled force at the tip vertex.
-    let d = discretize(&scene, None, &mut Timings::default()).expect("discretize");
+    // Full static solve on the basis file's own mesh for the settled force at the tip vertex.
+    let (d, _, _) = ves_pipeline::verify::discretize_basis(&path, None).expect("the basis's mesh");
     let tip = nearest(&basis, [1.0, 0.1, 0.05]);
     let node = basis.node_index[tip] as usize;
     let chol = factor_stiffness(&d.system, &d.dofs).expect("factor");

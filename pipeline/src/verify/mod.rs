@@ -181,7 +181,7 @@ fn python_has(module: &str) -> bool {
 }
 
 /// Material constants (E, ν, ρ).
-type MaterialConstants = (f64, f64, f64);
+pub type MaterialConstants = (f64, f64, f64);
 
 /// Runs the comparison (`All`: scikit-fem, CalculiX, and FEniCSx when installed) for a scene (meshed and solved here) or a basis file (its mesh, supports,
 /// material and stored modes).
@@ -199,13 +199,14 @@ pub fn verify_input(
         let m = scene.material;
         (d, ours, (m.young, m.poisson, m.density))
     } else {
-        from_basis(input, modes)?
+        discretize_basis(input, modes)?
     };
     verify(&input.display().to_string(), &d, &ours, material, refs, overrides)
 }
 
-/// Rebuilds the discrete problem of a basis file's global space and takes its stored modes.
-fn from_basis(path: &Path, modes: Option<usize>) -> Result<(Discretized, Modes, MaterialConstants)> {
+/// Rebuilds the discrete problem of a basis file's global space (its own mesh, supports and
+/// material) and takes its stored modes.
+pub fn discretize_basis(path: &Path, modes: Option<usize>) -> Result<(Discretized, Modes, MaterialConstants)> {
     let file = ves_runtime::basis::open_checked(path)?;
     let bad = |what: &str| anyhow::anyhow!("{}: {what} missing or damaged", path.display());
     let g = file.group("spaces/global").map_err(|_| bad("space global"))?;
