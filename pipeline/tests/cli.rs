@@ -371,9 +371,10 @@ fn output_into_a_missing_directory_is_refused_before_work() {
 #[test]
 fn basis_of_a_newer_version_or_missing_pieces_is_refused() {
     let dir = tempfile::tempdir().unwrap();
-    let newer = dir.path().join("newer.h5");
-    {
-        let f = hdf5::File::create(&newer).unwrap();
+    // A file that claims to be a basis of `version` and holds nothing else.
+    let header_only = |name: &str, version: u32| {
+        let path = dir.path().join(name);
+        let f = hdf5::File::create(&path).unwrap();
         let v: hdf5::types::VarLenUnicode = "ves-modal-basis".parse().unwrap();
         f.new_attr::<hdf5::types::VarLenUnicode>()
             .create("format")
@@ -383,27 +384,15 @@ fn basis_of_a_newer_version_or_missing_pieces_is_refused() {
         f.new_attr::<u32>()
             .create("version")
             .unwrap()
-            .write_scalar(&2u32)
+            .write_scalar(&version)
             .unwrap();
-    }
+        path
+    };
+    let newer = header_only("newer.h5", 2);
     let o = ves(&["info", newer.to_str().unwrap()]);
     assert!(!o.status.success());
     assert!(String::from_utf8_lossy(&o.stderr).contains("newer"));
-    let hollow = dir.path().join("hollow.h5");
-    {
-        let f = hdf5::File::create(&hollow).unwrap();
-        let v: hdf5::types::VarLenUnicode = "ves-modal-basis".parse().unwrap();
-        f.new_attr::<hdf5::types::VarLenUnicode>()
-            .create("format")
-            .unwrap()
-            .write_scalar(&v)
-            .unwrap();
-        f.new_attr::<u32>()
-            .create("version")
-            .unwrap()
-            .write_scalar(&1u32)
-            .unwrap();
-    }
+    let hollow = header_only("hollow.h5", 1);
     for cmd in ["info", "bench"] {
         let o = ves(&[cmd, hollow.to_str().unwrap()]);
         assert!(!o.status.success(), "{cmd} accepted a hollow file");
