@@ -207,6 +207,10 @@ pub struct SpaceSummary {
     pub rigid_modes_dropped: usize,
     /// Worst tet shape quality (6√2·V/l_rms³: 1 regular, → 0 sliver).
     pub min_tet_quality: f64,
+    /// Corner vertices (what the runtime draws and picks).
+    pub vertices: usize,
+    /// Seconds this space took (mesh to eigen-solve, and static correction).
+    pub seconds: f64,
 }
 
 /// Runs the whole pipeline for a scene and writes `out`.
@@ -263,6 +267,12 @@ pub fn run(scene: &Scene, out: &Path, choice: SolverChoice) -> Result<Summary> {
                 orthonormality_error: s.modes.orthonormality_error,
                 rigid_modes_dropped: s.modes.rigid_dropped,
                 min_tet_quality: s.mesh.worst_quality().0,
+                vertices: s.mesh.vertex_count,
+                seconds: s.timings.mesh
+                    + s.timings.assemble
+                    + s.timings.factorize
+                    + s.timings.eigensolve
+                    + s.timings.static_correction,
             })
             .collect(),
         timings_s: timings,
