@@ -39,6 +39,15 @@ fn workdir(scene: &str) -> (tempfile::TempDir, PathBuf) {
     (dir, path)
 }
 
+/// A directory with the good scene precomputed into `beam.h5`.
+fn good_basis() -> (tempfile::TempDir, PathBuf) {
+    let (dir, path) = workdir(GOOD);
+    let basis = dir.path().join("beam.h5");
+    let o = ves(&["precompute", path.to_str().unwrap(), "-o", basis.to_str().unwrap()]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    (dir, basis)
+}
+
 /// Runs `ves precompute` on a bad scene and checks the contract for failures.
 fn fails(scene: &str, expect: &[&str]) {
     let (dir, path) = workdir(scene);
@@ -200,13 +209,7 @@ fn info_refuses_foreign_and_truncated_files() {
 
 #[test]
 fn session_and_bench_report_json() {
-    let (dir, path) = workdir(GOOD);
-    let basis = dir.path().join("beam.h5");
-    assert!(
-        ves(&["precompute", path.to_str().unwrap(), "-o", basis.to_str().unwrap()])
-            .status
-            .success()
-    );
+    let (dir, basis) = good_basis();
     let script = dir.path().join("hand.csv");
     std::fs::write(&script, "t,x,y,z,button\n0,1.0,0.05,0.05,1\n0.2,1.0,0.05,0.045,1\n").unwrap();
     let o = ves(&[
@@ -406,13 +409,7 @@ fn basis_of_a_newer_version_or_missing_pieces_is_refused() {
 
 #[test]
 fn bad_device_scripts_and_session_settings_are_refused() {
-    let (dir, path) = workdir(GOOD);
-    let basis = dir.path().join("beam.h5");
-    assert!(
-        ves(&["precompute", path.to_str().unwrap(), "-o", basis.to_str().unwrap()])
-            .status
-            .success()
-    );
+    let (dir, basis) = good_basis();
     let b = basis.to_str().unwrap();
     for (name, text, expect) in [
         ("nan.csv", "0,0,0,nan\n", "line 1"),
