@@ -413,3 +413,111 @@ fn support(i: usize, f: &RawFixed) -> Result<Support, String> {
     }
     Ok(Support { region, components })
 }
+
+#[cfg(test)]
+mod mutation_tests {
+    use super::*;
+
+    const SCENE: &str = r#"name = "m"
+[geometry]
+step = "x.step"
+unit = "mm"
+[material]
+young = 2.1e11
+poisson = 0.3
+density = 7850.0
+[mesh]
+size = 0.01
+order = 2
+[[fixed]]
+plane = { axis = "x", value = 0.0, tol = 1e-6 }
+components = ["x", "z"]
+[[fixed]]
+box = { min = [0.0, 0.0, 0.0], max = [1.0, 1.0, 1.0] }
+[modes]
+count = 10
+[damping]
+alpha = 0.1
+beta = 1e-5
+[[voi]]
+name = "a"
+box = { min = [0.0, 0.0, 0.0], max = [0.1, 0.1, 0.1] }
+size = 0.001
+[static_correction]
+region = "surface"
+"#;
+
+    /// Deterministic mutations of a valid scene (byte flips, deletions, duplications, numeric
+    /// swaps): parsing never panics, and every error is one line that names the file.
+    #[test]
+    fn mutated_scenes_never_panic_and_errors_stay_one_line() {
+        let dir = std::env::temp_dir().join(format!("ves-scene-mutations-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).expect("temp dir");
+        std::fs::write(dir.join("x.step"), "ISO-10303-21;").expect("geometry stub");
+        let path = dir.join("s.toml");
+        assert!(Scene::parse(&path, SCENE).is_ok(), "the base scene must be valid");
+        let replacements = [
+            "nan", "-inf", "0", "-1", "1e400", "\"x\"", "[]", "{}", "true", "0.5", "3", "\"\"",
+        ];
+        let mut seed = 0x2545_F491_4F6C_DD1Du64;
+        let mut next = || {
+            seed ^= seed << 13;
+            seed ^= seed >> 7;
+            seed ^= seed << 17;
+            seed
+        };
+        let (mut ok, mut err) = (0, 0);
+        for _ in 0..3000 {
+            let mut text: Vec<u8> = SCENE.as_bytes().to_vec();
+            for _ in 0..1 + next() % 3 {
+                let at = (next() as usize) % text.len();
+                match next() % 5 {
+                    0 => text[at] = (next() % 128) as u8,
+                    1 => {
+                        let end = (at + 1 + (next() as usize) % 12).min(text.len());
+                        text.drain(at..end);
+                    }
+                    2 => {
+                        let end = (at + 1 + (next() as usize) % 40).min(text.len());
+                        let piece = text[at..end].to_vec();
+                        text.splice(at..at, piece);
+                    }
+                    _ => {
+                        // Replace the number or word starting here.
+                        let end = text[at..]
+                            .iter()
+                            .position(|c| matches!(c, b'\n' | b',' | b' ' | b']' | b'}'))
+                            .map_or(text.len(), |p| at + p);
+                        let r = replacements[(next() as usize) % replacements.len()];
+                        text.splice(at..end, r.bytes());
+                    }
+                }
+                if text.is_empty() {
+                    break;
+                }
+            }
+            let s = String::from_utf8_lossy(&text);
+            match Scene::parse(&path, &s) {
+                Ok(scene) => {
+                    ok += 1;
+                    // Whatever parsed is valid.
+                    assert!(scene.material.young > 0.0 && scene.material.young.is_finite());
+                    assert!(scene.material.poisson > -1.0 && scene.material.poisson < 0.5);
+                    assert!(scene.mesh.size > 0.0 && scene.mesh.size.is_finite());
+                    assert!(matches!(scene.mesh.order, 1 | 2));
+                }
+                Err(e) => {
+                    err += 1;
+                    let msg = e.to_string();
+                    assert!(!msg.contains('\n'), "multi-line error: {msg}");
+                    assert!(msg.contains("s.toml"), "error does not name the file: {msg}");
+                }
+            }
+        }
+        let _ = std::fs::remove_dir_all(&dir);
+        assert!(
+            ok > 20 && err > 1000,
+            "mutations should hit both outcomes: {ok} ok, {err} errors"
+        );
+    }
+}
