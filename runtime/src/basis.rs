@@ -285,14 +285,28 @@ mod file {
             .group(&format!("spaces/{space}"))
             .map_err(|_| err(format!("no space {space:?} in the file")))?;
         let h5 = |what: &str| err(format!("space {space:?}: {what} missing or damaged"));
+        // Every dataset read is uncompressed: a declared size beyond the file's own is a damaged
+        // header, refused before anything is allocated for it.
+        let file_bytes = u128::from(std::fs::metadata(path).map(|m| m.len()).unwrap_or(0));
+        let open = |grp: &hdf5::Group, name: &str| -> Result<hdf5::Dataset, LoadError> {
+            let ds = grp.dataset(name).map_err(|_| h5(name))?;
+            let elem = ds.dtype().map(|t| t.size()).unwrap_or(8) as u128;
+            let bytes = ds.size() as u128 * elem;
+            if bytes > file_bytes {
+                return Err(err(format!(
+                    "space {space:?}: {name} claims {bytes} bytes in a {file_bytes}-byte file; the file is damaged"
+                )));
+            }
+            Ok(ds)
+        };
         let nv: u32 = g
             .group("mesh")
             .and_then(|m| m.attr("vertex_count"))
             .and_then(|a| a.read_scalar())
             .map_err(|_| h5("mesh vertex_count"))?;
         let nv = nv as usize;
-        let nodes = g.dataset("mesh/nodes").map_err(|_| h5("mesh/nodes"))?;
-        let basis = g.dataset("modes/basis").map_err(|_| h5("modes/basis"))?;
+        let nodes = open(&g, "mesh/nodes")?;
+        let basis = open(&g, "modes/basis")?;
         let (shape_n, shape_b) = (nodes.shape(), basis.shape());
         if shape_n.len() != 2
             || shape_n[1] != 3
@@ -311,13 +325,11 @@ mod file {
             return Err(err(format!("{r} modes asked, the space has {r_all}")));
         }
         let xyz: ndarray::Array2<f64> = nodes.read_slice(s![0..nv, ..]).map_err(|_| h5("mesh/nodes data"))?;
-        let tri: ndarray::Array2<u32> = g
-            .dataset("mesh/surface_triangles")
-            .and_then(|d| d.read_2d())
+        let tri: ndarray::Array2<u32> = open(&g, "mesh/surface_triangles")?
+            .read_2d()
             .map_err(|_| h5("mesh/surface_triangles"))?;
-        let lam: Vec<f64> = g
-            .dataset("modes/eigenvalues")
-            .and_then(|d| d.read_raw())
+        let lam: Vec<f64> = open(&g, "modes/eigenvalues")?
+            .read_raw()
             .map_err(|_| h5("modes/eigenvalues"))?;
         if lam.len() != r_all || tri.ncols() != 3 {
             return Err(err(format!(
@@ -402,14 +414,8 @@ mod file {
         )?;
         match g.group("compliance") {
             Ok(cg) => {
-                let nodes: Vec<u32> = cg
-                    .dataset("nodes")
-                    .and_then(|d| d.read_raw())
-                    .map_err(|_| h5("compliance/nodes"))?;
-                let blocks: Vec<f64> = cg
-                    .dataset("blocks")
-                    .and_then(|d| d.read_raw())
-                    .map_err(|_| h5("compliance/blocks"))?;
+                let nodes: Vec<u32> = open(&cg, "nodes")?.read_raw().map_err(|_| h5("compliance/nodes"))?;
+                let blocks: Vec<f64> = open(&cg, "blocks")?.read_raw().map_err(|_| h5("compliance/blocks"))?;
                 if blocks.len() != 9 * nodes.len() {
                     return Err(h5("compliance blocks (shape)"));
                 }
