@@ -336,7 +336,7 @@ fn run(cli: Cli) -> Result<()> {
                 println!("{} ({} bytes, {})", info.path, info.bytes, info.generator);
                 for s in &info.spaces {
                     println!(
-                        "  {}: {} nodes ({} vertices), {} tets of order {}, {} modes {:.4}..{:.4} Hz, max residual {:.1e}, {} rigid dropped",
+                        "  {}: {} nodes ({} vertices), {} tets of order {}, {} modes {:.4}..{:.4} Hz, max residual {:.1e}, {} rigid dropped{}",
                         s.name,
                         s.nodes,
                         s.vertices,
@@ -346,7 +346,12 @@ fn run(cli: Cli) -> Result<()> {
                         s.frequencies_hz.first().copied().unwrap_or(0.0),
                         s.frequencies_hz.last().copied().unwrap_or(0.0),
                         s.max_relative_residual,
-                        s.rigid_modes_dropped
+                        s.rigid_modes_dropped,
+                        if s.static_correction_vertices > 0 {
+                            format!(", static correction at {} vertices", s.static_correction_vertices)
+                        } else {
+                            String::new()
+                        }
                     );
                 }
             }

@@ -211,6 +211,8 @@ pub struct SpaceInfo {
     pub max_relative_residual: f64,
     /// Rigid modes dropped.
     pub rigid_modes_dropped: u32,
+    /// Vertices with a static-correction block (0: none stored).
+    pub static_correction_vertices: usize,
 }
 
 /// What `ves info` shows of a basis file.
@@ -280,6 +282,7 @@ pub fn info(path: &Path) -> Result<BasisInfo> {
             modes: freqs.len(),
             frequencies_hz: freqs,
             max_relative_residual: res.iter().fold(0.0, |a: f64, &b| a.max(b)),
+            static_correction_vertices: g.dataset("compliance/nodes").map(|d| d.size()).unwrap_or(0),
             rigid_modes_dropped: g
                 .attr("rigid_modes_dropped")
                 .and_then(|a| a.read_scalar())
