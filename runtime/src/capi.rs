@@ -85,6 +85,17 @@ fn set_error(msg: &str) {
     LAST_ERROR.with(|e| *e.borrow_mut() = c);
 }
 
+/// Drops a handle made by `Box::into_raw` (null is ignored).
+///
+/// # Safety
+/// `p` must be null or come from `Box::into_raw`, and not be used afterwards.
+unsafe fn release<T>(p: *mut T) {
+    if !p.is_null() {
+        // SAFETY: guaranteed by the caller.
+        drop(unsafe { Box::from_raw(p) });
+    }
+}
+
 fn guard(f: impl FnOnce() -> Result<(), (VesStatus, String)>) -> VesStatus {
     match catch_unwind(AssertUnwindSafe(f)) {
         Ok(Ok(())) => VesStatus::Ok,
@@ -137,10 +148,8 @@ pub unsafe extern "C" fn ves_basis_load(path: *const c_char, modes: u32, out: *m
 /// `b` must come from `ves_basis_load` and not be used afterwards.
 #[unsafe(no_mangle)]
 pub unsafe extern "C" fn ves_basis_free(b: *mut VesBasis) {
-    if !b.is_null() {
-        // SAFETY: the caller passes a pointer from Box::into_raw, once.
-        drop(unsafe { Box::from_raw(b) });
-    }
+    // SAFETY: forwarded from this function's contract.
+    unsafe { release(b) }
 }
 
 /// Vertices and modes held by a basis, and the bytes it occupies.
@@ -243,10 +252,8 @@ pub unsafe extern "C" fn ves_haptics_new(
 /// `h` must come from `ves_haptics_new` and not be used afterwards.
 #[unsafe(no_mangle)]
 pub unsafe extern "C" fn ves_haptics_free(h: *mut VesHaptics) {
-    if !h.is_null() {
-        // SAFETY: pointer from Box::into_raw, released once.
-        drop(unsafe { Box::from_raw(h) });
-    }
+    // SAFETY: forwarded from this function's contract.
+    unsafe { release(h) }
 }
 
 /// One haptic step for `n` hands: reads `inputs[0..n]`, writes `outputs[0..n]`. No allocation.
@@ -334,10 +341,8 @@ pub unsafe extern "C" fn ves_view_new(h: *const VesHaptics, out: *mut *mut VesVi
 /// `v` must come from `ves_view_new` and not be used afterwards.
 #[unsafe(no_mangle)]
 pub unsafe extern "C" fn ves_view_free(v: *mut VesView) {
-    if !v.is_null() {
-        // SAFETY: pointer from Box::into_raw, released once.
-        drop(unsafe { Box::from_raw(v) });
-    }
+    // SAFETY: forwarded from this function's contract.
+    unsafe { release(v) }
 }
 
 /// Writes the deformed positions of all vertices (x, y, z per vertex, `len` = 3 × vertices) from

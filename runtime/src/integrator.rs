@@ -122,18 +122,17 @@ pub struct ModalState {
     pub v: Vec<f64>,
     trans: Vec<Transition>,
     lambda: Vec<f64>,
-    damping: Vec<f64>,
     dt: f64,
 }
 
 impl ModalState {
     /// State at rest for eigenvalues λᵢ, Rayleigh damping (α, β) and time step dt.
     pub fn new(lambda: &[f64], alpha: f64, beta: f64, dt: f64, scheme: Scheme) -> ModalState {
-        let damping: Vec<f64> = lambda.iter().map(|l| alpha + beta * l).collect();
+        let damping = lambda.iter().map(|l| alpha + beta * l);
         let trans = lambda
             .iter()
-            .zip(&damping)
-            .map(|(&l, &c)| match scheme {
+            .zip(damping)
+            .map(|(&l, c)| match scheme {
                 Scheme::Exact => Transition::exact(l, c, dt),
                 Scheme::Newmark => Transition::newmark(l, c, dt),
             })
@@ -144,7 +143,6 @@ impl ModalState {
             v: vec![0.0; r],
             trans,
             lambda: lambda.to_vec(),
-            damping,
             dt,
         }
     }
@@ -176,17 +174,6 @@ impl ModalState {
     #[inline(always)]
     pub fn transition(&self, j: usize) -> &Transition {
         &self.trans[j]
-    }
-
-    /// Modal damping coefficients α + βλᵢ.
-    pub fn damping(&self) -> &[f64] {
-        &self.damping
-    }
-
-    /// Sets q = v = 0.
-    pub fn reset(&mut self) {
-        self.q.fill(0.0);
-        self.v.fill(0.0);
     }
 }
 

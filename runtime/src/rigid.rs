@@ -67,8 +67,7 @@ fn inverse(a: &M3) -> Option<M3> {
 pub struct RigidBody {
     /// kg.
     pub mass: f64,
-    /// Body-frame inertia about the centre of mass and its inverse.
-    inertia: M3,
+    /// Inverse of the body-frame inertia about the centre of mass.
     inv_inertia: M3,
     /// Centre of mass in the part (body) frame, m.
     pub center_body: [f64; 3],
@@ -92,7 +91,6 @@ impl RigidBody {
         let inv = inverse(&p.inertia)?;
         Some(RigidBody {
             mass: p.mass,
-            inertia: p.inertia,
             inv_inertia: inv,
             center_body: p.center,
             position: p.center,
@@ -234,11 +232,6 @@ impl RigidBody {
         let w = self.angular_velocity();
         let v2 = self.velocity.iter().map(|v| v * v).sum::<f64>();
         0.5 * self.mass * v2 + 0.5 * (0..3).map(|i| w[i] * self.angular_momentum[i]).sum::<f64>()
-    }
-
-    /// Body-frame inertia about the centre of mass.
-    pub fn inertia(&self) -> M3 {
-        self.inertia
     }
 }
 
