@@ -114,6 +114,30 @@ enum Command {
         #[arg(long)]
         json: bool,
     },
+    /// Measure accuracy against cost over a sweep of meshes and mode counts: writes report.md,
+    /// report.json and Pareto plots (PNG, SVG) into a directory.
+    Report {
+        /// Scene file (TOML, version 1); its `[[probe]]` points are where errors are measured.
+        scene: PathBuf,
+        /// Output directory (created if missing).
+        #[arg(short, long)]
+        output: PathBuf,
+        /// Mode counts, comma-separated (default 5,10,20,30,50,100,200).
+        #[arg(long, value_delimiter = ',')]
+        modes: Option<Vec<usize>>,
+        /// Element sizes in metres, comma-separated (default: 2, 1.5 and 1 × the scene's size).
+        #[arg(long, value_delimiter = ',')]
+        sizes: Option<Vec<f64>>,
+        /// Element orders, comma-separated (default 1,2).
+        #[arg(long, value_delimiter = ',')]
+        orders: Option<Vec<u8>>,
+        /// Length of the step-load response, s.
+        #[arg(long, default_value_t = 0.5)]
+        duration: f64,
+        /// Print report.json's content as the last line of stdout.
+        #[arg(long)]
+        json: bool,
+    },
     /// Summarise a modal-basis file.
     Info {
         /// Basis file (HDF5).
@@ -326,6 +350,32 @@ fn run(cli: Cli) -> Result<()> {
             }
             if !report.pass {
                 return Err(VerifyFailed.into());
+            }
+        }
+        Command::Report {
+            scene,
+            output,
+            modes,
+            sizes,
+            orders,
+            duration,
+            json,
+        } => {
+            let scene = Scene::load(&scene)?;
+            let mut opts = ves_pipeline::report::ReportOptions::defaults(&scene);
+            opts.modes = modes.unwrap_or(opts.modes);
+            opts.sizes = sizes.unwrap_or(opts.sizes);
+            opts.orders = orders.unwrap_or(opts.orders);
+            opts.duration = duration;
+            let report = ves_pipeline::report::run(&scene, &opts, &output)?;
+            if json {
+                println!("{}", serde_json::to_string(&report)?);
+            } else {
+                println!(
+                    "wrote {}/report.md, report.json, error_vs_online.{{png,svg}}, error_vs_offline.{{png,svg}} ({:.1} s)",
+                    output.display(),
+                    report.total_s
+                );
             }
         }
         Command::Info { basis, json } => {

@@ -37,6 +37,8 @@ pub struct Timings {
     pub eigensolve: f64,
     /// Static correction blocks (when the scene asks for them).
     pub static_correction: f64,
+    /// State-transfer matrices between spaces (VOI scenes).
+    pub transfer: f64,
     /// Writing the file.
     pub write: f64,
     /// Everything.
@@ -71,6 +73,10 @@ pub struct SolvedSpace {
     pub compliance: Option<crate::compliance::Compliance>,
     /// Stage times.
     pub timings: Timings,
+    /// K and M (kept for the state transfer between spaces).
+    pub system: fem::Assembled,
+    /// Transfer matrices from the other spaces (name, row-major `r × r_from`).
+    pub transfers: Vec<(String, Vec<f64>)>,
 }
 
 /// The assembled problem of one space, before the eigen-solve (also used by tests and checks).
@@ -172,6 +178,8 @@ pub fn solve_space(scene: &Scene, voi: Option<&Voi>, choice: SolverChoice) -> Re
         dofs: d.dofs,
         modes,
         timings,
+        system: d.system,
+        transfers: Vec::new(),
     })
 }
 
@@ -234,6 +242,9 @@ pub fn run(scene: &Scene, out: &Path, choice: SolverChoice) -> Result<Summary> {
     }
     bar.finish_and_clear();
     let t = Instant::now();
+    add_transfers(&mut spaces);
+    let transfer_s = t.elapsed().as_secs_f64();
+    let t = Instant::now();
     let views: Vec<store::Space<'_>> = spaces
         .iter()
         .map(|s| store::Space {
@@ -244,6 +255,7 @@ pub fn run(scene: &Scene, out: &Path, choice: SolverChoice) -> Result<Summary> {
             modes: &s.modes,
             mass: &s.mass,
             compliance: s.compliance.as_ref(),
+            transfers: &s.transfers,
         })
         .collect();
     store::write(out, scene, &views)?;
@@ -252,6 +264,7 @@ pub fn run(scene: &Scene, out: &Path, choice: SolverChoice) -> Result<Summary> {
         timings.add(&s.timings);
     }
     timings.write = t.elapsed().as_secs_f64();
+    timings.transfer = transfer_s;
     timings.total = start.elapsed().as_secs_f64();
     Ok(Summary {
         output: out.display().to_string(),
@@ -277,4 +290,42 @@ pub fn run(scene: &Scene, out: &Path, choice: SolverChoice) -> Result<Summary> {
             .collect(),
         timings_s: timings,
     })
+}
+
+/// Fills each space's transfer matrices from every other space (VOI switching at run time).
+pub fn add_transfers(spaces: &mut [SolvedSpace]) {
+    if spaces.len() < 2 {
+        return;
+    }
+    let mut all = Vec::with_capacity(spaces.len());
+    for b in spaces.iter() {
+        let mut list = Vec::new();
+        for a in spaces.iter().filter(|a| a.name != b.name) {
+            let (t, outside) = crate::transfer::transfer_matrix(&space_view(a), &space_view(b));
+            if outside > 1e-3 {
+                tracing::warn!(
+                    from = a.name,
+                    to = b.name,
+                    outside,
+                    "nodes of one space lie outside the other's mesh (curved boundary): transfer extrapolates there"
+                );
+            }
+            list.push((a.name.clone(), t));
+        }
+        all.push(list);
+    }
+    for (s, list) in spaces.iter_mut().zip(all) {
+        s.transfers = list;
+    }
+}
+
+fn space_view(s: &SolvedSpace) -> crate::transfer::SpaceView<'_> {
+    crate::transfer::SpaceView {
+        mesh: &s.mesh,
+        dofs: &s.dofs,
+        modes: &s.modes.vectors,
+        r: s.modes.eigenvalues.len(),
+        pattern: &s.system.pattern,
+        m: &s.system.m,
+    }
 }

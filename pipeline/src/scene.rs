@@ -31,6 +31,19 @@ struct RawScene {
     #[serde(default)]
     voi: Vec<Voi>,
     static_correction: Option<StaticCorrection>,
+    #[serde(default)]
+    probe: Vec<Probe>,
+}
+
+/// Optional `[[probe]]` entries (a compatible v1 extension): a point force applied at the surface
+/// vertex nearest `at`, where `ves report` measures the displacement error of a basis.
+#[derive(Clone, Copy, Debug, Deserialize, serde::Serialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct Probe {
+    /// Where, m (snapped to the nearest surface vertex).
+    pub at: [f64; 3],
+    /// Force, N.
+    pub force: [f64; 3],
 }
 
 /// Optional `[static_correction]` table (a compatible v1 extension): store the exact static
@@ -220,6 +233,8 @@ pub struct Scene {
     pub voi: Vec<Voi>,
     /// Static correction, if asked.
     pub static_correction: Option<StaticCorrection>,
+    /// Probe points for `ves report`.
+    pub probes: Vec<Probe>,
 }
 
 const GEOMETRY_EXTENSIONS: [&str; 5] = ["step", "stp", "brep", "geo", "iges"];
@@ -311,6 +326,14 @@ impl Scene {
             }
             names.push(v.name.clone());
         }
+        for (i, p) in raw.probe.iter().enumerate() {
+            if p.at.iter().chain(&p.force).any(|v| !v.is_finite()) || p.force.iter().all(|&v| v == 0.0) {
+                return Err(err(format!(
+                    "probe[{i}]: at {:?} and force {:?} must be finite, and the force non-zero (N)",
+                    p.at, p.force
+                )));
+            }
+        }
         let name = raw.name.unwrap_or_else(|| {
             path.file_stem()
                 .map(|s| s.to_string_lossy().into_owned())
@@ -329,6 +352,7 @@ impl Scene {
             damping: raw.damping,
             voi: raw.voi,
             static_correction: raw.static_correction,
+            probes: raw.probe,
         })
     }
 }
@@ -445,6 +469,9 @@ box = { min = [0.0, 0.0, 0.0], max = [0.1, 0.1, 0.1] }
 size = 0.001
 [static_correction]
 region = "surface"
+[[probe]]
+at = [0.1, 0.0, 0.05]
+force = [0.0, 1.0, 0.0]
 "#;
 
     /// Deterministic mutations of a valid scene (byte flips, deletions, duplications, numeric

@@ -29,6 +29,9 @@ pub struct Space<'a> {
     pub mass: &'a MassProperties,
     /// Static compliance blocks (`compliance/`), if computed.
     pub compliance: Option<&'a crate::compliance::Compliance>,
+    /// State-transfer matrices from the other spaces (`transfer/<from>`, row-major
+    /// `r × r_from`): modal coordinates of `from` → this space's (see `transfer.rs`).
+    pub transfers: &'a [(String, Vec<f64>)],
 }
 
 fn attr_str(loc: &hdf5::Location, name: &str, value: &str) -> Result<()> {
@@ -118,6 +121,14 @@ fn write_space(file: &hdf5::File, s: &Space<'_>) -> Result<()> {
             .create("nodes")?;
         let blocks = ndarray::Array3::from_shape_fn((c.blocks.len(), 3, 3), |(k, a, b)| c.blocks[k][a][b]);
         grp.new_dataset_builder().with_data(&blocks).create("blocks")?;
+    }
+    if !s.transfers.is_empty() {
+        let grp = g.create_group("transfer")?;
+        for (from, t) in s.transfers {
+            let cols = t.len() / r.max(1);
+            let m = Array2::from_shape_vec((r, cols), t.clone())?;
+            grp.new_dataset_builder().with_data(&m).create(from.as_str())?;
+        }
     }
     if s.modes.rigid_dropped > 0 {
         let rigid = g.create_group("rigid")?;

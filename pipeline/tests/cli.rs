@@ -349,6 +349,21 @@ fn malformed_scene_values_are_refused_one_by_one() {
         ),
         ("[material]", "[material]\ncolour = \"red\"", &["colour"]),
         ("name = \"beam\"", "name = \"beam\"\nname = \"twice\"", &["name"]),
+        (
+            "[modes]",
+            "[[probe]]\nat = [1.0, 0.0, 0.0]\nforce = [0.0, 0.0, 0.0]\n[modes]",
+            &["probe[0]", "force"],
+        ),
+        (
+            "[modes]",
+            "[[probe]]\nat = [1.0, nan, 0.0]\nforce = [0.0, 0.0, 1.0]\n[modes]",
+            &["probe[0]"],
+        ),
+        (
+            "[modes]",
+            "[[probe]]\nat = [1.0, 0.0]\nforce = [0.0, 0.0, 1.0]\n[modes]",
+            &["at"],
+        ),
     ];
     for (from, to, expect) in cases {
         assert!(GOOD.contains(from), "test case does not apply: {from}");
@@ -433,4 +448,92 @@ fn bad_device_scripts_and_session_settings_are_refused() {
     assert!(!o.status.success() && String::from_utf8_lossy(&o.stderr).contains("--rate"));
     let o = ves(&["session", b, "--device", "mouse:0"]);
     assert!(!o.status.success() && String::from_utf8_lossy(&o.stderr).contains("script:"));
+}
+
+/// A small `ves report` (CI): every output is written, the static correction makes the probe
+/// response exact, errors fall with the number of modes, 4-node tets lock where 10-node do not.
+#[test]
+fn report_sweeps_meshes_and_modes_and_writes_plots() {
+    let scene = GOOD.replace(
+        "count = 4",
+        "count = 4\n[damping]\nbeta = 1.0e-5\n[[probe]]\nat = [1.0, 0.05, 0.05]\nforce = [0.0, 0.0, -1.0]",
+    );
+    let (dir, path) = workdir(&scene);
+    let out = dir.path().join("report");
+    let o = ves(&[
+        "report",
+        path.to_str().unwrap(),
+        "-o",
+        out.to_str().unwrap(),
+        "--modes",
+        "4,12",
+        "--sizes",
+        "0.06,0.04",
+        "--orders",
+        "1,2",
+        "--duration",
+        "0.1",
+        "--json",
+    ]);
+    let stderr = String::from_utf8_lossy(&o.stderr);
+    assert!(o.status.success(), "{stderr}");
+    for f in [
+        "report.md",
+        "report.json",
+        "error_vs_online.png",
+        "error_vs_offline.png",
+        "error_vs_online.svg",
+        "error_vs_offline.svg",
+    ] {
+        let bytes = std::fs::read(out.join(f)).unwrap_or_else(|e| panic!("{f}: {e}"));
+        assert!(bytes.len() > 1000, "{f} is too small");
+        if f.ends_with(".png") {
+            assert_eq!(&bytes[1..4], b"PNG", "{f}");
+        }
+    }
+    let stdout = String::from_utf8_lossy(&o.stdout);
+    let r: serde_json::Value = serde_json::from_str(stdout.lines().last().expect("json line")).expect("json");
+    let meshes = r["meshes"].as_array().expect("meshes");
+    assert_eq!(meshes.len(), 4);
+    let reference = &meshes[r["reference_mesh"].as_u64().expect("reference") as usize];
+    assert_eq!(
+        (reference["order"].as_u64(), reference["size"].as_f64()),
+        (Some(2), Some(0.04))
+    );
+    let f1 = |m: &serde_json::Value| m["frequencies_hz"][0].as_f64().expect("f1");
+    for m in meshes {
+        let points = m["points"].as_array().expect("points");
+        assert_eq!(points.len(), 2, "two mode counts per mesh");
+        let err = |p: &serde_json::Value, k: &str| p[k][0].as_f64().expect(k);
+        for p in points {
+            assert!(err(p, "static_error_corrected") < 1e-9, "correction must be exact: {p}");
+            assert!(
+                err(p, "dynamic_error_corrected") <= err(p, "dynamic_error") + 1e-12,
+                "{p}"
+            );
+            assert!(p["haptic_step_ns"].as_f64().expect("ns") > 0.0);
+            assert!(p["file_bytes"].as_u64().expect("bytes") > 0);
+        }
+        // More modes, smaller truncation error.
+        assert!(err(&points[1], "static_error") < err(&points[0], "static_error"), "{m}");
+        assert!(
+            err(&points[1], "dynamic_error") < err(&points[0], "dynamic_error"),
+            "{m}"
+        );
+        let e = m["probes"][0]["exact_displacement"].as_f64().expect("u");
+        assert!(e.is_finite() && e > 0.0);
+    }
+    // Shear locking of 4-node tets in bending: their f1 is far above the 10-node one.
+    let (p1, p2) = (&meshes[1], &meshes[3]);
+    assert!(f1(p1) > 1.2 * f1(p2), "P1 {} vs P2 {}", f1(p1), f1(p2));
+    assert!(meshes[2]["points"][0]["frequency_error"].as_f64().expect("freq err") < 0.01);
+    assert!(reference["points"][0]["frequency_error"].is_null());
+    // Nothing temporary left behind.
+    let left: Vec<_> = std::fs::read_dir(&out)
+        .expect("dir")
+        .filter_map(|e| e.ok())
+        .map(|e| e.file_name().to_string_lossy().into_owned())
+        .filter(|n| n.starts_with('.') || n.ends_with(".tmp"))
+        .collect();
+    assert!(left.is_empty(), "left behind: {left:?}");
 }

@@ -68,6 +68,8 @@ pub struct Basis {
     pub compliance: Option<Vec<[[f64; 3]; 3]>>,
     /// Bytes of basis data held in memory.
     pub bytes_loaded: usize,
+    /// The volume of interest this space refines (min, max corners, m); `None` for "global".
+    pub voi: Option<[[f64; 3]; 2]>,
 }
 
 impl Basis {
@@ -141,6 +143,7 @@ impl Basis {
             rigid,
             compliance: None,
             bytes_loaded,
+            voi: None,
         })
     }
 
@@ -401,7 +404,20 @@ mod file {
             }
             Err(_) => None,
         };
-        let basis = Basis::new(
+        let voi = match (g.attr("voi_min"), g.attr("voi_max")) {
+            (Ok(a), Ok(b)) => {
+                let (a, b): (Vec<f64>, Vec<f64>) = (
+                    a.read_raw().map_err(|_| h5("voi_min"))?,
+                    b.read_raw().map_err(|_| h5("voi_max"))?,
+                );
+                if a.len() != 3 || b.len() != 3 || a.iter().chain(&b).any(|v| !v.is_finite()) {
+                    return Err(h5("voi_min/voi_max"));
+                }
+                Some([[a[0], a[1], a[2]], [b[0], b[1], b[2]]])
+            }
+            _ => None,
+        };
+        let mut basis = Basis::new(
             &p,
             &space,
             rest,
@@ -412,6 +428,7 @@ mod file {
             damping,
             rigid,
         )?;
+        basis.voi = voi;
         match g.group("compliance") {
             Ok(cg) => {
                 let nodes: Vec<u32> = open(&cg, "nodes")?.read_raw().map_err(|_| h5("compliance/nodes"))?;
@@ -439,3 +456,59 @@ mod file {
 
 #[cfg(feature = "hdf5")]
 pub use file::{load, open_checked};
+
+#[cfg(feature = "hdf5")]
+impl Basis {
+    /// Names of the spaces in a basis file, the default space first.
+    pub fn space_names(path: &std::path::Path) -> Result<Vec<String>, LoadError> {
+        let file = file::open_checked(path)?;
+        let err = |message: String| LoadError {
+            path: path.display().to_string(),
+            message,
+        };
+        let mut names = file
+            .group("spaces")
+            .and_then(|g| g.member_names())
+            .map_err(|_| err("no /spaces group".into()))?;
+        let default = file
+            .attr("default_space")
+            .and_then(|a| a.read_scalar::<hdf5::types::VarLenUnicode>())
+            .map(|s| s.as_str().to_string())
+            .unwrap_or_else(|_| "global".into());
+        names.sort_by_key(|n| *n != default);
+        Ok(names)
+    }
+
+    /// The state-transfer matrix from space `from` (r_from modes loaded) to `to` (r_to), row-major
+    /// `r_to × r_from`, when the file holds one (`spaces/<to>/transfer/<from>`).
+    pub fn load_transfer(
+        path: &std::path::Path,
+        to: &str,
+        from: &str,
+        r_to: usize,
+        r_from: usize,
+    ) -> Result<Option<Vec<f64>>, LoadError> {
+        let file = file::open_checked(path)?;
+        let Ok(ds) = file.dataset(&format!("spaces/{to}/transfer/{from}")) else {
+            return Ok(None);
+        };
+        let err = |message: String| LoadError {
+            path: path.display().to_string(),
+            message,
+        };
+        let shape = ds.shape();
+        if shape.len() != 2 || shape[0] < r_to || shape[1] < r_from {
+            return Err(err(format!(
+                "transfer {from} → {to} has shape {shape:?}, fewer than the {r_to} × {r_from} modes loaded"
+            )));
+        }
+        let m: ndarray::Array2<f64> = ds
+            .read_slice(ndarray::s![0..r_to, 0..r_from])
+            .map_err(|_| err(format!("transfer {from} → {to} is damaged")))?;
+        let v: Vec<f64> = m.iter().copied().collect();
+        if v.iter().any(|x| !x.is_finite()) {
+            return Err(err(format!("transfer {from} → {to} holds non-finite values")));
+        }
+        Ok(Some(v))
+    }
+}

@@ -367,6 +367,35 @@ impl Haptics {
         }
     }
 
+    /// Takes over the state of `other`, a simulation of the same part in another modal space:
+    /// q = T q_other and v = T v_other with T the stored transfer matrix (row-major
+    /// `r × r_other`), each hand on the vertex nearest its old one with its grab and last force,
+    /// the rigid-body state as is. Allocation-free: a switch can happen inside the haptic loop.
+    pub fn transfer_from(&mut self, other: &Haptics, t: &[f64]) {
+        let (r, ro) = (self.state.q.len(), other.state.q.len());
+        debug_assert_eq!(t.len(), r * ro);
+        for i in 0..r {
+            let row = &t[i * ro..(i + 1) * ro];
+            self.state.q[i] = row.iter().zip(&other.state.q).map(|(a, b)| a * b).sum();
+            self.state.v[i] = row.iter().zip(&other.state.v).map(|(a, b)| a * b).sum();
+        }
+        if self.rigid.is_some() {
+            self.rigid = other.rigid;
+        }
+        for k in 0..self.hands.len().min(other.hands.len()) {
+            let oh = &other.hands[k];
+            self.hands[k].vertex = None;
+            self.hands[k].grabbed = false;
+            if let Some(v) = oh.vertex
+                && let Some((nv, _)) = self.tree.nearest(other.basis.rest[v as usize])
+            {
+                self.select(k, nv);
+                self.hands[k].grabbed = oh.grabbed;
+                self.hands[k].last_force = oh.last_force;
+            }
+        }
+    }
+
     /// Length of the vector [`Haptics::write_published`] fills: r modal coordinates + 7 pose values.
     pub fn published_len(&self) -> usize {
         self.state.q.len() + 7

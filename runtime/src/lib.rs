@@ -15,6 +15,7 @@ pub mod kdtree;
 pub mod rigid;
 pub mod session;
 pub mod snapshot;
+pub mod switching;
 pub mod visual;
 
 pub use basis::{Basis, LoadError, LoadOptions};

@@ -1,0 +1,585 @@
+//! `ves report`: what a basis costs against how wrong it is, measured for a sweep of meshes
+//! (element order × size) and mode counts, so a user can pick the cheapest basis that is
+//! accurate enough.
+//!
+//! For every mesh: the exact point-load response at the probes (a sparse solve of K u = F), the
+//! surface static-correction blocks, and a full-order Newmark integration of a step load. For
+//! every mode count on it: offline time, file size, bytes the runtime loads, haptic step and
+//! full-field times (measured on the written file through the runtime), frequency error against
+//! the finest mesh, and the probe errors with and without static correction.
+
+mod newmark;
+mod render;
+
+use crate::compliance::Compliance;
+use crate::linsolve::factor_stiffness;
+use crate::precompute::{Discretized, SolverChoice, Timings, discretize, solve};
+use crate::scene::{Probe, Scene};
+use crate::store;
+use anyhow::{Context, Result, bail};
+pub use newmark::{FullSystem, ModalSystem, Stepping, System, integrate_step_load};
+use serde::Serialize;
+use std::path::Path;
+use std::sync::Arc;
+use std::time::Instant;
+
+/// What to sweep.
+#[derive(Clone, Debug)]
+pub struct ReportOptions {
+    /// Mode counts.
+    pub modes: Vec<usize>,
+    /// Element sizes, m.
+    pub sizes: Vec<f64>,
+    /// Element orders (1, 2).
+    pub orders: Vec<u8>,
+    /// Length of the step-load response, s.
+    pub duration: f64,
+}
+
+impl ReportOptions {
+    /// The defaults for a scene: 5…200 modes, orders 1 and 2, the scene's size and two coarser.
+    pub fn defaults(scene: &Scene) -> ReportOptions {
+        let h = scene.mesh.size;
+        ReportOptions {
+            modes: vec![5, 10, 20, 30, 50, 100, 200],
+            sizes: vec![2.0 * h, 1.5 * h, h],
+            orders: vec![1, 2],
+            duration: 0.5,
+        }
+    }
+}
+
+/// A probe as applied on one mesh.
+#[derive(Clone, Debug, Serialize)]
+pub struct ProbeOnMesh {
+    /// The surface vertex used.
+    pub vertex: usize,
+    /// Distance from the asked point, m.
+    pub snap_distance: f64,
+    /// |u| of the full solve, m.
+    pub exact_displacement: f64,
+}
+
+/// One (mesh, mode count) point of the sweep.
+#[derive(Clone, Debug, Serialize)]
+pub struct Point {
+    /// Elastic modes.
+    pub modes: usize,
+    /// Mesh + assembly + factorisation + eigen-solve, s.
+    pub offline_s: f64,
+    /// The same plus the static-correction blocks, s (null for free bodies).
+    pub offline_with_correction_s: Option<f64>,
+    /// Size of the basis file (with compliance blocks when computed), bytes.
+    pub file_bytes: u64,
+    /// Bytes the runtime holds after loading it (all vertices).
+    pub bytes_loaded: usize,
+    /// Median haptic step, ns.
+    pub haptic_step_ns: f64,
+    /// Median full-field update (all vertices), ms.
+    pub full_field_ms: f64,
+    /// Largest relative frequency error over the first `frequencies_compared` modes against
+    /// the finest mesh (null on the finest mesh itself, which is the reference).
+    pub frequency_error: Option<f64>,
+    /// How many modes that compares.
+    pub frequencies_compared: usize,
+    /// Per probe: |u_r − u| / |u| at the probe under its static force, modes only.
+    pub static_error: Vec<f64>,
+    /// The same with the static correction.
+    pub static_error_corrected: Vec<f64>,
+    /// Per probe: max over time of |u_r(t) − u(t)| / max |u(t)| under the step load.
+    pub dynamic_error: Vec<f64>,
+    /// The same with the static correction of the truncated modes.
+    pub dynamic_error_corrected: Vec<f64>,
+}
+
+/// One mesh of the sweep.
+#[derive(Clone, Debug, Serialize)]
+pub struct MeshReport {
+    /// 1 or 2.
+    pub order: u8,
+    /// Element size asked, m.
+    pub size: f64,
+    /// Nodes.
+    pub nodes: usize,
+    /// Corner vertices.
+    pub vertices: usize,
+    /// Tets.
+    pub tets: usize,
+    /// Free unknowns.
+    pub dofs: usize,
+    /// Meshing, s.
+    pub mesh_s: f64,
+    /// Assembly, s.
+    pub assemble_s: f64,
+    /// Surface static-correction blocks, s (null for free bodies).
+    pub static_correction_s: Option<f64>,
+    /// The full-order step response (the dynamic reference), s.
+    pub full_dynamic_s: Option<f64>,
+    /// Lowest frequencies computed on this mesh (for the largest mode count), Hz.
+    pub frequencies_hz: Vec<f64>,
+    /// Probes as applied on this mesh.
+    pub probes: Vec<ProbeOnMesh>,
+    /// The sweep over mode counts.
+    pub points: Vec<Point>,
+}
+
+/// The whole report (`report.json`).
+#[derive(Clone, Debug, Serialize)]
+pub struct Report {
+    /// Scene name.
+    pub scene: String,
+    /// Scene file.
+    pub scene_file: String,
+    /// Probes (asked, or the default one).
+    pub probes: Vec<Probe>,
+    /// Whether the probes were the scene's own.
+    pub probes_from_scene: bool,
+    /// Step-load length, s.
+    pub duration_s: f64,
+    /// Time step of both integrations, s.
+    pub dt_s: f64,
+    /// Index in `meshes` of the frequency reference (finest size, highest order).
+    pub reference_mesh: usize,
+    /// Meshes, in sweep order.
+    pub meshes: Vec<MeshReport>,
+    /// Free body (no static or dynamic errors: K is singular).
+    pub free_body: bool,
+    /// Wall time of the whole report, s.
+    pub total_s: f64,
+}
+
+/// Runs the sweep and writes `report.json`, `report.md` and the plots into `dir`.
+pub fn run(scene: &Scene, opts: &ReportOptions, dir: &Path) -> Result<Report> {
+    let start = Instant::now();
+    check_options(opts)?;
+    check_plotting()?;
+    std::fs::create_dir_all(dir).with_context(|| format!("{}: cannot create the report directory", dir.display()))?;
+    let mut modes = opts.modes.clone();
+    modes.sort_unstable();
+    modes.dedup();
+    let mut meshes_asked: Vec<(u8, f64)> = Vec::new();
+    for &o in &opts.orders {
+        for &h in &opts.sizes {
+            meshes_asked.push((o, h));
+        }
+    }
+    // The reference: the finest size at the highest order, computed first (its frequencies
+    // and time step serve every other mesh).
+    let reference = (0..meshes_asked.len())
+        .min_by(|&a, &b| {
+            let (oa, ha) = meshes_asked[a];
+            let (ob, hb) = meshes_asked[b];
+            ha.total_cmp(&hb).then(ob.cmp(&oa))
+        })
+        .unwrap_or(0);
+    let bar = crate::progress::bar((meshes_asked.len() * modes.len()) as u64, "bases");
+    let tmp = dir.join(".report-basis.h5");
+    let mut ctx = Sweep {
+        scene,
+        modes: &modes,
+        duration: opts.duration,
+        tmp: &tmp,
+        bar: &bar,
+        reference_frequencies: Vec::new(),
+        dt: 0.0,
+        probes: Vec::new(),
+    };
+    let mut meshes = vec![None; meshes_asked.len()];
+    let order: Vec<usize> = std::iter::once(reference)
+        .chain((0..meshes_asked.len()).filter(|&i| i != reference))
+        .collect();
+    for i in order {
+        let (o, h) = meshes_asked[i];
+        let r = ctx.mesh(o, h).with_context(|| format!("mesh order {o}, size {h} m"))?;
+        meshes[i] = Some(r);
+    }
+    let _ = std::fs::remove_file(&tmp);
+    bar.finish_and_clear();
+    let meshes: Vec<MeshReport> = meshes.into_iter().flatten().collect();
+    let report = Report {
+        scene: scene.name.clone(),
+        scene_file: scene.path.display().to_string(),
+        probes_from_scene: !scene.probes.is_empty(),
+        probes: ctx.probes.clone(),
+        duration_s: opts.duration,
+        dt_s: ctx.dt,
+        reference_mesh: reference,
+        free_body: meshes.iter().any(|m| m.static_correction_s.is_none()),
+        meshes,
+        total_s: start.elapsed().as_secs_f64(),
+    };
+    render::write_all(&report, dir)?;
+    Ok(report)
+}
+
+fn check_options(o: &ReportOptions) -> Result<()> {
+    if o.modes.is_empty() || o.modes.iter().any(|&r| r == 0 || r > 2000) {
+        bail!("--modes {:?}: give mode counts between 1 and 2000", o.modes);
+    }
+    if o.sizes.is_empty() || o.sizes.iter().any(|h| !h.is_finite() || *h <= 0.0) {
+        bail!("--sizes {:?}: give element sizes > 0 in metres", o.sizes);
+    }
+    if o.orders.is_empty() || o.orders.iter().any(|o| !matches!(o, 1 | 2)) {
+        bail!("--orders {:?}: element orders are 1 and 2", o.orders);
+    }
+    if !o.duration.is_finite() || o.duration <= 0.0 || o.duration > 100.0 {
+        bail!("--duration {}: give a step-load length in (0, 100] s", o.duration);
+    }
+    Ok(())
+}
+
+/// The plots need matplotlib: say so before an hour of work, not after.
+fn check_plotting() -> Result<()> {
+    let ok = std::process::Command::new("python3")
+        .args(["-c", "import matplotlib"])
+        .output()
+        .map(|o| o.status.success())
+        .unwrap_or(false);
+    if !ok {
+        bail!("ves report draws its plots with matplotlib: run `pip install matplotlib` (or scripts/setup)");
+    }
+    Ok(())
+}
+
+struct Sweep<'a> {
+    scene: &'a Scene,
+    modes: &'a [usize],
+    duration: f64,
+    tmp: &'a Path,
+    bar: &'a indicatif::ProgressBar,
+    reference_frequencies: Vec<f64>,
+    dt: f64,
+    probes: Vec<Probe>,
+}
+
+/// Exact responses at the probes on one mesh.
+struct Exact {
+    /// Per probe: the vertex and its force.
+    at: Vec<(usize, [f64; 3])>,
+    /// Per probe: K⁻¹F at the vertex.
+    statics: Vec<[f64; 3]>,
+    /// Per probe: compliance block of the vertex.
+    blocks: Vec<[[f64; 3]; 3]>,
+    /// Every surface vertex's block (written with each basis, as precompute does).
+    surface: Compliance,
+    /// Per probe, per step: the full-order displacement at the vertex.
+    dynamic: Vec<Vec<[f64; 3]>>,
+}
+
+impl Sweep<'_> {
+    fn mesh(&mut self, order: u8, size: f64) -> Result<MeshReport> {
+        let mut scene = self.scene.clone();
+        scene.mesh.order = order;
+        scene.mesh.size = size;
+        let mut timings = Timings::default();
+        let d = discretize(&scene, None, &mut timings)?;
+        let supported = d.rigid == 0;
+        let free = d.dofs.free_count();
+        // Mode counts this mesh can give (Lanczos needs a Krylov space well inside the problem).
+        let counts: Vec<usize> = self
+            .modes
+            .iter()
+            .copied()
+            .filter(|&r| 3 * (r + d.rigid) < free)
+            .collect();
+        let skipped = self.modes.len() - counts.len();
+        if skipped > 0 {
+            tracing::warn!(order, size, free, "mode counts above a third of the unknowns skipped");
+            self.bar.inc(skipped as u64);
+        }
+        let Some(&rmax) = counts.last() else {
+            bail!("{free} unknowns: too few for the mode counts asked; use smaller --sizes");
+        };
+        // The largest solve first: its modes choose the default probe and the time step.
+        let (top, _) = solve(&d, rmax, SolverChoice::Auto)?;
+        let freqs = top.frequencies_hz();
+        let is_reference = self.reference_frequencies.is_empty();
+        if is_reference {
+            self.reference_frequencies = freqs.clone();
+            let f1 = freqs.first().copied().unwrap_or(1.0).max(1e-9);
+            let steps = (20.0 * f1 * self.duration).ceil().max(50.0);
+            self.dt = self.duration / steps;
+            self.probes = if self.scene.probes.is_empty() {
+                vec![default_probe(&d, &top.vectors[..free])]
+            } else {
+                self.scene.probes.clone()
+            };
+        }
+        let (exact, probes, correction_s, dynamic_s) = if supported {
+            let (e, p, c, dy) = self.exact(&d)?;
+            (Some(e), p, Some(c), Some(dy))
+        } else {
+            (None, Vec::new(), None, None)
+        };
+        let mut points = Vec::with_capacity(counts.len());
+        for &r in &counts {
+            self.bar.set_message(format!("order {order}, {:.4} m, {r} modes", size));
+            let mut p = self.point(&scene, &d, &timings, r, exact.as_ref(), correction_s)?;
+            if is_reference {
+                p.frequency_error = None;
+            }
+            points.push(p);
+            self.bar.inc(1);
+        }
+        Ok(MeshReport {
+            order,
+            size,
+            nodes: d.mesh.nodes.len(),
+            vertices: d.mesh.vertex_count,
+            tets: d.mesh.tet_count(),
+            dofs: free,
+            mesh_s: timings.mesh,
+            assemble_s: timings.assemble,
+            static_correction_s: correction_s,
+            full_dynamic_s: dynamic_s,
+            frequencies_hz: freqs,
+            probes,
+            points,
+        })
+    }
+
+    /// Static and dynamic full-order responses at the probes, and the probes' compliance.
+    fn exact(&self, d: &Discretized) -> Result<(Exact, Vec<ProbeOnMesh>, f64, f64)> {
+        let nf = d.dofs.free_count();
+        let surface = surface_vertices(d);
+        let at: Vec<(usize, [f64; 3])> = self
+            .probes
+            .iter()
+            .map(|p| (nearest(d, &surface, p.at), p.force))
+            .collect();
+        let mut load = vec![0.0; nf * at.len()];
+        for (k, &(v, f)) in at.iter().enumerate() {
+            for (c, fc) in f.iter().enumerate() {
+                let g = d.dofs.free_of[3 * v + c];
+                if g != u32::MAX {
+                    load[k * nf + g as usize] = *fc;
+                }
+            }
+        }
+        let mut x = load.clone();
+        factor_stiffness(&d.system, &d.dofs)?.solve_many_in_place(&mut x, at.len());
+        let statics: Vec<[f64; 3]> = at
+            .iter()
+            .enumerate()
+            .map(|(k, &(v, _))| vertex_value(d, &x[k * nf..(k + 1) * nf], v))
+            .collect();
+        // The offline cost of the correction is that of every surface vertex, as precompute
+        // does it; the probes' blocks come out of the same computation.
+        let t = Instant::now();
+        let surface = crate::compliance::surface_compliance(d)?;
+        let correction_s = t.elapsed().as_secs_f64();
+        let probe_blocks: Vec<[[f64; 3]; 3]> = at
+            .iter()
+            .map(|&(v, _)| {
+                surface
+                    .nodes
+                    .binary_search(&(v as u32))
+                    .map(|i| surface.blocks[i])
+                    .map_err(|_| anyhow::anyhow!("probe vertex {v} has no compliance block"))
+            })
+            .collect::<Result<_>>()?;
+        let t = Instant::now();
+        let stepping = self.stepping();
+        let sys = FullSystem::new(d, stepping)?;
+        let steps = (self.duration / self.dt).round() as usize;
+        let mut dynamic = vec![Vec::with_capacity(steps); at.len()];
+        integrate_step_load(&sys, stepping, &load, at.len(), steps, |u| {
+            for (k, &(v, _)) in at.iter().enumerate() {
+                dynamic[k].push(vertex_value(d, &u[k * nf..(k + 1) * nf], v));
+            }
+        });
+        let dynamic_s = t.elapsed().as_secs_f64();
+        let probes = at
+            .iter()
+            .zip(&self.probes)
+            .zip(&statics)
+            .map(|((&(v, _), p), u)| ProbeOnMesh {
+                vertex: v,
+                snap_distance: dist(d.mesh.nodes[v], p.at),
+                exact_displacement: norm(*u),
+            })
+            .collect();
+        Ok((
+            Exact {
+                at,
+                statics,
+                blocks: probe_blocks,
+                surface,
+                dynamic,
+            },
+            probes,
+            correction_s,
+            dynamic_s,
+        ))
+    }
+
+    fn stepping(&self) -> Stepping {
+        Stepping {
+            dt: self.dt,
+            alpha: self.scene.damping.alpha,
+            beta: self.scene.damping.beta,
+        }
+    }
+
+    fn point(
+        &self,
+        scene: &Scene,
+        d: &Discretized,
+        timings: &Timings,
+        r: usize,
+        exact: Option<&Exact>,
+        correction_s: Option<f64>,
+    ) -> Result<Point> {
+        let (modes, ordering_s) = solve(d, r, SolverChoice::Auto)?;
+        let offline_s = timings.mesh + timings.assemble + ordering_s + modes.factorize_s + modes.eigensolve_s;
+        store::write(
+            self.tmp,
+            scene,
+            &[store::Space {
+                name: "global",
+                voi: None,
+                mesh: &d.mesh,
+                dofs: &d.dofs,
+                modes: &modes,
+                mass: &d.system.mass,
+                compliance: exact.map(|e| &e.surface),
+                transfers: &[],
+            }],
+        )?;
+        let file_bytes = std::fs::metadata(self.tmp).map(|m| m.len()).unwrap_or(0);
+        let basis = ves_runtime::basis::load(self.tmp, &ves_runtime::basis::LoadOptions::default())
+            .map_err(|e| anyhow::anyhow!("{e}"))?;
+        let bytes_loaded = basis.bytes_loaded;
+        let full_field_ms = ves_runtime::bench::full_field_ms(&basis, 30);
+        let haptic_step_ns = ves_runtime::bench::haptic_step_ns(Arc::new(basis), 101, 2000);
+
+        let freqs = modes.frequencies_hz();
+        let compared = freqs.len().min(self.reference_frequencies.len());
+        let frequency_error = (0..compared)
+            .map(|j| (freqs[j] / self.reference_frequencies[j] - 1.0).abs())
+            .fold(0.0, f64::max);
+
+        let (mut se, mut sec, mut de, mut dec) = (Vec::new(), Vec::new(), Vec::new(), Vec::new());
+        if let Some(ex) = exact {
+            let nf = d.dofs.free_count();
+            let rows = |v: usize| -> Vec<[f64; 3]> {
+                (0..modes.eigenvalues.len())
+                    .map(|j| vertex_value(d, &modes.vectors[j * nf..(j + 1) * nf], v))
+                    .collect()
+            };
+            let stepping = self.stepping();
+            let sys = ModalSystem::new(&modes.eigenvalues, stepping);
+            for (k, &(v, f)) in ex.at.iter().enumerate() {
+                let phi = rows(v);
+                // Modal static response Σ φφᵀF/λ, and the correction (G − ΦΛ⁻¹Φᵀ)F on top.
+                let mut modal = [0.0; 3];
+                let fj: Vec<f64> = phi.iter().map(|p| dot(*p, f)).collect();
+                for (j, p) in phi.iter().enumerate() {
+                    for c in 0..3 {
+                        modal[c] += p[c] * fj[j] / modes.eigenvalues[j];
+                    }
+                }
+                let gf = matvec(ex.blocks[k], f);
+                let residual: [f64; 3] = std::array::from_fn(|c| gf[c] - modal[c]);
+                let corrected: [f64; 3] = std::array::from_fn(|c| modal[c] + residual[c]);
+                let u = ex.statics[k];
+                se.push(norm(sub(modal, u)) / norm(u));
+                sec.push(norm(sub(corrected, u)) / norm(u));
+                // Step load: modal response, and the same plus the residual held with the load.
+                let (mut worst, mut worst_c, mut peak) = (0.0f64, 0.0f64, 0.0f64);
+                let mut step = 0;
+                integrate_step_load(&sys, stepping, &fj, 1, ex.dynamic[k].len(), |q| {
+                    let mut ur = [0.0; 3];
+                    for (j, p) in phi.iter().enumerate() {
+                        for c in 0..3 {
+                            ur[c] += p[c] * q[j];
+                        }
+                    }
+                    let full = ex.dynamic[k][step];
+                    let urc: [f64; 3] = std::array::from_fn(|c| ur[c] + residual[c]);
+                    worst = worst.max(norm(sub(ur, full)));
+                    worst_c = worst_c.max(norm(sub(urc, full)));
+                    peak = peak.max(norm(full));
+                    step += 1;
+                });
+                de.push(worst / peak);
+                dec.push(worst_c / peak);
+            }
+        }
+        Ok(Point {
+            modes: r,
+            offline_s,
+            offline_with_correction_s: correction_s.map(|c| offline_s + c),
+            file_bytes,
+            bytes_loaded,
+            haptic_step_ns,
+            full_field_ms,
+            frequency_error: Some(frequency_error),
+            frequencies_compared: compared,
+            static_error: se,
+            static_error_corrected: sec,
+            dynamic_error: de,
+            dynamic_error_corrected: dec,
+        })
+    }
+}
+
+/// With no probe in the scene: 1 N at the surface vertex that moves most in mode 1, along
+/// that motion.
+fn default_probe(d: &Discretized, phi1: &[f64]) -> Probe {
+    let surface = surface_vertices(d);
+    let v = surface
+        .iter()
+        .copied()
+        .max_by(|&a, &b| norm(vertex_value(d, phi1, a)).total_cmp(&norm(vertex_value(d, phi1, b))))
+        .unwrap_or(0);
+    let u = vertex_value(d, phi1, v);
+    let n = norm(u).max(f64::MIN_POSITIVE);
+    Probe {
+        at: d.mesh.nodes[v],
+        force: u.map(|c| c / n),
+    }
+}
+
+fn surface_vertices(d: &Discretized) -> Vec<usize> {
+    let mut v: Vec<usize> = d.mesh.surface.iter().flatten().map(|&i| i as usize).collect();
+    v.sort_unstable();
+    v.dedup();
+    v
+}
+
+fn nearest(d: &Discretized, candidates: &[usize], p: [f64; 3]) -> usize {
+    candidates
+        .iter()
+        .copied()
+        .min_by(|&a, &b| dist(d.mesh.nodes[a], p).total_cmp(&dist(d.mesh.nodes[b], p)))
+        .unwrap_or(0)
+}
+
+/// The displacement of vertex `v` in a free-DOF vector (0 on supported components).
+fn vertex_value(d: &Discretized, x: &[f64], v: usize) -> [f64; 3] {
+    std::array::from_fn(|c| {
+        let g = d.dofs.free_of[3 * v + c];
+        if g == u32::MAX { 0.0 } else { x[g as usize] }
+    })
+}
+
+fn dot(a: [f64; 3], b: [f64; 3]) -> f64 {
+    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
+}
+
+fn norm(a: [f64; 3]) -> f64 {
+    dot(a, a).sqrt()
+}
+
+fn sub(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
+    std::array::from_fn(|c| a[c] - b[c])
+}
+
+fn dist(a: [f64; 3], b: [f64; 3]) -> f64 {
+    norm(sub(a, b))
+}
+
+fn matvec(m: [[f64; 3]; 3], v: [f64; 3]) -> [f64; 3] {
+    std::array::from_fn(|a| dot(m[a], v))
+}

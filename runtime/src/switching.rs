@@ -1,0 +1,261 @@
+//! Volume-of-interest switching (DESIGN.md §1): one simulation per modal space of a part, the
+//! one whose VOI holds the haptic point(s) active. At a switch the new space takes over the
+//! state through the precomputed transfer matrix (q_new = T q_old, the mass-weighted
+//! projection), and for a short window both spaces run and the force sent to the device is
+//! blended from the old model's to the new one's, so the hand feels no step where the two
+//! discretisations differ. Hysteresis (enter a box only well inside it, leave it only well
+//! outside) keeps the choice from flickering at a border. All simulations are built up front:
+//! a switch allocates nothing in the haptic thread.
+
+use crate::basis::Basis;
+use crate::haptic::{Coupling, HandInput, HandOutput, Haptics};
+use crate::integrator::Scheme;
+use std::sync::Arc;
+use std::time::Instant;
+
+/// How switching behaves.
+#[derive(Clone, Copy, Debug)]
+pub struct SwitchConfig {
+    /// Hysteresis half-width, m: enter a VOI when at least this far inside its box, leave it
+    /// when this far outside.
+    pub margin: f64,
+    /// Haptic steps over which the device force is blended from the old space to the new.
+    pub blend_steps: usize,
+}
+
+impl Default for SwitchConfig {
+    fn default() -> Self {
+        SwitchConfig {
+            margin: 2e-3,
+            blend_steps: 100,
+        }
+    }
+}
+
+/// Why a set of spaces cannot be switched between.
+#[derive(Debug, thiserror::Error)]
+pub enum SwitchError {
+    /// No spaces given.
+    #[error("no modal space to simulate")]
+    Empty,
+    /// A VOI space has no transfer matrix from another space.
+    #[error("no transfer matrix from space {from:?} to {to:?}; precompute the scene again with this version of ves")]
+    MissingTransfer {
+        /// Source space.
+        from: String,
+        /// Target space.
+        to: String,
+    },
+    /// A transfer matrix has the wrong size.
+    #[error("transfer {from:?} → {to:?} has {len} values, expected {expected}")]
+    BadTransfer {
+        /// Source space.
+        from: String,
+        /// Target space.
+        to: String,
+        /// Values found.
+        len: usize,
+        /// Values expected.
+        expected: usize,
+    },
+}
+
+/// One space: its basis and the transfer matrices *into* it, indexed by source space.
+pub struct SpaceInput {
+    /// The basis (global space first).
+    pub basis: Arc<Basis>,
+    /// `transfers[from]`: row-major `r × r_from` (None for `from` = itself).
+    pub transfers: Vec<Option<Vec<f64>>>,
+}
+
+/// Simulations of every space of a part, switched by where the hands are.
+pub struct Switcher {
+    sims: Vec<Haptics>,
+    transfers: Vec<Vec<Option<Vec<f64>>>>,
+    boxes: Vec<Option<[[f64; 3]; 2]>>,
+    active: usize,
+    /// (old space, steps of blending left).
+    fading: Option<(usize, usize)>,
+    old_out: Vec<HandOutput>,
+    cfg: SwitchConfig,
+    /// Switches so far.
+    pub switches: u64,
+    /// Time the last switch took in the haptic thread (transfer and hand hand-over), ns.
+    pub last_switch_ns: u64,
+    /// Longest switch so far, ns.
+    pub max_switch_ns: u64,
+}
+
+impl Switcher {
+    /// Builds one simulation per space (all allocation happens here).
+    pub fn new(
+        spaces: Vec<SpaceInput>,
+        coupling: Coupling,
+        dt: f64,
+        scheme: Scheme,
+        hands: usize,
+        cfg: SwitchConfig,
+    ) -> Result<Switcher, SwitchError> {
+        if spaces.is_empty() {
+            return Err(SwitchError::Empty);
+        }
+        let r: Vec<usize> = spaces.iter().map(|s| s.basis.mode_count()).collect();
+        for (to, s) in spaces.iter().enumerate() {
+            for from in 0..spaces.len() {
+                if from == to {
+                    continue;
+                }
+                let name = |i: usize| spaces[i].basis.space.clone();
+                match s.transfers.get(from).and_then(|t| t.as_ref()) {
+                    None => {
+                        return Err(SwitchError::MissingTransfer {
+                            from: name(from),
+                            to: name(to),
+                        });
+                    }
+                    Some(t) if t.len() != r[to] * r[from] => {
+                        return Err(SwitchError::BadTransfer {
+                            from: name(from),
+                            to: name(to),
+                            len: t.len(),
+                            expected: r[to] * r[from],
+                        });
+                    }
+                    Some(_) => {}
+                }
+            }
+        }
+        let boxes = spaces.iter().map(|s| s.basis.voi).collect();
+        let sims = spaces
+            .iter()
+            .map(|s| Haptics::new(s.basis.clone(), coupling, dt, scheme, hands))
+            .collect();
+        Ok(Switcher {
+            sims,
+            transfers: spaces.into_iter().map(|s| s.transfers).collect(),
+            boxes,
+            active: 0,
+            fading: None,
+            old_out: vec![HandOutput::default(); hands],
+            cfg,
+            switches: 0,
+            last_switch_ns: 0,
+            max_switch_ns: 0,
+        })
+    }
+
+    /// Index of the active space.
+    pub fn active(&self) -> usize {
+        self.active
+    }
+
+    /// The simulation of space `i`.
+    pub fn sim(&self, i: usize) -> &Haptics {
+        &self.sims[i]
+    }
+
+    /// Mutable access to every simulation (e.g. to make the part a free body in each).
+    pub fn sims_mut(&mut self) -> &mut [Haptics] {
+        &mut self.sims
+    }
+
+    /// Whether the force is being blended after a switch.
+    pub fn blending(&self) -> bool {
+        self.fading.is_some()
+    }
+
+    /// The space the hands ask for: the current VOI while every hand stays within its box
+    /// widened by the margin; otherwise the first VOI whose box shrunk by the margin holds every
+    /// hand; otherwise the global space (index 0).
+    pub fn wanted(&self, inputs: &[HandInput]) -> usize {
+        let holds = |b: &[[f64; 3]; 2], grow: f64| {
+            !inputs.is_empty()
+                && inputs
+                    .iter()
+                    .all(|h| (0..3).all(|c| h.position[c] >= b[0][c] - grow && h.position[c] <= b[1][c] + grow))
+        };
+        if let Some(b) = &self.boxes[self.active]
+            && holds(b, self.cfg.margin)
+        {
+            return self.active;
+        }
+        (0..self.boxes.len())
+            .find(|&i| self.boxes[i].as_ref().is_some_and(|b| holds(b, -self.cfg.margin)))
+            .unwrap_or(0)
+    }
+
+    /// One haptic step: switch if the hands ask for another space, step the active space (and
+    /// the old one while blending), write the forces.
+    pub fn step(&mut self, inputs: &[HandInput], outputs: &mut [HandOutput]) {
+        let want = self.wanted(inputs);
+        if want != self.active {
+            self.switch_to(want);
+        }
+        self.sims[self.active].step(inputs, outputs);
+        if let Some((old, left)) = self.fading {
+            let n = self.old_out.len().min(inputs.len());
+            self.sims[old].step(&inputs[..n], &mut self.old_out[..n]);
+            // Weight of the new model rises linearly to 1 over the window.
+            let w = 1.0 - left as f64 / (self.cfg.blend_steps as f64 + 1.0);
+            for (o, p) in outputs.iter_mut().zip(&self.old_out[..n]) {
+                for c in 0..3 {
+                    o.force[c] = w * o.force[c] + (1.0 - w) * p.force[c];
+                }
+            }
+            self.fading = (left > 1).then_some((old, left - 1));
+        }
+    }
+
+    fn switch_to(&mut self, to: usize) {
+        let t0 = Instant::now();
+        let from = self.active;
+        let (a, b) = if from < to {
+            let (l, r) = self.sims.split_at_mut(to);
+            (&l[from], &mut r[0])
+        } else {
+            let (l, r) = self.sims.split_at_mut(from);
+            (&r[0], &mut l[to])
+        };
+        if let Some(t) = self.transfers[to][from].as_deref() {
+            b.transfer_from(a, t);
+        }
+        self.active = to;
+        self.fading = (self.cfg.blend_steps > 0).then_some((from, self.cfg.blend_steps));
+        self.switches += 1;
+        self.last_switch_ns = t0.elapsed().as_nanos() as u64;
+        self.max_switch_ns = self.max_switch_ns.max(self.last_switch_ns);
+    }
+}
+
+/// Loads every space of a basis file with its transfer matrices, ready for [`Switcher::new`].
+#[cfg(feature = "hdf5")]
+pub fn load_spaces(
+    path: &std::path::Path,
+    modes: Option<usize>,
+    surface_only: bool,
+) -> Result<Vec<SpaceInput>, crate::basis::LoadError> {
+    let names = Basis::space_names(path)?;
+    let mut bases = Vec::with_capacity(names.len());
+    for n in &names {
+        let opts = crate::basis::LoadOptions {
+            space: Some(n.clone()),
+            modes,
+            surface_only,
+        };
+        bases.push(Arc::new(crate::basis::load(path, &opts)?));
+    }
+    let mut out = Vec::with_capacity(bases.len());
+    for (to, b) in bases.iter().enumerate() {
+        let mut transfers = vec![None; bases.len()];
+        for (from, a) in bases.iter().enumerate() {
+            if from != to {
+                transfers[from] = Basis::load_transfer(path, &b.space, &a.space, b.mode_count(), a.mode_count())?;
+            }
+        }
+        out.push(SpaceInput {
+            basis: b.clone(),
+            transfers,
+        });
+    }
+    Ok(out)
+}
