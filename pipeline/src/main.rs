@@ -54,7 +54,8 @@ enum Command {
         /// Modes used (default: all in the file).
         #[arg(long)]
         modes: Option<usize>,
-        /// Space (default: the file's default).
+        /// Simulate only this space (default: every space, switching to the volume of interest
+        /// that holds the hands).
         #[arg(long)]
         space: Option<String>,
         /// Coupling stiffness, N/m.
@@ -214,14 +215,20 @@ fn run(cli: Cli) -> Result<()> {
                 stiffness > 0.0 && max_force > 0.0,
                 "--stiffness and --max-force must be > 0"
             );
-            let b = ves_runtime::basis::load(
-                &basis,
-                &ves_runtime::LoadOptions {
-                    space,
-                    modes,
-                    surface_only: true,
-                },
-            )?;
+            let spaces = match space {
+                Some(space) => vec![ves_runtime::switching::SpaceInput {
+                    basis: std::sync::Arc::new(ves_runtime::basis::load(
+                        &basis,
+                        &ves_runtime::LoadOptions {
+                            space: Some(space),
+                            modes,
+                            surface_only: true,
+                        },
+                    )?),
+                    transfers: vec![None],
+                }],
+                None => ves_runtime::switching::load_spaces(&basis, modes, true)?,
+            };
             let mut devs: Vec<Box<dyn ves_runtime::device::Device>> = Vec::new();
             let mut longest = 0.0f64;
             for d in &devices {
@@ -243,8 +250,8 @@ fn run(cli: Cli) -> Result<()> {
                 sleep: !spin,
                 ..Default::default()
             };
-            let bytes = b.bytes_loaded;
-            let stats = ves_runtime::session::run(std::sync::Arc::new(b), devs, &cfg)
+            let bytes: usize = spaces.iter().map(|s| s.basis.bytes_loaded).sum();
+            let stats = ves_runtime::session::run_spaces(spaces, devs, &cfg)
                 .map_err(|e| anyhow::anyhow!("{}: {e}", basis.display()))?;
             if json {
                 let mut v = serde_json::to_value(&stats)?;

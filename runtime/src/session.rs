@@ -3,9 +3,10 @@
 
 use crate::basis::Basis;
 use crate::device::Device;
-use crate::haptic::{Coupling, HandInput, HandOutput, Haptics};
+use crate::haptic::{Coupling, HandInput, HandOutput};
 use crate::integrator::Scheme;
 use crate::snapshot::Snapshot;
+use crate::switching::{SpaceInput, SwitchConfig, Switcher};
 use crate::visual;
 use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
@@ -28,6 +29,8 @@ pub struct SessionConfig {
     pub sleep: bool,
     /// For a free part (a basis with mass properties): gravity (m/s²) and momentum damping (1/s).
     pub free_body: Option<([f64; 3], f64)>,
+    /// Volume-of-interest switching (sessions over several spaces).
+    pub switching: SwitchConfig,
 }
 
 impl Default for SessionConfig {
@@ -40,6 +43,7 @@ impl Default for SessionConfig {
             visual_hz: Some(60.0),
             sleep: true,
             free_body: Some(([0.0, 0.0, -9.81], 1.0)),
+            switching: SwitchConfig::default(),
         }
     }
 }
@@ -79,6 +83,12 @@ pub struct SessionStats {
     pub final_energy_j: f64,
     /// Steps rolled back for non-finite state.
     pub quarantined: u64,
+    /// Modal spaces in the session (1 + volumes of interest).
+    pub spaces: usize,
+    /// Switches between spaces.
+    pub switches: u64,
+    /// Longest switch in the haptic thread (state transfer, hand-over), µs.
+    pub switch_us_max: f64,
 }
 
 fn percentile(sorted: &[u64], p: f64) -> u64 {
@@ -89,34 +99,62 @@ fn percentile(sorted: &[u64], p: f64) -> u64 {
     sorted[k.min(sorted.len() - 1)]
 }
 
-/// Runs a session with one hand per device; returns when `duration_s` has elapsed. A part whose
-/// basis holds mass properties moves as a free body when `cfg.free_body` is set.
-pub fn run(basis: Arc<Basis>, mut devices: Vec<Box<dyn Device>>, cfg: &SessionConfig) -> Result<SessionStats, String> {
+/// Runs a session on one space with one hand per device; returns when `duration_s` has
+/// elapsed. A part whose basis holds mass properties moves as a free body when `cfg.free_body`
+/// is set.
+pub fn run(basis: Arc<Basis>, devices: Vec<Box<dyn Device>>, cfg: &SessionConfig) -> Result<SessionStats, String> {
+    run_spaces(
+        vec![SpaceInput {
+            basis,
+            transfers: vec![None],
+        }],
+        devices,
+        cfg,
+    )
+}
+
+/// Runs a session over every space of a part (global first), switching to the volume of
+/// interest that holds the hands (see [`crate::switching`]).
+pub fn run_spaces(
+    spaces: Vec<SpaceInput>,
+    mut devices: Vec<Box<dyn Device>>,
+    cfg: &SessionConfig,
+) -> Result<SessionStats, String> {
     let hands = devices.len().max(1);
     let rate = cfg.rate_hz.clamp(1.0, 1e5);
     let dt = 1.0 / rate;
     let steps = (cfg.duration_s * rate).round().max(1.0) as usize;
-    let mut haptics = Haptics::new(basis.clone(), cfg.coupling, dt, cfg.scheme, hands);
-    if let (Some((gravity, damping)), Some(_)) = (cfg.free_body, basis.rigid) {
-        haptics.set_free_body(gravity, damping)?;
+    let bases: Vec<Arc<Basis>> = spaces.iter().map(|s| s.basis.clone()).collect();
+    let mut haptics = Switcher::new(spaces, cfg.coupling, dt, cfg.scheme, hands, cfg.switching).map_err(|e| e.to_string())?;
+    if let (Some((gravity, damping)), Some(_)) = (cfg.free_body, bases[0].rigid) {
+        for sim in haptics.sims_mut() {
+            sim.set_free_body(gravity, damping)?;
+        }
     }
-    let mut published = vec![0.0; haptics.published_len()];
+    // Published: the active space's index, its q (padded to the largest r), the pose.
+    let r_max = bases.iter().map(|b| b.mode_count()).max().unwrap_or(0);
+    let mut published = vec![0.0; 1 + r_max + 7];
     let snapshot = Arc::new(Snapshot::new(published.len()));
     let stop = Arc::new(AtomicBool::new(false));
     let visual_count = Arc::new(AtomicU64::new(0));
 
     let viz = {
-        let (basis, snapshot, stop, count) = (basis.clone(), snapshot.clone(), stop.clone(), visual_count.clone());
+        let (bases, snapshot, stop, count) = (bases.clone(), snapshot.clone(), stop.clone(), visual_count.clone());
         let cap = cfg.visual_hz.map(|hz| Duration::from_secs_f64(1.0 / hz.max(1.0)));
         std::thread::spawn(move || {
-            let mut q = vec![0.0; basis.mode_count() + 7];
-            let mut pos = vec![0.0f32; 3 * basis.vertex_count()];
+            let mut q = vec![0.0; 1 + r_max + 7];
+            // One position buffer per space, made before the loop.
+            let mut pos: Vec<Vec<f32>> = bases.iter().map(|b| vec![0.0f32; 3 * b.vertex_count()]).collect();
             let start = Instant::now();
             while !stop.load(Ordering::Relaxed) {
                 let t = Instant::now();
                 snapshot.read(&mut q);
-                visual::posed_positions(&basis, &q, &mut pos);
-                std::hint::black_box(&pos);
+                let i = (q[0] as usize).min(bases.len() - 1);
+                let r = bases[i].mode_count();
+                // q and the pose sit contiguously for visual::posed_positions: move the pose down.
+                q.copy_within(1 + r_max..1 + r_max + 7, 1 + r);
+                visual::posed_positions(&bases[i], &q[1..1 + r + 7], &mut pos[i]);
+                std::hint::black_box(&pos[i]);
                 count.fetch_add(1, Ordering::Relaxed);
                 if let Some(c) = cap {
                     std::thread::sleep(c.saturating_sub(t.elapsed()));
@@ -164,9 +202,14 @@ pub fn run(basis: Arc<Basis>, mut devices: Vec<Box<dyn Device>>, cfg: &SessionCo
             peak = peak.max(m);
             clamped += u64::from(out.clamped);
         }
-        haptics.write_published(&mut published);
+        let active = haptics.sim(haptics.active());
+        let r = active.state().q.len();
+        published[0] = haptics.active() as f64;
+        active.write_published(&mut published[1..1 + r + 7]);
+        // The pose goes at the fixed place after the padded q.
+        published.copy_within(1 + r..1 + r + 7, 1 + r_max);
         snapshot.publish(&published, t);
-        max_energy = max_energy.max(haptics.state().energy());
+        max_energy = max_energy.max(active.state().energy());
         let done = Instant::now();
         step_ns[k] = done.duration_since(woke).as_nanos() as u64;
         next += period;
@@ -196,7 +239,10 @@ pub fn run(basis: Arc<Basis>, mut devices: Vec<Box<dyn Device>>, cfg: &SessionCo
         peak_force_n: peak,
         clamped_steps: clamped,
         max_energy_j: max_energy,
-        final_energy_j: haptics.state().energy(),
-        quarantined: haptics.quarantined,
+        final_energy_j: haptics.sim(haptics.active()).state().energy(),
+        quarantined: (0..bases.len()).map(|i| haptics.sim(i).quarantined).sum(),
+        spaces: bases.len(),
+        switches: haptics.switches,
+        switch_us_max: haptics.max_switch_ns as f64 / 1e3,
     })
 }
