@@ -3,6 +3,7 @@
 //! Data flows one way: [`scene`] → [`mesh`] → [`supports`] → [`fem`] (K, M) → [`modes`]
 //! (eigen-solve) → [`store`] (HDF5). [`precompute`] strings the stages together.
 
+pub mod batch;
 pub mod compliance;
 pub mod export;
 pub mod fem;

@@ -38,6 +38,26 @@ enum Command {
         #[arg(long)]
         modes: Option<usize>,
     },
+    /// Precompute many scenes (files, or directories searched for *.toml): up-to-date outputs
+    /// are skipped, a failed scene is reported and the rest go on (exit status 1 at the end),
+    /// an interrupted batch resumes where it stopped.
+    Batch {
+        /// Scene files or directories.
+        #[arg(required = true)]
+        inputs: Vec<PathBuf>,
+        /// Scenes precomputed at once.
+        #[arg(short = 'j', long, default_value_t = 1)]
+        jobs: usize,
+        /// Output directory (default: beside each scene, <name>.h5).
+        #[arg(long)]
+        out: Option<PathBuf>,
+        /// Eigen-solver.
+        #[arg(long, value_enum, default_value_t = SolverChoice::Auto)]
+        solver: SolverChoice,
+        /// Print the outcomes as JSON (last line of stdout).
+        #[arg(long)]
+        json: bool,
+    },
     /// Run a real-time haptic session on a basis with scripted devices, and report its timing.
     Session {
         /// Basis file (HDF5).
@@ -182,6 +202,46 @@ fn run(cli: Cli) -> Result<()> {
                     );
                 }
                 println!("wrote {} in {:.2} s", summary.output, summary.timings_s.total);
+            }
+        }
+        Command::Batch {
+            inputs,
+            jobs,
+            out,
+            solver,
+            json,
+        } => {
+            anyhow::ensure!((1..=64).contains(&jobs), "-j {jobs}: give 1 to 64 parallel scenes");
+            let scenes = ves_pipeline::batch::collect(&inputs)?;
+            let opts = ves_pipeline::batch::BatchOptions { jobs, out, solver };
+            let outcomes = ves_pipeline::batch::run(&scenes, &opts)?;
+            use ves_pipeline::batch::Status;
+            let count = |s: Status| outcomes.iter().filter(|o| o.status == s).count();
+            let (done, fresh, failed) = (count(Status::Done), count(Status::UpToDate), count(Status::Failed));
+            if json {
+                println!("{}", serde_json::to_string(&outcomes)?);
+            } else {
+                for o in &outcomes {
+                    let what = match o.status {
+                        Status::Done => format!("done in {:.1} s", o.seconds),
+                        Status::UpToDate => "up to date".into(),
+                        Status::Failed => format!("FAILED: {}", o.error.as_deref().unwrap_or("")),
+                    };
+                    println!("{}: {what}", o.scene);
+                }
+                println!("{done} done, {fresh} up to date, {failed} failed");
+            }
+            if failed > 0 {
+                anyhow::bail!(
+                    "{failed} of {} scenes failed: {}",
+                    outcomes.len(),
+                    outcomes
+                        .iter()
+                        .filter(|o| o.status == Status::Failed)
+                        .map(|o| o.scene.as_str())
+                        .collect::<Vec<_>>()
+                        .join(", ")
+                );
             }
         }
         Command::Matrices { scene, output } => {

@@ -169,6 +169,8 @@ pub fn write(out: &Path, scene: &Scene, spaces: &[Space<'_>]) -> Result<()> {
         attr_str(&file, "generator", &format!("ves {}", env!("CARGO_PKG_VERSION")))?;
         attr_str(&file, "scene_toml", &scene.toml)?;
         attr_str(&file, "default_space", "global")?;
+        // What this file was made from (`ves batch` skips scenes whose output is up to date).
+        attr_str(&file, "source_hash", &source_hash(scene)?)?;
         let mat = file.create_group("material")?;
         attr_f64(&mat, "young", scene.material.young)?;
         attr_f64(&mat, "poisson", scene.material.poisson)?;
@@ -191,6 +193,59 @@ pub fn write(out: &Path, scene: &Scene, spaces: &[Space<'_>]) -> Result<()> {
                 "{}: writing the basis failed, nothing was written",
                 out.display()
             )))
+        }
+    }
+}
+
+/// A content hash of what a basis depends on: the tool version, the scene text, the effective
+/// mode count and the geometry file's bytes (FNV-1a, 64 bits: change detection, not security).
+pub fn source_hash(scene: &Scene) -> Result<String> {
+    let geometry = std::fs::read(&scene.geometry)
+        .with_context(|| format!("{}: cannot read the geometry", scene.geometry.display()))?;
+    let mut h: u64 = 0xcbf2_9ce4_8422_2325;
+    let mut eat = |bytes: &[u8]| {
+        for &b in bytes {
+            h ^= u64::from(b);
+            h = h.wrapping_mul(0x0000_0100_0000_01b3);
+        }
+        // Field separator, so "ab"+"c" and "a"+"bc" differ.
+        h ^= 0xff;
+        h = h.wrapping_mul(0x0000_0100_0000_01b3);
+    };
+    eat(concat!("ves ", env!("CARGO_PKG_VERSION")).as_bytes());
+    eat(scene.toml.as_bytes());
+    eat(&(scene.modes.count as u64).to_le_bytes());
+    eat(&geometry);
+    Ok(format!("fnv1a64:{h:016x}"))
+}
+
+/// The `source_hash` stored in an existing basis file, if it is one.
+pub fn stored_source_hash(path: &Path) -> Option<String> {
+    let file = ves_runtime::basis::open_checked(path).ok()?;
+    read_attr_str(&file, "source_hash").ok()
+}
+
+/// Removes temporary files a killed run left beside `out` (their process is gone).
+pub fn remove_stale_temps(out: &Path) {
+    let (Some(dir), Some(name)) = (out.parent(), out.file_name()) else {
+        return;
+    };
+    let dir = if dir.as_os_str().is_empty() {
+        Path::new(".")
+    } else {
+        dir
+    };
+    let prefix = format!("{}.tmp-", name.to_string_lossy());
+    let Ok(entries) = std::fs::read_dir(dir) else {
+        return;
+    };
+    for e in entries.flatten() {
+        let file = e.file_name().to_string_lossy().into_owned();
+        if let Some(pid) = file.strip_prefix(&prefix).and_then(|p| p.parse::<u32>().ok())
+            && !Path::new(&format!("/proc/{pid}")).exists()
+        {
+            tracing::info!(file, "removing a temporary file left by a killed run");
+            let _ = std::fs::remove_file(e.path());
         }
     }
 }

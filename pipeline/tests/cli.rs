@@ -537,3 +537,98 @@ fn report_sweeps_meshes_and_modes_and_writes_plots() {
         .collect();
     assert!(left.is_empty(), "left behind: {left:?}");
 }
+
+/// `ves batch`: good scenes done, a broken one named, a second run does nothing, a changed
+/// scene is redone, a killed batch resumes without redoing finished work.
+#[test]
+fn batch_skips_up_to_date_survives_a_bad_scene_and_resumes() {
+    let (dir, first) = workdir(GOOD);
+    let d = dir.path();
+    std::fs::rename(&first, d.join("a.toml")).expect("rename");
+    std::fs::write(
+        d.join("b.toml"),
+        GOOD.replace("name = \"beam\"", "name = \"beam2\"")
+            .replace("count = 4", "count = 5"),
+    )
+    .expect("b");
+    std::fs::write(d.join("broken.toml"), GOOD.replace("poisson = 0.3", "poisson = 0.5")).expect("broken");
+    let out = d.join("out");
+    let run = || ves(&["batch", d.to_str().unwrap(), "--out", out.to_str().unwrap(), "--json"]);
+    let parse = |o: &Output| -> Vec<serde_json::Value> {
+        let s = String::from_utf8_lossy(&o.stdout);
+        serde_json::from_str(s.lines().last().expect("json")).expect("json")
+    };
+    let status = |v: &[serde_json::Value], scene: &str| -> String {
+        v.iter()
+            .find(|o| o["scene"].as_str().is_some_and(|s| s.ends_with(scene)))
+            .map(|o| o["status"].as_str().unwrap_or("").to_string())
+            .unwrap_or_default()
+    };
+    let o = run();
+    assert_eq!(
+        o.status.code(),
+        Some(1),
+        "a failed scene makes the batch fail at the end"
+    );
+    let stderr = String::from_utf8_lossy(&o.stderr);
+    assert!(stderr.contains("broken.toml") && stderr.contains("poisson"), "{stderr}");
+    let v = parse(&o);
+    assert_eq!(
+        (status(&v, "a.toml"), status(&v, "b.toml"), status(&v, "broken.toml")),
+        ("done".into(), "done".into(), "failed".into())
+    );
+    let mtime = |f: &str| {
+        std::fs::metadata(out.join(f))
+            .and_then(|m| m.modified())
+            .expect("output")
+    };
+    let (ta, tb) = (mtime("beam.h5"), mtime("beam2.h5"));
+    // Second run: nothing redone.
+    let v = parse(&run());
+    assert_eq!(
+        (status(&v, "a.toml"), status(&v, "b.toml")),
+        ("up-to-date".into(), "up-to-date".into())
+    );
+    assert_eq!(
+        (mtime("beam.h5"), mtime("beam2.h5")),
+        (ta, tb),
+        "up-to-date outputs must not be rewritten"
+    );
+    // A changed scene is redone, the other not.
+    std::fs::write(
+        d.join("b.toml"),
+        GOOD.replace("name = \"beam\"", "name = \"beam2\"")
+            .replace("count = 4", "count = 6"),
+    )
+    .expect("b");
+    let v = parse(&run());
+    assert_eq!(
+        (status(&v, "a.toml"), status(&v, "b.toml")),
+        ("up-to-date".into(), "done".into())
+    );
+    // Interrupted: kill a batch once its first output exists; the rerun only does the rest.
+    std::fs::remove_dir_all(&out).expect("clean");
+    std::fs::remove_file(d.join("broken.toml")).expect("rm");
+    let mut child = Command::new(env!("CARGO_BIN_EXE_ves"))
+        .args(["batch", d.to_str().unwrap(), "--out", out.to_str().unwrap()])
+        .stdout(std::process::Stdio::null())
+        .stderr(std::process::Stdio::null())
+        .spawn()
+        .expect("spawn");
+    let t0 = std::time::Instant::now();
+    while !out.join("beam.h5").exists() && t0.elapsed().as_secs() < 120 {
+        std::thread::sleep(std::time::Duration::from_millis(5));
+    }
+    let _ = child.kill();
+    let _ = child.wait();
+    // A temporary file of a dead run, as a kill mid-write leaves it.
+    std::fs::write(out.join("beam2.h5.tmp-999999999"), b"half").expect("stale");
+    let v = parse(&run());
+    assert_eq!(status(&v, "a.toml"), "up-to-date", "finished work is not redone");
+    assert!(matches!(status(&v, "b.toml").as_str(), "done" | "up-to-date"));
+    assert!(
+        !out.join("beam2.h5.tmp-999999999").exists(),
+        "stale temporary file removed"
+    );
+    assert!(ves(&["info", out.join("beam2.h5").to_str().unwrap()]).status.success());
+}

@@ -125,7 +125,8 @@ pub fn run_spaces(
     let dt = 1.0 / rate;
     let steps = (cfg.duration_s * rate).round().max(1.0) as usize;
     let bases: Vec<Arc<Basis>> = spaces.iter().map(|s| s.basis.clone()).collect();
-    let mut haptics = Switcher::new(spaces, cfg.coupling, dt, cfg.scheme, hands, cfg.switching).map_err(|e| e.to_string())?;
+    let mut haptics =
+        Switcher::new(spaces, cfg.coupling, dt, cfg.scheme, hands, cfg.switching).map_err(|e| e.to_string())?;
     if let (Some((gravity, damping)), Some(_)) = (cfg.free_body, bases[0].rigid) {
         for sim in haptics.sims_mut() {
             sim.set_free_body(gravity, damping)?;

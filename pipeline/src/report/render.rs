@@ -158,7 +158,10 @@ pub fn markdown(r: &Report) -> String {
         s,
         "| order | size (m) | modes | offline (s) | +correction (s) | file (MB) | loaded (MB) | haptic step (ns) | full field (ms) | freq. error | static error | static, corrected | vs finest mesh | vs finest, corrected | dynamic error (max) | dynamic, corrected (max) | dynamic (RMS) | dynamic, corrected (RMS) |"
     );
-    let _ = writeln!(s, "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|");
+    let _ = writeln!(
+        s,
+        "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|"
+    );
     for m in &r.meshes {
         for p in &m.points {
             let _ = writeln!(
