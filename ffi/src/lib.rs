@@ -5,3 +5,5 @@
 
 pub mod arpack;
 pub mod gmsh;
+#[cfg(feature = "slepc")]
+pub mod slepc;

@@ -178,6 +178,18 @@ fn run(cli: Cli) -> Result<()> {
             solver,
             modes,
         } => {
+            // SLEPc brings MPI up first: under mpirun every rank runs this command.
+            let _slepc = match solver {
+                SolverChoice::Slepc => {
+                    let s = ves_pipeline::modes::slepc::Session::init()?;
+                    RANK.store(ves_pipeline::modes::slepc::rank(), std::sync::atomic::Ordering::Relaxed);
+                    if ves_pipeline::modes::slepc::rank() != 0 {
+                        ves_pipeline::progress::hide_inner(true);
+                    }
+                    Some(s)
+                }
+                _ => None,
+            };
             let mut scene = Scene::load(&scene)?;
             if let Some(m) = modes {
                 anyhow::ensure!((1..=2000).contains(&m), "--modes {m}: must be between 1 and 2000");
@@ -185,6 +197,9 @@ fn run(cli: Cli) -> Result<()> {
             }
             let out = output.unwrap_or_else(|| scene.path.with_file_name(format!("{}.h5", scene.name)));
             let summary = precompute::run(&scene, &out, solver)?;
+            if ves_pipeline::modes::slepc::rank() != 0 {
+                return Ok(());
+            }
             if json {
                 println!("{}", serde_json::to_string(&summary)?);
             } else {
@@ -492,6 +507,9 @@ impl std::fmt::Display for VerifyFailed {
 
 impl std::error::Error for VerifyFailed {}
 
+/// MPI rank of this process (0 unless `--solver slepc` under mpirun): only rank 0 reports.
+static RANK: std::sync::atomic::AtomicUsize = std::sync::atomic::AtomicUsize::new(0);
+
 fn main() -> ExitCode {
     tracing_subscriber::fmt()
         .with_writer(std::io::stderr)
@@ -501,7 +519,9 @@ fn main() -> ExitCode {
     match run(cli) {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) => {
-            eprintln!("error: {e:#}");
+            if RANK.load(std::sync::atomic::Ordering::Relaxed) == 0 {
+                eprintln!("error: {e:#}");
+            }
             ExitCode::from(if e.is::<VerifyFailed>() { 2 } else { 1 })
         }
     }

@@ -22,6 +22,8 @@ pub enum SolverChoice {
     Arpack,
     /// Dense generalized eigen-solve (small meshes only).
     Dense,
+    /// SLEPc Krylov–Schur, shift-invert with MUMPS, on every MPI rank (run under `mpirun`).
+    Slepc,
 }
 
 /// Seconds per stage.
@@ -137,11 +139,13 @@ pub fn solve(d: &Discretized, count: usize, choice: SolverChoice) -> Result<(Mod
     };
     let dense = match choice {
         SolverChoice::Dense => true,
-        SolverChoice::Arpack => false,
+        SolverChoice::Arpack | SolverChoice::Slepc => false,
         SolverChoice::Auto => problem.size() <= 500,
     };
     let ordering;
-    let solver: Box<dyn EigenSolver> = if dense {
+    let solver: Box<dyn EigenSolver> = if choice == SolverChoice::Slepc {
+        Box::new(modes::slepc::Slepc { tol: 1e-12 })
+    } else if dense {
         Box::new(modes::dense::Dense)
     } else {
         ordering = nested_dissection(&d.system.graph, &d.dofs);
@@ -224,7 +228,11 @@ pub struct SpaceSummary {
 /// Runs the whole pipeline for a scene and writes `out`.
 pub fn run(scene: &Scene, out: &Path, choice: SolverChoice) -> Result<Summary> {
     let start = Instant::now();
-    store::check_output(out)?;
+    // Under MPI every rank computes; rank 0 alone writes.
+    let root = modes::slepc::rank() == 0;
+    if root {
+        store::check_output(out)?;
+    }
     let mut spaces = Vec::with_capacity(1 + scene.voi.len());
     let targets: Vec<Option<&Voi>> = std::iter::once(None).chain(scene.voi.iter().map(Some)).collect();
     let bar = crate::progress::bar(targets.len() as u64, "spaces");
@@ -242,7 +250,9 @@ pub fn run(scene: &Scene, out: &Path, choice: SolverChoice) -> Result<Summary> {
     }
     bar.finish_and_clear();
     let t = Instant::now();
-    add_transfers(&mut spaces);
+    if root {
+        add_transfers(&mut spaces);
+    }
     let transfer_s = t.elapsed().as_secs_f64();
     let t = Instant::now();
     let views: Vec<store::Space<'_>> = spaces
@@ -258,7 +268,9 @@ pub fn run(scene: &Scene, out: &Path, choice: SolverChoice) -> Result<Summary> {
             transfers: &s.transfers,
         })
         .collect();
-    store::write(out, scene, &views)?;
+    if root {
+        store::write(out, scene, &views)?;
+    }
     let mut timings = Timings::default();
     for s in &spaces {
         timings.add(&s.timings);

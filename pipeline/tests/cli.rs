@@ -632,3 +632,65 @@ fn batch_skips_up_to_date_survives_a_bad_scene_and_resumes() {
     );
     assert!(ves(&["info", out.join("beam2.h5").to_str().unwrap()]).status.success());
 }
+
+/// SLEPc under `mpirun -n 2` against ARPACK on the same scene: frequencies to 1e-8, the same
+/// modes (|cosine| of each pair of vectors ≥ 1 − 1e-8; the cantilever's modes are isolated).
+#[cfg(feature = "slepc")]
+#[test]
+fn slepc_on_two_mpi_ranks_matches_arpack() {
+    let scene = GOOD
+        .replace("count = 4", "count = 12")
+        .replace("order = 1", "order = 2");
+    let (dir, path) = workdir(&scene);
+    let (a, s) = (dir.path().join("arpack.h5"), dir.path().join("slepc.h5"));
+    let o = ves(&[
+        "precompute",
+        path.to_str().unwrap(),
+        "-o",
+        a.to_str().unwrap(),
+        "--solver",
+        "arpack",
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let o = Command::new("mpirun")
+        .env("OMPI_ALLOW_RUN_AS_ROOT", "1")
+        .env("OMPI_ALLOW_RUN_AS_ROOT_CONFIRM", "1")
+        .args(["-n", "2", "--oversubscribe", env!("CARGO_BIN_EXE_ves"), "precompute"])
+        .args([
+            path.to_str().unwrap(),
+            "-o",
+            s.to_str().unwrap(),
+            "--solver",
+            "slepc",
+            "--json",
+        ])
+        .output()
+        .expect("mpirun runs (apt-get install openmpi-bin)");
+    let stdout = String::from_utf8_lossy(&o.stdout);
+    assert!(o.status.success(), "{}\n{stdout}", String::from_utf8_lossy(&o.stderr));
+    assert_eq!(
+        stdout.lines().filter(|l| l.starts_with('{')).count(),
+        1,
+        "rank 0 alone reports: {stdout}"
+    );
+    let read = |p: &Path| -> (Vec<f64>, ndarray::Array2<f64>) {
+        let f = hdf5::File::open(p).expect("open");
+        let g = f.group("spaces/global").expect("global");
+        (
+            g.dataset("modes/eigenvalues")
+                .and_then(|d| d.read_raw())
+                .expect("eigenvalues"),
+            g.dataset("modes/basis").and_then(|d| d.read_2d()).expect("basis"),
+        )
+    };
+    let ((la, pa), (ls, ps)) = (read(&a), read(&s));
+    assert_eq!(la.len(), 12);
+    assert_eq!(ls.len(), 12);
+    for j in 0..12 {
+        let rel = (ls[j] / la[j] - 1.0).abs();
+        assert!(rel < 1e-8, "mode {j}: λ {} vs {} ({rel:e})", ls[j], la[j]);
+        let (x, y) = (pa.column(j), ps.column(j));
+        let cos = x.dot(&y) / (x.dot(&x) * y.dot(&y)).sqrt();
+        assert!(cos.abs() > 1.0 - 1e-8, "mode {j}: cosine {cos}");
+    }
+}

@@ -7,6 +7,7 @@
 
 pub mod arpack;
 pub mod dense;
+pub mod slepc;
 
 use crate::linsolve::{FactorError, sym_matvec};
 use crate::supports::Dofs;
@@ -107,6 +108,9 @@ pub enum ModesError {
         /// The lowest eigenvalues found.
         values: Vec<f64>,
     },
+    /// SLEPc/PETSc failed or is not available.
+    #[error("SLEPc: {0}")]
+    Slepc(String),
     /// A dense decomposition failed.
     #[error("dense eigen-solve failed: {0}")]
     Dense(String),
