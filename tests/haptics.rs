@@ -338,6 +338,9 @@ fn corrupted_basis_files_are_errors_or_checked_bases() {
             b[at] ^= 0xA5;
         }
         std::fs::write(&bad, &b).expect("write");
+        if std::env::var_os("VES_KEEP_BAD").is_some() {
+            std::fs::write("/tmp/last-bad.h5", &b).expect("keep");
+        }
         match ves_runtime::basis::load(&bad, &LoadOptions::default()) {
             Ok(basis) => {
                 ok += 1;

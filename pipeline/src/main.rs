@@ -87,6 +87,12 @@ enum Command {
         /// Busy-wait between steps instead of sleeping (lower jitter, one core fully used).
         #[arg(long)]
         spin: bool,
+        /// Validity limit of the linear model: normal strain along the surface edges at a hand.
+        #[arg(long, default_value_t = 0.02)]
+        strain_limit: f64,
+        /// What to do past the strain limit.
+        #[arg(long, value_enum, default_value_t = StrainReaction::Flag)]
+        strain_policy: StrainReaction,
         /// Print the statistics as JSON.
         #[arg(long)]
         json: bool,
@@ -280,8 +286,14 @@ fn run(cli: Cli) -> Result<()> {
             stiffness,
             max_force,
             spin,
+            strain_limit,
+            strain_policy,
             json,
         } => {
+            anyhow::ensure!(
+                strain_limit > 0.0 && strain_limit.is_finite(),
+                "--strain-limit {strain_limit}: must be a finite strain > 0 (e.g. 0.02)"
+            );
             anyhow::ensure!(
                 (1.0..=10_000.0).contains(&rate),
                 "--rate {rate}: must be between 1 and 10000 Hz"
@@ -323,6 +335,14 @@ fn run(cli: Cli) -> Result<()> {
                     max_force,
                 },
                 sleep: !spin,
+                strain: ves_runtime::haptic::StrainWatch {
+                    limit: strain_limit,
+                    policy: match strain_policy {
+                        StrainReaction::Flag => ves_runtime::haptic::StrainPolicy::Flag,
+                        StrainReaction::Stiffen => ves_runtime::haptic::StrainPolicy::Stiffen,
+                        StrainReaction::Release => ves_runtime::haptic::StrainPolicy::Release,
+                    },
+                },
                 ..Default::default()
             };
             let bytes: usize = spaces.iter().map(|s| s.basis.bytes_loaded).sum();
@@ -492,6 +512,17 @@ fn run(cli: Cli) -> Result<()> {
     Ok(())
 }
 
+/// Reaction of `ves session` past the strain limit.
+#[derive(Clone, Copy, Debug, clap::ValueEnum)]
+enum StrainReaction {
+    /// Report it only.
+    Flag,
+    /// The part stops deforming further; the hand feels it stiffen.
+    Stiffen,
+    /// The hand lets go.
+    Release,
+}
+
 /// Verification ran but a tolerance was exceeded (exit status 2).
 #[derive(Debug)]
 struct VerifyFailed;
@@ -515,6 +546,19 @@ fn main() -> ExitCode {
         .with_writer(std::io::stderr)
         .with_env_filter(tracing_subscriber::EnvFilter::try_from_env("VES_LOG").unwrap_or_else(|_| "warn".into()))
         .init();
+    // A panic is a bug, but the user still gets one line (set VES_LOG=debug for the default
+    // report with its location).
+    if std::env::var_os("VES_LOG").is_none() {
+        std::panic::set_hook(Box::new(|info| {
+            let msg = info
+                .payload()
+                .downcast_ref::<&str>()
+                .map(|s| s.to_string())
+                .or_else(|| info.payload().downcast_ref::<String>().cloned())
+                .unwrap_or_default();
+            eprintln!("internal error (please report): {}", msg.replace('\n', " "));
+        }));
+    }
     let cli = Cli::parse();
     match run(cli) {
         Ok(()) => ExitCode::SUCCESS,

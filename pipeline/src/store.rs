@@ -7,7 +7,6 @@ use crate::modes::Modes;
 use crate::scene::{Scene, Voi};
 use crate::supports::Dofs;
 use anyhow::{Context, Result, bail};
-use hdf5::types::VarLenUnicode;
 use ndarray::{Array1, Array2};
 use std::path::{Path, PathBuf};
 
@@ -35,9 +34,7 @@ pub struct Space<'a> {
 }
 
 fn attr_str(loc: &hdf5::Location, name: &str, value: &str) -> Result<()> {
-    let v: VarLenUnicode = value.parse().map_err(|e| anyhow::anyhow!("attribute {name}: {e:?}"))?;
-    loc.new_attr::<VarLenUnicode>().create(name)?.write_scalar(&v)?;
-    Ok(())
+    ves_runtime::h5str::write(loc, name, value).with_context(|| format!("attribute {name}"))
 }
 
 fn attr_f64(loc: &hdf5::Location, name: &str, value: f64) -> Result<()> {
@@ -297,11 +294,21 @@ pub struct BasisInfo {
 }
 
 fn read_attr_str(loc: &hdf5::Location, name: &str) -> Result<String> {
-    Ok(loc.attr(name)?.read_scalar::<VarLenUnicode>()?.as_str().to_string())
+    ves_runtime::h5str::read(loc, name).ok_or_else(|| anyhow::anyhow!("string attribute {name} missing"))
 }
 
 /// Reads the summary of a basis file.
 pub fn info(path: &Path) -> Result<BasisInfo> {
+    // A panic of the HDF5 layer on a damaged file becomes an error (see basis::guarded).
+    let mut out = None;
+    ves_runtime::basis::guarded(path, || {
+        out = Some(info_unguarded(path));
+        Ok(())
+    })?;
+    out.unwrap_or_else(|| Err(anyhow::anyhow!("{}: damaged basis file", path.display())))
+}
+
+fn info_unguarded(path: &Path) -> Result<BasisInfo> {
     let file = ves_runtime::basis::open_checked(path)?;
     let bad = |what: &str| anyhow::anyhow!("{}: damaged basis file: {what}", path.display());
     let spaces_group = file.group("spaces").map_err(|_| bad("no /spaces group"))?;

@@ -92,6 +92,15 @@ typedef struct VesHandOutput {
    * Non-zero when the force limit acted.
    */
   int32_t clamped;
+  /**
+   * Largest normal strain along the surface edges at the active vertex.
+   */
+  double strain;
+  /**
+   * Non-zero when that strain passed the validity limit (the linear model is leaving its
+   * range; the configured reaction acted).
+   */
+  int32_t strain_exceeded;
 } VesHandOutput;
 
 #ifdef __cplusplus
@@ -149,6 +158,16 @@ enum VesStatus ves_haptics_new(const struct VesBasis *b,
                                uint32_t hands,
                                int32_t free_body,
                                struct VesHaptics **out);
+
+/**
+ * Sets the validity watch of the linear model: past `limit` (normal strain along the surface
+ * edges at a hand's vertex, e.g. 0.02) the step reports it and reacts: `policy` 0 = flag only,
+ * 1 = stiffen (the part stops deforming, the hand still feels the pull), 2 = release the hand.
+ *
+ * # Safety
+ * `h` must be live and not stepped concurrently.
+ */
+enum VesStatus ves_haptics_set_strain_watch(struct VesHaptics *h, double limit, int32_t policy);
 
 /**
  * Releases a simulation (null is ignored).

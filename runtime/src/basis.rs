@@ -53,6 +53,10 @@ pub struct Basis {
     pub surface_vertices: Vec<u32>,
     /// Area-weighted outward unit normal per kept vertex (zero inside).
     pub normals: Vec<[f64; 3]>,
+    /// Surface-edge neighbours of each kept vertex: `neighbours[neighbour_ptr[i]..neighbour_ptr[i + 1]]`.
+    pub neighbour_ptr: Vec<u32>,
+    /// See `neighbour_ptr`.
+    pub neighbours: Vec<u32>,
     /// λᵢ = ωᵢ², ascending.
     pub eigenvalues: Vec<f64>,
     /// Mode-major f32 basis: mode j is `phi[j·3n .. (j+1)·3n]`, entry 3i+c.
@@ -127,8 +131,14 @@ impl Basis {
             }
         }
         let (normals, surface_vertices) = vertex_normals(&rest, &triangles);
-        let bytes_loaded =
-            phi.len() * 4 + rest.len() * 24 + triangles.len() * 12 + eigenvalues.len() * 8 + normals.len() * 24;
+        let (neighbour_ptr, neighbours) = surface_neighbours(rest.len(), &triangles);
+        let bytes_loaded = phi.len() * 4
+            + rest.len() * 24
+            + triangles.len() * 12
+            + eigenvalues.len() * 8
+            + normals.len() * 24
+            + neighbour_ptr.len() * 4
+            + neighbours.len() * 4;
         Ok(Basis {
             space: space.to_string(),
             rest,
@@ -136,6 +146,8 @@ impl Basis {
             triangles,
             surface_vertices,
             normals,
+            neighbour_ptr,
+            neighbours,
             eigenvalues,
             phi,
             alpha,
@@ -196,6 +208,25 @@ impl Basis {
     }
 }
 
+/// Each vertex's neighbours along surface-triangle edges (CSR, sorted, no duplicates).
+fn surface_neighbours(n: usize, triangles: &[[u32; 3]]) -> (Vec<u32>, Vec<u32>) {
+    let mut pairs: Vec<(u32, u32)> = triangles
+        .iter()
+        .flat_map(|t| [(t[0], t[1]), (t[1], t[2]), (t[2], t[0])])
+        .flat_map(|(a, b)| [(a, b), (b, a)])
+        .collect();
+    pairs.sort_unstable();
+    pairs.dedup();
+    let mut ptr = vec![0u32; n + 1];
+    for &(a, _) in &pairs {
+        ptr[a as usize + 1] += 1;
+    }
+    for i in 0..n {
+        ptr[i + 1] += ptr[i];
+    }
+    (ptr, pairs.into_iter().map(|(_, b)| b).collect())
+}
+
 /// Area-weighted vertex normals, and the list of vertices on some triangle.
 fn vertex_normals(rest: &[[f64; 3]], triangles: &[[u32; 3]]) -> (Vec<[f64; 3]>, Vec<u32>) {
     let mut normals = vec![[0.0f64; 3]; rest.len()];
@@ -228,16 +259,11 @@ fn vertex_normals(rest: &[[f64; 3]], triangles: &[[u32; 3]]) -> (Vec<[f64; 3]>, 
 #[cfg(feature = "hdf5")]
 mod file {
     use super::*;
-    use hdf5::types::VarLenUnicode;
     use ndarray::s;
     use std::path::Path;
 
     fn read_str(loc: &hdf5::Location, name: &str) -> Option<String> {
-        loc.attr(name)
-            .ok()?
-            .read_scalar::<VarLenUnicode>()
-            .ok()
-            .map(|s| s.as_str().to_string())
+        crate::h5str::read(loc, name)
     }
 
     /// Opens a basis file and checks that it is a VES basis of a version this build reads.
@@ -274,6 +300,22 @@ mod file {
     /// Loads what `opts` asks for from a v1 basis file: only corner-vertex rows of the first r
     /// modes are read from disk.
     pub fn load(path: &Path, opts: &LoadOptions) -> Result<Basis, LoadError> {
+        guarded(path, || load_unguarded(path, opts))
+    }
+
+    /// Runs `f`, turning a panic inside the HDF5 layer into an error: hdf5-metno 0.15 builds
+    /// strings from file bytes unchecked, and a corrupted name made it panic while formatting
+    /// one (found by the byte-flip test).
+    pub fn guarded<T>(path: &Path, f: impl FnOnce() -> Result<T, LoadError>) -> Result<T, LoadError> {
+        std::panic::catch_unwind(std::panic::AssertUnwindSafe(f)).unwrap_or_else(|_| {
+            Err(LoadError {
+                path: path.display().to_string(),
+                message: "damaged file: the HDF5 layer failed on its structure".into(),
+            })
+        })
+    }
+
+    fn load_unguarded(path: &Path, opts: &LoadOptions) -> Result<Basis, LoadError> {
         let p = path.display().to_string();
         let err = |message: String| LoadError {
             path: p.clone(),
@@ -455,7 +497,7 @@ mod file {
 }
 
 #[cfg(feature = "hdf5")]
-pub use file::{load, open_checked};
+pub use file::{guarded, load, open_checked};
 
 #[cfg(feature = "hdf5")]
 impl Basis {
@@ -470,11 +512,7 @@ impl Basis {
             .group("spaces")
             .and_then(|g| g.member_names())
             .map_err(|_| err("no /spaces group".into()))?;
-        let default = file
-            .attr("default_space")
-            .and_then(|a| a.read_scalar::<hdf5::types::VarLenUnicode>())
-            .map(|s| s.as_str().to_string())
-            .unwrap_or_else(|_| "global".into());
+        let default = crate::h5str::read(&file, "default_space").unwrap_or_else(|| "global".into());
         names.sort_by_key(|n| *n != default);
         Ok(names)
     }

@@ -74,6 +74,11 @@ pub struct VesHandOutput {
     pub contact: i32,
     /// Non-zero when the force limit acted.
     pub clamped: i32,
+    /// Largest normal strain along the surface edges at the active vertex.
+    pub strain: f64,
+    /// Non-zero when that strain passed the validity limit (the linear model is leaving its
+    /// range; the configured reaction acted).
+    pub strain_exceeded: i32,
 }
 
 thread_local! {
@@ -246,6 +251,44 @@ pub unsafe extern "C" fn ves_haptics_new(
     })
 }
 
+/// Sets the validity watch of the linear model: past `limit` (normal strain along the surface
+/// edges at a hand's vertex, e.g. 0.02) the step reports it and reacts: `policy` 0 = flag only,
+/// 1 = stiffen (the part stops deforming, the hand still feels the pull), 2 = release the hand.
+///
+/// # Safety
+/// `h` must be live and not stepped concurrently.
+#[unsafe(no_mangle)]
+pub unsafe extern "C" fn ves_haptics_set_strain_watch(h: *mut VesHaptics, limit: f64, policy: i32) -> VesStatus {
+    guard(|| {
+        // SAFETY: null-checked; exclusive use by contract.
+        let h = unsafe { h.as_mut() }.ok_or((
+            VesStatus::NullArgument,
+            "ves_haptics_set_strain_watch: null simulation".into(),
+        ))?;
+        let policy = match policy {
+            0 => crate::haptic::StrainPolicy::Flag,
+            1 => crate::haptic::StrainPolicy::Stiffen,
+            2 => crate::haptic::StrainPolicy::Release,
+            _ => {
+                return Err((
+                    VesStatus::InvalidArgument,
+                    format!(
+                        "ves_haptics_set_strain_watch: policy {policy} is not 0 (flag), 1 (stiffen) or 2 (release)"
+                    ),
+                ));
+            }
+        };
+        if !(limit > 0.0 && limit.is_finite()) {
+            return Err((
+                VesStatus::InvalidArgument,
+                format!("ves_haptics_set_strain_watch: limit {limit} must be finite and > 0"),
+            ));
+        }
+        h.sim.set_strain_watch(crate::haptic::StrainWatch { limit, policy });
+        Ok(())
+    })
+}
+
 /// Releases a simulation (null is ignored).
 ///
 /// # Safety
@@ -300,6 +343,8 @@ pub unsafe extern "C" fn ves_haptics_step(
                 vertex: s.vertex,
                 contact: i32::from(s.contact),
                 clamped: i32::from(s.clamped),
+                strain: s.strain,
+                strain_exceeded: i32::from(s.strain_exceeded),
             };
         }
         h.time += h.sim.state().dt();

@@ -33,6 +33,41 @@ impl Default for Coupling {
     }
 }
 
+/// What to do when the strain near a hand leaves the range of the linear model.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum StrainPolicy {
+    /// Report it in [`HandOutput`] only.
+    #[default]
+    Flag,
+    /// The part stops deforming further: once past the limit, the force applied to it is capped
+    /// at the force whose static strain at the vertex equals the limit, while the device still
+    /// gets the full coupling force (it feels the part go stiff).
+    Stiffen,
+    /// The hand lets go: no force this step, and a grab is released.
+    Release,
+}
+
+/// Validity watch of the linear (small-strain) model at each hand's vertex.
+#[derive(Clone, Copy, Debug)]
+pub struct StrainWatch {
+    /// Largest normal strain along the surface edges at the active vertex (e.g. 0.02 = 2 %).
+    pub limit: f64,
+    /// Reaction past the limit.
+    pub policy: StrainPolicy,
+}
+
+impl Default for StrainWatch {
+    fn default() -> Self {
+        StrainWatch {
+            limit: 0.02,
+            policy: StrainPolicy::Flag,
+        }
+    }
+}
+
+/// Surface neighbours of the active vertex used for its strain estimate.
+const STRAIN_NEIGHBOURS: usize = 16;
+
 /// What one hand's device reports.
 #[derive(Clone, Copy, Debug, Default)]
 pub struct HandInput {
@@ -57,6 +92,11 @@ pub struct HandOutput {
     pub clamped: bool,
     /// Deformed position of the active vertex, m.
     pub vertex_position: [f64; 3],
+    /// Largest normal strain along the surface edges at the active vertex, from the modal
+    /// displacement at the start of the step.
+    pub strain: f64,
+    /// The strain passed the watch's limit (the configured reaction acted).
+    pub strain_exceeded: bool,
 }
 
 struct Hand {
@@ -70,6 +110,14 @@ struct Hand {
     residual: [[f64; 3]; 3],
     /// Force applied to the part at the vertex last step (part frame).
     last_force: [f64; 3],
+    /// Per surface neighbour k: the modal row of the edge strain, (φ_k − φ_i)·d / |d|².
+    edge_rows: Vec<f64>,
+    /// Neighbours in `edge_rows`.
+    edges: usize,
+    /// Per neighbour: static edge strain per newton at the vertex, Σ_j edge_j φ_j / λ_j.
+    strain_per_newton: [[f64; 3]; STRAIN_NEIGHBOURS],
+    /// The stiffen cap acted last step (it stays on until the load falls below it).
+    capped: bool,
 }
 
 /// Haptic simulation of one part.
@@ -84,6 +132,7 @@ pub struct Haptics {
     rigid: Option<RigidBody>,
     saved_rigid: Option<RigidBody>,
     static_correction: bool,
+    strain_watch: StrainWatch,
     /// Steps whose result was non-finite and was rolled back.
     pub quarantined: u64,
 }
@@ -122,6 +171,10 @@ impl Haptics {
                 g: [[0.0; 3]; 3],
                 residual: [[0.0; 3]; 3],
                 last_force: [0.0; 3],
+                edge_rows: vec![0.0; STRAIN_NEIGHBOURS * r],
+                edges: 0,
+                strain_per_newton: [[0.0; 3]; STRAIN_NEIGHBOURS],
+                capped: false,
             })
             .collect();
         Haptics {
@@ -135,6 +188,7 @@ impl Haptics {
             rigid: None,
             saved_rigid: None,
             static_correction: true,
+            strain_watch: StrainWatch::default(),
             quarantined: 0,
         }
     }
@@ -161,6 +215,11 @@ impl Haptics {
         for h in &mut self.hands {
             h.vertex = None; // recompute the residual at the next pick
         }
+    }
+
+    /// Sets the validity watch (default: flag past 2 % strain).
+    pub fn set_strain_watch(&mut self, watch: StrainWatch) {
+        self.strain_watch = watch;
     }
 
     /// The rigid-body state of a free part.
@@ -216,6 +275,46 @@ impl Haptics {
         hd.g = g;
         hd.residual = residual;
         hd.last_force = [0.0; 3];
+        hd.capped = false;
+        // Edge-strain rows: the axial strain of edge (i, k) is Σ_j q_j (φ_k − φ_i)_j·d / |d|².
+        let i = vertex as usize;
+        let (lo, hi) = (basis.neighbour_ptr[i] as usize, basis.neighbour_ptr[i + 1] as usize);
+        let n3 = 3 * basis.rest.len();
+        hd.edges = (hi - lo).min(STRAIN_NEIGHBOURS);
+        for (e, &k) in basis.neighbours[lo..lo + hd.edges].iter().enumerate() {
+            let k = k as usize;
+            let d: [f64; 3] = std::array::from_fn(|c| basis.rest[k][c] - basis.rest[i][c]);
+            let l2 = d[0] * d[0] + d[1] * d[1] + d[2] * d[2];
+            for j in 0..r {
+                let col = &basis.phi[j * n3..(j + 1) * n3];
+                hd.edge_rows[e * r + j] = (0..3)
+                    .map(|c| (f64::from(col[3 * k + c]) - f64::from(col[3 * i + c])) * d[c])
+                    .sum::<f64>()
+                    / l2.max(f64::MIN_POSITIVE);
+            }
+            let edge = &hd.edge_rows[e * r..(e + 1) * r];
+            hd.strain_per_newton[e] = std::array::from_fn(|a| {
+                (0..r)
+                    .map(|j| edge[j] * hd.rows[a * r + j] / basis.eigenvalues[j])
+                    .sum()
+            });
+        }
+    }
+
+    /// Largest |edge strain| at hand `k`'s vertex for the current modal state.
+    fn edge_strain(&self, k: usize) -> f64 {
+        let hd = &self.hands[k];
+        let r = self.state.q.len();
+        (0..hd.edges)
+            .map(|e| {
+                hd.edge_rows[e * r..(e + 1) * r]
+                    .iter()
+                    .zip(&self.state.q)
+                    .map(|(a, q)| a * q)
+                    .sum::<f64>()
+                    .abs()
+            })
+            .fold(0.0, f64::max)
     }
 
     /// One haptic step for every hand in `inputs` (at most the number given to `new`).
@@ -318,6 +417,39 @@ impl Haptics {
                 force = force.map(|v| v * c.max_force / mag);
                 out.clamped = true;
             }
+            // Validity of the linear model at this vertex.
+            let strain = self.edge_strain(k);
+            let watch = self.strain_watch;
+            out.strain = strain;
+            out.strain_exceeded = strain > watch.limit;
+            // `device` is what the hand feels, `force` what the part gets.
+            let mut device = force;
+            match watch.policy {
+                StrainPolicy::Flag => {}
+                StrainPolicy::Stiffen if out.strain_exceeded || self.hands[k].capped => {
+                    // Static strain per newton along this force's direction, over the edges.
+                    let hd = &self.hands[k];
+                    let now = (force[0] * force[0] + force[1] * force[1] + force[2] * force[2]).sqrt();
+                    let per_newton = hd.strain_per_newton[..hd.edges]
+                        .iter()
+                        .map(|c| ((c[0] * force[0] + c[1] * force[1] + c[2] * force[2]) / now.max(1e-300)).abs())
+                        .fold(0.0, f64::max);
+                    let cap = watch.limit / per_newton.max(1e-300);
+                    let capped = now > cap;
+                    if capped {
+                        force = force.map(|v| v * cap / now);
+                    }
+                    self.hands[k].capped = capped;
+                }
+                StrainPolicy::Stiffen => {}
+                StrainPolicy::Release if out.strain_exceeded => {
+                    force = [0.0; 3];
+                    device = [0.0; 3];
+                    self.hands[k].grabbed = false;
+                }
+                StrainPolicy::Release => {}
+            }
+            let hd = &self.hands[k];
             for j in 0..r {
                 self.f[j] += hd.rows[j] * force[0] + hd.rows[r + j] * force[1] + hd.rows[2 * r + j] * force[2];
             }
@@ -333,7 +465,11 @@ impl Haptics {
                     total_torque[a] += t[a];
                 }
             }
-            out.force = force_w.map(|v| -v);
+            let device_w = match &self.rigid {
+                None => device,
+                Some(rb) => rb.vector_to_world(device),
+            };
+            out.force = device_w.map(|v| -v);
             out.vertex = vertex;
             out.contact = hd.grabbed || mag > 0.0;
             self.hands[k].last_force = force;
@@ -426,5 +562,95 @@ impl Haptics {
             }
         }
         u
+    }
+}
+
+#[cfg(test)]
+mod strain_tests {
+    use super::*;
+    use std::sync::Arc;
+
+    /// A flat 3×3 grid of vertices (z = 0, spacing 1 cm, 8 triangles) with one mode: a uniform
+    /// stretch along x, u = (100 x, 0, 0) per unit q, so the strain is exactly 100 q; damped
+    /// (α = 100/s, ζ = 0.5) so a held pull settles.
+    fn stretch_basis() -> Arc<Basis> {
+        let mut rest = Vec::new();
+        for y in 0..3 {
+            for x in 0..3 {
+                rest.push([0.01 * x as f64, 0.01 * y as f64, 0.0]);
+            }
+        }
+        let id = |x: u32, y: u32| y * 3 + x;
+        let mut triangles = Vec::new();
+        for y in 0..2 {
+            for x in 0..2 {
+                triangles.push([id(x, y), id(x + 1, y), id(x + 1, y + 1)]);
+                triangles.push([id(x, y), id(x + 1, y + 1), id(x, y + 1)]);
+            }
+        }
+        let rows: Vec<f64> = rest.iter().flat_map(|p| [100.0 * p[0], 0.0, 0.0]).collect();
+        let n = rest.len() as u32;
+        Arc::new(
+            Basis::new(
+                "grid",
+                "global",
+                rest,
+                (0..n).collect(),
+                triangles,
+                vec![1e4],
+                &rows,
+                (100.0, 0.0),
+                None,
+            )
+            .expect("basis"),
+        )
+    }
+
+    fn grab_centre(policy: StrainPolicy, pull: f64, steps: usize) -> (Haptics, HandOutput) {
+        let mut h = Haptics::new(stretch_basis(), Coupling::default(), 1e-3, Scheme::Exact, 1);
+        h.set_strain_watch(StrainWatch { limit: 0.02, policy });
+        let mut out = [HandOutput::default()];
+        let centre = [0.01, 0.01, 0.0];
+        for k in 0..steps {
+            let dx = if k == 0 { 0.0 } else { pull };
+            let input = HandInput {
+                position: [centre[0] + dx, centre[1], centre[2]],
+                velocity: [0.0; 3],
+                button: true,
+            };
+            h.step(&[input], &mut out);
+        }
+        (h, out[0])
+    }
+
+    #[test]
+    fn edge_strain_of_a_uniform_stretch_is_exact() {
+        let mut h = Haptics::new(stretch_basis(), Coupling::default(), 1e-3, Scheme::Exact, 1);
+        h.select(0, 4); // the centre vertex: edges along x, y and a diagonal
+        for eps in [1e-4, 0.013, -0.05] {
+            h.state.q[0] = eps / 100.0;
+            let s = h.edge_strain(0);
+            assert!((s - eps.abs()).abs() < 1e-6 * eps.abs(), "{s} vs {eps}");
+        }
+    }
+
+    #[test]
+    fn policies_flag_stiffen_and_release_past_the_limit() {
+        // λ = 1e4 with φ = 1 at the centre: the 10 N force limit gives q ≈ 1e-3, a strain of
+        // ~10 %, far past the 2 % limit.
+        let (flag, out) = grab_centre(StrainPolicy::Flag, 0.05, 400);
+        assert!(out.strain_exceeded && out.strain > 0.05, "flag: {out:?}");
+        assert!(out.force.iter().any(|f| f.abs() > 0.1), "flag keeps the force: {out:?}");
+        let (stiff, out) = grab_centre(StrainPolicy::Stiffen, 0.05, 400);
+        assert!(
+            (out.strain - 0.02).abs() < 0.002,
+            "stiffen holds the strain at the limit: {out:?}"
+        );
+        assert!(stiff.state.q[0].abs() < flag.state.q[0].abs() / 2.0);
+        let f_dev = out.force.iter().map(|f| f * f).sum::<f64>().sqrt();
+        assert!(f_dev > 5.0, "the hand still feels the pull: {f_dev}");
+        let (rel, out) = grab_centre(StrainPolicy::Release, 0.05, 400);
+        assert_eq!(out.force, [0.0; 3], "released: {out:?}");
+        assert!(!rel.hands[0].grabbed, "the grab is let go");
     }
 }

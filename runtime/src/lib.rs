@@ -9,6 +9,8 @@ pub mod bench;
 #[cfg(feature = "capi")]
 pub mod capi;
 pub mod device;
+#[cfg(feature = "hdf5")]
+pub mod h5str;
 pub mod haptic;
 pub mod integrator;
 pub mod kdtree;

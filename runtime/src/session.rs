@@ -3,7 +3,7 @@
 
 use crate::basis::Basis;
 use crate::device::Device;
-use crate::haptic::{Coupling, HandInput, HandOutput};
+use crate::haptic::{Coupling, HandInput, HandOutput, StrainWatch};
 use crate::integrator::Scheme;
 use crate::snapshot::Snapshot;
 use crate::switching::{SpaceInput, SwitchConfig, Switcher};
@@ -31,6 +31,8 @@ pub struct SessionConfig {
     pub free_body: Option<([f64; 3], f64)>,
     /// Volume-of-interest switching (sessions over several spaces).
     pub switching: SwitchConfig,
+    /// Validity watch of the linear model at the hands.
+    pub strain: StrainWatch,
 }
 
 impl Default for SessionConfig {
@@ -44,6 +46,7 @@ impl Default for SessionConfig {
             sleep: true,
             free_body: Some(([0.0, 0.0, -9.81], 1.0)),
             switching: SwitchConfig::default(),
+            strain: StrainWatch::default(),
         }
     }
 }
@@ -89,6 +92,10 @@ pub struct SessionStats {
     pub switches: u64,
     /// Longest switch in the haptic thread (state transfer, hand-over), µs.
     pub switch_us_max: f64,
+    /// Largest strain seen at a hand's vertex.
+    pub strain_max: f64,
+    /// Hand-steps past the strain limit.
+    pub strain_exceeded_steps: u64,
 }
 
 fn percentile(sorted: &[u64], p: f64) -> u64 {
@@ -132,6 +139,10 @@ pub fn run_spaces(
             sim.set_free_body(gravity, damping)?;
         }
     }
+    for sim in haptics.sims_mut() {
+        sim.set_strain_watch(cfg.strain);
+    }
+    let (mut strain_max, mut strain_steps) = (0.0f64, 0u64);
     // Published: the active space's index, its q (padded to the largest r), the pose.
     let r_max = bases.iter().map(|b| b.mode_count()).max().unwrap_or(0);
     let mut published = vec![0.0; 1 + r_max + 7];
@@ -202,6 +213,8 @@ pub fn run_spaces(
             let m = (out.force[0].powi(2) + out.force[1].powi(2) + out.force[2].powi(2)).sqrt();
             peak = peak.max(m);
             clamped += u64::from(out.clamped);
+            strain_max = strain_max.max(out.strain);
+            strain_steps += u64::from(out.strain_exceeded);
         }
         let active = haptics.sim(haptics.active());
         let r = active.state().q.len();
@@ -245,5 +258,7 @@ pub fn run_spaces(
         spaces: bases.len(),
         switches: haptics.switches,
         switch_us_max: haptics.max_switch_ns as f64 / 1e3,
+        strain_max,
+        strain_exceeded_steps: strain_steps,
     })
 }

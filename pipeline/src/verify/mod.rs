@@ -535,12 +535,7 @@ fn compare(
     let f = hdf5::File::open(result).with_context(|| format!("cannot read {}", result.display()))?;
     let freqs: Vec<f64> = f.dataset("frequencies_hz")?.read_raw()?;
     let modes: Array2<f64> = f.dataset("modes")?.read_2d()?;
-    let solver = f
-        .attr("solver")
-        .ok()
-        .and_then(|a| a.read_scalar::<hdf5::types::VarLenUnicode>().ok())
-        .map(|s| s.to_string())
-        .unwrap_or_default();
+    let solver = ves_runtime::h5str::read(&f, "solver").unwrap_or_default();
     let nf = d.dofs.free_count();
     let ours_f = ours.frequencies_hz();
     let r = ours_f.len().min(freqs.len()).min(modes.ncols());
