@@ -160,7 +160,13 @@ pub fn write(out: &Path, scene: &Scene, spaces: &[Space<'_>]) -> Result<()> {
     check_output(out)?;
     let tmp = temp_name(out);
     let result = (|| -> Result<()> {
-        let file = hdf5::File::create(&tmp).with_context(|| format!("cannot create {}", tmp.display()))?;
+        // The 1.8+ file format (v2 object headers, v3 superblock) checksums every piece of
+        // metadata: a damaged header is refused by libhdf5 instead of parsed (the fuzzer found
+        // libhdf5 1.10 reading freed memory when parsing corrupted v1 headers).
+        let file = hdf5::File::with_options()
+            .with_fapl(|p| p.libver_v18())
+            .create(&tmp)
+            .with_context(|| format!("cannot create {}", tmp.display()))?;
         attr_str(&file, "format", FORMAT)?;
         attr_u32(&file, "version", VERSION)?;
         attr_str(&file, "generator", &format!("ves {}", env!("CARGO_PKG_VERSION")))?;

@@ -116,6 +116,12 @@ impl Basis {
         {
             return Err(err("non-finite values in nodes, modes or eigenvalues".into()));
         }
+        // Held in f32: a finite f64 beyond f32's range would become infinite (found by fuzzing).
+        if rows.iter().any(|v| v.abs() > f64::from(f32::MAX)) {
+            return Err(err(
+                "mode values beyond single precision (|φ| > 3.4e38): the file is damaged".into(),
+            ));
+        }
         if let Some(l) = eigenvalues.iter().find(|&&l| l <= 0.0) {
             return Err(err(format!("elastic eigenvalue {l} is not positive")));
         }
