@@ -694,3 +694,45 @@ fn slepc_on_two_mpi_ranks_matches_arpack() {
         assert!(cos.abs() > 1.0 - 1e-8, "mode {j}: cosine {cos}");
     }
 }
+
+/// `ves session` on a basis with a volume of interest: the scripted pull of rib 3 starts inside
+/// its VOI and leaves it loaded; the session switches spaces, reports it, and stays finite.
+#[test]
+fn session_switches_between_voi_spaces() {
+    let cases = Path::new(env!("CARGO_MANIFEST_DIR")).join("../cases/ribplate");
+    let text = std::fs::read_to_string(cases.join("scene-voi.toml")).expect("scene");
+    // Keep only rib 3's VOI (the one the script touches).
+    let head = text.split("[[voi]]").next().expect("head").to_string();
+    let rib3 = text.split("[[voi]]").find(|s| s.contains("\"rib3\"")).expect("rib3");
+    let scene = format!("{head}[[voi]]{rib3}").replace("count = 30", "count = 20");
+    let dir = tempfile::tempdir().expect("tmp");
+    std::fs::copy(cases.join("ribplate.step"), dir.path().join("ribplate.step")).expect("step");
+    let path = dir.path().join("voi.toml");
+    std::fs::write(&path, scene).expect("scene");
+    let basis = dir.path().join("voi.h5");
+    let o = ves(&["precompute", path.to_str().unwrap(), "-o", basis.to_str().unwrap()]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let script = cases.join("pull_rib3.csv");
+    let o = ves(&[
+        "session",
+        basis.to_str().unwrap(),
+        "--device",
+        &format!("script:{}", script.display()),
+        "--json",
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let stdout = String::from_utf8_lossy(&o.stdout);
+    let v: serde_json::Value = serde_json::from_str(stdout.lines().last().expect("json")).expect("json");
+    assert_eq!(v["spaces"], 2, "{v}");
+    assert!(
+        v["switches"].as_u64().expect("switches") >= 2,
+        "into rib3 and out again: {v}"
+    );
+    assert!(v["switch_us_max"].as_f64().expect("switch time") < 1000.0, "{v}");
+    assert!(
+        v["peak_force_n"].as_f64().expect("force") > 1.0,
+        "the rib was pulled: {v}"
+    );
+    assert_eq!(v["quarantined"], 0);
+    assert!(v["visual_updates"].as_u64().expect("visual") > 0);
+}
