@@ -655,6 +655,8 @@ fn slepc_on_two_mpi_ranks_matches_arpack() {
     let o = Command::new("mpirun")
         .env("OMPI_ALLOW_RUN_AS_ROOT", "1")
         .env("OMPI_ALLOW_RUN_AS_ROOT_CONFIRM", "1")
+        // One node: no ssh/rsh agent needed (a minimal machine may have none).
+        .env("OMPI_MCA_plm", "isolated")
         .args(["-n", "2", "--oversubscribe", env!("CARGO_BIN_EXE_ves"), "precompute"])
         .args([
             path.to_str().unwrap(),
