@@ -75,60 +75,12 @@ fn thin_plate_200_to_1_matches_kirchhoff() {
 /// A structured 10-node beam mesh (0.4 × 0.1 × 0.1 m, 8 × 2 × 2 cubes of 6 tets), clamped at
 /// x = 0, with interior node (x = 0.2, y = z = 0.05) moved by `shift` along y.
 fn raw_beam(shift: f64) -> (ves_pipeline::mesh::Mesh, ves_pipeline::supports::Dofs) {
-    let (nx, ny, nz, h) = (8usize, 2usize, 2usize, 0.05);
-    let id = |i: usize, j: usize, k: usize| ((k * (ny + 1) + j) * (nx + 1) + i) as u32;
-    let mut pts = Vec::new();
-    for k in 0..=nz {
-        for j in 0..=ny {
-            for i in 0..=nx {
-                let mut p = [i as f64 * h, j as f64 * h, k as f64 * h];
-                if (i, j, k) == (4, 1, 1) {
-                    p[1] += shift;
-                }
-                pts.push(p);
-            }
+    let mesh = ves_pipeline::mesh::Mesh::structured_box([8, 2, 2], 0.05, 2, |ijk, mut p| {
+        if ijk == [4, 1, 1] {
+            p[1] += shift;
         }
-    }
-    let mut tets = Vec::new();
-    let mut mid = std::collections::HashMap::new();
-    for k in 0..nz {
-        for j in 0..ny {
-            for i in 0..nx {
-                let c = [
-                    id(i, j, k),
-                    id(i + 1, j, k),
-                    id(i + 1, j + 1, k),
-                    id(i, j + 1, k),
-                    id(i, j, k + 1),
-                    id(i + 1, j, k + 1),
-                    id(i + 1, j + 1, k + 1),
-                    id(i, j + 1, k + 1),
-                ];
-                // Six tets around the diagonal 0–6 (conforming between cubes).
-                for t in [
-                    [0, 1, 2, 6],
-                    [0, 2, 3, 6],
-                    [0, 3, 7, 6],
-                    [0, 7, 4, 6],
-                    [0, 4, 5, 6],
-                    [0, 5, 1, 6],
-                ] {
-                    let v = t.map(|q| c[q]);
-                    tets.extend(v);
-                    for (a, b) in ves_pipeline::fem::element::tet10::EDGES {
-                        let key = (v[a].min(v[b]), v[a].max(v[b]));
-                        let m = *mid.entry(key).or_insert_with(|| {
-                            let (x, y) = (pts[key.0 as usize], pts[key.1 as usize]);
-                            pts.push(std::array::from_fn(|q| (x[q] + y[q]) / 2.0));
-                            (pts.len() - 1) as u32
-                        });
-                        tets.push(m);
-                    }
-                }
-            }
-        }
-    }
-    let mesh = ves_pipeline::mesh::Mesh::from_raw(&pts, &tets, 2);
+        p
+    });
     let mask: Vec<bool> = mesh.nodes.iter().flat_map(|p| [p[0] < 1e-9; 3]).collect();
     let dofs = ves_pipeline::supports::Dofs::from_mask(&mask);
     (mesh, dofs)

@@ -64,19 +64,7 @@ fn leaving_a_voi_while_pulling_a_rib_is_smooth() {
 
     let dir = tempfile::tempdir().expect("tmp");
     let path = dir.path().join("ribvoi.h5");
-    let views: Vec<store::Space<'_>> = spaces
-        .iter()
-        .map(|s| store::Space {
-            name: &s.name,
-            voi: s.voi.as_ref(),
-            mesh: &s.mesh,
-            dofs: &s.dofs,
-            modes: &s.modes,
-            mass: &s.mass,
-            compliance: None,
-            transfers: &s.transfers,
-        })
-        .collect();
+    let views: Vec<store::Space<'_>> = spaces.iter().map(SolvedSpace::view).collect();
     store::write(&path, &scene, &views).expect("write");
 
     let inputs = load_spaces(&path, None, true).expect("load");

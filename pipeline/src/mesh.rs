@@ -97,6 +97,69 @@ impl Mesh {
         worst
     }
 
+    /// A structured box of `cells` cubes of side `h` (corner at the origin), each cube split into
+    /// six tets around its main diagonal (conforming between cubes), with mid-edge nodes when
+    /// `order == 2`. `displace` may move a grid vertex, given its grid index and position (mid-edge
+    /// nodes follow). For tests and synthetic cases.
+    pub fn structured_box(
+        cells: [usize; 3],
+        h: f64,
+        order: u8,
+        displace: impl Fn([usize; 3], [f64; 3]) -> [f64; 3],
+    ) -> Mesh {
+        let [nx, ny, nz] = cells;
+        let id = |i: usize, j: usize, k: usize| ((k * (ny + 1) + j) * (nx + 1) + i) as u32;
+        let mut pts = Vec::with_capacity((nx + 1) * (ny + 1) * (nz + 1));
+        for k in 0..=nz {
+            for j in 0..=ny {
+                for i in 0..=nx {
+                    pts.push(displace([i, j, k], [i as f64 * h, j as f64 * h, k as f64 * h]));
+                }
+            }
+        }
+        let mut tets = Vec::new();
+        let mut mid = HashMap::new();
+        for k in 0..nz {
+            for j in 0..ny {
+                for i in 0..nx {
+                    let c = [
+                        id(i, j, k),
+                        id(i + 1, j, k),
+                        id(i + 1, j + 1, k),
+                        id(i, j + 1, k),
+                        id(i, j, k + 1),
+                        id(i + 1, j, k + 1),
+                        id(i + 1, j + 1, k + 1),
+                        id(i, j + 1, k + 1),
+                    ];
+                    for t in [
+                        [0, 1, 2, 6],
+                        [0, 2, 3, 6],
+                        [0, 3, 7, 6],
+                        [0, 7, 4, 6],
+                        [0, 4, 5, 6],
+                        [0, 5, 1, 6],
+                    ] {
+                        let v = t.map(|q| c[q]);
+                        tets.extend(v);
+                        if order == 2 {
+                            for (a, b) in crate::fem::element::tet10::EDGES {
+                                let key = (v[a].min(v[b]), v[a].max(v[b]));
+                                let m = *mid.entry(key).or_insert_with(|| {
+                                    let (x, y) = (pts[key.0 as usize], pts[key.1 as usize]);
+                                    pts.push(std::array::from_fn(|q| (x[q] + y[q]) / 2.0));
+                                    (pts.len() - 1) as u32
+                                });
+                                tets.push(m);
+                            }
+                        }
+                    }
+                }
+            }
+        }
+        Mesh::from_raw(&pts, &tets, order)
+    }
+
     /// Builds a mesh from raw connectivity: keeps only nodes used by tets, numbers corner
     /// vertices first, orients every tet positively and extracts the boundary.
     pub fn from_raw(coords: &[[f64; 3]], tets: &[u32], order: u8) -> Mesh {

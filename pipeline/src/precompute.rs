@@ -81,6 +81,22 @@ pub struct SolvedSpace {
     pub transfers: Vec<(String, Vec<f64>)>,
 }
 
+impl SolvedSpace {
+    /// What the file writer needs of this space.
+    pub fn view(&self) -> store::Space<'_> {
+        store::Space {
+            name: &self.name,
+            voi: self.voi.as_ref(),
+            mesh: &self.mesh,
+            dofs: &self.dofs,
+            modes: &self.modes,
+            mass: &self.mass,
+            compliance: self.compliance.as_ref(),
+            transfers: &self.transfers,
+        }
+    }
+}
+
 /// The assembled problem of one space, before the eigen-solve (also used by tests and checks).
 pub struct Discretized {
     /// The mesh.
@@ -255,19 +271,7 @@ pub fn run(scene: &Scene, out: &Path, choice: SolverChoice) -> Result<Summary> {
     }
     let transfer_s = t.elapsed().as_secs_f64();
     let t = Instant::now();
-    let views: Vec<store::Space<'_>> = spaces
-        .iter()
-        .map(|s| store::Space {
-            name: &s.name,
-            voi: s.voi.as_ref(),
-            mesh: &s.mesh,
-            dofs: &s.dofs,
-            modes: &s.modes,
-            mass: &s.mass,
-            compliance: s.compliance.as_ref(),
-            transfers: &s.transfers,
-        })
-        .collect();
+    let views: Vec<store::Space<'_>> = spaces.iter().map(SolvedSpace::view).collect();
     if root {
         store::write(out, scene, &views)?;
     }

@@ -238,50 +238,7 @@ mod tests {
     /// A quadratic field is reproduced exactly by 10-node interpolation between two meshes.
     #[test]
     fn quadratic_field_interpolates_exactly_between_meshes() {
-        let cube = |n: usize| {
-            let mut pts = Vec::new();
-            for z in 0..=n {
-                for y in 0..=n {
-                    for x in 0..=n {
-                        pts.push([x as f64 / n as f64, y as f64 / n as f64, z as f64 / n as f64]);
-                    }
-                }
-            }
-            let id = |x: usize, y: usize, z: usize| ((z * (n + 1) + y) * (n + 1) + x) as u32;
-            let mut tets = Vec::new();
-            let mut mid = std::collections::HashMap::new();
-            for z in 0..n {
-                for y in 0..n {
-                    for x in 0..n {
-                        let c = [
-                            id(x, y, z),
-                            id(x + 1, y, z),
-                            id(x + 1, y + 1, z),
-                            id(x, y + 1, z),
-                            id(x, y, z + 1),
-                            id(x + 1, y, z + 1),
-                            id(x + 1, y + 1, z + 1),
-                            id(x, y + 1, z + 1),
-                        ];
-                        for t in [[0, 1, 3, 4], [1, 2, 3, 6], [1, 3, 4, 6], [3, 4, 6, 7], [1, 4, 5, 6]] {
-                            let v = t.map(|k| c[k]);
-                            tets.extend(v);
-                            // Mid-edge nodes in gmsh order, shared between tets.
-                            for (p, q) in crate::fem::element::tet10::EDGES {
-                                let key = (v[p].min(v[q]), v[p].max(v[q]));
-                                let id = *mid.entry(key).or_insert_with(|| {
-                                    let (x, y) = (pts[key.0 as usize], pts[key.1 as usize]);
-                                    pts.push(std::array::from_fn(|c| (x[c] + y[c]) / 2.0));
-                                    (pts.len() - 1) as u32
-                                });
-                                tets.push(id);
-                            }
-                        }
-                    }
-                }
-            }
-            Mesh::from_raw(&pts, &tets, 2)
-        };
+        let cube = |n: usize| Mesh::structured_box([n; 3], 1.0 / n as f64, 2, |_, p| p);
         let (a, b) = (cube(2), cube(3));
         let f = |p: [f64; 3]| [p[0] * p[1], p[2] * p[2] - p[0], 1.0 + p[1] * p[2]];
         let values: Vec<f64> = a.nodes.iter().flat_map(|&p| f(p)).collect();
