@@ -164,6 +164,9 @@ pub fn run(scene: &Scene, opts: &ReportOptions, dir: &Path) -> Result<Report> {
     let start = Instant::now();
     check_options(opts)?;
     check_plotting()?;
+    if dir.exists() && !dir.is_dir() {
+        bail!("{}: is a file; give a directory for the report with -o", dir.display());
+    }
     std::fs::create_dir_all(dir).with_context(|| format!("{}: cannot create the report directory", dir.display()))?;
     let mut modes = opts.modes.clone();
     modes.sort_unstable();
