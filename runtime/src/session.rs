@@ -96,6 +96,8 @@ pub struct SessionStats {
     pub strain_max: f64,
     /// Hand-steps past the strain limit.
     pub strain_exceeded_steps: u64,
+    /// Largest surface-edge strain of the drawn part (visualization thread, every frame).
+    pub strain_max_surface: f64,
 }
 
 fn percentile(sorted: &[u64], p: f64) -> u64 {
@@ -149,9 +151,11 @@ pub fn run_spaces(
     let snapshot = Arc::new(Snapshot::new(published.len()));
     let stop = Arc::new(AtomicBool::new(false));
     let visual_count = Arc::new(AtomicU64::new(0));
+    let surface_strain = Arc::new(AtomicU64::new(0f64.to_bits()));
 
     let viz = {
         let (bases, snapshot, stop, count) = (bases.clone(), snapshot.clone(), stop.clone(), visual_count.clone());
+        let strain = surface_strain.clone();
         let cap = cfg.visual_hz.map(|hz| Duration::from_secs_f64(1.0 / hz.max(1.0)));
         std::thread::spawn(move || {
             let mut q = vec![0.0; 1 + r_max + 7];
@@ -167,6 +171,11 @@ pub fn run_spaces(
                 q.copy_within(1 + r_max..1 + r_max + 7, 1 + r);
                 visual::posed_positions(&bases[i], &q[1..1 + r + 7], &mut pos[i]);
                 std::hint::black_box(&pos[i]);
+                // Whole-part validity: the largest surface-edge strain drawn so far.
+                let s = visual::max_edge_strain(&bases[i], &pos[i]);
+                if s > f64::from_bits(strain.load(Ordering::Relaxed)) {
+                    strain.store(s.to_bits(), Ordering::Relaxed);
+                }
                 count.fetch_add(1, Ordering::Relaxed);
                 if let Some(c) = cap {
                     std::thread::sleep(c.saturating_sub(t.elapsed()));
@@ -260,5 +269,6 @@ pub fn run_spaces(
         switch_us_max: haptics.max_switch_ns as f64 / 1e3,
         strain_max,
         strain_exceeded_steps: strain_steps,
+        strain_max_surface: f64::from_bits(surface_strain.load(Ordering::Relaxed)),
     })
 }

@@ -48,3 +48,73 @@ pub fn posed_positions(basis: &Basis, published: &[f64], pos: &mut [f32]) {
         }
     }
 }
+
+/// Largest engineering strain |ℓ/ℓ₀ − 1| over the surface edges of drawn positions `pos` (any
+/// pose: lengths do not see rigid motion). The whole-part counterpart of the haptic thread's
+/// watch at the hands: a strain peak away from the hands (a clamped root) shows here.
+pub fn max_edge_strain(basis: &Basis, pos: &[f32]) -> f64 {
+    let mut worst = 0.0f64;
+    for i in 0..basis.rest.len() {
+        let (lo, hi) = (basis.neighbour_ptr[i] as usize, basis.neighbour_ptr[i + 1] as usize);
+        for &k in &basis.neighbours[lo..hi] {
+            let k = k as usize;
+            if k < i {
+                continue; // each edge once
+            }
+            let (a, b) = (&basis.rest[i], &basis.rest[k]);
+            let l0 = ((b[0] - a[0]).powi(2) + (b[1] - a[1]).powi(2) + (b[2] - a[2]).powi(2)).sqrt();
+            let l = (0..3)
+                .map(|c| (f64::from(pos[3 * k + c]) - f64::from(pos[3 * i + c])).powi(2))
+                .sum::<f64>()
+                .sqrt();
+            if l0 > 0.0 {
+                worst = worst.max((l / l0 - 1.0).abs());
+            }
+        }
+    }
+    worst
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A uniform stretch by ε along x of a 3 × 3 grid: the largest edge strain is ε (x edges).
+    #[test]
+    fn edge_strain_of_a_stretched_grid() {
+        let mut rest = Vec::new();
+        for y in 0..3 {
+            for x in 0..3 {
+                rest.push([0.01 * x as f64, 0.01 * y as f64, 0.0]);
+            }
+        }
+        let mut triangles = Vec::new();
+        for y in 0..2u32 {
+            for x in 0..2u32 {
+                let id = |x: u32, y: u32| y * 3 + x;
+                triangles.push([id(x, y), id(x + 1, y), id(x + 1, y + 1)]);
+                triangles.push([id(x, y), id(x + 1, y + 1), id(x, y + 1)]);
+            }
+        }
+        let rows: Vec<f64> = rest.iter().flat_map(|p| [p[0], 0.0, 0.0]).collect();
+        let n = rest.len() as u32;
+        let b = Basis::new(
+            "grid",
+            "global",
+            rest,
+            (0..n).collect(),
+            triangles,
+            vec![1.0],
+            &rows,
+            (0.0, 0.0),
+            None,
+        )
+        .expect("basis");
+        let mut pos = vec![0.0f32; 3 * b.vertex_count()];
+        for eps in [0.0, 1e-3, 0.05] {
+            positions(&b, &[eps], &mut pos);
+            let s = max_edge_strain(&b, &pos);
+            assert!((s - eps).abs() < 1e-5, "{s} vs {eps}");
+        }
+    }
+}
