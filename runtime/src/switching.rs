@@ -72,7 +72,6 @@ pub struct SpaceInput {
 pub struct Switcher {
     sims: Vec<Haptics>,
     transfers: Vec<Vec<Option<Vec<f64>>>>,
-    boxes: Vec<Option<[[f64; 3]; 2]>>,
     active: usize,
     /// (old space, steps of blending left).
     fading: Option<(usize, usize)>,
@@ -125,7 +124,6 @@ impl Switcher {
                 }
             }
         }
-        let boxes = spaces.iter().map(|s| s.basis.voi).collect();
         let sims = spaces
             .iter()
             .map(|s| Haptics::new(s.basis.clone(), coupling, dt, scheme, hands))
@@ -133,7 +131,6 @@ impl Switcher {
         Ok(Switcher {
             sims,
             transfers: spaces.into_iter().map(|s| s.transfers).collect(),
-            boxes,
             active: 0,
             fading: None,
             old_out: vec![HandOutput::default(); hands],
@@ -174,13 +171,15 @@ impl Switcher {
                     .iter()
                     .all(|h| (0..3).all(|c| h.position[c] >= b[0][c] - grow && h.position[c] <= b[1][c] + grow))
         };
-        if let Some(b) = &self.boxes[self.active]
+        // Each space's VOI is its basis's (None for the global space).
+        let voi = |i: usize| self.sims[i].basis().voi;
+        if let Some(b) = &voi(self.active)
             && holds(b, self.cfg.margin)
         {
             return self.active;
         }
-        (0..self.boxes.len())
-            .find(|&i| self.boxes[i].as_ref().is_some_and(|b| holds(b, -self.cfg.margin)))
+        (0..self.sims.len())
+            .find(|&i| voi(i).as_ref().is_some_and(|b| holds(b, -self.cfg.margin)))
             .unwrap_or(0)
     }
 
