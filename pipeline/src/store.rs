@@ -306,12 +306,7 @@ fn read_attr_str(loc: &hdf5::Location, name: &str) -> Result<String> {
 /// Reads the summary of a basis file.
 pub fn info(path: &Path) -> Result<BasisInfo> {
     // A panic of the HDF5 layer on a damaged file becomes an error (see basis::guarded).
-    let mut out = None;
-    ves_runtime::basis::guarded(path, || {
-        out = Some(info_unguarded(path));
-        Ok(())
-    })?;
-    out.unwrap_or_else(|| Err(anyhow::anyhow!("{}: damaged basis file", path.display())))
+    ves_runtime::basis::guarded(path, || info_unguarded(path))
 }
 
 fn info_unguarded(path: &Path) -> Result<BasisInfo> {

@@ -312,12 +312,12 @@ mod file {
     /// Runs `f`, turning a panic inside the HDF5 layer into an error: hdf5-metno 0.15 builds
     /// strings from file bytes unchecked, and a corrupted name made it panic while formatting
     /// one (found by the byte-flip test).
-    pub fn guarded<T>(path: &Path, f: impl FnOnce() -> Result<T, LoadError>) -> Result<T, LoadError> {
+    pub fn guarded<T, E: From<LoadError>>(path: &Path, f: impl FnOnce() -> Result<T, E>) -> Result<T, E> {
         std::panic::catch_unwind(std::panic::AssertUnwindSafe(f)).unwrap_or_else(|_| {
-            Err(LoadError {
+            Err(E::from(LoadError {
                 path: path.display().to_string(),
                 message: "damaged file: the HDF5 layer failed on its structure".into(),
-            })
+            }))
         })
     }
 
