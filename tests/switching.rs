@@ -30,9 +30,7 @@ fn jump(from: &SolvedSpace, q_from: &[f64], to: &SolvedSpace, q_to: &[f64]) -> f
     let mut carried = vec![0.0; 3 * to.mesh.nodes.len()];
     transfer::interpolate(&from.mesh, &interp, &field(from, q_from), &mut carried);
     let now = field(to, q_to);
-    let mut surface: Vec<usize> = to.mesh.surface.iter().flatten().map(|&v| v as usize).collect();
-    surface.sort_unstable();
-    surface.dedup();
+    let surface: Vec<usize> = to.mesh.surface_vertices().into_iter().map(|v| v as usize).collect();
     let norm = |u: &[f64], i: usize| (0..3).map(|c| u[3 * i + c].powi(2)).sum::<f64>().sqrt();
     let diff: Vec<f64> = (0..now.len()).map(|k| now[k] - carried[k]).collect();
     let peak = surface.iter().map(|&i| norm(&carried, i)).fold(0.0, f64::max);

@@ -28,9 +28,7 @@ pub fn surface_compliance(d: &Discretized) -> Result<Compliance> {
             d.rigid
         );
     }
-    let mut nodes: Vec<u32> = d.mesh.surface.iter().flatten().copied().collect();
-    nodes.sort_unstable();
-    nodes.dedup();
+    let nodes = d.mesh.surface_vertices();
     let chol = factor_stiffness(&d.system, &d.dofs)?;
     let nf = d.dofs.free_count();
     let bar = crate::progress::bar(nodes.len() as u64, "vertices (static correction)");

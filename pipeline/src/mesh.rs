@@ -97,6 +97,14 @@ impl Mesh {
         worst
     }
 
+    /// Corner vertices on the boundary, ascending, each once.
+    pub fn surface_vertices(&self) -> Vec<u32> {
+        let mut v: Vec<u32> = self.surface.iter().flatten().copied().collect();
+        v.sort_unstable();
+        v.dedup();
+        v
+    }
+
     /// A structured box of `cells` cubes of side `h` (corner at the origin), each cube split into
     /// six tets around its main diagonal (conforming between cubes), with mid-edge nodes when
     /// `order == 2`. `displace` may move a grid vertex, given its grid index and position (mid-edge

@@ -581,10 +581,7 @@ fn default_probe(d: &Discretized, phi1: &[f64]) -> Probe {
 }
 
 fn surface_vertices(d: &Discretized) -> Vec<usize> {
-    let mut v: Vec<usize> = d.mesh.surface.iter().flatten().map(|&i| i as usize).collect();
-    v.sort_unstable();
-    v.dedup();
-    v
+    d.mesh.surface_vertices().into_iter().map(|i| i as usize).collect()
 }
 
 fn nearest(d: &Discretized, candidates: &[usize], p: [f64; 3]) -> usize {
