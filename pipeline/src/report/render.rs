@@ -45,20 +45,20 @@ fn size(h: f64) -> String {
     format!("{}", (h * 1e9).round() / 1e9)
 }
 
-fn max_pct(v: &[f64]) -> String {
-    if v.is_empty() {
-        "—".into()
-    } else {
-        format!("{:.3}", 100.0 * v.iter().fold(0.0f64, |a, &b| a.max(b)))
-    }
+fn sci_pct(v: f64) -> String {
+    format!("{:.1e}", 100.0 * v)
 }
 
-fn sci_pct(v: &[f64]) -> String {
-    if v.is_empty() {
-        "—".into()
-    } else {
-        format!("{:.1e}", 100.0 * v.iter().fold(0.0f64, |a, &b| a.max(b)))
-    }
+/// The largest of `v` formatted by `f`, or a dash when there is nothing (free bodies, the
+/// reference mesh).
+fn worst(v: impl IntoIterator<Item = f64>, f: impl Fn(f64) -> String) -> String {
+    v.into_iter().reduce(f64::max).map_or("—".into(), f)
+}
+
+/// A table's header row and its separator.
+fn header(s: &mut String, columns: &[&str]) {
+    let _ = writeln!(s, "| {} |", columns.join(" | "));
+    let _ = writeln!(s, "|{}", "---|".repeat(columns.len()));
 }
 
 /// The human-readable report.
@@ -120,11 +120,23 @@ pub fn markdown(r: &Report) -> String {
         );
     }
     let _ = writeln!(s, "## Meshes\n");
-    let _ = writeln!(
-        s,
-        "| order | size (m) | nodes | vertices | tets | unknowns | mesh (s) | assemble (s) | static correction (s) | full dynamic (s) | f1 (Hz) | max probe snap (m) |"
+    header(
+        &mut s,
+        &[
+            "order",
+            "size (m)",
+            "nodes",
+            "vertices",
+            "tets",
+            "unknowns",
+            "mesh (s)",
+            "assemble (s)",
+            "static correction (s)",
+            "full dynamic (s)",
+            "f1 (Hz)",
+            "max probe snap (m)",
+        ],
     );
-    let _ = writeln!(s, "|---|---|---|---|---|---|---|---|---|---|---|---|");
     for m in &r.meshes {
         let _ = writeln!(
             s,
@@ -140,11 +152,7 @@ pub fn markdown(r: &Report) -> String {
             m.static_correction_s.map_or("—".into(), |v| format!("{v:.2}")),
             m.full_dynamic_s.map_or("—".into(), |v| format!("{v:.2}")),
             m.frequencies_hz.first().copied().unwrap_or(f64::NAN),
-            m.probes
-                .iter()
-                .map(|p| p.snap_distance)
-                .fold(None, |a: Option<f64>, b| Some(a.map_or(b, |a| a.max(b))))
-                .map_or("—".into(), |v| format!("{v:.1e}")),
+            worst(m.probes.iter().map(|p| p.snap_distance), |v| format!("{v:.1e}")),
         );
     }
     let _ = writeln!(s, "\n## Sweep\n");
@@ -154,13 +162,28 @@ pub fn markdown(r: &Report) -> String {
          (+ static correction in its own column). Online times are medians measured through the runtime \
          on the written file (all vertices loaded).\n"
     );
-    let _ = writeln!(
-        s,
-        "| order | size (m) | modes | offline (s) | +correction (s) | file (MB) | loaded (MB) | haptic step (ns) | full field (ms) | freq. error | static error | static, corrected | vs finest mesh | vs finest, corrected | dynamic error (max) | dynamic, corrected (max) | dynamic (RMS) | dynamic, corrected (RMS) |"
-    );
-    let _ = writeln!(
-        s,
-        "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|"
+    header(
+        &mut s,
+        &[
+            "order",
+            "size (m)",
+            "modes",
+            "offline (s)",
+            "+correction (s)",
+            "file (MB)",
+            "loaded (MB)",
+            "haptic step (ns)",
+            "full field (ms)",
+            "freq. error",
+            "static error",
+            "static, corrected",
+            "vs finest mesh",
+            "vs finest, corrected",
+            "dynamic error (max)",
+            "dynamic, corrected (max)",
+            "dynamic (RMS)",
+            "dynamic, corrected (RMS)",
+        ],
     );
     for m in &r.meshes {
         for p in &m.points {
@@ -177,14 +200,14 @@ pub fn markdown(r: &Report) -> String {
                 p.haptic_step_ns,
                 p.full_field_ms,
                 p.frequency_error.map_or("(ref)".to_string(), pct),
-                max_pct(&p.static_error),
-                sci_pct(&p.static_error_corrected),
-                max_pct(&p.static_error_total),
-                max_pct(&p.static_error_total_corrected),
-                max_pct(&p.dynamic_error),
-                max_pct(&p.dynamic_error_corrected),
-                max_pct(&p.dynamic_error_rms),
-                max_pct(&p.dynamic_error_rms_corrected),
+                worst(p.static_error.iter().copied(), pct),
+                worst(p.static_error_corrected.iter().copied(), sci_pct),
+                worst(p.static_error_total.iter().copied(), pct),
+                worst(p.static_error_total_corrected.iter().copied(), pct),
+                worst(p.dynamic_error.iter().copied(), pct),
+                worst(p.dynamic_error_corrected.iter().copied(), pct),
+                worst(p.dynamic_error_rms.iter().copied(), pct),
+                worst(p.dynamic_error_rms_corrected.iter().copied(), pct),
             );
         }
     }
