@@ -29,6 +29,25 @@ fn ves(args: &[&str]) -> Output {
         .expect("ves runs")
 }
 
+/// The JSON object on the last line of stdout (the `--json` contract).
+fn last_json(o: &Output) -> serde_json::Value {
+    let stdout = String::from_utf8_lossy(&o.stdout);
+    serde_json::from_str(stdout.lines().last().expect("a JSON line")).expect("the last line is JSON")
+}
+
+/// `ves session BASIS --device script:SCRIPT --json`, which must succeed; its JSON.
+fn session_json(basis: &Path, script: &Path) -> serde_json::Value {
+    let o = ves(&[
+        "session",
+        basis.to_str().unwrap(),
+        "--device",
+        &format!("script:{}", script.display()),
+        "--json",
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    last_json(&o)
+}
+
 /// A directory holding the cantilever STEP file as `beam.step` and `scene` as `scene.toml`.
 fn workdir(scene: &str) -> (tempfile::TempDir, PathBuf) {
     let dir = tempfile::tempdir().expect("temp dir");
@@ -86,9 +105,7 @@ fn good_scene_writes_a_basis_and_json_summary() {
         "--json",
     ]);
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-    let stdout = String::from_utf8_lossy(&o.stdout);
-    let last = stdout.lines().last().expect("json line");
-    let v: serde_json::Value = serde_json::from_str(last).expect("last line is JSON");
+    let v = last_json(&o);
     assert_eq!(v["output"], out.to_str().unwrap());
     let space = &v["spaces"][0];
     assert_eq!(space["name"], "global");
@@ -212,15 +229,7 @@ fn session_and_bench_report_json() {
     let (dir, basis) = good_basis();
     let script = dir.path().join("hand.csv");
     std::fs::write(&script, "t,x,y,z,button\n0,1.0,0.05,0.05,1\n0.2,1.0,0.05,0.045,1\n").unwrap();
-    let o = ves(&[
-        "session",
-        basis.to_str().unwrap(),
-        "--device",
-        &format!("script:{}", script.display()),
-        "--json",
-    ]);
-    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-    let v: serde_json::Value = serde_json::from_slice(&o.stdout).expect("session JSON");
+    let v = session_json(&basis, &script);
     assert_eq!(v["steps"], 200);
     for key in [
         "achieved_rate_hz",
@@ -491,8 +500,7 @@ fn report_sweeps_meshes_and_modes_and_writes_plots() {
             assert_eq!(&bytes[1..4], b"PNG", "{f}");
         }
     }
-    let stdout = String::from_utf8_lossy(&o.stdout);
-    let r: serde_json::Value = serde_json::from_str(stdout.lines().last().expect("json line")).expect("json");
+    let r = last_json(&o);
     let meshes = r["meshes"].as_array().expect("meshes");
     assert_eq!(meshes.len(), 4);
     let reference = &meshes[r["reference_mesh"].as_u64().expect("reference") as usize];
@@ -554,10 +562,8 @@ fn batch_skips_up_to_date_survives_a_bad_scene_and_resumes() {
     std::fs::write(d.join("broken.toml"), GOOD.replace("poisson = 0.3", "poisson = 0.5")).expect("broken");
     let out = d.join("out");
     let run = || ves(&["batch", d.to_str().unwrap(), "--out", out.to_str().unwrap(), "--json"]);
-    let parse = |o: &Output| -> Vec<serde_json::Value> {
-        let s = String::from_utf8_lossy(&o.stdout);
-        serde_json::from_str(s.lines().last().expect("json")).expect("json")
-    };
+    let parse =
+        |o: &Output| -> Vec<serde_json::Value> { last_json(o).as_array().expect("an array of outcomes").clone() };
     let status = |v: &[serde_json::Value], scene: &str| -> String {
         v.iter()
             .find(|o| o["scene"].as_str().is_some_and(|s| s.ends_with(scene)))
@@ -714,17 +720,7 @@ fn session_switches_between_voi_spaces() {
     let basis = dir.path().join("voi.h5");
     let o = ves(&["precompute", path.to_str().unwrap(), "-o", basis.to_str().unwrap()]);
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-    let script = cases.join("pull_rib3.csv");
-    let o = ves(&[
-        "session",
-        basis.to_str().unwrap(),
-        "--device",
-        &format!("script:{}", script.display()),
-        "--json",
-    ]);
-    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-    let stdout = String::from_utf8_lossy(&o.stdout);
-    let v: serde_json::Value = serde_json::from_str(stdout.lines().last().expect("json")).expect("json");
+    let v = session_json(&basis, &cases.join("pull_rib3.csv"));
     assert_eq!(v["spaces"], 2, "{v}");
     assert!(
         v["switches"].as_u64().expect("switches") >= 2,
