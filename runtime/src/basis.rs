@@ -214,6 +214,41 @@ impl Basis {
     }
 }
 
+/// A flat 3×3 grid of vertices (z = 0, spacing 1 cm, 8 triangles) with one mode, a uniform
+/// stretch along x: u = (`scale`·x, 0, 0) per unit q, so every x edge strains by `scale`·q.
+/// Eigenvalue `lambda`, Rayleigh α = `alpha`. For the strain tests of `haptic` and `visual`.
+#[cfg(test)]
+pub(crate) fn stretch_grid(scale: f64, lambda: f64, alpha: f64) -> Basis {
+    let mut rest = Vec::new();
+    for y in 0..3 {
+        for x in 0..3 {
+            rest.push([0.01 * x as f64, 0.01 * y as f64, 0.0]);
+        }
+    }
+    let id = |x: u32, y: u32| y * 3 + x;
+    let mut triangles = Vec::new();
+    for y in 0..2 {
+        for x in 0..2 {
+            triangles.push([id(x, y), id(x + 1, y), id(x + 1, y + 1)]);
+            triangles.push([id(x, y), id(x + 1, y + 1), id(x, y + 1)]);
+        }
+    }
+    let rows: Vec<f64> = rest.iter().flat_map(|p| [scale * p[0], 0.0, 0.0]).collect();
+    let n = rest.len() as u32;
+    Basis::new(
+        "grid",
+        "global",
+        rest,
+        (0..n).collect(),
+        triangles,
+        vec![lambda],
+        &rows,
+        (alpha, 0.0),
+        None,
+    )
+    .expect("grid basis")
+}
+
 /// Each vertex's neighbours along surface-triangle edges (CSR, sorted, no duplicates).
 fn surface_neighbours(n: usize, triangles: &[[u32; 3]]) -> (Vec<u32>, Vec<u32>) {
     let mut pairs: Vec<(u32, u32)> = triangles

@@ -574,36 +574,7 @@ mod strain_tests {
     /// stretch along x, u = (100 x, 0, 0) per unit q, so the strain is exactly 100 q; damped
     /// (α = 100/s, ζ = 0.5) so a held pull settles.
     fn stretch_basis() -> Arc<Basis> {
-        let mut rest = Vec::new();
-        for y in 0..3 {
-            for x in 0..3 {
-                rest.push([0.01 * x as f64, 0.01 * y as f64, 0.0]);
-            }
-        }
-        let id = |x: u32, y: u32| y * 3 + x;
-        let mut triangles = Vec::new();
-        for y in 0..2 {
-            for x in 0..2 {
-                triangles.push([id(x, y), id(x + 1, y), id(x + 1, y + 1)]);
-                triangles.push([id(x, y), id(x + 1, y + 1), id(x, y + 1)]);
-            }
-        }
-        let rows: Vec<f64> = rest.iter().flat_map(|p| [100.0 * p[0], 0.0, 0.0]).collect();
-        let n = rest.len() as u32;
-        Arc::new(
-            Basis::new(
-                "grid",
-                "global",
-                rest,
-                (0..n).collect(),
-                triangles,
-                vec![1e4],
-                &rows,
-                (100.0, 0.0),
-                None,
-            )
-            .expect("basis"),
-        )
+        Arc::new(crate::basis::stretch_grid(100.0, 1e4, 100.0))
     }
 
     fn grab_centre(policy: StrainPolicy, pull: f64, steps: usize) -> (Haptics, HandOutput) {

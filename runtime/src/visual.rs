@@ -82,34 +82,7 @@ mod tests {
     /// A uniform stretch by ε along x of a 3 × 3 grid: the largest edge strain is ε (x edges).
     #[test]
     fn edge_strain_of_a_stretched_grid() {
-        let mut rest = Vec::new();
-        for y in 0..3 {
-            for x in 0..3 {
-                rest.push([0.01 * x as f64, 0.01 * y as f64, 0.0]);
-            }
-        }
-        let mut triangles = Vec::new();
-        for y in 0..2u32 {
-            for x in 0..2u32 {
-                let id = |x: u32, y: u32| y * 3 + x;
-                triangles.push([id(x, y), id(x + 1, y), id(x + 1, y + 1)]);
-                triangles.push([id(x, y), id(x + 1, y + 1), id(x, y + 1)]);
-            }
-        }
-        let rows: Vec<f64> = rest.iter().flat_map(|p| [p[0], 0.0, 0.0]).collect();
-        let n = rest.len() as u32;
-        let b = Basis::new(
-            "grid",
-            "global",
-            rest,
-            (0..n).collect(),
-            triangles,
-            vec![1.0],
-            &rows,
-            (0.0, 0.0),
-            None,
-        )
-        .expect("basis");
+        let b = crate::basis::stretch_grid(1.0, 1.0, 0.0);
         let mut pos = vec![0.0f32; 3 * b.vertex_count()];
         for eps in [0.0, 1e-3, 0.05] {
             positions(&b, &[eps], &mut pos);
