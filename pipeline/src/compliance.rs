@@ -2,7 +2,7 @@
 //! Gᵢᵢ = (K⁻¹)ᵢᵢ of the candidate contact vertices. The runtime adds (Gᵢᵢ − Φᵢ Λ⁻¹ Φᵢᵀ) F at the
 //! active vertex, so the felt stiffness is exact whatever the number of modes kept.
 
-use crate::linsolve::factor_stiffness;
+use crate::linsolve::{Cholesky, factor_stiffness};
 use crate::precompute::Discretized;
 use anyhow::{Result, bail};
 use rayon::prelude::*;
@@ -16,11 +16,7 @@ pub struct Compliance {
     pub blocks: Vec<[[f64; 3]; 3]>,
 }
 
-/// Vertices solved per block of right-hand sides (3 each): one pass over the factor serves them.
-const VERTICES_PER_BLOCK: usize = 16;
-
-/// Compliance blocks of every corner vertex on the surface.
-pub fn surface_compliance(d: &Discretized) -> Result<Compliance> {
+fn require_supported(d: &Discretized) -> Result<()> {
     if d.rigid > 0 {
         bail!(
             "static correction needs a supported part: a free body's K is singular ({} rigid modes) and inertia \
@@ -28,8 +24,23 @@ pub fn surface_compliance(d: &Discretized) -> Result<Compliance> {
             d.rigid
         );
     }
+    Ok(())
+}
+
+/// Vertices solved per block of right-hand sides (3 each): one pass over the factor serves them.
+const VERTICES_PER_BLOCK: usize = 16;
+
+/// Compliance blocks of every corner vertex on the surface.
+pub fn surface_compliance(d: &Discretized) -> Result<Compliance> {
+    // Before factorising: a free body's K is singular, and the reason should say why.
+    require_supported(d)?;
+    surface_compliance_with(d, &factor_stiffness(&d.system, &d.dofs)?)
+}
+
+/// The same with K's factor already at hand (`chol` must factor `d`'s K).
+pub fn surface_compliance_with(d: &Discretized, chol: &Cholesky) -> Result<Compliance> {
+    require_supported(d)?;
     let nodes = d.mesh.surface_vertices();
-    let chol = factor_stiffness(&d.system, &d.dofs)?;
     let nf = d.dofs.free_count();
     let bar = crate::progress::bar(nodes.len() as u64, "vertices (static correction)");
     let blocks: Vec<[[f64; 3]; 3]> = nodes
