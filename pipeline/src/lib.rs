@@ -18,4 +18,5 @@ pub mod scene;
 pub mod store;
 pub mod supports;
 pub mod transfer;
+pub mod vec3;
 pub mod verify;

@@ -1,6 +1,7 @@
 //! Meshing with gmsh: geometry file → tetrahedral mesh in metres, corner vertices numbered first.
 
 use crate::scene::{LengthUnit, Scene, Voi};
+use crate::vec3::{cross, dot, sub};
 use std::collections::HashMap;
 use ves_ffi::gmsh::{self, element_type};
 
@@ -209,22 +210,6 @@ impl Mesh {
             surface,
         }
     }
-}
-
-fn sub(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
-    [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
-}
-
-fn cross(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
-    [
-        a[1] * b[2] - a[2] * b[1],
-        a[2] * b[0] - a[0] * b[2],
-        a[0] * b[1] - a[1] * b[0],
-    ]
-}
-
-fn dot(a: [f64; 3], b: [f64; 3]) -> f64 {
-    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
 }
 
 /// Six times the signed volume of the corner tet.

@@ -8,6 +8,7 @@ use crate::fem::element::{Shape, tet4::Tet4, tet10::Tet10};
 use crate::linsolve::sym_matvec;
 use crate::mesh::Mesh;
 use crate::supports::Dofs;
+use crate::vec3::{cross, dot};
 use faer::sparse::SymbolicSparseColMat;
 use rayon::prelude::*;
 
@@ -127,9 +128,7 @@ impl Grid {
 fn barycentric(x: [[f64; 3]; 4], p: [f64; 3]) -> [f64; 4] {
     let d: [[f64; 3]; 3] = std::array::from_fn(|k| std::array::from_fn(|c| x[k + 1][c] - x[0][c]));
     let r: [f64; 3] = std::array::from_fn(|c| p[c] - x[0][c]);
-    let det = |a: [f64; 3], b: [f64; 3], c: [f64; 3]| {
-        a[0] * (b[1] * c[2] - b[2] * c[1]) - a[1] * (b[0] * c[2] - b[2] * c[0]) + a[2] * (b[0] * c[1] - b[1] * c[0])
-    };
+    let det = |a: [f64; 3], b: [f64; 3], c: [f64; 3]| dot(a, cross(b, c));
     let v = det(d[0], d[1], d[2]);
     if v.abs() < 1e-300 {
         return [f64::NEG_INFINITY; 4];

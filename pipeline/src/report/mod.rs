@@ -16,6 +16,7 @@ use crate::linsolve::factor_stiffness;
 use crate::precompute::{Discretized, SolverChoice, Timings, discretize, solve};
 use crate::scene::{Probe, Scene};
 use crate::store;
+use crate::vec3::{dist, dot, matvec, norm, sub};
 use anyhow::{Context, Result, bail};
 pub use newmark::{FullSystem, ModalSystem, Stepping, System, integrate_step_load};
 use serde::Serialize;
@@ -600,24 +601,4 @@ fn vertex_value(d: &Discretized, x: &[f64], v: usize) -> [f64; 3] {
         let g = d.dofs.free_of[3 * v + c];
         if g == u32::MAX { 0.0 } else { x[g as usize] }
     })
-}
-
-fn dot(a: [f64; 3], b: [f64; 3]) -> f64 {
-    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
-}
-
-fn norm(a: [f64; 3]) -> f64 {
-    dot(a, a).sqrt()
-}
-
-fn sub(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
-    std::array::from_fn(|c| a[c] - b[c])
-}
-
-fn dist(a: [f64; 3], b: [f64; 3]) -> f64 {
-    norm(sub(a, b))
-}
-
-fn matvec(m: [[f64; 3]; 3], v: [f64; 3]) -> [f64; 3] {
-    std::array::from_fn(|a| dot(m[a], v))
 }
