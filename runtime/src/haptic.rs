@@ -543,13 +543,19 @@ impl Haptics {
     pub fn write_published(&self, out: &mut [f64]) {
         let r = self.state.q.len();
         out[..r].copy_from_slice(&self.state.q);
-        let (x, o) = match &self.rigid {
-            Some(rb) => (rb.position, rb.orientation),
-            // No pose: drawn where it was meshed (see visual::posed_positions).
-            None => ([0.0; 3], [0.0; 4]),
-        };
-        out[r..r + 3].copy_from_slice(&x);
-        out[r + 3..r + 7].copy_from_slice(&o);
+        out[r..r + 7].copy_from_slice(&self.pose());
+    }
+
+    /// The pose a drawing thread needs: centre of mass in the world, then the unit quaternion
+    /// body → world; all zero for a part that is not a free body (drawn where it was meshed).
+    pub fn pose(&self) -> [f64; 7] {
+        match &self.rigid {
+            Some(rb) => {
+                let (x, o) = (rb.position, rb.orientation);
+                [x[0], x[1], x[2], o[0], o[1], o[2], o[3]]
+            }
+            None => [0.0; 7],
+        }
     }
 
     /// Displacement of kept vertex `i` now, m.

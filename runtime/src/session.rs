@@ -145,9 +145,9 @@ pub fn run_spaces(
         sim.set_strain_watch(cfg.strain);
     }
     let (mut strain_max, mut strain_steps) = (0.0f64, 0u64);
-    // Published: the active space's index, its q (padded to the largest r), the pose.
+    // Published: the active space's index, the pose (7), then that space's q.
     let r_max = bases.iter().map(|b| b.mode_count()).max().unwrap_or(0);
-    let mut published = vec![0.0; 1 + r_max + 7];
+    let mut published = vec![0.0; 8 + r_max];
     let snapshot = Arc::new(Snapshot::new(published.len()));
     let stop = Arc::new(AtomicBool::new(false));
     let visual_count = Arc::new(AtomicU64::new(0));
@@ -158,7 +158,7 @@ pub fn run_spaces(
         let strain = surface_strain.clone();
         let cap = cfg.visual_hz.map(|hz| Duration::from_secs_f64(1.0 / hz.max(1.0)));
         std::thread::spawn(move || {
-            let mut q = vec![0.0; 1 + r_max + 7];
+            let mut q = vec![0.0; 8 + r_max];
             // One position buffer per space, made before the loop.
             let mut pos: Vec<Vec<f32>> = bases.iter().map(|b| vec![0.0f32; 3 * b.vertex_count()]).collect();
             let start = Instant::now();
@@ -167,9 +167,7 @@ pub fn run_spaces(
                 snapshot.read(&mut q);
                 let i = (q[0] as usize).min(bases.len() - 1);
                 let r = bases[i].mode_count();
-                // q and the pose sit contiguously for visual::posed_positions: move the pose down.
-                q.copy_within(1 + r_max..1 + r_max + 7, 1 + r);
-                visual::posed_positions(&bases[i], &q[1..1 + r + 7], &mut pos[i]);
+                visual::posed_positions_of(&bases[i], &q[8..8 + r], &q[1..8], &mut pos[i]);
                 std::hint::black_box(&pos[i]);
                 // Whole-part validity: the largest surface-edge strain drawn so far.
                 let s = visual::max_edge_strain(&bases[i], &pos[i]);
@@ -226,11 +224,10 @@ pub fn run_spaces(
             strain_steps += u64::from(out.strain_exceeded);
         }
         let active = haptics.sim(haptics.active());
-        let r = active.state().q.len();
+        let q = &active.state().q;
         published[0] = haptics.active() as f64;
-        active.write_published(&mut published[1..1 + r + 7]);
-        // The pose goes at the fixed place after the padded q.
-        published.copy_within(1 + r..1 + r + 7, 1 + r_max);
+        published[1..8].copy_from_slice(&active.pose());
+        published[8..8 + q.len()].copy_from_slice(q);
         snapshot.publish(&published, t);
         max_energy = max_energy.max(active.state().energy());
         let done = Instant::now();

@@ -28,10 +28,15 @@ pub fn positions(basis: &Basis, q: &[f64], pos: &mut [f32]) {
 /// `Haptics::write_published`): x + R(p₀ + u − c) for a free body, p₀ + u for a supported one.
 pub fn posed_positions(basis: &Basis, published: &[f64], pos: &mut [f32]) {
     let r = basis.mode_count();
-    positions(basis, &published[..r], pos);
+    posed_positions_of(basis, &published[..r], &published[r..r + 7], pos);
+}
+
+/// The same with the modal coordinates and the pose (`Haptics::pose`) apart.
+pub fn posed_positions_of(basis: &Basis, modal: &[f64], pose: &[f64], pos: &mut [f32]) {
+    positions(basis, modal, pos);
     let Some(rigid) = basis.rigid else { return };
-    let x = [published[r], published[r + 1], published[r + 2]];
-    let q = [published[r + 3], published[r + 4], published[r + 5], published[r + 6]];
+    let x = [pose[0], pose[1], pose[2]];
+    let q = [pose[3], pose[4], pose[5], pose[6]];
     // An all-zero pose (nothing published yet) draws the part where it was meshed.
     if q == [0.0; 4] {
         return;
