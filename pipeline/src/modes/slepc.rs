@@ -11,6 +11,13 @@ thread_local! {
     static TOKEN: std::cell::RefCell<Option<ves_ffi::slepc::Slepc>> = const { std::cell::RefCell::new(None) };
 }
 
+#[cfg(not(feature = "slepc"))]
+fn not_built() -> ModesError {
+    ModesError::Slepc(
+        "this ves was built without SLEPc: install libslepc-real-dev and build with `--features slepc`".into(),
+    )
+}
+
 /// SLEPc initialised on this thread for the life of the guard (MPI too; finalised on drop).
 pub struct Session(());
 
@@ -24,9 +31,7 @@ impl Session {
             Ok(Session(()))
         }
         #[cfg(not(feature = "slepc"))]
-        Err(ModesError::Slepc(
-            "this ves was built without SLEPc: install libslepc-real-dev and build with `--features slepc`".into(),
-        ))
+        Err(not_built())
     }
 }
 
@@ -102,6 +107,6 @@ impl EigenSolver for Slepc {
 
     #[cfg(not(feature = "slepc"))]
     fn lowest(&self, _: &EigenProblem<'_>, _: usize, _: f64) -> Result<Spectrum, ModesError> {
-        Session::init().map(|_| unreachable!())
+        Err(not_built())
     }
 }
