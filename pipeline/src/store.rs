@@ -224,8 +224,12 @@ pub fn source_hash(scene: &Scene) -> Result<String> {
 
 /// The `source_hash` stored in an existing basis file, if it is one.
 pub fn stored_source_hash(path: &Path) -> Option<String> {
-    let file = ves_runtime::basis::open_checked(path).ok()?;
-    read_attr_str(&file, "source_hash").ok()
+    ves_runtime::basis::guarded(path, || {
+        let file = ves_runtime::basis::open_checked(path)?;
+        Ok::<_, ves_runtime::LoadError>(read_attr_str(&file, "source_hash").ok())
+    })
+    .ok()
+    .flatten()
 }
 
 /// Removes temporary files a killed run left beside `out` (their process is gone).

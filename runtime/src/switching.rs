@@ -233,6 +233,16 @@ pub fn load_spaces(
     modes: Option<usize>,
     surface_only: bool,
 ) -> Result<Vec<SpaceInput>, crate::basis::LoadError> {
+    // A panic of the HDF5 layer on a damaged file is an error, as in `basis::load`.
+    crate::basis::guarded(path, || load_spaces_unguarded(path, modes, surface_only))
+}
+
+#[cfg(feature = "hdf5")]
+fn load_spaces_unguarded(
+    path: &std::path::Path,
+    modes: Option<usize>,
+    surface_only: bool,
+) -> Result<Vec<SpaceInput>, crate::basis::LoadError> {
     let names = Basis::space_names(path)?;
     let mut bases = Vec::with_capacity(names.len());
     for n in &names {

@@ -207,6 +207,11 @@ pub fn verify_input(
 /// Rebuilds the discrete problem of a basis file's global space (its own mesh, supports and
 /// material) and takes its stored modes.
 pub fn discretize_basis(path: &Path, modes: Option<usize>) -> Result<(Discretized, Modes, MaterialConstants)> {
+    // Like every reader of basis files: a panic of the HDF5 layer on a damaged file is an error.
+    ves_runtime::basis::guarded(path, || discretize_basis_unguarded(path, modes))
+}
+
+fn discretize_basis_unguarded(path: &Path, modes: Option<usize>) -> Result<(Discretized, Modes, MaterialConstants)> {
     let file = ves_runtime::basis::open_checked(path)?;
     let bad = |what: &str| anyhow::anyhow!("{}: {what} missing or damaged", path.display());
     let g = file.group("spaces/global").map_err(|_| bad("space global"))?;
