@@ -3,7 +3,8 @@
 //! Published: 45.897, 109.44, 109.44, 167.89 (bending), 193.59 (in-plane), 206.19, 206.19 Hz
 //! (the issue quotes 206.64; public copies of the benchmark give 206.19).
 
-use ves_pipeline::precompute::{SolverChoice, solve_space};
+use ves_pipeline::modes::SolverChoice;
+use ves_pipeline::precompute::solve_space;
 
 fn frequencies(case: &str) -> (Vec<f64>, usize) {
     let path = ves_tests::case_path(case);

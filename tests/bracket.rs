@@ -1,13 +1,14 @@
 //! The free bracket: six rigid modes found and dropped, and the sparse shift-invert path
 //! equal to an independent dense generalized solve on the same mesh.
 
-use ves_pipeline::precompute::{SolverChoice, Timings, discretize, solve};
+use ves_pipeline::modes::{SolverChoice, solve};
+use ves_pipeline::problem::discretize;
 use ves_tests::load_case;
 
 #[test]
 fn free_bracket_drops_six_rigid_modes_and_arpack_equals_dense() {
     let scene = load_case("bracket");
-    let d = discretize(&scene, None, &mut Timings::default()).expect("bracket discretizes");
+    let d = discretize(&scene, None).expect("bracket discretizes");
     assert!(d.dofs.fixed.is_empty(), "the bracket is a free body");
     assert_eq!(d.rigid, 6);
     let count = scene.modes.count;

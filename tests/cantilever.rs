@@ -10,7 +10,8 @@
 //!   Saint-Venant (by ~2 % here), never below.
 
 use std::f64::consts::PI;
-use ves_pipeline::precompute::{SolverChoice, solve_space};
+use ves_pipeline::modes::SolverChoice;
+use ves_pipeline::precompute::solve_space;
 use ves_tests::{load_case, rectangle_torsion_constant, timoshenko_cantilever_f1};
 
 const L: f64 = 1.0;

@@ -113,7 +113,7 @@ pub fn precompute_case(name: &str, size: f64, order: u8, modes: usize, dir: &std
     scene.mesh.order = order;
     scene.modes.count = modes;
     let out = dir.join(format!("{name}.h5"));
-    ves_pipeline::precompute::run(&scene, &out, ves_pipeline::precompute::SolverChoice::Auto)
+    ves_pipeline::precompute::run(&scene, &out, ves_pipeline::modes::SolverChoice::Auto)
         .unwrap_or_else(|e| panic!("{e:#}"));
     out
 }

@@ -5,7 +5,8 @@
 
 use ves_pipeline::compliance::Compliance;
 use ves_pipeline::linsolve::factor_stiffness;
-use ves_pipeline::precompute::{Discretized, SolverChoice, Timings, discretize, solve};
+use ves_pipeline::modes::{SolverChoice, solve};
+use ves_pipeline::problem::{Discretized, discretize};
 use ves_pipeline::scene::{CorrectionRegion, Scene, StaticCorrection};
 use ves_tests::{case_path, load_case};
 
@@ -24,7 +25,7 @@ struct Space {
 
 fn space(scene: &Scene, voi: Option<&str>) -> Space {
     let voi = voi.map(|n| scene.voi.iter().find(|v| v.name == n).expect("voi"));
-    let d = discretize(scene, voi, &mut Timings::default()).expect("discretize");
+    let d = discretize(scene, voi).expect("discretize");
     let (modes, _) = solve(&d, 30, SolverChoice::Arpack).expect("modes");
     let compliance = ves_pipeline::compliance::surface_compliance(&d).expect("compliance");
     Space { d, modes, compliance }

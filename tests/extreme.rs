@@ -1,7 +1,8 @@
 //! Extreme cases (`cases/extreme/`): each against theory or an exact invariant.
 
 use std::f64::consts::PI;
-use ves_pipeline::precompute::{SolverChoice, solve_space};
+use ves_pipeline::modes::SolverChoice;
+use ves_pipeline::precompute::solve_space;
 use ves_pipeline::scene::Scene;
 use ves_tests::{case_path, timoshenko_cantilever_f1};
 
@@ -94,14 +95,8 @@ fn sliver_tets_are_located_and_the_modes_stay_right() {
     let solve = |shift: f64| {
         let (mesh, dofs) = raw_beam(shift);
         let (q, at) = mesh.worst_quality();
-        let sys = ves_pipeline::fem::assemble(&mesh, 2.1e11, 0.3, 7850.0, &dofs).expect("assemble");
-        let d = ves_pipeline::precompute::Discretized {
-            mesh,
-            dofs,
-            system: sys,
-            rigid: 0,
-        };
-        let (modes, _) = ves_pipeline::precompute::solve(&d, 6, SolverChoice::Arpack).expect("modes");
+        let d = ves_pipeline::problem::Discretized::assemble(mesh, dofs, (2.1e11, 0.3, 7850.0)).expect("assemble");
+        let (modes, _) = ves_pipeline::modes::solve(&d, 6, SolverChoice::Arpack).expect("modes");
         (q, at, modes)
     };
     let (q0, _, regular) = solve(0.0);

@@ -1,7 +1,9 @@
 //! Geometry input: units, and a real CAD file from outside the project.
 
 use std::path::PathBuf;
-use ves_pipeline::precompute::{SolverChoice, Timings, discretize, solve_space};
+use ves_pipeline::modes::SolverChoice;
+use ves_pipeline::precompute::solve_space;
+use ves_pipeline::problem::discretize;
 use ves_pipeline::scene::Scene;
 use ves_tests::case_path;
 
@@ -37,15 +39,11 @@ fn the_same_step_part_gives_the_same_modes_whatever_the_scene_unit() {
 #[test]
 fn a_real_inch_based_cad_part_meshes_to_its_published_extent() {
     let _serial = ves_tests::serial();
-    // ../shared/geometry/gmsh_benchmarks_part.step: declared in a metre-converted unit, inch
+    // cases/corpus/gmsh_benchmarks_part.step (gmsh's benchmark part): declared in a metre-converted unit, inch
     // design. SOURCES.md gives OpenCASCADE's bounding box in mm, which pads curved faces: its
     // x-min −41.96 mm is −41.275 mm (−1.625 in) on the part itself, the other five agree.
-    let step = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../shared/geometry/gmsh_benchmarks_part.step");
-    assert!(
-        step.is_file(),
-        "{} missing: CI provides ../shared beside the repository",
-        step.display()
-    );
+    let step = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../cases/corpus/gmsh_benchmarks_part.step");
+    assert!(step.is_file(), "{} missing from the repository", step.display());
     let dir = tempfile::tempdir().expect("temp dir");
     let scene_path = dir.path().join("part.toml");
     let text = format!(
@@ -54,7 +52,7 @@ fn a_real_inch_based_cad_part_meshes_to_its_published_extent() {
     );
     std::fs::write(&scene_path, &text).expect("write scene");
     let scene = Scene::load(&scene_path).expect("scene loads");
-    let d = discretize(&scene, None, &mut Timings::default()).expect("real part meshes");
+    let d = discretize(&scene, None).expect("real part meshes");
     let (lo, hi) = d.mesh.bounding_box();
     let want_lo = [-0.041275, -0.0635, -0.009525];
     let want_hi = [0.111125, 0.0635, 0.066675];

@@ -249,7 +249,7 @@ fn static_correction_makes_the_felt_stiffness_exact_with_few_modes() {
         region: ves_pipeline::scene::CorrectionRegion::Surface,
     });
     let path = dir.path().join("c.h5");
-    ves_pipeline::precompute::run(&scene, &path, ves_pipeline::precompute::SolverChoice::Auto).expect("precompute");
+    ves_pipeline::precompute::run(&scene, &path, ves_pipeline::modes::SolverChoice::Auto).expect("precompute");
     let basis = Arc::new(ves_runtime::basis::load(&path, &LoadOptions::default()).expect("loads"));
     assert!(basis.compliance.is_some(), "blocks stored and loaded");
     // Full static solve on the basis file's own mesh for the settled force at the tip vertex.

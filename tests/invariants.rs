@@ -1,14 +1,14 @@
 //! Invariants of the assembled system on real meshes.
 
 use ves_pipeline::linsolve::sym_matvec;
-use ves_pipeline::precompute::{Timings, discretize};
-use ves_pipeline::rigid::rigid_motions;
+use ves_pipeline::problem::discretize;
+use ves_pipeline::rigid_motions::rigid_motions;
 use ves_tests::load_case;
 
 #[test]
 fn stiffness_annihilates_rigid_motions_of_a_free_body() {
     let scene = load_case("bracket");
-    let d = discretize(&scene, None, &mut Timings::default()).expect("bracket discretizes");
+    let d = discretize(&scene, None).expect("bracket discretizes");
     assert!(d.dofs.fixed.is_empty());
     assert_eq!(d.rigid, 6);
     let n = d.dofs.free_count();
@@ -28,7 +28,7 @@ fn tet10_mid_edge_nodes_follow_gmsh_edge_order() {
     // The cantilever is a box: every edge is straight, so each mid-edge node must sit at the
     // midpoint of the edge our shape functions assign to it.
     let scene = load_case("cantilever");
-    let d = discretize(&scene, None, &mut Timings::default()).expect("cantilever discretizes");
+    let d = discretize(&scene, None).expect("cantilever discretizes");
     assert_eq!(d.mesh.order, 2);
     assert!(d.mesh.vertex_count < d.mesh.nodes.len());
     for e in 0..d.mesh.tet_count() {
@@ -56,7 +56,7 @@ fn surface_triangles_close_the_part_and_face_outwards() {
     // Σ area·n = 0 for a closed surface, and the divergence theorem gives the volume:
     // V = Σ (1/3) x_c · n A over outward faces.
     let scene = load_case("bracket");
-    let d = discretize(&scene, None, &mut Timings::default()).expect("bracket discretizes");
+    let d = discretize(&scene, None).expect("bracket discretizes");
     let mut sum = [0.0f64; 3];
     let mut vol = 0.0;
     for f in &d.mesh.surface {

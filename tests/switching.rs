@@ -3,7 +3,8 @@
 //! the drawn displacement's jump at the switch (old field interpolated exactly onto the new
 //! mesh), the device force's change per step across it, the time the switch takes.
 
-use ves_pipeline::precompute::{SolvedSpace, SolverChoice, add_transfers, solve_space};
+use ves_pipeline::modes::SolverChoice;
+use ves_pipeline::precompute::{SolvedSpace, add_transfers, solve_space};
 use ves_pipeline::scene::Scene;
 use ves_pipeline::store;
 use ves_pipeline::transfer;

@@ -7,3 +7,4 @@ pub mod arpack;
 pub mod gmsh;
 #[cfg(feature = "slepc")]
 pub mod slepc;
+pub mod xerbla;

@@ -3,7 +3,8 @@
 //! reported and the batch goes on, and because every output is written to a temporary name and
 //! renamed, an interrupted batch resumes where it stopped (stale temporary files are removed).
 
-use crate::precompute::{self, SolverChoice};
+use crate::modes::SolverChoice;
+use crate::precompute;
 use crate::scene::Scene;
 use crate::store;
 use anyhow::{Result, bail};
@@ -22,6 +23,8 @@ pub struct BatchOptions {
     pub out: Option<PathBuf>,
     /// Eigen-solver.
     pub solver: SolverChoice,
+    /// Accept .geo geometries (gmsh scripts).
+    pub allow_geo_scripts: bool,
 }
 
 /// What happened to one scene.
@@ -142,7 +145,12 @@ fn one(path: &Path, opts: &BatchOptions, claimed: &Mutex<Vec<(PathBuf, String)>>
         seconds: 0.0,
     };
     let result = (|| -> Result<Status> {
-        let scene = Scene::load(path)?;
+        let scene = Scene::load_with(
+            path,
+            crate::scene::SceneOptions {
+                allow_geo_scripts: opts.allow_geo_scripts,
+            },
+        )?;
         let out = match &opts.out {
             Some(dir) => dir.join(format!("{}.h5", scene.name)),
             None => scene.path.with_file_name(format!("{}.h5", scene.name)),
@@ -159,7 +167,7 @@ fn one(path: &Path, opts: &BatchOptions, claimed: &Mutex<Vec<(PathBuf, String)>>
             }
             c.push((key, outcome.scene.clone()));
         }
-        store::remove_stale_temps(&out);
+        crate::output::remove_stale_temps(&out);
         let hash = store::source_hash(&scene)?;
         if out.is_file() && store::stored_source_hash(&out).as_deref() == Some(hash.as_str()) {
             return Ok(Status::UpToDate);

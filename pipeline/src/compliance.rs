@@ -3,7 +3,7 @@
 //! active vertex, so the felt stiffness is exact whatever the number of modes kept.
 
 use crate::linsolve::{Cholesky, factor_stiffness};
-use crate::precompute::Discretized;
+use crate::problem::Discretized;
 use anyhow::{Result, bail};
 use rayon::prelude::*;
 

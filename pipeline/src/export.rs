@@ -1,13 +1,18 @@
 //! `ves matrices`: the assembled K and M of a scene's global space, for external solvers and
 //! benchmarks (scipy reads them with h5py). Lower triangles in CSC form on the free DOFs.
 
-use crate::precompute::Discretized;
+use crate::problem::Discretized;
 use anyhow::{Context, Result};
 use ndarray::{Array1, Array2};
 use std::path::Path;
 
 /// Writes `col_ptr`, `row_idx`, `k`, `m` (lower-triangle CSC), `free_dofs`, `nodes`, `tets`.
+/// The file is written atomically (the caller checked `out` with [`crate::output::check`]).
 pub fn write_matrices(out: &Path, d: &Discretized) -> Result<()> {
+    crate::output::write_atomically(out, |tmp| write_to(tmp, d))
+}
+
+fn write_to(out: &Path, d: &Discretized) -> Result<()> {
     let file = hdf5::File::create(out).with_context(|| format!("cannot create {}", out.display()))?;
     let p = &d.system.pattern;
     let as_u64 = |v: &[usize]| Array1::from(v.iter().map(|&x| x as u64).collect::<Vec<_>>());

@@ -1,30 +1,17 @@
 //! `ves precompute`: scene → mesh → K, M → modes → HDF5, for the global space and each VOI.
 
 use crate::fem::{self, MassProperties};
-use crate::linsolve::nested_dissection;
-use crate::mesh::{self, Mesh};
-use crate::modes::{self, EigenProblem, EigenSolver, Modes};
-use crate::rigid::free_rigid_count;
+use crate::mesh::Mesh;
+use crate::modes::{self, Modes, SolverChoice};
+use crate::output::Overwrite;
+use crate::problem::discretize;
 use crate::scene::{Scene, Voi};
 use crate::store;
-use crate::supports::{self, Dofs};
+use crate::supports::Dofs;
 use anyhow::{Context, Result};
 use serde::Serialize;
 use std::path::Path;
 use std::time::Instant;
-
-/// Which eigen-solver to use.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
-pub enum SolverChoice {
-    /// Dense for tiny problems (≤ 500 unknowns), ARPACK otherwise.
-    Auto,
-    /// ARPACK shift-invert with a sparse Cholesky factor.
-    Arpack,
-    /// Dense generalized eigen-solve (small meshes only).
-    Dense,
-    /// SLEPc Krylov–Schur, shift-invert with MUMPS, on every MPI rank (run under `mpirun`).
-    Slepc,
-}
 
 /// Seconds per stage.
 #[derive(Clone, Copy, Debug, Default, Serialize)]
@@ -97,89 +84,15 @@ impl SolvedSpace {
     }
 }
 
-/// The assembled problem of one space, before the eigen-solve (also used by tests and checks).
-pub struct Discretized {
-    /// The mesh.
-    pub mesh: Mesh,
-    /// DOF numbering.
-    pub dofs: Dofs,
-    /// K, M and the node graph.
-    pub system: fem::Assembled,
-    /// Rigid motions left by the supports.
-    pub rigid: usize,
-}
-
-/// Meshes and assembles one space.
-pub fn discretize(scene: &Scene, voi: Option<&Voi>, timings: &mut Timings) -> Result<Discretized> {
-    let t = Instant::now();
-    let mesh = mesh::generate(scene, voi)?;
-    timings.mesh = t.elapsed().as_secs_f64();
-    let (quality, at) = mesh.worst_quality();
-    tracing::info!(
-        nodes = mesh.nodes.len(),
-        tets = mesh.tet_count(),
-        worst_quality = quality,
-        "meshed"
-    );
-    if quality < 0.02 {
-        tracing::warn!(
-            "sliver tet (shape quality {quality:.1e}, 1 = regular) near ({:.6}, {:.6}, {:.6}) m: accuracy may suffer there; \
-             change mesh.size or repair the geometry",
-            at[0],
-            at[1],
-            at[2]
-        );
-    }
-    let t = Instant::now();
-    let dofs = supports::select(&mesh, &scene.fixed).with_context(|| scene.path.display().to_string())?;
-    let m = &scene.material;
-    let system = fem::assemble(&mesh, m.young, m.poisson, m.density, &dofs)
-        .with_context(|| scene.geometry.display().to_string())?;
-    let rigid = free_rigid_count(&mesh.nodes, &dofs);
-    timings.assemble = t.elapsed().as_secs_f64();
-    Ok(Discretized {
-        mesh,
-        dofs,
-        system,
-        rigid,
-    })
-}
-
-/// Solves the eigenproblem of a discretized space.
-pub fn solve(d: &Discretized, count: usize, choice: SolverChoice) -> Result<(Modes, f64)> {
-    let t = Instant::now();
-    let problem = EigenProblem {
-        pattern: &d.system.pattern,
-        k: &d.system.k,
-        m: &d.system.m,
-    };
-    let dense = match choice {
-        SolverChoice::Dense => true,
-        SolverChoice::Arpack | SolverChoice::Slepc => false,
-        SolverChoice::Auto => problem.size() <= 500,
-    };
-    let ordering;
-    let solver: Box<dyn EigenSolver> = if choice == SolverChoice::Slepc {
-        Box::new(modes::slepc::Slepc { tol: 1e-12 })
-    } else if dense {
-        Box::new(modes::dense::Dense)
-    } else {
-        ordering = nested_dissection(&d.system.graph, &d.dofs);
-        Box::new(modes::arpack::Arpack {
-            ordering: &ordering,
-            tol: 1e-12,
-        })
-    };
-    let ordering_s = t.elapsed().as_secs_f64();
-    let modes = modes::compute(&problem, &d.dofs, d.rigid, count, solver.as_ref())?;
-    Ok((modes, ordering_s))
-}
-
 /// Meshes, assembles and solves one space.
 pub fn solve_space(scene: &Scene, voi: Option<&Voi>, choice: SolverChoice) -> Result<SolvedSpace> {
-    let mut timings = Timings::default();
-    let d = discretize(scene, voi, &mut timings)?;
-    let (modes, ordering_s) = solve(&d, scene.modes.count, choice)?;
+    let d = discretize(scene, voi)?;
+    let mut timings = Timings {
+        mesh: d.mesh_s,
+        assemble: d.assemble_s,
+        ..Timings::default()
+    };
+    let (modes, ordering_s) = modes::solve(&d, scene.modes.count, choice)?;
     timings.factorize = ordering_s + modes.factorize_s;
     timings.eigensolve = modes.eigensolve_s;
     let t = Instant::now();
@@ -241,13 +154,18 @@ pub struct SpaceSummary {
     pub seconds: f64,
 }
 
-/// Runs the whole pipeline for a scene and writes `out`.
+/// Runs the whole pipeline for a scene and writes `out` (which may not be a symlink).
 pub fn run(scene: &Scene, out: &Path, choice: SolverChoice) -> Result<Summary> {
+    run_with(scene, out, choice, Overwrite::default())
+}
+
+/// [`run`], saying what the output may replace.
+pub fn run_with(scene: &Scene, out: &Path, choice: SolverChoice, overwrite: Overwrite) -> Result<Summary> {
     let start = Instant::now();
     // Under MPI every rank computes; rank 0 alone writes.
     let root = modes::slepc::rank() == 0;
     if root {
-        store::check_output(out)?;
+        crate::output::check(out, &[&scene.path, &scene.geometry], overwrite)?;
     }
     let mut spaces = Vec::with_capacity(1 + scene.voi.len());
     let targets: Vec<Option<&Voi>> = std::iter::once(None).chain(scene.voi.iter().map(Some)).collect();

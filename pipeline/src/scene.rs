@@ -237,17 +237,43 @@ pub struct Scene {
     pub probes: Vec<Probe>,
 }
 
-const GEOMETRY_EXTENSIONS: [&str; 5] = ["step", "stp", "brep", "geo", "iges"];
+const GEOMETRY_EXTENSIONS: [&str; 6] = ["step", "stp", "brep", "geo", "iges", "igs"];
+
+/// What a scene may ask of the machine.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct SceneOptions {
+    /// Accept a `.geo` geometry. A .geo file is a gmsh script and can run shell commands
+    /// (`System "…"`): a scene from someone else would be code. Off unless the user says so.
+    pub allow_geo_scripts: bool,
+}
 
 impl Scene {
-    /// Reads and validates a scene file.
+    /// Reads and validates a scene file whose geometry is data (STEP, IGES, BREP), not a script.
     pub fn load(path: &Path) -> Result<Scene, SceneError> {
+        Self::load_with(path, SceneOptions::default())
+    }
+
+    /// Reads and validates a scene file under `opts`.
+    pub fn load_with(path: &Path, opts: SceneOptions) -> Result<Scene, SceneError> {
         let err = |message: String| SceneError {
             file: path.to_path_buf(),
             message,
         };
         let text = std::fs::read_to_string(path).map_err(|e| err(format!("cannot read the scene file: {e}")))?;
-        Self::parse(path, &text)
+        let scene = Self::parse(path, &text)?;
+        if scene.is_script() && !opts.allow_geo_scripts {
+            return Err(err(format!(
+                "geometry.step = {:?}: a .geo file is a gmsh script and can run shell commands; export the part as STEP, \
+                 or pass --allow-geo-scripts if you trust this scene",
+                scene.geometry.display()
+            )));
+        }
+        Ok(scene)
+    }
+
+    /// Whether the geometry is a gmsh script (.geo) rather than data.
+    pub fn is_script(&self) -> bool {
+        self.geometry.extension().is_some_and(|e| e.eq_ignore_ascii_case("geo"))
     }
 
     /// Parses scene text as if read from `path` (relative paths resolve beside it).
@@ -263,6 +289,24 @@ impl Scene {
         let m = raw.material;
         finite_positive("material.young", m.young, "Pa").map_err(err)?;
         finite_positive("material.density", m.density, "kg/m³").map_err(err)?;
+        // Beyond real materials the eigen-solve leaves double precision (LAPACK gave up on
+        // density = 1e120): refuse what no part is made of, and say which unit is expected.
+        within(
+            "material.young",
+            m.young,
+            YOUNG_RANGE,
+            "Pa",
+            "steel 2.1e11, a soft foam 2e3",
+        )
+        .map_err(err)?;
+        within(
+            "material.density",
+            m.density,
+            DENSITY_RANGE,
+            "kg/m³",
+            "steel 7850, a polymer 1050",
+        )
+        .map_err(err)?;
         if !m.poisson.is_finite() || m.poisson <= -1.0 || m.poisson >= 0.5 {
             return Err(err(format!(
                 "material.poisson = {}: Poisson's ratio must lie in (-1, 0.5); use 0.49 or less for nearly incompressible materials",
@@ -369,6 +413,21 @@ fn one_line_toml_error(text: &str, e: &toml::de::Error) -> String {
             format!("line {line_no} (`{line}`): {msg}")
         }
         None => format!("invalid scene: {msg}"),
+    }
+}
+
+/// Young's moduli of real materials, Pa: from soft gels to diamond, with margin.
+pub const YOUNG_RANGE: (f64, f64) = (1.0, 1e13);
+/// Densities of real materials, kg/m³: from aerogels to osmium, with margin.
+pub const DENSITY_RANGE: (f64, f64) = (0.1, 1e5);
+
+fn within(key: &str, v: f64, (lo, hi): (f64, f64), unit: &str, examples: &str) -> Result<(), String> {
+    if (lo..=hi).contains(&v) {
+        Ok(())
+    } else {
+        Err(format!(
+            "{key} = {v:e}: outside the range of real materials ({lo:e} to {hi:e} {unit}); give it in {unit} (e.g. {examples})"
+        ))
     }
 }
 

@@ -205,8 +205,8 @@ enum VesStatus ves_view_new(const struct VesHaptics *h, struct VesView **out);
 void ves_view_free(struct VesView *v);
 
 /**
- * Writes the deformed positions of all vertices (x, y, z per vertex, `len` = 3 × vertices) from
- * the latest published state.
+ * Writes the deformed positions of all vertices (x, y, z per vertex: the first 3 × vertices of
+ * a buffer of `len` ≥ 3 × vertices floats) from the latest published state.
  *
  * # Safety
  * `v` must be live and used by one thread at a time; `positions` must hold `len` floats.

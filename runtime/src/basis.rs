@@ -1,11 +1,6 @@
 //! A modal basis as the runtime holds it: corner vertices (optionally only the surface ones), the
 //! first r modes in f32, mode-major so the full-field update is a sequence of axpys.
 
-/// Value of the root `format` attribute of a v1 basis file.
-pub const FORMAT: &str = "ves-modal-basis";
-/// Newest file version this build reads.
-pub const VERSION: u32 = 1;
-
 /// Loading failed; the message names the file and what is wrong.
 #[derive(Debug, thiserror::Error)]
 #[error("{path}: {message}")]
@@ -16,16 +11,8 @@ pub struct LoadError {
     pub message: String,
 }
 
-/// Mass properties of a free body.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct RigidProperties {
-    /// kg.
-    pub mass: f64,
-    /// m.
-    pub center: [f64; 3],
-    /// kg·m², about the centre of mass.
-    pub inertia: [[f64; 3]; 3],
-}
+/// Mass properties of a free body (defined with the file format).
+pub use ves_format::RigidProperties;
 
 /// What to load from a basis file.
 #[derive(Clone, Debug, Default)]
@@ -300,141 +287,49 @@ fn vertex_normals(rest: &[[f64; 3]], triangles: &[[u32; 3]]) -> (Vec<[f64; 3]>, 
 #[cfg(feature = "hdf5")]
 mod file {
     use super::*;
-    use ndarray::s;
     use std::path::Path;
+    use ves_format::{BasisReader, ReadError};
 
-    fn read_str(loc: &hdf5::Location, name: &str) -> Option<String> {
-        crate::h5str::read(loc, name)
-    }
-
-    /// Opens a basis file and checks that it is a VES basis of a version this build reads.
-    pub fn open_checked(path: &Path) -> Result<hdf5::File, LoadError> {
-        let err = |message: String| LoadError {
-            path: path.display().to_string(),
-            message,
-        };
-        if !path.is_file() {
-            return Err(err("no such file".into()));
+    impl From<ReadError> for LoadError {
+        fn from(e: ReadError) -> LoadError {
+            LoadError {
+                path: e.path,
+                message: e.message,
+            }
         }
-        let file =
-            hdf5::File::open(path).map_err(|_| err("not a readable HDF5 file (truncated or another format)".into()))?;
-        let format = read_str(&file, "format").ok_or_else(|| {
-            err("not a VES modal basis (no `format` attribute); produce one with `ves precompute`".into())
-        })?;
-        if format != FORMAT {
-            return Err(err(format!(
-                "format is {format:?}, not {FORMAT:?}; produce a basis with `ves precompute`"
-            )));
-        }
-        let version: u32 = file
-            .attr("version")
-            .and_then(|a| a.read_scalar())
-            .map_err(|_| err("`version` attribute missing or not an integer".into()))?;
-        if version > VERSION {
-            return Err(err(format!(
-                "basis version {version} is newer than this runtime reads ({VERSION}); upgrade VES"
-            )));
-        }
-        Ok(file)
     }
 
     /// Loads what `opts` asks for from a v1 basis file: only corner-vertex rows of the first r
-    /// modes are read from disk.
+    /// modes are kept in memory. Every value the file holds is checked (the rest of the basis is
+    /// streamed through a finiteness check and dropped).
     pub fn load(path: &Path, opts: &LoadOptions) -> Result<Basis, LoadError> {
-        guarded(path, || load_unguarded(path, opts))
+        let file = BasisReader::open(path)?;
+        load_space(&file, opts)
     }
 
-    /// Runs `f`, turning a panic inside the HDF5 layer into an error: hdf5-metno 0.15 builds
-    /// strings from file bytes unchecked, and a corrupted name made it panic while formatting
-    /// one (found by the byte-flip test).
-    pub fn guarded<T, E: From<LoadError>>(path: &Path, f: impl FnOnce() -> Result<T, E>) -> Result<T, E> {
-        std::panic::catch_unwind(std::panic::AssertUnwindSafe(f)).unwrap_or_else(|_| {
-            Err(E::from(LoadError {
-                path: path.display().to_string(),
-                message: "damaged file: the HDF5 layer failed on its structure".into(),
-            }))
-        })
-    }
-
-    fn load_unguarded(path: &Path, opts: &LoadOptions) -> Result<Basis, LoadError> {
-        let p = path.display().to_string();
-        let err = |message: String| LoadError {
-            path: p.clone(),
-            message,
-        };
-        let file = open_checked(path)?;
-        let space = match &opts.space {
-            Some(s) => s.clone(),
-            None => read_str(&file, "default_space").unwrap_or_else(|| "global".into()),
-        };
-        let g = file
-            .group(&format!("spaces/{space}"))
-            .map_err(|_| err(format!("no space {space:?} in the file")))?;
-        let h5 = |what: &str| err(format!("space {space:?}: {what} missing or damaged"));
-        // Every dataset read is uncompressed: a declared size beyond the file's own is a damaged
-        // header, refused before anything is allocated for it.
-        let file_bytes = u128::from(std::fs::metadata(path).map(|m| m.len()).unwrap_or(0));
-        let open = |grp: &hdf5::Group, name: &str| -> Result<hdf5::Dataset, LoadError> {
-            let ds = grp.dataset(name).map_err(|_| h5(name))?;
-            let elem = ds.dtype().map(|t| t.size()).unwrap_or(8) as u128;
-            let bytes = ds.size() as u128 * elem;
-            if bytes > file_bytes {
-                return Err(err(format!(
-                    "space {space:?}: {name} claims {bytes} bytes in a {file_bytes}-byte file; the file is damaged"
-                )));
-            }
-            Ok(ds)
-        };
-        let nv: u32 = g
-            .group("mesh")
-            .and_then(|m| m.attr("vertex_count"))
-            .and_then(|a| a.read_scalar())
-            .map_err(|_| h5("mesh vertex_count"))?;
-        let nv = nv as usize;
-        let nodes = open(&g, "mesh/nodes")?;
-        let basis = open(&g, "modes/basis")?;
-        let (shape_n, shape_b) = (nodes.shape(), basis.shape());
-        if shape_n.len() != 2
-            || shape_n[1] != 3
-            || nv == 0
-            || nv > shape_n[0]
-            || shape_b.len() != 2
-            || shape_b[0] != 3 * shape_n[0]
-        {
-            return Err(err(format!(
-                "space {space:?}: inconsistent shapes (nodes {shape_n:?}, basis {shape_b:?}, {nv} vertices)"
-            )));
+    /// [`load`] from an open file.
+    pub fn load_space(file: &BasisReader, opts: &LoadOptions) -> Result<Basis, LoadError> {
+        let p = file.path().display().to_string();
+        let space = opts.space.clone().unwrap_or_else(|| file.default_space());
+        let s = file.space(&space)?;
+        let nv = s.vertex_count;
+        let r = opts.modes.unwrap_or(s.mode_count);
+        if r == 0 || r > s.mode_count {
+            return Err(LoadError {
+                path: p,
+                message: format!("{r} modes asked, space {space:?} has {}", s.mode_count),
+            });
         }
-        let r_all = shape_b[1];
-        let r = opts.modes.unwrap_or(r_all);
-        if r == 0 || r > r_all {
-            return Err(err(format!("{r} modes asked, the space has {r_all}")));
-        }
-        let xyz: ndarray::Array2<f64> = nodes.read_slice(s![0..nv, ..]).map_err(|_| h5("mesh/nodes data"))?;
-        let tri: ndarray::Array2<u32> = open(&g, "mesh/surface_triangles")?
-            .read_2d()
-            .map_err(|_| h5("mesh/surface_triangles"))?;
-        let lam: Vec<f64> = open(&g, "modes/eigenvalues")?
-            .read_raw()
-            .map_err(|_| h5("modes/eigenvalues"))?;
-        if lam.len() != r_all || tri.ncols() != 3 {
-            return Err(err(format!(
-                "space {space:?}: eigenvalues or triangles have the wrong shape"
-            )));
-        }
-        let rows: ndarray::Array2<f64> = basis
-            .read_slice(s![0..3 * nv, 0..r])
-            .map_err(|_| h5("modes/basis data"))?;
-        let mut triangles: Vec<[u32; 3]> = tri.rows().into_iter().map(|t| [t[0], t[1], t[2]]).collect();
+        s.check_basis_finite()?;
+        let xyz = s.nodes(nv)?;
+        let mut triangles = s.surface_triangles()?;
+        let lam = s.eigenvalues()?;
+        let rows = s.basis_rows(0..3 * nv, r)?;
         let mut keep: Vec<u32> = (0..nv as u32).collect();
         if opts.surface_only {
             let mut used = vec![false; nv];
-            for t in &triangles {
-                for &v in t {
-                    if let Some(u) = used.get_mut(v as usize) {
-                        *u = true;
-                    }
-                }
+            for &v in triangles.iter().flatten() {
+                used[v as usize] = true;
             }
             keep = (0..nv as u32).filter(|&v| used[v as usize]).collect();
             let mut new = vec![u32::MAX; nv];
@@ -442,64 +337,15 @@ mod file {
                 new[v as usize] = k as u32;
             }
             for t in &mut triangles {
-                *t = t.map(|v| new.get(v as usize).copied().unwrap_or(u32::MAX));
+                *t = t.map(|v| new[v as usize]);
             }
         }
-        let rest: Vec<[f64; 3]> = keep
-            .iter()
-            .map(|&v| [xyz[(v as usize, 0)], xyz[(v as usize, 1)], xyz[(v as usize, 2)]])
-            .collect();
+        let rest: Vec<[f64; 3]> = keep.iter().map(|&v| xyz[v as usize]).collect();
         let mut flat = Vec::with_capacity(3 * keep.len() * r);
         for &v in &keep {
-            for c in 0..3 {
-                flat.extend(rows.row(3 * v as usize + c).iter());
-            }
+            flat.extend_from_slice(&rows[3 * v as usize * r..3 * (v as usize + 1) * r]);
         }
-        let mat = file.group("material").map_err(|_| err("no /material group".into()))?;
-        let attr = |name: &str| {
-            mat.attr(name)
-                .and_then(|a| a.read_scalar::<f64>())
-                .map_err(|_| err(format!("material attribute {name} missing")))
-        };
-        let damping = (attr("rayleigh_alpha")?, attr("rayleigh_beta")?);
-        let rigid = match g.group("rigid") {
-            Ok(rg) => {
-                let mass: f64 = rg
-                    .attr("mass")
-                    .and_then(|a| a.read_scalar())
-                    .map_err(|_| h5("rigid/mass"))?;
-                let c: Vec<f64> = rg
-                    .attr("center_of_mass")
-                    .and_then(|a| a.read_raw())
-                    .map_err(|_| h5("rigid/center_of_mass"))?;
-                let i: Vec<f64> = rg
-                    .attr("inertia")
-                    .and_then(|a| a.read_raw())
-                    .map_err(|_| h5("rigid/inertia"))?;
-                if c.len() != 3 || i.len() != 9 || mass.is_nan() || mass <= 0.0 {
-                    return Err(h5("rigid properties"));
-                }
-                Some(RigidProperties {
-                    mass,
-                    center: [c[0], c[1], c[2]],
-                    inertia: [[i[0], i[1], i[2]], [i[3], i[4], i[5]], [i[6], i[7], i[8]]],
-                })
-            }
-            Err(_) => None,
-        };
-        let voi = match (g.attr("voi_min"), g.attr("voi_max")) {
-            (Ok(a), Ok(b)) => {
-                let (a, b): (Vec<f64>, Vec<f64>) = (
-                    a.read_raw().map_err(|_| h5("voi_min"))?,
-                    b.read_raw().map_err(|_| h5("voi_max"))?,
-                );
-                if a.len() != 3 || b.len() != 3 || a.iter().chain(&b).any(|v| !v.is_finite()) {
-                    return Err(h5("voi_min/voi_max"));
-                }
-                Some([[a[0], a[1], a[2]], [b[0], b[1], b[2]]])
-            }
-            _ => None,
-        };
+        let m = file.material()?;
         let mut basis = Basis::new(
             &p,
             &space,
@@ -508,86 +354,28 @@ mod file {
             triangles,
             lam[..r].to_vec(),
             &flat,
-            damping,
-            rigid,
+            (m.alpha, m.beta),
+            s.rigid()?,
         )?;
-        basis.voi = voi;
-        match g.group("compliance") {
-            Ok(cg) => {
-                let nodes: Vec<u32> = open(&cg, "nodes")?.read_raw().map_err(|_| h5("compliance/nodes"))?;
-                let blocks: Vec<f64> = open(&cg, "blocks")?.read_raw().map_err(|_| h5("compliance/blocks"))?;
-                if blocks.len() != 9 * nodes.len() {
-                    return Err(h5("compliance blocks (shape)"));
-                }
-                let mut slot = vec![u32::MAX; nv];
+        basis.voi = s.voi;
+        match s.compliance()? {
+            Some((nodes, blocks)) => {
+                let mut slot = vec![u32::MAX; s.node_count];
                 for (k, &v) in keep.iter().enumerate() {
                     slot[v as usize] = k as u32;
                 }
                 let mut per_vertex = vec![[[f64::NAN; 3]; 3]; keep.len()];
-                for (j, &node) in nodes.iter().enumerate() {
+                for (&node, block) in nodes.iter().zip(blocks) {
                     if let Some(&k) = slot.get(node as usize).filter(|&&k| k != u32::MAX) {
-                        per_vertex[k as usize] =
-                            std::array::from_fn(|a| std::array::from_fn(|b| blocks[9 * j + 3 * a + b]));
+                        per_vertex[k as usize] = block;
                     }
                 }
                 basis.with_compliance(per_vertex)
             }
-            Err(_) => Ok(basis),
+            None => Ok(basis),
         }
     }
 }
 
 #[cfg(feature = "hdf5")]
-pub use file::{guarded, load, open_checked};
-
-#[cfg(feature = "hdf5")]
-impl Basis {
-    /// Names of the spaces in a basis file, the default space first.
-    pub fn space_names(path: &std::path::Path) -> Result<Vec<String>, LoadError> {
-        let file = file::open_checked(path)?;
-        let err = |message: String| LoadError {
-            path: path.display().to_string(),
-            message,
-        };
-        let mut names = file
-            .group("spaces")
-            .and_then(|g| g.member_names())
-            .map_err(|_| err("no /spaces group".into()))?;
-        let default = crate::h5str::read(&file, "default_space").unwrap_or_else(|| "global".into());
-        names.sort_by_key(|n| *n != default);
-        Ok(names)
-    }
-
-    /// The state-transfer matrix from space `from` (r_from modes loaded) to `to` (r_to), row-major
-    /// `r_to × r_from`, when the file holds one (`spaces/<to>/transfer/<from>`).
-    pub fn load_transfer(
-        path: &std::path::Path,
-        to: &str,
-        from: &str,
-        r_to: usize,
-        r_from: usize,
-    ) -> Result<Option<Vec<f64>>, LoadError> {
-        let file = file::open_checked(path)?;
-        let Ok(ds) = file.dataset(&format!("spaces/{to}/transfer/{from}")) else {
-            return Ok(None);
-        };
-        let err = |message: String| LoadError {
-            path: path.display().to_string(),
-            message,
-        };
-        let shape = ds.shape();
-        if shape.len() != 2 || shape[0] < r_to || shape[1] < r_from {
-            return Err(err(format!(
-                "transfer {from} → {to} has shape {shape:?}, fewer than the {r_to} × {r_from} modes loaded"
-            )));
-        }
-        let m: ndarray::Array2<f64> = ds
-            .read_slice(ndarray::s![0..r_to, 0..r_from])
-            .map_err(|_| err(format!("transfer {from} → {to} is damaged")))?;
-        let v: Vec<f64> = m.iter().copied().collect();
-        if v.iter().any(|x| !x.is_finite()) {
-            return Err(err(format!("transfer {from} → {to} holds non-finite values")));
-        }
-        Ok(Some(v))
-    }
-}
+pub use file::{load, load_space};

@@ -39,7 +39,16 @@ pub struct VesHaptics {
     snapshot: Arc<Snapshot>,
     published: Vec<f64>,
     time: f64,
+    /// Hands it was made for.
+    hands: u32,
+    /// A panic was caught inside a step: the state may be half-updated, so every later call on
+    /// this handle fails (free it and make a new one).
+    poisoned: bool,
 }
+
+/// Largest |coordinate| of a device position accepted, m: far beyond any desk, far below where
+/// the coupling force would overflow.
+const MAX_POSITION_M: f64 = 1e6;
 
 /// A read-only view for drawing, safe to use from another thread than the haptic one.
 pub struct VesView {
@@ -244,6 +253,8 @@ pub unsafe extern "C" fn ves_haptics_new(
             snapshot,
             published,
             time: 0.0,
+            hands,
+            poisoned: false,
         };
         // SAFETY: out checked non-null.
         unsafe { *out = Box::into_raw(Box::new(handle)) };
@@ -310,48 +321,83 @@ pub unsafe extern "C" fn ves_haptics_step(
     outputs: *mut VesHandOutput,
     n: u32,
 ) -> VesStatus {
-    guard(|| {
-        // SAFETY: null-checked; exclusive use by contract.
-        let h = unsafe { h.as_mut() }.ok_or((VesStatus::NullArgument, "ves_haptics_step: null simulation".into()))?;
-        if inputs.is_null() || outputs.is_null() || n == 0 || n > 16 {
+    // SAFETY: null-checked; exclusive use by contract.
+    let Some(h) = (unsafe { h.as_mut() }) else {
+        set_error("ves_haptics_step: null simulation");
+        return VesStatus::NullArgument;
+    };
+    if h.poisoned {
+        set_error("ves_haptics_step: an earlier step failed internally; free this simulation and make a new one");
+        return VesStatus::Internal;
+    }
+    let status = guard(|| step(h, inputs, outputs, n));
+    if status == VesStatus::Internal {
+        h.poisoned = true;
+    }
+    status
+}
+
+fn step(
+    h: &mut VesHaptics,
+    inputs: *const VesHandInput,
+    outputs: *mut VesHandOutput,
+    n: u32,
+) -> Result<(), (VesStatus, String)> {
+    #[cfg(test)]
+    if tests::PANIC_IN_STEP.swap(false, std::sync::atomic::Ordering::Relaxed) {
+        panic!("a bug inside the step");
+    }
+    if inputs.is_null() || outputs.is_null() || n == 0 || n > h.hands {
+        return Err((
+            VesStatus::InvalidArgument,
+            format!(
+                "ves_haptics_step: need non-null arrays and 1 ≤ n ≤ {} (the hands this simulation was made for; n = {n})",
+                h.hands
+            ),
+        ));
+    }
+    // SAFETY: the caller provides n valid items in each array.
+    let (ins, outs) = unsafe {
+        (
+            std::slice::from_raw_parts(inputs, n as usize),
+            std::slice::from_raw_parts_mut(outputs, n as usize),
+        )
+    };
+    let mut hin = [HandInput::default(); 16];
+    let mut hout = [HandOutput::default(); 16];
+    for (k, (d, s)) in hin.iter_mut().zip(ins).enumerate() {
+        let sane = |v: &[f64; 3], limit: f64| v.iter().all(|x| x.is_finite() && x.abs() <= limit);
+        if !sane(&s.position, MAX_POSITION_M) || !sane(&s.velocity, f64::MAX) {
             return Err((
                 VesStatus::InvalidArgument,
-                format!("ves_haptics_step: need non-null arrays and 1 ≤ n ≤ 16 (n = {n})"),
+                format!(
+                    "ves_haptics_step: hand {k} has position {:?} m, velocity {:?} m/s: give finite values within {MAX_POSITION_M:e} m",
+                    s.position, s.velocity
+                ),
             ));
         }
-        // SAFETY: the caller provides n valid items in each array.
-        let (ins, outs) = unsafe {
-            (
-                std::slice::from_raw_parts(inputs, n as usize),
-                std::slice::from_raw_parts_mut(outputs, n as usize),
-            )
+        *d = HandInput {
+            position: s.position,
+            velocity: s.velocity,
+            button: s.button != 0,
         };
-        let mut hin = [HandInput::default(); 16];
-        let mut hout = [HandOutput::default(); 16];
-        for (d, s) in hin.iter_mut().zip(ins) {
-            *d = HandInput {
-                position: s.position,
-                velocity: s.velocity,
-                button: s.button != 0,
-            };
-        }
-        h.sim.step(&hin[..n as usize], &mut hout[..n as usize]);
-        for (d, s) in outs.iter_mut().zip(&hout) {
-            *d = VesHandOutput {
-                force: s.force,
-                vertex_position: s.vertex_position,
-                vertex: s.vertex,
-                contact: i32::from(s.contact),
-                clamped: i32::from(s.clamped),
-                strain: s.strain,
-                strain_exceeded: i32::from(s.strain_exceeded),
-            };
-        }
-        h.time += h.sim.state().dt();
-        h.sim.write_published(&mut h.published);
-        h.snapshot.publish(&h.published, h.time);
-        Ok(())
-    })
+    }
+    h.sim.step(&hin[..n as usize], &mut hout[..n as usize]);
+    for (d, s) in outs.iter_mut().zip(&hout) {
+        *d = VesHandOutput {
+            force: s.force,
+            vertex_position: s.vertex_position,
+            vertex: s.vertex,
+            contact: i32::from(s.contact),
+            clamped: i32::from(s.clamped),
+            strain: s.strain,
+            strain_exceeded: i32::from(s.strain_exceeded),
+        };
+    }
+    h.time += h.sim.state().dt();
+    h.sim.write_published(&mut h.published);
+    h.snapshot.publish(&h.published, h.time);
+    Ok(())
 }
 
 /// A drawing view of a simulation; usable from another thread while the simulation steps.
@@ -390,8 +436,8 @@ pub unsafe extern "C" fn ves_view_free(v: *mut VesView) {
     unsafe { release(v) }
 }
 
-/// Writes the deformed positions of all vertices (x, y, z per vertex, `len` = 3 × vertices) from
-/// the latest published state.
+/// Writes the deformed positions of all vertices (x, y, z per vertex: the first 3 × vertices of
+/// a buffer of `len` ≥ 3 × vertices floats) from the latest published state.
 ///
 /// # Safety
 /// `v` must be live and used by one thread at a time; `positions` must hold `len` floats.
@@ -401,16 +447,55 @@ pub unsafe extern "C" fn ves_view_positions(v: *mut VesView, positions: *mut f32
         // SAFETY: null-checked; exclusive by contract.
         let v = unsafe { v.as_mut() }.ok_or((VesStatus::NullArgument, "ves_view_positions: null view".into()))?;
         let need = 3 * v.basis.vertex_count();
-        if positions.is_null() || len != need {
+        if positions.is_null() || len < need {
             return Err((
                 VesStatus::InvalidArgument,
-                format!("ves_view_positions: need a buffer of {need} floats, got {len}"),
+                format!("ves_view_positions: need a buffer of at least {need} floats, got {len}"),
             ));
         }
-        // SAFETY: the caller provides len floats.
-        let out = unsafe { std::slice::from_raw_parts_mut(positions, len) };
+        // SAFETY: the caller provides len ≥ need floats; only the first need are written.
+        let out = unsafe { std::slice::from_raw_parts_mut(positions, need) };
         v.snapshot.read(&mut v.q);
         visual::posed_positions(&v.basis, &v.q, out);
         Ok(())
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use std::sync::atomic::{AtomicBool, Ordering};
+
+    /// Makes the next step panic (the only way to reach the boundary's catch from a test).
+    pub(super) static PANIC_IN_STEP: AtomicBool = AtomicBool::new(false);
+
+    #[test]
+    fn a_panic_inside_a_step_poisons_the_handle() {
+        let b = Arc::new(crate::basis::stretch_grid(1.0, 100.0, 0.0));
+        let sim = Haptics::new(b, Coupling::default(), 1e-3, Scheme::Exact, 1);
+        let published = vec![0.0; sim.published_len()];
+        let mut h = Box::new(VesHaptics {
+            snapshot: Arc::new(Snapshot::new(published.len())),
+            sim,
+            published,
+            time: 0.0,
+            hands: 1,
+            poisoned: false,
+        });
+        let input = [VesHandInput::default()];
+        let mut output = [VesHandOutput::default()];
+        let hp: *mut VesHaptics = &mut *h;
+        // SAFETY: live handle and one-item arrays.
+        let mut step = || unsafe { ves_haptics_step(hp, input.as_ptr(), output.as_mut_ptr(), 1) };
+        assert_eq!(step(), VesStatus::Ok);
+        PANIC_IN_STEP.store(true, Ordering::Relaxed);
+        assert_eq!(step(), VesStatus::Internal);
+        // Poisoned: no later step runs on a possibly half-updated state.
+        assert_eq!(step(), VesStatus::Internal);
+        // SAFETY: ves_last_error returns a valid C string.
+        let msg = unsafe { std::ffi::CStr::from_ptr(ves_last_error()) }
+            .to_string_lossy()
+            .into_owned();
+        assert!(msg.contains("make a new one"), "{msg}");
+    }
 }

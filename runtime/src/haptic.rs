@@ -10,7 +10,7 @@
 use crate::basis::Basis;
 use crate::integrator::{ModalState, Scheme};
 use crate::kdtree::KdTree;
-use crate::rigid::{RigidBody, cross};
+use crate::rigid_body::{RigidBody, cross};
 
 /// Virtual coupling between the haptic interaction point (HIP) and the part.
 #[derive(Clone, Copy, Debug)]
@@ -30,6 +30,33 @@ impl Default for Coupling {
             damping: 1.0,
             max_force: 10.0,
         }
+    }
+}
+
+impl Coupling {
+    /// Mass of a typical desktop device's handle, kg: what the coupling damper is tuned against.
+    pub const DEVICE_MASS_KG: f64 = 1e-3;
+
+    /// A coupling whose damper critically damps the spring against the device's handle mass
+    /// (c = 2√(k·m)): the hand settles on the surface without ringing.
+    pub fn critically_damped(stiffness: f64, max_force: f64) -> Coupling {
+        Coupling {
+            stiffness,
+            damping: 2.0 * (stiffness * Self::DEVICE_MASS_KG).sqrt(),
+            max_force,
+        }
+    }
+
+    /// Checks that every parameter is finite and positive (damping ≥ 0).
+    pub fn validate(&self) -> Result<(), String> {
+        let ok = |v: f64| v.is_finite() && v > 0.0;
+        if !(ok(self.stiffness) && ok(self.max_force) && self.damping.is_finite() && self.damping >= 0.0) {
+            return Err(format!(
+                "coupling stiffness {} N/m, damping {} N·s/m, force limit {} N: each must be finite and > 0 (damping ≥ 0)",
+                self.stiffness, self.damping, self.max_force
+            ));
+        }
+        Ok(())
     }
 }
 

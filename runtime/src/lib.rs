@@ -9,12 +9,10 @@ pub mod bench;
 #[cfg(feature = "capi")]
 pub mod capi;
 pub mod device;
-#[cfg(feature = "hdf5")]
-pub mod h5str;
 pub mod haptic;
 pub mod integrator;
 pub mod kdtree;
-pub mod rigid;
+pub mod rigid_body;
 pub mod session;
 pub mod snapshot;
 pub mod switching;

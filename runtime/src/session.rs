@@ -100,12 +100,51 @@ pub struct SessionStats {
     pub strain_max_surface: f64,
 }
 
-fn percentile(sorted: &[u64], p: f64) -> u64 {
-    if sorted.is_empty() {
-        return 0;
+/// Nanosecond timings streamed into a histogram (3 significant digits, 1 ns to 1 h): memory is
+/// fixed whatever the session's length, and recording never allocates.
+struct Timings(hdrhistogram::Histogram<u64>);
+
+impl Timings {
+    fn new() -> Result<Timings, String> {
+        hdrhistogram::Histogram::new_with_bounds(1, 3_600_000_000_000, 3)
+            .map(Timings)
+            .map_err(|e| format!("timing histogram: {e}"))
     }
-    let k = ((sorted.len() - 1) as f64 * p).round() as usize;
-    sorted[k.min(sorted.len() - 1)]
+
+    fn record(&mut self, ns: u64) {
+        self.0.saturating_record(ns.max(1));
+    }
+
+    fn quantile(&self, q: f64) -> u64 {
+        if self.0.is_empty() {
+            0
+        } else {
+            self.0.value_at_quantile(q)
+        }
+    }
+
+    fn max(&self) -> u64 {
+        if self.0.is_empty() { 0 } else { self.0.max() }
+    }
+}
+
+impl SessionConfig {
+    /// Checks the settings a user gives (rate, duration, coupling) before a session starts.
+    pub fn validate(&self) -> Result<(), String> {
+        if !(1.0..=10_000.0).contains(&self.rate_hz) {
+            return Err(format!("rate {} Hz: must be between 1 and 10000 Hz", self.rate_hz));
+        }
+        if !(self.duration_s.is_finite() && self.duration_s > 0.0) {
+            return Err(format!(
+                "duration {} s: must be a finite number of seconds > 0",
+                self.duration_s
+            ));
+        }
+        if (self.duration_s * self.rate_hz) > u64::MAX as f64 / 2.0 {
+            return Err(format!("duration {} s: too long", self.duration_s));
+        }
+        self.coupling.validate()
+    }
 }
 
 /// Runs a session on one space with one hand per device; returns when `duration_s` has
@@ -129,10 +168,11 @@ pub fn run_spaces(
     mut devices: Vec<Box<dyn Device>>,
     cfg: &SessionConfig,
 ) -> Result<SessionStats, String> {
+    cfg.validate()?;
     let hands = devices.len().max(1);
-    let rate = cfg.rate_hz.clamp(1.0, 1e5);
+    let rate = cfg.rate_hz;
     let dt = 1.0 / rate;
-    let steps = (cfg.duration_s * rate).round().max(1.0) as usize;
+    let steps = (cfg.duration_s * rate).round().max(1.0) as u64;
     let bases: Vec<Arc<Basis>> = spaces.iter().map(|s| s.basis.clone()).collect();
     let mut haptics =
         Switcher::new(spaces, cfg.coupling, dt, cfg.scheme, hands, cfg.switching).map_err(|e| e.to_string())?;
@@ -183,9 +223,7 @@ pub fn run_spaces(
         })
     };
 
-    let mut step_ns = vec![0u64; steps];
-    let mut period_err_ns = vec![0u64; steps];
-    let mut compute_ns = vec![0u64; steps];
+    let (mut step_ns, mut period_err_ns, mut compute_ns) = (Timings::new()?, Timings::new()?, Timings::new()?);
     let mut inputs = vec![HandInput::default(); hands];
     let mut outputs = vec![HandOutput::default(); hands];
     let (mut missed, mut peak, mut clamped, mut max_energy) = (0u64, 0.0f64, 0u64, 0.0f64);
@@ -202,7 +240,7 @@ pub fn run_spaces(
             std::hint::spin_loop();
         }
         let woke = Instant::now();
-        period_err_ns[k] = woke.duration_since(next).as_nanos() as u64;
+        period_err_ns.record(woke.duration_since(next).as_nanos() as u64);
         let t = k as f64 * dt;
         for (inp, dev) in inputs.iter_mut().zip(devices.iter_mut()) {
             let s = dev.read(t);
@@ -214,7 +252,7 @@ pub fn run_spaces(
         }
         let c0 = Instant::now();
         haptics.step(&inputs, &mut outputs);
-        compute_ns[k] = c0.elapsed().as_nanos() as u64;
+        compute_ns.record(c0.elapsed().as_nanos() as u64);
         for (out, dev) in outputs.iter().zip(devices.iter_mut()) {
             dev.write(out.force);
             let m = (out.force[0].powi(2) + out.force[1].powi(2) + out.force[2].powi(2)).sqrt();
@@ -231,7 +269,7 @@ pub fn run_spaces(
         snapshot.publish(&published, t);
         max_energy = max_energy.max(active.state().energy());
         let done = Instant::now();
-        step_ns[k] = done.duration_since(woke).as_nanos() as u64;
+        step_ns.record(done.duration_since(woke).as_nanos() as u64);
         next += period;
         if done > next {
             missed += 1;
@@ -240,19 +278,16 @@ pub fn run_spaces(
     let wall = start.elapsed().as_secs_f64();
     stop.store(true, Ordering::Relaxed);
     let viz_wall = viz.join().unwrap_or(wall);
-    step_ns.sort_unstable();
-    compute_ns.sort_unstable();
-    period_err_ns.sort_unstable();
     let updates = visual_count.load(Ordering::Relaxed);
     Ok(SessionStats {
-        steps: steps as u64,
+        steps,
         achieved_rate_hz: steps as f64 / wall,
-        step_ns_median: percentile(&step_ns, 0.5),
-        step_ns_p99: percentile(&step_ns, 0.99),
-        step_ns_max: step_ns.last().copied().unwrap_or(0),
-        haptic_compute_ns_median: percentile(&compute_ns, 0.5),
-        period_error_us_p999: percentile(&period_err_ns, 0.999) as f64 / 1e3,
-        period_error_us_max: period_err_ns.last().copied().unwrap_or(0) as f64 / 1e3,
+        step_ns_median: step_ns.quantile(0.5),
+        step_ns_p99: step_ns.quantile(0.99),
+        step_ns_max: step_ns.max(),
+        haptic_compute_ns_median: compute_ns.quantile(0.5),
+        period_error_us_p999: period_err_ns.quantile(0.999) as f64 / 1e3,
+        period_error_us_max: period_err_ns.max() as f64 / 1e3,
         missed_deadlines: missed,
         visual_updates: updates,
         visual_rate_hz: updates as f64 / viz_wall.max(1e-9),

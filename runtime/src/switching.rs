@@ -233,17 +233,8 @@ pub fn load_spaces(
     modes: Option<usize>,
     surface_only: bool,
 ) -> Result<Vec<SpaceInput>, crate::basis::LoadError> {
-    // A panic of the HDF5 layer on a damaged file is an error, as in `basis::load`.
-    crate::basis::guarded(path, || load_spaces_unguarded(path, modes, surface_only))
-}
-
-#[cfg(feature = "hdf5")]
-fn load_spaces_unguarded(
-    path: &std::path::Path,
-    modes: Option<usize>,
-    surface_only: bool,
-) -> Result<Vec<SpaceInput>, crate::basis::LoadError> {
-    let names = Basis::space_names(path)?;
+    let file = ves_format::BasisReader::open(path)?;
+    let names = file.space_names()?;
     let mut bases = Vec::with_capacity(names.len());
     for n in &names {
         let opts = crate::basis::LoadOptions {
@@ -251,14 +242,15 @@ fn load_spaces_unguarded(
             modes,
             surface_only,
         };
-        bases.push(Arc::new(crate::basis::load(path, &opts)?));
+        bases.push(Arc::new(crate::basis::load_space(&file, &opts)?));
     }
     let mut out = Vec::with_capacity(bases.len());
     for (to, b) in bases.iter().enumerate() {
+        let space = file.space(&b.space)?;
         let mut transfers = vec![None; bases.len()];
         for (from, a) in bases.iter().enumerate() {
             if from != to {
-                transfers[from] = Basis::load_transfer(path, &b.space, &a.space, b.mode_count(), a.mode_count())?;
+                transfers[from] = space.transfer(&a.space, b.mode_count(), a.mode_count())?;
             }
         }
         out.push(SpaceInput {

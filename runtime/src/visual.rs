@@ -41,7 +41,7 @@ pub fn posed_positions_of(basis: &Basis, modal: &[f64], pose: &[f64], pos: &mut 
     if q == [0.0; 4] {
         return;
     }
-    let rot = crate::rigid::rotation_matrix(q);
+    let rot = crate::rigid_body::rotation_matrix(q);
     for p in pos.chunks_exact_mut(3) {
         let d = [
             f64::from(p[0]) - rigid.center[0],

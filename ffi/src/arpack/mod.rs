@@ -19,6 +19,10 @@ pub enum ArpackError {
     /// A size or parameter does not fit ARPACK's limits.
     #[error("invalid ARPACK input: {0}")]
     Input(String),
+    /// LAPACK, inside ARPACK, was handed an illegal value (its XERBLA was called): the problem's
+    /// numbers left double precision.
+    #[error("{0}: the problem's numbers are out of double-precision range; check the material constants and units")]
+    Lapack(String),
     /// `dsaupd` returned an error code.
     #[error("ARPACK dsaupd failed (info = {info}): {reason}")]
     Saupd {
@@ -190,6 +194,7 @@ where
     let which = c"LM";
     let mut tmp = vec![0.0; n];
     let mut solves = 0usize;
+    let _ = crate::xerbla::take_error();
 
     loop {
         // SAFETY: every buffer has the length ARPACK documents for these n, ncv, lworkl.
@@ -212,6 +217,9 @@ where
                 lworkl_i,
                 &mut info,
             );
+        }
+        if let Some(e) = crate::xerbla::take_error() {
+            return Err(ArpackError::Lapack(e));
         }
         // ipntr is 1-based into workd.
         let at = |k: usize| (ipntr[k] - 1) as usize;
@@ -291,6 +299,9 @@ where
             lworkl_i,
             &mut info_e,
         );
+    }
+    if let Some(e) = crate::xerbla::take_error() {
+        return Err(ArpackError::Lapack(e));
     }
     if info_e != 0 {
         return Err(ArpackError::Seupd {

@@ -1,6 +1,6 @@
 //! Safe layer over the gmsh C API.
 //!
-//! gmsh is one global, non-thread-safe library: a [`Session`] holds a process-wide lock from
+//! gmsh is one global, non-thread-safe library: a [`Gmsh`] holds a process-wide lock from
 //! `gmshInitialize` to `gmshFinalize` (run by `Drop`), so two sessions never overlap.
 
 mod sys;
@@ -71,7 +71,7 @@ pub mod element_type {
 }
 
 /// One initialised gmsh library; finalised on drop.
-pub struct Session {
+pub struct Gmsh {
     _lock: MutexGuard<'static, ()>,
 }
 
@@ -126,16 +126,16 @@ unsafe fn take<T: Copy>(p: *mut T, n: usize) -> Vec<T> {
 /// Axis-aligned bounding box `[min, max]`.
 pub type BoundingBox = ([f64; 3], [f64; 3]);
 
-impl Session {
+impl Gmsh {
     /// Initialises gmsh (waiting for any other session to finish), silenced and without
     /// reading the user's configuration files, so runs are reproducible.
-    pub fn start() -> Result<Session> {
+    pub fn start() -> Result<Gmsh> {
         let lock = GMSH_LOCK.lock().unwrap_or_else(|poisoned| poisoned.into_inner());
         let mut ierr = 0;
         // SAFETY: argc = 0 with a null argv is accepted by gmshInitialize.
         unsafe { sys::gmshInitialize(0, ptr::null_mut(), 0, &mut ierr) };
         check("initialize", ierr)?;
-        let session = Session { _lock: lock };
+        let session = Gmsh { _lock: lock };
         session.set_number("General.Terminal", 0.0)?;
         Ok(session)
     }
@@ -310,7 +310,7 @@ impl Session {
     }
 }
 
-impl Drop for Session {
+impl Drop for Gmsh {
     fn drop(&mut self) {
         let mut ierr = 0;
         // SAFETY: gmsh was initialised by `start`; the lock is released after this.

@@ -9,7 +9,7 @@ pub mod arpack;
 pub mod dense;
 pub mod slepc;
 
-use crate::linsolve::{FactorError, sym_matvec};
+use crate::linsolve::{FactorError, nested_dissection, sym_matvec};
 use crate::supports::Dofs;
 use faer::sparse::SymbolicSparseColMat;
 use std::time::Instant;
@@ -285,4 +285,47 @@ pub fn compute(
         factorize_s: spectrum.factorize_s,
         eigensolve_s: spectrum.eigensolve_s + t.elapsed().as_secs_f64(),
     })
+}
+
+/// Which eigen-solver to use.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub enum SolverChoice {
+    /// Dense for tiny problems (≤ 500 unknowns), ARPACK otherwise.
+    Auto,
+    /// ARPACK shift-invert with a sparse Cholesky factor.
+    Arpack,
+    /// Dense generalized eigen-solve (small meshes only).
+    Dense,
+    /// SLEPc Krylov–Schur, shift-invert with MUMPS, on every MPI rank (run under `mpirun`).
+    Slepc,
+}
+
+/// Solves the eigenproblem of a discretized space.
+pub fn solve(d: &crate::problem::Discretized, count: usize, choice: SolverChoice) -> Result<(Modes, f64), ModesError> {
+    let t = Instant::now();
+    let problem = EigenProblem {
+        pattern: &d.system.pattern,
+        k: &d.system.k,
+        m: &d.system.m,
+    };
+    let dense = match choice {
+        SolverChoice::Dense => true,
+        SolverChoice::Arpack | SolverChoice::Slepc => false,
+        SolverChoice::Auto => problem.size() <= 500,
+    };
+    let ordering;
+    let solver: Box<dyn EigenSolver> = if choice == SolverChoice::Slepc {
+        Box::new(slepc::Slepc { tol: 1e-12 })
+    } else if dense {
+        Box::new(dense::Dense)
+    } else {
+        ordering = nested_dissection(&d.system.graph, &d.dofs);
+        Box::new(arpack::Arpack {
+            ordering: &ordering,
+            tol: 1e-12,
+        })
+    };
+    let ordering_s = t.elapsed().as_secs_f64();
+    let modes = compute(&problem, &d.dofs, d.rigid, count, solver.as_ref())?;
+    Ok((modes, ordering_s))
 }

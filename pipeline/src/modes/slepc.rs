@@ -19,23 +19,23 @@ fn not_built() -> ModesError {
 }
 
 /// SLEPc initialised on this thread for the life of the guard (MPI too; finalised on drop).
-pub struct Session(());
+pub struct SlepcGuard(());
 
-impl Session {
+impl SlepcGuard {
     /// Initialises SLEPc and MPI (once per process).
-    pub fn init() -> Result<Session, ModesError> {
+    pub fn init() -> Result<SlepcGuard, ModesError> {
         #[cfg(feature = "slepc")]
         {
             let token = ves_ffi::slepc::Slepc::init().map_err(|e| ModesError::Slepc(e.to_string()))?;
             TOKEN.with(|t| *t.borrow_mut() = Some(token));
-            Ok(Session(()))
+            Ok(SlepcGuard(()))
         }
         #[cfg(not(feature = "slepc"))]
         Err(not_built())
     }
 }
 
-impl Drop for Session {
+impl Drop for SlepcGuard {
     fn drop(&mut self) {
         #[cfg(feature = "slepc")]
         TOKEN.with(|t| drop(t.borrow_mut().take()));
@@ -62,7 +62,7 @@ pub fn ranks() -> usize {
     1
 }
 
-/// The SLEPc solver (needs a [`Session`] on this thread).
+/// The SLEPc solver (needs a [`SlepcGuard`] on this thread).
 pub struct Slepc {
     /// Relative tolerance of the eigenpairs.
     pub tol: f64,
@@ -75,7 +75,7 @@ impl EigenSolver for Slepc {
             let t = t.borrow();
             let token = t
                 .as_ref()
-                .ok_or_else(|| ModesError::Slepc("SLEPc is not initialised (Session::init)".into()))?;
+                .ok_or_else(|| ModesError::Slepc("SLEPc is not initialised (SlepcGuard::init)".into()))?;
             let pair = ves_ffi::slepc::SymmetricPair {
                 n: problem.size(),
                 col_ptr: problem.pattern.col_ptr(),

@@ -13,7 +13,8 @@ mod render;
 
 use crate::compliance::Compliance;
 use crate::linsolve::factor_stiffness;
-use crate::precompute::{Discretized, SolverChoice, Timings, discretize, solve};
+use crate::modes::{SolverChoice, solve};
+use crate::problem::{Discretized, discretize};
 use crate::scene::{Probe, Scene};
 use crate::store;
 use crate::vec3::{dist, dot, matvec, norm, sub};
@@ -289,8 +290,7 @@ impl Sweep<'_> {
         let mut scene = self.scene.clone();
         scene.mesh.order = order;
         scene.mesh.size = size;
-        let mut timings = Timings::default();
-        let d = discretize(&scene, None, &mut timings)?;
+        let d = discretize(&scene, None)?;
         let supported = d.rigid == 0;
         let free = d.dofs.free_count();
         // Mode counts this mesh can give (Lanczos needs a Krylov space well inside the problem).
@@ -335,7 +335,7 @@ impl Sweep<'_> {
         let mut points = Vec::with_capacity(counts.len());
         for &r in &counts {
             self.bar.set_message(format!("order {order}, {:.4} m, {r} modes", size));
-            let mut p = self.point(&scene, &d, &timings, r, exact.as_ref(), correction_s)?;
+            let mut p = self.point(&scene, &d, r, exact.as_ref(), correction_s)?;
             if is_reference {
                 // The reference against itself: nothing to report.
                 p.frequency_error = None;
@@ -352,8 +352,8 @@ impl Sweep<'_> {
             vertices: d.mesh.vertex_count,
             tets: d.mesh.tet_count(),
             dofs: free,
-            mesh_s: timings.mesh,
-            assemble_s: timings.assemble,
+            mesh_s: d.mesh_s,
+            assemble_s: d.assemble_s,
             static_correction_s: correction_s,
             full_dynamic_s: dynamic_s,
             frequencies_hz: freqs,
@@ -451,13 +451,12 @@ impl Sweep<'_> {
         &self,
         scene: &Scene,
         d: &Discretized,
-        timings: &Timings,
         r: usize,
         exact: Option<&Exact>,
         correction_s: Option<f64>,
     ) -> Result<Point> {
         let (modes, ordering_s) = solve(d, r, SolverChoice::Auto)?;
-        let offline_s = timings.mesh + timings.assemble + ordering_s + modes.factorize_s + modes.eigensolve_s;
+        let offline_s = d.mesh_s + d.assemble_s + ordering_s + modes.factorize_s + modes.eigensolve_s;
         store::write(
             self.tmp,
             scene,

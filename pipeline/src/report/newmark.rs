@@ -4,7 +4,7 @@
 //! modal decomposition, so the two differ only by the modes left out — the error we report.
 
 use crate::linsolve::{Cholesky, nested_dissection, sym_matvec};
-use crate::precompute::Discretized;
+use crate::problem::Discretized;
 use anyhow::Result;
 
 /// A linear second-order system on `n` unknowns.

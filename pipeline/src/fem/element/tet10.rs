@@ -4,8 +4,8 @@
 use super::Shape;
 use crate::fem::quadrature::{self, Point};
 
-/// Vertex pairs of the mid-edge nodes 4..9 in gmsh order.
-pub const EDGES: [(usize, usize); 6] = [(0, 1), (1, 2), (2, 0), (3, 0), (3, 2), (3, 1)];
+/// Vertex pairs of the mid-edge nodes 4..9 (the mesh's node order, gmsh's).
+pub use crate::mesh::TET10_EDGES as EDGES;
 
 /// Quadratic tetrahedron.
 pub struct Tet10;

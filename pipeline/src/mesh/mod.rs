@@ -5,6 +5,9 @@ use crate::vec3::{cross, dot, sub};
 use std::collections::HashMap;
 use ves_ffi::gmsh::{self, element_type};
 
+/// Vertex pairs of the mid-edge nodes 4..9 of a 10-node tet, in gmsh's node order.
+pub const TET10_EDGES: [(usize, usize); 6] = [(0, 1), (1, 2), (2, 0), (3, 0), (3, 2), (3, 1)];
+
 /// A tetrahedral mesh in the layout of the basis file (DESIGN.md §3).
 #[derive(Clone, Debug)]
 pub struct Mesh {
@@ -152,7 +155,7 @@ impl Mesh {
                         let v = t.map(|q| c[q]);
                         tets.extend(v);
                         if order == 2 {
-                            for (a, b) in crate::fem::element::tet10::EDGES {
+                            for (a, b) in TET10_EDGES {
                                 let key = (v[a].min(v[b]), v[a].max(v[b]));
                                 let m = *mid.entry(key).or_insert_with(|| {
                                     let (x, y) = (pts[key.0 as usize], pts[key.1 as usize]);
@@ -236,6 +239,48 @@ fn boundary_faces(tets: &[u32], p: usize) -> Vec<[u32; 3]> {
     faces
 }
 
+/// Most tets a mesh may have: beyond it gmsh's memory (≈ 1 kB per tet while meshing) and the
+/// eigen-solve's outgrow a workstation, and a too-small `mesh.size` ends gmsh with bad_alloc.
+pub const MAX_TETS: f64 = 10.0e6;
+
+/// Volume of a regular tet of edge `h` (gmsh aims at such tets).
+fn regular_tet_volume(h: f64) -> f64 {
+    h * h * h / (6.0 * std::f64::consts::SQRT_2)
+}
+
+/// Refuses, before meshing, a size that would make far too many tets: an upper estimate from
+/// the bounding box (`extent`, m) filled with regular tets of the requested sizes.
+fn check_element_budget(path: &str, extent: [f64; 3], size: f64, voi: Option<&Voi>) -> Result<(), MeshError> {
+    // A flat or thin part: at least one element across each direction.
+    let volume = |e: [f64; 3], h: f64| e.iter().map(|&x| x.max(h)).product::<f64>();
+    let mut tets = volume(extent, size) / regular_tet_volume(size);
+    if let Some(v) = voi {
+        let e: [f64; 3] = std::array::from_fn(|c| (v.bbox.max[c] - v.bbox.min[c]).min(extent[c]).max(0.0));
+        tets += volume(e, v.size) / regular_tet_volume(v.size);
+    }
+    if tets > MAX_TETS {
+        let factor = (tets / MAX_TETS).cbrt();
+        let advice = match voi {
+            Some(v) => format!(
+                "use mesh.size ≥ {:.2e} m and voi {:?} size ≥ {:.2e} m",
+                size * factor,
+                v.name,
+                v.size * factor
+            ),
+            None => format!("use mesh.size ≥ {:.2e} m", size * factor),
+        };
+        return Err(MeshError::Geometry {
+            path: path.to_string(),
+            message: format!(
+                "mesh.size = {size:e} m would make about {tets:.1e} tets in a part of {:.3e} × {:.3e} × {:.3e} m \
+                 (limit {MAX_TETS:.0e}); {advice}",
+                extent[0], extent[1], extent[2]
+            ),
+        });
+    }
+    Ok(())
+}
+
 /// Meshes the scene's geometry (with the finer size inside `voi`, if given), on gmsh's own
 /// thread so the same input always gives the same mesh.
 pub fn generate(scene: &Scene, voi: Option<&Voi>) -> Result<Mesh, MeshError> {
@@ -249,7 +294,7 @@ fn generate_here(scene: &Scene, voi: Option<&Voi>) -> Result<Mesh, MeshError> {
         path: path.clone(),
         cause,
     };
-    let session = gmsh::Session::start().map_err(g)?;
+    let session = gmsh::Gmsh::start().map_err(g)?;
     // STEP/IGES carry their own unit: OpenCASCADE converts it, always to millimetres, so the
     // mesh is the same whatever `unit` the scene gives (results independent of units to round-off).
     // BREP/GEO have no unit: the scene's `unit` says what their numbers are.
@@ -269,13 +314,22 @@ fn generate_here(scene: &Scene, voi: Option<&Voi>) -> Result<Mesh, MeshError> {
     session.open(&scene.geometry).map_err(g)?;
     let volumes = session.entities(3).map_err(g)?;
     if volumes.is_empty() {
-        return Err(MeshError::Geometry {
-            path,
-            message: "no solid volume found: the file is empty, broken, or holds only surfaces; export a closed solid"
-                .into(),
-        });
+        let faces = session.entities(2).map_err(g)?.len();
+        let message = if faces == 0 {
+            "OpenCASCADE read no geometry from it: the file is empty, truncated or not a STEP/IGES/BREP file; \
+             export the part again"
+                .to_string()
+        } else {
+            format!(
+                "it holds {faces} surfaces but no closed solid; export the part as a solid (or sew its faces in CAD)"
+            )
+        };
+        return Err(MeshError::Geometry { path, message });
     }
     let h = scene.mesh.size / scale;
+    let (lo, hi) = session.bounding_box().map_err(g)?;
+    let extent: [f64; 3] = std::array::from_fn(|c| (hi[c] - lo[c]) * scale);
+    check_element_budget(&path, extent, scene.mesh.size, voi)?;
     session.set_number("Mesh.MeshSizeMax", h).map_err(g)?;
     session.set_number("Mesh.MeshSizeMin", 0.0).map_err(g)?;
     // Delaunay (1) gives the same mesh on every run; HXT (10) is ~2x faster here but its

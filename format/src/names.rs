@@ -1,0 +1,93 @@
+//! Every name of the file, once. Paths of datasets are relative to their space's group.
+
+/// Value of the root `format` attribute.
+pub const FORMAT: &str = "ves-modal-basis";
+/// Newest file version this build reads and the version it writes.
+pub const VERSION: u32 = 1;
+
+/// Root attributes.
+pub mod root {
+    /// String: [`super::FORMAT`].
+    pub const FORMAT: &str = "format";
+    /// u32: the file version.
+    pub const VERSION: &str = "version";
+    /// String: the program that wrote the file.
+    pub const GENERATOR: &str = "generator";
+    /// String: the scene file's text.
+    pub const SCENE_TOML: &str = "scene_toml";
+    /// String: the space a reader opens when it names none.
+    pub const DEFAULT_SPACE: &str = "default_space";
+    /// String (optional): content hash of what the file was made from (`ves batch`).
+    pub const SOURCE_HASH: &str = "source_hash";
+}
+
+/// The `/material` group and its f64 attributes.
+pub mod material {
+    /// Group name.
+    pub const GROUP: &str = "material";
+    /// Young's modulus, Pa.
+    pub const YOUNG: &str = "young";
+    /// Poisson's ratio.
+    pub const POISSON: &str = "poisson";
+    /// Density, kg/m³.
+    pub const DENSITY: &str = "density";
+    /// Rayleigh α, 1/s.
+    pub const ALPHA: &str = "rayleigh_alpha";
+    /// Rayleigh β, s.
+    pub const BETA: &str = "rayleigh_beta";
+}
+
+/// Group holding one group per space.
+pub const SPACES: &str = "spaces";
+/// The space every file has.
+pub const GLOBAL_SPACE: &str = "global";
+
+/// Names inside `/spaces/<name>/`.
+pub mod space {
+    /// u32 attribute: 1 (4-node tets) or 2 (10-node tets).
+    pub const ELEMENT_ORDER: &str = "element_order";
+    /// u32 attribute: rigid modes removed from the basis.
+    pub const RIGID_MODES_DROPPED: &str = "rigid_modes_dropped";
+    /// f64[3] attributes: the volume of interest's corners (VOI spaces only).
+    pub const VOI_MIN: &str = "voi_min";
+    /// See [`VOI_MIN`].
+    pub const VOI_MAX: &str = "voi_max";
+    /// Mesh group; holds the `vertex_count` attribute.
+    pub const MESH: &str = "mesh";
+    /// u32 attribute of [`MESH`]: the first nv nodes are corner vertices.
+    pub const VERTEX_COUNT: &str = "vertex_count";
+    /// f64 [n, 3], metres.
+    pub const NODES: &str = "mesh/nodes";
+    /// u32 [m, 4|10], gmsh node order.
+    pub const TETS: &str = "mesh/tets";
+    /// u32 [k, 3], outward, on corner vertices.
+    pub const SURFACE_TRIANGLES: &str = "mesh/surface_triangles";
+    /// u32 [c], supported DOFs 3i+c.
+    pub const FIXED_DOFS: &str = "mesh/fixed_dofs";
+    /// Modes group.
+    pub const MODES: &str = "modes";
+    /// f64 [r], λ = ω², ascending, elastic only.
+    pub const EIGENVALUES: &str = "modes/eigenvalues";
+    /// f64 [r].
+    pub const FREQUENCIES_HZ: &str = "modes/frequencies_hz";
+    /// f64 [3n, r], M-normalised; row 3i+c = component c of node i.
+    pub const BASIS: &str = "modes/basis";
+    /// f64 [r], ‖Kφ − λMφ‖ / ‖Kφ‖.
+    pub const RELATIVE_RESIDUALS: &str = "modes/relative_residuals";
+    /// Group (free bodies): attributes [`MASS`], [`CENTER_OF_MASS`], [`INERTIA`].
+    pub const RIGID: &str = "rigid";
+    /// f64 attribute, kg.
+    pub const MASS: &str = "mass";
+    /// f64[3] attribute, m.
+    pub const CENTER_OF_MASS: &str = "center_of_mass";
+    /// f64[3, 3] attribute, kg·m² about the centre of mass.
+    pub const INERTIA: &str = "inertia";
+    /// Optional group: exact static compliance.
+    pub const COMPLIANCE: &str = "compliance";
+    /// u32 [p].
+    pub const COMPLIANCE_NODES: &str = "compliance/nodes";
+    /// f64 [p, 3, 3], m/N.
+    pub const COMPLIANCE_BLOCKS: &str = "compliance/blocks";
+    /// Optional group: `transfer/<from>` f64 [r_to, r_from].
+    pub const TRANSFER: &str = "transfer";
+}

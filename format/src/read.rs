@@ -1,0 +1,560 @@
+//! The one reader of basis files. Whatever it returns has been checked: dtypes exactly as the
+//! format declares them (no silent conversion of an int32 basis), shapes against each other,
+//! declared sizes against the file's size before anything is allocated, finite values, indices
+//! in range. Every method runs behind [`guarded`]: a panic of the HDF5 layer on a damaged file
+//! is an error.
+
+use crate::names::{self, material as mat, root, space as sp};
+use crate::{Material, RigidProperties};
+use hdf5::H5Type;
+use ndarray::s;
+use std::ops::Range;
+use std::path::Path;
+
+/// Reading failed; the message names the file and what is wrong.
+#[derive(Debug, Clone, thiserror::Error)]
+#[error("{path}: {message}")]
+pub struct ReadError {
+    /// The input.
+    pub path: String,
+    /// What is wrong and what to do.
+    pub message: String,
+}
+
+/// Runs `f`, turning a panic inside the HDF5 layer into an error: hdf5-metno 0.15 builds strings
+/// from file bytes unchecked, and a corrupted name made it panic while formatting one (found by
+/// the byte-flip test).
+pub fn guarded<T, E: From<ReadError>>(path: &Path, f: impl FnOnce() -> Result<T, E>) -> Result<T, E> {
+    std::panic::catch_unwind(std::panic::AssertUnwindSafe(f)).unwrap_or_else(|_| {
+        Err(E::from(ReadError {
+            path: path.display().to_string(),
+            message: "damaged file: the HDF5 layer failed on its structure".into(),
+        }))
+    })
+}
+
+/// Deflate cannot shrink data more than about 1032:1: a compressed dataset that claims more than
+/// this many times the file's size has a damaged header.
+const MAX_COMPRESSION: u128 = 1100;
+
+/// An open basis file whose format and version were checked.
+pub struct BasisReader {
+    file: hdf5::File,
+    path: std::path::PathBuf,
+    file_bytes: u128,
+}
+
+impl BasisReader {
+    /// Opens `path` and checks that it is a VES basis of a version this build reads.
+    pub fn open(path: &Path) -> Result<BasisReader, ReadError> {
+        let err = |message: &str| ReadError {
+            path: path.display().to_string(),
+            message: message.to_string(),
+        };
+        if path.is_dir() {
+            return Err(err(
+                "is a directory, not a basis file; give the .h5 file written by `ves precompute`",
+            ));
+        }
+        let meta = std::fs::metadata(path).map_err(|e| {
+            err(&match e.kind() {
+                std::io::ErrorKind::NotFound => "no such file".to_string(),
+                _ => format!("cannot read it ({e})"),
+            })
+        })?;
+        if !meta.is_file() {
+            return Err(err("not a regular file; give the .h5 file written by `ves precompute`"));
+        }
+        guarded(path, || {
+            let file =
+                hdf5::File::open(path).map_err(|_| err("not a readable HDF5 file (truncated or another format)"))?;
+            let reader = BasisReader {
+                file,
+                path: path.to_path_buf(),
+                file_bytes: u128::from(meta.len()),
+            };
+            let format = reader.string(root::FORMAT).ok_or_else(|| {
+                err("not a VES modal basis (no `format` attribute); produce one with `ves precompute`")
+            })?;
+            if format != names::FORMAT {
+                return Err(err(&format!(
+                    "format is {format:?}, not {:?}; produce a basis with `ves precompute`",
+                    names::FORMAT
+                )));
+            }
+            let version: u32 = scalar_attr(&reader.file, root::VERSION)
+                .ok_or_else(|| err("`version` attribute missing or not an unsigned 32-bit integer"))?;
+            if version > names::VERSION {
+                return Err(err(&format!(
+                    "basis version {version} is newer than this build reads ({}); upgrade VES",
+                    names::VERSION
+                )));
+            }
+            Ok(reader)
+        })
+    }
+
+    /// The file's path.
+    pub fn path(&self) -> &Path {
+        &self.path
+    }
+
+    /// The file's size, bytes.
+    pub fn file_bytes(&self) -> u64 {
+        self.file_bytes as u64
+    }
+
+    fn err(&self, message: impl Into<String>) -> ReadError {
+        ReadError {
+            path: self.path.display().to_string(),
+            message: message.into(),
+        }
+    }
+
+    fn guard<T>(&self, f: impl FnOnce() -> Result<T, ReadError>) -> Result<T, ReadError> {
+        guarded(&self.path, f)
+    }
+
+    /// A root string attribute (fixed- or variable-length), `None` when missing or not a string.
+    pub fn string(&self, name: &str) -> Option<String> {
+        guarded(&self.path, || {
+            Ok::<_, ReadError>(crate::strings::read(&self.file, name))
+        })
+        .ok()
+        .flatten()
+    }
+
+    /// The space a reader opens when it names none ("global" when the attribute is missing).
+    pub fn default_space(&self) -> String {
+        self.string(root::DEFAULT_SPACE)
+            .unwrap_or_else(|| names::GLOBAL_SPACE.into())
+    }
+
+    /// Names of the spaces, the default space first, then by name.
+    pub fn space_names(&self) -> Result<Vec<String>, ReadError> {
+        self.guard(|| {
+            let mut names = self
+                .file
+                .group(names::SPACES)
+                .and_then(|g| g.member_names())
+                .map_err(|_| self.err("no /spaces group; the file is damaged"))?;
+            if names.is_empty() {
+                return Err(self.err("the file holds no space; the file is damaged"));
+            }
+            let default = self.default_space();
+            names.sort_by_key(|n| (*n != default, n.clone()));
+            Ok(names)
+        })
+    }
+
+    /// The material constants and damping, checked (finite; E, ρ > 0; −1 < ν < 0.5; α, β ≥ 0).
+    pub fn material(&self) -> Result<Material, ReadError> {
+        self.guard(|| {
+            let g = self
+                .file
+                .group(mat::GROUP)
+                .map_err(|_| self.err("no /material group; the file is damaged"))?;
+            let get = |name: &str| {
+                scalar_attr::<f64>(&g, name)
+                    .filter(|v| v.is_finite())
+                    .ok_or_else(|| self.err(format!("material attribute {name} missing, not f64 or not finite")))
+            };
+            let m = Material {
+                young: get(mat::YOUNG)?,
+                poisson: get(mat::POISSON)?,
+                density: get(mat::DENSITY)?,
+                alpha: get(mat::ALPHA)?,
+                beta: get(mat::BETA)?,
+            };
+            if !(m.young > 0.0 && m.density > 0.0 && m.poisson > -1.0 && m.poisson < 0.5) {
+                return Err(self.err(format!(
+                    "material (E {}, ν {}, ρ {}) is not physical; the file is damaged",
+                    m.young, m.poisson, m.density
+                )));
+            }
+            if !(m.alpha >= 0.0 && m.beta >= 0.0) {
+                return Err(self.err(format!("Rayleigh damping ({}, {}) must be ≥ 0", m.alpha, m.beta)));
+            }
+            Ok(m)
+        })
+    }
+
+    /// Opens space `name`, checking its attributes and that its datasets' shapes agree.
+    pub fn space(&self, name: &str) -> Result<SpaceReader<'_>, ReadError> {
+        self.guard(|| SpaceReader::open(self, name))
+    }
+}
+
+/// A scalar attribute of exactly type `T` (no conversion), if present.
+fn scalar_attr<T: H5Type>(loc: &hdf5::Location, name: &str) -> Option<T> {
+    let a = loc.attr(name).ok()?;
+    if a.dtype().ok()?.to_descriptor().ok()? != T::type_descriptor() || a.size() != 1 {
+        return None;
+    }
+    a.read_scalar().ok()
+}
+
+/// An f64 array attribute of `len` values, all finite, if present.
+fn f64_array_attr(loc: &hdf5::Location, name: &str, len: usize) -> Option<Vec<f64>> {
+    let a = loc.attr(name).ok()?;
+    if a.dtype().ok()?.to_descriptor().ok()? != f64::type_descriptor() || a.size() != len {
+        return None;
+    }
+    let v: Vec<f64> = a.read_raw().ok()?;
+    (v.len() == len && v.iter().all(|x| x.is_finite())).then_some(v)
+}
+
+/// One space of an open basis file, its header checked; its arrays are read on demand.
+pub struct SpaceReader<'a> {
+    file: &'a BasisReader,
+    group: hdf5::Group,
+    /// Space name.
+    pub name: String,
+    /// 1 or 2.
+    pub element_order: u8,
+    /// Rigid modes dropped.
+    pub rigid_modes_dropped: u32,
+    /// The VOI this space refines (min, max corners), if any.
+    pub voi: Option<[[f64; 3]; 2]>,
+    /// Corner vertices (the first nodes).
+    pub vertex_count: usize,
+    /// All nodes.
+    pub node_count: usize,
+    /// Tets.
+    pub tet_count: usize,
+    /// Surface triangles.
+    pub triangle_count: usize,
+    /// Elastic modes stored.
+    pub mode_count: usize,
+}
+
+impl<'a> SpaceReader<'a> {
+    fn open(file: &'a BasisReader, name: &str) -> Result<SpaceReader<'a>, ReadError> {
+        let group = file
+            .file
+            .group(&format!("{}/{name}", names::SPACES))
+            .map_err(|_| file.err(format!("no space {name:?} in the file")))?;
+        let bad = |what: &str| file.err(format!("space {name:?}: {what}"));
+        let order: u32 = scalar_attr(&group, sp::ELEMENT_ORDER)
+            .filter(|o| *o == 1 || *o == 2)
+            .ok_or_else(|| bad("element_order missing or not 1 or 2"))?;
+        let rigid_modes_dropped: u32 = scalar_attr(&group, sp::RIGID_MODES_DROPPED)
+            .filter(|r| *r <= 6)
+            .ok_or_else(|| bad("rigid_modes_dropped missing or above 6"))?;
+        let nv: u32 = group
+            .group(sp::MESH)
+            .ok()
+            .and_then(|m| scalar_attr(&m, sp::VERTEX_COUNT))
+            .ok_or_else(|| bad("mesh vertex_count missing or not u32"))?;
+        let voi = match (group.attr(sp::VOI_MIN).is_ok(), group.attr(sp::VOI_MAX).is_ok()) {
+            (false, false) => None,
+            _ => {
+                let (a, b) = f64_array_attr(&group, sp::VOI_MIN, 3)
+                    .zip(f64_array_attr(&group, sp::VOI_MAX, 3))
+                    .ok_or_else(|| bad("voi_min/voi_max are not two finite f64[3]"))?;
+                Some([[a[0], a[1], a[2]], [b[0], b[1], b[2]]])
+            }
+        };
+        let mut s = SpaceReader {
+            file,
+            group,
+            name: name.to_string(),
+            element_order: order as u8,
+            rigid_modes_dropped,
+            voi,
+            vertex_count: nv as usize,
+            node_count: 0,
+            tet_count: 0,
+            triangle_count: 0,
+            mode_count: 0,
+        };
+        let nodes = s.shape::<f64>(sp::NODES, 2)?;
+        let (n, r) = (nodes[0], s.shape::<f64>(sp::EIGENVALUES, 1)?[0]);
+        let per_tet = if order == 2 { 10 } else { 4 };
+        let expect = |what: &str, got: Vec<usize>, want: &[Option<usize>]| {
+            let ok = got.len() == want.len() && got.iter().zip(want).all(|(g, w)| w.is_none_or(|w| *g == w));
+            if ok {
+                Ok(got)
+            } else {
+                Err(bad(&format!(
+                    "{what} has shape {got:?}, expected {want:?} (n = {n} nodes, r = {r} modes)"
+                )))
+            }
+        };
+        expect(sp::NODES, nodes.clone(), &[None, Some(3)])?;
+        expect(sp::BASIS, s.shape::<f64>(sp::BASIS, 2)?, &[Some(3 * n), Some(r)])?;
+        expect(sp::FREQUENCIES_HZ, s.shape::<f64>(sp::FREQUENCIES_HZ, 1)?, &[Some(r)])?;
+        expect(
+            sp::RELATIVE_RESIDUALS,
+            s.shape::<f64>(sp::RELATIVE_RESIDUALS, 1)?,
+            &[Some(r)],
+        )?;
+        let tets = expect(sp::TETS, s.shape::<u32>(sp::TETS, 2)?, &[None, Some(per_tet)])?;
+        let tri = expect(
+            sp::SURFACE_TRIANGLES,
+            s.shape::<u32>(sp::SURFACE_TRIANGLES, 2)?,
+            &[None, Some(3)],
+        )?;
+        s.shape::<u32>(sp::FIXED_DOFS, 1)?;
+        if nv == 0 || nv as usize > n || r == 0 || tets[0] == 0 {
+            return Err(bad(&format!(
+                "{nv} vertices of {n} nodes, {r} modes, {} tets: nothing to simulate or inconsistent",
+                tets[0]
+            )));
+        }
+        s.node_count = n;
+        s.mode_count = r;
+        s.tet_count = tets[0];
+        s.triangle_count = tri[0];
+        Ok(s)
+    }
+
+    fn err(&self, message: impl std::fmt::Display) -> ReadError {
+        self.file.err(format!("space {:?}: {message}", self.name))
+    }
+
+    fn guard<T>(&self, f: impl FnOnce() -> Result<T, ReadError>) -> Result<T, ReadError> {
+        self.file.guard(f)
+    }
+
+    /// Opens a dataset of exactly element type `T` and `rank` dimensions whose declared size the
+    /// file can hold, and returns its shape.
+    fn dataset<T: H5Type>(&self, name: &str, rank: usize) -> Result<(hdf5::Dataset, Vec<usize>), ReadError> {
+        let ds = self
+            .group
+            .dataset(name)
+            .map_err(|_| self.err(format!("{name} missing")))?;
+        let ty = ds
+            .dtype()
+            .and_then(|t| t.to_descriptor())
+            .map_err(|_| self.err(format!("{name}: unreadable element type")))?;
+        if ty != T::type_descriptor() {
+            return Err(self.err(format!(
+                "{name} holds {ty}, the format declares {}; the file was not written by VES or is damaged",
+                T::type_descriptor()
+            )));
+        }
+        let shape = ds.shape();
+        if shape.len() != rank {
+            return Err(self.err(format!("{name} has {} dimensions, expected {rank}", shape.len())));
+        }
+        let bytes = shape.iter().map(|&d| d as u128).product::<u128>() * std::mem::size_of::<T>() as u128;
+        let limit = if ds.filters().is_empty() {
+            self.file.file_bytes
+        } else {
+            self.file.file_bytes * MAX_COMPRESSION
+        };
+        if bytes > limit {
+            return Err(self.err(format!(
+                "{name} claims {bytes} bytes in a {}-byte file; the file is damaged",
+                self.file.file_bytes
+            )));
+        }
+        Ok((ds, shape))
+    }
+
+    fn shape<T: H5Type>(&self, name: &str, rank: usize) -> Result<Vec<usize>, ReadError> {
+        self.dataset::<T>(name, rank).map(|(_, s)| s)
+    }
+
+    fn read_all<T: H5Type + Copy>(&self, name: &str, rank: usize) -> Result<Vec<T>, ReadError> {
+        let (ds, _) = self.dataset::<T>(name, rank)?;
+        ds.read_raw()
+            .map_err(|_| self.err(format!("{name}: data unreadable (damaged)")))
+    }
+
+    fn finite(&self, name: &str, v: Vec<f64>) -> Result<Vec<f64>, ReadError> {
+        match v.iter().position(|x| !x.is_finite()) {
+            Some(i) => Err(self.err(format!(
+                "{name} holds a non-finite value at entry {i}; the file is damaged"
+            ))),
+            None => Ok(v),
+        }
+    }
+
+    fn indices(&self, name: &str, v: Vec<u32>, bound: usize) -> Result<Vec<u32>, ReadError> {
+        match v.iter().find(|&&i| i as usize >= bound) {
+            Some(i) => Err(self.err(format!(
+                "{name} refers to index {i}, beyond {bound}; the file is damaged"
+            ))),
+            None => Ok(v),
+        }
+    }
+
+    /// The first `count` nodes (m), finite.
+    pub fn nodes(&self, count: usize) -> Result<Vec<[f64; 3]>, ReadError> {
+        self.guard(|| {
+            let count = count.min(self.node_count);
+            let (ds, _) = self.dataset::<f64>(sp::NODES, 2)?;
+            let a: ndarray::Array2<f64> = ds
+                .read_slice(s![0..count, ..])
+                .map_err(|_| self.err("mesh/nodes: data unreadable (damaged)"))?;
+            let flat = self.finite(sp::NODES, a.iter().copied().collect())?;
+            Ok(flat.chunks_exact(3).map(|p| [p[0], p[1], p[2]]).collect())
+        })
+    }
+
+    /// Tet connectivity, `nodes_per_tet` (4 or 10) indices per tet, all below the node count.
+    pub fn tets(&self) -> Result<Vec<u32>, ReadError> {
+        self.guard(|| {
+            let v = self.read_all::<u32>(sp::TETS, 2)?;
+            self.indices(sp::TETS, v, self.node_count)
+        })
+    }
+
+    /// Surface triangles, on corner vertices.
+    pub fn surface_triangles(&self) -> Result<Vec<[u32; 3]>, ReadError> {
+        self.guard(|| {
+            let v = self.read_all::<u32>(sp::SURFACE_TRIANGLES, 2)?;
+            let v = self.indices(sp::SURFACE_TRIANGLES, v, self.vertex_count)?;
+            Ok(v.chunks_exact(3).map(|t| [t[0], t[1], t[2]]).collect())
+        })
+    }
+
+    /// Supported DOFs (3i+c), below 3n.
+    pub fn fixed_dofs(&self) -> Result<Vec<u32>, ReadError> {
+        self.guard(|| {
+            let v = self.read_all::<u32>(sp::FIXED_DOFS, 1)?;
+            self.indices(sp::FIXED_DOFS, v, 3 * self.node_count)
+        })
+    }
+
+    /// Elastic eigenvalues λ = ω², finite and positive.
+    pub fn eigenvalues(&self) -> Result<Vec<f64>, ReadError> {
+        self.guard(|| {
+            let v = self.finite(sp::EIGENVALUES, self.read_all(sp::EIGENVALUES, 1)?)?;
+            match v.iter().find(|&&l| l <= 0.0) {
+                Some(l) => Err(self.err(format!("elastic eigenvalue {l} is not positive; the file is damaged"))),
+                None => Ok(v),
+            }
+        })
+    }
+
+    /// Frequencies, Hz, finite.
+    pub fn frequencies_hz(&self) -> Result<Vec<f64>, ReadError> {
+        self.guard(|| self.finite(sp::FREQUENCIES_HZ, self.read_all(sp::FREQUENCIES_HZ, 1)?))
+    }
+
+    /// Relative residuals, finite.
+    pub fn relative_residuals(&self) -> Result<Vec<f64>, ReadError> {
+        self.guard(|| self.finite(sp::RELATIVE_RESIDUALS, self.read_all(sp::RELATIVE_RESIDUALS, 1)?))
+    }
+
+    /// Rows `rows` of the first `cols` modes, row-major (`out[k·cols + j]`), finite.
+    pub fn basis_rows(&self, rows: Range<usize>, cols: usize) -> Result<Vec<f64>, ReadError> {
+        self.guard(|| {
+            if rows.end > 3 * self.node_count || rows.start > rows.end || cols == 0 || cols > self.mode_count {
+                return Err(self.err(format!(
+                    "rows {rows:?} × {cols} modes asked of a {} × {} basis",
+                    3 * self.node_count,
+                    self.mode_count
+                )));
+            }
+            let (ds, _) = self.dataset::<f64>(sp::BASIS, 2)?;
+            let a: ndarray::Array2<f64> = ds
+                .read_slice(s![rows, 0..cols])
+                .map_err(|_| self.err("modes/basis: data unreadable (damaged)"))?;
+            self.finite(sp::BASIS, a.iter().copied().collect())
+        })
+    }
+
+    /// Checks that every value of the whole basis is finite (also the rows a runtime does not
+    /// load), streaming a block of rows at a time so the memory used stays small.
+    pub fn check_basis_finite(&self) -> Result<(), ReadError> {
+        const BLOCK_VALUES: usize = 1 << 20;
+        let rows = 3 * self.node_count;
+        let step = (BLOCK_VALUES / self.mode_count).max(1);
+        let mut start = 0;
+        while start < rows {
+            let end = (start + step).min(rows);
+            self.basis_rows(start..end, self.mode_count).map_err(|e| ReadError {
+                message: format!("{} (rows {start}..{end})", e.message),
+                ..e
+            })?;
+            start = end;
+        }
+        Ok(())
+    }
+
+    /// Static compliance: node indices (below n) and their 3×3 blocks (finite), if stored.
+    pub fn compliance(&self) -> Result<Option<crate::Compliance>, ReadError> {
+        self.guard(|| {
+            if self.group.group(sp::COMPLIANCE).is_err() {
+                return Ok(None);
+            }
+            let nodes = self.read_all::<u32>(sp::COMPLIANCE_NODES, 1)?;
+            let nodes = self.indices(sp::COMPLIANCE_NODES, nodes, self.node_count)?;
+            let (_, shape) = self.dataset::<f64>(sp::COMPLIANCE_BLOCKS, 3)?;
+            if shape != [nodes.len(), 3, 3] {
+                return Err(self.err(format!(
+                    "compliance/blocks has shape {shape:?} for {} nodes",
+                    nodes.len()
+                )));
+            }
+            let flat = self.finite(sp::COMPLIANCE_BLOCKS, self.read_all(sp::COMPLIANCE_BLOCKS, 3)?)?;
+            let blocks = flat
+                .chunks_exact(9)
+                .map(|b| std::array::from_fn(|a| std::array::from_fn(|c| b[3 * a + c])))
+                .collect();
+            Ok(Some((nodes, blocks)))
+        })
+    }
+
+    /// Mass properties of a free body, if stored (mass > 0, all finite).
+    pub fn rigid(&self) -> Result<Option<RigidProperties>, ReadError> {
+        self.guard(|| {
+            let Ok(g) = self.group.group(sp::RIGID) else {
+                return Ok(None);
+            };
+            let mass = scalar_attr::<f64>(&g, sp::MASS).filter(|m| m.is_finite() && *m > 0.0);
+            let c = f64_array_attr(&g, sp::CENTER_OF_MASS, 3);
+            let i = f64_array_attr(&g, sp::INERTIA, 9);
+            match (mass, c, i) {
+                (Some(mass), Some(c), Some(i)) => Ok(Some(RigidProperties {
+                    mass,
+                    center: [c[0], c[1], c[2]],
+                    inertia: [[i[0], i[1], i[2]], [i[3], i[4], i[5]], [i[6], i[7], i[8]]],
+                })),
+                _ => Err(self.err("rigid/ mass, center_of_mass or inertia missing or not finite")),
+            }
+        })
+    }
+
+    /// The state-transfer matrix from space `from`, its first `r_to × r_from` block row-major,
+    /// when the file holds one.
+    pub fn transfer(&self, from: &str, r_to: usize, r_from: usize) -> Result<Option<Vec<f64>>, ReadError> {
+        self.guard(|| {
+            let name = format!("{}/{from}", sp::TRANSFER);
+            if self.group.dataset(&name).is_err() {
+                return Ok(None);
+            }
+            let (ds, shape) = self.dataset::<f64>(&name, 2)?;
+            if shape[0] != self.mode_count || shape[0] < r_to || shape[1] < r_from {
+                return Err(self.err(format!(
+                    "transfer from {from} has shape {shape:?}; expected {} rows and at least {r_from} columns",
+                    self.mode_count
+                )));
+            }
+            let a: ndarray::Array2<f64> = ds
+                .read_slice(s![0..r_to, 0..r_from])
+                .map_err(|_| self.err(format!("{name}: data unreadable (damaged)")))?;
+            self.finite(&name, a.iter().copied().collect()).map(Some)
+        })
+    }
+
+    /// Reads and checks everything in the space (the full basis streamed): what `ves info` and
+    /// `ves verify` ask before they trust a file.
+    pub fn validate(&self) -> Result<(), ReadError> {
+        self.nodes(self.node_count)?;
+        self.tets()?;
+        self.surface_triangles()?;
+        self.fixed_dofs()?;
+        self.eigenvalues()?;
+        self.frequencies_hz()?;
+        self.relative_residuals()?;
+        self.check_basis_finite()?;
+        self.compliance()?;
+        self.rigid()?;
+        Ok(())
+    }
+}

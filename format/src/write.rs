@@ -1,0 +1,227 @@
+//! The one writer of basis files: plain slices in, a complete file out. Where the file goes
+//! (temporary name, fsync, rename) is the caller's policy.
+
+use crate::names::{self, material as mat, root, space as sp};
+use crate::{Material, RigidProperties};
+use ndarray::{Array1, Array2, Array3};
+use std::path::Path;
+
+/// Writing failed: what was being written and HDF5's message.
+#[derive(Debug, thiserror::Error)]
+#[error("writing {what}: {message}")]
+pub struct WriteError {
+    /// The dataset, attribute or group.
+    pub what: String,
+    /// HDF5's message.
+    pub message: String,
+}
+
+/// A whole basis file.
+pub struct FileData<'a> {
+    /// The writing program, e.g. "ves 0.1.0".
+    pub generator: &'a str,
+    /// The scene's text.
+    pub scene_toml: &'a str,
+    /// Content hash of the inputs (optional).
+    pub source_hash: Option<&'a str>,
+    /// Material and damping.
+    pub material: Material,
+    /// Spaces; the first is the default.
+    pub spaces: Vec<SpaceData<'a>>,
+}
+
+/// One space.
+pub struct SpaceData<'a> {
+    /// "global" or the VOI's name.
+    pub name: &'a str,
+    /// 1 or 2.
+    pub element_order: u8,
+    /// Rigid modes dropped (free bodies: 6).
+    pub rigid_modes_dropped: u32,
+    /// The VOI this space refines (min, max corners).
+    pub voi: Option<[[f64; 3]; 2]>,
+    /// Corner vertices: the first nodes.
+    pub vertex_count: usize,
+    /// Node coordinates, m.
+    pub nodes: &'a [[f64; 3]],
+    /// Connectivity, `nodes_per_tet` per tet (gmsh order).
+    pub tets: &'a [u32],
+    /// 4 or 10.
+    pub nodes_per_tet: usize,
+    /// Surface triangles on corner vertices, outward.
+    pub surface_triangles: &'a [[u32; 3]],
+    /// Supported DOFs 3i+c.
+    pub fixed_dofs: &'a [u32],
+    /// λ, ascending.
+    pub eigenvalues: &'a [f64],
+    /// Relative residuals, one per mode.
+    pub relative_residuals: &'a [f64],
+    /// Mode shapes, row-major [3n, r].
+    pub basis: &'a [f64],
+    /// Static compliance: nodes and blocks.
+    pub compliance: Option<(&'a [u32], &'a [crate::Block3])>,
+    /// Transfer matrices from other spaces, row-major [r, r_from].
+    pub transfers: &'a [(String, Vec<f64>)],
+    /// Mass properties of a free body.
+    pub rigid: Option<RigidProperties>,
+}
+
+trait Ctx<T> {
+    fn ctx(self, what: &str) -> Result<T, WriteError>;
+}
+
+impl<T, E: std::fmt::Display> Ctx<T> for Result<T, E> {
+    fn ctx(self, what: &str) -> Result<T, WriteError> {
+        self.map_err(|e| WriteError {
+            what: what.to_string(),
+            message: e.to_string(),
+        })
+    }
+}
+
+fn attr_f64(loc: &hdf5::Location, name: &str, value: f64) -> Result<(), WriteError> {
+    loc.new_attr::<f64>()
+        .create(name)
+        .and_then(|a| a.write_scalar(&value))
+        .ctx(name)
+}
+
+fn attr_u32(loc: &hdf5::Location, name: &str, value: u32) -> Result<(), WriteError> {
+    loc.new_attr::<u32>()
+        .create(name)
+        .and_then(|a| a.write_scalar(&value))
+        .ctx(name)
+}
+
+fn attr_vec3(loc: &hdf5::Location, name: &str, value: [f64; 3]) -> Result<(), WriteError> {
+    loc.new_attr_builder()
+        .with_data(&Array1::from(value.to_vec()))
+        .create(name)
+        .map(drop)
+        .ctx(name)
+}
+
+fn attr_str(loc: &hdf5::Location, name: &str, value: &str) -> Result<(), WriteError> {
+    crate::strings::write(loc, name, value).ctx(name)
+}
+
+/// Writes `data` to a new file at `path` (replacing any file there).
+pub fn write_file(path: &Path, data: &FileData<'_>) -> Result<(), WriteError> {
+    // The 1.8+ file format (v2 object headers, v3 superblock) checksums every piece of metadata:
+    // a damaged header is refused by libhdf5 instead of parsed (the fuzzer found libhdf5 1.10
+    // reading freed memory when parsing corrupted v1 headers).
+    let file = hdf5::File::with_options()
+        .with_fapl(|p| p.libver_v18())
+        .create(path)
+        .ctx(&path.display().to_string())?;
+    attr_str(&file, root::FORMAT, names::FORMAT)?;
+    attr_u32(&file, root::VERSION, names::VERSION)?;
+    attr_str(&file, root::GENERATOR, data.generator)?;
+    attr_str(&file, root::SCENE_TOML, data.scene_toml)?;
+    let default = data.spaces.first().map_or(names::GLOBAL_SPACE, |s| s.name);
+    attr_str(&file, root::DEFAULT_SPACE, default)?;
+    if let Some(h) = data.source_hash {
+        attr_str(&file, root::SOURCE_HASH, h)?;
+    }
+    let m = file.create_group(mat::GROUP).ctx(mat::GROUP)?;
+    attr_f64(&m, mat::YOUNG, data.material.young)?;
+    attr_f64(&m, mat::POISSON, data.material.poisson)?;
+    attr_f64(&m, mat::DENSITY, data.material.density)?;
+    attr_f64(&m, mat::ALPHA, data.material.alpha)?;
+    attr_f64(&m, mat::BETA, data.material.beta)?;
+    for s in &data.spaces {
+        write_space(&file, s).map_err(|e| WriteError {
+            what: format!("space {:?}: {}", s.name, e.what),
+            ..e
+        })?;
+    }
+    file.close().ctx("closing the file")
+}
+
+fn write_space(file: &hdf5::File, s: &SpaceData<'_>) -> Result<(), WriteError> {
+    let g = file
+        .create_group(&format!("{}/{}", names::SPACES, s.name))
+        .ctx("group")?;
+    attr_u32(&g, sp::ELEMENT_ORDER, u32::from(s.element_order))?;
+    attr_u32(&g, sp::RIGID_MODES_DROPPED, s.rigid_modes_dropped)?;
+    if let Some([lo, hi]) = s.voi {
+        attr_vec3(&g, sp::VOI_MIN, lo)?;
+        attr_vec3(&g, sp::VOI_MAX, hi)?;
+    }
+    let mesh = g.create_group(sp::MESH).ctx(sp::MESH)?;
+    attr_u32(&mesh, sp::VERTEX_COUNT, s.vertex_count as u32)?;
+    let n = s.nodes.len();
+    let nodes = Array2::from_shape_fn((n, 3), |(i, c)| s.nodes[i][c]);
+    g.new_dataset_builder()
+        .with_data(&nodes)
+        .create(sp::NODES)
+        .ctx(sp::NODES)?;
+    let p = s.nodes_per_tet;
+    let tets = Array2::from_shape_vec((s.tets.len() / p.max(1), p), s.tets.to_vec()).ctx(sp::TETS)?;
+    g.new_dataset_builder()
+        .with_data(&tets)
+        .chunk((tets.nrows().clamp(1, 16384), p))
+        .shuffle()
+        .deflate(4)
+        .create(sp::TETS)
+        .ctx(sp::TETS)?;
+    let tri = Array2::from_shape_fn((s.surface_triangles.len(), 3), |(i, c)| s.surface_triangles[i][c]);
+    g.new_dataset_builder()
+        .with_data(&tri)
+        .create(sp::SURFACE_TRIANGLES)
+        .ctx(sp::SURFACE_TRIANGLES)?;
+    vector(&g, sp::FIXED_DOFS, s.fixed_dofs)?;
+    g.create_group(sp::MODES).ctx(sp::MODES)?;
+    vector(&g, sp::EIGENVALUES, s.eigenvalues)?;
+    let freqs: Vec<f64> = s
+        .eigenvalues
+        .iter()
+        .map(|&l| l.max(0.0).sqrt() / (2.0 * std::f64::consts::PI))
+        .collect();
+    vector(&g, sp::FREQUENCIES_HZ, &freqs)?;
+    vector(&g, sp::RELATIVE_RESIDUALS, s.relative_residuals)?;
+    let r = s.eigenvalues.len();
+    let basis = Array2::from_shape_vec((3 * n, r), s.basis.to_vec()).ctx(sp::BASIS)?;
+    // Chunks of whole rows of a few modes: the runtime reads vertex rows of the first r modes.
+    g.new_dataset_builder()
+        .with_data(&basis)
+        .chunk(((3 * n).clamp(1, 3 * 4096), r.clamp(1, 16)))
+        .create(sp::BASIS)
+        .ctx(sp::BASIS)?;
+    if let Some((nodes, blocks)) = s.compliance {
+        g.create_group(sp::COMPLIANCE).ctx(sp::COMPLIANCE)?;
+        vector(&g, sp::COMPLIANCE_NODES, nodes)?;
+        let b = Array3::from_shape_fn((blocks.len(), 3, 3), |(k, a, c)| blocks[k][a][c]);
+        g.new_dataset_builder()
+            .with_data(&b)
+            .create(sp::COMPLIANCE_BLOCKS)
+            .ctx(sp::COMPLIANCE_BLOCKS)?;
+    }
+    if !s.transfers.is_empty() {
+        g.create_group(sp::TRANSFER).ctx(sp::TRANSFER)?;
+        for (from, t) in s.transfers {
+            let name = format!("{}/{from}", sp::TRANSFER);
+            let m = Array2::from_shape_vec((r, t.len() / r.max(1)), t.clone()).ctx(&name)?;
+            g.new_dataset_builder().with_data(&m).create(name.as_str()).ctx(&name)?;
+        }
+    }
+    if let Some(rp) = s.rigid {
+        let rg = g.create_group(sp::RIGID).ctx(sp::RIGID)?;
+        attr_f64(&rg, sp::MASS, rp.mass)?;
+        attr_vec3(&rg, sp::CENTER_OF_MASS, rp.center)?;
+        let inertia = Array2::from_shape_fn((3, 3), |(i, j)| rp.inertia[i][j]);
+        rg.new_attr_builder()
+            .with_data(&inertia)
+            .create(sp::INERTIA)
+            .ctx(sp::INERTIA)?;
+    }
+    Ok(())
+}
+
+fn vector<T: hdf5::H5Type + Clone>(g: &hdf5::Group, name: &str, v: &[T]) -> Result<(), WriteError> {
+    g.new_dataset_builder()
+        .with_data(&Array1::from(v.to_vec()))
+        .create(name)
+        .map(drop)
+        .ctx(name)
+}

@@ -1,0 +1,45 @@
+//! `ves info`.
+
+use anyhow::Result;
+use std::path::PathBuf;
+
+/// Arguments.
+#[derive(clap::Args)]
+pub struct Args {
+    /// Basis file (HDF5).
+    basis: PathBuf,
+    /// Print JSON instead of text.
+    #[arg(long)]
+    json: bool,
+}
+
+impl Args {
+    pub fn run(self) -> Result<()> {
+        let info = ves_pipeline::store::info(&self.basis)?;
+        if self.json {
+            return super::print_json(&info);
+        }
+        println!("{} ({} bytes, {})", info.path, info.bytes, info.generator);
+        for s in &info.spaces {
+            let correction = if s.static_correction_vertices > 0 {
+                format!(", static correction at {} vertices", s.static_correction_vertices)
+            } else {
+                String::new()
+            };
+            println!(
+                "  {}: {} nodes ({} vertices), {} tets of order {}, {} modes {:.4}..{:.4} Hz, max residual {:.1e}, {} rigid dropped{correction}",
+                s.name,
+                s.nodes,
+                s.vertices,
+                s.tets,
+                s.element_order,
+                s.modes,
+                s.frequencies_hz.first().copied().unwrap_or(0.0),
+                s.frequencies_hz.last().copied().unwrap_or(0.0),
+                s.max_relative_residual,
+                s.rigid_modes_dropped,
+            );
+        }
+        Ok(())
+    }
+}

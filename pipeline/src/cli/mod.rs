@@ -1,0 +1,97 @@
+//! The `ves` subcommands, one module each: arguments are checked into a config, then one call
+//! into the library does the work and the module prints its result.
+
+pub mod batch;
+pub mod bench;
+pub mod info;
+pub mod matrices;
+pub mod precompute;
+pub mod report;
+pub mod session;
+pub mod verify;
+
+use clap::{Parser, Subcommand};
+use std::sync::atomic::{AtomicUsize, Ordering};
+
+/// The command line.
+#[derive(Parser)]
+#[command(
+    name = "ves",
+    version,
+    about = "Feel and see a CAD part deform: offline modal precompute"
+)]
+pub struct Cli {
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Subcommand)]
+enum Command {
+    /// Mesh a scene, compute its lowest modes and write a modal-basis file.
+    Precompute(precompute::Args),
+    /// Precompute many scenes (files, or directories searched for *.toml): up-to-date outputs
+    /// are skipped, a failed scene is reported and the rest go on (exit status 1 at the end),
+    /// an interrupted batch resumes where it stopped.
+    Batch(batch::Args),
+    /// Run a real-time haptic session on a basis with scripted devices, and report its timing.
+    Session(session::Args),
+    /// Benchmark the runtime on a basis: haptic step (r = 30 and 100) and full-field update.
+    Bench(bench::Args),
+    /// Export the assembled K and M (global space, free DOFs) to HDF5 for external solvers.
+    Matrices(matrices::Args),
+    /// Cross-check the modes and static response of a scene or a basis file against independent
+    /// solvers on the same mesh. Exit status 2 when a tolerance is exceeded.
+    Verify(verify::Args),
+    /// Measure accuracy against cost over a sweep of meshes and mode counts: writes report.md,
+    /// report.json and Pareto plots (PNG, SVG) into a directory.
+    Report(report::Args),
+    /// Summarise a modal-basis file (after checking everything in it).
+    Info(info::Args),
+}
+
+/// Runs the parsed command.
+pub fn run(cli: Cli) -> anyhow::Result<()> {
+    match cli.command {
+        Command::Precompute(a) => a.run(),
+        Command::Batch(a) => a.run(),
+        Command::Session(a) => a.run(),
+        Command::Bench(a) => a.run(),
+        Command::Matrices(a) => a.run(),
+        Command::Verify(a) => a.run(),
+        Command::Report(a) => a.run(),
+        Command::Info(a) => a.run(),
+    }
+}
+
+/// Verification ran but a tolerance was exceeded (exit status 2).
+#[derive(Debug)]
+pub struct VerifyFailed;
+
+impl std::fmt::Display for VerifyFailed {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(
+            f,
+            "verification failed: a reference differs beyond the tolerances (see the report)"
+        )
+    }
+}
+
+impl std::error::Error for VerifyFailed {}
+
+/// MPI rank of this process (0 unless `--solver slepc` under mpirun): only rank 0 reports.
+static RANK: AtomicUsize = AtomicUsize::new(0);
+
+/// This process's MPI rank as far as reporting goes.
+pub fn rank() -> usize {
+    RANK.load(Ordering::Relaxed)
+}
+
+fn set_rank(r: usize) {
+    RANK.store(r, Ordering::Relaxed);
+}
+
+/// Prints `value` as one JSON line (the last line of stdout, DESIGN.md §3).
+fn print_json<T: serde::Serialize>(value: &T) -> anyhow::Result<()> {
+    println!("{}", serde_json::to_string(value)?);
+    Ok(())
+}

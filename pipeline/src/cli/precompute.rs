@@ -1,0 +1,85 @@
+//! `ves precompute`.
+
+use anyhow::Result;
+use std::path::PathBuf;
+use ves_pipeline::modes::{SolverChoice, slepc};
+use ves_pipeline::output::Overwrite;
+use ves_pipeline::precompute;
+use ves_pipeline::scene::{Scene, SceneOptions};
+
+/// Arguments.
+#[derive(clap::Args)]
+pub struct Args {
+    /// Scene file (TOML, version 1).
+    scene: PathBuf,
+    /// Output basis file (default: beside the scene, <name>.h5).
+    #[arg(short, long)]
+    output: Option<PathBuf>,
+    /// Print a JSON summary as the last line of stdout.
+    #[arg(long)]
+    json: bool,
+    /// Eigen-solver.
+    #[arg(long, value_enum, default_value_t = SolverChoice::Auto)]
+    solver: SolverChoice,
+    /// Elastic modes to keep (overrides the scene's modes.count).
+    #[arg(long)]
+    modes: Option<usize>,
+    /// Replace a symbolic link at the output path (the link, not its target).
+    #[arg(long)]
+    force: bool,
+    /// Accept a .geo geometry: a gmsh script, which can run shell commands. Only for scenes you trust.
+    #[arg(long)]
+    allow_geo_scripts: bool,
+}
+
+impl Args {
+    pub fn run(self) -> Result<()> {
+        if let Some(m) = self.modes {
+            anyhow::ensure!((1..=2000).contains(&m), "--modes {m}: must be between 1 and 2000");
+        }
+        // SLEPc brings MPI up first: under mpirun every rank runs this command.
+        let _slepc = match self.solver {
+            SolverChoice::Slepc => {
+                let s = slepc::SlepcGuard::init()?;
+                super::set_rank(slepc::rank());
+                if slepc::rank() != 0 {
+                    ves_pipeline::progress::hide_inner(true);
+                }
+                Some(s)
+            }
+            _ => None,
+        };
+        let opts = SceneOptions {
+            allow_geo_scripts: self.allow_geo_scripts,
+        };
+        let mut scene = Scene::load_with(&self.scene, opts)?;
+        if let Some(m) = self.modes {
+            scene.modes.count = m;
+        }
+        let out = self
+            .output
+            .unwrap_or_else(|| scene.path.with_file_name(format!("{}.h5", scene.name)));
+        let summary = precompute::run_with(&scene, &out, self.solver, Overwrite { force: self.force })?;
+        if slepc::rank() != 0 {
+            return Ok(());
+        }
+        if self.json {
+            return super::print_json(&summary);
+        }
+        for s in &summary.spaces {
+            let f: Vec<String> = s.frequencies_hz.iter().take(6).map(|f| format!("{f:.4}")).collect();
+            println!(
+                "{}: {} nodes, {} tets, {} dofs, {} modes (first: {} Hz), max residual {:.1e}",
+                s.name,
+                s.nodes,
+                s.tets,
+                s.dofs,
+                s.frequencies_hz.len(),
+                f.join(", "),
+                s.max_relative_residual
+            );
+        }
+        println!("wrote {} in {:.2} s", summary.output, summary.timings_s.total);
+        Ok(())
+    }
+}

@@ -1,0 +1,163 @@
+//! `ves session`.
+
+use anyhow::{Context, Result};
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
+use ves_runtime::device::{Device, ScriptedDevice};
+use ves_runtime::haptic::{Coupling, StrainPolicy, StrainWatch};
+use ves_runtime::session::{self, SessionConfig};
+use ves_runtime::switching::{self, SpaceInput};
+use ves_runtime::{LoadOptions, basis};
+
+/// Reaction past the strain limit.
+#[derive(Clone, Copy, Debug, clap::ValueEnum)]
+enum StrainReaction {
+    /// Report it only.
+    Flag,
+    /// The part stops deforming further; the hand feels it stiffen.
+    Stiffen,
+    /// The hand lets go.
+    Release,
+}
+
+/// Arguments.
+#[derive(clap::Args)]
+pub struct Args {
+    /// Basis file (HDF5).
+    basis: PathBuf,
+    /// A device per hand: `script:FILE.csv` (t, x, y, z[, button] in SI units).
+    #[arg(long = "device", required = true)]
+    devices: Vec<String>,
+    /// Haptic rate, Hz.
+    #[arg(long, default_value_t = 1000.0)]
+    rate: f64,
+    /// Session length, s (default: the longest script).
+    #[arg(long)]
+    duration: Option<f64>,
+    /// Modes used (default: all in the file).
+    #[arg(long)]
+    modes: Option<usize>,
+    /// Simulate only this space (default: every space, switching to the volume of interest
+    /// that holds the hands).
+    #[arg(long)]
+    space: Option<String>,
+    /// Coupling stiffness, N/m.
+    #[arg(long, default_value_t = 500.0)]
+    stiffness: f64,
+    /// Coupling damping, N·s/m (default: critical damping of the coupling spring against a 1 g
+    /// device handle, 2√(k·m)).
+    #[arg(long)]
+    damping: Option<f64>,
+    /// Force limit of the device, N.
+    #[arg(long, default_value_t = 10.0)]
+    max_force: f64,
+    /// Busy-wait between steps instead of sleeping (lower jitter, one core fully used).
+    #[arg(long)]
+    spin: bool,
+    /// Validity limit of the linear model: normal strain along the surface edges at a hand.
+    #[arg(long, default_value_t = 0.02)]
+    strain_limit: f64,
+    /// What to do past the strain limit.
+    #[arg(long, value_enum, default_value_t = StrainReaction::Flag)]
+    strain_policy: StrainReaction,
+    /// Print the statistics as JSON.
+    #[arg(long)]
+    json: bool,
+}
+
+impl Args {
+    /// The session settings, checked before anything is loaded; `longest` is the longest script.
+    fn config(&self, longest: f64) -> Result<SessionConfig> {
+        anyhow::ensure!(
+            self.strain_limit > 0.0 && self.strain_limit.is_finite(),
+            "--strain-limit {}: must be a finite strain > 0 (e.g. 0.02)",
+            self.strain_limit
+        );
+        anyhow::ensure!(
+            (1.0..=10_000.0).contains(&self.rate),
+            "--rate {}: must be between 1 and 10000 Hz",
+            self.rate
+        );
+        let positive = |v: f64| v.is_finite() && v > 0.0;
+        anyhow::ensure!(
+            positive(self.stiffness) && positive(self.max_force),
+            "--stiffness {} and --max-force {}: must be finite and > 0",
+            self.stiffness,
+            self.max_force
+        );
+        if let Some(c) = self.damping {
+            anyhow::ensure!(
+                c.is_finite() && c >= 0.0,
+                "--damping {c}: must be finite and ≥ 0 (N·s/m)"
+            );
+        }
+        if let Some(d) = self.duration {
+            anyhow::ensure!(
+                d.is_finite() && d > 0.0,
+                "--duration {d}: must be a finite number of seconds > 0 (e.g. 10)"
+            );
+        }
+        let mut coupling = Coupling::critically_damped(self.stiffness, self.max_force);
+        if let Some(c) = self.damping {
+            coupling.damping = c;
+        }
+        let cfg = SessionConfig {
+            rate_hz: self.rate,
+            duration_s: self.duration.unwrap_or(longest).max(1.0 / self.rate),
+            coupling,
+            sleep: !self.spin,
+            strain: StrainWatch {
+                limit: self.strain_limit,
+                policy: match self.strain_policy {
+                    StrainReaction::Flag => StrainPolicy::Flag,
+                    StrainReaction::Stiffen => StrainPolicy::Stiffen,
+                    StrainReaction::Release => StrainPolicy::Release,
+                },
+            },
+            ..Default::default()
+        };
+        cfg.validate()
+            .map_err(|e| anyhow::anyhow!("{e} (see ves session --help)"))?;
+        Ok(cfg)
+    }
+
+    pub fn run(self) -> Result<()> {
+        let mut devices: Vec<Box<dyn Device>> = Vec::new();
+        let mut longest = 0.0f64;
+        for d in &self.devices {
+            let file = d
+                .strip_prefix("script:")
+                .ok_or_else(|| anyhow::anyhow!("--device {d:?}: use script:FILE.csv"))?;
+            let dev = ScriptedDevice::load(Path::new(file))?;
+            longest = longest.max(dev.duration());
+            devices.push(Box::new(dev));
+        }
+        let cfg = self.config(longest)?;
+        let spaces = match &self.space {
+            Some(space) => vec![SpaceInput {
+                basis: Arc::new(basis::load(
+                    &self.basis,
+                    &LoadOptions {
+                        space: Some(space.clone()),
+                        modes: self.modes,
+                        surface_only: true,
+                    },
+                )?),
+                transfers: vec![None],
+            }],
+            None => switching::load_spaces(&self.basis, self.modes, true)?,
+        };
+        let bytes: usize = spaces.iter().map(|s| s.basis.bytes_loaded).sum();
+        let stats = session::run_spaces(spaces, devices, &cfg)
+            .map_err(|e| anyhow::anyhow!(e))
+            .with_context(|| self.basis.display().to_string())?;
+        if self.json {
+            let mut v = serde_json::to_value(&stats)?;
+            v["bytes_loaded"] = bytes.into();
+            println!("{v}");
+        } else {
+            println!("{stats:#?}");
+        }
+        Ok(())
+    }
+}

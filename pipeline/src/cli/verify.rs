@@ -1,0 +1,95 @@
+//! `ves verify`.
+
+use anyhow::Result;
+use std::path::PathBuf;
+use ves_pipeline::verify::{self, Reference, ToleranceOverrides, VerifyReport};
+
+/// Arguments.
+#[derive(clap::Args)]
+pub struct Args {
+    /// Scene file (TOML, version 1) or basis file (HDF5).
+    input: PathBuf,
+    /// Reference solver.
+    #[arg(long, value_enum, default_value_t = Reference::All)]
+    against: Reference,
+    /// Modes compared (default: the scene's count).
+    #[arg(long)]
+    modes: Option<usize>,
+    /// Largest relative frequency difference (default: 1e-6 for scikit-fem; CalculiX 1e-3
+    /// with 10-node tets, 0.1 with 4-node: its mass integration differs).
+    #[arg(long)]
+    tol_freq: Option<f64>,
+    /// Smallest MAC of an isolated mode (default 0.999; CalculiX 4-node 0.99).
+    #[arg(long)]
+    min_mac: Option<f64>,
+    /// Largest principal angle of a group of close frequencies, rad (default 1e-3; CalculiX 1e-2).
+    #[arg(long)]
+    max_angle: Option<f64>,
+    /// Largest relative difference of the static displacement at the load node (default 1e-6).
+    #[arg(long)]
+    tol_static: Option<f64>,
+    /// Print the report as JSON.
+    #[arg(long)]
+    json: bool,
+}
+
+impl Args {
+    pub fn run(self) -> Result<()> {
+        let tol = ToleranceOverrides {
+            freq: self.tol_freq,
+            mac: self.min_mac,
+            angle: self.max_angle,
+            static_rel: self.tol_static,
+        };
+        let report = verify::verify_input(&self.input, self.against, self.modes, &tol)?;
+        if self.json {
+            super::print_json(&report)?;
+        } else {
+            print_table(&report);
+        }
+        if !report.pass {
+            return Err(super::VerifyFailed.into());
+        }
+        Ok(())
+    }
+}
+
+fn print_table(report: &VerifyReport) {
+    println!(
+        "{}: {} nodes, {} tets (order {}), {} unknowns",
+        report.input, report.nodes, report.tets, report.element_order, report.dofs
+    );
+    for r in &report.references {
+        println!(
+            "\n{} ({:.1} s): {}",
+            r.solver,
+            r.seconds,
+            if r.pass { "PASS" } else { "FAIL" }
+        );
+        println!("  mode     ours (Hz)      reference (Hz)   rel. diff      MAC          group  angle (rad)");
+        for m in &r.modes {
+            println!(
+                "  {:>4} {:>14.6} {:>18.6} {:>12.2e} {:>14.10} {:>6} {:.2e}",
+                m.mode + 1,
+                m.ours_hz,
+                m.reference_hz,
+                m.rel_diff,
+                m.mac,
+                m.group,
+                m.group_angle_rad
+            );
+        }
+        let st = r
+            .static_rel_diff
+            .map_or("n/a (free body)".to_string(), |s| format!("{s:.2e}"));
+        let groups = r
+            .max_group_angle_rad
+            .map_or("no groups of close frequencies".to_string(), |a| {
+                format!("max group angle {a:.2e} rad")
+            });
+        println!(
+            "  max rel. freq. diff {:.2e}, min MAC (isolated) {:.10}, {groups}, static {st}",
+            r.max_rel_freq_diff, r.min_mac_isolated
+        );
+    }
+}

@@ -1,0 +1,147 @@
+//! The discrete problem of one space: its mesh, DOF numbering and assembled K, M. The low-level
+//! type every later stage (modes, static correction, transfer, store, checks) starts from.
+
+use crate::fem;
+use crate::mesh::{self, Mesh};
+use crate::rigid_motions::free_rigid_count;
+use crate::scene::{Scene, Voi};
+use crate::supports::{self, Dofs};
+use anyhow::{Context, Result};
+use std::time::Instant;
+
+/// The assembled problem of one space, before the eigen-solve (also used by tests and checks).
+pub struct Discretized {
+    /// The mesh.
+    pub mesh: Mesh,
+    /// DOF numbering.
+    pub dofs: Dofs,
+    /// K, M and the node graph.
+    pub system: fem::Assembled,
+    /// Rigid motions left by the supports.
+    pub rigid: usize,
+    /// Seconds spent meshing.
+    pub mesh_s: f64,
+    /// Seconds spent selecting supports and assembling.
+    pub assemble_s: f64,
+}
+
+/// Meshes and assembles one space.
+pub fn discretize(scene: &Scene, voi: Option<&Voi>) -> Result<Discretized> {
+    let t = Instant::now();
+    let mesh = mesh::generate(scene, voi)?;
+    let mesh_s = t.elapsed().as_secs_f64();
+    let (quality, at) = mesh.worst_quality();
+    tracing::info!(
+        nodes = mesh.nodes.len(),
+        tets = mesh.tet_count(),
+        worst_quality = quality,
+        "meshed"
+    );
+    if quality < 0.02 {
+        tracing::warn!(
+            "sliver tet (shape quality {quality:.1e}, 1 = regular) near ({:.6}, {:.6}, {:.6}) m: accuracy may suffer there; \
+             change mesh.size or repair the geometry",
+            at[0],
+            at[1],
+            at[2]
+        );
+    }
+    let t = Instant::now();
+    let dofs = supports::select(&mesh, &scene.fixed).with_context(|| scene.path.display().to_string())?;
+    if !dofs.fixed.is_empty() {
+        unheld_body(&mesh, &dofs).map_err(|m| anyhow::anyhow!("{}: {m}", scene.path.display()))?;
+    }
+    let m = &scene.material;
+    let mut d = Discretized::assemble(mesh, dofs, (m.young, m.poisson, m.density))
+        .with_context(|| scene.geometry.display().to_string())?;
+    d.mesh_s = mesh_s;
+    d.assemble_s = t.elapsed().as_secs_f64();
+    Ok(d)
+}
+
+impl Discretized {
+    /// Assembles K and M on a given mesh and DOF numbering (E, ν, ρ); stage times left at zero.
+    pub fn assemble(mesh: Mesh, dofs: Dofs, (young, poisson, density): (f64, f64, f64)) -> Result<Discretized> {
+        let system = fem::assemble(&mesh, young, poisson, density, &dofs)?;
+        let rigid = free_rigid_count(&mesh.nodes, &dofs);
+        Ok(Discretized {
+            mesh,
+            dofs,
+            system,
+            rigid,
+            mesh_s: 0.0,
+            assemble_s: 0.0,
+        })
+    }
+}
+
+/// Disconnected bodies of the mesh: the body index of each node (bodies share no tet).
+fn bodies(mesh: &Mesh) -> (Vec<usize>, usize) {
+    let n = mesh.nodes.len();
+    let mut parent: Vec<usize> = (0..n).collect();
+    fn root(parent: &mut [usize], mut i: usize) -> usize {
+        while parent[i] != i {
+            parent[i] = parent[parent[i]];
+            i = parent[i];
+        }
+        i
+    }
+    for tet in mesh.tets.chunks_exact(mesh.nodes_per_tet()) {
+        let a = root(&mut parent, tet[0] as usize);
+        for &v in &tet[1..] {
+            let b = root(&mut parent, v as usize);
+            parent[b] = a;
+        }
+    }
+    let mut label = vec![usize::MAX; n];
+    let mut count = 0;
+    let body = (0..n)
+        .map(|i| {
+            let r = root(&mut parent, i);
+            if label[r] == usize::MAX {
+                label[r] = count;
+                count += 1;
+            }
+            label[r]
+        })
+        .collect();
+    (body, count)
+}
+
+/// With supports given, every separate body must be held by them: a body the supports do not
+/// reach would float (singular K) and used to fail later as a "mode check" with the wrong advice.
+fn unheld_body(mesh: &Mesh, dofs: &Dofs) -> Result<(), String> {
+    let (body, count) = bodies(mesh);
+    if count < 2 {
+        return Ok(());
+    }
+    for b in 0..count {
+        let nodes: Vec<usize> = (0..mesh.nodes.len()).filter(|&i| body[i] == b).collect();
+        let mut mask = vec![false; 3 * nodes.len()];
+        for (k, &i) in nodes.iter().enumerate() {
+            for c in 0..3 {
+                mask[3 * k + c] = dofs.free_of[3 * i + c] == u32::MAX;
+            }
+        }
+        let xyz: Vec<[f64; 3]> = nodes.iter().map(|&i| mesh.nodes[i]).collect();
+        let free = free_rigid_count(&xyz, &Dofs::from_mask(&mask));
+        if free > 0 {
+            let mut c = [0.0; 3];
+            for p in &xyz {
+                for k in 0..3 {
+                    c[k] += p[k] / xyz.len() as f64;
+                }
+            }
+            return Err(format!(
+                "the geometry has {count} separate bodies and body {} ({} nodes, centred at ({:.4}, {:.4}, {:.4}) m) is not held \
+                 by the supports ({free} rigid motions left): add a [[fixed]] region that touches it, or join the bodies in CAD",
+                b + 1,
+                xyz.len(),
+                c[0],
+                c[1],
+                c[2]
+            ));
+        }
+    }
+    Ok(())
+}

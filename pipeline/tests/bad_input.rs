@@ -1,0 +1,321 @@
+//! Inputs that hurt a new user (issue "One house, no sharp edges"), one regression test each:
+//! every one must end in one clear line that names the input and what to change, a non-zero
+//! exit status, and nothing overwritten.
+
+mod common;
+
+use common::*;
+use std::path::Path;
+
+fn stderr(o: &std::process::Output) -> String {
+    String::from_utf8_lossy(&o.stderr).into_owned()
+}
+
+/// LAPACK printed `On entry to DLASCL parameter number 4 had an illegal value` and the process
+/// exited 0 with no output.
+#[test]
+fn density_1e120_and_moduli_beyond_real_materials_are_refused() {
+    fails(
+        &GOOD.replace("density = 7850.0", "density = 1e120"),
+        &["material.density", "range of real materials", "kg/m³"],
+    );
+    fails(
+        &GOOD.replace("young = 2.1e11", "young = 1e-200"),
+        &["material.young", "range of real materials", "Pa"],
+    );
+    // Used to fail deep in ARPACK with "the starting vector is zero".
+    fails(
+        &GOOD.replace("young = 2.1e11", "young = 1e300"),
+        &["material.young", "range of real materials"],
+    );
+}
+
+/// Inside `ves batch` the LAPACK exit ended the whole batch silently with status 0.
+#[test]
+fn batch_with_an_absurd_density_reports_that_scene_and_finishes_the_others() {
+    let (dir, good) = workdir(GOOD);
+    let bad = dir.path().join("heavy.toml");
+    std::fs::write(
+        &bad,
+        GOOD.replace("density = 7850.0", "density = 1e120")
+            .replace("name = \"beam\"", "name = \"heavy\""),
+    )
+    .unwrap();
+    let o = ves(&["batch", good.to_str().unwrap(), bad.to_str().unwrap()]);
+    assert!(!o.status.success(), "the batch must fail");
+    let err = stderr(&o);
+    assert!(err.contains("heavy"), "{err}");
+    assert!(dir.path().join("beam.h5").is_file(), "the good scene was not done");
+    assert!(!dir.path().join("heavy.h5").exists());
+}
+
+/// `-o` equal to the scene or its STEP file overwrote the input with exit status 0.
+#[test]
+fn output_that_is_an_input_is_refused_and_the_input_kept() {
+    let (dir, scene) = workdir(GOOD);
+    let step = dir.path().join("beam.step");
+    for target in [&scene, &step] {
+        let before = std::fs::read(target).unwrap();
+        let o = ves(&["precompute", scene.to_str().unwrap(), "-o", target.to_str().unwrap()]);
+        assert!(!o.status.success());
+        assert!(stderr(&o).contains("is an input"), "{}", stderr(&o));
+        assert_eq!(std::fs::read(target).unwrap(), before, "{} changed", target.display());
+    }
+    // Through a symlink, even with --force.
+    let link = dir.path().join("link.h5");
+    std::os::unix::fs::symlink(&scene, &link).unwrap();
+    let o = ves(&[
+        "precompute",
+        scene.to_str().unwrap(),
+        "-o",
+        link.to_str().unwrap(),
+        "--force",
+    ]);
+    assert!(
+        !o.status.success() && stderr(&o).contains("is an input"),
+        "{}",
+        stderr(&o)
+    );
+    let o = ves(&["matrices", scene.to_str().unwrap(), "-o", step.to_str().unwrap()]);
+    assert!(
+        !o.status.success() && stderr(&o).contains("is an input"),
+        "{}",
+        stderr(&o)
+    );
+}
+
+/// A device node or a symlink as output was replaced by a regular file.
+#[test]
+fn symlink_and_device_outputs_are_refused_unless_forced() {
+    let (dir, scene) = workdir(GOOD);
+    let target = dir.path().join("elsewhere.txt");
+    std::fs::write(&target, "keep me").unwrap();
+    let link = dir.path().join("out.h5");
+    std::os::unix::fs::symlink(&target, &link).unwrap();
+    let o = ves(&["precompute", scene.to_str().unwrap(), "-o", link.to_str().unwrap()]);
+    assert!(!o.status.success() && stderr(&o).contains("--force"), "{}", stderr(&o));
+    assert!(std::fs::symlink_metadata(&link).unwrap().file_type().is_symlink());
+    let o = ves(&[
+        "precompute",
+        scene.to_str().unwrap(),
+        "-o",
+        link.to_str().unwrap(),
+        "--force",
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(std::fs::symlink_metadata(&link).unwrap().file_type().is_file());
+    assert_eq!(std::fs::read_to_string(&target).unwrap(), "keep me");
+    let o = ves(&["precompute", scene.to_str().unwrap(), "-o", "/dev/null", "--force"]);
+    assert!(
+        !o.status.success() && stderr(&o).contains("not a regular file"),
+        "{}",
+        stderr(&o)
+    );
+}
+
+/// A read-only output directory was found only after the whole computation.
+#[test]
+fn unwritable_output_directory_is_found_before_meshing() {
+    let (_dir, scene) = workdir(GOOD);
+    // sysfs refuses new files even to root.
+    let o = ves(&["precompute", scene.to_str().unwrap(), "-o", "/sys/ves-out.h5", "--json"]);
+    assert!(!o.status.success());
+    let err = stderr(&o);
+    assert!(err.contains("cannot write in /sys") && err.contains("-o"), "{err}");
+    assert!(o.stdout.is_empty());
+}
+
+/// A killed precompute left `OUT.tmp-PID` that only `ves batch` cleaned.
+#[test]
+fn precompute_removes_temporaries_of_killed_runs() {
+    let (dir, scene) = workdir(GOOD);
+    let out = dir.path().join("beam.h5");
+    // pid_max is at most 2^22 on Linux: no process has this one.
+    let stale = dir.path().join("beam.h5.tmp-4999999");
+    std::fs::write(&stale, "half a basis").unwrap();
+    let o = ves(&["precompute", scene.to_str().unwrap(), "-o", out.to_str().unwrap()]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(!stale.exists(), "stale temporary left");
+    assert!(out.is_file());
+}
+
+/// A .geo geometry is a gmsh script: `System "…"` runs shell commands.
+#[test]
+fn geo_scripts_run_only_with_an_explicit_flag() {
+    let (dir, _) = workdir(GOOD);
+    let marker = dir.path().join("ran");
+    let geo = std::fs::read_to_string(Path::new(env!("CARGO_MANIFEST_DIR")).join("../cases/cantilever/cantilever.geo"))
+        .unwrap();
+    std::fs::write(
+        dir.path().join("beam.geo"),
+        format!("{geo}\nSystem \"touch {}\";\n", marker.display()),
+    )
+    .unwrap();
+    let scene = dir.path().join("geo.toml");
+    std::fs::write(
+        &scene,
+        GOOD.replace("beam.step", "beam.geo")
+            .replace("name = \"beam\"", "name = \"geo\""),
+    )
+    .unwrap();
+    let s = scene.to_str().unwrap();
+    for args in [
+        vec!["precompute", s],
+        vec!["batch", s],
+        vec!["matrices", s, "-o", "m.h5"],
+    ] {
+        let o = ves(&args);
+        assert!(!o.status.success(), "{args:?} accepted a script");
+        assert!(stderr(&o).contains("--allow-geo-scripts"), "{args:?}: {}", stderr(&o));
+        assert!(!marker.exists(), "{args:?} ran the script's command");
+    }
+    let o = ves(&["precompute", s, "--allow-geo-scripts"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(marker.exists(), "the trusted script ran");
+}
+
+/// `mesh.size = 1e-9`: gmsh ate memory for 21 s and aborted with std::bad_alloc (exit 134).
+#[test]
+fn absurdly_small_mesh_size_is_refused_before_meshing_with_a_size_that_fits() {
+    let (dir, scene) = workdir(&GOOD.replace("size = 0.05", "size = 1e-9"));
+    let o = ves(&["precompute", scene.to_str().unwrap()]);
+    assert_eq!(o.status.code(), Some(1), "{}", stderr(&o));
+    let err = stderr(&o);
+    assert!(err.contains("mesh.size") && err.contains("use mesh.size ≥"), "{err}");
+    assert!(!dir.path().join("beam.h5").exists());
+    // Exit 1 (not gmsh's abort, 134) and a size to use: for this 1 m beam, the budget's bound
+    // (following it meshes 10⁷ tets, too heavy for a test) lies between 0.1 mm and 5 cm.
+    let suggested: f64 = err
+        .split("use mesh.size ≥ ")
+        .nth(1)
+        .and_then(|s| s.split_whitespace().next())
+        .and_then(|s| s.parse().ok())
+        .expect("a suggested size");
+    assert!(suggested > 1e-4 && suggested < 0.05, "{suggested}");
+}
+
+/// `ves session --duration inf` panicked (capacity overflow); `nan`, `-1`, `0` ran one step and
+/// exited 0.
+#[test]
+fn session_durations_that_are_not_a_positive_finite_time_are_refused() {
+    let (dir, basis) = good_basis();
+    let script = dir.path().join("hand.csv");
+    std::fs::write(&script, "0,1,0.05,0.05\n0.01,1,0.05,0.05\n").unwrap();
+    let dev = format!("script:{}", script.display());
+    for d in ["inf", "nan", "-1", "0", "-inf"] {
+        let arg = format!("--duration={d}");
+        let o = ves(&["session", basis.to_str().unwrap(), "--device", &dev, &arg]);
+        assert_eq!(o.status.code(), Some(1), "--duration {d}: {}", stderr(&o));
+        assert!(stderr(&o).contains("--duration"), "--duration {d}: {}", stderr(&o));
+    }
+    for (flag, v) in [("--stiffness", "nan"), ("--max-force", "-1"), ("--damping", "inf")] {
+        let arg = format!("{flag}={v}");
+        let o = ves(&["session", basis.to_str().unwrap(), "--device", &dev, &arg]);
+        assert_eq!(o.status.code(), Some(1), "{flag} {v}: {}", stderr(&o));
+        assert!(stderr(&o).contains(flag), "{flag} {v}: {}", stderr(&o));
+    }
+}
+
+/// Rewrites one dataset of a copy of `basis` and returns the copy.
+fn damaged(basis: &Path, name: &str, edit: impl FnOnce(&hdf5::Group)) -> std::path::PathBuf {
+    let copy = basis.with_file_name(name);
+    std::fs::copy(basis, &copy).unwrap();
+    let f = hdf5::File::open_rw(&copy).unwrap();
+    edit(&f.group("spaces/global").unwrap());
+    f.close().unwrap();
+    copy
+}
+
+/// `ves info` exited 0 on files the runtime refuses; an int32 basis or a NaN in rows the runtime
+/// does not load was converted or ignored.
+#[test]
+fn info_bench_session_and_verify_refuse_what_the_format_forbids() {
+    let (dir, basis) = good_basis();
+    let nan_eigen = damaged(&basis, "nan_eigen.h5", |g| {
+        let ds = g.dataset("modes/eigenvalues").unwrap();
+        let mut v: Vec<f64> = ds.read_raw().unwrap();
+        v[1] = f64::NAN;
+        ds.write_raw(&v).unwrap();
+    });
+    let bad_triangle = damaged(&basis, "bad_triangle.h5", |g| {
+        let ds = g.dataset("mesh/surface_triangles").unwrap();
+        let mut v: ndarray::Array2<u32> = ds.read_2d().unwrap();
+        v[(0, 1)] = 4_000_000;
+        ds.write(&v).unwrap();
+    });
+    // NaN in the last row: a mid-edge or interior node the runtime never loads.
+    let nan_interior = damaged(&basis, "nan_interior.h5", |g| {
+        let ds = g.dataset("modes/basis").unwrap();
+        let mut v: ndarray::Array2<f64> = ds.read_2d().unwrap();
+        let last = v.nrows() - 1;
+        v[(last, 0)] = f64::NAN;
+        ds.write(&v).unwrap();
+    });
+    let int_basis = damaged(&basis, "int_basis.h5", |g| {
+        let v: ndarray::Array2<f64> = g.dataset("modes/basis").unwrap().read_2d().unwrap();
+        g.unlink("modes/basis").unwrap();
+        let ints = v.mapv(|x| (x * 1e3) as i32);
+        g.new_dataset_builder().with_data(&ints).create("modes/basis").unwrap();
+    });
+    // A header that claims 4.8 GB (chunked, nothing written).
+    let huge = damaged(&basis, "huge.h5", |g| {
+        let rows = g.dataset("modes/basis").unwrap().shape()[0];
+        g.unlink("modes/basis").unwrap();
+        g.new_dataset::<f64>()
+            .chunk((rows, 1))
+            .shape((rows, 600_000_000 / rows + 1))
+            .create("modes/basis")
+            .unwrap();
+    });
+    let _ = dir;
+    for (file, why) in [
+        (&nan_eigen, "non-finite"),
+        (&bad_triangle, "beyond"),
+        (&nan_interior, "non-finite"),
+        (&int_basis, "the format declares"),
+        (&huge, "claims"),
+    ] {
+        let f = file.to_str().unwrap();
+        for args in [vec!["info", f], vec!["bench", f], vec!["info", f, "--json"]] {
+            let o = ves(&args);
+            let err = stderr(&o);
+            assert_eq!(o.status.code(), Some(1), "{args:?} accepted it: {err}");
+            assert!(err.contains(f) && err.contains(why), "{args:?}: {err}");
+            assert_eq!(err.lines().count(), 1, "{args:?}: {err}");
+        }
+    }
+    let o = ves(&["verify", nan_interior.to_str().unwrap(), "--against", "scikit-fem"]);
+    assert_eq!(o.status.code(), Some(1), "{}", stderr(&o));
+    assert!(stderr(&o).contains("non-finite"), "{}", stderr(&o));
+}
+
+/// A basis path that is a directory was reported as "no such file".
+#[test]
+fn a_directory_given_as_basis_says_so() {
+    let dir = tempfile::tempdir().unwrap();
+    let o = ves(&["info", dir.path().to_str().unwrap()]);
+    assert_eq!(o.status.code(), Some(1));
+    assert!(stderr(&o).contains("is a directory"), "{}", stderr(&o));
+}
+
+/// Two disjoint solids, one supported: the free one made K singular and the run failed with
+/// "mode N failed its check … try a finer mesh".
+#[test]
+fn a_separate_body_the_supports_do_not_hold_is_named() {
+    let (dir, _) = workdir(GOOD);
+    std::fs::write(
+        dir.path().join("two.geo"),
+        "SetFactory(\"OpenCASCADE\");\nBox(1) = {0, 0, 0, 1000, 100, 50};\nBox(2) = {200, 300, 0, 500, 100, 50};\n",
+    )
+    .unwrap();
+    let scene = dir.path().join("two.toml");
+    std::fs::write(&scene, GOOD.replace("beam.step", "two.geo")).unwrap();
+    let o = ves(&["precompute", scene.to_str().unwrap(), "--allow-geo-scripts"]);
+    assert_eq!(o.status.code(), Some(1), "{}", stderr(&o));
+    let err = stderr(&o);
+    assert!(
+        err.contains("2 separate bodies") && err.contains("not held") && err.contains("[[fixed]]"),
+        "{err}"
+    );
+    assert!(!err.contains("finer mesh"), "{err}");
+}

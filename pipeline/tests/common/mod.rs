@@ -1,0 +1,95 @@
+//! Helpers shared by the CLI test binaries: run `ves`, make a scene beside a copy of the
+//! cantilever's STEP file, precompute a small basis, check the failure contract.
+#![allow(dead_code)]
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+pub const GOOD: &str = r#"
+name = "beam"
+[geometry]
+step = "beam.step"
+unit = "mm"
+[material]
+young = 2.1e11
+poisson = 0.3
+density = 7850.0
+[mesh]
+size = 0.05
+order = 1
+[[fixed]]
+plane = { axis = "x", value = 0.0 }
+[modes]
+count = 4
+"#;
+
+pub fn ves(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_ves"))
+        .args(args)
+        .output()
+        .expect("ves runs")
+}
+
+/// The JSON object on the last line of stdout (the `--json` contract).
+pub fn last_json(o: &Output) -> serde_json::Value {
+    let stdout = String::from_utf8_lossy(&o.stdout);
+    serde_json::from_str(stdout.lines().last().expect("a JSON line")).expect("the last line is JSON")
+}
+
+/// `ves session BASIS --device script:SCRIPT --json`, which must succeed; its JSON.
+pub fn session_json(basis: &Path, script: &Path) -> serde_json::Value {
+    let o = ves(&[
+        "session",
+        basis.to_str().unwrap(),
+        "--device",
+        &format!("script:{}", script.display()),
+        "--json",
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    last_json(&o)
+}
+
+/// A directory holding the cantilever STEP file as `beam.step` and `scene` as `scene.toml`.
+pub fn workdir(scene: &str) -> (tempfile::TempDir, PathBuf) {
+    let dir = tempfile::tempdir().expect("temp dir");
+    let step = Path::new(env!("CARGO_MANIFEST_DIR")).join("../cases/cantilever/cantilever.step");
+    std::fs::copy(step, dir.path().join("beam.step")).expect("copy step");
+    let path = dir.path().join("scene.toml");
+    std::fs::write(&path, scene).expect("write scene");
+    (dir, path)
+}
+
+/// A directory with the good scene precomputed into `beam.h5`.
+pub fn good_basis() -> (tempfile::TempDir, PathBuf) {
+    let (dir, path) = workdir(GOOD);
+    let basis = dir.path().join("beam.h5");
+    let o = ves(&["precompute", path.to_str().unwrap(), "-o", basis.to_str().unwrap()]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    (dir, basis)
+}
+
+/// Runs `ves precompute` on a bad scene and checks the contract for failures.
+pub fn fails(scene: &str, expect: &[&str]) {
+    let (dir, path) = workdir(scene);
+    let out = dir.path().join("out.h5");
+    std::fs::write(&out, b"previous result").expect("sentinel");
+    let o = ves(&["precompute", path.to_str().unwrap(), "-o", out.to_str().unwrap()]);
+    let stderr = String::from_utf8_lossy(&o.stderr);
+    assert!(!o.status.success(), "should fail: {stderr}");
+    let lines: Vec<&str> = stderr.lines().filter(|l| !l.trim().is_empty()).collect();
+    assert_eq!(lines.len(), 1, "one line expected, got: {stderr}");
+    for e in expect {
+        assert!(lines[0].contains(e), "{:?} should mention {e:?}", lines[0]);
+    }
+    assert_eq!(
+        std::fs::read(&out).expect("sentinel kept"),
+        b"previous result",
+        "existing output overwritten"
+    );
+    let leftovers: Vec<_> = std::fs::read_dir(dir.path())
+        .unwrap()
+        .filter_map(|e| e.ok())
+        .map(|e| e.file_name())
+        .collect();
+    assert_eq!(leftovers.len(), 3, "files left behind: {leftovers:?}");
+}

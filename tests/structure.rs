@@ -1,0 +1,141 @@
+//! The structure the README promises: no import cycles between the top-level modules of each
+//! crate (data flows one way), and a layout table that names every folder of the workspace.
+
+use std::collections::{BTreeMap, BTreeSet};
+use std::path::{Path, PathBuf};
+
+fn workspace() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("..")
+}
+
+fn rust_files(dir: &Path, out: &mut Vec<PathBuf>) {
+    for e in std::fs::read_dir(dir).expect("source folder").flatten() {
+        let p = e.path();
+        if p.is_dir() {
+            rust_files(&p, out);
+        } else if p.extension().is_some_and(|x| x == "rs") {
+            out.push(p);
+        }
+    }
+}
+
+/// Top-level module → modules it names as `crate::name` (unit tests left out: they may reach
+/// anywhere).
+fn module_graph(src: &Path) -> BTreeMap<String, BTreeSet<String>> {
+    let mut files = Vec::new();
+    rust_files(src, &mut files);
+    let mut graph: BTreeMap<String, BTreeSet<String>> = BTreeMap::new();
+    for f in files {
+        let rel = f.strip_prefix(src).expect("inside src");
+        let first = rel
+            .components()
+            .next()
+            .expect("a component")
+            .as_os_str()
+            .to_string_lossy();
+        let module = first.trim_end_matches(".rs").to_string();
+        if module == "lib" || module == "main" {
+            continue;
+        }
+        let text = std::fs::read_to_string(&f).expect("readable source");
+        let code = text.split("#[cfg(test)]\nmod tests").next().unwrap_or("");
+        let deps = graph.entry(module.clone()).or_default();
+        for (i, _) in code.match_indices("crate::") {
+            let name: String = code[i + 7..]
+                .chars()
+                .take_while(|c| c.is_alphanumeric() || *c == '_')
+                .collect();
+            if !name.is_empty() && name != module {
+                deps.insert(name);
+            }
+        }
+    }
+    graph
+}
+
+/// A cycle in the graph, if any (depth-first search).
+fn find_cycle(graph: &BTreeMap<String, BTreeSet<String>>) -> Option<Vec<String>> {
+    fn visit(
+        n: &str,
+        graph: &BTreeMap<String, BTreeSet<String>>,
+        state: &mut BTreeMap<String, u8>,
+        path: &mut Vec<String>,
+    ) -> Option<Vec<String>> {
+        match state.get(n) {
+            Some(2) => return None,
+            Some(1) => {
+                let start = path.iter().position(|p| p == n).unwrap_or(0);
+                let mut cycle = path[start..].to_vec();
+                cycle.push(n.to_string());
+                return Some(cycle);
+            }
+            _ => {}
+        }
+        state.insert(n.to_string(), 1);
+        path.push(n.to_string());
+        for m in graph.get(n).into_iter().flatten() {
+            if let Some(c) = visit(m, graph, state, path) {
+                return Some(c);
+            }
+        }
+        path.pop();
+        state.insert(n.to_string(), 2);
+        None
+    }
+    let mut state = BTreeMap::new();
+    for n in graph.keys() {
+        if let Some(c) = visit(n, graph, &mut state, &mut Vec::new()) {
+            return Some(c);
+        }
+    }
+    None
+}
+
+#[test]
+fn no_import_cycles_between_modules() {
+    for krate in ["pipeline", "runtime", "format", "ffi"] {
+        let graph = module_graph(&workspace().join(krate).join("src"));
+        assert!(
+            graph.len() > 1 || krate == "format" || krate == "ffi",
+            "{krate}: modules found"
+        );
+        if let Some(cycle) = find_cycle(&graph) {
+            panic!("{krate}: import cycle {}", cycle.join(" → "));
+        }
+    }
+}
+
+#[test]
+fn cycle_finder_finds_a_planted_cycle() {
+    let mut g: BTreeMap<String, BTreeSet<String>> = BTreeMap::new();
+    g.entry("mesh".into()).or_default().insert("fem".into());
+    g.entry("fem".into()).or_default().insert("store".into());
+    assert!(find_cycle(&g).is_none());
+    g.entry("store".into()).or_default().insert("mesh".into());
+    assert_eq!(
+        find_cycle(&g).expect("cycle"),
+        ["fem", "store", "mesh", "fem"].map(String::from)
+    );
+}
+
+#[test]
+fn readme_layout_names_every_folder() {
+    let root = workspace();
+    let readme = std::fs::read_to_string(root.join("README.md")).expect("README.md");
+    let mut missing = Vec::new();
+    for e in std::fs::read_dir(&root).expect("workspace").flatten() {
+        let name = e.file_name().to_string_lossy().into_owned();
+        if e.path().is_dir() && !name.starts_with('.') && name != "target" && !readme.contains(&format!("`{name}/")) {
+            missing.push(name);
+        }
+    }
+    for sub in ["pipeline/src", "runtime/src"] {
+        for e in std::fs::read_dir(root.join(sub)).expect("src").flatten() {
+            let name = e.file_name().to_string_lossy().into_owned();
+            if e.path().is_dir() && !readme.contains(&format!("{name}/")) {
+                missing.push(format!("{sub}/{name}"));
+            }
+        }
+    }
+    assert!(missing.is_empty(), "README.md's layout table does not name {missing:?}");
+}
