@@ -63,6 +63,29 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
     }
 }
 
+/// Flags of the commands that read a scene and write a file.
+#[derive(clap::Args)]
+pub struct WriteFlags {
+    /// Replace a symbolic link at the output path (the link, not its target).
+    #[arg(long)]
+    force: bool,
+    /// Accept a .geo geometry: a gmsh script, which can run shell commands. Only for scenes you trust.
+    #[arg(long)]
+    allow_geo_scripts: bool,
+}
+
+impl WriteFlags {
+    fn overwrite(&self) -> ves_pipeline::output::Overwrite {
+        ves_pipeline::output::Overwrite { force: self.force }
+    }
+
+    fn scene(&self) -> ves_pipeline::scene::SceneOptions {
+        ves_pipeline::scene::SceneOptions {
+            allow_geo_scripts: self.allow_geo_scripts,
+        }
+    }
+}
+
 /// Verification ran but a tolerance was exceeded (exit status 2).
 #[derive(Debug)]
 pub struct VerifyFailed;

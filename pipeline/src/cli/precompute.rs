@@ -3,9 +3,8 @@
 use anyhow::Result;
 use std::path::PathBuf;
 use ves_pipeline::modes::{SolverChoice, slepc};
-use ves_pipeline::output::Overwrite;
 use ves_pipeline::precompute;
-use ves_pipeline::scene::{Scene, SceneOptions};
+use ves_pipeline::scene::Scene;
 
 /// Arguments.
 #[derive(clap::Args)]
@@ -24,12 +23,8 @@ pub struct Args {
     /// Elastic modes to keep (overrides the scene's modes.count).
     #[arg(long)]
     modes: Option<usize>,
-    /// Replace a symbolic link at the output path (the link, not its target).
-    #[arg(long)]
-    force: bool,
-    /// Accept a .geo geometry: a gmsh script, which can run shell commands. Only for scenes you trust.
-    #[arg(long)]
-    allow_geo_scripts: bool,
+    #[command(flatten)]
+    write: super::WriteFlags,
 }
 
 impl Args {
@@ -49,17 +44,14 @@ impl Args {
             }
             _ => None,
         };
-        let opts = SceneOptions {
-            allow_geo_scripts: self.allow_geo_scripts,
-        };
-        let mut scene = Scene::load_with(&self.scene, opts)?;
+        let mut scene = Scene::load_with(&self.scene, self.write.scene())?;
         if let Some(m) = self.modes {
             scene.modes.count = m;
         }
         let out = self
             .output
             .unwrap_or_else(|| scene.path.with_file_name(format!("{}.h5", scene.name)));
-        let summary = precompute::run_with(&scene, &out, self.solver, Overwrite { force: self.force })?;
+        let summary = precompute::run_with(&scene, &out, self.solver, self.write.overwrite())?;
         if slepc::rank() != 0 {
             return Ok(());
         }
