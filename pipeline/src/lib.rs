@@ -20,5 +20,4 @@ pub mod scene;
 pub mod store;
 pub mod supports;
 pub mod transfer;
-pub mod vec3;
 pub mod verify;

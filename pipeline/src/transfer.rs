@@ -8,8 +8,8 @@ use crate::fem::element::{Shape, tet4::Tet4, tet10::Tet10};
 use crate::linsolve::sym_matvec;
 use crate::mesh::Mesh;
 use crate::supports::Dofs;
-use crate::vec3::{cross, dot};
 use faer::sparse::SymbolicSparseColMat;
+use nalgebra::{Matrix3, Vector3};
 use rayon::prelude::*;
 
 /// One space as the transfer sees it.
@@ -126,16 +126,18 @@ impl Grid {
 
 /// Barycentric coordinates of `p` in the straight tet of corners `x`.
 fn barycentric(x: [[f64; 3]; 4], p: [f64; 3]) -> [f64; 4] {
-    let d: [[f64; 3]; 3] = std::array::from_fn(|k| std::array::from_fn(|c| x[k + 1][c] - x[0][c]));
-    let r: [f64; 3] = std::array::from_fn(|c| p[c] - x[0][c]);
-    let det = |a: [f64; 3], b: [f64; 3], c: [f64; 3]| dot(a, cross(b, c));
-    let v = det(d[0], d[1], d[2]);
+    let o = Vector3::from(x[0]);
+    let d: [Vector3<f64>; 3] = std::array::from_fn(|k| Vector3::from(x[k + 1]) - o);
+    let r = Vector3::from(p) - o;
+    // Cramer's rule: each coordinate is a ratio of volumes.
+    let det = |a: &Vector3<f64>, b: &Vector3<f64>, c: &Vector3<f64>| Matrix3::from_columns(&[*a, *b, *c]).determinant();
+    let v = det(&d[0], &d[1], &d[2]);
     if v.abs() < 1e-300 {
         return [f64::NEG_INFINITY; 4];
     }
-    let l1 = det(r, d[1], d[2]) / v;
-    let l2 = det(d[0], r, d[2]) / v;
-    let l3 = det(d[0], d[1], r) / v;
+    let l1 = det(&r, &d[1], &d[2]) / v;
+    let l2 = det(&d[0], &r, &d[2]) / v;
+    let l3 = det(&d[0], &d[1], &r) / v;
     [1.0 - l1 - l2 - l3, l1, l2, l3]
 }
 

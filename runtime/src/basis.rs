@@ -257,27 +257,21 @@ fn surface_neighbours(n: usize, triangles: &[[u32; 3]]) -> (Vec<u32>, Vec<u32>) 
 
 /// Area-weighted vertex normals, and the list of vertices on some triangle.
 fn vertex_normals(rest: &[[f64; 3]], triangles: &[[u32; 3]]) -> (Vec<[f64; 3]>, Vec<u32>) {
-    let mut normals = vec![[0.0f64; 3]; rest.len()];
+    use nalgebra::Vector3;
+    let mut sums = vec![Vector3::<f64>::zeros(); rest.len()];
     for t in triangles {
-        let [a, b, c] = t.map(|v| rest[v as usize]);
-        let u = [b[0] - a[0], b[1] - a[1], b[2] - a[2]];
-        let w = [c[0] - a[0], c[1] - a[1], c[2] - a[2]];
-        let n = [
-            u[1] * w[2] - u[2] * w[1],
-            u[2] * w[0] - u[0] * w[2],
-            u[0] * w[1] - u[1] * w[0],
-        ];
+        let [a, b, c] = t.map(|v| Vector3::from(rest[v as usize]));
+        let n = (b - a).cross(&(c - a));
         for &v in t {
-            for k in 0..3 {
-                normals[v as usize][k] += n[k];
-            }
+            sums[v as usize] += n;
         }
     }
     let mut surface = Vec::new();
-    for (i, n) in normals.iter_mut().enumerate() {
-        let len = (n[0] * n[0] + n[1] * n[1] + n[2] * n[2]).sqrt();
+    let mut normals = vec![[0.0f64; 3]; rest.len()];
+    for (i, n) in sums.iter().enumerate() {
+        let len = n.norm();
         if len > 0.0 {
-            *n = n.map(|x| x / len);
+            normals[i] = (n / len).into();
             surface.push(i as u32);
         }
     }

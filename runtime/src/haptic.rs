@@ -10,7 +10,7 @@
 use crate::basis::Basis;
 use crate::integrator::{ModalState, Scheme};
 use crate::kdtree::KdTree;
-use crate::rigid_body::{RigidBody, cross};
+use crate::rigid_body::{M3, RigidBody, V3, m3};
 
 /// Virtual coupling between the haptic interaction point (HIP) and the part.
 #[derive(Clone, Copy, Debug)]
@@ -131,18 +131,18 @@ struct Hand {
     grabbed: bool,
     rows: Vec<f64>,
     /// How far the vertex moves per newton of its own force over one step (modal part).
-    g: [[f64; 3]; 3],
+    g: M3,
     /// Static correction Gᵢᵢ − Φᵢ Λ⁻¹ Φᵢᵀ (zero when off or not stored): the compliance the
     /// truncated modes miss, added instantly.
-    residual: [[f64; 3]; 3],
+    residual: M3,
     /// Force applied to the part at the vertex last step (part frame).
-    last_force: [f64; 3],
+    last_force: V3,
     /// Per surface neighbour k: the modal row of the edge strain, (φ_k − φ_i)·d / |d|².
     edge_rows: Vec<f64>,
     /// Neighbours in `edge_rows`.
     edges: usize,
     /// Per neighbour: static edge strain per newton at the vertex, Σ_j edge_j φ_j / λ_j.
-    strain_per_newton: [[f64; 3]; STRAIN_NEIGHBOURS],
+    strain_per_newton: [V3; STRAIN_NEIGHBOURS],
     /// The stiffen cap acted last step (it stays on until the load falls below it).
     capped: bool,
 }
@@ -164,23 +164,30 @@ pub struct Haptics {
     pub quarantined: u64,
 }
 
-fn solve3(a: [[f64; 3]; 3], b: [f64; 3]) -> Option<[f64; 3]> {
-    let det = a[0][0] * (a[1][1] * a[2][2] - a[1][2] * a[2][1]) - a[0][1] * (a[1][0] * a[2][2] - a[1][2] * a[2][0])
-        + a[0][2] * (a[1][0] * a[2][1] - a[1][1] * a[2][0]);
-    if det.abs() < 1e-300 || !det.is_finite() {
-        return None;
-    }
-    let mut x = [0.0; 3];
-    for (k, xk) in x.iter_mut().enumerate() {
-        let mut m = a;
-        for r in 0..3 {
-            m[r][k] = b[r];
-        }
-        *xk = (m[0][0] * (m[1][1] * m[2][2] - m[1][2] * m[2][1]) - m[0][1] * (m[1][0] * m[2][2] - m[1][2] * m[2][0])
-            + m[0][2] * (m[1][0] * m[2][1] - m[1][1] * m[2][0]))
-            / det;
-    }
-    Some(x)
+/// One hand's device state in the part (body) frame.
+struct PartInput {
+    position: V3,
+    velocity: V3,
+    button: bool,
+}
+
+/// The active vertex over the coming step.
+struct Prediction {
+    /// Where it ends the step if the hand applies no force (free modal motion, and the static
+    /// correction's standing displacement), m.
+    free_end: V3,
+    /// Where it is now, m.
+    now: V3,
+    /// How far it moves per newton applied there over the step: modes, static correction and,
+    /// for a free body, the rigid motion.
+    compliance: M3,
+}
+
+/// Total force and torque (about the centre of mass) the hands apply to a free body, world frame.
+#[derive(Default)]
+struct Wrench {
+    force: V3,
+    torque: V3,
 }
 
 impl Haptics {
@@ -195,12 +202,12 @@ impl Haptics {
                 vertex: None,
                 grabbed: false,
                 rows: vec![0.0; 3 * r],
-                g: [[0.0; 3]; 3],
-                residual: [[0.0; 3]; 3],
-                last_force: [0.0; 3],
+                g: M3::zeros(),
+                residual: M3::zeros(),
+                last_force: V3::zeros(),
                 edge_rows: vec![0.0; STRAIN_NEIGHBOURS * r],
                 edges: 0,
-                strain_per_newton: [[0.0; 3]; STRAIN_NEIGHBOURS],
+                strain_per_newton: [V3::zeros(); STRAIN_NEIGHBOURS],
                 capped: false,
             })
             .collect();
@@ -279,29 +286,27 @@ impl Haptics {
         basis.gather_rows(vertex as usize, &mut hd.rows);
         let rows = &hd.rows;
         let state = &self.state;
-        let g: [[f64; 3]; 3] = std::array::from_fn(|a| {
-            std::array::from_fn(|b| {
-                (0..r)
-                    .map(|j| state.transition(j).force_gain() * rows[a * r + j] * rows[b * r + j])
-                    .sum()
-            })
+        let g = M3::from_fn(|a, b| {
+            (0..r)
+                .map(|j| state.transition(j).force_gain() * rows[a * r + j] * rows[b * r + j])
+                .sum()
         });
         // Residual compliance: exact block minus what the loaded modes already give.
         let residual = match basis.compliance_of(vertex as usize).filter(|_| self.static_correction) {
-            Some(exact) => std::array::from_fn(|a| {
-                std::array::from_fn(|b| {
-                    exact[a][b]
-                        - (0..r)
+            Some(exact) => {
+                m3(&exact)
+                    - M3::from_fn(|a, b| {
+                        (0..r)
                             .map(|j| rows[a * r + j] * rows[b * r + j] / basis.eigenvalues[j])
                             .sum::<f64>()
-                })
-            }),
-            None => [[0.0; 3]; 3],
+                    })
+            }
+            None => M3::zeros(),
         };
         hd.vertex = Some(vertex);
         hd.g = g;
         hd.residual = residual;
-        hd.last_force = [0.0; 3];
+        hd.last_force = V3::zeros();
         hd.capped = false;
         // Edge-strain rows: the axial strain of edge (i, k) is Σ_j q_j (φ_k − φ_i)_j·d / |d|².
         let i = vertex as usize;
@@ -320,7 +325,7 @@ impl Haptics {
                     / l2.max(f64::MIN_POSITIVE);
             }
             let edge = &hd.edge_rows[e * r..(e + 1) * r];
-            hd.strain_per_newton[e] = std::array::from_fn(|a| {
+            hd.strain_per_newton[e] = V3::from_fn(|a, _| {
                 (0..r)
                     .map(|j| edge[j] * hd.rows[a * r + j] / basis.eigenvalues[j])
                     .sum()
@@ -344,182 +349,217 @@ impl Haptics {
             .fold(0.0, f64::max)
     }
 
-    /// One haptic step for every hand in `inputs` (at most the number given to `new`).
+    /// One haptic step for every hand in `inputs` (at most the number given to `new`), in named
+    /// stages: each hand is brought into the part frame, picks or keeps its vertex, predicts
+    /// that vertex's free motion, solves the coupling force, passes the validity watch and
+    /// applies the force; then the modes (and a free body) advance, or roll back if non-finite.
     pub fn step(&mut self, inputs: &[HandInput], outputs: &mut [HandOutput]) {
-        let r = self.state.q.len();
         self.f.fill(0.0);
-        let c = self.coupling;
-        let dt = self.state.dt();
-        let (mut total_force, mut total_torque) = ([0.0; 3], [0.0; 3]);
+        let mut wrench = Wrench::default();
         for (k, world) in inputs.iter().enumerate().take(self.hands.len()) {
             let out = &mut outputs[k];
             *out = HandOutput::default();
-            // Everything below works in the part (body) frame.
-            let input = match &self.rigid {
-                None => *world,
-                Some(body) => {
-                    // Where the body will be after a step without the hand's force: the
-                    // coupling is then solved at the end of the step, like the modes (implicit).
-                    let mut rb = *body;
-                    rb.step([0.0; 3], [0.0; 3], dt);
-                    let pv = rb.point_velocity(world.position);
-                    HandInput {
-                        position: rb.to_body(world.position),
-                        velocity: rb.vector_to_body(std::array::from_fn(|a| world.velocity[a] - pv[a])),
-                        button: world.button,
-                    }
-                }
-            };
-            let input = &input;
-            if !self.hands[k].grabbed {
-                match self.tree.nearest(input.position) {
-                    Some((v, _)) => self.select(k, v),
-                    None => continue, // non-finite HIP: no force
-                }
-                self.hands[k].grabbed = input.button;
-            } else if !input.button {
-                self.hands[k].grabbed = false;
-            }
-            let hd = &self.hands[k];
-            let Some(vertex) = hd.vertex else { continue };
-            // The step compliance at the vertex: modes, static correction, and for a free body
-            // the rigid motion.
-            let cr = match &self.rigid {
-                Some(rb) => rb.step_compliance_body(self.basis.rest[vertex as usize], dt),
-                None => [[0.0; 3]; 3],
-            };
-            let g: [[f64; 3]; 3] =
-                std::array::from_fn(|a| std::array::from_fn(|b| hd.g[a][b] + hd.residual[a][b] + cr[a][b]));
-            // Free prediction of the vertex at the end of the step.
-            let (mut p0, mut p_now) = (self.basis.rest[vertex as usize], self.basis.rest[vertex as usize]);
-            for j in 0..r {
-                let (qf, _) = self.state.transition(j).free(self.state.q[j], self.state.v[j]);
-                for a in 0..3 {
-                    let phi = hd.rows[a * r + j];
-                    p0[a] += phi * qf;
-                    p_now[a] += phi * self.state.q[j];
-                }
-            }
-            // The static correction is quasi-static: it moved the vertex by R·F_last already.
-            for a in 0..3 {
-                let shift = (0..3).map(|b| hd.residual[a][b] * hd.last_force[b]).sum::<f64>();
-                p_now[a] += shift;
-                p0[a] += shift;
-            }
-            let x = input.position;
-            let xd = input.velocity;
-            // The damper acts on the vertex's mean velocity over the step, (p − p_now)/dt, not on
-            // its end velocity: modes with ω·dt > π are undamped between samples and their end
-            // velocity aliases, which a damper on it would pump. With p = p₀ + G F, the spring
-            // and damper together give (I + (k + b/dt) G) F = k(x − p₀) + b(ẋ − (p₀ − p_now)/dt).
-            let kb = c.stiffness + c.damping / dt;
-            let force = if hd.grabbed {
-                let m: [[f64; 3]; 3] =
-                    std::array::from_fn(|a| std::array::from_fn(|b| kb * g[a][b] + f64::from(u8::from(a == b))));
-                let rhs: [f64; 3] = std::array::from_fn(|a| {
-                    c.stiffness * (x[a] - p0[a]) + c.damping * (xd[a] - (p0[a] - p_now[a]) / dt)
-                });
-                solve3(m, rhs)
-            } else {
-                // Press: only along the outward normal n, only pushing.
-                let n = self.basis.normals[vertex as usize];
-                let depth = (0..3).map(|a| (p0[a] - x[a]) * n[a]).sum::<f64>();
-                if depth > 0.0 {
-                    let rate = (0..3).map(|a| ((p0[a] - p_now[a]) / dt - xd[a]) * n[a]).sum::<f64>();
-                    let ngn = (0..3)
-                        .flat_map(|a| (0..3).map(move |b| (a, b)))
-                        .map(|(a, b)| n[a] * g[a][b] * n[b])
-                        .sum::<f64>();
-                    let fn_ = ((c.stiffness * depth + c.damping * rate) / (1.0 + kb * ngn)).max(0.0);
-                    Some(n.map(|x| -fn_ * x))
-                } else {
-                    Some([0.0; 3])
-                }
-            };
-            let Some(mut force) = force.filter(|f| f.iter().all(|v| v.is_finite())) else {
+            let input = self.to_part_frame(world);
+            let Some(vertex) = self.pick(k, &input) else { continue };
+            let prediction = self.predict(k, vertex);
+            let Some((force, magnitude)) = self.coupling_force(k, vertex, &input, &prediction, out) else {
                 continue;
             };
-            let mag = (force[0] * force[0] + force[1] * force[1] + force[2] * force[2]).sqrt();
-            if mag > c.max_force {
-                force = force.map(|v| v * c.max_force / mag);
-                out.clamped = true;
-            }
-            // Validity of the linear model at this vertex.
-            let strain = self.edge_strain(k);
-            let watch = self.strain_watch;
-            out.strain = strain;
-            out.strain_exceeded = strain > watch.limit;
-            // `device` is what the hand feels, `force` what the part gets.
-            let mut device = force;
-            match watch.policy {
-                StrainPolicy::Flag => {}
-                StrainPolicy::Stiffen if out.strain_exceeded || self.hands[k].capped => {
-                    // Static strain per newton along this force's direction, over the edges.
-                    let hd = &self.hands[k];
-                    let now = (force[0] * force[0] + force[1] * force[1] + force[2] * force[2]).sqrt();
-                    let per_newton = hd.strain_per_newton[..hd.edges]
-                        .iter()
-                        .map(|c| ((c[0] * force[0] + c[1] * force[1] + c[2] * force[2]) / now.max(1e-300)).abs())
-                        .fold(0.0, f64::max);
-                    let cap = watch.limit / per_newton.max(1e-300);
-                    let capped = now > cap;
-                    if capped {
-                        force = force.map(|v| v * cap / now);
-                    }
-                    self.hands[k].capped = capped;
-                }
-                StrainPolicy::Stiffen => {}
-                StrainPolicy::Release if out.strain_exceeded => {
-                    force = [0.0; 3];
-                    device = [0.0; 3];
-                    self.hands[k].grabbed = false;
-                }
-                StrainPolicy::Release => {}
-            }
-            let hd = &self.hands[k];
-            for j in 0..r {
-                self.f[j] += hd.rows[j] * force[0] + hd.rows[r + j] * force[1] + hd.rows[2 * r + j] * force[2];
-            }
-            let (force_w, p_w) = match &self.rigid {
-                None => (force, p_now),
-                Some(rb) => (rb.vector_to_world(force), rb.to_world(p_now)),
-            };
-            if let Some(rb) = &self.rigid {
-                let arm = std::array::from_fn(|a| p_w[a] - rb.position[a]);
-                let t = cross(arm, force_w);
-                for a in 0..3 {
-                    total_force[a] += force_w[a];
-                    total_torque[a] += t[a];
-                }
-            }
-            let device_w = match &self.rigid {
-                None => device,
-                Some(rb) => rb.vector_to_world(device),
-            };
-            out.force = device_w.map(|v| -v);
-            out.vertex = vertex;
-            out.contact = hd.grabbed || mag > 0.0;
-            self.hands[k].last_force = force;
-            out.vertex_position = p_w;
+            let (force, device) = self.watch_strain(k, force, out);
+            self.apply(k, vertex, (force, device, magnitude), &prediction, &mut wrench, out);
         }
+        self.advance(&wrench, outputs);
+    }
+
+    /// Stage 1: the device state in the part (body) frame. For a free body, relative to where the
+    /// body will be after a step without the hand's force: the coupling is solved at the end of
+    /// the step, like the modes (implicit).
+    fn to_part_frame(&self, world: &HandInput) -> PartInput {
+        let (x, v) = (V3::from(world.position), V3::from(world.velocity));
+        match &self.rigid {
+            None => PartInput {
+                position: x,
+                velocity: v,
+                button: world.button,
+            },
+            Some(body) => {
+                let mut rb = *body;
+                rb.step(V3::zeros(), V3::zeros(), self.state.dt());
+                PartInput {
+                    position: rb.to_body(x),
+                    velocity: rb.vector_to_body(v - rb.point_velocity(x)),
+                    button: world.button,
+                }
+            }
+        }
+    }
+
+    /// Stage 2: the hand's active vertex: the nearest surface vertex unless it holds a grab (the
+    /// button pressed while touching keeps the vertex until released). `None`: no vertex (a
+    /// non-finite HIP), no force.
+    fn pick(&mut self, k: usize, input: &PartInput) -> Option<u32> {
+        if !self.hands[k].grabbed {
+            let (v, _) = self.tree.nearest(input.position.into())?;
+            self.select(k, v);
+            self.hands[k].grabbed = input.button;
+        } else if !input.button {
+            self.hands[k].grabbed = false;
+        }
+        self.hands[k].vertex
+    }
+
+    /// Stage 3: the vertex's free motion over the step and its step compliance.
+    fn predict(&self, k: usize, vertex: u32) -> Prediction {
+        let hd = &self.hands[k];
+        let r = self.state.q.len();
+        let rest = V3::from(self.basis.rest[vertex as usize]);
+        let rigid = match &self.rigid {
+            Some(rb) => rb.step_compliance_body(rest, self.state.dt()),
+            None => M3::zeros(),
+        };
+        let (mut free_end, mut now) = (rest, rest);
+        for j in 0..r {
+            let (qf, _) = self.state.transition(j).free(self.state.q[j], self.state.v[j]);
+            let phi = V3::new(hd.rows[j], hd.rows[r + j], hd.rows[2 * r + j]);
+            free_end += phi * qf;
+            now += phi * self.state.q[j];
+        }
+        // The static correction is quasi-static: it moved the vertex by R·F_last already.
+        let shift = hd.residual * hd.last_force;
+        Prediction {
+            free_end: free_end + shift,
+            now: now + shift,
+            compliance: hd.g + hd.residual + rigid,
+        }
+    }
+
+    /// Stage 4: the coupling force on the part (grab: 3-D spring-damper; press: along the outward
+    /// normal, pushing only), solved implicitly, then limited to the device's force. Returns the
+    /// force and its magnitude before the limit; `None` when it is not finite (no force).
+    fn coupling_force(
+        &self,
+        k: usize,
+        vertex: u32,
+        input: &PartInput,
+        p: &Prediction,
+        out: &mut HandOutput,
+    ) -> Option<(V3, f64)> {
+        let c = self.coupling;
+        let dt = self.state.dt();
+        let (x, xd) = (input.position, input.velocity);
+        // The damper acts on the vertex's mean velocity over the step, (p − p_now)/dt, not on
+        // its end velocity: modes with ω·dt > π are undamped between samples and their end
+        // velocity aliases, which a damper on it would pump. With p = p₀ + G F, the spring
+        // and damper together give (I + (k + b/dt) G) F = k(x − p₀) + b(ẋ − (p₀ − p_now)/dt).
+        let kb = c.stiffness + c.damping / dt;
+        let mean_velocity = (p.free_end - p.now) / dt;
+        let force = if self.hands[k].grabbed {
+            let m = p.compliance * kb + M3::identity();
+            let rhs = (x - p.free_end) * c.stiffness + (xd - mean_velocity) * c.damping;
+            m.lu().solve(&rhs)
+        } else {
+            let n = V3::from(self.basis.normals[vertex as usize]);
+            let depth = (p.free_end - x).dot(&n);
+            if depth > 0.0 {
+                let rate = (mean_velocity - xd).dot(&n);
+                let ngn = n.dot(&(p.compliance * n));
+                let fn_ = ((c.stiffness * depth + c.damping * rate) / (1.0 + kb * ngn)).max(0.0);
+                Some(n * -fn_)
+            } else {
+                Some(V3::zeros())
+            }
+        };
+        let mut force = force.filter(|f| f.iter().all(|v| v.is_finite()))?;
+        let magnitude = force.norm();
+        if magnitude > c.max_force {
+            force *= c.max_force / magnitude;
+            out.clamped = true;
+        }
+        Some((force, magnitude))
+    }
+
+    /// Stage 5: the validity watch of the linear model at this vertex and its reaction. Returns
+    /// the force the part gets and the one the hand feels.
+    fn watch_strain(&mut self, k: usize, force: V3, out: &mut HandOutput) -> (V3, V3) {
+        let strain = self.edge_strain(k);
+        let watch = self.strain_watch;
+        out.strain = strain;
+        out.strain_exceeded = strain > watch.limit;
+        let (mut force, mut device) = (force, force);
+        match watch.policy {
+            StrainPolicy::Flag => {}
+            StrainPolicy::Stiffen if out.strain_exceeded || self.hands[k].capped => {
+                // Static strain per newton along this force's direction, over the edges.
+                let hd = &self.hands[k];
+                let now = force.norm();
+                let per_newton = hd.strain_per_newton[..hd.edges]
+                    .iter()
+                    .map(|c| (c.dot(&force) / now.max(1e-300)).abs())
+                    .fold(0.0, f64::max);
+                let cap = watch.limit / per_newton.max(1e-300);
+                let capped = now > cap;
+                if capped {
+                    force *= cap / now;
+                }
+                self.hands[k].capped = capped;
+            }
+            StrainPolicy::Stiffen => {}
+            StrainPolicy::Release if out.strain_exceeded => {
+                force = V3::zeros();
+                device = V3::zeros();
+                self.hands[k].grabbed = false;
+            }
+            StrainPolicy::Release => {}
+        }
+        (force, device)
+    }
+
+    /// Stage 6: the force into the modal load (and a free body's wrench), the device's force and
+    /// the hand's report.
+    fn apply(
+        &mut self,
+        k: usize,
+        vertex: u32,
+        (force, device, magnitude): (V3, V3, f64),
+        p: &Prediction,
+        wrench: &mut Wrench,
+        out: &mut HandOutput,
+    ) {
+        let r = self.state.q.len();
+        let hd = &self.hands[k];
+        for j in 0..r {
+            self.f[j] += hd.rows[j] * force.x + hd.rows[r + j] * force.y + hd.rows[2 * r + j] * force.z;
+        }
+        let (p_w, device_w) = match &self.rigid {
+            None => (p.now, device),
+            Some(rb) => {
+                let (f, at) = (rb.vector_to_world(force), rb.to_world(p.now));
+                wrench.force += f;
+                wrench.torque += (at - rb.position).cross(&f);
+                (at, rb.vector_to_world(device))
+            }
+        };
+        out.force = (-device_w).into();
+        out.vertex = vertex;
+        out.contact = hd.grabbed || magnitude > 0.0;
+        out.vertex_position = p_w.into();
+        self.hands[k].last_force = force;
+    }
+
+    /// Stage 7: advance the modes (and a free body); roll everything back if the result is not
+    /// finite, and then send no force.
+    fn advance(&mut self, wrench: &Wrench, outputs: &mut [HandOutput]) {
         self.saved.0.copy_from_slice(&self.state.q);
         self.saved.1.copy_from_slice(&self.state.v);
         self.saved_rigid = self.rigid;
         self.state.step(&self.f);
+        let dt = self.state.dt();
         if let Some(rb) = &mut self.rigid {
-            rb.step(total_force, total_torque, dt);
+            rb.step(wrench.force, wrench.torque, dt);
         }
-        let rigid_finite = self.rigid.is_none_or(|rb| {
-            rb.position
-                .iter()
-                .chain(&rb.velocity)
-                .chain(&rb.orientation)
-                .chain(&rb.angular_momentum)
-                .all(|v| v.is_finite())
-        });
-        let finite = rigid_finite && self.state.q.iter().chain(&self.state.v).all(|v| v.is_finite());
+        let finite = self.rigid.is_none_or(|rb| rb.is_finite())
+            && self.state.q.iter().chain(&self.state.v).all(|v| v.is_finite());
         if !finite {
-            // Roll back; never send a non-finite or stale-state force.
             self.state.q.copy_from_slice(&self.saved.0);
             self.state.v.copy_from_slice(&self.saved.1);
             self.rigid = self.saved_rigid;
@@ -579,7 +619,7 @@ impl Haptics {
         match &self.rigid {
             Some(rb) => {
                 let (x, o) = (rb.position, rb.orientation);
-                [x[0], x[1], x[2], o[0], o[1], o[2], o[3]]
+                [x.x, x.y, x.z, o.w, o.i, o.j, o.k]
             }
             None => [0.0; 7],
         }

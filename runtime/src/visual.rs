@@ -41,15 +41,13 @@ pub fn posed_positions_of(basis: &Basis, modal: &[f64], pose: &[f64], pos: &mut 
     if q == [0.0; 4] {
         return;
     }
-    let rot = crate::rigid_body::rotation_matrix(q);
+    let rot = crate::rigid_body::rotation_of(q).to_rotation_matrix();
+    let (x, center) = (nalgebra::Vector3::from(x), nalgebra::Vector3::from(rigid.center));
     for p in pos.chunks_exact_mut(3) {
-        let d = [
-            f64::from(p[0]) - rigid.center[0],
-            f64::from(p[1]) - rigid.center[1],
-            f64::from(p[2]) - rigid.center[2],
-        ];
+        let d = nalgebra::Vector3::new(f64::from(p[0]), f64::from(p[1]), f64::from(p[2])) - center;
+        let w = x + rot * d;
         for k in 0..3 {
-            p[k] = (x[k] + rot[k][0] * d[0] + rot[k][1] * d[1] + rot[k][2] * d[2]) as f32;
+            p[k] = w[k] as f32;
         }
     }
 }

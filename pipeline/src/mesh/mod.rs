@@ -1,7 +1,7 @@
 //! Meshing with gmsh: geometry file → tetrahedral mesh in metres, corner vertices numbered first.
 
 use crate::scene::{LengthUnit, Scene, Voi};
-use crate::vec3::{cross, dot, sub};
+use nalgebra::Vector3;
 use std::collections::HashMap;
 use ves_ffi::gmsh::{self, element_type};
 
@@ -217,8 +217,8 @@ impl Mesh {
 
 /// Six times the signed volume of the corner tet.
 fn signed_volume(nodes: &[[f64; 3]], tet: &[u32]) -> f64 {
-    let x = |i: usize| nodes[tet[i] as usize];
-    dot(sub(x(1), x(0)), cross(sub(x(2), x(0)), sub(x(3), x(0))))
+    let x = |i: usize| Vector3::from(nodes[tet[i] as usize]);
+    (x(1) - x(0)).dot(&(x(2) - x(0)).cross(&(x(3) - x(0))))
 }
 
 /// Faces that belong to exactly one tet, oriented with the normal away from that tet.

@@ -17,8 +17,8 @@ use crate::modes::{SolverChoice, solve};
 use crate::problem::{Discretized, discretize};
 use crate::scene::{Probe, Scene};
 use crate::store;
-use crate::vec3::{dist, dot, matvec, norm, sub};
 use anyhow::{Context, Result, bail};
+use nalgebra::{Matrix3, Vector3};
 pub use newmark::{FullSystem, ModalSystem, Stepping, System, integrate_step_load};
 use serde::Serialize;
 use std::path::Path;
@@ -422,7 +422,7 @@ impl Sweep<'_> {
             .map(|((&(v, _), p), u)| ProbeOnMesh {
                 vertex: v,
                 snap_distance: dist(d.mesh.nodes[v], p.at),
-                exact_displacement: norm(*u),
+                exact_displacement: Vector3::from(*u).norm(),
             })
             .collect();
         Ok((
@@ -496,45 +496,42 @@ impl Sweep<'_> {
             let stepping = self.stepping();
             let sys = ModalSystem::new(&modes.eigenvalues, stepping);
             for (k, &(v, f)) in ex.at.iter().enumerate() {
-                let phi = rows(v);
+                let phi: Vec<Vector3<f64>> = rows(v).into_iter().map(Vector3::from).collect();
+                let f = Vector3::from(f);
                 // Modal static response Σ φφᵀF/λ, and the correction (G − ΦΛ⁻¹Φᵀ)F on top.
-                let mut modal = [0.0; 3];
-                let fj: Vec<f64> = phi.iter().map(|p| dot(*p, f)).collect();
-                for (j, p) in phi.iter().enumerate() {
-                    for c in 0..3 {
-                        modal[c] += p[c] * fj[j] / modes.eigenvalues[j];
-                    }
-                }
-                let gf = matvec(ex.blocks[k], f);
-                let residual: [f64; 3] = std::array::from_fn(|c| gf[c] - modal[c]);
-                let corrected: [f64; 3] = std::array::from_fn(|c| modal[c] + residual[c]);
-                let u = ex.statics[k];
-                se.push(norm(sub(modal, u)) / norm(u));
-                sec.push(norm(sub(corrected, u)) / norm(u));
+                let fj: Vec<f64> = phi.iter().map(|p| p.dot(&f)).collect();
+                let modal: Vector3<f64> = phi
+                    .iter()
+                    .zip(&fj)
+                    .zip(&modes.eigenvalues)
+                    .map(|((p, fj), l)| p * (fj / l))
+                    .sum();
+                let block = Matrix3::from_fn(|a, b| ex.blocks[k][a][b]);
+                let residual = block * f - modal;
+                let corrected = modal + residual;
+                let u = Vector3::from(ex.statics[k]);
+                let rel = |a: Vector3<f64>, b: Vector3<f64>| (a - b).norm() / b.norm();
+                se.push(rel(modal, u));
+                sec.push(rel(corrected, u));
                 if let Some(&converged) = self.reference_statics.get(k) {
-                    st.push(norm(sub(modal, converged)) / norm(converged));
-                    stc.push(norm(sub(corrected, converged)) / norm(converged));
+                    let converged = Vector3::from(converged);
+                    st.push(rel(modal, converged));
+                    stc.push(rel(corrected, converged));
                 }
                 // Step load: modal response, and the same plus the residual held with the load.
                 let (mut worst, mut worst_c, mut peak) = (0.0f64, 0.0f64, 0.0f64);
                 let (mut sq, mut sq_c, mut sq_ref) = (0.0f64, 0.0f64, 0.0f64);
                 let mut step = 0;
                 integrate_step_load(&sys, stepping, &fj, 1, ex.dynamic[k].len(), |q| {
-                    let mut ur = [0.0; 3];
-                    for (j, p) in phi.iter().enumerate() {
-                        for c in 0..3 {
-                            ur[c] += p[c] * q[j];
-                        }
-                    }
-                    let full = ex.dynamic[k][step];
-                    let urc: [f64; 3] = std::array::from_fn(|c| ur[c] + residual[c]);
-                    let (e, e_c) = (norm(sub(ur, full)), norm(sub(urc, full)));
+                    let ur: Vector3<f64> = phi.iter().zip(q).map(|(p, qj)| p * *qj).sum();
+                    let full = Vector3::from(ex.dynamic[k][step]);
+                    let (e, e_c) = ((ur - full).norm(), (ur + residual - full).norm());
                     worst = worst.max(e);
                     worst_c = worst_c.max(e_c);
-                    peak = peak.max(norm(full));
+                    peak = peak.max(full.norm());
                     sq += e * e;
                     sq_c += e_c * e_c;
-                    sq_ref += dot(full, full);
+                    sq_ref += full.norm_squared();
                     step += 1;
                 });
                 de.push(worst / peak);
@@ -580,6 +577,14 @@ fn default_probe(d: &Discretized, phi1: &[f64]) -> Probe {
         at: d.mesh.nodes[v],
         force: u.map(|c| c / n),
     }
+}
+
+fn norm(a: [f64; 3]) -> f64 {
+    Vector3::from(a).norm()
+}
+
+fn dist(a: [f64; 3], b: [f64; 3]) -> f64 {
+    (Vector3::from(a) - Vector3::from(b)).norm()
 }
 
 fn surface_vertices(d: &Discretized) -> Vec<usize> {

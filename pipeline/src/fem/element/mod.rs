@@ -5,6 +5,7 @@ pub mod tet10;
 pub mod tet4;
 
 use super::quadrature::Point;
+use nalgebra::{Matrix3, Vector3};
 
 /// Shape functions of one element type, in barycentric coordinates.
 pub trait Shape {
@@ -61,43 +62,21 @@ pub struct BadJacobian {
 
 /// Jacobian J = ∂x/∂ξ at a point and the physical gradients of the shape functions.
 fn physical_gradients(x: &[[f64; 3]], gl: &[[f64; 4]], grad: &mut [[f64; 3]]) -> Result<f64, BadJacobian> {
-    // ∂N/∂ξ_k = ∂N/∂L_k − ∂N/∂L_0 (ξ = (L1, L2, L3)).
-    let mut j = [[0.0; 3]; 3];
-    for (xa, ga) in x.iter().zip(gl) {
-        for r in 0..3 {
-            for k in 0..3 {
-                j[r][k] += xa[r] * (ga[k + 1] - ga[0]);
-            }
-        }
-    }
-    let det = j[0][0] * (j[1][1] * j[2][2] - j[1][2] * j[2][1]) - j[0][1] * (j[1][0] * j[2][2] - j[1][2] * j[2][0])
-        + j[0][2] * (j[1][0] * j[2][1] - j[1][1] * j[2][0]);
+    // ∂N/∂ξ_k = ∂N/∂L_k − ∂N/∂L_0 (ξ = (L1, L2, L3)); J = Σ_a x_a (∂N_a/∂ξ)ᵀ.
+    let dxi = |ga: &[f64; 4]| Vector3::new(ga[1] - ga[0], ga[2] - ga[0], ga[3] - ga[0]);
+    let j: Matrix3<f64> = x
+        .iter()
+        .zip(gl)
+        .map(|(xa, ga)| Vector3::from(*xa) * dxi(ga).transpose())
+        .sum();
+    let det = j.determinant();
     if det.is_nan() || det <= 0.0 || det.is_infinite() {
         return Err(BadJacobian { det });
     }
-    // inv(J) by cofactors; ∇N = J⁻ᵀ ∂N/∂ξ.
-    let inv = [
-        [
-            (j[1][1] * j[2][2] - j[1][2] * j[2][1]) / det,
-            (j[0][2] * j[2][1] - j[0][1] * j[2][2]) / det,
-            (j[0][1] * j[1][2] - j[0][2] * j[1][1]) / det,
-        ],
-        [
-            (j[1][2] * j[2][0] - j[1][0] * j[2][2]) / det,
-            (j[0][0] * j[2][2] - j[0][2] * j[2][0]) / det,
-            (j[0][2] * j[1][0] - j[0][0] * j[1][2]) / det,
-        ],
-        [
-            (j[1][0] * j[2][1] - j[1][1] * j[2][0]) / det,
-            (j[0][1] * j[2][0] - j[0][0] * j[2][1]) / det,
-            (j[0][0] * j[1][1] - j[0][1] * j[1][0]) / det,
-        ],
-    ];
+    // ∇N = J⁻ᵀ ∂N/∂ξ.
+    let inv_t = j.try_inverse().ok_or(BadJacobian { det })?.transpose();
     for (g, ga) in grad.iter_mut().zip(gl) {
-        let d = [ga[1] - ga[0], ga[2] - ga[0], ga[3] - ga[0]];
-        for c in 0..3 {
-            g[c] = inv[0][c] * d[0] + inv[1][c] * d[1] + inv[2][c] * d[2];
-        }
+        *g = (inv_t * dxi(ga)).into();
     }
     Ok(det)
 }

@@ -1,0 +1,131 @@
+//! The haptic step allocates nothing (DESIGN.md: hot paths get buffers sized up front): counted
+//! by a global allocator over many steps of grabbing, pressing and a free body, with the
+//! validity watch and its reactions on.
+
+use std::alloc::{GlobalAlloc, Layout, System};
+use std::cell::Cell;
+use std::sync::Arc;
+use ves_runtime::Basis;
+use ves_runtime::basis::RigidProperties;
+use ves_runtime::haptic::{Coupling, HandInput, HandOutput, Haptics, StrainPolicy, StrainWatch};
+use ves_runtime::integrator::Scheme;
+
+struct Counting;
+
+thread_local! {
+    /// Allocations made by this thread (other test threads do not count).
+    static ALLOCATIONS: Cell<u64> = const { Cell::new(0) };
+}
+
+// SAFETY: forwards to the system allocator; only counts.
+unsafe impl GlobalAlloc for Counting {
+    unsafe fn alloc(&self, layout: Layout) -> *mut u8 {
+        let _ = ALLOCATIONS.try_with(|n| n.set(n.get() + 1));
+        // SAFETY: same contract as the caller's.
+        unsafe { System.alloc(layout) }
+    }
+
+    unsafe fn dealloc(&self, ptr: *mut u8, layout: Layout) {
+        // SAFETY: same contract as the caller's.
+        unsafe { System.dealloc(ptr, layout) }
+    }
+
+    unsafe fn realloc(&self, ptr: *mut u8, layout: Layout, new_size: usize) -> *mut u8 {
+        let _ = ALLOCATIONS.try_with(|n| n.set(n.get() + 1));
+        // SAFETY: same contract as the caller's.
+        unsafe { System.realloc(ptr, layout, new_size) }
+    }
+}
+
+#[global_allocator]
+static COUNTING: Counting = Counting;
+
+fn allocations() -> u64 {
+    ALLOCATIONS.with(Cell::get)
+}
+
+/// A flat 5 × 5 grid (1 cm spacing) with 3 bending-like modes and mass properties.
+fn grid() -> Arc<Basis> {
+    let n = 5u32;
+    let rest: Vec<[f64; 3]> = (0..n * n)
+        .map(|i| [0.01 * f64::from(i % n), 0.01 * f64::from(i / n), 0.0])
+        .collect();
+    let mut triangles = Vec::new();
+    for y in 0..n - 1 {
+        for x in 0..n - 1 {
+            let v = y * n + x;
+            triangles.push([v, v + 1, v + n + 1]);
+            triangles.push([v, v + n + 1, v + n]);
+        }
+    }
+    let rows: Vec<f64> = rest
+        .iter()
+        .flat_map(|p| {
+            let (x, y) = (p[0] * 100.0, p[1] * 100.0);
+            // (u_x, u_y, u_z) for modes 1..3, vertex-major rows 3i+c.
+            [[0.0, 0.0, 0.0], [0.0, 0.0, 0.0], [x * x, y * y, x * y]]
+        })
+        .flatten()
+        .collect();
+    let count = rest.len() as u32;
+    Arc::new(
+        Basis::new(
+            "grid",
+            "global",
+            rest,
+            (0..count).collect(),
+            triangles,
+            vec![1e4, 4e4, 9e4],
+            &rows,
+            (1.0, 1e-4),
+            Some(RigidProperties {
+                mass: 0.1,
+                center: [0.02, 0.02, 0.0],
+                inertia: [[1e-5, 0.0, 0.0], [0.0, 1e-5, 0.0], [0.0, 0.0, 2e-5]],
+            }),
+        )
+        .expect("grid basis"),
+    )
+}
+
+#[test]
+fn haptic_steps_allocate_nothing() {
+    for (free, policy) in [
+        (false, StrainPolicy::Flag),
+        (false, StrainPolicy::Stiffen),
+        (false, StrainPolicy::Release),
+        (true, StrainPolicy::Stiffen),
+    ] {
+        let mut h = Haptics::new(grid(), Coupling::critically_damped(500.0, 10.0), 1e-3, Scheme::Exact, 2);
+        if free {
+            h.set_free_body([0.0, 0.0, -9.81], 1.0).expect("free body");
+        }
+        h.set_strain_watch(StrainWatch { limit: 1e-3, policy });
+        let mut out = [HandOutput::default(); 2];
+        let input = |t: f64, button: bool, x: f64| HandInput {
+            position: [x, 0.02, 0.001 - 0.01 * t],
+            velocity: [0.0, 0.0, -0.01],
+            button,
+        };
+        // Warm-up: the first picks settle (nothing is sized lazily, but be fair to one-offs).
+        h.step(&[input(0.0, false, 0.0), input(0.0, true, 0.04)], &mut out);
+        let before = allocations();
+        for k in 0..2000 {
+            let t = f64::from(k) * 1e-3;
+            let inputs = [input(t, false, 0.01 * (k % 5) as f64), input(t, k % 700 < 500, 0.04)];
+            h.step(&inputs, &mut out);
+        }
+        // A non-finite device position (rolled back, not allocated for) too.
+        let bad = HandInput {
+            position: [f64::NAN, 0.0, 0.0],
+            ..Default::default()
+        };
+        h.step(&[bad, bad], &mut out);
+        assert_eq!(
+            allocations() - before,
+            0,
+            "free body {free}, {policy:?}: the step allocated"
+        );
+        assert!(out.iter().all(|o| o.force.iter().all(|f| f.is_finite())));
+    }
+}
