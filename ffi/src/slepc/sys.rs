@@ -32,8 +32,8 @@ pub const MAT_SYMMETRIC: c_int = 1;
 pub const EPS_GHEP: c_int = 2;
 pub const EPS_TARGET_MAGNITUDE: c_int = 7;
 pub const EPS_ERROR_RELATIVE: c_int = 1;
-/// `SAME_NONZERO_PATTERN` of `MatStructure`.
-pub const SAME_NONZERO_PATTERN: c_int = 0;
+/// `SAME_NONZERO_PATTERN` of `MatStructure` (petscmat.h: DIFFERENT = 0, SUBSET = 1, SAME = 2).
+pub const SAME_NONZERO_PATTERN: c_int = 2;
 
 pub type ErrorHandler = unsafe extern "C" fn(
     MPI_Comm,

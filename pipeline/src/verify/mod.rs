@@ -577,3 +577,45 @@ fn compare(
         pass,
     })
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The reference's output is another program's: `compare` indexed into it unchecked.
+    #[test]
+    fn a_reference_output_of_the_wrong_shape_is_refused() {
+        let mesh = crate::mesh::Mesh::structured_box([2, 1, 1], 0.1, 1, |_, p| p);
+        let n = mesh.nodes.len();
+        let dofs = crate::supports::Dofs::from_mask(&vec![false; 3 * n]);
+        let d = Discretized::assemble(mesh, dofs, (2e11, 0.3, 7800.0)).expect("assembles");
+        let nf = d.dofs.free_count();
+        let ours = Modes {
+            eigenvalues: vec![1e6],
+            vectors: vec![1.0; nf],
+            rigid_dropped: 6,
+            residuals: vec![0.0],
+            orthonormality_error: 0.0,
+            sigma: 0.0,
+            factorize_s: 0.0,
+            eigensolve_s: 0.0,
+        };
+        let dir = tempfile::tempdir().expect("tempdir");
+        let tol = Tolerances::resolve(Reference::ScikitFem, 1, &ToleranceOverrides::default());
+        for (name, rows, freq) in [("short.h5", 3 * n - 3, 100.0), ("nan.h5", 3 * n, f64::NAN)] {
+            let path = dir.path().join(name);
+            let f = hdf5::File::create(&path).expect("create");
+            f.new_dataset_builder()
+                .with_data(&Array1::from(vec![freq]))
+                .create("frequencies_hz")
+                .expect("freqs");
+            f.new_dataset_builder()
+                .with_data(&Array2::<f64>::zeros((rows, 1)))
+                .create("modes")
+                .expect("modes");
+            f.close().expect("close");
+            let e = compare(&d, &ours, &path, None, 0, &tol).expect_err("refused");
+            assert!(e.to_string().contains("unusable"), "{name}: {e}");
+        }
+    }
+}
