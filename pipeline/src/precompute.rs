@@ -66,6 +66,8 @@ pub struct SolvedSpace {
     pub system: fem::Assembled,
     /// Transfer matrices from the other spaces (name, row-major `r × r_from`).
     pub transfers: Vec<(String, Vec<f64>)>,
+    /// Repairs of curved tets the order-2 mesh needed.
+    pub curving: crate::mesh::Curving,
 }
 
 impl SolvedSpace {
@@ -113,6 +115,7 @@ pub fn solve_space(scene: &Scene, voi: Option<&Voi>, choice: SolverChoice) -> Re
         timings,
         system: d.system,
         transfers: Vec::new(),
+        curving: d.curving,
     })
 }
 
@@ -152,6 +155,9 @@ pub struct SpaceSummary {
     pub vertices: usize,
     /// Seconds this space took (mesh to eigen-solve, and static correction).
     pub seconds: f64,
+    /// Curved (10-node) tets that were invalid after gmsh's order-2 step, how many gmsh's
+    /// optimisation repaired and how many were made straight-sided.
+    pub curving: crate::mesh::Curving,
 }
 
 /// Runs the whole pipeline for a scene and writes `out` (which may not be a symlink).
@@ -215,6 +221,7 @@ pub fn run_with(scene: &Scene, out: &Path, choice: SolverChoice, overwrite: Over
                 rigid_modes_dropped: s.modes.rigid_dropped,
                 min_tet_quality: s.mesh.worst_quality().0,
                 vertices: s.mesh.vertex_count,
+                curving: s.curving,
                 seconds: s.timings.mesh
                     + s.timings.assemble
                     + s.timings.factorize

@@ -21,6 +21,8 @@ pub struct Discretized {
     pub rigid: usize,
     /// Seconds spent meshing.
     pub mesh_s: f64,
+    /// What making the mesh order 2 needed (repairs of curved tets).
+    pub curving: mesh::Curving,
     /// Seconds spent selecting supports and assembling.
     pub assemble_s: f64,
 }
@@ -28,7 +30,7 @@ pub struct Discretized {
 /// Meshes and assembles one space.
 pub fn discretize(scene: &Scene, voi: Option<&Voi>) -> Result<Discretized> {
     let t = Instant::now();
-    let mesh = mesh::generate(scene, voi)?;
+    let (mesh, curving) = mesh::generate(scene, voi)?;
     let mesh_s = t.elapsed().as_secs_f64();
     let (quality, at) = mesh.worst_quality();
     tracing::info!(
@@ -55,6 +57,7 @@ pub fn discretize(scene: &Scene, voi: Option<&Voi>) -> Result<Discretized> {
     let mut d = Discretized::assemble(mesh, dofs, (m.young, m.poisson, m.density))
         .with_context(|| scene.geometry.display().to_string())?;
     d.mesh_s = mesh_s;
+    d.curving = curving;
     d.assemble_s = t.elapsed().as_secs_f64();
     Ok(d)
 }
@@ -70,6 +73,7 @@ impl Discretized {
             system,
             rigid,
             mesh_s: 0.0,
+            curving: mesh::Curving::default(),
             assemble_s: 0.0,
         })
     }

@@ -229,6 +229,16 @@ impl Gmsh {
         check("model/mesh/setOrder", ierr)
     }
 
+    /// Optimises the mesh with gmsh's `method` ("HighOrder", "HighOrderElastic", "Netgen", …)
+    /// over the whole model, `niter` times.
+    pub fn optimize(&self, method: &str, niter: i32) -> Result<()> {
+        let m = cstring("model/mesh/optimize", method)?;
+        let mut ierr = 0;
+        // SAFETY: valid C string; no entity list (whole model).
+        unsafe { sys::gmshModelMeshOptimize(m.as_ptr(), 0, niter, ptr::null_mut(), 0, &mut ierr) };
+        check("model/mesh/optimize", ierr)
+    }
+
     /// All mesh nodes: gmsh tags and coordinates (x, y, z per node).
     pub fn nodes(&self) -> Result<(Vec<usize>, Vec<f64>)> {
         let (mut tags, mut ntags) = (ptr::null_mut(), 0usize);

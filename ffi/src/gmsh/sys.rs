@@ -28,6 +28,14 @@ unsafe extern "C" {
     );
     pub fn gmshModelMeshGenerate(dim: c_int, ierr: *mut c_int);
     pub fn gmshModelMeshSetOrder(order: c_int, ierr: *mut c_int);
+    pub fn gmshModelMeshOptimize(
+        method: *const c_char,
+        force: c_int,
+        niter: c_int,
+        dim_tags: *mut c_int,
+        dim_tags_n: usize,
+        ierr: *mut c_int,
+    );
     pub fn gmshModelMeshGetNodes(
         node_tags: *mut *mut usize,
         node_tags_n: *mut usize,

@@ -2,6 +2,8 @@
 
 use crate::scene::{LengthUnit, Scene, Voi};
 use nalgebra::Vector3;
+
+pub mod quality;
 use std::collections::HashMap;
 use ves_ffi::gmsh::{self, element_type};
 
@@ -283,12 +285,12 @@ fn check_element_budget(path: &str, extent: [f64; 3], size: f64, voi: Option<&Vo
 
 /// Meshes the scene's geometry (with the finer size inside `voi`, if given), on gmsh's own
 /// thread so the same input always gives the same mesh.
-pub fn generate(scene: &Scene, voi: Option<&Voi>) -> Result<Mesh, MeshError> {
+pub fn generate(scene: &Scene, voi: Option<&Voi>) -> Result<(Mesh, Curving), MeshError> {
     let (scene, voi) = (scene.clone(), voi.cloned());
     gmsh::on_gmsh_thread(move || generate_here(&scene, voi.as_ref()))
 }
 
-fn generate_here(scene: &Scene, voi: Option<&Voi>) -> Result<Mesh, MeshError> {
+fn generate_here(scene: &Scene, voi: Option<&Voi>) -> Result<(Mesh, Curving), MeshError> {
     let path = scene.geometry.display().to_string();
     let g = |cause| MeshError::Gmsh {
         path: path.clone(),
@@ -365,20 +367,76 @@ fn generate_here(scene: &Scene, voi: Option<&Voi>) -> Result<Mesh, MeshError> {
         }
     }
     session.generate(3).map_err(g)?;
-    if scene.mesh.order == 2 {
+    let order = scene.mesh.order;
+    let mut curving = Curving::default();
+    if order == 2 {
         session.set_order(2).map_err(g)?;
     }
+    let mut mesh = extract(&session, order, scale, &path)?;
+    if order == 2 {
+        curving.distorted = mesh.distorted_tets(quality::MIN_SCALED_JACOBIAN).len();
+        if curving.distorted > 0 {
+            // gmsh's elastic smoother moves the curved nodes into the volume: seconds, bounded.
+            let t = std::time::Instant::now();
+            session.set_number("Mesh.HighOrderNumLayers", 3.0).map_err(g)?;
+            match session.optimize(HIGH_ORDER_METHOD, 1) {
+                Ok(()) => mesh = extract(&session, order, scale, &path)?,
+                Err(e) => tracing::info!("gmsh {HIGH_ORDER_METHOD} failed ({e}); straightening instead"),
+            }
+            curving.optimize_s = t.elapsed().as_secs_f64();
+            let left = mesh.distorted_tets(quality::MIN_SCALED_JACOBIAN).len();
+            curving.repaired_by_gmsh = curving.distorted.saturating_sub(left);
+            curving.straightened = mesh.straighten_distorted(quality::MIN_SCALED_JACOBIAN);
+            if curving.straightened > 0 {
+                tracing::warn!(
+                    "{path}: {} of {} curved tets were invalid after order 2; gmsh repaired {}, {} were made \
+                     straight-sided (their faces are flat there: refine mesh.size for a closer surface)",
+                    curving.distorted,
+                    mesh.tet_count(),
+                    curving.repaired_by_gmsh,
+                    curving.straightened
+                );
+            }
+        }
+    }
+    drop(session);
+    Ok((mesh, curving))
+}
+
+/// gmsh's optimiser for curved elements. "HighOrder" (the direct optimiser) takes 10–90 s on
+/// real parts and sometimes never finishes; the elastic smoother is bounded, and what it leaves
+/// is straightened.
+const HIGH_ORDER_METHOD: &str = "HighOrderElastic";
+
+/// What making the mesh order 2 needed.
+#[derive(Clone, Copy, Debug, Default, serde::Serialize)]
+pub struct Curving {
+    /// Curved tets below the validity threshold right after gmsh's order-2 step.
+    pub distorted: usize,
+    /// Of those, repaired by gmsh's high-order optimisation.
+    pub repaired_by_gmsh: usize,
+    /// Made straight-sided (mid-edge nodes at edge midpoints) because nothing else repaired them.
+    pub straightened: usize,
+    /// Seconds spent in gmsh's optimisation.
+    pub optimize_s: f64,
+}
+
+/// The current gmsh mesh as a [`Mesh`] in metres.
+fn extract(session: &gmsh::Gmsh, order: u8, scale: f64, path: &str) -> Result<Mesh, MeshError> {
+    let g = |cause| MeshError::Gmsh {
+        path: path.to_string(),
+        cause,
+    };
     let (tags, coords) = session.nodes().map_err(g)?;
-    let ty = if scene.mesh.order == 2 {
+    let ty = if order == 2 {
         element_type::TET10
     } else {
         element_type::TET4
     };
     let (_, tet_tags) = session.elements_by_type(ty).map_err(g)?;
-    drop(session);
     if tet_tags.is_empty() {
         return Err(MeshError::Geometry {
-            path,
+            path: path.to_string(),
             message: "gmsh produced no tetrahedra; check that the solid is closed".into(),
         });
     }
@@ -398,13 +456,13 @@ fn generate_here(scene: &Scene, voi: Option<&Voi>) -> Result<Mesh, MeshError> {
         let s = slot.get(t).copied().unwrap_or(u32::MAX);
         if s == u32::MAX {
             return Err(MeshError::Geometry {
-                path,
+                path: path.to_string(),
                 message: format!("gmsh returned a tet on unknown node {t}"),
             });
         }
         tets.push(s);
     }
-    Ok(Mesh::from_raw(&xyz, &tets, scene.mesh.order))
+    Ok(Mesh::from_raw(&xyz, &tets, order))
 }
 
 #[cfg(test)]

@@ -59,10 +59,15 @@ impl Tolerances {
     /// problem (exact integration on both sides): 1e-6. CalculiX has the same stiffness (static
     /// agrees to ~1e-7) but integrates its mass its own way: its C3D10 mass differs by up to ~3e-4
     /// in frequency, its C3D4 mass by several percent (see docs/validation.md).
-    pub fn resolve(reference: Reference, order: u8, o: &ToleranceOverrides) -> Tolerances {
+    ///
+    /// On curved 10-node tets (`curved`) the integrands are rational: no rule integrates them
+    /// exactly, and on the corpus crankshaft scikit-fem's own frequencies move by 6e-5 between
+    /// quadrature orders 4, 6 and 8. Two correct codes then agree to ~1e-4, not 1e-6.
+    pub fn resolve(reference: Reference, order: u8, curved: bool, o: &ToleranceOverrides) -> Tolerances {
         let (freq, mac) = match (reference, order) {
             (Reference::Calculix, 1) => (0.1, 0.99),
             (Reference::Calculix, _) => (1e-3, 0.999),
+            _ if curved => (1e-4, 0.9999),
             _ => (1e-6, 0.999),
         };
         Tolerances {
@@ -72,9 +77,11 @@ impl Tolerances {
                 .angle
                 .unwrap_or(if reference == Reference::Calculix { 1e-2 } else { 1e-3 }),
             // CalculiX writes displacements with 6 significant digits (.frd E12.5).
-            static_rel: o
-                .static_rel
-                .unwrap_or(if reference == Reference::Calculix { 1e-5 } else { 1e-6 }),
+            static_rel: o.static_rel.unwrap_or(match reference {
+                Reference::Calculix => 1e-5,
+                _ if curved => 1e-4,
+                _ => 1e-6,
+            }),
         }
     }
 }
@@ -370,7 +377,8 @@ fn verify(
             }
             Reference::All => unreachable!("expanded above"),
         }
-        let tol = Tolerances::resolve(r, d.mesh.order, overrides);
+        let curved = !d.mesh.curved_tets().is_empty();
+        let tol = Tolerances::resolve(r, d.mesh.order, curved, overrides);
         let mut rep = compare(d, ours, &result, static_ours.as_deref(), load_node, &tol)?;
         rep.seconds = t.elapsed().as_secs_f64();
         reports.push(rep);
@@ -601,7 +609,7 @@ mod tests {
             eigensolve_s: 0.0,
         };
         let dir = tempfile::tempdir().expect("tempdir");
-        let tol = Tolerances::resolve(Reference::ScikitFem, 1, &ToleranceOverrides::default());
+        let tol = Tolerances::resolve(Reference::ScikitFem, 1, false, &ToleranceOverrides::default());
         for (name, rows, freq) in [("short.h5", 3 * n - 3, 100.0), ("nan.h5", 3 * n, f64::NAN)] {
             let path = dir.path().join(name);
             let f = hdf5::File::create(&path).expect("create");

@@ -19,6 +19,11 @@ pub trait Shape {
     fn stiffness_rule() -> Vec<Point>;
     /// Rule used for the consistent mass (exact on straight-sided elements).
     fn mass_rule() -> Vec<Point>;
+    /// Rule for the stiffness of a curved element (node coordinates `x`), whose integrand is no
+    /// longer a polynomial; `None` when the element is straight-sided.
+    fn curved_stiffness_rule(_x: &[[f64; 3]]) -> Option<Vec<Point>> {
+        None
+    }
 }
 
 /// Isotropic material in the form the element loop uses.
@@ -90,7 +95,7 @@ pub fn element_matrices<S: Shape>(x: &[[f64; 3]], mat: &Lame) -> Result<ElementM
     let mut gl = vec![[0.0; 4]; p];
     let mut grad = vec![[0.0; 3]; p];
     let mut nv = vec![0.0; p];
-    for (l, w) in S::stiffness_rule() {
+    for (l, w) in S::curved_stiffness_rule(x).unwrap_or_else(S::stiffness_rule) {
         S::bary_gradients(l, &mut gl);
         let det = physical_gradients(x, &gl, &mut grad)?;
         let f = w * det;

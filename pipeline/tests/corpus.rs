@@ -1,0 +1,159 @@
+//! Real parts from other people's CAD systems at default settings: 10-node tets of a size 1/15
+//! of the part's largest extent, clamped over its lowest 3 % along x, 10 modes. Every element
+//! must be valid (scaled Jacobian > 0 everywhere it is sampled, checked on the file written),
+//! every residual ≤ 1e-8, and the modes must equal scikit-fem's on the same (curved) mesh to its
+//! tolerance for curved elements, 1e-4 (see `verify::Tolerances::resolve`).
+//!
+//! CI runs the three parts in `cases/corpus/` (copies); `VES_CORPUS=DIR` runs every `*.step` of DIR (the
+//! team's `../shared/geometry/corpus`) and prints a table row per part.
+
+use std::path::{Path, PathBuf};
+use std::process::Command;
+use ves_pipeline::mesh::quality::min_scaled_jacobian;
+use ves_pipeline::scene::Scene;
+
+fn ves(args: &[&str]) -> std::process::Output {
+    Command::new(env!("CARGO_BIN_EXE_ves"))
+        .args(args)
+        .output()
+        .expect("ves runs")
+}
+
+/// The default scene of a part, its clamp placed from the part's real (meshed) extent.
+fn default_scene(step: &Path, dir: &Path) -> PathBuf {
+    let name = step.file_stem().and_then(|s| s.to_str()).expect("a name");
+    let text = |size: f64, clamp: &str| {
+        format!(
+            "name = \"{name}\"\n[geometry]\nstep = {:?}\nunit = \"mm\"\n[material]\nyoung = 2.1e11\npoisson = 0.3\n\
+             density = 7850.0\n[mesh]\nsize = {size:e}\norder = 1\n{clamp}[modes]\ncount = 10\n",
+            step.display().to_string()
+        )
+    };
+    // OpenCASCADE's bounding box (mm, padded) sizes a first-order mesh, whose nodes give the
+    // real extent.
+    let path = step.to_path_buf();
+    let (lo, hi) = ves_ffi::gmsh::on_gmsh_thread(move || {
+        let g = ves_ffi::gmsh::Gmsh::start()?;
+        g.set_string("Geometry.OCCTargetUnit", "MM")?;
+        g.open(&path)?;
+        g.bounding_box()
+    })
+    .unwrap_or_else(|e| panic!("{name}: {e}"));
+    let padded = (0..3).map(|c| hi[c] - lo[c]).fold(0.0, f64::max) * 1e-3;
+    let probe = dir.join(format!("{name}-probe.toml"));
+    std::fs::write(&probe, text(padded / 15.0, "")).expect("write");
+    let scene = Scene::load(&probe).expect("probe scene");
+    let (mesh, _) = ves_pipeline::mesh::generate(&scene, None).unwrap_or_else(|e| panic!("{name}: {e}"));
+    let (lo, hi) = mesh.bounding_box();
+    let l = (0..3).map(|c| hi[c] - lo[c]).fold(0.0, f64::max);
+    let clamp = format!(
+        "[[fixed]]\nbox = {{ min = [{:e}, {:e}, {:e}], max = [{:e}, {:e}, {:e}] }}\n",
+        lo[0] - 0.01 * l,
+        lo[1] - 0.01 * l,
+        lo[2] - 0.01 * l,
+        lo[0] + 0.03 * l,
+        hi[1] + 0.01 * l,
+        hi[2] + 0.01 * l
+    );
+    let path = dir.join(format!("{name}.toml"));
+    std::fs::write(&path, text(l / 15.0, &clamp).replace("order = 1", "order = 2")).expect("write");
+    path
+}
+
+/// Precomputes one part and checks it; returns a table row.
+fn check_part(step: &Path, dir: &Path, verify: bool) -> Result<String, String> {
+    let name = step.file_stem().and_then(|s| s.to_str()).unwrap_or("part").to_string();
+    let scene = default_scene(step, dir);
+    let out = dir.join(format!("{name}.h5"));
+    let t = std::time::Instant::now();
+    let o = ves(&[
+        "precompute",
+        scene.to_str().unwrap(),
+        "-o",
+        out.to_str().unwrap(),
+        "--json",
+    ]);
+    let seconds = t.elapsed().as_secs_f64();
+    if !o.status.success() {
+        return Err(format!("{name}: {}", String::from_utf8_lossy(&o.stderr).trim()));
+    }
+    let stdout = String::from_utf8_lossy(&o.stdout);
+    let v: serde_json::Value = serde_json::from_str(stdout.lines().last().unwrap_or("")).map_err(|e| e.to_string())?;
+    let s = &v["spaces"][0];
+    let residual = s["max_relative_residual"].as_f64().unwrap_or(f64::NAN);
+    // Validity on what was written, recomputed independently of the pipeline's own check.
+    let file = ves_format::BasisReader::open(&out).map_err(|e| e.to_string())?;
+    let space = file.space("global").map_err(|e| e.to_string())?;
+    let nodes = space.nodes(space.node_count).map_err(|e| e.to_string())?;
+    let tets = space.tets().map_err(|e| e.to_string())?;
+    let worst = tets
+        .chunks_exact(10)
+        .map(|t| {
+            let x: Vec<[f64; 3]> = t.iter().map(|&n| nodes[n as usize]).collect();
+            min_scaled_jacobian(&x)
+        })
+        .fold(f64::INFINITY, f64::min);
+    let c = &s["curving"];
+    let row = format!(
+        "| {name} | {} | {} | {} | {} | {} | {worst:.3} | {residual:.1e} | {:.1} | {seconds:.1} |",
+        s["nodes"],
+        s["tets"],
+        c["distorted"],
+        c["repaired_by_gmsh"],
+        c["straightened"],
+        s["frequencies_hz"][0].as_f64().unwrap_or(f64::NAN),
+    );
+    if worst.is_nan() || worst <= 0.0 {
+        return Err(format!(
+            "{name}: an element with scaled Jacobian {worst} was written\n{row}"
+        ));
+    }
+    if residual.is_nan() || residual > 1e-8 {
+        return Err(format!("{name}: largest relative residual {residual:e} > 1e-8\n{row}"));
+    }
+    if verify {
+        let o = ves(&["verify", out.to_str().unwrap(), "--against", "scikit-fem", "--json"]);
+        if !o.status.success() {
+            return Err(format!(
+                "{name}: scikit-fem disagrees or failed: {}\n{row}",
+                String::from_utf8_lossy(&o.stderr).trim()
+            ));
+        }
+    }
+    Ok(row)
+}
+
+const HEADER: &str = "| part | nodes | tets | distorted after order 2 | repaired by gmsh | straightened | min scaled Jacobian | max residual | f1 (Hz) | wall (s) |\n|---|---|---|---|---|---|---|---|---|---|";
+
+#[test]
+fn corpus_parts_precompute_at_default_settings_with_valid_elements() {
+    let dir = tempfile::tempdir().expect("temp dir");
+    let (parts, verify): (Vec<PathBuf>, bool) = match std::env::var_os("VES_CORPUS") {
+        Some(d) => {
+            let mut v: Vec<PathBuf> = std::fs::read_dir(&d)
+                .expect("VES_CORPUS is a directory")
+                .filter_map(|e| e.ok().map(|e| e.path()))
+                .filter(|p| p.extension().is_some_and(|x| x.eq_ignore_ascii_case("step")))
+                .collect();
+            v.sort();
+            (v, std::env::var_os("VES_CORPUS_VERIFY").is_some())
+        }
+        None => {
+            let cases = Path::new(env!("CARGO_MANIFEST_DIR")).join("../cases/corpus");
+            let v = ["crankshaft", "pmi_block_2holes", "bracket_ribbed_ap209"]
+                .map(|n| cases.join(format!("{n}.step")))
+                .to_vec();
+            (v, true)
+        }
+    };
+    let mut rows = Vec::new();
+    let mut failures = Vec::new();
+    for p in &parts {
+        match check_part(p, dir.path(), verify) {
+            Ok(r) => rows.push(r),
+            Err(e) => failures.push(e),
+        }
+    }
+    eprintln!("{HEADER}\n{}", rows.join("\n"));
+    assert!(failures.is_empty(), "{}", failures.join("\n"));
+}
