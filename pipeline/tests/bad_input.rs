@@ -319,3 +319,24 @@ fn a_separate_body_the_supports_do_not_hold_is_named() {
     );
     assert!(!err.contains("finer mesh"), "{err}");
 }
+
+/// A size written in millimetres where metres are meant: gmsh meshed the whole part with a few
+/// tets (or failed) without a word. The advice, followed, works.
+#[test]
+fn a_mesh_size_larger_than_the_part_is_refused_and_the_advice_works() {
+    let (dir, scene) = workdir(&GOOD.replace("size = 0.05", "size = 50.0"));
+    let o = ves(&["precompute", scene.to_str().unwrap()]);
+    assert_eq!(o.status.code(), Some(1), "{}", stderr(&o));
+    let err = stderr(&o);
+    assert!(err.contains("larger than the part") && err.contains("metres"), "{err}");
+    let advised: f64 = err
+        .split("use about ")
+        .nth(1)
+        .and_then(|s| s.split_whitespace().next())
+        .and_then(|s| s.parse().ok())
+        .expect("a size to use");
+    let fixed = dir.path().join("fixed.toml");
+    std::fs::write(&fixed, GOOD.replace("size = 0.05", &format!("size = {advised}"))).unwrap();
+    let o = ves(&["precompute", fixed.to_str().unwrap()]);
+    assert!(o.status.success(), "following the advice: {}", stderr(&o));
+}

@@ -253,6 +253,21 @@ fn regular_tet_volume(h: f64) -> f64 {
 /// Refuses, before meshing, a size that would make far too many tets: an upper estimate from
 /// the bounding box (`extent`, m) filled with regular tets of the requested sizes.
 fn check_element_budget(path: &str, extent: [f64; 3], size: f64, voi: Option<&Voi>) -> Result<(), MeshError> {
+    // Scale mistakes first (a size in mm written as m, or the other way round).
+    let largest = extent.iter().copied().fold(0.0, f64::max);
+    if size > largest {
+        return Err(MeshError::Geometry {
+            path: path.to_string(),
+            message: format!(
+                "mesh.size = {size:e} m is larger than the part ({:.4e} × {:.4e} × {:.4e} m); sizes are in metres: \
+                 use about {:.2e} m (1/15 of its largest extent)",
+                extent[0],
+                extent[1],
+                extent[2],
+                largest / 15.0
+            ),
+        });
+    }
     // A flat or thin part: at least one element across each direction.
     let volume = |e: [f64; 3], h: f64| e.iter().map(|&x| x.max(h)).product::<f64>();
     let mut tets = volume(extent, size) / regular_tet_volume(size);
