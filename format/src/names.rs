@@ -54,6 +54,9 @@ pub mod space {
     pub const VOI_MAX: &str = "voi_max";
     /// Mesh group; holds the `vertex_count` attribute.
     pub const MESH: &str = "mesh";
+    /// String attribute of [`MESH`] (optional): the meshing strategy that made it (the rung of
+    /// the pipeline's meshing ladder), so a basis can be made again the same way.
+    pub const MESHING_STRATEGY: &str = "meshing_strategy";
     /// u32 attribute of [`MESH`]: the first nv nodes are corner vertices.
     pub const VERTEX_COUNT: &str = "vertex_count";
     /// f64 [n, 3], metres.

@@ -218,6 +218,8 @@ pub struct SpaceReader<'a> {
     pub voi: Option<[[f64; 3]; 2]>,
     /// Corner vertices (the first nodes).
     pub vertex_count: usize,
+    /// How the mesh was made, when the file says.
+    pub meshing_strategy: Option<String>,
     /// All nodes.
     pub node_count: usize,
     /// Tets.
@@ -241,11 +243,10 @@ impl<'a> SpaceReader<'a> {
         let rigid_modes_dropped: u32 = scalar_attr(&group, sp::RIGID_MODES_DROPPED)
             .filter(|r| *r <= 6)
             .ok_or_else(|| bad("rigid_modes_dropped missing or above 6"))?;
-        let nv: u32 = group
-            .group(sp::MESH)
-            .ok()
-            .and_then(|m| scalar_attr(&m, sp::VERTEX_COUNT))
-            .ok_or_else(|| bad("mesh vertex_count missing or not u32"))?;
+        let mesh_group = group.group(sp::MESH).map_err(|_| bad("mesh group missing"))?;
+        let nv: u32 =
+            scalar_attr(&mesh_group, sp::VERTEX_COUNT).ok_or_else(|| bad("mesh vertex_count missing or not u32"))?;
+        let meshing_strategy = crate::strings::read(&mesh_group, sp::MESHING_STRATEGY);
         let voi = match (group.attr(sp::VOI_MIN).is_ok(), group.attr(sp::VOI_MAX).is_ok()) {
             (false, false) => None,
             _ => {
@@ -263,6 +264,7 @@ impl<'a> SpaceReader<'a> {
             rigid_modes_dropped,
             voi,
             vertex_count: nv as usize,
+            meshing_strategy,
             node_count: 0,
             tet_count: 0,
             triangle_count: 0,

@@ -42,6 +42,8 @@ pub struct SpaceData<'a> {
     pub voi: Option<[[f64; 3]; 2]>,
     /// Corner vertices: the first nodes.
     pub vertex_count: usize,
+    /// How the mesh was made (optional attribute).
+    pub meshing_strategy: Option<&'a str>,
     /// Node coordinates, m.
     pub nodes: &'a [[f64; 3]],
     /// Connectivity, `nodes_per_tet` per tet (gmsh order).
@@ -150,6 +152,9 @@ fn write_space(file: &hdf5::File, s: &SpaceData<'_>) -> Result<(), WriteError> {
     }
     let mesh = g.create_group(sp::MESH).ctx(sp::MESH)?;
     attr_u32(&mesh, sp::VERTEX_COUNT, s.vertex_count as u32)?;
+    if let Some(m) = s.meshing_strategy {
+        attr_str(&mesh, sp::MESHING_STRATEGY, m)?;
+    }
     let n = s.nodes.len();
     let nodes = Array2::from_shape_fn((n, 3), |(i, c)| s.nodes[i][c]);
     g.new_dataset_builder()

@@ -67,7 +67,7 @@ pub struct SolvedSpace {
     /// Transfer matrices from the other spaces (name, row-major `r × r_from`).
     pub transfers: Vec<(String, Vec<f64>)>,
     /// Repairs of curved tets the order-2 mesh needed.
-    pub curving: crate::mesh::Curving,
+    pub meshing: crate::mesh::Meshing,
 }
 
 impl SolvedSpace {
@@ -81,6 +81,7 @@ impl SolvedSpace {
             modes: &self.modes,
             mass: &self.mass,
             compliance: self.compliance.as_ref(),
+            meshing_strategy: Some(self.meshing.strategy),
             transfers: &self.transfers,
         }
     }
@@ -115,7 +116,7 @@ pub fn solve_space(scene: &Scene, voi: Option<&Voi>, choice: SolverChoice) -> Re
         timings,
         system: d.system,
         transfers: Vec::new(),
-        curving: d.curving,
+        meshing: d.meshing,
     })
 }
 
@@ -157,7 +158,7 @@ pub struct SpaceSummary {
     pub seconds: f64,
     /// Curved (10-node) tets that were invalid after gmsh's order-2 step, how many gmsh's
     /// optimisation repaired and how many were made straight-sided.
-    pub curving: crate::mesh::Curving,
+    pub meshing: crate::mesh::Meshing,
 }
 
 /// Runs the whole pipeline for a scene and writes `out` (which may not be a symlink).
@@ -221,7 +222,7 @@ pub fn run_with(scene: &Scene, out: &Path, choice: SolverChoice, overwrite: Over
                 rigid_modes_dropped: s.modes.rigid_dropped,
                 min_tet_quality: s.mesh.worst_quality().0,
                 vertices: s.mesh.vertex_count,
-                curving: s.curving,
+                meshing: s.meshing,
                 seconds: s.timings.mesh
                     + s.timings.assemble
                     + s.timings.factorize

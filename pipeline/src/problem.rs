@@ -22,7 +22,7 @@ pub struct Discretized {
     /// Seconds spent meshing.
     pub mesh_s: f64,
     /// What making the mesh order 2 needed (repairs of curved tets).
-    pub curving: mesh::Curving,
+    pub meshing: mesh::Meshing,
     /// Seconds spent selecting supports and assembling.
     pub assemble_s: f64,
 }
@@ -30,7 +30,7 @@ pub struct Discretized {
 /// Meshes and assembles one space.
 pub fn discretize(scene: &Scene, voi: Option<&Voi>) -> Result<Discretized> {
     let t = Instant::now();
-    let (mesh, curving) = mesh::generate(scene, voi)?;
+    let (mesh, meshing) = mesh::generate(scene, voi)?;
     let mesh_s = t.elapsed().as_secs_f64();
     let (quality, at) = mesh.worst_quality();
     tracing::info!(
@@ -57,7 +57,7 @@ pub fn discretize(scene: &Scene, voi: Option<&Voi>) -> Result<Discretized> {
     let mut d = Discretized::assemble(mesh, dofs, (m.young, m.poisson, m.density))
         .with_context(|| scene.geometry.display().to_string())?;
     d.mesh_s = mesh_s;
-    d.curving = curving;
+    d.meshing = meshing;
     d.assemble_s = t.elapsed().as_secs_f64();
     Ok(d)
 }
@@ -73,7 +73,7 @@ impl Discretized {
             system,
             rigid,
             mesh_s: 0.0,
-            curving: mesh::Curving::default(),
+            meshing: mesh::Meshing::default(),
             assemble_s: 0.0,
         })
     }

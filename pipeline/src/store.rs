@@ -27,6 +27,8 @@ pub struct Space<'a> {
     pub mass: &'a MassProperties,
     /// Static compliance blocks (`compliance/`), if computed.
     pub compliance: Option<&'a crate::compliance::Compliance>,
+    /// The meshing ladder's rung that made the mesh, if known.
+    pub meshing_strategy: Option<&'a str>,
     /// State-transfer matrices from the other spaces (`transfer/<from>`, row-major
     /// `r × r_from`): modal coordinates of `from` → this space's (see `transfer.rs`).
     pub transfers: &'a [(String, Vec<f64>)],
@@ -41,6 +43,7 @@ impl Space<'_> {
             rigid_modes_dropped: self.modes.rigid_dropped as u32,
             voi: self.voi.map(|v| [v.bbox.min, v.bbox.max]),
             vertex_count: self.mesh.vertex_count,
+            meshing_strategy: self.meshing_strategy,
             nodes: &self.mesh.nodes,
             tets: &self.mesh.tets,
             nodes_per_tet: self.mesh.nodes_per_tet(),
@@ -153,6 +156,8 @@ pub struct SpaceInfo {
     pub rigid_modes_dropped: u32,
     /// Vertices with a static-correction block (0: none stored).
     pub static_correction_vertices: usize,
+    /// How the mesh was made (the meshing ladder's rung), when the file says.
+    pub meshing_strategy: Option<String>,
 }
 
 /// What `ves info` shows of a basis file.
@@ -191,6 +196,7 @@ pub fn info(path: &Path) -> Result<BasisInfo> {
             max_relative_residual: res.iter().fold(0.0, |a: f64, &b| a.max(b)),
             rigid_modes_dropped: s.rigid_modes_dropped,
             static_correction_vertices: s.compliance()?.map_or(0, |(n, _)| n.len()),
+            meshing_strategy: s.meshing_strategy.clone(),
         });
     }
     Ok(BasisInfo {

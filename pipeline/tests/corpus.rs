@@ -93,7 +93,7 @@ fn check_part(step: &Path, dir: &Path, verify: bool) -> Result<String, String> {
             min_scaled_jacobian(&x)
         })
         .fold(f64::INFINITY, f64::min);
-    let c = &s["curving"];
+    let c = &s["meshing"];
     let row = format!(
         "| {name} | {} | {} | {} | {} | {} | {worst:.3} | {residual:.1e} | {:.1} | {seconds:.1} |",
         s["nodes"],
@@ -156,4 +156,64 @@ fn corpus_parts_precompute_at_default_settings_with_valid_elements() {
     }
     eprintln!("{HEADER}\n{}", rows.join("\n"));
     assert!(failures.is_empty(), "{}", failures.join("\n"));
+}
+
+/// A thin-walled cover at a coarse size: gmsh fails on every rung of the meshing ladder (a PLC
+/// error). One line says so and gives a size; following it works, and the basis records the
+/// strategy that made its mesh.
+#[test]
+fn a_part_no_rung_can_mesh_gets_advice_that_works() {
+    let dir = tempfile::tempdir().expect("temp dir");
+    let step = Path::new(env!("CARGO_MANIFEST_DIR")).join("../cases/corpus/thin_cone_cover.step");
+    let scene = |size: f64| {
+        let path = dir.path().join(format!("cone-{size}.toml"));
+        std::fs::write(
+            &path,
+            format!(
+                "name = \"cone\"\n[geometry]\nstep = {:?}\nunit = \"mm\"\n[material]\nyoung = 2.1e11\npoisson = 0.3\n\
+                 density = 7850.0\n[mesh]\nsize = {size:e}\norder = 1\n[[fixed]]\nbox = {{ min = [0.05, -0.14, 0.22], \
+                 max = [0.0565, 0.03, 0.36] }}\n[modes]\ncount = 4\n",
+                step.display().to_string()
+            ),
+        )
+        .expect("write");
+        path
+    };
+    // 1/8 of the cover's 161 mm extent.
+    let coarse = scene(0.020166);
+    let o = ves(&["precompute", coarse.to_str().unwrap()]);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(1), "{err}");
+    assert_eq!(err.lines().count(), 1, "{err}");
+    assert!(err.contains("any of its 6 strategies") && err.contains("PLC"), "{err}");
+    let advised: f64 = err
+        .split("try mesh.size = ")
+        .nth(1)
+        .and_then(|s| s.split_whitespace().next())
+        .and_then(|s| s.parse().ok())
+        .expect("a size to try");
+    let out = dir.path().join("cone.h5");
+    let o = ves(&[
+        "precompute",
+        scene(advised).to_str().unwrap(),
+        "-o",
+        out.to_str().unwrap(),
+        "--json",
+    ]);
+    assert!(
+        o.status.success(),
+        "following the advice: {}",
+        String::from_utf8_lossy(&o.stderr)
+    );
+    let stdout = String::from_utf8_lossy(&o.stdout);
+    let v: serde_json::Value = serde_json::from_str(stdout.lines().last().unwrap_or("")).expect("JSON");
+    let strategy = v["spaces"][0]["meshing"]["strategy"]
+        .as_str()
+        .expect("strategy")
+        .to_string();
+    let file = ves_format::BasisReader::open(&out).expect("basis");
+    assert_eq!(
+        file.space("global").expect("space").meshing_strategy.as_deref(),
+        Some(strategy.as_str())
+    );
 }

@@ -137,7 +137,36 @@ impl Gmsh {
         check("initialize", ierr)?;
         let session = Gmsh { _lock: lock };
         session.set_number("General.Terminal", 0.0)?;
+        // Keep gmsh's messages: they name the curves and surfaces behind a failure.
+        // SAFETY: plain call.
+        unsafe { sys::gmshLoggerStart(&mut ierr) };
+        check("logger/start", ierr)?;
         Ok(session)
+    }
+
+    /// gmsh's messages since `start` ("Info: …", "Warning: …", "Error: …").
+    pub fn log(&self) -> Vec<String> {
+        let (mut p, mut n, mut ierr) = (ptr::null_mut(), 0usize, 0);
+        // SAFETY: gmsh allocates an array of n strings; each and the array are freed with gmshFree.
+        unsafe {
+            sys::gmshLoggerGet(&mut p, &mut n, &mut ierr);
+            if ierr != 0 || p.is_null() {
+                return Vec::new();
+            }
+            let lines = take(p, n);
+            lines
+                .into_iter()
+                .map(|l| {
+                    let s = if l.is_null() {
+                        String::new()
+                    } else {
+                        CStr::from_ptr(l).to_string_lossy().into_owned()
+                    };
+                    sys::gmshFree(l.cast());
+                    s
+                })
+                .collect()
+        }
     }
 
     /// Sets a numeric option, e.g. `Mesh.MeshSizeMax`.

@@ -14,6 +14,8 @@ unsafe extern "C" {
     pub fn gmshOptionSetString(name: *const c_char, value: *const c_char, ierr: *mut c_int);
     pub fn gmshLoggerGetLastError(error: *mut *mut c_char, ierr: *mut c_int);
     pub fn gmshFree(p: *mut c_void);
+    pub fn gmshLoggerStart(ierr: *mut c_int);
+    pub fn gmshLoggerGet(log: *mut *mut *mut c_char, log_n: *mut usize, ierr: *mut c_int);
     pub fn gmshModelGetEntities(dim_tags: *mut *mut c_int, dim_tags_n: *mut usize, dim: c_int, ierr: *mut c_int);
     pub fn gmshModelGetBoundingBox(
         dim: c_int,

@@ -103,6 +103,13 @@ impl Mesh {
         worst
     }
 
+    /// The worst tet when it has (numerically) no volume: gmsh's Delaunay can leave one flat tet
+    /// on a thin wall. Its shape quality and centre.
+    pub fn degenerate_tet(&self) -> Option<(f64, [f64; 3])> {
+        let (q, at) = self.worst_quality();
+        (q <= 1e-12 || q.is_nan()).then_some((q, at))
+    }
+
     /// Corner vertices on the boundary, ascending, each once.
     pub fn surface_vertices(&self) -> Vec<u32> {
         let mut v: Vec<u32> = self.surface.iter().flatten().copied().collect();
@@ -300,18 +307,166 @@ fn check_element_budget(path: &str, extent: [f64; 3], size: f64, voi: Option<&Vo
 
 /// Meshes the scene's geometry (with the finer size inside `voi`, if given), on gmsh's own
 /// thread so the same input always gives the same mesh.
-pub fn generate(scene: &Scene, voi: Option<&Voi>) -> Result<(Mesh, Curving), MeshError> {
+pub fn generate(scene: &Scene, voi: Option<&Voi>) -> Result<(Mesh, Meshing), MeshError> {
     let (scene, voi) = (scene.clone(), voi.cloned());
     gmsh::on_gmsh_thread(move || generate_here(&scene, voi.as_ref()))
 }
 
-fn generate_here(scene: &Scene, voi: Option<&Voi>) -> Result<(Mesh, Curving), MeshError> {
-    let path = scene.geometry.display().to_string();
-    let g = |cause| MeshError::Gmsh {
-        path: path.clone(),
-        cause,
+/// One way of meshing a part. The ladder is tried in this fixed order until a rung gives a
+/// valid mesh, so the same input always ends on the same rung (a basis stays reproducible).
+#[derive(Clone, Copy, Debug)]
+struct Rung {
+    name: &'static str,
+    /// gmsh `Mesh.Algorithm`: 6 Frontal-Delaunay (gmsh's default), 5 Delaunay, 1 MeshAdapt.
+    surface: f64,
+    /// gmsh `Mesh.Algorithm3D`: 1 Delaunay (reproducible), 4 Frontal (Netgen-based).
+    volume: f64,
+    /// OpenCASCADE healing on import: degenerated edges, small edges and faces, sewing, solids.
+    heal: bool,
+}
+
+const LADDER: [Rung; 6] = [
+    Rung {
+        name: "default",
+        surface: 6.0,
+        volume: 1.0,
+        heal: false,
+    },
+    Rung {
+        name: "delaunay-2d",
+        surface: 5.0,
+        volume: 1.0,
+        heal: false,
+    },
+    Rung {
+        name: "meshadapt-2d",
+        surface: 1.0,
+        volume: 1.0,
+        heal: false,
+    },
+    Rung {
+        name: "healed",
+        surface: 6.0,
+        volume: 1.0,
+        heal: true,
+    },
+    Rung {
+        name: "healed-delaunay-2d",
+        surface: 5.0,
+        volume: 1.0,
+        heal: true,
+    },
+    Rung {
+        name: "healed-frontal-3d",
+        surface: 6.0,
+        volume: 4.0,
+        heal: true,
+    },
+];
+
+/// Walks the ladder; a failure of gmsh's meshing or a degenerate element sends it one rung
+/// further, anything else (no solid, a size beyond the budget) ends it.
+fn generate_here(scene: &Scene, voi: Option<&Voi>) -> Result<(Mesh, Meshing), MeshError> {
+    let mut first: Option<(MeshError, Vec<String>)> = None;
+    for (i, rung) in LADDER.iter().enumerate() {
+        match attempt(scene, voi, rung) {
+            Ok((mesh, mut report)) => {
+                report.strategy = rung.name;
+                report.rung = i;
+                if i > 0 {
+                    tracing::warn!(
+                        "{}: meshed on rung {i} ({}) of the meshing ladder; the default failed: {}",
+                        scene.geometry.display(),
+                        rung.name,
+                        first.as_ref().map(|(e, _)| e.to_string()).unwrap_or_default()
+                    );
+                }
+                return Ok((mesh, report));
+            }
+            Err(Attempt::Fatal(e)) => return Err(e),
+            Err(Attempt::Retry(e, log)) => {
+                tracing::info!(rung = rung.name, "meshing failed: {e}");
+                first.get_or_insert((e, log));
+            }
+        }
+    }
+    let (e, log) = first.expect("the ladder has rungs");
+    Err(MeshError::Geometry {
+        path: scene.geometry.display().to_string(),
+        message: ladder_advice(&e, &log, scene),
+    })
+}
+
+/// The one line when every rung failed: where (gmsh's entities), and what to change.
+fn ladder_advice(e: &MeshError, log: &[String], scene: &Scene) -> String {
+    let cause = match e {
+        MeshError::Gmsh { cause, .. } => cause.to_string(),
+        MeshError::Geometry { message, .. } => message.clone(),
     };
+    // gmsh names the entities in lines like "… on surface 70 surface 235" or "curve 12".
+    let mut places: Vec<String> = log
+        .iter()
+        .filter(|l| l.contains("Error") || l.contains("intersect") || l.contains("overlapping"))
+        .flat_map(|l| {
+            let words: Vec<&str> = l.split_whitespace().collect();
+            words
+                .windows(2)
+                .filter(|w| matches!(w[0], "surface" | "curve" | "Surface" | "Curve"))
+                .map(|w| {
+                    format!(
+                        "{} {}",
+                        w[0].to_lowercase(),
+                        w[1].trim_matches(|c: char| !c.is_ascii_digit())
+                    )
+                })
+                .collect::<Vec<_>>()
+        })
+        .collect();
+    places.sort();
+    places.dedup();
+    let at = if places.is_empty() {
+        String::new()
+    } else {
+        format!(" at {}", places.join(", "))
+    };
+    format!(
+        "gmsh could not mesh it with any of its {} strategies (default, other surface and volume algorithms, \
+         OpenCASCADE healing); the first failure{at}: {cause}; try mesh.size = {:.3e} m (half), or repair or \
+         defeature those faces in CAD",
+        LADDER.len(),
+        scene.mesh.size / 2.0
+    )
+}
+
+/// How one rung failed.
+enum Attempt {
+    /// Meshing failed: the next rung may do better (with gmsh's log).
+    Retry(MeshError, Vec<String>),
+    /// Nothing another rung would change.
+    Fatal(MeshError),
+}
+
+fn attempt(scene: &Scene, voi: Option<&Voi>, rung: &Rung) -> Result<(Mesh, Meshing), Attempt> {
+    let path = scene.geometry.display().to_string();
+    let g = |cause| {
+        Attempt::Fatal(MeshError::Gmsh {
+            path: path.clone(),
+            cause,
+        })
+    };
+    let fatal = Attempt::Fatal;
     let session = gmsh::Gmsh::start().map_err(g)?;
+    if rung.heal {
+        for opt in [
+            "Geometry.OCCFixDegenerated",
+            "Geometry.OCCFixSmallEdges",
+            "Geometry.OCCFixSmallFaces",
+            "Geometry.OCCSewFaces",
+            "Geometry.OCCMakeSolids",
+        ] {
+            session.set_number(opt, 1.0).map_err(g)?;
+        }
+    }
     // STEP/IGES carry their own unit: OpenCASCADE converts it, always to millimetres, so the
     // mesh is the same whatever `unit` the scene gives (results independent of units to round-off).
     // BREP/GEO have no unit: the scene's `unit` says what their numbers are.
@@ -341,18 +496,25 @@ fn generate_here(scene: &Scene, voi: Option<&Voi>) -> Result<(Mesh, Curving), Me
                 "it holds {faces} surfaces but no closed solid; export the part as a solid (or sew its faces in CAD)"
             )
         };
-        return Err(MeshError::Geometry { path, message });
+        let e = MeshError::Geometry { path, message };
+        // Healing can lose a solid that opened fine without it: then that rung just failed.
+        return Err(if rung.heal {
+            Attempt::Retry(e, session.log())
+        } else {
+            fatal(e)
+        });
     }
     let h = scene.mesh.size / scale;
     let (lo, hi) = session.bounding_box().map_err(g)?;
     let extent: [f64; 3] = std::array::from_fn(|c| (hi[c] - lo[c]) * scale);
-    check_element_budget(&path, extent, scene.mesh.size, voi)?;
+    check_element_budget(&path, extent, scene.mesh.size, voi).map_err(fatal)?;
     session.set_number("Mesh.MeshSizeMax", h).map_err(g)?;
     session.set_number("Mesh.MeshSizeMin", 0.0).map_err(g)?;
     // Delaunay (1) gives the same mesh on every run; HXT (10) is ~2x faster here but its
     // result changes from run to run even on one thread, and a basis must be reproducible
     // (regression numbers, batch up-to-date checks).
-    session.set_number("Mesh.Algorithm3D", 1.0).map_err(g)?;
+    session.set_number("Mesh.Algorithm", rung.surface).map_err(g)?;
+    session.set_number("Mesh.Algorithm3D", rung.volume).map_err(g)?;
     session.set_number("Mesh.RandomSeed", 1.0).map_err(g)?;
     session.set_number("Mesh.ElementOrder", 1.0).map_err(g)?;
     for opt in ["Mesh.MaxNumThreads1D", "Mesh.MaxNumThreads2D", "Mesh.MaxNumThreads3D"] {
@@ -381,41 +543,62 @@ fn generate_here(scene: &Scene, voi: Option<&Voi>) -> Result<(Mesh, Curving), Me
             session.set_number(opt, 0.0).map_err(g)?;
         }
     }
-    session.generate(3).map_err(g)?;
+    let retry = |e: MeshError, session: &gmsh::Gmsh| Attempt::Retry(e, session.log());
+    if let Err(cause) = session.generate(3) {
+        return Err(retry(
+            MeshError::Gmsh {
+                path: path.clone(),
+                cause,
+            },
+            &session,
+        ));
+    }
     let order = scene.mesh.order;
-    let mut curving = Curving::default();
+    let mut meshing = Meshing::default();
     if order == 2 {
         session.set_order(2).map_err(g)?;
     }
-    let mut mesh = extract(&session, order, scale, &path)?;
+    let mut mesh = extract(&session, order, scale, &path).map_err(fatal)?;
+    if let Some((q, at)) = mesh.degenerate_tet() {
+        return Err(retry(
+            MeshError::Geometry {
+                path: path.clone(),
+                message: format!(
+                    "gmsh made a flat tet (shape quality {q:.1e}) near ({:.6}, {:.6}, {:.6}) m",
+                    at[0], at[1], at[2]
+                ),
+            },
+            &session,
+        ));
+    }
     if order == 2 {
-        curving.distorted = mesh.distorted_tets(quality::MIN_SCALED_JACOBIAN).len();
-        if curving.distorted > 0 {
+        meshing.distorted = mesh.distorted_tets(quality::MIN_SCALED_JACOBIAN).len();
+        if meshing.distorted > 0 {
             // gmsh's elastic smoother moves the curved nodes into the volume: seconds, bounded.
             let t = std::time::Instant::now();
             session.set_number("Mesh.HighOrderNumLayers", 3.0).map_err(g)?;
             match session.optimize(HIGH_ORDER_METHOD, 1) {
-                Ok(()) => mesh = extract(&session, order, scale, &path)?,
+                Ok(()) => mesh = extract(&session, order, scale, &path).map_err(fatal)?,
                 Err(e) => tracing::info!("gmsh {HIGH_ORDER_METHOD} failed ({e}); straightening instead"),
             }
-            curving.optimize_s = t.elapsed().as_secs_f64();
+            meshing.optimize_s = t.elapsed().as_secs_f64();
             let left = mesh.distorted_tets(quality::MIN_SCALED_JACOBIAN).len();
-            curving.repaired_by_gmsh = curving.distorted.saturating_sub(left);
-            curving.straightened = mesh.straighten_distorted(quality::MIN_SCALED_JACOBIAN);
-            if curving.straightened > 0 {
+            meshing.repaired_by_gmsh = meshing.distorted.saturating_sub(left);
+            meshing.straightened = mesh.straighten_distorted(quality::MIN_SCALED_JACOBIAN);
+            if meshing.straightened > 0 {
                 tracing::warn!(
                     "{path}: {} of {} curved tets were invalid after order 2; gmsh repaired {}, {} were made \
                      straight-sided (their faces are flat there: refine mesh.size for a closer surface)",
-                    curving.distorted,
+                    meshing.distorted,
                     mesh.tet_count(),
-                    curving.repaired_by_gmsh,
-                    curving.straightened
+                    meshing.repaired_by_gmsh,
+                    meshing.straightened
                 );
             }
         }
     }
     drop(session);
-    Ok((mesh, curving))
+    Ok((mesh, meshing))
 }
 
 /// gmsh's optimiser for curved elements. "HighOrder" (the direct optimiser) takes 10–90 s on
@@ -423,9 +606,13 @@ fn generate_here(scene: &Scene, voi: Option<&Voi>) -> Result<(Mesh, Curving), Me
 /// is straightened.
 const HIGH_ORDER_METHOD: &str = "HighOrderElastic";
 
-/// What making the mesh order 2 needed.
+/// How the mesh was made: the ladder's rung, and what making it order 2 needed.
 #[derive(Clone, Copy, Debug, Default, serde::Serialize)]
-pub struct Curving {
+pub struct Meshing {
+    /// The meshing strategy that worked (the ladder's rung name; "default" normally).
+    pub strategy: &'static str,
+    /// Its place on the ladder (0: the default).
+    pub rung: usize,
     /// Curved tets below the validity threshold right after gmsh's order-2 step.
     pub distorted: usize,
     /// Of those, repaired by gmsh's high-order optimisation.

@@ -468,6 +468,7 @@ impl Sweep<'_> {
                 modes: &modes,
                 mass: &d.system.mass,
                 compliance: exact.map(|e| &e.surface),
+                meshing_strategy: Some(d.meshing.strategy),
                 transfers: &[],
             }],
         )?;
