@@ -352,7 +352,11 @@ impl Gmsh {
 impl Drop for Gmsh {
     fn drop(&mut self) {
         let mut ierr = 0;
-        // SAFETY: gmsh was initialised by `start`; the lock is released after this.
-        unsafe { sys::gmshFinalize(&mut ierr) };
+        // SAFETY: gmsh was initialised by `start`; the lock is released after this. The logger
+        // outlives finalize otherwise: the next session would see this one's messages.
+        unsafe {
+            sys::gmshLoggerStop(&mut ierr);
+            sys::gmshFinalize(&mut ierr);
+        }
     }
 }

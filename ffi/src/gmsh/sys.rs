@@ -15,6 +15,7 @@ unsafe extern "C" {
     pub fn gmshLoggerGetLastError(error: *mut *mut c_char, ierr: *mut c_int);
     pub fn gmshFree(p: *mut c_void);
     pub fn gmshLoggerStart(ierr: *mut c_int);
+    pub fn gmshLoggerStop(ierr: *mut c_int);
     pub fn gmshLoggerGet(log: *mut *mut *mut c_char, log_n: *mut usize, ierr: *mut c_int);
     pub fn gmshModelGetEntities(dim_tags: *mut *mut c_int, dim_tags_n: *mut usize, dim: c_int, ierr: *mut c_int);
     pub fn gmshModelGetBoundingBox(

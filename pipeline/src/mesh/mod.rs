@@ -385,6 +385,10 @@ fn generate_here(scene: &Scene, voi: Option<&Voi>) -> Result<(Mesh, Meshing), Me
             }
             Err(Attempt::Fatal(e)) => return Err(e),
             Err(Attempt::Retry(e, log)) => {
+                // gmsh's own words, for VES_LOG=info.
+                for line in &log {
+                    tracing::info!(target: "gmsh", rung = rung.name, "{line}");
+                }
                 tracing::info!(rung = rung.name, "meshing failed: {e}");
                 first.get_or_insert((e, log));
             }
