@@ -129,6 +129,20 @@ pub struct Summary {
     pub spaces: Vec<SpaceSummary>,
     /// Stage times summed over spaces.
     pub timings_s: Timings,
+    /// Peak resident memory of this process so far, bytes (Linux `VmHWM`; 0 where unknown).
+    pub peak_rss_bytes: u64,
+}
+
+/// Peak resident set size of this process (Linux `/proc/self/status`, `VmHWM`), bytes.
+pub fn peak_rss_bytes() -> u64 {
+    std::fs::read_to_string("/proc/self/status")
+        .ok()
+        .and_then(|s| {
+            s.lines()
+                .find_map(|l| l.strip_prefix("VmHWM:"))
+                .and_then(|v| v.trim().trim_end_matches("kB").trim().parse::<u64>().ok())
+        })
+        .map_or(0, |kb| kb * 1024)
 }
 
 /// One space in the summary.
@@ -231,6 +245,7 @@ pub fn run_with(scene: &Scene, out: &Path, choice: SolverChoice, overwrite: Over
             })
             .collect(),
         timings_s: timings,
+        peak_rss_bytes: peak_rss_bytes(),
     })
 }
 

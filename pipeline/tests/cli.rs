@@ -33,12 +33,18 @@ fn good_scene_writes_a_basis_and_json_summary() {
     for key in ["mesh", "assemble", "factorize", "eigensolve", "write", "total"] {
         assert!(v["timings_s"][key].as_f64().is_some(), "timing {key}");
     }
+    // DESIGN §3: peak resident memory, at least what the basis written occupies.
+    let rss = v["peak_rss_bytes"].as_u64().expect("peak_rss_bytes");
+    let file = std::fs::metadata(&out).expect("basis").len();
+    assert!(rss > file && rss < 24 << 30, "peak RSS {rss} B for a {file}-byte basis");
+    assert_eq!(space["meshing"]["strategy"], "default", "{space}");
 
     let o = ves(&["info", out.to_str().unwrap(), "--json"]);
     assert!(o.status.success());
     let info: serde_json::Value = serde_json::from_slice(&o.stdout).expect("info JSON");
     assert_eq!(info["spaces"][0]["frequencies_hz"], space["frequencies_hz"]);
     assert_eq!(info["spaces"][0]["nodes"], space["nodes"]);
+    assert_eq!(info["spaces"][0]["meshing_strategy"], "default");
 }
 
 #[test]

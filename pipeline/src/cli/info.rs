@@ -26,8 +26,12 @@ impl Args {
             } else {
                 String::new()
             };
+            let meshing = s
+                .meshing_strategy
+                .as_deref()
+                .map_or(String::new(), |m| format!(", meshed by strategy {m:?}"));
             println!(
-                "  {}: {} nodes ({} vertices), {} tets of order {}, {} modes {:.4}..{:.4} Hz, max residual {:.1e}, {} rigid dropped{correction}",
+                "  {}: {} nodes ({} vertices), {} tets of order {}, {} modes {:.4}..{:.4} Hz, max residual {:.1e}, {} rigid dropped{correction}{meshing}",
                 s.name,
                 s.nodes,
                 s.vertices,
