@@ -71,17 +71,9 @@ fn output_that_is_an_input_is_refused_and_the_input_kept() {
         link.to_str().unwrap(),
         "--force",
     ]);
-    assert!(
-        !o.status.success() && stderr(&o).contains("is an input"),
-        "{}",
-        stderr(&o)
-    );
+    assert_refused(&o, "is an input");
     let o = ves(&["matrices", scene.to_str().unwrap(), "-o", step.to_str().unwrap()]);
-    assert!(
-        !o.status.success() && stderr(&o).contains("is an input"),
-        "{}",
-        stderr(&o)
-    );
+    assert_refused(&o, "is an input");
 }
 
 /// A device node or a symlink as output was replaced by a regular file.
@@ -93,7 +85,7 @@ fn symlink_and_device_outputs_are_refused_unless_forced() {
     let link = dir.path().join("out.h5");
     std::os::unix::fs::symlink(&target, &link).unwrap();
     let o = ves(&["precompute", scene.to_str().unwrap(), "-o", link.to_str().unwrap()]);
-    assert!(!o.status.success() && stderr(&o).contains("--force"), "{}", stderr(&o));
+    assert_refused(&o, "--force");
     assert!(std::fs::symlink_metadata(&link).unwrap().file_type().is_symlink());
     let o = ves(&[
         "precompute",
@@ -106,11 +98,7 @@ fn symlink_and_device_outputs_are_refused_unless_forced() {
     assert!(std::fs::symlink_metadata(&link).unwrap().file_type().is_file());
     assert_eq!(std::fs::read_to_string(&target).unwrap(), "keep me");
     let o = ves(&["precompute", scene.to_str().unwrap(), "-o", "/dev/null", "--force"]);
-    assert!(
-        !o.status.success() && stderr(&o).contains("not a regular file"),
-        "{}",
-        stderr(&o)
-    );
+    assert_refused(&o, "not a regular file");
 }
 
 /// A read-only output directory was found only after the whole computation.
@@ -185,12 +173,7 @@ fn absurdly_small_mesh_size_is_refused_before_meshing_with_a_size_that_fits() {
     assert!(!dir.path().join("beam.h5").exists());
     // Exit 1 (not gmsh's abort, 134) and a size to use: for this 1 m beam, the budget's bound
     // (following it meshes 10⁷ tets, too heavy for a test) lies between 0.1 mm and 5 cm.
-    let suggested: f64 = err
-        .split("use mesh.size ≥ ")
-        .nth(1)
-        .and_then(|s| s.split_whitespace().next())
-        .and_then(|s| s.parse().ok())
-        .expect("a suggested size");
+    let suggested = number_after(&err, "use mesh.size ≥ ");
     assert!(suggested > 1e-4 && suggested < 0.05, "{suggested}");
 }
 
@@ -329,12 +312,7 @@ fn a_mesh_size_larger_than_the_part_is_refused_and_the_advice_works() {
     assert_eq!(o.status.code(), Some(1), "{}", stderr(&o));
     let err = stderr(&o);
     assert!(err.contains("larger than the part") && err.contains("metres"), "{err}");
-    let advised: f64 = err
-        .split("use about ")
-        .nth(1)
-        .and_then(|s| s.split_whitespace().next())
-        .and_then(|s| s.parse().ok())
-        .expect("a size to use");
+    let advised = number_after(&err, "use about ");
     let fixed = dir.path().join("fixed.toml");
     std::fs::write(&fixed, GOOD.replace("size = 0.05", &format!("size = {advised}"))).unwrap();
     let o = ves(&["precompute", fixed.to_str().unwrap()]);

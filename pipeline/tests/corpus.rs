@@ -7,17 +7,12 @@
 //! CI runs the three parts in `cases/corpus/` (copies); `VES_CORPUS=DIR` runs every `*.step` of DIR (the
 //! team's `../shared/geometry/corpus`) and prints a table row per part.
 
+mod common;
+
+use common::{number_after, ves};
 use std::path::{Path, PathBuf};
-use std::process::Command;
 use ves_pipeline::mesh::quality::min_scaled_jacobian;
 use ves_pipeline::scene::Scene;
-
-fn ves(args: &[&str]) -> std::process::Output {
-    Command::new(env!("CARGO_BIN_EXE_ves"))
-        .args(args)
-        .output()
-        .expect("ves runs")
-}
 
 /// The default scene of a part, its clamp placed from the part's real (meshed) extent.
 fn default_scene(step: &Path, dir: &Path) -> PathBuf {
@@ -186,12 +181,7 @@ fn a_part_no_rung_can_mesh_gets_advice_that_works() {
     assert_eq!(o.status.code(), Some(1), "{err}");
     assert_eq!(err.lines().count(), 1, "{err}");
     assert!(err.contains("any of its 6 strategies") && err.contains("PLC"), "{err}");
-    let advised: f64 = err
-        .split("try mesh.size = ")
-        .nth(1)
-        .and_then(|s| s.split_whitespace().next())
-        .and_then(|s| s.parse().ok())
-        .expect("a size to try");
+    let advised = number_after(&err, "try mesh.size = ");
     let out = dir.path().join("cone.h5");
     let o = ves(&[
         "precompute",

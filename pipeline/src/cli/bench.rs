@@ -1,24 +1,20 @@
 //! `ves bench`.
 
 use anyhow::{Context, Result};
-use std::path::PathBuf;
 use std::sync::Arc;
 use ves_runtime::{LoadOptions, basis, bench};
 
 /// Arguments.
 #[derive(clap::Args)]
 pub struct Args {
-    /// Basis file (HDF5).
-    basis: PathBuf,
-    /// Print JSON.
-    #[arg(long)]
-    json: bool,
+    #[command(flatten)]
+    file: super::BasisFile,
 }
 
 impl Args {
     pub fn run(self) -> Result<()> {
         // Loading all modes once checks the file and says how many there are.
-        let all = basis::load(&self.basis, &LoadOptions::default())?;
+        let all = basis::load(&self.file.basis, &LoadOptions::default())?;
         let available = all.mode_count();
         // r = 30 and 100 where the file has them; otherwise every mode it has.
         let mut counts: Vec<usize> = [30usize, 100].into_iter().filter(|&r| r <= available).collect();
@@ -32,13 +28,13 @@ impl Args {
                 surface_only: true,
                 ..Default::default()
             };
-            let b = basis::load(&self.basis, &opts).with_context(|| format!("haptic benchmark with {r} modes"))?;
+            let b = basis::load(&self.file.basis, &opts).with_context(|| format!("haptic benchmark with {r} modes"))?;
             let ns = bench::haptic_step_ns(Arc::new(b), 201, 2000);
             report.insert(format!("haptic_step_ns_median_r{r}"), ns.into());
         }
         let field = if available >= 30 {
             basis::load(
-                &self.basis,
+                &self.file.basis,
                 &LoadOptions {
                     modes: Some(30),
                     ..Default::default()
@@ -52,7 +48,7 @@ impl Args {
         report.insert("full_field_ms_median".into(), bench::full_field_ms(&field, 301).into());
         report.insert("bytes_loaded".into(), field.bytes_loaded.into());
         let v = serde_json::Value::Object(report);
-        if self.json {
+        if self.file.json {
             println!("{v}");
         } else {
             println!("{}", serde_json::to_string_pretty(&v)?);

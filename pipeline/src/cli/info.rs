@@ -1,22 +1,18 @@
 //! `ves info`.
 
 use anyhow::Result;
-use std::path::PathBuf;
 
 /// Arguments.
 #[derive(clap::Args)]
 pub struct Args {
-    /// Basis file (HDF5).
-    basis: PathBuf,
-    /// Print JSON instead of text.
-    #[arg(long)]
-    json: bool,
+    #[command(flatten)]
+    file: super::BasisFile,
 }
 
 impl Args {
     pub fn run(self) -> Result<()> {
-        let info = ves_pipeline::store::info(&self.basis)?;
-        if self.json {
+        let info = ves_pipeline::store::info(&self.file.basis)?;
+        if self.file.json {
             return super::print_json(&info);
         }
         println!("{} ({} bytes, {})", info.path, info.bytes, info.generator);

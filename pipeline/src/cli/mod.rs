@@ -63,6 +63,16 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
     }
 }
 
+/// The basis file a reading command takes, and its output form.
+#[derive(clap::Args)]
+pub struct BasisFile {
+    /// Basis file (HDF5).
+    basis: std::path::PathBuf,
+    /// Print JSON (the last line of stdout) instead of text.
+    #[arg(long)]
+    json: bool,
+}
+
 /// Flags of the commands that read a scene and write a file.
 #[derive(clap::Args)]
 pub struct WriteFlags {

@@ -93,3 +93,21 @@ pub fn fails(scene: &str, expect: &[&str]) {
         .collect();
     assert_eq!(leftovers.len(), 3, "files left behind: {leftovers:?}");
 }
+
+/// Asserts that a run failed and that its message mentions `what`.
+pub fn assert_refused(o: &Output, what: &str) {
+    let e = String::from_utf8_lossy(&o.stderr);
+    assert!(
+        !o.status.success() && e.contains(what),
+        "expected a refusal mentioning {what:?}: {e}"
+    );
+}
+
+/// The number written right after `marker` in `text` (the size an error message advises).
+pub fn number_after(text: &str, marker: &str) -> f64 {
+    text.split(marker)
+        .nth(1)
+        .and_then(|s| s.split_whitespace().next())
+        .and_then(|s| s.trim_end_matches([',', ';']).parse().ok())
+        .unwrap_or_else(|| panic!("no number after {marker:?} in {text}"))
+}
