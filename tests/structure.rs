@@ -122,10 +122,21 @@ fn cycle_finder_finds_a_planted_cycle() {
 fn readme_layout_names_every_folder() {
     let root = workspace();
     let readme = std::fs::read_to_string(root.join("README.md")).expect("README.md");
+    // Folders git ignores (build output, `scripts/run`'s out/) are not part of the layout.
+    let ignored: Vec<String> = std::fs::read_to_string(root.join(".gitignore"))
+        .unwrap_or_default()
+        .lines()
+        .map(|l| l.trim().trim_matches('/').to_string())
+        .filter(|l| !l.is_empty() && !l.starts_with('#'))
+        .collect();
     let mut missing = Vec::new();
     for e in std::fs::read_dir(&root).expect("workspace").flatten() {
         let name = e.file_name().to_string_lossy().into_owned();
-        if e.path().is_dir() && !name.starts_with('.') && name != "target" && !readme.contains(&format!("`{name}/")) {
+        if e.path().is_dir()
+            && !name.starts_with('.')
+            && !ignored.contains(&name)
+            && !readme.contains(&format!("`{name}/"))
+        {
             missing.push(name);
         }
     }
