@@ -346,6 +346,13 @@ impl Scene {
                 raw.geometry.step
             )));
         }
+        if geometry.is_dir() {
+            return Err(err(format!(
+                "geometry.step = {:?}: {} is a directory; give the part's STEP file",
+                raw.geometry.step,
+                geometry.display()
+            )));
+        }
         if !geometry.is_file() {
             return Err(err(format!(
                 "geometry.step = {:?}: file not found at {}",

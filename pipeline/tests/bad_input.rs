@@ -318,3 +318,19 @@ fn a_mesh_size_larger_than_the_part_is_refused_and_the_advice_works() {
     let o = ves(&["precompute", fixed.to_str().unwrap()]);
     assert!(o.status.success(), "following the advice: {}", stderr(&o));
 }
+
+/// A directory where a file is expected said "file not found" (geometry) or printed the OS
+/// error alone (device script).
+#[test]
+fn directories_given_as_geometry_or_device_script_say_so() {
+    let (dir, _) = workdir(GOOD);
+    std::fs::create_dir(dir.path().join("part.step")).unwrap();
+    let scene = dir.path().join("dir.toml");
+    std::fs::write(&scene, GOOD.replace("beam.step", "part.step")).unwrap();
+    let o = ves(&["precompute", scene.to_str().unwrap()]);
+    assert_refused(&o, "is a directory");
+    let (dir, basis) = good_basis();
+    let device = format!("script:{}", dir.path().display());
+    let o = ves(&["session", basis.to_str().unwrap(), "--device", &device]);
+    assert_refused(&o, "is a directory");
+}

@@ -101,9 +101,15 @@ impl ScriptedDevice {
     /// Reads a trajectory file.
     pub fn load(path: &Path) -> Result<ScriptedDevice, ScriptError> {
         let p = path.display().to_string();
+        if path.is_dir() {
+            return Err(ScriptError {
+                path: p,
+                message: "is a directory; give a CSV file of rows t, x, y, z[, button]".into(),
+            });
+        }
         let text = std::fs::read_to_string(path).map_err(|e| ScriptError {
             path: p.clone(),
-            message: e.to_string(),
+            message: format!("cannot read the device script ({e})"),
         })?;
         Self::parse(&p, &text)
     }
