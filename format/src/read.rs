@@ -444,38 +444,59 @@ impl<'a> SpaceReader<'a> {
 
     /// Rows `rows` of the first `cols` modes, row-major (`out[k·cols + j]`), finite.
     pub fn basis_rows(&self, rows: Range<usize>, cols: usize) -> Result<Vec<f64>, ReadError> {
+        self.basis_block(rows, 0..cols)
+    }
+
+    /// Rows `rows` × modes `cols` of the basis, row-major, finite.
+    fn basis_block(&self, rows: Range<usize>, cols: Range<usize>) -> Result<Vec<f64>, ReadError> {
         self.guard(|| {
-            if rows.end > 3 * self.node_count || rows.start > rows.end || cols == 0 || cols > self.mode_count {
+            if rows.end > 3 * self.node_count || rows.start > rows.end || cols.is_empty() || cols.end > self.mode_count
+            {
                 return Err(self.err(format!(
-                    "rows {rows:?} × {cols} modes asked of a {} × {} basis",
+                    "rows {rows:?} × modes {cols:?} asked of a {} × {} basis",
                     3 * self.node_count,
                     self.mode_count
                 )));
             }
             let (ds, _) = self.dataset::<f64>(sp::BASIS, 2)?;
             let a: ndarray::Array2<f64> = ds
-                .read_slice(s![rows, 0..cols])
+                .read_slice(s![rows, cols])
                 .map_err(|_| self.err("modes/basis: data unreadable (damaged)"))?;
             self.finite(sp::BASIS, a.iter().copied().collect())
         })
     }
 
-    /// Checks that every value of the whole basis is finite (also the rows a runtime does not
-    /// load), streaming a block of rows at a time so the memory used stays small.
-    pub fn check_basis_finite(&self) -> Result<(), ReadError> {
+    /// Checks that rows `rows` × modes `cols` are finite, streaming a block of rows at a time so
+    /// the memory used stays small.
+    fn check_block_finite(&self, rows: Range<usize>, cols: Range<usize>) -> Result<(), ReadError> {
         const BLOCK_VALUES: usize = 1 << 20;
-        let rows = 3 * self.node_count;
-        let step = (BLOCK_VALUES / self.mode_count).max(1);
-        let mut start = 0;
-        while start < rows {
-            let end = (start + step).min(rows);
-            self.basis_rows(start..end, self.mode_count).map_err(|e| ReadError {
+        if rows.is_empty() || cols.is_empty() {
+            return Ok(());
+        }
+        let step = (BLOCK_VALUES / cols.len()).max(1);
+        let mut start = rows.start;
+        while start < rows.end {
+            let end = (start + step).min(rows.end);
+            self.basis_block(start..end, cols.clone()).map_err(|e| ReadError {
                 message: format!("{} (rows {start}..{end})", e.message),
                 ..e
             })?;
             start = end;
         }
         Ok(())
+    }
+
+    /// Checks that every value of the whole basis is finite.
+    pub fn check_basis_finite(&self) -> Result<(), ReadError> {
+        self.check_block_finite(0..3 * self.node_count, 0..self.mode_count)
+    }
+
+    /// Checks the values a reader of `basis_rows(0..rows, cols)` did not see (the other rows and
+    /// modes) are finite too: a file is refused for a NaN anywhere, read once.
+    pub fn check_unread_finite(&self, rows: usize, cols: usize) -> Result<(), ReadError> {
+        let (all_rows, all_cols) = (3 * self.node_count, self.mode_count);
+        self.check_block_finite(rows.min(all_rows)..all_rows, 0..all_cols)?;
+        self.check_block_finite(0..rows.min(all_rows), cols.min(all_cols)..all_cols)
     }
 
     /// Static compliance: node indices (below n) and their 3×3 blocks (finite), if stored.

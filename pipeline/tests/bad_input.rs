@@ -34,13 +34,13 @@ fn density_1e120_and_moduli_beyond_real_materials_are_refused() {
 #[test]
 fn batch_with_an_absurd_density_reports_that_scene_and_finishes_the_others() {
     let (dir, good) = workdir(GOOD);
-    let bad = dir.path().join("heavy.toml");
-    std::fs::write(
-        &bad,
-        GOOD.replace("density = 7850.0", "density = 1e120")
+    let bad = write_file(
+        dir.path(),
+        "heavy.toml",
+        &GOOD
+            .replace("density = 7850.0", "density = 1e120")
             .replace("name = \"beam\"", "name = \"heavy\""),
-    )
-    .unwrap();
+    );
     let o = ves(&["batch", good.to_str().unwrap(), bad.to_str().unwrap()]);
     assert!(!o.status.success(), "the batch must fail");
     let err = stderr(&o);
@@ -139,13 +139,13 @@ fn geo_scripts_run_only_with_an_explicit_flag() {
         format!("{geo}\nSystem \"touch {}\";\n", marker.display()),
     )
     .unwrap();
-    let scene = dir.path().join("geo.toml");
-    std::fs::write(
-        &scene,
-        GOOD.replace("beam.step", "beam.geo")
+    let scene = write_file(
+        dir.path(),
+        "geo.toml",
+        &GOOD
+            .replace("beam.step", "beam.geo")
             .replace("name = \"beam\"", "name = \"geo\""),
-    )
-    .unwrap();
+    );
     let s = scene.to_str().unwrap();
     for args in [
         vec!["precompute", s],
@@ -291,8 +291,7 @@ fn a_separate_body_the_supports_do_not_hold_is_named() {
         "SetFactory(\"OpenCASCADE\");\nBox(1) = {0, 0, 0, 1000, 100, 50};\nBox(2) = {200, 300, 0, 500, 100, 50};\n",
     )
     .unwrap();
-    let scene = dir.path().join("two.toml");
-    std::fs::write(&scene, GOOD.replace("beam.step", "two.geo")).unwrap();
+    let scene = write_file(dir.path(), "two.toml", &GOOD.replace("beam.step", "two.geo"));
     let o = ves(&["precompute", scene.to_str().unwrap(), "--allow-geo-scripts"]);
     assert_eq!(o.status.code(), Some(1), "{}", stderr(&o));
     let err = stderr(&o);
@@ -313,8 +312,11 @@ fn a_mesh_size_larger_than_the_part_is_refused_and_the_advice_works() {
     let err = stderr(&o);
     assert!(err.contains("larger than the part") && err.contains("metres"), "{err}");
     let advised = number_after(&err, "use about ");
-    let fixed = dir.path().join("fixed.toml");
-    std::fs::write(&fixed, GOOD.replace("size = 0.05", &format!("size = {advised}"))).unwrap();
+    let fixed = write_file(
+        dir.path(),
+        "fixed.toml",
+        &GOOD.replace("size = 0.05", &format!("size = {advised}")),
+    );
     let o = ves(&["precompute", fixed.to_str().unwrap()]);
     assert!(o.status.success(), "following the advice: {}", stderr(&o));
 }
@@ -325,8 +327,7 @@ fn a_mesh_size_larger_than_the_part_is_refused_and_the_advice_works() {
 fn directories_given_as_geometry_or_device_script_say_so() {
     let (dir, _) = workdir(GOOD);
     std::fs::create_dir(dir.path().join("part.step")).unwrap();
-    let scene = dir.path().join("dir.toml");
-    std::fs::write(&scene, GOOD.replace("beam.step", "part.step")).unwrap();
+    let scene = write_file(dir.path(), "dir.toml", &GOOD.replace("beam.step", "part.step"));
     let o = ves(&["precompute", scene.to_str().unwrap()]);
     assert_refused(&o, "is a directory");
     let (dir, basis) = good_basis();

@@ -48,15 +48,45 @@ impl Coupling {
     }
 
     /// Checks that every parameter is finite and positive (damping ≥ 0).
-    pub fn validate(&self) -> Result<(), String> {
-        let ok = |v: f64| v.is_finite() && v > 0.0;
-        if !(ok(self.stiffness) && ok(self.max_force) && self.damping.is_finite() && self.damping >= 0.0) {
-            return Err(format!(
-                "coupling stiffness {} N/m, damping {} N·s/m, force limit {} N: each must be finite and > 0 (damping ≥ 0)",
-                self.stiffness, self.damping, self.max_force
-            ));
+    pub fn validate(&self) -> Result<(), InvalidSetting> {
+        InvalidSetting::check("stiffness", self.stiffness, "N/m", "> 0", self.stiffness > 0.0)?;
+        InvalidSetting::check("max-force", self.max_force, "N", "> 0", self.max_force > 0.0)?;
+        InvalidSetting::check("damping", self.damping, "N·s/m", "≥ 0", self.damping >= 0.0)
+    }
+}
+
+/// A setting out of its range: which one (named as `ves session`'s flag), its value and unit.
+#[derive(Clone, Debug, PartialEq, thiserror::Error)]
+#[error("{setting} = {value} {unit}: out of range (finite, {requirement})")]
+pub struct InvalidSetting {
+    /// The setting, e.g. "duration".
+    pub setting: &'static str,
+    /// The value given.
+    pub value: f64,
+    /// Its unit.
+    pub unit: &'static str,
+    /// What it must be.
+    pub requirement: &'static str,
+}
+
+impl InvalidSetting {
+    /// `Ok` when `value` is finite and `in_range` (the test that `requirement` states).
+    pub fn check(
+        setting: &'static str,
+        value: f64,
+        unit: &'static str,
+        requirement: &'static str,
+        in_range: bool,
+    ) -> Result<(), InvalidSetting> {
+        if value.is_finite() && in_range {
+            return Ok(());
         }
-        Ok(())
+        Err(InvalidSetting {
+            setting,
+            value,
+            unit,
+            requirement,
+        })
     }
 }
 
@@ -188,6 +218,24 @@ struct Prediction {
 struct Wrench {
     force: V3,
     torque: V3,
+}
+
+/// Stage 1: the device state in the part (body) frame; for a free body, relative to where the
+/// body will be at the end of the step (`predicted`).
+fn to_part_frame(world: &HandInput, predicted: Option<&RigidBody>) -> PartInput {
+    let (x, v) = (V3::from(world.position), V3::from(world.velocity));
+    match predicted {
+        None => PartInput {
+            position: x,
+            velocity: v,
+            button: world.button,
+        },
+        Some(rb) => PartInput {
+            position: rb.to_body(x),
+            velocity: rb.vector_to_body(v - rb.point_velocity(x)),
+            button: world.button,
+        },
+    }
 }
 
 impl Haptics {
@@ -356,10 +404,16 @@ impl Haptics {
     pub fn step(&mut self, inputs: &[HandInput], outputs: &mut [HandOutput]) {
         self.f.fill(0.0);
         let mut wrench = Wrench::default();
+        // Where a free body will be after a step without the hands' forces: the coupling is
+        // solved at the end of the step, like the modes (implicit). The same for every hand.
+        let predicted = self.rigid.map(|mut rb| {
+            rb.step(V3::zeros(), V3::zeros(), self.state.dt());
+            rb
+        });
         for (k, world) in inputs.iter().enumerate().take(self.hands.len()) {
             let out = &mut outputs[k];
             *out = HandOutput::default();
-            let input = self.to_part_frame(world);
+            let input = to_part_frame(world, predicted.as_ref());
             let Some(vertex) = self.pick(k, &input) else { continue };
             let prediction = self.predict(k, vertex);
             let Some((force, magnitude)) = self.coupling_force(k, vertex, &input, &prediction, out) else {
@@ -369,29 +423,6 @@ impl Haptics {
             self.apply(k, vertex, (force, device, magnitude), &prediction, &mut wrench, out);
         }
         self.advance(&wrench, outputs);
-    }
-
-    /// Stage 1: the device state in the part (body) frame. For a free body, relative to where the
-    /// body will be after a step without the hand's force: the coupling is solved at the end of
-    /// the step, like the modes (implicit).
-    fn to_part_frame(&self, world: &HandInput) -> PartInput {
-        let (x, v) = (V3::from(world.position), V3::from(world.velocity));
-        match &self.rigid {
-            None => PartInput {
-                position: x,
-                velocity: v,
-                button: world.button,
-            },
-            Some(body) => {
-                let mut rb = *body;
-                rb.step(V3::zeros(), V3::zeros(), self.state.dt());
-                PartInput {
-                    position: rb.to_body(x),
-                    velocity: rb.vector_to_body(v - rb.point_velocity(x)),
-                    button: world.button,
-                }
-            }
-        }
     }
 
     /// Stage 2: the hand's active vertex: the nearest surface vertex unless it holds a grab (the

@@ -3,7 +3,7 @@
 
 use crate::basis::Basis;
 use crate::device::Device;
-use crate::haptic::{Coupling, HandInput, HandOutput, StrainWatch};
+use crate::haptic::{Coupling, HandInput, HandOutput, InvalidSetting, StrainWatch};
 use crate::integrator::Scheme;
 use crate::snapshot::Snapshot;
 use crate::switching::{SpaceInput, SwitchConfig, Switcher};
@@ -129,21 +129,23 @@ impl Timings {
 }
 
 impl SessionConfig {
-    /// Checks the settings a user gives (rate, duration, coupling) before a session starts.
-    pub fn validate(&self) -> Result<(), String> {
-        if !(1.0..=10_000.0).contains(&self.rate_hz) {
-            return Err(format!("rate {} Hz: must be between 1 and 10000 Hz", self.rate_hz));
-        }
-        if !(self.duration_s.is_finite() && self.duration_s > 0.0) {
-            return Err(format!(
-                "duration {} s: must be a finite number of seconds > 0",
-                self.duration_s
-            ));
-        }
-        if (self.duration_s * self.rate_hz) > u64::MAX as f64 / 2.0 {
-            return Err(format!("duration {} s: too long", self.duration_s));
-        }
-        self.coupling.validate()
+    /// Checks the settings a user gives (rate, duration, coupling, strain limit) before a
+    /// session starts; the error names the setting as `ves session`'s flag does.
+    pub fn validate(&self) -> Result<(), InvalidSetting> {
+        let (rate, duration) = (self.rate_hz, self.duration_s);
+        InvalidSetting::check(
+            "rate",
+            rate,
+            "Hz",
+            "between 1 and 10000",
+            (1.0..=10_000.0).contains(&rate),
+        )?;
+        // The step count must fit in a u64 (statistics stream, so memory does not grow with it).
+        let steps_fit = duration * rate < u64::MAX as f64 / 2.0;
+        InvalidSetting::check("duration", duration, "s", "> 0", duration > 0.0 && steps_fit)?;
+        self.coupling.validate()?;
+        let limit = self.strain.limit;
+        InvalidSetting::check("strain-limit", limit, "", "> 0, e.g. 0.02", limit > 0.0)
     }
 }
 
@@ -168,7 +170,7 @@ pub fn run_spaces(
     mut devices: Vec<Box<dyn Device>>,
     cfg: &SessionConfig,
 ) -> Result<SessionStats, String> {
-    cfg.validate()?;
+    cfg.validate().map_err(|e| e.to_string())?;
     let hands = devices.len().max(1);
     let rate = cfg.rate_hz;
     let dt = 1.0 / rate;

@@ -68,42 +68,14 @@ pub struct Args {
 impl Args {
     /// The session settings, checked before anything is loaded; `longest` is the longest script.
     fn config(&self, longest: f64) -> Result<SessionConfig> {
-        anyhow::ensure!(
-            self.strain_limit > 0.0 && self.strain_limit.is_finite(),
-            "--strain-limit {}: must be a finite strain > 0 (e.g. 0.02)",
-            self.strain_limit
-        );
-        anyhow::ensure!(
-            (1.0..=10_000.0).contains(&self.rate),
-            "--rate {}: must be between 1 and 10000 Hz",
-            self.rate
-        );
-        let positive = |v: f64| v.is_finite() && v > 0.0;
-        anyhow::ensure!(
-            positive(self.stiffness) && positive(self.max_force),
-            "--stiffness {} and --max-force {}: must be finite and > 0",
-            self.stiffness,
-            self.max_force
-        );
-        if let Some(c) = self.damping {
-            anyhow::ensure!(
-                c.is_finite() && c >= 0.0,
-                "--damping {c}: must be finite and ≥ 0 (N·s/m)"
-            );
-        }
-        if let Some(d) = self.duration {
-            anyhow::ensure!(
-                d.is_finite() && d > 0.0,
-                "--duration {d}: must be a finite number of seconds > 0 (e.g. 10)"
-            );
-        }
         let mut coupling = Coupling::critically_damped(self.stiffness, self.max_force);
         if let Some(c) = self.damping {
             coupling.damping = c;
         }
         let cfg = SessionConfig {
             rate_hz: self.rate,
-            duration_s: self.duration.unwrap_or(longest).max(1.0 / self.rate),
+            // A duration given is checked as given; the scripts' length gets at least one step.
+            duration_s: self.duration.unwrap_or(longest.max(1.0 / self.rate)),
             coupling,
             sleep: !self.spin,
             strain: StrainWatch {
@@ -116,8 +88,19 @@ impl Args {
             },
             ..Default::default()
         };
-        cfg.validate()
-            .map_err(|e| anyhow::anyhow!("{e} (see ves session --help)"))?;
+        cfg.validate().map_err(|e| {
+            let unit = if e.unit.is_empty() {
+                String::new()
+            } else {
+                format!(" ({})", e.unit)
+            };
+            anyhow::anyhow!(
+                "--{} {}: must be finite and {}{unit}; see ves session --help",
+                e.setting,
+                e.value,
+                e.requirement
+            )
+        })?;
         Ok(cfg)
     }
 

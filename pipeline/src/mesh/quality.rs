@@ -71,16 +71,18 @@ pub fn min_scaled_jacobian(x: &[[f64; 3]]) -> f64 {
 }
 
 impl Mesh {
+    /// Node coordinates of tet `t`, in its node order.
+    fn tet_coords(&self, t: usize) -> Vec<[f64; 3]> {
+        self.tet(t).iter().map(|&n| self.nodes[n as usize]).collect()
+    }
+
     /// The 10-node tets with a mid-edge node off its edge's midpoint (see [`is_curved`]).
     pub fn curved_tets(&self) -> Vec<usize> {
         if self.order != 2 {
             return Vec::new();
         }
         (0..self.tet_count())
-            .filter(|&t| {
-                let x: Vec<[f64; 3]> = self.tet(t).iter().map(|&n| self.nodes[n as usize]).collect();
-                is_curved(&x)
-            })
+            .filter(|&t| is_curved(&self.tet_coords(t)))
             .collect()
     }
 
@@ -90,10 +92,7 @@ impl Mesh {
             return Vec::new();
         }
         (0..self.tet_count())
-            .filter(|&t| {
-                let x: Vec<[f64; 3]> = self.tet(t).iter().map(|&n| self.nodes[n as usize]).collect();
-                min_scaled_jacobian(&x) < min
-            })
+            .filter(|&t| min_scaled_jacobian(&self.tet_coords(t)) < min)
             .collect()
     }
 
@@ -140,8 +139,7 @@ mod tests {
             m.nodes[tet[3] as usize],
         );
         m.nodes[tet[4] as usize] = std::array::from_fn(|c| (pa[c] + pb[c]) / 2.0 + 1.5 * (opposite[c] - pa[c]));
-        let x: Vec<[f64; 3]> = m.tet(t).iter().map(|&n| m.nodes[n as usize]).collect();
-        assert!(min_scaled_jacobian(&x) < 0.0);
+        assert!(min_scaled_jacobian(&m.tet_coords(t)) < 0.0);
         assert!(m.distorted_tets(MIN_SCALED_JACOBIAN).contains(&t));
         let n = m.straighten_distorted(MIN_SCALED_JACOBIAN);
         assert!(n >= 1);

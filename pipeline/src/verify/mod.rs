@@ -223,11 +223,12 @@ pub fn discretize_basis(path: &Path, modes: Option<usize>) -> Result<(Discretize
     let m = file.material()?;
     let material = (m.young, m.poisson, m.density);
     let g = file.space(ves_format::names::GLOBAL_SPACE)?;
-    g.validate()?;
     let n = g.node_count;
     let lam = g.eigenvalues()?;
     let r = modes.unwrap_or(lam.len()).min(lam.len());
     let basis = g.basis_rows(0..3 * n, r)?;
+    // Every array below is checked as it is read; the modes not compared are checked too.
+    g.check_unread_finite(3 * n, r)?;
     let fixed = g.fixed_dofs()?;
     let mesh = crate::mesh::Mesh {
         nodes: g.nodes(n)?,

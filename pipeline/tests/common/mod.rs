@@ -111,3 +111,10 @@ pub fn number_after(text: &str, marker: &str) -> f64 {
         .and_then(|s| s.trim_end_matches([',', ';']).parse().ok())
         .unwrap_or_else(|| panic!("no number after {marker:?} in {text}"))
 }
+
+/// Writes `text` to `dir/name` and returns the path.
+pub fn write_file(dir: &Path, name: &str, text: &str) -> PathBuf {
+    let path = dir.join(name);
+    std::fs::write(&path, text).expect("write a test file");
+    path
+}
