@@ -160,7 +160,8 @@ struct Hand {
     vertex: Option<u32>,
     grabbed: bool,
     rows: Vec<f64>,
-    /// How far the vertex moves per newton of its own force over one step (modal part).
+    /// How far the vertex moves per newton of its own force over one step: the modes, and for a
+    /// free body the rigid motion (both fixed for a vertex, so computed when it is picked).
     g: M3,
     /// Static correction Gᵢᵢ − Φᵢ Λ⁻¹ Φᵢᵀ (zero when off or not stored): the compliance the
     /// truncated modes miss, added instantly.
@@ -287,6 +288,9 @@ impl Haptics {
         let mut body = RigidBody::new(&props, gravity).ok_or("the stored inertia tensor is singular")?;
         body.damping = damping.max(0.0);
         self.rigid = Some(body);
+        for h in &mut self.hands {
+            h.vertex = None; // the step compliance gains the rigid part at the next pick
+        }
         Ok(())
     }
 
@@ -334,11 +338,17 @@ impl Haptics {
         basis.gather_rows(vertex as usize, &mut hd.rows);
         let rows = &hd.rows;
         let state = &self.state;
-        let g = M3::from_fn(|a, b| {
+        let modal = M3::from_fn(|a, b| {
             (0..r)
                 .map(|j| state.transition(j).force_gain() * rows[a * r + j] * rows[b * r + j])
                 .sum()
         });
+        // A free body's rigid step compliance at this vertex is constant in the body frame.
+        let rest = V3::from(basis.rest[vertex as usize]);
+        let rigid = self
+            .rigid
+            .map_or(M3::zeros(), |rb| rb.step_compliance_body(rest, state.dt()));
+        let g = modal + rigid;
         // Residual compliance: exact block minus what the loaded modes already give.
         let residual = match basis.compliance_of(vertex as usize).filter(|_| self.static_correction) {
             Some(exact) => {
@@ -444,10 +454,6 @@ impl Haptics {
         let hd = &self.hands[k];
         let r = self.state.q.len();
         let rest = V3::from(self.basis.rest[vertex as usize]);
-        let rigid = match &self.rigid {
-            Some(rb) => rb.step_compliance_body(rest, self.state.dt()),
-            None => M3::zeros(),
-        };
         let (mut free_end, mut now) = (rest, rest);
         for j in 0..r {
             let (qf, _) = self.state.transition(j).free(self.state.q[j], self.state.v[j]);
@@ -460,7 +466,7 @@ impl Haptics {
         Prediction {
             free_end: free_end + shift,
             now: now + shift,
-            compliance: hd.g + hd.residual + rigid,
+            compliance: hd.g + hd.residual,
         }
     }
 
