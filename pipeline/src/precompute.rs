@@ -186,7 +186,7 @@ pub fn run_with(scene: &Scene, out: &Path, choice: SolverChoice, overwrite: Over
     // Under MPI every rank computes; rank 0 alone writes.
     let root = modes::slepc::rank() == 0;
     if root {
-        crate::output::check(out, &[&scene.path, &scene.geometry], overwrite)?;
+        crate::output::check(out, &scene.inputs(), overwrite)?;
     }
     let mut spaces = Vec::with_capacity(1 + scene.voi.len());
     let targets: Vec<Option<&Voi>> = std::iter::once(None).chain(scene.voi.iter().map(Some)).collect();

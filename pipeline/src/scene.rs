@@ -271,6 +271,11 @@ impl Scene {
         Ok(scene)
     }
 
+    /// The files this scene is made from (no output may overwrite them).
+    pub fn inputs(&self) -> [&std::path::Path; 2] {
+        [&self.path, &self.geometry]
+    }
+
     /// Whether the geometry is a gmsh script (.geo) rather than data.
     pub fn is_script(&self) -> bool {
         self.geometry.extension().is_some_and(|e| e.eq_ignore_ascii_case("geo"))

@@ -20,7 +20,7 @@ pub struct Args {
 impl Args {
     pub fn run(self) -> Result<()> {
         let scene = Scene::load_with(&self.scene, self.write.scene())?;
-        output::check(&self.output, &[&scene.path, &scene.geometry], self.write.overwrite())?;
+        output::check(&self.output, &scene.inputs(), self.write.overwrite())?;
         let d = ves_pipeline::problem::discretize(&scene, None)?;
         ves_pipeline::export::write_matrices(&self.output, &d)?;
         println!(
