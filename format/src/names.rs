@@ -77,6 +77,9 @@ pub mod space {
     pub const BASIS: &str = "modes/basis";
     /// f64 [r], ‖Kφ − λMφ‖ / ‖Kφ‖.
     pub const RELATIVE_RESIDUALS: &str = "modes/relative_residuals";
+    /// Optional f64 [r]: each mode's estimated relative frequency error against the
+    /// mesh-converged answer (Richardson over coarser meshes; docs/accuracy.md).
+    pub const ESTIMATED_RELATIVE_ERROR: &str = "modes/estimated_relative_error";
     /// Group (free bodies): attributes [`MASS`], [`CENTER_OF_MASS`], [`INERTIA`].
     pub const RIGID: &str = "rigid";
     /// f64 attribute, kg.

@@ -442,6 +442,26 @@ impl<'a> SpaceReader<'a> {
         self.guard(|| self.finite(sp::RELATIVE_RESIDUALS, self.read_all(sp::RELATIVE_RESIDUALS, 1)?))
     }
 
+    /// Each mode's estimated relative discretization error, when the file has it: one
+    /// non-negative value per mode (NaN where a mode had no estimate).
+    pub fn estimated_relative_error(&self) -> Result<Option<Vec<f64>>, ReadError> {
+        self.guard(|| {
+            if self.group.dataset(sp::ESTIMATED_RELATIVE_ERROR).is_err() {
+                return Ok(None);
+            }
+            let v: Vec<f64> = self.read_all(sp::ESTIMATED_RELATIVE_ERROR, 1)?;
+            if v.len() != self.mode_count || v.iter().any(|e| *e < 0.0 || e.is_infinite()) {
+                return Err(self.err(format!(
+                    "{} holds {} values for {} modes, or a negative or infinite one",
+                    sp::ESTIMATED_RELATIVE_ERROR,
+                    v.len(),
+                    self.mode_count
+                )));
+            }
+            Ok(Some(v))
+        })
+    }
+
     /// Rows `rows` of the first `cols` modes, row-major (`out[k·cols + j]`), finite.
     pub fn basis_rows(&self, rows: Range<usize>, cols: usize) -> Result<Vec<f64>, ReadError> {
         self.basis_block(rows, 0..cols)

@@ -58,6 +58,8 @@ pub struct SpaceData<'a> {
     pub eigenvalues: &'a [f64],
     /// Relative residuals, one per mode.
     pub relative_residuals: &'a [f64],
+    /// Estimated relative discretization error, one per mode (optional dataset).
+    pub estimated_relative_error: Option<&'a [f64]>,
     /// Mode shapes, row-major [3n, r].
     pub basis: &'a [f64],
     /// Static compliance: nodes and blocks.
@@ -185,6 +187,9 @@ fn write_space(file: &hdf5::File, s: &SpaceData<'_>) -> Result<(), WriteError> {
         .collect();
     vector(&g, sp::FREQUENCIES_HZ, &freqs)?;
     vector(&g, sp::RELATIVE_RESIDUALS, s.relative_residuals)?;
+    if let Some(e) = s.estimated_relative_error {
+        vector(&g, sp::ESTIMATED_RELATIVE_ERROR, e)?;
+    }
     let r = s.eigenvalues.len();
     let basis = Array2::from_shape_vec((3 * n, r), s.basis.to_vec()).ctx(sp::BASIS)?;
     // Chunks of whole rows of a few modes: the runtime reads vertex rows of the first r modes.

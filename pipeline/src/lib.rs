@@ -3,6 +3,7 @@
 //! Data flows one way: [`scene`] → [`mesh`] → [`supports`] → [`fem`] (K, M) → [`modes`]
 //! (eigen-solve) → [`store`] (HDF5). [`precompute`] strings the stages together.
 
+pub mod accuracy;
 pub mod batch;
 pub mod compliance;
 pub mod export;
@@ -17,6 +18,7 @@ pub mod progress;
 pub mod report;
 pub mod rigid_motions;
 pub mod scene;
+pub mod step_units;
 pub mod store;
 pub mod supports;
 pub mod transfer;

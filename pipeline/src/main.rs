@@ -10,6 +10,8 @@ use std::process::ExitCode;
 fn main() -> ExitCode {
     tracing_subscriber::fmt()
         .with_writer(std::io::stderr)
+        // Colour codes only for a terminal, not in logs and pipes.
+        .with_ansi(std::io::IsTerminal::is_terminal(&std::io::stderr()))
         .with_env_filter(tracing_subscriber::EnvFilter::try_from_env("VES_LOG").unwrap_or_else(|_| "warn".into()))
         .init();
     // A panic is a bug, but the user still gets one line (set VES_LOG=debug for the default

@@ -28,6 +28,8 @@ pub struct Timings {
     pub static_correction: f64,
     /// State-transfer matrices between spaces (VOI scenes).
     pub transfer: f64,
+    /// The coarser meshes of the error estimate.
+    pub error_estimate: f64,
     /// Writing the file.
     pub write: f64,
     /// Everything.
@@ -41,6 +43,7 @@ impl Timings {
         self.factorize += o.factorize;
         self.eigensolve += o.eigensolve;
         self.static_correction += o.static_correction;
+        self.error_estimate += o.error_estimate;
     }
 }
 
@@ -68,6 +71,10 @@ pub struct SolvedSpace {
     pub transfers: Vec<(String, Vec<f64>)>,
     /// Repairs of curved tets the order-2 mesh needed.
     pub meshing: crate::mesh::Meshing,
+    /// Each mode's estimated discretization error, when the scene asks for it.
+    pub error: Option<crate::accuracy::ErrorEstimate>,
+    /// The meshes of a `target_error` refinement, coarsest first.
+    pub refinement: Option<Vec<crate::accuracy::refine::Step>>,
 }
 
 impl SolvedSpace {
@@ -83,28 +90,59 @@ impl SolvedSpace {
             compliance: self.compliance.as_ref(),
             meshing_strategy: Some(self.meshing.strategy),
             transfers: &self.transfers,
+            estimated_relative_error: self.error.as_ref().map(|e| e.relative()),
         }
     }
 }
 
-/// Meshes, assembles and solves one space.
+/// Meshes, assembles and solves one space (refining it first when the scene sets a target
+/// error), and estimates its discretization error.
 pub fn solve_space(scene: &Scene, voi: Option<&Voi>, choice: SolverChoice) -> Result<SolvedSpace> {
-    let d = discretize(scene, voi)?;
+    let name = voi.map_or("global".to_string(), |v| v.name.clone());
+    let t = Instant::now();
+    let (d, modes, ordering_s, error, refinement, estimate_s) = match scene.mesh.target_error {
+        Some(target) => {
+            let r = crate::accuracy::refine::refine(scene, voi, choice, target)?;
+            let s = r.last;
+            (s.d, s.modes, s.ordering_s, r.estimate, Some(r.steps), r.overhead_s)
+        }
+        None => {
+            let d = discretize(scene, voi)?;
+            let (modes, ordering_s) = modes::solve(&d, scene.modes.count, choice)?;
+            let solved_s = t.elapsed().as_secs_f64();
+            let error = if scene.mesh.error_estimate {
+                let view = crate::transfer::SpaceView {
+                    mesh: &d.mesh,
+                    dofs: &d.dofs,
+                    modes: &modes.vectors,
+                    r: modes.eigenvalues.len(),
+                    pattern: &d.system.pattern,
+                    m: &d.system.m,
+                };
+                crate::accuracy::estimate(scene, voi, &view, &modes.eigenvalues, choice).0
+            } else {
+                None
+            };
+            (d, modes, ordering_s, error, None, t.elapsed().as_secs_f64() - solved_s)
+        }
+    };
+    if scene.mesh.error_estimate {
+        warn_about_error(scene, &name, d.meshing.size, error.as_ref());
+    }
     let mut timings = Timings {
         mesh: d.mesh_s,
         assemble: d.assemble_s,
+        factorize: ordering_s + modes.factorize_s,
+        eigensolve: modes.eigensolve_s,
+        error_estimate: estimate_s,
         ..Timings::default()
     };
-    let (modes, ordering_s) = modes::solve(&d, scene.modes.count, choice)?;
-    timings.factorize = ordering_s + modes.factorize_s;
-    timings.eigensolve = modes.eigensolve_s;
     let t = Instant::now();
     let compliance = match scene.static_correction {
         Some(_) => Some(crate::compliance::surface_compliance(&d)?),
         None => None,
     };
     timings.static_correction = t.elapsed().as_secs_f64();
-    let name = voi.map_or("global".to_string(), |v| v.name.clone());
     Ok(SolvedSpace {
         name,
         voi: voi.cloned(),
@@ -117,7 +155,37 @@ pub fn solve_space(scene: &Scene, voi: Option<&Voi>, choice: SolverChoice) -> Re
         system: d.system,
         transfers: Vec::new(),
         meshing: d.meshing,
+        error,
+        refinement,
     })
+}
+
+/// One line when a space has no estimate or one above [`crate::accuracy::WARN_ABOVE`].
+fn warn_about_error(scene: &Scene, name: &str, size: f64, error: Option<&crate::accuracy::ErrorEstimate>) {
+    match error.and_then(|e| crate::accuracy::worst(&e.relative())) {
+        None => tracing::warn!(
+            space = name,
+            "no error estimate: no coarser mesh of this space could be solved (see VES_LOG=info)"
+        ),
+        Some((mode, worst)) if worst > crate::accuracy::WARN_ABOVE => {
+            let change = if scene.mesh.order == 1 {
+                "use mesh.order = 2 (4-node tets are far too stiff in bending)".to_string()
+            } else if scene.mesh.target_error.is_some() {
+                "raise mesh.max_dofs".to_string()
+            } else {
+                format!(
+                    "try mesh.size = {:.3e} m, or set [mesh] target_error = 0.01",
+                    size / 2.0
+                )
+            };
+            tracing::warn!(
+                "space {name:?}: mode {}'s frequency is estimated {:.1} % above the mesh-converged value; {change}",
+                mode + 1,
+                100.0 * worst
+            );
+        }
+        Some(_) => {}
+    }
 }
 
 /// The `--json` summary (DESIGN.md §3).
@@ -173,6 +241,18 @@ pub struct SpaceSummary {
     /// Curved (10-node) tets that were invalid after gmsh's order-2 step, how many gmsh's
     /// optimisation repaired and how many were made straight-sided.
     pub meshing: crate::mesh::Meshing,
+    /// Per kept mode, the estimated relative frequency error against the mesh-converged answer
+    /// (absent when the scene turns the estimate off or no coarser mesh could be solved).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub estimated_relative_error: Option<Vec<f64>>,
+    /// How the estimate was made: per mode the rate and whether it is reliable, and the
+    /// coarser meshes.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub error_estimate: Option<crate::accuracy::ErrorEstimate>,
+    /// With `mesh.target_error`: every mesh of the refinement (size, nodes, dofs, seconds,
+    /// frequencies, largest estimated error), coarsest first.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub refinement: Option<Vec<crate::accuracy::refine::Step>>,
 }
 
 /// Runs the whole pipeline for a scene and writes `out` (which may not be a symlink).
@@ -237,6 +317,9 @@ pub fn run_with(scene: &Scene, out: &Path, choice: SolverChoice, overwrite: Over
                 min_tet_quality: s.mesh.worst_quality().0,
                 vertices: s.mesh.vertex_count,
                 meshing: s.meshing,
+                estimated_relative_error: s.error.as_ref().map(|e| e.relative()),
+                error_estimate: s.error.clone(),
+                refinement: s.refinement.clone(),
                 seconds: s.timings.mesh
                     + s.timings.assemble
                     + s.timings.factorize

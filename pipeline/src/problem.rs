@@ -29,8 +29,13 @@ pub struct Discretized {
 
 /// Meshes and assembles one space.
 pub fn discretize(scene: &Scene, voi: Option<&Voi>) -> Result<Discretized> {
+    discretize_with(scene, voi, false)
+}
+
+/// [`discretize`]; `quiet` for a helper mesh (its warnings become info lines).
+pub fn discretize_with(scene: &Scene, voi: Option<&Voi>, quiet: bool) -> Result<Discretized> {
     let t = Instant::now();
-    let (mesh, meshing) = mesh::generate(scene, voi)?;
+    let (mesh, meshing) = mesh::generate_with(scene, voi, quiet)?;
     let mesh_s = t.elapsed().as_secs_f64();
     let (quality, at) = mesh.worst_quality();
     tracing::info!(
@@ -39,7 +44,7 @@ pub fn discretize(scene: &Scene, voi: Option<&Voi>) -> Result<Discretized> {
         worst_quality = quality,
         "meshed"
     );
-    if quality < 0.02 {
+    if quality < 0.02 && !quiet {
         tracing::warn!(
             "sliver tet (shape quality {quality:.1e}, 1 = regular) near ({:.6}, {:.6}, {:.6}) m: accuracy may suffer there; \
              change mesh.size or repair the geometry",

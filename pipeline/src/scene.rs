@@ -72,7 +72,7 @@ struct RawGeometry {
 }
 
 /// Unit of the geometry file's coordinates.
-#[derive(Clone, Copy, Debug, Deserialize, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, Deserialize, serde::Serialize, PartialEq, Eq)]
 pub enum LengthUnit {
     /// Metres.
     #[serde(rename = "m")]
@@ -83,6 +83,14 @@ pub enum LengthUnit {
 }
 
 impl LengthUnit {
+    /// As a scene writes it.
+    pub fn symbol(self) -> &'static str {
+        match self {
+            LengthUnit::Metre => "m",
+            LengthUnit::Millimetre => "mm",
+        }
+    }
+
     /// Metres per unit.
     pub fn to_metres(self) -> f64 {
         match self {
@@ -105,13 +113,34 @@ pub struct Material {
 }
 
 /// Meshing settings.
-#[derive(Clone, Copy, Debug, Deserialize)]
+#[derive(Clone, Copy, Debug, Deserialize, serde::Serialize)]
 #[serde(deny_unknown_fields)]
 pub struct MeshSettings {
-    /// Target element size, m.
+    /// Target element size, m (0 when the scene leaves it to `target_error`: then the mesher
+    /// starts at 1/15 of the part's largest extent).
+    #[serde(default)]
     pub size: f64,
     /// 1 = 4-node tets, 2 = 10-node tets.
     pub order: u8,
+    /// Estimate each mode's discretization error from two coarser meshes (on by default; they
+    /// cost about a third more than the mesh itself).
+    #[serde(default = "yes")]
+    pub error_estimate: bool,
+    /// Refine until every kept mode's estimated error is below this (relative), starting at
+    /// `size`; then the basis of the last mesh is written.
+    #[serde(default)]
+    pub target_error: Option<f64>,
+    /// Refinement stops before a mesh would exceed this many unknowns.
+    #[serde(default = "default_max_dofs")]
+    pub max_dofs: usize,
+}
+
+fn default_max_dofs() -> usize {
+    2_000_000
+}
+
+fn yes() -> bool {
+    true
 }
 
 #[derive(Debug, Deserialize)]
@@ -132,7 +161,7 @@ struct RawPlane {
 }
 
 /// Axis-aligned box, metres.
-#[derive(Clone, Copy, Debug, Deserialize, PartialEq)]
+#[derive(Clone, Copy, Debug, Deserialize, serde::Serialize, PartialEq)]
 #[serde(deny_unknown_fields)]
 pub struct BoxRegion {
     /// Lower corner.
@@ -194,7 +223,7 @@ pub struct Damping {
 }
 
 /// A volume of interest: meshed finer, it yields its own modal space.
-#[derive(Clone, Debug, Deserialize)]
+#[derive(Clone, Debug, Deserialize, serde::Serialize)]
 #[serde(deny_unknown_fields)]
 pub struct Voi {
     /// Name of the space.
@@ -268,7 +297,33 @@ impl Scene {
                 scene.geometry.display()
             )));
         }
+        scene.notice_unit_override();
         Ok(scene)
+    }
+
+    /// A STEP file states its own length unit and OpenCASCADE applies it: a scene `unit` that
+    /// differs is ignored, which the user should hear once.
+    fn notice_unit_override(&self) {
+        let is_step = self
+            .geometry
+            .extension()
+            .is_some_and(|e| e.eq_ignore_ascii_case("step") || e.eq_ignore_ascii_case("stp"));
+        let Some(bytes) = is_step.then(|| std::fs::read(&self.geometry).ok()).flatten() else {
+            return;
+        };
+        let Some(file_unit) = crate::step_units::length_unit(&String::from_utf8_lossy(&bytes)) else {
+            return;
+        };
+        let said = self.unit.to_metres();
+        if (file_unit.metres - said).abs() > 1e-9 * said {
+            tracing::warn!(
+                "{}: geometry.unit = {:?} is ignored: {} states its own unit ({}), and that is what is used",
+                self.path.display(),
+                self.unit.symbol(),
+                self.geometry.display(),
+                file_unit.name.to_lowercase()
+            );
+        }
     }
 
     /// The files this scene is made from (no output may overwrite them).
@@ -318,7 +373,35 @@ impl Scene {
                 m.poisson
             )));
         }
-        finite_positive("mesh.size", raw.mesh.size, "m").map_err(err)?;
+        match raw.mesh.target_error {
+            None if raw.mesh.size == 0.0 => {
+                return Err(err(
+                    "mesh.size missing: give the element size in metres (e.g. 1/15 of the part), or set \
+                     mesh.target_error = 0.01 to let VES refine to 1 % from a size it picks"
+                        .into(),
+                ));
+            }
+            Some(t) if !(1e-4..=0.5).contains(&t) => {
+                return Err(err(format!(
+                    "mesh.target_error = {t}: a relative frequency error between 1e-4 and 0.5 (e.g. 0.01 for 1 %)"
+                )));
+            }
+            _ => {}
+        }
+        if raw.mesh.size != 0.0 || raw.mesh.target_error.is_none() {
+            finite_positive("mesh.size", raw.mesh.size, "m").map_err(err)?;
+        }
+        if raw.mesh.target_error.is_some() && !raw.mesh.error_estimate {
+            return Err(err(
+                "mesh.target_error needs the error estimate: remove error_estimate = false".into(),
+            ));
+        }
+        if raw.mesh.max_dofs < 100 {
+            return Err(err(format!(
+                "mesh.max_dofs = {}: at least 100 unknowns",
+                raw.mesh.max_dofs
+            )));
+        }
         if !matches!(raw.mesh.order, 1 | 2) {
             return Err(err(format!(
                 "mesh.order = {}: must be 1 (4-node tets) or 2 (10-node tets)",

@@ -32,6 +32,8 @@ pub struct Space<'a> {
     /// State-transfer matrices from the other spaces (`transfer/<from>`, row-major
     /// `r × r_from`): modal coordinates of `from` → this space's (see `transfer.rs`).
     pub transfers: &'a [(String, Vec<f64>)],
+    /// Each mode's estimated discretization error, if estimated.
+    pub estimated_relative_error: Option<Vec<f64>>,
 }
 
 impl Space<'_> {
@@ -51,6 +53,7 @@ impl Space<'_> {
             fixed_dofs: &self.dofs.fixed,
             eigenvalues: &self.modes.eigenvalues,
             relative_residuals: &self.modes.residuals,
+            estimated_relative_error: self.estimated_relative_error.as_deref(),
             basis,
             compliance: self.compliance.map(|c| (c.nodes.as_slice(), c.blocks.as_slice())),
             transfers: self.transfers,
@@ -158,6 +161,9 @@ pub struct SpaceInfo {
     pub static_correction_vertices: usize,
     /// How the mesh was made (the meshing ladder's rung), when the file says.
     pub meshing_strategy: Option<String>,
+    /// Each mode's estimated relative discretization error, when the file has it.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub estimated_relative_error: Option<Vec<f64>>,
 }
 
 /// What `ves info` shows of a basis file.
@@ -197,6 +203,7 @@ pub fn info(path: &Path) -> Result<BasisInfo> {
             rigid_modes_dropped: s.rigid_modes_dropped,
             static_correction_vertices: s.compliance()?.map_or(0, |(n, _)| n.len()),
             meshing_strategy: s.meshing_strategy.clone(),
+            estimated_relative_error: s.estimated_relative_error()?,
         });
     }
     Ok(BasisInfo {

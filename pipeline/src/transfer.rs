@@ -189,7 +189,7 @@ pub fn interpolate(source: &Mesh, interp: &Interpolation, values: &[f64], out: &
             Tet10::values(l, &mut n);
             10
         } else {
-            Tet4::values(l, &mut n);
+            Tet4::values(l, &mut n[..4]);
             4
         };
         for c in 0..3 {
@@ -201,9 +201,26 @@ pub fn interpolate(source: &Mesh, interp: &Interpolation, values: &[f64], out: &
 /// T (row-major `b.r × a.r`): modal coordinates of `a` → those of `b`, and how far outside
 /// `a`'s mesh `b`'s nodes reached (barycentric units).
 pub fn transfer_matrix(a: &SpaceView<'_>, b: &SpaceView<'_>) -> (Vec<f64>, f64) {
+    let p = projections(a, b);
+    (p.t, p.worst_outside)
+}
+
+/// `a`'s modes seen on `b`'s mesh.
+pub struct Projections {
+    /// T = Φ_bᵀ M_b I Φ_a, row-major `b.r × a.r`.
+    pub t: Vec<f64>,
+    /// ‖I φ_a,j‖² in b's mass norm, per mode of `a` (≈ 1: the MAC of modes i of b and j of a
+    /// is T_ij² / norms_j, b's modes being M_b-orthonormal).
+    pub norms: Vec<f64>,
+    /// How far outside `a`'s mesh `b`'s nodes reached (barycentric units).
+    pub worst_outside: f64,
+}
+
+/// Interpolates each mode of `a` onto `b`'s mesh and projects it on `b`'s modes.
+pub fn projections(a: &SpaceView<'_>, b: &SpaceView<'_>) -> Projections {
     let interp = locate(a.mesh, b.mesh);
     let (nfa, nfb) = (a.dofs.free_count(), b.dofs.free_count());
-    let columns: Vec<Vec<f64>> = (0..a.r)
+    let columns: Vec<(Vec<f64>, f64)> = (0..a.r)
         .into_par_iter()
         .map(|j| {
             let full = a.dofs.expand(&a.modes[j * nfa..(j + 1) * nfa]);
@@ -212,29 +229,44 @@ pub fn transfer_matrix(a: &SpaceView<'_>, b: &SpaceView<'_>) -> (Vec<f64>, f64) 
             let u: Vec<f64> = b.dofs.free.iter().map(|&g| at_b[g as usize]).collect();
             let mut mu = vec![0.0; nfb];
             sym_matvec(b.pattern, b.m, &u, &mut mu);
-            (0..b.r)
-                .map(|i| {
-                    b.modes[i * nfb..(i + 1) * nfb]
-                        .iter()
-                        .zip(&mu)
-                        .map(|(x, y)| x * y)
-                        .sum()
-                })
-                .collect()
+            let dot = |x: &[f64]| x.iter().zip(&mu).map(|(x, y)| x * y).sum::<f64>();
+            let col = (0..b.r).map(|i| dot(&b.modes[i * nfb..(i + 1) * nfb])).collect();
+            (col, dot(&u))
         })
         .collect();
     let mut t = vec![0.0; b.r * a.r];
-    for (j, col) in columns.iter().enumerate() {
+    for (j, (col, _)) in columns.iter().enumerate() {
         for (i, v) in col.iter().enumerate() {
             t[i * a.r + j] = *v;
         }
     }
-    (t, interp.worst_outside)
+    Projections {
+        t,
+        norms: columns.iter().map(|c| c.1).collect(),
+        worst_outside: interp.worst_outside,
+    }
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// A linear field is reproduced exactly by 4-node interpolation (this panicked: the 4-node
+    /// shape functions were written into a 10-slot buffer).
+    #[test]
+    fn linear_field_interpolates_exactly_between_order_1_meshes() {
+        let cube = |n: usize| Mesh::structured_box([n; 3], 1.0 / n as f64, 1, |_, p| p);
+        let (a, b) = (cube(2), cube(3));
+        let f = |p: [f64; 3]| [p[0] + 2.0 * p[1], 3.0 * p[2] - p[0], 1.0 - p[1]];
+        let values: Vec<f64> = a.nodes.iter().flat_map(|&p| f(p)).collect();
+        let mut out = vec![0.0; 3 * b.nodes.len()];
+        interpolate(&a, &locate(&a, &b), &values, &mut out);
+        for (i, &p) in b.nodes.iter().enumerate() {
+            for c in 0..3 {
+                assert!((out[3 * i + c] - f(p)[c]).abs() < 1e-12, "node {i}");
+            }
+        }
+    }
 
     /// A quadratic field is reproduced exactly by 10-node interpolation between two meshes.
     #[test]

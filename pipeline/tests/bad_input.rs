@@ -162,6 +162,36 @@ fn geo_scripts_run_only_with_an_explicit_flag() {
     assert!(marker.exists(), "the trusted script ran");
 }
 
+/// gmsh runs in a child process: a script's `Exit;` (gmsh calls exit(0)) ended `ves precompute`
+/// with status 0 and no output before; now it is one line, status 1, and the old output kept.
+#[test]
+fn gmsh_ending_its_process_is_an_error_not_a_success() {
+    let (dir, _) = workdir(GOOD);
+    std::fs::write(
+        dir.path().join("exit.geo"),
+        "SetFactory(\"OpenCASCADE\");\nBox(1) = {0, 0, 0, 1000, 100, 50};\nExit;\n",
+    )
+    .unwrap();
+    let scene = write_file(dir.path(), "exit.toml", &GOOD.replace("beam.step", "exit.geo"));
+    let out = dir.path().join("out.h5");
+    std::fs::write(&out, b"previous result").unwrap();
+    let o = ves(&[
+        "precompute",
+        scene.to_str().unwrap(),
+        "-o",
+        out.to_str().unwrap(),
+        "--allow-geo-scripts",
+    ]);
+    let err = stderr(&o);
+    assert_eq!(o.status.code(), Some(1), "{err}");
+    assert_eq!(err.trim().lines().count(), 1, "{err}");
+    assert!(
+        err.contains("while reading the geometry") && err.contains("remove what ends gmsh"),
+        "{err}"
+    );
+    assert_eq!(std::fs::read(&out).unwrap(), b"previous result");
+}
+
 /// `mesh.size = 1e-9`: gmsh ate memory for 21 s and aborted with std::bad_alloc (exit 134).
 #[test]
 fn absurdly_small_mesh_size_is_refused_before_meshing_with_a_size_that_fits() {

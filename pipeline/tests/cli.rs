@@ -45,6 +45,37 @@ fn good_scene_writes_a_basis_and_json_summary() {
     assert_eq!(info["spaces"][0]["frequencies_hz"], space["frequencies_hz"]);
     assert_eq!(info["spaces"][0]["nodes"], space["nodes"]);
     assert_eq!(info["spaces"][0]["meshing_strategy"], "default");
+
+    // The STEP file is in millimetres: a scene saying metres is told once that its unit is
+    // ignored, and the result is the same part.
+    assert!(!String::from_utf8_lossy(&o.stderr).contains("is ignored"));
+    let metres = write_file(dir.path(), "m.toml", &GOOD.replace("unit = \"mm\"", "unit = \"m\""));
+    let out_m = dir.path().join("m.h5");
+    let o = ves(&[
+        "precompute",
+        metres.to_str().unwrap(),
+        "-o",
+        out_m.to_str().unwrap(),
+        "--json",
+    ]);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(o.status.success(), "{err}");
+    assert_eq!(err.matches("is ignored").count(), 1, "{err}");
+    assert!(
+        err.contains("geometry.unit = \"m\"") && err.contains("(millimetre)"),
+        "{err}"
+    );
+    let f = |v: &serde_json::Value| -> Vec<f64> {
+        v["spaces"][0]["frequencies_hz"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|x| x.as_f64().unwrap())
+            .collect()
+    };
+    for (a, b) in f(&last_json(&o)).iter().zip(f(&v)) {
+        assert!((a - b).abs() <= 1e-9 * b, "{a} vs {b}");
+    }
 }
 
 #[test]

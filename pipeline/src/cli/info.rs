@@ -26,8 +26,9 @@ impl Args {
                 .meshing_strategy
                 .as_deref()
                 .map_or(String::new(), |m| format!(", meshed by strategy {m:?}"));
+            let error = ves_pipeline::accuracy::summary_text(s.estimated_relative_error.as_deref());
             println!(
-                "  {}: {} nodes ({} vertices), {} tets of order {}, {} modes {:.4}..{:.4} Hz, max residual {:.1e}, {} rigid dropped{correction}{meshing}",
+                "  {}: {} nodes ({} vertices), {} tets of order {}, {} modes {:.4}..{:.4} Hz, max residual {:.1e}, {} rigid dropped{correction}{meshing}{error}",
                 s.name,
                 s.nodes,
                 s.vertices,

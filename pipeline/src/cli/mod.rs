@@ -47,11 +47,26 @@ enum Command {
     Report(report::Args),
     /// Summarise a modal-basis file (after checking everything in it).
     Info(info::Args),
+    /// Internal: mesh one rung of the meshing ladder for a parent `ves` (gmsh in its own process).
+    #[command(name = "mesh-worker", hide = true)]
+    MeshWorker {
+        /// The job's directory.
+        dir: std::path::PathBuf,
+    },
 }
 
 /// Runs the parsed command.
 pub fn run(cli: Cli) -> anyhow::Result<()> {
+    // gmsh runs in child processes of this binary, so that nothing it does can end `ves` (a
+    // crash, an abort, a script's exit(0)). Not under MPI, where a rank must not fork.
+    if std::env::var_os("OMPI_COMM_WORLD_SIZE").is_none()
+        && std::env::var_os("PMI_SIZE").is_none()
+        && let Ok(exe) = std::env::current_exe()
+    {
+        ves_pipeline::mesh::isolate_with(exe);
+    }
     match cli.command {
+        Command::MeshWorker { dir } => ves_pipeline::mesh::serve_rung(&dir).map_err(anyhow::Error::msg),
         Command::Precompute(a) => a.run(),
         Command::Batch(a) => a.run(),
         Command::Session(a) => a.run(),

@@ -61,14 +61,15 @@ impl Args {
         for s in &summary.spaces {
             let f: Vec<String> = s.frequencies_hz.iter().take(6).map(|f| format!("{f:.4}")).collect();
             println!(
-                "{}: {} nodes, {} tets, {} dofs, {} modes (first: {} Hz), max residual {:.1e}",
+                "{}: {} nodes, {} tets, {} dofs, {} modes (first: {} Hz), max residual {:.1e}{}",
                 s.name,
                 s.nodes,
                 s.tets,
                 s.dofs,
                 s.frequencies_hz.len(),
                 f.join(", "),
-                s.max_relative_residual
+                s.max_relative_residual,
+                ves_pipeline::accuracy::summary_text(s.estimated_relative_error.as_deref())
             );
         }
         println!("wrote {} in {:.2} s", summary.output, summary.timings_s.total);

@@ -3,7 +3,9 @@
 use crate::scene::{LengthUnit, Scene, Voi};
 use nalgebra::Vector3;
 
+mod isolation;
 pub mod quality;
+pub use isolation::{isolate_with, serve as serve_rung};
 use std::collections::HashMap;
 use ves_ffi::gmsh::{self, element_type};
 
@@ -44,6 +46,16 @@ pub enum MeshError {
         /// What is wrong.
         message: String,
     },
+}
+
+impl MeshError {
+    /// What went wrong, without the file name.
+    pub fn cause(&self) -> String {
+        match self {
+            MeshError::Gmsh { cause, .. } => cause.to_string(),
+            MeshError::Geometry { message, .. } => message.clone(),
+        }
+    }
 }
 
 impl Mesh {
@@ -308,8 +320,48 @@ fn check_element_budget(path: &str, extent: [f64; 3], size: f64, voi: Option<&Vo
 /// Meshes the scene's geometry (with the finer size inside `voi`, if given), on gmsh's own
 /// thread so the same input always gives the same mesh.
 pub fn generate(scene: &Scene, voi: Option<&Voi>) -> Result<(Mesh, Meshing), MeshError> {
-    let (scene, voi) = (scene.clone(), voi.cloned());
-    gmsh::on_gmsh_thread(move || generate_here(&scene, voi.as_ref()))
+    generate_with(scene, voi, false)
+}
+
+/// [`generate`]; `quiet` turns its warnings into info lines (a helper mesh, such as a coarser
+/// one for the error estimate, is not what the user asked about).
+pub fn generate_with(scene: &Scene, voi: Option<&Voi>, quiet: bool) -> Result<(Mesh, Meshing), MeshError> {
+    let request = Request {
+        geometry: scene.geometry.clone(),
+        unit: scene.unit,
+        mesh: scene.mesh,
+        voi: voi.cloned(),
+        quiet,
+    };
+    if isolation::is_on() {
+        // Each rung runs in its own process: the ladder itself needs no gmsh.
+        return walk_ladder(&request);
+    }
+    gmsh::on_gmsh_thread(move || walk_ladder(&request))
+}
+
+/// All that meshing needs of a scene (and all a meshing process is sent).
+#[derive(Clone, Debug, serde::Serialize, serde::Deserialize)]
+pub struct Request {
+    /// Geometry file.
+    pub geometry: std::path::PathBuf,
+    /// Unit of a geometry file without its own (BREP, GEO).
+    pub unit: LengthUnit,
+    /// Size and order.
+    pub mesh: crate::scene::MeshSettings,
+    /// A volume of interest meshed finer, if any.
+    pub voi: Option<Voi>,
+    /// Warnings as info lines.
+    pub quiet: bool,
+}
+
+/// A warning, or an info line for a quiet request.
+fn notice(req: &Request, message: String) {
+    if req.quiet {
+        tracing::info!("{message}");
+    } else {
+        tracing::warn!("{message}");
+    }
 }
 
 /// One way of meshing a part. The ladder is tried in this fixed order until a rung gives a
@@ -366,19 +418,22 @@ const LADDER: [Rung; 6] = [
 
 /// Walks the ladder; a failure of gmsh's meshing or a degenerate element sends it one rung
 /// further, anything else (no solid, a size beyond the budget) ends it.
-fn generate_here(scene: &Scene, voi: Option<&Voi>) -> Result<(Mesh, Meshing), MeshError> {
+fn walk_ladder(req: &Request) -> Result<(Mesh, Meshing), MeshError> {
     let mut first: Option<(MeshError, Vec<String>)> = None;
     for (i, rung) in LADDER.iter().enumerate() {
-        match attempt(scene, voi, rung) {
+        match isolation::attempt(req, i) {
             Ok((mesh, mut report)) => {
                 report.strategy = rung.name;
                 report.rung = i;
                 if i > 0 {
-                    tracing::warn!(
-                        "{}: meshed on rung {i} ({}) of the meshing ladder; the default failed: {}",
-                        scene.geometry.display(),
-                        rung.name,
-                        first.as_ref().map(|(e, _)| e.to_string()).unwrap_or_default()
+                    notice(
+                        req,
+                        format!(
+                            "{}: meshed on rung {i} ({}) of the meshing ladder; the default failed: {}",
+                            req.geometry.display(),
+                            rung.name,
+                            first.as_ref().map(|(e, _)| e.to_string()).unwrap_or_default()
+                        ),
                     );
                 }
                 return Ok((mesh, report));
@@ -396,17 +451,14 @@ fn generate_here(scene: &Scene, voi: Option<&Voi>) -> Result<(Mesh, Meshing), Me
     }
     let (e, log) = first.expect("the ladder has rungs");
     Err(MeshError::Geometry {
-        path: scene.geometry.display().to_string(),
-        message: ladder_advice(&e, &log, scene),
+        path: req.geometry.display().to_string(),
+        message: ladder_advice(&e, &log, req),
     })
 }
 
 /// The one line when every rung failed: where (gmsh's entities), and what to change.
-fn ladder_advice(e: &MeshError, log: &[String], scene: &Scene) -> String {
-    let cause = match e {
-        MeshError::Gmsh { cause, .. } => cause.to_string(),
-        MeshError::Geometry { message, .. } => message.clone(),
-    };
+fn ladder_advice(e: &MeshError, log: &[String], req: &Request) -> String {
+    let cause = e.cause();
     // gmsh names the entities in lines like "… on surface 70 surface 235" or "curve 12".
     let mut places: Vec<String> = log
         .iter()
@@ -433,12 +485,26 @@ fn ladder_advice(e: &MeshError, log: &[String], scene: &Scene) -> String {
     } else {
         format!(" at {}", places.join(", "))
     };
+    if cause.contains(isolation::WHILE_READING) {
+        // Nothing about meshing would change this.
+        return format!(
+            "gmsh could not read it with any of its {} strategies: {cause}; export the part again (STEP AP214 or \
+             AP242, one solid), or for a .geo script remove what ends gmsh (Exit, Abort)",
+            LADDER.len()
+        );
+    }
+    let size = if req.mesh.size > 0.0 {
+        format!("mesh.size = {:.3e} m (half)", req.mesh.size / 2.0)
+    } else {
+        format!(
+            "a mesh.size below 1/{} of the part's largest extent",
+            2.0 * AUTO_SIZE_FRACTION
+        )
+    };
     format!(
         "gmsh could not mesh it with any of its {} strategies (default, other surface and volume algorithms, \
-         OpenCASCADE healing); the first failure{at}: {cause}; try mesh.size = {:.3e} m (half), or repair or \
-         defeature those faces in CAD",
+         OpenCASCADE healing); the first failure{at}: {cause}; try {size}, or repair or defeature those faces in CAD",
         LADDER.len(),
-        scene.mesh.size / 2.0
     )
 }
 
@@ -450,8 +516,10 @@ enum Attempt {
     Fatal(MeshError),
 }
 
-fn attempt(scene: &Scene, voi: Option<&Voi>, rung: &Rung) -> Result<(Mesh, Meshing), Attempt> {
-    let path = scene.geometry.display().to_string();
+/// One rung; `phase` is told what gmsh is doing (for a report if the process dies in it).
+fn attempt(req: &Request, rung: &Rung, phase: &mut dyn FnMut(&str)) -> Result<(Mesh, Meshing), Attempt> {
+    let voi = req.voi.as_ref();
+    let path = req.geometry.display().to_string();
     let g = |cause| {
         Attempt::Fatal(MeshError::Gmsh {
             path: path.clone(),
@@ -474,7 +542,7 @@ fn attempt(scene: &Scene, voi: Option<&Voi>, rung: &Rung) -> Result<(Mesh, Meshi
     // STEP/IGES carry their own unit: OpenCASCADE converts it, always to millimetres, so the
     // mesh is the same whatever `unit` the scene gives (results independent of units to round-off).
     // BREP/GEO have no unit: the scene's `unit` says what their numbers are.
-    let ext = scene
+    let ext = req
         .geometry
         .extension()
         .and_then(|e| e.to_str())
@@ -484,10 +552,11 @@ fn attempt(scene: &Scene, voi: Option<&Voi>, rung: &Rung) -> Result<(Mesh, Meshi
     let scale = if has_unit {
         LengthUnit::Millimetre.to_metres()
     } else {
-        scene.unit.to_metres()
+        req.unit.to_metres()
     };
     session.set_string("Geometry.OCCTargetUnit", "MM").map_err(g)?;
-    session.open(&scene.geometry).map_err(g)?;
+    phase(isolation::READING);
+    session.open(&req.geometry).map_err(g)?;
     let volumes = session.entities(3).map_err(g)?;
     if volumes.is_empty() {
         let faces = session.entities(2).map_err(g)?.len();
@@ -508,10 +577,15 @@ fn attempt(scene: &Scene, voi: Option<&Voi>, rung: &Rung) -> Result<(Mesh, Meshi
             fatal(e)
         });
     }
-    let h = scene.mesh.size / scale;
     let (lo, hi) = session.bounding_box().map_err(g)?;
     let extent: [f64; 3] = std::array::from_fn(|c| (hi[c] - lo[c]) * scale);
-    check_element_budget(&path, extent, scene.mesh.size, voi).map_err(fatal)?;
+    let size = if req.mesh.size > 0.0 {
+        req.mesh.size
+    } else {
+        extent.iter().copied().fold(0.0, f64::max) / AUTO_SIZE_FRACTION
+    };
+    let h = size / scale;
+    check_element_budget(&path, extent, size, voi).map_err(fatal)?;
     session.set_number("Mesh.MeshSizeMax", h).map_err(g)?;
     session.set_number("Mesh.MeshSizeMin", 0.0).map_err(g)?;
     // Delaunay (1) gives the same mesh on every run; HXT (10) is ~2x faster here but its
@@ -548,6 +622,7 @@ fn attempt(scene: &Scene, voi: Option<&Voi>, rung: &Rung) -> Result<(Mesh, Meshi
         }
     }
     let retry = |e: MeshError, session: &gmsh::Gmsh| Attempt::Retry(e, session.log());
+    phase("meshing");
     if let Err(cause) = session.generate(3) {
         return Err(retry(
             MeshError::Gmsh {
@@ -557,9 +632,13 @@ fn attempt(scene: &Scene, voi: Option<&Voi>, rung: &Rung) -> Result<(Mesh, Meshi
             &session,
         ));
     }
-    let order = scene.mesh.order;
-    let mut meshing = Meshing::default();
+    let order = req.mesh.order;
+    let mut meshing = Meshing {
+        size,
+        ..Meshing::default()
+    };
     if order == 2 {
+        phase("making the elements order 2");
         session.set_order(2).map_err(g)?;
     }
     let mut mesh = extract(&session, order, scale, &path).map_err(fatal)?;
@@ -580,6 +659,7 @@ fn attempt(scene: &Scene, voi: Option<&Voi>, rung: &Rung) -> Result<(Mesh, Meshi
         if meshing.distorted > 0 {
             // gmsh's elastic smoother moves the curved nodes into the volume: seconds, bounded.
             let t = std::time::Instant::now();
+            phase("optimising the curved elements");
             session.set_number("Mesh.HighOrderNumLayers", 3.0).map_err(g)?;
             match session.optimize(HIGH_ORDER_METHOD, 1) {
                 Ok(()) => mesh = extract(&session, order, scale, &path).map_err(fatal)?,
@@ -590,13 +670,16 @@ fn attempt(scene: &Scene, voi: Option<&Voi>, rung: &Rung) -> Result<(Mesh, Meshi
             meshing.repaired_by_gmsh = meshing.distorted.saturating_sub(left);
             meshing.straightened = mesh.straighten_distorted(quality::MIN_SCALED_JACOBIAN);
             if meshing.straightened > 0 {
-                tracing::warn!(
-                    "{path}: {} of {} curved tets were invalid after order 2; gmsh repaired {}, {} were made \
-                     straight-sided (their faces are flat there: refine mesh.size for a closer surface)",
-                    meshing.distorted,
-                    mesh.tet_count(),
-                    meshing.repaired_by_gmsh,
-                    meshing.straightened
+                notice(
+                    req,
+                    format!(
+                        "{path}: {} of {} curved tets were invalid after order 2; gmsh repaired {}, {} were made \
+                         straight-sided (their faces are flat there: refine mesh.size for a closer surface)",
+                        meshing.distorted,
+                        mesh.tet_count(),
+                        meshing.repaired_by_gmsh,
+                        meshing.straightened
+                    ),
                 );
             }
         }
@@ -611,9 +694,10 @@ fn attempt(scene: &Scene, voi: Option<&Voi>, rung: &Rung) -> Result<(Mesh, Meshi
 const HIGH_ORDER_METHOD: &str = "HighOrderElastic";
 
 /// How the mesh was made: the ladder's rung, and what making it order 2 needed.
-#[derive(Clone, Copy, Debug, Default, serde::Serialize)]
+#[derive(Clone, Copy, Debug, Default, serde::Serialize, serde::Deserialize)]
 pub struct Meshing {
     /// The meshing strategy that worked (the ladder's rung name; "default" normally).
+    #[serde(skip_deserializing)]
     pub strategy: &'static str,
     /// Its place on the ladder (0: the default).
     pub rung: usize,
@@ -625,7 +709,12 @@ pub struct Meshing {
     pub straightened: usize,
     /// Seconds spent in gmsh's optimisation.
     pub optimize_s: f64,
+    /// The element size used, m (the scene's, or the one picked when it left it open).
+    pub size: f64,
 }
+
+/// A scene without `mesh.size` starts at this fraction of the part's largest extent.
+pub const AUTO_SIZE_FRACTION: f64 = 15.0;
 
 /// The current gmsh mesh as a [`Mesh`] in metres.
 fn extract(session: &gmsh::Gmsh, order: u8, scale: f64, path: &str) -> Result<Mesh, MeshError> {

@@ -147,6 +147,18 @@ pub struct Modes {
 }
 
 impl Modes {
+    /// Keeps the lowest `r` modes.
+    pub fn truncate(&mut self, r: usize) {
+        let old = self.eigenvalues.len();
+        if r >= old {
+            return;
+        }
+        let n = self.vectors.len() / old.max(1);
+        self.eigenvalues.truncate(r);
+        self.vectors.truncate(r * n);
+        self.residuals.truncate(r);
+    }
+
     /// Frequencies in Hz.
     pub fn frequencies_hz(&self) -> Vec<f64> {
         self.eigenvalues

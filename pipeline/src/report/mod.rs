@@ -470,6 +470,7 @@ impl Sweep<'_> {
                 compliance: exact.map(|e| &e.surface),
                 meshing_strategy: Some(d.meshing.strategy),
                 transfers: &[],
+                estimated_relative_error: None,
             }],
         )?;
         let file_bytes = std::fs::metadata(self.tmp).map(|m| m.len()).unwrap_or(0);

@@ -1,0 +1,163 @@
+//! `[mesh] target_error`: refine the whole space until every kept mode's estimated error is
+//! below the target. Each mesh is the previous one's size times a factor predicted from the
+//! estimate's own rates; the previous meshes are the coarser levels of the next estimate, so
+//! refining costs no extra solves beyond the first estimate's.
+
+use super::{ErrorEstimate, Solved, from_coarser};
+use crate::modes::SolverChoice;
+use crate::scene::{Scene, Voi};
+use anyhow::Result;
+
+/// One mesh of the refinement.
+#[derive(Clone, Debug, serde::Serialize)]
+pub struct Step {
+    /// Element size, m.
+    pub size: f64,
+    /// Mesh nodes.
+    pub nodes: usize,
+    /// Free unknowns.
+    pub dofs: usize,
+    /// Seconds to mesh, assemble and solve it (and estimate its error).
+    pub seconds: f64,
+    /// Its kept modes' frequencies.
+    pub frequencies_hz: Vec<f64>,
+    /// The largest estimated relative error of a kept mode (NaN without an estimate).
+    pub max_estimated_error: f64,
+}
+
+/// The last mesh of a refinement, and how it got there.
+pub struct Refined {
+    /// The last mesh, solved (its modes cut to the kept count).
+    pub last: Solved,
+    /// Its error estimate.
+    pub estimate: Option<ErrorEstimate>,
+    /// Every mesh tried, coarsest first.
+    pub steps: Vec<Step>,
+    /// Whether every kept mode's estimate reached the target.
+    pub reached: bool,
+    /// Seconds spent on all but the last mesh (and on estimating the last).
+    pub overhead_s: f64,
+}
+
+/// Refinement stops after this many meshes.
+pub const MAX_STEPS: usize = 6;
+
+/// Refines `voi`'s space of `scene` (the global one with None) until every kept mode's estimated
+/// frequency error is below `target`, or the next mesh would exceed `scene.mesh.max_dofs`.
+pub fn refine(scene: &Scene, voi: Option<&Voi>, choice: SolverChoice, target: f64) -> Result<Refined> {
+    let kept = scene.modes.count;
+    let mut scene = scene.clone();
+    let start = std::time::Instant::now();
+    let mut current = Solved::at(&scene, voi, 1.0, kept, choice, false)?;
+    // The size the mesher picked when the scene left it open; the VOI's keeps its ratio.
+    let first_size = current.size;
+    let voi_ratio = voi.map(|v| v.size / scene.mesh.size.max(f64::MIN_POSITIVE));
+    scene.mesh.size = first_size;
+    let scaled_voi = |size: f64| {
+        voi.cloned().map(|mut v| {
+            if let Some(k) = voi_ratio.filter(|k| k.is_finite()) {
+                v.size = k * size;
+            }
+            v
+        })
+    };
+    let fine_lambda = |s: &Solved| s.modes.eigenvalues[..kept.min(s.modes.eigenvalues.len())].to_vec();
+    let (mut estimate, mut previous) = super::estimate(
+        &scene,
+        scaled_voi(first_size).as_ref(),
+        &current.view(kept),
+        &fine_lambda(&current),
+        choice,
+    );
+    let mut steps = Vec::new();
+    loop {
+        let worst = estimate
+            .as_ref()
+            .and_then(|e| super::worst(&e.relative()))
+            .map_or(f64::NAN, |w| w.1);
+        steps.push(Step {
+            size: current.size,
+            nodes: current.d.mesh.nodes.len(),
+            dofs: current.d.dofs.free_count(),
+            seconds: current.seconds,
+            frequencies_hz: current.modes.frequencies_hz()[..kept.min(current.modes.eigenvalues.len())].to_vec(),
+            max_estimated_error: worst,
+        });
+        tracing::info!(
+            size = current.size,
+            dofs = current.d.dofs.free_count(),
+            worst,
+            "refinement step"
+        );
+        if worst <= target {
+            return Ok(finish(current, estimate, steps, true, start));
+        }
+        // Each mode asks for the size that would bring it to 70 % of the target at its rate.
+        // Without an estimate (a mesh so coarse that gmsh's coarser ones are no coarser), a
+        // fixed step.
+        let factor = match estimate.as_ref() {
+            Some(e) if worst.is_finite() => e
+                .modes
+                .iter()
+                .filter(|m| m.relative.is_finite() && m.relative > 0.0)
+                .map(|m| (0.7 * target / m.relative).powf(1.0 / m.rate))
+                .fold(1.0, f64::min)
+                .clamp(1.0 / 2.5, 1.0 / 1.2),
+            _ => 1.0 / super::COARSENING,
+        };
+        let next_size = current.size * factor;
+        let predicted = current.d.dofs.free_count() as f64 / factor.powi(3);
+        if predicted > scene.mesh.max_dofs as f64 || steps.len() >= MAX_STEPS {
+            tracing::warn!(
+                "mesh.target_error = {target}: stopped at an estimated error of {:.2} % (mesh.size = {:.3e} m, {} unknowns): the \
+                 next mesh (size {:.3e} m) would have about {:.2e} unknowns, above mesh.max_dofs = {}{}; raise \
+                 mesh.max_dofs or accept this error",
+                100.0 * worst,
+                current.size,
+                current.d.dofs.free_count(),
+                next_size,
+                predicted,
+                scene.mesh.max_dofs,
+                if steps.len() >= MAX_STEPS {
+                    format!(" or the limit of {MAX_STEPS} meshes was reached")
+                } else {
+                    String::new()
+                }
+            );
+            return Ok(finish(current, estimate, steps, false, start));
+        }
+        scene.mesh.size = next_size;
+        let next = Solved::at(&scene, scaled_voi(next_size).as_ref(), 1.0, kept, choice, false)?;
+        previous.push(current);
+        // The two finest earlier meshes are the coarser levels of the next estimate.
+        if previous.len() > super::LEVELS {
+            previous.remove(0);
+        }
+        estimate = from_coarser(
+            scene.mesh.order,
+            &next.view(kept),
+            &fine_lambda(&next),
+            previous.iter().rev(),
+        );
+        current = next;
+    }
+}
+
+fn finish(
+    mut last: Solved,
+    estimate: Option<ErrorEstimate>,
+    steps: Vec<Step>,
+    reached: bool,
+    start: std::time::Instant,
+) -> Refined {
+    let kept = steps.last().map_or(0, |s| s.frequencies_hz.len());
+    last.modes.truncate(kept);
+    let overhead_s = (start.elapsed().as_secs_f64() - last.seconds).max(0.0);
+    Refined {
+        last,
+        estimate,
+        steps,
+        reached,
+        overhead_s,
+    }
+}

@@ -1,0 +1,245 @@
+//! Each rung of the meshing ladder in its own process, so that nothing gmsh or OpenCASCADE does
+//! can end VES: an uncaught C++ exception, a segfault on a malformed file, or a `.geo` script's
+//! `Exit;` (which calls `exit(0)`) ends the child, and the parent reports it as a failed rung.
+//!
+//! The `ves` binary turns this on ([`isolate_with`] its own path); a library user who links the
+//! pipeline gets in-process meshing unless it does the same.
+
+use super::{Attempt, LADDER, Mesh, MeshError, Meshing, Request};
+use std::io::{BufReader, BufWriter, Read, Write};
+use std::path::{Path, PathBuf};
+use std::sync::OnceLock;
+
+static WORKER: OnceLock<PathBuf> = OnceLock::new();
+
+/// The phase of reading the geometry file.
+pub(super) const READING: &str = "reading the geometry";
+/// How a process that died reading the file is reported (the ladder's advice differs).
+pub(super) const WHILE_READING: &str = "ended the meshing process while reading the geometry";
+
+/// The hidden subcommand of the `ves` binary that serves one rung.
+pub const WORKER_COMMAND: &str = "mesh-worker";
+
+/// Meshes in child processes of `exe`, which must answer `exe mesh-worker DIR` with [`serve`].
+pub fn isolate_with(exe: PathBuf) {
+    let _ = WORKER.set(exe);
+}
+
+pub(super) fn is_on() -> bool {
+    WORKER.get().is_some()
+}
+
+/// What the child says: its mesh is in `mesh.bin` beside it.
+#[derive(serde::Serialize, serde::Deserialize)]
+enum Reply {
+    Meshed {
+        meshing: Meshing,
+        vertex_count: usize,
+        order: u8,
+    },
+    Retry {
+        cause: String,
+        log: Vec<String>,
+    },
+    Fatal {
+        cause: String,
+    },
+}
+
+#[derive(serde::Serialize, serde::Deserialize)]
+struct Job {
+    request: Request,
+    rung: usize,
+}
+
+/// Runs rung `rung` of the ladder: in a child process when isolation is on.
+pub(super) fn attempt(req: &Request, rung: usize) -> Result<(Mesh, Meshing), Attempt> {
+    let Some(exe) = WORKER.get() else {
+        return super::attempt(req, &LADDER[rung], &mut |_| {});
+    };
+    let path = req.geometry.display().to_string();
+    let failed = |message: String| {
+        Attempt::Retry(
+            MeshError::Geometry {
+                path: path.clone(),
+                message,
+            },
+            Vec::new(),
+        )
+    };
+    let dir = tempfile::Builder::new()
+        .prefix("ves-mesh-")
+        .tempdir()
+        .map_err(|e| failed(format!("cannot create a temporary directory for meshing: {e}")))?;
+    let job = Job {
+        request: req.clone(),
+        rung,
+    };
+    let text = serde_json::to_string(&job).map_err(|e| failed(format!("cannot encode the meshing job: {e}")))?;
+    std::fs::write(dir.path().join("job.json"), text)
+        .map_err(|e| failed(format!("cannot write the meshing job to {}: {e}", dir.path().display())))?;
+    let status = std::process::Command::new(exe)
+        .arg(WORKER_COMMAND)
+        .arg(dir.path())
+        .stdin(std::process::Stdio::null())
+        // gmsh may print to stdout; VES's stdout is for results (--json).
+        .stdout(std::process::Stdio::null())
+        .status()
+        .map_err(|e| failed(format!("cannot start the meshing process {}: {e}", exe.display())))?;
+    let reply = std::fs::read_to_string(dir.path().join("reply.json")).ok();
+    let Some(reply) = reply.and_then(|r| serde_json::from_str::<Reply>(&r).ok()) else {
+        let phase = std::fs::read_to_string(dir.path().join("phase")).unwrap_or_else(|_| "starting".into());
+        let what = if phase == READING {
+            WHILE_READING.to_string()
+        } else {
+            format!("ended the meshing process while {phase}")
+        };
+        return Err(failed(format!("gmsh {what} ({})", describe(status))));
+    };
+    let error = |cause| MeshError::Geometry {
+        path: path.clone(),
+        message: cause,
+    };
+    match reply {
+        Reply::Meshed {
+            meshing,
+            vertex_count,
+            order,
+        } => {
+            let mesh = read_mesh(&dir.path().join("mesh.bin"), vertex_count, order)
+                .map_err(|e| failed(format!("the meshing process left an unreadable mesh: {e}")))?;
+            Ok((mesh, meshing))
+        }
+        Reply::Retry { cause, log } => Err(Attempt::Retry(error(cause), log)),
+        Reply::Fatal { cause } => Err(Attempt::Fatal(error(cause))),
+    }
+}
+
+fn describe(status: std::process::ExitStatus) -> String {
+    use std::os::unix::process::ExitStatusExt;
+    match (status.code(), status.signal()) {
+        (_, Some(6)) => "it aborted: an uncaught C++ exception or a failed assertion in gmsh/OpenCASCADE".into(),
+        (_, Some(11)) => "it crashed: segmentation fault in gmsh/OpenCASCADE".into(),
+        (_, Some(9)) => "it was killed (SIGKILL: out of memory?)".into(),
+        (_, Some(s)) => format!("killed by signal {s}"),
+        (Some(0), _) => "it exited with status 0 without a mesh: a .geo script's Exit, or gmsh's own exit".into(),
+        (Some(c), _) => format!("exit status {c}"),
+        (None, None) => "no status".into(),
+    }
+}
+
+/// The child's side: runs the job in `dir` and leaves its reply there. An error is about the
+/// job's files only (the meshing's own failures are replies).
+pub fn serve(dir: &Path) -> Result<(), String> {
+    let job_file = dir.join("job.json");
+    let text = std::fs::read_to_string(&job_file).map_err(|e| format!("{}: {e}", job_file.display()))?;
+    let job: Job = serde_json::from_str(&text).map_err(|e| format!("{}: {e}", job_file.display()))?;
+    let rung = LADDER
+        .get(job.rung)
+        .ok_or_else(|| format!("{}: no rung {}", job_file.display(), job.rung))?;
+    let phase_file = dir.join("phase");
+    let mut phase = |p: &str| {
+        // Best effort: only read when the process dies.
+        let _ = std::fs::write(&phase_file, p);
+    };
+    let reply = match super::attempt(&job.request, rung, &mut phase) {
+        Ok((mesh, meshing)) => {
+            write_mesh(&dir.join("mesh.bin"), &mesh).map_err(|e| format!("{}: {e}", dir.display()))?;
+            Reply::Meshed {
+                meshing,
+                vertex_count: mesh.vertex_count,
+                order: mesh.order,
+            }
+        }
+        Err(Attempt::Retry(e, log)) => Reply::Retry { cause: e.cause(), log },
+        Err(Attempt::Fatal(e)) => Reply::Fatal { cause: e.cause() },
+    };
+    let text = serde_json::to_string(&reply).map_err(|e| e.to_string())?;
+    // Whole or absent: the parent takes a missing reply for a crash.
+    let tmp = dir.join("reply.json.tmp");
+    std::fs::write(&tmp, text).map_err(|e| format!("{}: {e}", tmp.display()))?;
+    std::fs::rename(&tmp, dir.join("reply.json")).map_err(|e| format!("{}: {e}", dir.display()))
+}
+
+fn write_mesh(path: &Path, mesh: &Mesh) -> std::io::Result<()> {
+    let mut w = BufWriter::new(std::fs::File::create(path)?);
+    for n in [mesh.nodes.len(), mesh.tets.len(), mesh.surface.len()] {
+        w.write_all(&(n as u64).to_le_bytes())?;
+    }
+    for v in mesh.nodes.iter().flatten() {
+        w.write_all(&v.to_le_bytes())?;
+    }
+    for v in mesh.tets.iter().chain(mesh.surface.iter().flatten()) {
+        w.write_all(&v.to_le_bytes())?;
+    }
+    w.flush()
+}
+
+fn read_mesh(path: &Path, vertex_count: usize, order: u8) -> std::io::Result<Mesh> {
+    let file = std::fs::File::open(path)?;
+    let size = file.metadata()?.len();
+    let mut r = BufReader::new(file);
+    let mut word = [0u8; 8];
+    let mut counts = [0usize; 3];
+    for c in &mut counts {
+        r.read_exact(&mut word)?;
+        *c = u64::from_le_bytes(word) as usize;
+    }
+    let [nodes, tets, faces] = counts;
+    let expected = 24 + 24 * nodes as u64 + 4 * tets as u64 + 12 * faces as u64;
+    let per_tet = if order == 2 { 10 } else { 4 };
+    if size != expected || vertex_count > nodes || tets % per_tet != 0 {
+        return Err(std::io::Error::other(format!(
+            "{size} bytes for {nodes} nodes, {tets} tet indices, {faces} faces"
+        )));
+    }
+    let f64s = (0..nodes)
+        .map(|_| {
+            let mut p = [0.0; 3];
+            for v in &mut p {
+                r.read_exact(&mut word)?;
+                *v = f64::from_le_bytes(word);
+            }
+            Ok(p)
+        })
+        .collect::<std::io::Result<Vec<_>>>()?;
+    let mut u32s = vec![0u32; tets + 3 * faces];
+    let mut four = [0u8; 4];
+    for v in &mut u32s {
+        r.read_exact(&mut four)?;
+        *v = u32::from_le_bytes(four);
+        if *v as usize >= nodes {
+            return Err(std::io::Error::other(format!("node index {v} of {nodes}")));
+        }
+    }
+    let surface = u32s[tets..].chunks_exact(3).map(|f| [f[0], f[1], f[2]]).collect();
+    u32s.truncate(tets);
+    Ok(Mesh {
+        nodes: f64s,
+        vertex_count,
+        order,
+        tets: u32s,
+        surface,
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_mesh_crosses_the_process_boundary_unchanged_and_a_short_file_is_refused() {
+        let m = Mesh::structured_box([4, 1, 2], 0.01, 2, |_, p| p);
+        let dir = tempfile::tempdir().unwrap();
+        let p = dir.path().join("mesh.bin");
+        write_mesh(&p, &m).unwrap();
+        let back = read_mesh(&p, m.vertex_count, m.order).unwrap();
+        assert_eq!(back.nodes, m.nodes);
+        assert_eq!(back.tets, m.tets);
+        assert_eq!(back.surface, m.surface);
+        assert_eq!(back.vertex_count, m.vertex_count);
+        let bytes = std::fs::read(&p).unwrap();
+        std::fs::write(&p, &bytes[..bytes.len() - 4]).unwrap();
+        assert!(read_mesh(&p, m.vertex_count, m.order).is_err());
+    }
+}
