@@ -119,7 +119,7 @@ pub fn solve_space(scene: &Scene, voi: Option<&Voi>, choice: SolverChoice) -> Re
                     pattern: &d.system.pattern,
                     m: &d.system.m,
                 };
-                crate::accuracy::estimate(scene, voi, &view, &modes.eigenvalues, choice).0
+                crate::accuracy::estimate(scene, voi, &view, &modes.eigenvalues, choice)
             } else {
                 None
             };
@@ -127,7 +127,7 @@ pub fn solve_space(scene: &Scene, voi: Option<&Voi>, choice: SolverChoice) -> Re
         }
     };
     if scene.mesh.error_estimate {
-        warn_about_error(scene, &name, d.meshing.size, error.as_ref());
+        warn_about_error(scene, &name, &d.mesh, d.meshing.size, error.as_ref());
     }
     let mut timings = Timings {
         mesh: d.mesh_s,
@@ -160,9 +160,23 @@ pub fn solve_space(scene: &Scene, voi: Option<&Voi>, choice: SolverChoice) -> Re
     })
 }
 
-/// One line when a space has no estimate or one above [`crate::accuracy::WARN_ABOVE`].
-fn warn_about_error(scene: &Scene, name: &str, size: f64, error: Option<&crate::accuracy::ErrorEstimate>) {
-    match error.and_then(|e| crate::accuracy::worst(&e.relative())) {
+/// One line when a space has no estimate or one above [`crate::accuracy::WARN_ABOVE`], and one
+/// when its walls are one element thick and the estimate does not vouch for them.
+fn warn_about_error(scene: &Scene, name: &str, mesh: &Mesh, size: f64, error: Option<&crate::accuracy::ErrorEstimate>) {
+    let worst = error.and_then(|e| crate::accuracy::worst(&e.relative()));
+    let walls = mesh.walls();
+    if walls.spanning_fraction > crate::mesh::walls::ONE_ELEMENT_THICK
+        && (mesh.order == 1 || worst.is_none_or(|w| w.1 > 0.01))
+    {
+        tracing::warn!(
+            "space {name:?}: {:.0} % of the volume is in walls one element thick (walls ≈ {:.2e} m): bending across \
+             them rests on one element; use mesh.size ≤ {:.2e} m (two through the wall) or [mesh] target_error = 0.01",
+            100.0 * walls.spanning_fraction,
+            walls.thickness,
+            walls.thickness / 2.0
+        );
+    }
+    match worst {
         None => tracing::warn!(
             space = name,
             "no error estimate: no coarser mesh of this space could be solved (see VES_LOG=info)"

@@ -135,8 +135,9 @@ pub struct MeshSettings {
     pub max_dofs: usize,
 }
 
+/// About 10 GB of memory with 10-node tets (6.6 GB measured at 684k unknowns on the ribplate).
 fn default_max_dofs() -> usize {
-    2_000_000
+    1_000_000
 }
 
 fn yes() -> bool {

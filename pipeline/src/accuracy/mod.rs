@@ -145,14 +145,13 @@ pub fn combine(dofs: usize, frequencies_hz: &[f64], levels: &[Level], order: u8)
 /// Meshes `fine`'s space [`LEVELS`] times coarser, solves each and estimates the error of each
 /// of `fine`'s modes. A coarser mesh that fails (a size too large for the part) ends the
 /// sequence: the estimate uses what was solved, and is None with no coarser mesh at all.
-/// Returns the solved coarser meshes too (coarsest first), for a refinement to go on from.
 pub fn estimate(
     scene: &Scene,
     voi: Option<&Voi>,
     fine: &SpaceView<'_>,
     fine_lambda: &[f64],
     choice: SolverChoice,
-) -> (Option<ErrorEstimate>, Vec<Solved>) {
+) -> Option<ErrorEstimate> {
     let mut coarse = Vec::new();
     for k in 1..=LEVELS {
         let factor = COARSENING.powi(k as i32);
@@ -164,13 +163,11 @@ pub fn estimate(
             }
         }
     }
-    let estimate = from_coarser(scene.mesh.order, fine, fine_lambda, coarse.iter());
-    coarse.reverse();
-    (estimate, coarse)
+    from_coarser(scene.mesh.order, fine, fine_lambda, coarse.iter())
 }
 
 /// The estimate of `fine`'s modes from solved coarser meshes, finest first (None without any).
-pub fn from_coarser<'a>(
+fn from_coarser<'a>(
     order: u8,
     fine: &SpaceView<'_>,
     fine_lambda: &[f64],

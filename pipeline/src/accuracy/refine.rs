@@ -1,9 +1,12 @@
 //! `[mesh] target_error`: refine the whole space until every kept mode's estimated error is
 //! below the target. Each mesh is the previous one's size times a factor predicted from the
-//! estimate's own rates; the previous meshes are the coarser levels of the next estimate, so
-//! refining costs no extra solves beyond the first estimate's.
+//! estimate's own rates (at most halving it), and each is estimated the same way as a basis
+//! without a target: from two meshes 1.5× and 2.25× coarser than itself. The earlier steps of the
+//! refinement would be free coarser levels, but they are too far apart and too coarse: on the
+//! ribplate, steps of 12k, 59k and 684k unknowns gave a measured rate near 1 and an estimate of
+//! 5.5 % where the error was below 0.8 %.
 
-use super::{ErrorEstimate, Solved, from_coarser};
+use super::{ErrorEstimate, Solved};
 use crate::modes::SolverChoice;
 use crate::scene::{Scene, Voi};
 use anyhow::Result;
@@ -17,7 +20,7 @@ pub struct Step {
     pub nodes: usize,
     /// Free unknowns.
     pub dofs: usize,
-    /// Seconds to mesh, assemble and solve it (and estimate its error).
+    /// Seconds to mesh, assemble and solve it (its estimate not included).
     pub seconds: f64,
     /// Its kept modes' frequencies.
     pub frequencies_hz: Vec<f64>,
@@ -61,14 +64,11 @@ pub fn refine(scene: &Scene, voi: Option<&Voi>, choice: SolverChoice, target: f6
             v
         })
     };
-    let fine_lambda = |s: &Solved| s.modes.eigenvalues[..kept.min(s.modes.eigenvalues.len())].to_vec();
-    let (mut estimate, mut previous) = super::estimate(
-        &scene,
-        scaled_voi(first_size).as_ref(),
-        &current.view(kept),
-        &fine_lambda(&current),
-        choice,
-    );
+    let estimate_of = |scene: &Scene, s: &Solved| {
+        let lambda = &s.modes.eigenvalues[..kept.min(s.modes.eigenvalues.len())];
+        super::estimate(scene, scaled_voi(s.size).as_ref(), &s.view(kept), lambda, choice)
+    };
+    let mut estimate = estimate_of(&scene, &current);
     let mut steps = Vec::new();
     loop {
         let worst = estimate
@@ -102,7 +102,7 @@ pub fn refine(scene: &Scene, voi: Option<&Voi>, choice: SolverChoice, target: f6
                 .filter(|m| m.relative.is_finite() && m.relative > 0.0)
                 .map(|m| (0.7 * target / m.relative).powf(1.0 / m.rate))
                 .fold(1.0, f64::min)
-                .clamp(1.0 / 2.5, 1.0 / 1.2),
+                .clamp(1.0 / 2.0, 1.0 / 1.2),
             _ => 1.0 / super::COARSENING,
         };
         let next_size = current.size * factor;
@@ -127,19 +127,8 @@ pub fn refine(scene: &Scene, voi: Option<&Voi>, choice: SolverChoice, target: f6
             return Ok(finish(current, estimate, steps, false, start));
         }
         scene.mesh.size = next_size;
-        let next = Solved::at(&scene, scaled_voi(next_size).as_ref(), 1.0, kept, choice, false)?;
-        previous.push(current);
-        // The two finest earlier meshes are the coarser levels of the next estimate.
-        if previous.len() > super::LEVELS {
-            previous.remove(0);
-        }
-        estimate = from_coarser(
-            scene.mesh.order,
-            &next.view(kept),
-            &fine_lambda(&next),
-            previous.iter().rev(),
-        );
-        current = next;
+        current = Solved::at(&scene, scaled_voi(next_size).as_ref(), 1.0, kept, choice, false)?;
+        estimate = estimate_of(&scene, &current);
     }
 }
 

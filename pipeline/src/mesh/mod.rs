@@ -5,6 +5,7 @@ use nalgebra::Vector3;
 
 mod isolation;
 pub mod quality;
+pub mod walls;
 pub use isolation::{isolate_with, serve as serve_rung};
 use std::collections::HashMap;
 use ves_ffi::gmsh::{self, element_type};
