@@ -505,6 +505,32 @@ fn report_sweeps_meshes_and_modes_and_writes_plots() {
     assert!(f1(p1) > 1.2 * f1(p2), "P1 {} vs P2 {}", f1(p1), f1(p2));
     assert!(meshes[2]["points"][0]["frequency_error"].as_f64().expect("freq err") < 0.01);
     assert!(reference["points"][0]["frequency_error"].is_null());
+    // The estimate a basis of each mesh would carry, checked against the reference mesh: both
+    // large for the locking 4-node tets, both small for the 10-node ones.
+    let worst = |m: &serde_json::Value, k: &str| {
+        m[k].as_array()
+            .unwrap_or_else(|| panic!("{k}: {m}"))
+            .iter()
+            .filter_map(|x| x.as_f64())
+            .fold(0.0, f64::max)
+    };
+    for m in &meshes[..2] {
+        let (e, t) = (
+            worst(m, "estimated_relative_error"),
+            worst(m, "measured_relative_error"),
+        );
+        assert!(e > 0.05 && t > 0.05, "order 1: estimated {e}, measured {t}");
+    }
+    let (e, t) = (
+        worst(&meshes[2], "estimated_relative_error"),
+        worst(&meshes[2], "measured_relative_error"),
+    );
+    assert!(
+        e < 0.05 && t < 0.05 && e > 0.2 * t,
+        "order 2: estimated {e}, measured {t}"
+    );
+    let md = std::fs::read_to_string(out.join("report.md")).expect("report.md");
+    assert!(md.contains("the estimate against the measured"), "{md}");
     // Nothing temporary left behind.
     let left: Vec<_> = std::fs::read_dir(&out)
         .expect("dir")

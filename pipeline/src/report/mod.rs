@@ -132,9 +132,18 @@ pub struct MeshReport {
     pub frequencies_hz: Vec<f64>,
     /// Probes as applied on this mesh.
     pub probes: Vec<ProbeOnMesh>,
+    /// VES's own estimate of the relative frequency error of the first modes (the one a basis
+    /// of this mesh would carry; null when no coarser mesh could be solved).
+    pub estimated_relative_error: Option<Vec<f64>>,
+    /// The same modes' measured relative error against the reference mesh (empty on the
+    /// reference itself): the check of the estimate.
+    pub measured_relative_error: Vec<f64>,
     /// The sweep over mode counts.
     pub points: Vec<Point>,
 }
+
+/// How many of each mesh's lowest modes the error estimate is checked on.
+pub const ESTIMATE_MODES: usize = 10;
 
 /// The whole report (`report.json`).
 #[derive(Clone, Debug, Serialize)]
@@ -323,6 +332,29 @@ impl Sweep<'_> {
                 self.scene.probes.clone()
             };
         }
+        // The estimate a basis of this mesh would carry, against the reference's frequencies.
+        let k = ESTIMATE_MODES.min(top.eigenvalues.len());
+        let view = crate::transfer::SpaceView {
+            mesh: &d.mesh,
+            dofs: &d.dofs,
+            modes: &top.vectors,
+            r: k,
+            pattern: &d.system.pattern,
+            m: &d.system.m,
+        };
+        let estimated_relative_error =
+            crate::accuracy::estimate(&scene, None, &view, &top.eigenvalues[..k], SolverChoice::Auto)
+                .map(|e| e.relative());
+        let measured_relative_error: Vec<f64> = if is_reference {
+            Vec::new()
+        } else {
+            freqs
+                .iter()
+                .zip(&self.reference_frequencies)
+                .take(k)
+                .map(|(f, r)| (f - r).abs() / r)
+                .collect()
+        };
         let (exact, probes, correction_s, dynamic_s) = if supported {
             let (e, p, c, dy) = self.exact(&d)?;
             if is_reference {
@@ -358,6 +390,8 @@ impl Sweep<'_> {
             full_dynamic_s: dynamic_s,
             frequencies_hz: freqs,
             probes,
+            estimated_relative_error,
+            measured_relative_error,
             points,
         })
     }

@@ -155,6 +155,59 @@ pub fn markdown(r: &Report) -> String {
             worst(m.probes.iter().map(|p| p.snap_distance), |v| format!("{v:.1e}")),
         );
     }
+    let _ = writeln!(
+        s,
+        "\n## Discretization error: the estimate against the measured\n\nFor the lowest {} modes of each mesh: \
+         the error estimate a basis of that mesh carries (from two coarser meshes, docs/accuracy.md) against \
+         the difference to the reference mesh (finest, highest order; itself not exact, so the measured \
+         error is a lower bound, least reliable on the meshes closest to it).\n",
+        super::ESTIMATE_MODES
+    );
+    header(
+        &mut s,
+        &[
+            "order",
+            "size (m)",
+            "unknowns",
+            "estimated (worst mode)",
+            "measured (worst mode)",
+            "estimate / measured, modes above 0.1 %",
+        ],
+    );
+    for m in &r.meshes {
+        let est = m.estimated_relative_error.as_deref().unwrap_or(&[]);
+        let ratios: Vec<f64> = est
+            .iter()
+            .zip(&m.measured_relative_error)
+            .filter(|(e, t)| **t > 1e-3 && e.is_finite())
+            .map(|(e, t)| e / t)
+            .collect();
+        let range = if ratios.is_empty() {
+            "—".to_string()
+        } else {
+            let lo = ratios.iter().copied().fold(f64::INFINITY, f64::min);
+            let hi = ratios.iter().copied().fold(0.0, f64::max);
+            format!("{lo:.2}–{hi:.2} ({} modes)", ratios.len())
+        };
+        let pct = |v: &[f64]| {
+            worst(v.iter().copied().filter(|x| x.is_finite()), |x| {
+                format!("{:.3} %", 100.0 * x)
+            })
+        };
+        let _ = writeln!(
+            s,
+            "| {} | {} | {} | {} | {} | {range} |",
+            m.order,
+            size(m.size),
+            m.dofs,
+            if est.is_empty() { "—".to_string() } else { pct(est) },
+            if m.measured_relative_error.is_empty() {
+                "(reference)".to_string()
+            } else {
+                pct(&m.measured_relative_error)
+            },
+        );
+    }
     let _ = writeln!(s, "\n## Sweep\n");
     let _ = writeln!(
         s,
