@@ -266,7 +266,7 @@ pub struct SpaceSummary {
     /// With `mesh.target_error`: every mesh of the refinement (size, nodes, dofs, seconds,
     /// frequencies, largest estimated error), coarsest first.
     #[serde(skip_serializing_if = "Option::is_none")]
-    pub refinement: Option<Vec<crate::accuracy::refine::Step>>,
+    pub refinements: Option<Vec<crate::accuracy::refine::Step>>,
 }
 
 /// Runs the whole pipeline for a scene and writes `out` (which may not be a symlink).
@@ -333,7 +333,7 @@ pub fn run_with(scene: &Scene, out: &Path, choice: SolverChoice, overwrite: Over
                 meshing: s.meshing,
                 estimated_relative_error: s.error.as_ref().map(|e| e.relative()),
                 error_estimate: s.error.clone(),
-                refinement: s.refinement.clone(),
+                refinements: s.refinement.clone(),
                 seconds: s.timings.mesh
                     + s.timings.assemble
                     + s.timings.factorize

@@ -758,7 +758,7 @@ fn target_error_refines_the_cantilever_to_within_one_percent_of_converged() {
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     let v = last_json(&o);
     let s = &v["spaces"][0];
-    let steps = s["refinement"].as_array().expect("refinement steps");
+    let steps = s["refinements"].as_array().expect("refinement steps");
     assert!(steps.len() >= 2, "{steps:?}");
     let last = steps.last().unwrap();
     assert!(last["max_estimated_error"].as_f64().unwrap() <= 0.01, "{last}");
