@@ -1,5 +1,6 @@
 //! The VES modal-basis file, version 1 (HDF5; DESIGN.md §3), defined once: its names
-//! ([`names`]), one guarded reader ([`read`]) and one writer ([`write`]).
+//! ([`names`]), one guarded reader ([`read`]) and one writer ([`write`]), and the XDMF sidecar
+//! that shows a basis to ParaView ([`xdmf`]).
 //!
 //! Permissive (MIT OR Apache-2.0): the runtime reads with it, the pipeline writes with it.
 
@@ -10,6 +11,7 @@ pub mod read;
 pub mod strings;
 #[cfg(feature = "hdf5")]
 pub mod write;
+pub mod xdmf;
 
 pub use names::{FORMAT, VERSION};
 #[cfg(feature = "hdf5")]

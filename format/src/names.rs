@@ -80,6 +80,13 @@ pub mod space {
     /// Optional f64 [r]: each mode's estimated relative frequency error against the
     /// mesh-converged answer (Richardson over coarser meshes; docs/accuracy.md).
     pub const ESTIMATED_RELATIVE_ERROR: &str = "modes/estimated_relative_error";
+    /// Optional f64 [6·nv, r]: row 6i+k = Voigt component k of the stress at corner vertex i,
+    /// Pa per unit modal coordinate.
+    pub const STRESS: &str = "modes/stress";
+    /// String attribute of [`STRESS`]: the component order.
+    pub const STRESS_COMPONENTS: &str = "components";
+    /// Its value.
+    pub const STRESS_COMPONENT_ORDER: &str = "xx yy zz yz xz xy";
     /// Group (free bodies): attributes [`MASS`], [`CENTER_OF_MASS`], [`INERTIA`].
     pub const RIGID: &str = "rigid";
     /// f64 attribute, kg.

@@ -442,6 +442,37 @@ impl<'a> SpaceReader<'a> {
         self.guard(|| self.finite(sp::RELATIVE_RESIDUALS, self.read_all(sp::RELATIVE_RESIDUALS, 1)?))
     }
 
+    /// The modal stress of the first `cols` modes at corner vertices `vertices`, row-major
+    /// [6·|vertices|, cols] (row 6i+k: component k of the i-th vertex asked), finite; None when
+    /// the file has no stress.
+    pub fn stress_rows(&self, vertices: Range<usize>, cols: usize) -> Result<Option<Vec<f64>>, ReadError> {
+        self.guard(|| {
+            let Ok(ds) = self.group.dataset(sp::STRESS) else {
+                return Ok(None);
+            };
+            let (_, shape) = self.dataset::<f64>(sp::STRESS, 2)?;
+            if shape != [6 * self.vertex_count, self.mode_count] {
+                return Err(self.err(format!(
+                    "{} has shape {shape:?}, expected [{}, {}] (6 per corner vertex, one column per mode)",
+                    sp::STRESS,
+                    6 * self.vertex_count,
+                    self.mode_count
+                )));
+            }
+            if vertices.end > self.vertex_count || vertices.start > vertices.end || cols > self.mode_count {
+                return Err(self.err(format!(
+                    "stress of vertices {vertices:?} × {cols} modes asked of {} × {}",
+                    self.vertex_count, self.mode_count
+                )));
+            }
+            let block: ndarray::Array2<f64> = ds
+                .read_slice(ndarray::s![6 * vertices.start..6 * vertices.end, 0..cols])
+                .map_err(|e| self.err(format!("{}: {e}", sp::STRESS)))?;
+            let v: Vec<f64> = block.iter().copied().collect();
+            self.finite(sp::STRESS, v).map(Some)
+        })
+    }
+
     /// Each mode's estimated relative discretization error, when the file has it: one
     /// non-negative value per mode (NaN where a mode had no estimate).
     pub fn estimated_relative_error(&self) -> Result<Option<Vec<f64>>, ReadError> {
@@ -598,6 +629,8 @@ impl<'a> SpaceReader<'a> {
         self.check_basis_finite()?;
         self.compliance()?;
         self.rigid()?;
+        self.estimated_relative_error()?;
+        self.stress_rows(0..self.vertex_count, self.mode_count)?;
         Ok(())
     }
 }

@@ -60,6 +60,8 @@ pub struct SpaceData<'a> {
     pub relative_residuals: &'a [f64],
     /// Estimated relative discretization error, one per mode (optional dataset).
     pub estimated_relative_error: Option<&'a [f64]>,
+    /// Modal stress at the corner vertices, row-major [6·nv, r] (optional dataset).
+    pub stress: Option<&'a [f64]>,
     /// Mode shapes, row-major [3n, r].
     pub basis: &'a [f64],
     /// Static compliance: nodes and blocks.
@@ -189,6 +191,17 @@ fn write_space(file: &hdf5::File, s: &SpaceData<'_>) -> Result<(), WriteError> {
     vector(&g, sp::RELATIVE_RESIDUALS, s.relative_residuals)?;
     if let Some(e) = s.estimated_relative_error {
         vector(&g, sp::ESTIMATED_RELATIVE_ERROR, e)?;
+    }
+    if let Some(stress) = s.stress {
+        let r = s.eigenvalues.len();
+        let a = Array2::from_shape_vec((6 * s.vertex_count, r), stress.to_vec()).ctx(sp::STRESS)?;
+        let ds = g
+            .new_dataset_builder()
+            .with_data(&a)
+            .chunk(((6 * s.vertex_count).clamp(1, 6 * 4096), r.clamp(1, 16)))
+            .create(sp::STRESS)
+            .ctx(sp::STRESS)?;
+        attr_str(&ds, sp::STRESS_COMPONENTS, sp::STRESS_COMPONENT_ORDER)?;
     }
     let r = s.eigenvalues.len();
     let basis = Array2::from_shape_vec((3 * n, r), s.basis.to_vec()).ctx(sp::BASIS)?;

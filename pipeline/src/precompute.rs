@@ -30,6 +30,8 @@ pub struct Timings {
     pub transfer: f64,
     /// The coarser meshes of the error estimate.
     pub error_estimate: f64,
+    /// Modal stress at the vertices (when the scene asks for it).
+    pub stress: f64,
     /// Writing the file.
     pub write: f64,
     /// Everything.
@@ -44,6 +46,7 @@ impl Timings {
         self.eigensolve += o.eigensolve;
         self.static_correction += o.static_correction;
         self.error_estimate += o.error_estimate;
+        self.stress += o.stress;
     }
 }
 
@@ -75,6 +78,8 @@ pub struct SolvedSpace {
     pub error: Option<crate::accuracy::ErrorEstimate>,
     /// The meshes of a `target_error` refinement, coarsest first.
     pub refinement: Option<Vec<crate::accuracy::refine::Step>>,
+    /// Modal stress at the corner vertices, row-major [6·nv, r] (`[stress] enabled`).
+    pub stress: Option<Vec<f64>>,
 }
 
 impl SolvedSpace {
@@ -91,6 +96,7 @@ impl SolvedSpace {
             meshing_strategy: Some(self.meshing.strategy),
             transfers: &self.transfers,
             estimated_relative_error: self.error.as_ref().map(|e| e.relative()),
+            stress: self.stress.as_deref(),
         }
     }
 }
@@ -143,6 +149,18 @@ pub fn solve_space(scene: &Scene, voi: Option<&Voi>, choice: SolverChoice) -> Re
         None => None,
     };
     timings.static_correction = t.elapsed().as_secs_f64();
+    let t = Instant::now();
+    let stress = scene.stress.then(|| {
+        let r = modes.eigenvalues.len();
+        let nf = d.dofs.free_count();
+        let u: Vec<f64> = (0..r)
+            .flat_map(|j| d.dofs.expand(&modes.vectors[j * nf..(j + 1) * nf]))
+            .collect();
+        let m = &scene.material;
+        let lame = crate::fem::element::Lame::new(m.young, m.poisson, m.density);
+        crate::fem::stress::vertex_stress(&d.mesh, &lame, &u, r)
+    });
+    timings.stress = t.elapsed().as_secs_f64();
     Ok(SolvedSpace {
         name,
         voi: voi.cloned(),
@@ -157,6 +175,7 @@ pub fn solve_space(scene: &Scene, voi: Option<&Voi>, choice: SolverChoice) -> Re
         meshing: d.meshing,
         error,
         refinement,
+        stress,
     })
 }
 
@@ -281,6 +300,13 @@ pub fn run_with(scene: &Scene, out: &Path, choice: SolverChoice, overwrite: Over
     let root = modes::slepc::rank() == 0;
     if root {
         crate::output::check(out, &scene.inputs(), overwrite)?;
+        if store::sidecar_path(out) == out {
+            anyhow::bail!(
+                "{}: the basis is an HDF5 file and its XDMF sidecar takes the .xdmf name; name the output .h5",
+                out.display()
+            );
+        }
+        crate::output::check(&store::sidecar_path(out), &scene.inputs(), overwrite)?;
     }
     let mut spaces = Vec::with_capacity(1 + scene.voi.len());
     let targets: Vec<Option<&Voi>> = std::iter::once(None).chain(scene.voi.iter().map(Some)).collect();

@@ -33,6 +33,16 @@ struct RawScene {
     static_correction: Option<StaticCorrection>,
     #[serde(default)]
     probe: Vec<Probe>,
+    stress: Option<StressSettings>,
+}
+
+/// Optional `[stress]` table (a compatible v1 extension): store each mode's stress at the
+/// corner vertices (`modes/stress`).
+#[derive(Clone, Copy, Debug, Default, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct StressSettings {
+    /// Compute and store the modal stress.
+    pub enabled: bool,
 }
 
 /// Optional `[[probe]]` entries (a compatible v1 extension): a point force applied at the surface
@@ -110,6 +120,9 @@ pub struct Material {
     pub poisson: f64,
     /// Density, kg/m³.
     pub density: f64,
+    /// Yield strength, Pa (optional): the runtime's safety-factor watch.
+    #[serde(default)]
+    pub yield_strength: Option<f64>,
 }
 
 /// Meshing settings.
@@ -263,6 +276,8 @@ pub struct Scene {
     pub voi: Vec<Voi>,
     /// Static correction, if asked.
     pub static_correction: Option<StaticCorrection>,
+    /// Whether each mode's stress is stored (`[stress] enabled = true`).
+    pub stress: bool,
     /// Probe points for `ves report`.
     pub probes: Vec<Probe>,
 }
@@ -368,6 +383,16 @@ impl Scene {
             "steel 7850, a polymer 1050",
         )
         .map_err(err)?;
+        if let Some(y) = m.yield_strength {
+            within(
+                "material.yield_strength",
+                y,
+                YOUNG_RANGE,
+                "Pa",
+                "structural steel 2.5e8, an aluminium alloy 2.7e8",
+            )
+            .map_err(err)?;
+        }
         if !m.poisson.is_finite() || m.poisson <= -1.0 || m.poisson >= 0.5 {
             return Err(err(format!(
                 "material.poisson = {}: Poisson's ratio must lie in (-1, 0.5); use 0.49 or less for nearly incompressible materials",
@@ -492,6 +517,7 @@ impl Scene {
             damping: raw.damping,
             voi: raw.voi,
             static_correction: raw.static_correction,
+            stress: raw.stress.is_some_and(|s| s.enabled),
             probes: raw.probe,
         })
     }

@@ -34,6 +34,8 @@ pub struct Space<'a> {
     pub transfers: &'a [(String, Vec<f64>)],
     /// Each mode's estimated discretization error, if estimated.
     pub estimated_relative_error: Option<Vec<f64>>,
+    /// Modal stress at the corner vertices, row-major [6·nv, r], if computed.
+    pub stress: Option<&'a [f64]>,
 }
 
 impl Space<'_> {
@@ -54,6 +56,7 @@ impl Space<'_> {
             eigenvalues: &self.modes.eigenvalues,
             relative_residuals: &self.modes.residuals,
             estimated_relative_error: self.estimated_relative_error.as_deref(),
+            stress: self.stress,
             basis,
             compliance: self.compliance.map(|c| (c.nodes.as_slice(), c.blocks.as_slice())),
             transfers: self.transfers,
@@ -104,7 +107,39 @@ pub fn write(out: &Path, scene: &Scene, spaces: &[Space<'_>]) -> Result<()> {
         spaces: spaces.iter().zip(&bases).map(|(s, b)| s.write(b)).collect(),
     };
     crate::output::write_atomically(out, |tmp| Ok(ves_format::write_file(tmp, &data)?))
-        .context("writing the basis failed")
+        .context("writing the basis failed")?;
+    write_sidecar(out, spaces)
+}
+
+/// The XDMF file ParaView opens beside a basis `B.h5`: `B.xdmf`.
+pub fn sidecar_path(out: &Path) -> std::path::PathBuf {
+    out.with_extension("xdmf")
+}
+
+/// Writes the XDMF sidecar of the basis just written at `out` (it points into the basis).
+fn write_sidecar(out: &Path, spaces: &[Space<'_>]) -> Result<()> {
+    let frequencies: Vec<Vec<f64>> = spaces.iter().map(|s| s.modes.frequencies_hz()).collect();
+    let views: Vec<ves_format::xdmf::XdmfSpace<'_>> = spaces
+        .iter()
+        .zip(&frequencies)
+        .map(|(s, f)| ves_format::xdmf::XdmfSpace {
+            name: s.name,
+            nodes: s.mesh.nodes.len(),
+            vertices: s.mesh.vertex_count,
+            tets: s.mesh.tet_count(),
+            order: s.mesh.order,
+            frequencies_hz: f,
+            stress: s.stress.is_some(),
+        })
+        .collect();
+    let name = out
+        .file_name()
+        .map(|n| n.to_string_lossy().into_owned())
+        .unwrap_or_default();
+    let text = ves_format::xdmf::sidecar(&name, &views);
+    let path = sidecar_path(out);
+    crate::output::write_atomically(&path, |tmp| Ok(std::fs::write(tmp, text.as_bytes())?))
+        .with_context(|| format!("{}: writing the XDMF sidecar failed", path.display()))
 }
 
 /// A content hash of what a basis depends on: the tool version, the scene text, the effective

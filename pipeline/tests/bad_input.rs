@@ -365,3 +365,13 @@ fn directories_given_as_geometry_or_device_script_say_so() {
     let o = ves(&["session", basis.to_str().unwrap(), "--device", &device]);
     assert_refused(&o, "is a directory");
 }
+
+/// `-o b.xdmf` would have the sidecar overwrite the basis it describes.
+#[test]
+fn an_output_named_like_its_own_sidecar_is_refused() {
+    let (dir, path) = workdir(GOOD);
+    let out = dir.path().join("b.xdmf");
+    let o = ves(&["precompute", path.to_str().unwrap(), "-o", out.to_str().unwrap()]);
+    assert_refused(&o, "name the output .h5");
+    assert!(!out.exists());
+}

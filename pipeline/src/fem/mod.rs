@@ -3,5 +3,6 @@
 pub mod assembly;
 pub mod element;
 pub mod quadrature;
+pub mod stress;
 
 pub use assembly::{Assembled, MassProperties, assemble};

@@ -220,6 +220,7 @@ pub fn run(scene: &Scene, opts: &ReportOptions, dir: &Path) -> Result<Report> {
         meshes[i] = Some(r);
     }
     let _ = std::fs::remove_file(&tmp);
+    let _ = std::fs::remove_file(store::sidecar_path(&tmp));
     bar.finish_and_clear();
     let meshes: Vec<MeshReport> = meshes.into_iter().flatten().collect();
     let report = Report {
@@ -505,6 +506,7 @@ impl Sweep<'_> {
                 meshing_strategy: Some(d.meshing.strategy),
                 transfers: &[],
                 estimated_relative_error: None,
+                stress: None,
             }],
         )?;
         let file_bytes = std::fs::metadata(self.tmp).map(|m| m.len()).unwrap_or(0);

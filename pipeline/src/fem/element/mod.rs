@@ -66,7 +66,7 @@ pub struct BadJacobian {
 }
 
 /// Jacobian J = ∂x/∂ξ at a point and the physical gradients of the shape functions.
-fn physical_gradients(x: &[[f64; 3]], gl: &[[f64; 4]], grad: &mut [[f64; 3]]) -> Result<f64, BadJacobian> {
+pub(crate) fn physical_gradients(x: &[[f64; 3]], gl: &[[f64; 4]], grad: &mut [[f64; 3]]) -> Result<f64, BadJacobian> {
     // ∂N/∂ξ_k = ∂N/∂L_k − ∂N/∂L_0 (ξ = (L1, L2, L3)); J = Σ_a x_a (∂N_a/∂ξ)ᵀ.
     let dxi = |ga: &[f64; 4]| Vector3::new(ga[1] - ga[0], ga[2] - ga[0], ga[3] - ga[0]);
     let j: Matrix3<f64> = x
