@@ -32,6 +32,8 @@ pub struct Material {
     pub alpha: f64,
     /// Rayleigh β, s.
     pub beta: f64,
+    /// Yield strength, Pa (optional attribute): the runtime's safety factor.
+    pub yield_strength: Option<f64>,
 }
 
 /// Mass properties of a free body (`rigid/`).

@@ -35,6 +35,8 @@ pub mod material {
     pub const ALPHA: &str = "rayleigh_alpha";
     /// Rayleigh β, s.
     pub const BETA: &str = "rayleigh_beta";
+    /// Optional: yield strength, Pa.
+    pub const YIELD_STRENGTH: &str = "yield_strength";
 }
 
 /// Group holding one group per space.

@@ -165,6 +165,13 @@ impl BasisReader {
                 density: get(mat::DENSITY)?,
                 alpha: get(mat::ALPHA)?,
                 beta: get(mat::BETA)?,
+                yield_strength: match g.attr(mat::YIELD_STRENGTH) {
+                    Ok(_) => Some(get(mat::YIELD_STRENGTH)?)
+                        .filter(|y| *y > 0.0)
+                        .map(Some)
+                        .ok_or_else(|| self.err("material attribute yield_strength is not > 0; the file is damaged"))?,
+                    Err(_) => None,
+                },
             };
             if !(m.young > 0.0 && m.density > 0.0 && m.poisson > -1.0 && m.poisson < 0.5) {
                 return Err(self.err(format!(

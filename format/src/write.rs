@@ -135,6 +135,9 @@ pub fn write_file(path: &Path, data: &FileData<'_>) -> Result<(), WriteError> {
     attr_f64(&m, mat::DENSITY, data.material.density)?;
     attr_f64(&m, mat::ALPHA, data.material.alpha)?;
     attr_f64(&m, mat::BETA, data.material.beta)?;
+    if let Some(y) = data.material.yield_strength {
+        attr_f64(&m, mat::YIELD_STRENGTH, y)?;
+    }
     for s in &data.spaces {
         write_space(&file, s).map_err(|e| WriteError {
             what: format!("space {:?}: {}", s.name, e.what),

@@ -103,6 +103,7 @@ pub fn write(out: &Path, scene: &Scene, spaces: &[Space<'_>]) -> Result<()> {
             density: scene.material.density,
             alpha: scene.damping.alpha,
             beta: scene.damping.beta,
+            yield_strength: scene.material.yield_strength,
         },
         spaces: spaces.iter().zip(&bases).map(|(s, b)| s.write(b)).collect(),
     };

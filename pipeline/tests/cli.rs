@@ -938,3 +938,52 @@ fn xdmf_sidecar_shows_the_basis_to_paraview() {
         }
     }
 }
+
+/// A session on a basis with modal stress and a yield strength reports the whole part's and
+/// the hands' von Mises stress and the part's safety factor; the root stress of the pulled
+/// cantilever is near beam theory's F L c / I; a minimum safety factor the hand's vertex cannot
+/// meet trips the watch, and the release policy lets go.
+#[test]
+fn session_reports_von_mises_and_the_safety_factor() {
+    let scene = GOOD
+        .replace("order = 1", "order = 2\nerror_estimate = false")
+        .replace("density = 7850.0", "density = 7850.0\nyield_strength = 2.5e8")
+        + "[stress]\nenabled = true\n";
+    let (dir, path) = workdir(&scene);
+    let basis = dir.path().join("beam.h5");
+    let o = ves(&["precompute", path.to_str().unwrap(), "-o", basis.to_str().unwrap()]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let script = dir.path().join("hand.csv");
+    std::fs::write(&script, "t,x,y,z,button\n0,1.0,0.05,0.05,1\n0.2,1.0,0.05,0.045,1\n").unwrap();
+    let v = session_json(&basis, &script);
+    let num = |v: &serde_json::Value, k: &str| v[k].as_f64().unwrap_or_else(|| panic!("{k}: {v}"));
+    let (part, hands, sf) = (
+        num(&v, "von_mises_max"),
+        num(&v, "von_mises_max_hands"),
+        num(&v, "safety_factor_min"),
+    );
+    assert!(part > 0.0 && hands > 0.0, "{v}");
+    assert!((sf - 2.5e8 / part).abs() < 1e-9 * sf, "{v}");
+    // The clamped root of a 1 × 0.1 × 0.05 m beam pulled at its tip (measured: 0.89 of it).
+    let beam = num(&v, "peak_force_n") * 1.0 * 0.025 / (0.1 * 0.05f64.powi(3) / 12.0);
+    assert!(
+        part > 0.5 * beam && part < 2.0 * beam,
+        "von Mises {part} Pa against beam theory {beam} Pa"
+    );
+    assert_eq!(v["stress_exceeded_steps"], 0);
+    let device = format!("script:{}", script.display());
+    let session = |extra: &[&str]| {
+        let args = [
+            &["session", basis.to_str().unwrap(), "--device", device.as_str()],
+            extra,
+        ]
+        .concat();
+        ves(&args)
+    };
+    let o = session(&["--min-safety-factor", "1e7", "--strain-policy", "release", "--json"]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let w = last_json(&o);
+    assert!(w["stress_exceeded_steps"].as_u64().unwrap() > 0, "{w}");
+    assert!(num(&w, "peak_force_n") < num(&v, "peak_force_n"), "released: {w}");
+    assert_refused(&session(&["--min-safety-factor", "0"]), "--min-safety-factor 0");
+}

@@ -101,6 +101,18 @@ typedef struct VesHandOutput {
    * range; the configured reaction acted).
    */
   int32_t strain_exceeded;
+  /**
+   * Von Mises stress at the active vertex, Pa (0 when the basis has no modal stress).
+   */
+  double von_mises;
+  /**
+   * Yield strength over that stress (infinite without a yield strength or stress).
+   */
+  double safety_factor;
+  /**
+   * Non-zero when the safety factor fell below the watch's minimum (the reaction acted).
+   */
+  int32_t stress_exceeded;
 } VesHandOutput;
 
 #ifdef __cplusplus
@@ -168,6 +180,16 @@ enum VesStatus ves_haptics_new(const struct VesBasis *b,
  * `h` must be live and not stepped concurrently.
  */
 enum VesStatus ves_haptics_set_strain_watch(struct VesHaptics *h, double limit, int32_t policy);
+
+/**
+ * Sets the stress criterion of the validity watch: with a basis that has modal stress and a
+ * yield strength, a safety factor (yield / von Mises at a hand's vertex) below `min` (default
+ * 1) triggers the same reaction as the strain limit.
+ *
+ * # Safety
+ * `h` must be live and not stepped concurrently.
+ */
+enum VesStatus ves_haptics_set_min_safety_factor(struct VesHaptics *h, double min);
 
 /**
  * Releases a simulation (null is ignored).

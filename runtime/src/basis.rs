@@ -61,6 +61,12 @@ pub struct Basis {
     pub bytes_loaded: usize,
     /// The volume of interest this space refines (min, max corners, m); `None` for "global".
     pub voi: Option<[[f64; 3]; 2]>,
+    /// Modal stress, mode-major f32: mode j is `stress[j·6n .. (j+1)·6n]`, entry 6i+k = Voigt
+    /// component k (xx yy zz yz xz xy) at kept vertex i, Pa per unit modal coordinate; when the
+    /// file has it.
+    pub stress: Option<Vec<f32>>,
+    /// Yield strength, Pa, when the file gives it (safety factors).
+    pub yield_strength: Option<f64>,
 }
 
 impl Basis {
@@ -149,7 +155,45 @@ impl Basis {
             compliance: None,
             bytes_loaded,
             voi: None,
+            stress: None,
+            yield_strength: None,
         })
+    }
+
+    /// Attaches modal stress from vertex-major rows (`rows[(6i+k)·r + j]`, one block of six per
+    /// kept vertex), checking shape, finiteness and single-precision range.
+    pub fn with_stress(mut self, rows: &[f64]) -> Result<Basis, LoadError> {
+        let (n, r) = (self.rest.len(), self.mode_count());
+        let err = |message: String| LoadError {
+            path: self.space.clone(),
+            message,
+        };
+        if rows.len() != 6 * n * r {
+            return Err(err(format!(
+                "modal stress has {} values, expected 6 × {n} × {r}",
+                rows.len()
+            )));
+        }
+        if rows.iter().any(|v| !v.is_finite() || v.abs() > f64::from(f32::MAX)) {
+            return Err(err(
+                "modal stress not finite or beyond single precision: the file is damaged".into(),
+            ));
+        }
+        let mut s = vec![0.0f32; 6 * n * r];
+        for (k, row) in rows.chunks_exact(r).enumerate() {
+            for (j, v) in row.iter().enumerate() {
+                s[j * 6 * n + k] = *v as f32;
+            }
+        }
+        self.bytes_loaded += s.len() * 4;
+        self.stress = Some(s);
+        Ok(self)
+    }
+
+    /// Mode j's stress over all kept vertices (6 values per vertex), when stored.
+    pub fn stress_mode(&self, j: usize) -> Option<&[f32]> {
+        let m = 6 * self.rest.len();
+        self.stress.as_ref().map(|s| &s[j * m..(j + 1) * m])
     }
 
     /// Attaches static compliance blocks, one per kept vertex (NaN: none for that vertex).
@@ -353,6 +397,14 @@ mod file {
             s.rigid()?,
         )?;
         basis.voi = s.voi;
+        basis.yield_strength = m.yield_strength;
+        if let Some(all) = s.stress_rows(0..nv, r)? {
+            let mut kept = Vec::with_capacity(6 * keep.len() * r);
+            for &v in &keep {
+                kept.extend_from_slice(&all[6 * v as usize * r..6 * (v as usize + 1) * r]);
+            }
+            basis = basis.with_stress(&kept)?;
+        }
         match s.compliance()? {
             Some((nodes, blocks)) => {
                 let mut slot = vec![u32::MAX; s.node_count];

@@ -88,6 +88,12 @@ pub struct VesHandOutput {
     /// Non-zero when that strain passed the validity limit (the linear model is leaving its
     /// range; the configured reaction acted).
     pub strain_exceeded: i32,
+    /// Von Mises stress at the active vertex, Pa (0 when the basis has no modal stress).
+    pub von_mises: f64,
+    /// Yield strength over that stress (infinite without a yield strength or stress).
+    pub safety_factor: f64,
+    /// Non-zero when the safety factor fell below the watch's minimum (the reaction acted).
+    pub stress_exceeded: i32,
 }
 
 thread_local! {
@@ -295,7 +301,41 @@ pub unsafe extern "C" fn ves_haptics_set_strain_watch(h: *mut VesHaptics, limit:
                 format!("ves_haptics_set_strain_watch: limit {limit} must be finite and > 0"),
             ));
         }
-        h.sim.set_strain_watch(crate::haptic::StrainWatch { limit, policy });
+        let min_safety_factor = h.sim.strain_watch().min_safety_factor;
+        h.sim.set_strain_watch(crate::haptic::StrainWatch {
+            limit,
+            policy,
+            min_safety_factor,
+        });
+        Ok(())
+    })
+}
+
+/// Sets the stress criterion of the validity watch: with a basis that has modal stress and a
+/// yield strength, a safety factor (yield / von Mises at a hand's vertex) below `min` (default
+/// 1) triggers the same reaction as the strain limit.
+///
+/// # Safety
+/// `h` must be live and not stepped concurrently.
+#[unsafe(no_mangle)]
+pub unsafe extern "C" fn ves_haptics_set_min_safety_factor(h: *mut VesHaptics, min: f64) -> VesStatus {
+    guard(|| {
+        // SAFETY: null-checked; exclusive use by contract.
+        let h = unsafe { h.as_mut() }.ok_or((
+            VesStatus::NullArgument,
+            "ves_haptics_set_min_safety_factor: null simulation".into(),
+        ))?;
+        if !(min > 0.0 && min.is_finite()) {
+            return Err((
+                VesStatus::InvalidArgument,
+                format!("ves_haptics_set_min_safety_factor: {min} must be finite and > 0 (e.g. 1.5)"),
+            ));
+        }
+        let watch = h.sim.strain_watch();
+        h.sim.set_strain_watch(crate::haptic::StrainWatch {
+            min_safety_factor: min,
+            ..watch
+        });
         Ok(())
     })
 }
@@ -392,6 +432,9 @@ fn step(
             clamped: i32::from(s.clamped),
             strain: s.strain,
             strain_exceeded: i32::from(s.strain_exceeded),
+            von_mises: s.von_mises,
+            safety_factor: s.safety_factor,
+            stress_exceeded: i32::from(s.stress_exceeded),
         };
     }
     h.time += h.sim.state().dt();

@@ -111,6 +111,9 @@ pub struct StrainWatch {
     pub limit: f64,
     /// Reaction past the limit.
     pub policy: StrainPolicy,
+    /// With a stress basis and a yield strength: the smallest safety factor (yield / von Mises)
+    /// at the active vertex before the same reaction acts.
+    pub min_safety_factor: f64,
 }
 
 impl Default for StrainWatch {
@@ -118,6 +121,7 @@ impl Default for StrainWatch {
         StrainWatch {
             limit: 0.02,
             policy: StrainPolicy::Flag,
+            min_safety_factor: 1.0,
         }
     }
 }
@@ -154,6 +158,12 @@ pub struct HandOutput {
     pub strain: f64,
     /// The strain passed the watch's limit (the configured reaction acted).
     pub strain_exceeded: bool,
+    /// Von Mises stress at the active vertex, Pa (0 without modal stress in the basis).
+    pub von_mises: f64,
+    /// Yield strength over that von Mises stress (infinite without a yield strength or stress).
+    pub safety_factor: f64,
+    /// The safety factor fell below the watch's minimum (the configured reaction acted).
+    pub stress_exceeded: bool,
 }
 
 struct Hand {
@@ -176,6 +186,10 @@ struct Hand {
     strain_per_newton: [V3; STRAIN_NEIGHBOURS],
     /// The stiffen cap acted last step (it stays on until the load falls below it).
     capped: bool,
+    /// The vertex's modal stress rows, `stress_rows[k·r + j]` (Voigt component k of mode j).
+    stress_rows: Vec<f64>,
+    /// Per Voigt component: static stress per newton at the vertex, Σ_j σ_kj φ_j / λ_j.
+    stress_per_newton: [V3; 6],
 }
 
 /// Haptic simulation of one part.
@@ -258,6 +272,8 @@ impl Haptics {
                 edges: 0,
                 strain_per_newton: [V3::zeros(); STRAIN_NEIGHBOURS],
                 capped: false,
+                stress_rows: vec![0.0; 6 * r],
+                stress_per_newton: [V3::zeros(); 6],
             })
             .collect();
         Haptics {
@@ -303,9 +319,14 @@ impl Haptics {
         }
     }
 
-    /// Sets the validity watch (default: flag past 2 % strain).
+    /// Sets the validity watch (default: flag past 2 % strain, or a safety factor below 1).
     pub fn set_strain_watch(&mut self, watch: StrainWatch) {
         self.strain_watch = watch;
+    }
+
+    /// The validity watch in force.
+    pub fn strain_watch(&self) -> StrainWatch {
+        self.strain_watch
     }
 
     /// The rigid-body state of a free part.
@@ -389,6 +410,34 @@ impl Haptics {
                     .sum()
             });
         }
+        if basis.stress.is_some() {
+            for j in 0..r {
+                let mode = basis.stress_mode(j).unwrap_or(&[]);
+                for k in 0..6 {
+                    hd.stress_rows[k * r + j] = mode.get(6 * i + k).map_or(0.0, |v| f64::from(*v));
+                }
+            }
+            for k in 0..6 {
+                let row = &hd.stress_rows[k * r..(k + 1) * r];
+                hd.stress_per_newton[k] =
+                    V3::from_fn(|a, _| (0..r).map(|j| row[j] * hd.rows[a * r + j] / basis.eigenvalues[j]).sum());
+            }
+        }
+    }
+
+    /// Von Mises stress at hand `k`'s vertex for the current modal state (None without stress).
+    fn vertex_von_mises(&self, k: usize) -> Option<f64> {
+        self.basis.stress.as_ref()?;
+        let hd = &self.hands[k];
+        let r = self.state.q.len();
+        let s: [f64; 6] = std::array::from_fn(|c| {
+            hd.stress_rows[c * r..(c + 1) * r]
+                .iter()
+                .zip(&self.state.q)
+                .map(|(a, q)| a * q)
+                .sum()
+        });
+        Some(crate::visual::von_mises(s))
     }
 
     /// Largest |edge strain| at hand `k`'s vertex for the current modal state.
@@ -522,18 +571,33 @@ impl Haptics {
         let watch = self.strain_watch;
         out.strain = strain;
         out.strain_exceeded = strain > watch.limit;
+        // The stress criterion: yield / von Mises below the minimum safety factor.
+        let allowed = self.basis.yield_strength.map(|y| y / watch.min_safety_factor);
+        out.von_mises = self.vertex_von_mises(k).unwrap_or(0.0);
+        out.safety_factor = match self.basis.yield_strength {
+            Some(y) if out.von_mises > 0.0 => y / out.von_mises,
+            _ => f64::INFINITY,
+        };
+        out.stress_exceeded = allowed.is_some_and(|a| out.von_mises > a);
+        let exceeded = out.strain_exceeded || out.stress_exceeded;
         let (mut force, mut device) = (force, force);
         match watch.policy {
             StrainPolicy::Flag => {}
-            StrainPolicy::Stiffen if out.strain_exceeded || self.hands[k].capped => {
+            StrainPolicy::Stiffen if exceeded || self.hands[k].capped => {
                 // Static strain per newton along this force's direction, over the edges.
                 let hd = &self.hands[k];
                 let now = force.norm();
+                let dir = force / now.max(1e-300);
                 let per_newton = hd.strain_per_newton[..hd.edges]
                     .iter()
-                    .map(|c| (c.dot(&force) / now.max(1e-300)).abs())
+                    .map(|c| c.dot(&dir).abs())
                     .fold(0.0, f64::max);
-                let cap = watch.limit / per_newton.max(1e-300);
+                let mut cap = watch.limit / per_newton.max(1e-300);
+                // And the static von Mises stress per newton in that direction.
+                if let (Some(a), Some(_)) = (allowed, self.basis.stress.as_ref()) {
+                    let vm = crate::visual::von_mises(std::array::from_fn(|c| hd.stress_per_newton[c].dot(&dir)));
+                    cap = cap.min(a / vm.max(1e-300));
+                }
                 let capped = now > cap;
                 if capped {
                     force *= cap / now;
@@ -541,7 +605,7 @@ impl Haptics {
                 self.hands[k].capped = capped;
             }
             StrainPolicy::Stiffen => {}
-            StrainPolicy::Release if out.strain_exceeded => {
+            StrainPolicy::Release if exceeded => {
                 force = V3::zeros();
                 device = V3::zeros();
                 self.hands[k].grabbed = false;
@@ -689,7 +753,11 @@ mod strain_tests {
 
     fn grab_centre(policy: StrainPolicy, pull: f64, steps: usize) -> (Haptics, HandOutput) {
         let mut h = Haptics::new(stretch_basis(), Coupling::default(), 1e-3, Scheme::Exact, 1);
-        h.set_strain_watch(StrainWatch { limit: 0.02, policy });
+        h.set_strain_watch(StrainWatch {
+            limit: 0.02,
+            policy,
+            ..StrainWatch::default()
+        });
         let mut out = [HandOutput::default()];
         let centre = [0.01, 0.01, 0.0];
         for k in 0..steps {

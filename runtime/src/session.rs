@@ -98,6 +98,16 @@ pub struct SessionStats {
     pub strain_exceeded_steps: u64,
     /// Largest surface-edge strain of the drawn part (visualization thread, every frame).
     pub strain_max_surface: f64,
+    /// Largest von Mises stress over the whole drawn part, Pa (visualization thread, every
+    /// frame; null when the basis has no modal stress).
+    pub von_mises_max: Option<f64>,
+    /// Largest von Mises stress at a hand's vertex, Pa (null without modal stress).
+    pub von_mises_max_hands: Option<f64>,
+    /// Yield strength over `von_mises_max`: the whole part's smallest safety factor (null
+    /// without stress or yield strength).
+    pub safety_factor_min: Option<f64>,
+    /// Hand-steps whose safety factor fell below the watch's minimum.
+    pub stress_exceeded_steps: u64,
 }
 
 /// Nanosecond timings streamed into a histogram (3 significant digits, 1 ns to 1 h): memory is
@@ -145,7 +155,9 @@ impl SessionConfig {
         InvalidSetting::check("duration", duration, "s", "> 0", duration > 0.0 && steps_fit)?;
         self.coupling.validate()?;
         let limit = self.strain.limit;
-        InvalidSetting::check("strain-limit", limit, "", "> 0, e.g. 0.02", limit > 0.0)
+        InvalidSetting::check("strain-limit", limit, "", "> 0, e.g. 0.02", limit > 0.0)?;
+        let sf = self.strain.min_safety_factor;
+        InvalidSetting::check("min-safety-factor", sf, "", "> 0, e.g. 1.5", sf > 0.0 && sf.is_finite())
     }
 }
 
@@ -187,6 +199,7 @@ pub fn run_spaces(
         sim.set_strain_watch(cfg.strain);
     }
     let (mut strain_max, mut strain_steps) = (0.0f64, 0u64);
+    let (mut vm_hands, mut stress_steps) = (0.0f64, 0u64);
     // Published: the active space's index, the pose (7), then that space's q.
     let r_max = bases.iter().map(|b| b.mode_count()).max().unwrap_or(0);
     let mut published = vec![0.0; 8 + r_max];
@@ -194,15 +207,20 @@ pub fn run_spaces(
     let stop = Arc::new(AtomicBool::new(false));
     let visual_count = Arc::new(AtomicU64::new(0));
     let surface_strain = Arc::new(AtomicU64::new(0f64.to_bits()));
+    let part_von_mises = Arc::new(AtomicU64::new(0f64.to_bits()));
 
     let viz = {
         let (bases, snapshot, stop, count) = (bases.clone(), snapshot.clone(), stop.clone(), visual_count.clone());
-        let strain = surface_strain.clone();
+        let (strain, von_mises) = (surface_strain.clone(), part_von_mises.clone());
         let cap = cfg.visual_hz.map(|hz| Duration::from_secs_f64(1.0 / hz.max(1.0)));
         std::thread::spawn(move || {
             let mut q = vec![0.0; 8 + r_max];
             // One position buffer per space, made before the loop.
             let mut pos: Vec<Vec<f32>> = bases.iter().map(|b| vec![0.0f32; 3 * b.vertex_count()]).collect();
+            let mut sigma: Vec<Vec<f32>> = bases
+                .iter()
+                .map(|b| vec![0.0f32; if b.stress.is_some() { 6 * b.vertex_count() } else { 0 }])
+                .collect();
             let start = Instant::now();
             while !stop.load(Ordering::Relaxed) {
                 let t = Instant::now();
@@ -215,6 +233,13 @@ pub fn run_spaces(
                 let s = visual::max_edge_strain(&bases[i], &pos[i]);
                 if s > f64::from_bits(strain.load(Ordering::Relaxed)) {
                     strain.store(s.to_bits(), Ordering::Relaxed);
+                }
+                // And the largest von Mises stress (rigid motion carries no stress: q alone).
+                if visual::stresses(&bases[i], &q[8..8 + r], &mut sigma[i]) {
+                    let (vm, _) = visual::max_von_mises(&sigma[i]);
+                    if vm > f64::from_bits(von_mises.load(Ordering::Relaxed)) {
+                        von_mises.store(vm.to_bits(), Ordering::Relaxed);
+                    }
                 }
                 count.fetch_add(1, Ordering::Relaxed);
                 if let Some(c) = cap {
@@ -262,6 +287,8 @@ pub fn run_spaces(
             clamped += u64::from(out.clamped);
             strain_max = strain_max.max(out.strain);
             strain_steps += u64::from(out.strain_exceeded);
+            vm_hands = vm_hands.max(out.von_mises);
+            stress_steps += u64::from(out.stress_exceeded);
         }
         let active = haptics.sim(haptics.active());
         let q = &active.state().q;
@@ -279,6 +306,7 @@ pub fn run_spaces(
     }
     let wall = start.elapsed().as_secs_f64();
     stop.store(true, Ordering::Relaxed);
+    let has_stress = bases.iter().any(|b| b.stress.is_some());
     let viz_wall = viz.join().unwrap_or(wall);
     let updates = visual_count.load(Ordering::Relaxed);
     Ok(SessionStats {
@@ -304,5 +332,12 @@ pub fn run_spaces(
         strain_max,
         strain_exceeded_steps: strain_steps,
         strain_max_surface: f64::from_bits(surface_strain.load(Ordering::Relaxed)),
+        von_mises_max: has_stress.then(|| f64::from_bits(part_von_mises.load(Ordering::Relaxed))),
+        von_mises_max_hands: has_stress.then_some(vm_hands),
+        safety_factor_min: match (has_stress, bases[0].yield_strength) {
+            (true, Some(y)) => Some(y / f64::from_bits(part_von_mises.load(Ordering::Relaxed)).max(f64::MIN_POSITIVE)),
+            _ => None,
+        },
+        stress_exceeded_steps: stress_steps,
     })
 }

@@ -14,6 +14,37 @@ pub fn displacements(basis: &Basis, q: &[f64], u: &mut [f32]) {
     }
 }
 
+/// Writes σ = Σ q_j σ_j (6 Voigt values per kept vertex: xx yy zz yz xz xy, Pa) into `sigma`;
+/// false (and `sigma` untouched) when the basis holds no stress.
+pub fn stresses(basis: &Basis, q: &[f64], sigma: &mut [f32]) -> bool {
+    if basis.stress.is_none() {
+        return false;
+    }
+    sigma.fill(0.0);
+    for (j, &qj) in q.iter().enumerate().take(basis.mode_count()) {
+        let qj = qj as f32;
+        for (s, sj) in sigma.iter_mut().zip(basis.stress_mode(j).unwrap_or(&[])) {
+            *s += qj * sj;
+        }
+    }
+    true
+}
+
+/// Von Mises equivalent stress of a Voigt stress (xx yy zz yz xz xy), Pa.
+pub fn von_mises(s: [f64; 6]) -> f64 {
+    let [xx, yy, zz, yz, xz, xy] = s;
+    (0.5 * ((xx - yy).powi(2) + (yy - zz).powi(2) + (zz - xx).powi(2)) + 3.0 * (yz * yz + xz * xz + xy * xy)).sqrt()
+}
+
+/// The largest von Mises stress over the vertices of `sigma` (6 per vertex) and its vertex.
+pub fn max_von_mises(sigma: &[f32]) -> (f64, usize) {
+    sigma
+        .chunks_exact(6)
+        .map(|s| von_mises(std::array::from_fn(|k| f64::from(s[k]))))
+        .enumerate()
+        .fold((0.0, 0), |best, (i, v)| if v > best.0 { (v, i) } else { best })
+}
+
 /// Writes deformed positions rest + u into `pos` (3 values per kept vertex).
 pub fn positions(basis: &Basis, q: &[f64], pos: &mut [f32]) {
     displacements(basis, q, pos);
@@ -81,6 +112,26 @@ pub fn max_edge_strain(basis: &Basis, pos: &[f32]) -> f64 {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// Von Mises of uniaxial tension is the tension, of pure shear √3 times the shear; the
+    /// modal sum and its maximum follow q.
+    #[test]
+    fn von_mises_of_known_states_and_of_a_modal_sum() {
+        assert!((von_mises([5.0, 0.0, 0.0, 0.0, 0.0, 0.0]) - 5.0).abs() < 1e-12);
+        assert!((von_mises([0.0, 0.0, 0.0, 0.0, 0.0, 2.0]) - 2.0 * 3f64.sqrt()).abs() < 1e-12);
+        assert!(von_mises([7.0, 7.0, 7.0, 0.0, 0.0, 0.0]).abs() < 1e-12, "hydrostatic");
+        let b = crate::basis::stretch_grid(1.0, 1.0, 0.0);
+        let n = b.vertex_count();
+        // One mode whose stress is uniaxial 1 MPa per unit q at vertex 2 only.
+        let mut rows = vec![0.0; 6 * n];
+        rows[6 * 2] = 1e6;
+        let b = b.with_stress(&rows).unwrap();
+        let mut sigma = vec![0.0f32; 6 * n];
+        assert!(stresses(&b, &[3.0], &mut sigma));
+        let (vm, at) = max_von_mises(&sigma);
+        assert_eq!(at, 2);
+        assert!((vm - 3e6).abs() < 1.0, "{vm}");
+    }
 
     /// A uniform stretch by ε along x of a 3 × 3 grid: the largest edge strain is ε (x edges).
     #[test]

@@ -68,24 +68,28 @@ fn grid() -> Arc<Basis> {
         .flatten()
         .collect();
     let count = rest.len() as u32;
-    Arc::new(
-        Basis::new(
-            "grid",
-            "global",
-            rest,
-            (0..count).collect(),
-            triangles,
-            vec![1e4, 4e4, 9e4],
-            &rows,
-            (1.0, 1e-4),
-            Some(RigidProperties {
-                mass: 0.1,
-                center: [0.02, 0.02, 0.0],
-                inertia: [[1e-5, 0.0, 0.0], [0.0, 1e-5, 0.0], [0.0, 0.0, 2e-5]],
-            }),
-        )
-        .expect("grid basis"),
+    // Modal stress too (6 per vertex × 3 modes), so that the stress watch runs in the loop.
+    let stress: Vec<f64> = (0..6 * rest.len() * 3).map(|i| 1e5 * ((i % 7) as f64 - 3.0)).collect();
+    let mut basis = Basis::new(
+        "grid",
+        "global",
+        rest,
+        (0..count).collect(),
+        triangles,
+        vec![1e4, 4e4, 9e4],
+        &rows,
+        (1.0, 1e-4),
+        Some(RigidProperties {
+            mass: 0.1,
+            center: [0.02, 0.02, 0.0],
+            inertia: [[1e-5, 0.0, 0.0], [0.0, 1e-5, 0.0], [0.0, 0.0, 2e-5]],
+        }),
     )
+    .expect("grid basis")
+    .with_stress(&stress)
+    .expect("stress");
+    basis.yield_strength = Some(10.0);
+    Arc::new(basis)
 }
 
 #[test]
@@ -100,7 +104,11 @@ fn haptic_steps_allocate_nothing() {
         if free {
             h.set_free_body([0.0, 0.0, -9.81], 1.0).expect("free body");
         }
-        h.set_strain_watch(StrainWatch { limit: 1e-3, policy });
+        h.set_strain_watch(StrainWatch {
+            limit: 1e-3,
+            policy,
+            ..StrainWatch::default()
+        });
         let mut out = [HandOutput::default(); 2];
         let input = |t: f64, button: bool, x: f64| HandInput {
             position: [x, 0.02, 0.001 - 0.01 * t],
@@ -110,10 +118,12 @@ fn haptic_steps_allocate_nothing() {
         // Warm-up: the first picks settle (nothing is sized lazily, but be fair to one-offs).
         h.step(&[input(0.0, false, 0.0), input(0.0, true, 0.04)], &mut out);
         let before = allocations();
+        let mut stressed = false;
         for k in 0..2000 {
             let t = f64::from(k) * 1e-3;
             let inputs = [input(t, false, 0.01 * (k % 5) as f64), input(t, k % 700 < 500, 0.04)];
             h.step(&inputs, &mut out);
+            stressed |= out.iter().any(|o| o.von_mises > 0.0 && o.stress_exceeded);
         }
         // A non-finite device position (rolled back, not allocated for) too.
         let bad = HandInput {
@@ -127,5 +137,6 @@ fn haptic_steps_allocate_nothing() {
             "free body {free}, {policy:?}: the step allocated"
         );
         assert!(out.iter().all(|o| o.force.iter().all(|f| f.is_finite())));
+        assert!(stressed, "the stress watch ran and tripped");
     }
 }

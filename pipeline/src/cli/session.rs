@@ -57,9 +57,13 @@ pub struct Args {
     /// Validity limit of the linear model: normal strain along the surface edges at a hand.
     #[arg(long, default_value_t = 0.02)]
     strain_limit: f64,
-    /// What to do past the strain limit.
+    /// What to do past the strain limit (or below the minimum safety factor).
     #[arg(long, value_enum, default_value_t = StrainReaction::Flag)]
     strain_policy: StrainReaction,
+    /// With a basis holding modal stress and a yield strength: the smallest safety factor
+    /// (yield / von Mises) at a hand before the strain policy acts.
+    #[arg(long, default_value_t = 1.0)]
+    min_safety_factor: f64,
     /// Print the statistics as JSON.
     #[arg(long)]
     json: bool,
@@ -85,6 +89,7 @@ impl Args {
                     StrainReaction::Stiffen => StrainPolicy::Stiffen,
                     StrainReaction::Release => StrainPolicy::Release,
                 },
+                min_safety_factor: self.min_safety_factor,
             },
             ..Default::default()
         };
