@@ -47,6 +47,10 @@ fn good_scene_writes_a_basis_and_json_summary() {
     );
     let err = String::from_utf8_lossy(&o.stderr);
     assert_eq!(err.matches("use mesh.order = 2").count(), 1, "{err}");
+    // 50 mm tets in a 50 mm-thick beam: one element through it, which the estimate cannot see.
+    assert_eq!(err.matches("walls one element thick").count(), 1, "{err}");
+    let modes = space["error_estimate"]["modes"].as_array().expect("modes");
+    assert!(modes.iter().all(|m| m["reliable"] == false), "{modes:?}");
 
     let o = ves(&["info", out.to_str().unwrap(), "--json"]);
     assert!(o.status.success());

@@ -181,7 +181,14 @@ fn from_coarser<'a>(
         .iter()
         .map(|l| l.max(0.0).sqrt() / (2.0 * std::f64::consts::PI))
         .collect();
-    let modes = combine(fine.dofs.free_count(), &fine_f, &levels, order);
+    let mut modes = combine(fine.dofs.free_count(), &fine_f, &levels, order);
+    // Walls one element thick stay one element thick on every coarser mesh: the error of that
+    // is invisible to the comparison (docs/accuracy.md), so no mode's estimate is vouched for.
+    if fine.mesh.walls().spanning_fraction > crate::mesh::walls::ONE_ELEMENT_THICK {
+        for m in &mut modes {
+            m.reliable = false;
+        }
+    }
     Some(ErrorEstimate { modes, levels })
 }
 
