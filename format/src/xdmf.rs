@@ -31,7 +31,7 @@ pub struct XdmfSpace<'a> {
 
 /// gmsh → VTK order of a 10-node tet (gmsh numbers the last two mid-edge nodes (3,2), (3,1);
 /// VTK (1,3), (2,3)).
-const TET10_TO_VTK: [usize; 10] = [0, 1, 2, 3, 4, 5, 6, 7, 9, 8];
+pub const TET10_TO_VTK: [usize; 10] = [0, 1, 2, 3, 4, 5, 6, 7, 9, 8];
 
 /// XDMF's Tensor6 order (xx xy xz yy yz zz) in terms of the file's (xx yy zz yz xz xy).
 const VOIGT_TO_TENSOR6: [usize; 6] = [0, 5, 4, 1, 3, 2];
@@ -147,7 +147,7 @@ fn geometry(x: &mut String, nodes: &str) {
 }
 
 /// "mode 07 shape (1234.5678 Hz)": zero-padded so that ParaView lists them in order.
-fn mode_name(j: usize, r: usize, f: f64, what: &str) -> String {
+pub fn mode_name(j: usize, r: usize, f: f64, what: &str) -> String {
     let width = r.to_string().len();
     format!("mode {:0width$} {what} ({f:.4} Hz)", j + 1)
 }

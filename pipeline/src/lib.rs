@@ -23,3 +23,4 @@ pub mod store;
 pub mod supports;
 pub mod transfer;
 pub mod verify;
+pub mod vtu;

@@ -3,6 +3,7 @@
 
 pub mod batch;
 pub mod bench;
+pub mod export;
 pub mod info;
 pub mod matrices;
 pub mod precompute;
@@ -47,6 +48,9 @@ enum Command {
     Report(report::Args),
     /// Summarise a modal-basis file (after checking everything in it).
     Info(info::Args),
+    /// Write a basis as VTK files (`--vtu DIR`: one .vtu per space, and one of its corner
+    /// vertices with the modal stress) for tools that do not read the XDMF sidecar.
+    Export(export::Args),
     /// Internal: mesh one rung of the meshing ladder for a parent `ves` (gmsh in its own process).
     #[command(name = "mesh-worker", hide = true)]
     MeshWorker {
@@ -75,6 +79,7 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
         Command::Verify(a) => a.run(),
         Command::Report(a) => a.run(),
         Command::Info(a) => a.run(),
+        Command::Export(a) => a.run(),
     }
 }
 

@@ -1,0 +1,23 @@
+//! `ves export BASIS --vtu DIR`.
+
+use anyhow::Result;
+use std::path::PathBuf;
+
+/// Arguments.
+#[derive(clap::Args)]
+pub struct Args {
+    /// Basis file (HDF5).
+    basis: PathBuf,
+    /// Directory for the .vtu files (created if missing; files of the same names replaced).
+    #[arg(long, value_name = "DIR")]
+    vtu: PathBuf,
+}
+
+impl Args {
+    pub fn run(self) -> Result<()> {
+        for f in ves_pipeline::vtu::export(&self.basis, &self.vtu)? {
+            println!("wrote {}", f.display());
+        }
+        Ok(())
+    }
+}

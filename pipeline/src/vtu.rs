@@ -1,0 +1,162 @@
+//! `ves export BASIS --vtu DIR`: a basis as VTK unstructured-grid files, for tools that read VTK
+//! but not the XDMF sidecar (meshio, VTK scripts). Per space `<space>.vtu`: its 4- or 10-node
+//! tets (VTK node order) with every mode shape as a point vector; with modal stress also
+//! `<space>_vertices.vtu` on the corner vertices with each mode's stress as a symmetric tensor
+//! (VTK's order xx yy zz xy yz xz). Binary data appended raw (little-endian, 64-bit headers).
+
+use anyhow::{Context, Result, bail};
+use std::io::Write;
+use std::path::{Path, PathBuf};
+
+use ves_format::xdmf::{TET10_TO_VTK, mode_name};
+
+/// VTK's symmetric-tensor order (xx yy zz xy yz xz) from the file's Voigt (xx yy zz yz xz xy).
+const VOIGT_TO_VTK: [usize; 6] = [0, 1, 2, 5, 3, 4];
+const VTK_TETRA: u8 = 10;
+const VTK_QUADRATIC_TETRA: u8 = 24;
+
+/// One array of an unstructured grid.
+enum Data<'a> {
+    F64(&'a [f64]),
+    I64(&'a [i64]),
+    U8(&'a [u8]),
+}
+
+impl Data<'_> {
+    fn vtk_type(&self) -> &'static str {
+        match self {
+            Data::F64(_) => "Float64",
+            Data::I64(_) => "Int64",
+            Data::U8(_) => "UInt8",
+        }
+    }
+
+    fn bytes(&self) -> Vec<u8> {
+        match self {
+            Data::F64(v) => v.iter().flat_map(|x| x.to_le_bytes()).collect(),
+            Data::I64(v) => v.iter().flat_map(|x| x.to_le_bytes()).collect(),
+            Data::U8(v) => v.to_vec(),
+        }
+    }
+}
+
+/// Writes the basis at `basis` into `dir` (created if missing); returns the files written.
+pub fn export(basis: &Path, dir: &Path) -> Result<Vec<PathBuf>> {
+    let file = ves_format::BasisReader::open(basis)?;
+    if dir.exists() && !dir.is_dir() {
+        bail!("{}: is a file; give a directory for the VTK files", dir.display());
+    }
+    std::fs::create_dir_all(dir).with_context(|| format!("{}: cannot create the directory", dir.display()))?;
+    let mut written = Vec::new();
+    for name in file.space_names()? {
+        let s = file.space(&name)?;
+        let (n, nv, r) = (s.node_count, s.vertex_count, s.mode_count);
+        let nodes: Vec<f64> = s.nodes(n)?.into_iter().flatten().collect();
+        let tets = s.tets()?;
+        let per = if s.element_order == 2 { 10 } else { 4 };
+        let order: &[usize] = if per == 10 { &TET10_TO_VTK } else { &[0, 1, 2, 3] };
+        let frequencies = s.frequencies_hz()?;
+        let rows = s.basis_rows(0..3 * n, r)?;
+        let shapes: Vec<(String, usize, Vec<f64>)> = (0..r)
+            .map(|j| {
+                let v = (0..3 * n).map(|i| rows[i * r + j]).collect();
+                (mode_name(j, r, frequencies[j], "shape"), 3, v)
+            })
+            .collect();
+        let cells: Vec<i64> = tets
+            .chunks_exact(per)
+            .flat_map(|t| order.iter().map(move |&k| i64::from(t[k])))
+            .collect();
+        let kind = if per == 10 { VTK_QUADRATIC_TETRA } else { VTK_TETRA };
+        let path = dir.join(format!("{name}.vtu"));
+        write_grid(&path, &nodes, &cells, per, kind, &shapes)?;
+        written.push(path);
+        if let Some(stress) = s.stress_rows(0..nv, r)? {
+            let fields: Vec<(String, usize, Vec<f64>)> = (0..r)
+                .map(|j| {
+                    let v = (0..nv)
+                        .flat_map(|i| VOIGT_TO_VTK.map(|k| stress[(6 * i + k) * r + j]))
+                        .collect();
+                    (mode_name(j, r, frequencies[j], "stress"), 6, v)
+                })
+                .collect();
+            let corners: Vec<i64> = tets
+                .chunks_exact(per)
+                .flat_map(|t| t[..4].iter().map(|&v| i64::from(v)))
+                .collect();
+            let path = dir.join(format!("{name}_vertices.vtu"));
+            write_grid(&path, &nodes[..3 * nv], &corners, 4, VTK_TETRA, &fields)?;
+            written.push(path);
+        }
+    }
+    Ok(written)
+}
+
+fn write_grid(
+    path: &Path,
+    points: &[f64],
+    cells: &[i64],
+    per_cell: usize,
+    kind: u8,
+    fields: &[(String, usize, Vec<f64>)],
+) -> Result<()> {
+    let m = cells.len() / per_cell;
+    let offsets: Vec<i64> = (1..=m).map(|e| (e * per_cell) as i64).collect();
+    let types = vec![kind; m];
+    // (name, components, data) in the order they are appended.
+    let mut arrays: Vec<(&str, usize, Data<'_>)> = vec![("Points", 3, Data::F64(points))];
+    arrays.extend(fields.iter().map(|(name, c, v)| (name.as_str(), *c, Data::F64(v))));
+    arrays.push(("connectivity", 1, Data::I64(cells)));
+    arrays.push(("offsets", 1, Data::I64(&offsets)));
+    arrays.push(("types", 1, Data::U8(&types)));
+    let mut xml = String::new();
+    let mut offset = 0usize;
+    let mut blobs = Vec::new();
+    let mut item = |a: &(&str, usize, Data<'_>)| {
+        let bytes = a.2.bytes();
+        let tag = format!(
+            r#"<DataArray type="{}" Name="{}" NumberOfComponents="{}" format="appended" offset="{offset}"/>"#,
+            a.2.vtk_type(),
+            escape(a.0),
+            a.1
+        );
+        offset += 8 + bytes.len();
+        blobs.push(bytes);
+        tag
+    };
+    xml.push_str(r#"<?xml version="1.0"?>"#);
+    xml.push('\n');
+    xml.push_str(r#"<VTKFile type="UnstructuredGrid" version="1.0" byte_order="LittleEndian" header_type="UInt64">"#);
+    xml.push_str(&format!(
+        "\n<UnstructuredGrid>\n<Piece NumberOfPoints=\"{}\" NumberOfCells=\"{m}\">\n<Points>{}</Points>\n<PointData>",
+        points.len() / 3,
+        item(&arrays[0])
+    ));
+    for a in &arrays[1..1 + fields.len()] {
+        xml.push_str(&item(a));
+    }
+    xml.push_str("</PointData>\n<Cells>");
+    for a in &arrays[1 + fields.len()..] {
+        xml.push_str(&item(a));
+    }
+    xml.push_str("</Cells>\n</Piece>\n</UnstructuredGrid>\n<AppendedData encoding=\"raw\">_");
+    crate::output::write_atomically(path, |tmp| {
+        let mut w = std::io::BufWriter::new(std::fs::File::create(tmp)?);
+        w.write_all(xml.as_bytes())?;
+        for b in &blobs {
+            w.write_all(&(b.len() as u64).to_le_bytes())?;
+            w.write_all(b)?;
+        }
+        w.write_all(b"\n</AppendedData>\n</VTKFile>\n")?;
+        w.flush()?;
+        Ok(())
+    })
+    .with_context(|| format!("{}: writing failed", path.display()))
+}
+
+fn escape(s: &str) -> String {
+    s.replace('&', "&amp;")
+        .replace('<', "&lt;")
+        .replace('>', "&gt;")
+        .replace('"', "&quot;")
+}

@@ -1,0 +1,33 @@
+"""Reads the files of `ves export BASIS --vtu DIR` with meshio and checks them against the basis
+(h5py): node coordinates, cells in VTK order, every mode shape, every stress tensor (VTK order
+xx yy zz xy yz xz). Prints "ok" or raises.
+
+    python3 vtu_check.py DIR BASIS.h5
+"""
+import sys
+
+import h5py
+import meshio
+import numpy as np
+
+out, h5 = sys.argv[1], sys.argv[2]
+with h5py.File(h5, "r") as f:
+    for name, g in f["spaces"].items():
+        m = meshio.read(f"{out}/{name}.vtu")
+        nodes, tets, basis = g["mesh/nodes"][:], g["mesh/tets"][:], g["modes/basis"][:]
+        assert np.array_equal(m.points, nodes), name
+        order = [0, 1, 2, 3, 4, 5, 6, 7, 9, 8] if tets.shape[1] == 10 else [0, 1, 2, 3]
+        assert len(m.cells) == 1 and np.array_equal(m.cells[0].data, tets[:, order]), name
+        shapes = sorted(m.point_data)
+        assert len(shapes) == basis.shape[1], (name, shapes)
+        for j, k in enumerate(shapes):
+            assert np.array_equal(m.point_data[k], basis[:, j].reshape(-1, 3)), (name, k)
+        if "stress" in g["modes"]:
+            nv = g["mesh"].attrs["vertex_count"]
+            v = meshio.read(f"{out}/{name}_vertices.vtu")
+            assert np.array_equal(v.points, nodes[:nv]) and np.array_equal(v.cells[0].data, tets[:, :4])
+            stress = g["modes/stress"][:]
+            for j, k in enumerate(sorted(v.point_data)):
+                want = stress[:, j].reshape(nv, 6)[:, [0, 1, 2, 5, 3, 4]]
+                assert np.array_equal(v.point_data[k], want), (name, k)
+print("ok")
