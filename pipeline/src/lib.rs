@@ -8,6 +8,7 @@ pub mod batch;
 pub mod compliance;
 pub mod export;
 pub mod fem;
+pub mod fingerprint;
 pub mod linsolve;
 pub mod mesh;
 pub mod modes;

@@ -148,20 +148,12 @@ fn write_sidecar(out: &Path, spaces: &[Space<'_>]) -> Result<()> {
 pub fn source_hash(scene: &Scene) -> Result<String> {
     let geometry = std::fs::read(&scene.geometry)
         .with_context(|| format!("{}: cannot read the geometry", scene.geometry.display()))?;
-    let mut h: u64 = 0xcbf2_9ce4_8422_2325;
-    let mut eat = |bytes: &[u8]| {
-        for &b in bytes {
-            h ^= u64::from(b);
-            h = h.wrapping_mul(0x0000_0100_0000_01b3);
-        }
-        // Field separator, so "ab"+"c" and "a"+"bc" differ.
-        h ^= 0xff;
-        h = h.wrapping_mul(0x0000_0100_0000_01b3);
-    };
-    eat(concat!("ves ", env!("CARGO_PKG_VERSION")).as_bytes());
-    eat(scene.toml.as_bytes());
-    eat(&(scene.modes.count as u64).to_le_bytes());
-    eat(&geometry);
+    let h = crate::fingerprint::Fingerprint::default()
+        .field(concat!("ves ", env!("CARGO_PKG_VERSION")).as_bytes())
+        .field(scene.toml.as_bytes())
+        .field(&(scene.modes.count as u64).to_le_bytes())
+        .field(&geometry)
+        .value();
     Ok(format!("fnv1a64:{h:016x}"))
 }
 

@@ -1005,3 +1005,49 @@ fn session_reports_von_mises_and_the_safety_factor() {
     assert!(num(&w, "peak_force_n") < num(&v, "peak_force_n"), "released: {w}");
     assert_refused(&session(&["--min-safety-factor", "0"]), "--min-safety-factor 0");
 }
+
+/// The mesh cache: a second precompute of the same part with another material meshes nothing
+/// (three hits: the mesh and the estimate's two coarser ones, no new entries) and, on the same
+/// meshes, its frequencies scale exactly as √E; `VES_MESH_CACHE=off` stores nothing.
+#[test]
+fn a_second_scenario_of_the_same_part_reuses_its_meshes() {
+    let (dir, path) = workdir(GOOD);
+    let cache = dir.path().join("cache");
+    let run = |scene: &Path, extra: &[(&str, &str)]| {
+        let mut c = Command::new(env!("CARGO_BIN_EXE_ves"));
+        c.args(["precompute", scene.to_str().unwrap(), "-o"])
+            .arg(dir.path().join("b.h5"))
+            .args(["--force", "--json"])
+            .env("VES_CACHE_DIR", &cache)
+            .env("VES_LOG", "info");
+        for (k, v) in extra {
+            c.env(k, v);
+        }
+        let o = c.output().expect("ves runs");
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        let hits = String::from_utf8_lossy(&o.stderr).matches("mesh cache hit").count();
+        let f: Vec<f64> = last_json(&o)["spaces"][0]["frequencies_hz"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|x| x.as_f64().unwrap())
+            .collect();
+        (hits, f)
+    };
+    let entries = || std::fs::read_dir(cache.join("meshes")).map_or(0, |d| d.count());
+    let (hits, f) = run(&path, &[]);
+    assert_eq!((hits, entries()), (0, 6), "three meshes, two files each");
+    let stiffer = write_file(
+        dir.path(),
+        "stiff.toml",
+        &GOOD.replace("young = 2.1e11", "young = 8.4e11"),
+    );
+    let (hits, g) = run(&stiffer, &[]);
+    assert_eq!((hits, entries()), (3, 6));
+    for (a, b) in f.iter().zip(&g) {
+        assert!((b / a - 2.0).abs() < 1e-9, "{a} → {b}");
+    }
+    std::fs::remove_dir_all(&cache).unwrap();
+    let (hits, _) = run(&path, &[("VES_MESH_CACHE", "off")]);
+    assert_eq!((hits, entries()), (0, 0));
+}

@@ -161,7 +161,7 @@ pub fn serve(dir: &Path) -> Result<(), String> {
     std::fs::rename(&tmp, dir.join("reply.json")).map_err(|e| format!("{}: {e}", dir.display()))
 }
 
-fn write_mesh(path: &Path, mesh: &Mesh) -> std::io::Result<()> {
+pub(super) fn write_mesh(path: &Path, mesh: &Mesh) -> std::io::Result<()> {
     let mut w = BufWriter::new(std::fs::File::create(path)?);
     for n in [mesh.nodes.len(), mesh.tets.len(), mesh.surface.len()] {
         w.write_all(&(n as u64).to_le_bytes())?;
@@ -175,7 +175,7 @@ fn write_mesh(path: &Path, mesh: &Mesh) -> std::io::Result<()> {
     w.flush()
 }
 
-fn read_mesh(path: &Path, vertex_count: usize, order: u8) -> std::io::Result<Mesh> {
+pub(super) fn read_mesh(path: &Path, vertex_count: usize, order: u8) -> std::io::Result<Mesh> {
     let file = std::fs::File::open(path)?;
     let size = file.metadata()?.len();
     let mut r = BufReader::new(file);

@@ -3,6 +3,7 @@
 use crate::scene::{LengthUnit, Scene, Voi};
 use nalgebra::Vector3;
 
+mod cache;
 mod isolation;
 pub mod quality;
 pub mod walls;
@@ -334,11 +335,34 @@ pub fn generate_with(scene: &Scene, voi: Option<&Voi>, quiet: bool) -> Result<(M
         voi: voi.cloned(),
         quiet,
     };
-    if isolation::is_on() {
-        // Each rung runs in its own process: the ladder itself needs no gmsh.
-        return walk_ladder(&request);
+    let key = cache::key(&request);
+    if let Some((mesh, meshing)) = key.as_deref().and_then(cache::lookup) {
+        tracing::info!(nodes = mesh.nodes.len(), "mesh cache hit");
+        if meshing.straightened > 0 || meshing.rung > 0 {
+            notice(
+                &request,
+                format!(
+                    "{}: (cached mesh) meshed on rung {} ({}); {} curved tets made straight-sided",
+                    request.geometry.display(),
+                    meshing.rung,
+                    meshing.strategy,
+                    meshing.straightened
+                ),
+            );
+        }
+        return Ok((mesh, meshing));
     }
-    gmsh::on_gmsh_thread(move || walk_ladder(&request))
+    let made = if isolation::is_on() {
+        // Each rung runs in its own process: the ladder itself needs no gmsh.
+        walk_ladder(&request)
+    } else {
+        let request = request.clone();
+        gmsh::on_gmsh_thread(move || walk_ladder(&request))
+    }?;
+    if let Some(k) = &key {
+        cache::store(k, &made.0, &made.1);
+    }
+    Ok(made)
 }
 
 /// All that meshing needs of a scene (and all a meshing process is sent).
