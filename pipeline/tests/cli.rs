@@ -194,7 +194,12 @@ fn info_refuses_foreign_and_truncated_files() {
 fn session_and_bench_report_json() {
     let (dir, basis) = good_basis();
     let script = dir.path().join("hand.csv");
-    std::fs::write(&script, "t,x,y,z,button\n0,1.0,0.05,0.05,1\n0.2,1.0,0.05,0.045,1\n").unwrap();
+    // Pull the tip 5 mm down over 0.2 s, then hold.
+    std::fs::write(
+        &script,
+        "t,x,y,z,button\n0,1.0,0.05,0.05,1\n0.2,1.0,0.05,0.045,1\n0.5,1.0,0.05,0.045,1\n",
+    )
+    .unwrap();
     let v = session_json(&basis, &script);
     assert_eq!(v["steps"], 200);
     for key in [
@@ -960,7 +965,8 @@ fn xdmf_sidecar_shows_the_basis_to_paraview() {
 /// A session on a basis with modal stress and a yield strength reports the whole part's and
 /// the hands' von Mises stress and the part's safety factor; the root stress of the pulled
 /// cantilever is near beam theory's F L c / I; a minimum safety factor the hand's vertex cannot
-/// meet trips the watch, and the release policy lets go.
+/// meet trips the watch and the release policy lets go; one that only the clamped root misses
+/// (the drawing thread sees it) trips it too, and stiffen holds the load there.
 #[test]
 fn session_reports_von_mises_and_the_safety_factor() {
     let scene = GOOD
@@ -1003,6 +1009,13 @@ fn session_reports_von_mises_and_the_safety_factor() {
     let w = last_json(&o);
     assert!(w["stress_exceeded_steps"].as_u64().unwrap() > 0, "{w}");
     assert!(num(&w, "peak_force_n") < num(&v, "peak_force_n"), "released: {w}");
+    // The root's safety factor is ~4300, the tip vertex's ~2e6: 1e4 only the root misses.
+    let o = session(&["--min-safety-factor", "1e4", "--strain-policy", "stiffen", "--json"]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let s = last_json(&o);
+    assert!(s["safety_factor_below_min_frames"].as_u64().unwrap() > 0, "{s}");
+    assert!(s["stress_exceeded_steps"].as_u64().unwrap() > 0, "{s}");
+    assert!(num(&s, "von_mises_max") < 0.8 * part, "stiffen held the load: {s}");
     assert_refused(&session(&["--min-safety-factor", "0"]), "--min-safety-factor 0");
 }
 

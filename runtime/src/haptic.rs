@@ -190,6 +190,8 @@ struct Hand {
     stress_rows: Vec<f64>,
     /// Per Voigt component: static stress per newton at the vertex, Σ_j σ_kj φ_j / λ_j.
     stress_per_newton: [V3; 6],
+    /// The force on the part when the part alarm came on (stiffen holds it there).
+    alarm_force: Option<f64>,
 }
 
 /// Haptic simulation of one part.
@@ -207,6 +209,9 @@ pub struct Haptics {
     strain_watch: StrainWatch,
     /// Steps whose result was non-finite and was rolled back.
     pub quarantined: u64,
+    /// The whole part's safety factor is below the watch's minimum (set by whoever computes the
+    /// full stress field, e.g. the drawing thread): the hands' stress criterion is then met too.
+    part_alarm: bool,
 }
 
 /// One hand's device state in the part (body) frame.
@@ -274,6 +279,7 @@ impl Haptics {
                 capped: false,
                 stress_rows: vec![0.0; 6 * r],
                 stress_per_newton: [V3::zeros(); 6],
+                alarm_force: None,
             })
             .collect();
         Haptics {
@@ -289,6 +295,7 @@ impl Haptics {
             static_correction: true,
             strain_watch: StrainWatch::default(),
             quarantined: 0,
+            part_alarm: false,
         }
     }
 
@@ -327,6 +334,14 @@ impl Haptics {
     /// The validity watch in force.
     pub fn strain_watch(&self) -> StrainWatch {
         self.strain_watch
+    }
+
+    /// Says whether the whole part's safety factor is below the watch's minimum (a stress peak
+    /// away from the hands, which the haptic step does not compute): while on, every hand in
+    /// contact counts as past the stress limit and the policy reacts (stiffen holds the force
+    /// at what it was when the alarm came on).
+    pub fn set_part_alarm(&mut self, on: bool) {
+        self.part_alarm = on;
     }
 
     /// The rigid-body state of a free part.
@@ -578,7 +593,10 @@ impl Haptics {
             Some(y) if out.von_mises > 0.0 => y / out.von_mises,
             _ => f64::INFINITY,
         };
-        out.stress_exceeded = allowed.is_some_and(|a| out.von_mises > a);
+        out.stress_exceeded = allowed.is_some_and(|a| out.von_mises > a) || self.part_alarm;
+        if !self.part_alarm {
+            self.hands[k].alarm_force = None;
+        }
         let exceeded = out.strain_exceeded || out.stress_exceeded;
         let (mut force, mut device) = (force, force);
         match watch.policy {
@@ -597,6 +615,15 @@ impl Haptics {
                 if let (Some(a), Some(_)) = (allowed, self.basis.stress.as_ref()) {
                     let vm = crate::visual::von_mises(std::array::from_fn(|c| hd.stress_per_newton[c].dot(&dir)));
                     cap = cap.min(a / vm.max(1e-300));
+                }
+                // A peak elsewhere: no load through this vertex beyond what it carried then.
+                let held = if self.part_alarm {
+                    Some(*self.hands[k].alarm_force.get_or_insert(now))
+                } else {
+                    None
+                };
+                if let Some(h) = held {
+                    cap = cap.min(h);
                 }
                 let capped = now > cap;
                 if capped {

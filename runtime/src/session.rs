@@ -106,8 +106,11 @@ pub struct SessionStats {
     /// Yield strength over `von_mises_max`: the whole part's smallest safety factor (null
     /// without stress or yield strength).
     pub safety_factor_min: Option<f64>,
-    /// Hand-steps whose safety factor fell below the watch's minimum.
+    /// Hand-steps past the stress criterion: the safety factor at the hand's vertex, or the
+    /// whole part's, below the watch's minimum.
     pub stress_exceeded_steps: u64,
+    /// Drawn frames in which the whole part's safety factor was below the watch's minimum.
+    pub safety_factor_below_min_frames: u64,
 }
 
 /// Nanosecond timings streamed into a histogram (3 significant digits, 1 ns to 1 h): memory is
@@ -208,10 +211,15 @@ pub fn run_spaces(
     let visual_count = Arc::new(AtomicU64::new(0));
     let surface_strain = Arc::new(AtomicU64::new(0f64.to_bits()));
     let part_von_mises = Arc::new(AtomicU64::new(0f64.to_bits()));
+    // Set by the drawing thread while the whole part's safety factor is below the minimum.
+    let part_alarm = Arc::new(AtomicBool::new(false));
+    let alarm_frames = Arc::new(AtomicU64::new(0));
+    let min_sf = cfg.strain.min_safety_factor;
 
     let viz = {
         let (bases, snapshot, stop, count) = (bases.clone(), snapshot.clone(), stop.clone(), visual_count.clone());
         let (strain, von_mises) = (surface_strain.clone(), part_von_mises.clone());
+        let (alarm, frames) = (part_alarm.clone(), alarm_frames.clone());
         let cap = cfg.visual_hz.map(|hz| Duration::from_secs_f64(1.0 / hz.max(1.0)));
         std::thread::spawn(move || {
             let mut q = vec![0.0; 8 + r_max];
@@ -240,6 +248,9 @@ pub fn run_spaces(
                     if vm > f64::from_bits(von_mises.load(Ordering::Relaxed)) {
                         von_mises.store(vm.to_bits(), Ordering::Relaxed);
                     }
+                    let below = bases[i].yield_strength.is_some_and(|y| y < min_sf * vm);
+                    alarm.store(below, Ordering::Relaxed);
+                    frames.fetch_add(u64::from(below), Ordering::Relaxed);
                 }
                 count.fetch_add(1, Ordering::Relaxed);
                 if let Some(c) = cap {
@@ -276,6 +287,10 @@ pub fn run_spaces(
                 velocity: s.velocity,
                 button: s.button,
             };
+        }
+        let alarm = part_alarm.load(Ordering::Relaxed);
+        for sim in haptics.sims_mut() {
+            sim.set_part_alarm(alarm);
         }
         let c0 = Instant::now();
         haptics.step(&inputs, &mut outputs);
@@ -339,5 +354,6 @@ pub fn run_spaces(
             _ => None,
         },
         stress_exceeded_steps: stress_steps,
+        safety_factor_below_min_frames: alarm_frames.load(Ordering::Relaxed),
     })
 }
