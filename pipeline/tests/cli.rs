@@ -194,12 +194,7 @@ fn info_refuses_foreign_and_truncated_files() {
 fn session_and_bench_report_json() {
     let (dir, basis) = good_basis();
     let script = dir.path().join("hand.csv");
-    // Pull the tip 5 mm down over 0.2 s, then hold.
-    std::fs::write(
-        &script,
-        "t,x,y,z,button\n0,1.0,0.05,0.05,1\n0.2,1.0,0.05,0.045,1\n0.5,1.0,0.05,0.045,1\n",
-    )
-    .unwrap();
+    std::fs::write(&script, "t,x,y,z,button\n0,1.0,0.05,0.05,1\n0.2,1.0,0.05,0.045,1\n").unwrap();
     let v = session_json(&basis, &script);
     assert_eq!(v["steps"], 200);
     for key in [
@@ -978,7 +973,12 @@ fn session_reports_von_mises_and_the_safety_factor() {
     let o = ves(&["precompute", path.to_str().unwrap(), "-o", basis.to_str().unwrap()]);
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     let script = dir.path().join("hand.csv");
-    std::fs::write(&script, "t,x,y,z,button\n0,1.0,0.05,0.05,1\n0.2,1.0,0.05,0.045,1\n").unwrap();
+    // Pull the tip 5 mm down over 0.2 s, then hold.
+    std::fs::write(
+        &script,
+        "t,x,y,z,button\n0,1.0,0.05,0.05,1\n0.2,1.0,0.05,0.045,1\n0.5,1.0,0.05,0.045,1\n",
+    )
+    .unwrap();
     let v = session_json(&basis, &script);
     let num = |v: &serde_json::Value, k: &str| v[k].as_f64().unwrap_or_else(|| panic!("{k}: {v}"));
     let (part, hands, sf) = (

@@ -192,6 +192,9 @@ struct Hand {
     stress_per_newton: [V3; 6],
     /// The force on the part when the part alarm came on (stiffen holds it there).
     alarm_force: Option<f64>,
+    /// Let go by the release policy: no force until the button is released (re-grabbing at once
+    /// while it is still held made release/grab cycles that pumped the part).
+    latched: bool,
 }
 
 /// Haptic simulation of one part.
@@ -280,6 +283,7 @@ impl Haptics {
                 stress_rows: vec![0.0; 6 * r],
                 stress_per_newton: [V3::zeros(); 6],
                 alarm_force: None,
+                latched: false,
             })
             .collect();
         Haptics {
@@ -503,6 +507,12 @@ impl Haptics {
     /// button pressed while touching keeps the vertex until released). `None`: no vertex (a
     /// non-finite HIP), no force.
     fn pick(&mut self, k: usize, input: &PartInput) -> Option<u32> {
+        if self.hands[k].latched {
+            if input.button {
+                return None;
+            }
+            self.hands[k].latched = false;
+        }
         if !self.hands[k].grabbed {
             let (v, _) = self.tree.nearest(input.position.into())?;
             self.select(k, v);
@@ -636,6 +646,7 @@ impl Haptics {
                 force = V3::zeros();
                 device = V3::zeros();
                 self.hands[k].grabbed = false;
+                self.hands[k].latched = true;
             }
             StrainPolicy::Release => {}
         }
@@ -828,5 +839,14 @@ mod strain_tests {
         let (rel, out) = grab_centre(StrainPolicy::Release, 0.05, 400);
         assert_eq!(out.force, [0.0; 3], "released: {out:?}");
         assert!(!rel.hands[0].grabbed, "the grab is let go");
+        // …and stays let go while the button is held: the part relaxes (it used to be grabbed
+        // again at the next step).
+        assert!(rel.hands[0].latched);
+        assert!(
+            rel.state.q[0].abs() < 0.2 * flag.state.q[0].abs(),
+            "{} vs {}",
+            rel.state.q[0],
+            flag.state.q[0]
+        );
     }
 }
