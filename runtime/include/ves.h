@@ -235,6 +235,16 @@ void ves_view_free(struct VesView *v);
  */
 enum VesStatus ves_view_positions(struct VesView *v, float *positions, size_t len);
 
+/**
+ * Writes the von Mises stress of every vertex (Pa, one float per vertex: the first `vertices`
+ * of a buffer of `len` floats) from the latest published state, for colouring the part.
+ * `InvalidArgument` when the basis holds no modal stress (precompute with `[stress] enabled`).
+ *
+ * # Safety
+ * `v` must be live and used by one thread at a time; `von_mises` must hold `len` floats.
+ */
+enum VesStatus ves_view_von_mises(struct VesView *v, float *von_mises, size_t len);
+
 #ifdef __cplusplus
 }  // extern "C"
 #endif  // __cplusplus

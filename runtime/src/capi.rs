@@ -55,6 +55,8 @@ pub struct VesView {
     basis: Arc<Basis>,
     snapshot: Arc<Snapshot>,
     q: Vec<f64>,
+    /// Stress per vertex (6 each) when the basis has modal stress.
+    sigma: Vec<f32>,
 }
 
 /// One hand's device state (SI units, part frame).
@@ -457,12 +459,21 @@ pub unsafe extern "C" fn ves_view_new(h: *const VesHaptics, out: *mut *mut VesVi
         }
         let basis = h.sim.basis_arc();
         let q = vec![0.0; h.published.len()];
+        let sigma = vec![
+            0.0f32;
+            if basis.stress.is_some() {
+                6 * basis.vertex_count()
+            } else {
+                0
+            }
+        ];
         // SAFETY: out checked non-null.
         unsafe {
             *out = Box::into_raw(Box::new(VesView {
                 basis,
                 snapshot: h.snapshot.clone(),
                 q,
+                sigma,
             }))
         };
         Ok(())
@@ -504,10 +515,100 @@ pub unsafe extern "C" fn ves_view_positions(v: *mut VesView, positions: *mut f32
     })
 }
 
+/// Writes the von Mises stress of every vertex (Pa, one float per vertex: the first `vertices`
+/// of a buffer of `len` floats) from the latest published state, for colouring the part.
+/// `InvalidArgument` when the basis holds no modal stress (precompute with `[stress] enabled`).
+///
+/// # Safety
+/// `v` must be live and used by one thread at a time; `von_mises` must hold `len` floats.
+#[unsafe(no_mangle)]
+pub unsafe extern "C" fn ves_view_von_mises(v: *mut VesView, von_mises: *mut f32, len: usize) -> VesStatus {
+    guard(|| {
+        // SAFETY: null-checked; exclusive by contract.
+        let v = unsafe { v.as_mut() }.ok_or((VesStatus::NullArgument, "ves_view_von_mises: null view".into()))?;
+        let need = v.basis.vertex_count();
+        if von_mises.is_null() || len < need {
+            return Err((
+                VesStatus::InvalidArgument,
+                format!("ves_view_von_mises: need a buffer of at least {need} floats, got {len}"),
+            ));
+        }
+        // SAFETY: the caller provides len ≥ need floats; only the first need are written.
+        let out = unsafe { std::slice::from_raw_parts_mut(von_mises, need) };
+        v.snapshot.read(&mut v.q);
+        let r = v.basis.mode_count();
+        if !visual::stresses(&v.basis, &v.q[..r], &mut v.sigma) {
+            return Err((
+                VesStatus::InvalidArgument,
+                "ves_view_von_mises: the basis has no modal stress; precompute it with [stress] enabled = true".into(),
+            ));
+        }
+        for (o, s) in out.iter_mut().zip(v.sigma.chunks_exact(6)) {
+            *o = visual::von_mises(std::array::from_fn(|k| f64::from(s[k]))) as f32;
+        }
+        Ok(())
+    })
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
     use std::sync::atomic::{AtomicBool, Ordering};
+
+    /// Von Mises per vertex from the published state: one mode whose stress is uniaxial 1 MPa
+    /// per unit q at vertex 2; without modal stress the call says how to get it.
+    #[test]
+    fn a_view_gives_von_mises_per_vertex_or_says_how_to_get_it() {
+        for with_stress in [true, false] {
+            let mut b = crate::basis::stretch_grid(1.0, 100.0, 0.0);
+            let n = b.vertex_count();
+            if with_stress {
+                let mut rows = vec![0.0; 6 * n];
+                rows[6 * 2] = 1e6;
+                b = b.with_stress(&rows).unwrap();
+            }
+            let sim = Haptics::new(Arc::new(b), Coupling::default(), 1e-3, Scheme::Exact, 1);
+            let mut published = vec![0.0; sim.published_len()];
+            published[0] = 0.25; // q of the one mode
+            let snapshot = Arc::new(Snapshot::new(published.len()));
+            snapshot.publish(&published, 0.0);
+            let h = VesHaptics {
+                snapshot,
+                sim,
+                published,
+                time: 0.0,
+                hands: 1,
+                poisoned: false,
+            };
+            let mut view: *mut VesView = std::ptr::null_mut();
+            // SAFETY: live handle, valid out pointer; the view is freed below.
+            assert_eq!(unsafe { ves_view_new(&h, &mut view) }, VesStatus::Ok);
+            let mut vm = vec![-1.0f32; n];
+            // SAFETY: live view, buffer of n floats.
+            let status = unsafe { ves_view_von_mises(view, vm.as_mut_ptr(), n) };
+            if with_stress {
+                assert_eq!(status, VesStatus::Ok);
+                assert!(
+                    (vm[2] - 2.5e5).abs() < 1.0 && vm.iter().enumerate().all(|(i, v)| i == 2 || *v == 0.0),
+                    "{vm:?}"
+                );
+                // SAFETY: as above, with too short a buffer.
+                assert_eq!(
+                    unsafe { ves_view_von_mises(view, vm.as_mut_ptr(), n - 1) },
+                    VesStatus::InvalidArgument
+                );
+            } else {
+                assert_eq!(status, VesStatus::InvalidArgument);
+                // SAFETY: ves_last_error returns a valid C string.
+                let msg = unsafe { std::ffi::CStr::from_ptr(ves_last_error()) }
+                    .to_string_lossy()
+                    .into_owned();
+                assert!(msg.contains("[stress] enabled"), "{msg}");
+            }
+            // SAFETY: from ves_view_new, not used afterwards.
+            unsafe { ves_view_free(view) };
+        }
+    }
 
     /// Makes the next step panic (the only way to reach the boundary's catch from a test).
     pub(super) static PANIC_IN_STEP: AtomicBool = AtomicBool::new(false);
