@@ -180,7 +180,8 @@ fn join(x: &mut String, dims: &str, parts: &[String]) {
     let _ = writeln!(x, "    </DataItem>");
 }
 
-fn escape(s: &str) -> String {
+/// `s` escaped for an XML attribute or text (shared with the VTU writer).
+pub fn escape(s: &str) -> String {
     s.replace('&', "&amp;")
         .replace('<', "&lt;")
         .replace('>', "&gt;")

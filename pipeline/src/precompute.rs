@@ -117,14 +117,7 @@ pub fn solve_space(scene: &Scene, voi: Option<&Voi>, choice: SolverChoice) -> Re
             let (modes, ordering_s) = modes::solve(&d, scene.modes.count, choice)?;
             let solved_s = t.elapsed().as_secs_f64();
             let error = if scene.mesh.error_estimate {
-                let view = crate::transfer::SpaceView {
-                    mesh: &d.mesh,
-                    dofs: &d.dofs,
-                    modes: &modes.vectors,
-                    r: modes.eigenvalues.len(),
-                    pattern: &d.system.pattern,
-                    m: &d.system.m,
-                };
+                let view = crate::transfer::SpaceView::of(&d.mesh, &d.dofs, &d.system, &modes, usize::MAX);
                 crate::accuracy::estimate(scene, voi, &view, &modes.eigenvalues, choice)
             } else {
                 None
@@ -401,12 +394,5 @@ pub fn add_transfers(spaces: &mut [SolvedSpace]) {
 }
 
 fn space_view(s: &SolvedSpace) -> crate::transfer::SpaceView<'_> {
-    crate::transfer::SpaceView {
-        mesh: &s.mesh,
-        dofs: &s.dofs,
-        modes: &s.modes.vectors,
-        r: s.modes.eigenvalues.len(),
-        pattern: &s.system.pattern,
-        m: &s.system.m,
-    }
+    crate::transfer::SpaceView::of(&s.mesh, &s.dofs, &s.system, &s.modes, usize::MAX)
 }

@@ -28,6 +28,26 @@ pub struct SpaceView<'a> {
     pub m: &'a [f64],
 }
 
+impl<'a> SpaceView<'a> {
+    /// The first `r` (at most all) of `modes` on `mesh`, with `system`'s mass matrix.
+    pub fn of(
+        mesh: &'a Mesh,
+        dofs: &'a Dofs,
+        system: &'a crate::fem::Assembled,
+        modes: &'a crate::modes::Modes,
+        r: usize,
+    ) -> SpaceView<'a> {
+        SpaceView {
+            mesh,
+            dofs,
+            modes: &modes.vectors,
+            r: r.min(modes.eigenvalues.len()),
+            pattern: &system.pattern,
+            m: &system.m,
+        }
+    }
+}
+
 /// Where each node of one mesh lies in the tets of another.
 pub struct Interpolation {
     /// Per target node: the source tet and the barycentric coordinates in it.

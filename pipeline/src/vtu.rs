@@ -8,7 +8,7 @@ use anyhow::{Context, Result, bail};
 use std::io::Write;
 use std::path::{Path, PathBuf};
 
-use ves_format::xdmf::{TET10_TO_VTK, mode_name};
+use ves_format::xdmf::{TET10_TO_VTK, escape, mode_name};
 
 /// VTK's symmetric-tensor order (xx yy zz xy yz xz) from the file's Voigt (xx yy zz yz xz xy).
 const VOIGT_TO_VTK: [usize; 6] = [0, 1, 2, 5, 3, 4];
@@ -152,11 +152,4 @@ fn write_grid(
         Ok(())
     })
     .with_context(|| format!("{}: writing failed", path.display()))
-}
-
-fn escape(s: &str) -> String {
-    s.replace('&', "&amp;")
-        .replace('<', "&lt;")
-        .replace('>', "&gt;")
-        .replace('"', "&quot;")
 }

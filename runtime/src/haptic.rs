@@ -627,13 +627,8 @@ impl Haptics {
                     cap = cap.min(a / vm.max(1e-300));
                 }
                 // A peak elsewhere: no load through this vertex beyond what it carried then.
-                let held = if self.part_alarm {
-                    Some(*self.hands[k].alarm_force.get_or_insert(now))
-                } else {
-                    None
-                };
-                if let Some(h) = held {
-                    cap = cap.min(h);
+                if self.part_alarm {
+                    cap = cap.min(*self.hands[k].alarm_force.get_or_insert(now));
                 }
                 let capped = now > cap;
                 if capped {

@@ -117,7 +117,7 @@ pub fn partners(coarse: &SpaceView<'_>, coarse_lambda: &[f64], fine: &SpaceView<
 
 /// Combines the finest mesh (`dofs`, frequencies) with coarser levels into per-mode errors.
 pub fn combine(dofs: usize, frequencies_hz: &[f64], levels: &[Level], order: u8) -> Vec<ModeError> {
-    let theory = max_rate(order);
+    let credited = max_rate(order);
     (0..frequencies_hz.len())
         .map(|i| {
             // The levels on which this mode was paired, in order.
@@ -132,10 +132,10 @@ pub fn combine(dofs: usize, frequencies_hz: &[f64], levels: &[Level], order: u8)
                     None => break,
                 }
             }
-            richardson::estimate(&n, &f, theory).unwrap_or(ModeError {
+            richardson::estimate(&n, &f, credited).unwrap_or(ModeError {
                 relative: f64::NAN,
                 measured_rate: None,
-                rate: theory,
+                rate: credited,
                 reliable: false,
             })
         })
@@ -238,14 +238,7 @@ impl Solved {
 
     /// Its first `r` modes as the transfer sees them.
     pub fn view(&self, r: usize) -> SpaceView<'_> {
-        SpaceView {
-            mesh: &self.d.mesh,
-            dofs: &self.d.dofs,
-            modes: &self.modes.vectors,
-            r: r.min(self.modes.eigenvalues.len()),
-            pattern: &self.d.system.pattern,
-            m: &self.d.system.m,
-        }
+        SpaceView::of(&self.d.mesh, &self.d.dofs, &self.d.system, &self.modes, r)
     }
 
     /// This mesh as a coarser level of `fine`: each of `fine`'s modes paired with its own.
@@ -279,14 +272,7 @@ mod tests {
     }
 
     fn view<'a>(d: &'a Discretized, m: &'a modes::Modes) -> SpaceView<'a> {
-        SpaceView {
-            mesh: &d.mesh,
-            dofs: &d.dofs,
-            modes: &m.vectors,
-            r: m.eigenvalues.len(),
-            pattern: &d.system.pattern,
-            m: &d.system.m,
-        }
+        SpaceView::of(&d.mesh, &d.dofs, &d.system, m, usize::MAX)
     }
 
     /// Pairing finds each mode on the coarser mesh whatever order its modes come in, and a

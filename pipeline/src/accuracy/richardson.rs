@@ -25,10 +25,10 @@ pub struct ModeError {
 pub const MIN_RATE: f64 = 0.5;
 
 /// Estimates the error of `f[0]` (the finest mesh, `dofs[0]` unknowns) from the same mode on
-/// coarser meshes `f[1..]` (`dofs` decreasing). `theory` is the fastest rate in h to credit
+/// coarser meshes `f[1..]` (`dofs` decreasing). `max_rate` is the fastest rate in h to credit
 /// (see `accuracy::max_rate`): a measured rate above it is taken as noise, and it is the rate
 /// used when none can be measured (then the estimate is marked unreliable).
-pub fn estimate(dofs: &[usize], f: &[f64], theory: f64) -> Option<ModeError> {
+pub fn estimate(dofs: &[usize], f: &[f64], max_rate: f64) -> Option<ModeError> {
     if f.len() < 2 || dofs.len() != f.len() || f.iter().any(|v| !v.is_finite() || *v <= 0.0) {
         return None;
     }
@@ -43,9 +43,9 @@ pub fn estimate(dofs: &[usize], f: &[f64], theory: f64) -> Option<ModeError> {
         (shift / converged).abs()
     };
     let rough = ModeError {
-        relative: at_rate(theory),
+        relative: at_rate(max_rate),
         measured_rate: None,
-        rate: theory,
+        rate: max_rate,
         reliable: false,
     };
     if f.len() == 2 {
@@ -61,7 +61,7 @@ pub fn estimate(dofs: &[usize], f: &[f64], theory: f64) -> Option<ModeError> {
         return Some(ModeError {
             relative: 0.0,
             measured_rate: None,
-            rate: theory,
+            rate: max_rate,
             reliable: true,
         });
     }
@@ -74,8 +74,8 @@ pub fn estimate(dofs: &[usize], f: &[f64], theory: f64) -> Option<ModeError> {
             ..rough
         });
     }
-    // Above theory is noise from non-nested meshes: the theoretical rate is the safer one.
-    let used = q.min(theory);
+    // Above the credited maximum is noise from non-nested meshes: the theoretical rate is the safer one.
+    let used = q.min(max_rate);
     Some(ModeError {
         relative: at_rate(used),
         measured_rate: Some(q),

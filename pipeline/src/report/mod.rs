@@ -335,14 +335,7 @@ impl Sweep<'_> {
         }
         // The estimate a basis of this mesh would carry, against the reference's frequencies.
         let k = ESTIMATE_MODES.min(top.eigenvalues.len());
-        let view = crate::transfer::SpaceView {
-            mesh: &d.mesh,
-            dofs: &d.dofs,
-            modes: &top.vectors,
-            r: k,
-            pattern: &d.system.pattern,
-            m: &d.system.m,
-        };
+        let view = crate::transfer::SpaceView::of(&d.mesh, &d.dofs, &d.system, &top, k);
         let estimated_relative_error =
             crate::accuracy::estimate(&scene, None, &view, &top.eigenvalues[..k], SolverChoice::Auto)
                 .map(|e| e.relative());
