@@ -125,7 +125,8 @@ fn c_abi_refuses_bad_hands_and_positions_and_accepts_a_larger_view_buffer() {
     assert!(last().contains("is a directory"), "{}", last());
     let p = CString::new(basis.to_str().unwrap()).unwrap();
     // SAFETY: as above.
-    assert_eq!(unsafe { ves_basis_load(p.as_ptr(), 0, &mut b) }, VesStatus::Ok);
+    let status = unsafe { ves_basis_load(p.as_ptr(), 0, &mut b) };
+    assert_eq!(status, VesStatus::Ok, "{}", last());
     let mut h: *mut VesHaptics = std::ptr::null_mut();
     // SAFETY: live basis, valid out-pointer.
     assert_eq!(

@@ -6,8 +6,8 @@
 //! size), the VES version and the text of the meshing code itself (so any change to how meshes
 //! are made misses the old entries without a version to bump). Entries live in
 //! `$VES_CACHE_DIR/meshes`, else `$XDG_CACHE_HOME/ves/meshes`, else `~/.cache/ves/meshes`;
-//! `VES_MESH_CACHE=off` turns the cache off. Each entry is written to a temporary name and
-//! renamed, the description last, so concurrent runs never read half an entry. A `.geo` script
+//! `VES_MESH_CACHE=off` turns the cache off. Each entry is one file written under a temporary
+//! name and renamed, so concurrent runs and threads never read half an entry or a mix of two. A `.geo` script
 //! is never cached (it may read other files). gmsh itself is not in the key: a rebuild against
 //! another gmsh should start from an empty cache.
 
@@ -60,39 +60,121 @@ pub(super) fn key(req: &Request) -> Option<PathBuf> {
         h.field(s.as_bytes());
     }
     h.field(shape.as_bytes()).field(&geometry);
-    Some(dir()?.join(format!("{:016x}", h.value())))
+    Some(dir()?.join(format!("{:016x}.mesh", h.value())))
 }
+
+/// Longest description accepted when reading an entry (a damaged length is not allocated).
+const MAX_DESCRIPTION: u64 = 1 << 16;
 
 /// The cached mesh of `key`, if complete and readable.
 pub(super) fn lookup(key: &std::path::Path) -> Option<(Mesh, Meshing)> {
-    let text = std::fs::read_to_string(key.with_extension("json")).ok()?;
-    let entry: Entry = serde_json::from_str(&text).ok()?;
-    let mesh = isolation::read_mesh(&key.with_extension("bin"), entry.vertex_count, entry.order).ok()?;
+    use std::io::Read;
+    let file = std::fs::File::open(key).ok()?;
+    let size = file.metadata().ok()?.len();
+    let mut r = std::io::BufReader::new(file);
+    let mut word = [0u8; 8];
+    r.read_exact(&mut word).ok()?;
+    let len = u64::from_le_bytes(word);
+    if len > MAX_DESCRIPTION || 8 + len > size {
+        return None;
+    }
+    let mut text = vec![0u8; len as usize];
+    r.read_exact(&mut text).ok()?;
+    let entry: Entry = serde_json::from_slice(&text).ok()?;
+    let mesh = isolation::read_mesh_from(&mut r, size - 8 - len, entry.vertex_count, entry.order).ok()?;
     let mut meshing = entry.meshing;
     meshing.strategy = LADDER.get(meshing.rung)?.name;
     Some((mesh, meshing))
 }
 
 /// Stores a mesh under `key`; a failure only costs the next run its meshing (logged).
+///
+/// One file per entry (its description, then the mesh), written under a name no other process
+/// or thread uses and renamed into place: a reader sees a whole entry or none. (Two files, one
+/// renamed after the other, let a reader pair one run's description with another run's mesh
+/// while both stored the same key: gmsh's meshes of one input can differ between runs.)
 pub(super) fn store(key: &std::path::Path, mesh: &Mesh, meshing: &Meshing) {
+    use std::io::Write;
+    use std::sync::atomic::{AtomicU64, Ordering};
+    static SERIAL: AtomicU64 = AtomicU64::new(0);
     let result = (|| -> std::io::Result<()> {
         if let Some(d) = key.parent() {
             std::fs::create_dir_all(d)?;
         }
-        let unique = format!("tmp{}", std::process::id());
-        let bin = key.with_extension(format!("bin.{unique}"));
-        isolation::write_mesh(&bin, mesh)?;
-        std::fs::rename(&bin, key.with_extension("bin"))?;
         let entry = Entry {
             meshing: *meshing,
             vertex_count: mesh.vertex_count,
             order: mesh.order,
         };
-        let json = key.with_extension(format!("json.{unique}"));
-        std::fs::write(&json, serde_json::to_string(&entry).map_err(std::io::Error::other)?)?;
-        std::fs::rename(&json, key.with_extension("json"))
+        let text = serde_json::to_vec(&entry).map_err(std::io::Error::other)?;
+        let unique = format!("tmp{}.{}", std::process::id(), SERIAL.fetch_add(1, Ordering::Relaxed));
+        let tmp = key.with_extension(unique);
+        let written = (|| {
+            let mut w = std::io::BufWriter::new(std::fs::File::create(&tmp)?);
+            w.write_all(&(text.len() as u64).to_le_bytes())?;
+            w.write_all(&text)?;
+            isolation::write_mesh_to(&mut w, mesh)?;
+            w.flush()?;
+            std::fs::rename(&tmp, key)
+        })();
+        if written.is_err() {
+            let _ = std::fs::remove_file(&tmp);
+        }
+        written
     })();
     if let Err(e) = result {
         tracing::info!("mesh cache: cannot store {}: {e}", key.display());
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Threads storing two different meshes under one key (as two runs of one part can, since
+    /// gmsh's meshes of one input differ) while another thread reads: every entry read is one
+    /// of the two meshes whole, never one's description with the other's nodes.
+    #[test]
+    fn concurrent_stores_of_one_key_are_read_whole() {
+        let a = Mesh::structured_box([3, 1, 1], 0.01, 2, |_, p| p);
+        let b = Mesh::structured_box([5, 2, 1], 0.01, 2, |_, p| p);
+        let meshing = Meshing::default();
+        let dir = tempfile::tempdir().unwrap();
+        let key = dir.path().join("0123456789abcdef.mesh");
+        let reads = std::thread::scope(|s| {
+            for m in [&a, &b, &a, &b] {
+                s.spawn(|| {
+                    for _ in 0..50 {
+                        store(&key, m, &meshing);
+                    }
+                });
+            }
+            s.spawn(|| {
+                let mut reads = 0;
+                for _ in 0..2000 {
+                    if let Some((m, _)) = lookup(&key) {
+                        let whole = [&a, &b]
+                            .iter()
+                            .any(|x| x.nodes == m.nodes && x.tets == m.tets && x.vertex_count == m.vertex_count);
+                        assert!(
+                            whole,
+                            "a mixed entry: {} vertices, {} nodes",
+                            m.vertex_count,
+                            m.nodes.len()
+                        );
+                        reads += 1;
+                    }
+                }
+                reads
+            })
+            .join()
+            .unwrap()
+        });
+        assert!(reads > 0, "the entry was never readable");
+        let left: Vec<_> = std::fs::read_dir(dir.path())
+            .unwrap()
+            .map(|e| e.unwrap().file_name())
+            .collect();
+        assert_eq!(left.len(), 1, "temporary files left: {left:?}");
     }
 }

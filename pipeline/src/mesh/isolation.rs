@@ -163,6 +163,12 @@ pub fn serve(dir: &Path) -> Result<(), String> {
 
 pub(super) fn write_mesh(path: &Path, mesh: &Mesh) -> std::io::Result<()> {
     let mut w = BufWriter::new(std::fs::File::create(path)?);
+    write_mesh_to(&mut w, mesh)?;
+    w.flush()
+}
+
+/// The mesh as bytes: three counts, the node coordinates, the tet and surface indices.
+pub(super) fn write_mesh_to(w: &mut impl Write, mesh: &Mesh) -> std::io::Result<()> {
     for n in [mesh.nodes.len(), mesh.tets.len(), mesh.surface.len()] {
         w.write_all(&(n as u64).to_le_bytes())?;
     }
@@ -172,13 +178,17 @@ pub(super) fn write_mesh(path: &Path, mesh: &Mesh) -> std::io::Result<()> {
     for v in mesh.tets.iter().chain(mesh.surface.iter().flatten()) {
         w.write_all(&v.to_le_bytes())?;
     }
-    w.flush()
+    Ok(())
 }
 
 pub(super) fn read_mesh(path: &Path, vertex_count: usize, order: u8) -> std::io::Result<Mesh> {
     let file = std::fs::File::open(path)?;
     let size = file.metadata()?.len();
-    let mut r = BufReader::new(file);
+    read_mesh_from(&mut BufReader::new(file), size, vertex_count, order)
+}
+
+/// Reads what [`write_mesh_to`] wrote, `size` bytes in all, checking counts and indices.
+pub(super) fn read_mesh_from(r: &mut impl Read, size: u64, vertex_count: usize, order: u8) -> std::io::Result<Mesh> {
     let mut word = [0u8; 8];
     let mut counts = [0usize; 3];
     for c in &mut counts {
@@ -211,6 +221,13 @@ pub(super) fn read_mesh(path: &Path, vertex_count: usize, order: u8) -> std::io:
         if *v as usize >= nodes {
             return Err(std::io::Error::other(format!("node index {v} of {nodes}")));
         }
+    }
+    // Corner vertices are numbered first: a description that does not match its mesh shows here.
+    let corners = u32s[..tets].chunks_exact(per_tet).flat_map(|t| &t[..4]);
+    if let Some(v) = corners.chain(&u32s[tets..]).find(|&&v| v as usize >= vertex_count) {
+        return Err(std::io::Error::other(format!(
+            "corner vertex {v} beyond the {vertex_count} corner vertices"
+        )));
     }
     let surface = u32s[tets..].chunks_exact(3).map(|f| [f[0], f[1], f[2]]).collect();
     u32s.truncate(tets);
