@@ -21,6 +21,8 @@ pub trait Device: Send {
     fn read(&mut self, t: f64) -> DeviceState;
     /// Force to render, N (already limited by the runtime).
     fn write(&mut self, force: [f64; 3]);
+    /// Everything the step gave this hand (vertex, contact, strain, stress), after `write`.
+    fn observe(&mut self, _out: &crate::haptic::HandOutput) {}
 }
 
 /// A trajectory read from CSV `t, x, y, z[, button]` (SI units, rows in increasing t; `#` lines

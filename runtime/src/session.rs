@@ -153,8 +153,9 @@ impl SessionConfig {
             "between 1 and 10000",
             (1.0..=10_000.0).contains(&rate),
         )?;
-        // The step count must fit in a u64 (statistics stream, so memory does not grow with it).
-        let steps_fit = duration * rate < u64::MAX as f64 / 2.0;
+        // The step count must fit in a u64 (statistics stream, so memory does not grow with it);
+        // an infinite session runs until stopped (see [`Hooks::stop`]).
+        let steps_fit = duration.is_infinite() || duration * rate < u64::MAX as f64 / 2.0;
         InvalidSetting::check("duration", duration, "s", "> 0", duration > 0.0 && steps_fit)?;
         self.coupling.validate()?;
         let limit = self.strain.limit;
@@ -162,6 +163,36 @@ impl SessionConfig {
         let sf = self.strain.min_safety_factor;
         InvalidSetting::check("min-safety-factor", sf, "", "> 0, e.g. 1.5", sf > 0.0 && sf.is_finite())
     }
+}
+
+/// One drawn state, handed to [`Hooks::frame`] by the visualization thread.
+pub struct Frame<'a> {
+    /// The active space (index into the session's spaces).
+    pub space: usize,
+    /// Its modal coordinates.
+    pub modal: &'a [f64],
+    /// The part's pose (position, then unit quaternion w, x, y, z); identity for a held part.
+    pub pose: &'a [f64],
+    /// Deformed, posed vertex positions of the space, x y z per vertex.
+    pub positions: &'a [f32],
+    /// Stress per vertex (6 Voigt components, Pa), when the space has modal stress.
+    pub stress: Option<&'a [f32]>,
+    /// The whole part's safety factor is below the watch's minimum.
+    pub alarm: bool,
+    /// Session time of the state, s.
+    pub time: f64,
+}
+
+/// Receives every drawn frame (in the visualization thread).
+pub type FrameObserver = Box<dyn FnMut(&Frame) + Send>;
+
+/// What an embedding application adds to a session: a way to stop it, and the drawn frames.
+#[derive(Default)]
+pub struct Hooks {
+    /// Ends the session when set (besides `duration_s`, which may then be infinite).
+    pub stop: Option<Arc<AtomicBool>>,
+    /// Called by the visualization thread with every frame it draws.
+    pub frame: Option<FrameObserver>,
 }
 
 /// Runs a session on one space with one hand per device; returns when `duration_s` has
@@ -182,14 +213,26 @@ pub fn run(basis: Arc<Basis>, devices: Vec<Box<dyn Device>>, cfg: &SessionConfig
 /// interest that holds the hands (see [`crate::switching`]).
 pub fn run_spaces(
     spaces: Vec<SpaceInput>,
+    devices: Vec<Box<dyn Device>>,
+    cfg: &SessionConfig,
+) -> Result<SessionStats, String> {
+    run_spaces_with(spaces, devices, cfg, Hooks::default())
+}
+
+/// [`run_spaces`] with hooks: an external stop and a frame observer (the viewer's path).
+pub fn run_spaces_with(
+    spaces: Vec<SpaceInput>,
     mut devices: Vec<Box<dyn Device>>,
     cfg: &SessionConfig,
+    hooks: Hooks,
 ) -> Result<SessionStats, String> {
     cfg.validate().map_err(|e| e.to_string())?;
     let hands = devices.len().max(1);
     let rate = cfg.rate_hz;
     let dt = 1.0 / rate;
+    // Saturates at u64::MAX for an infinite session.
     let steps = (cfg.duration_s * rate).round().max(1.0) as u64;
+    let external_stop = hooks.stop.unwrap_or_default();
     let bases: Vec<Arc<Basis>> = spaces.iter().map(|s| s.basis.clone()).collect();
     let mut haptics =
         Switcher::new(spaces, cfg.coupling, dt, cfg.scheme, hands, cfg.switching).map_err(|e| e.to_string())?;
@@ -221,6 +264,7 @@ pub fn run_spaces(
         let (strain, von_mises) = (surface_strain.clone(), part_von_mises.clone());
         let (alarm, frames) = (part_alarm.clone(), alarm_frames.clone());
         let cap = cfg.visual_hz.map(|hz| Duration::from_secs_f64(1.0 / hz.max(1.0)));
+        let mut observer = hooks.frame;
         std::thread::spawn(move || {
             let mut q = vec![0.0; 8 + r_max];
             // One position buffer per space, made before the loop.
@@ -232,7 +276,7 @@ pub fn run_spaces(
             let start = Instant::now();
             while !stop.load(Ordering::Relaxed) {
                 let t = Instant::now();
-                snapshot.read(&mut q);
+                let (time, _) = snapshot.read(&mut q);
                 let i = (q[0] as usize).min(bases.len() - 1);
                 let r = bases[i].mode_count();
                 visual::posed_positions_of(&bases[i], &q[8..8 + r], &q[1..8], &mut pos[i]);
@@ -243,14 +287,27 @@ pub fn run_spaces(
                     strain.store(s.to_bits(), Ordering::Relaxed);
                 }
                 // And the largest von Mises stress (rigid motion carries no stress: q alone).
-                if visual::stresses(&bases[i], &q[8..8 + r], &mut sigma[i]) {
+                let has_stress = visual::stresses(&bases[i], &q[8..8 + r], &mut sigma[i]);
+                let mut below = false;
+                if has_stress {
                     let (vm, _) = visual::max_von_mises(&sigma[i]);
                     if vm > f64::from_bits(von_mises.load(Ordering::Relaxed)) {
                         von_mises.store(vm.to_bits(), Ordering::Relaxed);
                     }
-                    let below = bases[i].yield_strength.is_some_and(|y| y < min_sf * vm);
+                    below = bases[i].yield_strength.is_some_and(|y| y < min_sf * vm);
                     alarm.store(below, Ordering::Relaxed);
                     frames.fetch_add(u64::from(below), Ordering::Relaxed);
+                }
+                if let Some(f) = observer.as_mut() {
+                    f(&Frame {
+                        space: i,
+                        modal: &q[8..8 + r],
+                        pose: &q[1..8],
+                        positions: &pos[i],
+                        stress: has_stress.then_some(&sigma[i][..]),
+                        alarm: below,
+                        time,
+                    });
                 }
                 count.fetch_add(1, Ordering::Relaxed);
                 if let Some(c) = cap {
@@ -268,7 +325,12 @@ pub fn run_spaces(
     let period = Duration::from_secs_f64(dt);
     let start = Instant::now();
     let mut next = start;
+    let mut done_steps = 0;
     for k in 0..steps {
+        if external_stop.load(Ordering::Relaxed) {
+            break;
+        }
+        done_steps = k + 1;
         // Sleep to just before the deadline, then spin: sleep alone overshoots by ~60 µs.
         let now = Instant::now();
         if cfg.sleep && next > now + Duration::from_micros(200) {
@@ -297,6 +359,7 @@ pub fn run_spaces(
         compute_ns.record(c0.elapsed().as_nanos() as u64);
         for (out, dev) in outputs.iter().zip(devices.iter_mut()) {
             dev.write(out.force);
+            dev.observe(out);
             let m = (out.force[0].powi(2) + out.force[1].powi(2) + out.force[2].powi(2)).sqrt();
             peak = peak.max(m);
             clamped += u64::from(out.clamped);
@@ -325,8 +388,8 @@ pub fn run_spaces(
     let viz_wall = viz.join().unwrap_or(wall);
     let updates = visual_count.load(Ordering::Relaxed);
     Ok(SessionStats {
-        steps,
-        achieved_rate_hz: steps as f64 / wall,
+        steps: done_steps,
+        achieved_rate_hz: done_steps as f64 / wall,
         step_ns_median: step_ns.quantile(0.5),
         step_ns_p99: step_ns.quantile(0.99),
         step_ns_max: step_ns.max(),

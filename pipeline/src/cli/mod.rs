@@ -10,6 +10,7 @@ pub mod precompute;
 pub mod report;
 pub mod session;
 pub mod verify;
+pub mod view;
 
 use clap::{Parser, Subcommand};
 use std::sync::atomic::{AtomicUsize, Ordering};
@@ -36,6 +37,9 @@ enum Command {
     Batch(batch::Args),
     /// Run a real-time haptic session on a basis with scripted devices, and report its timing.
     Session(session::Args),
+    /// Serve the part to a web browser: see it deform, pull it with the mouse (the page is the
+    /// haptic device), browse its modes. Prints the URL.
+    View(view::Args),
     /// Benchmark the runtime on a basis: haptic step (r = 30 and 100) and full-field update.
     Bench(bench::Args),
     /// Export the assembled K and M (global space, free DOFs) to HDF5 for external solvers.
@@ -74,6 +78,7 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
         Command::Precompute(a) => a.run(),
         Command::Batch(a) => a.run(),
         Command::Session(a) => a.run(),
+        Command::View(a) => a.run(),
         Command::Bench(a) => a.run(),
         Command::Matrices(a) => a.run(),
         Command::Verify(a) => a.run(),

@@ -3,11 +3,11 @@
 use anyhow::{Context, Result};
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
+use ves_runtime::LoadOptions;
 use ves_runtime::device::{Device, ScriptedDevice};
 use ves_runtime::haptic::{Coupling, StrainPolicy, StrainWatch};
 use ves_runtime::session::{self, SessionConfig};
 use ves_runtime::switching::{self, SpaceInput};
-use ves_runtime::{LoadOptions, basis};
 
 /// Reaction past the strain limit.
 #[derive(Clone, Copy, Debug, clap::ValueEnum)]
@@ -28,12 +28,22 @@ pub struct Args {
     /// A device per hand: `script:FILE.csv` (t, x, y, z[, button] in SI units).
     #[arg(long = "device", required = true)]
     devices: Vec<String>,
-    /// Haptic rate, Hz.
-    #[arg(long, default_value_t = 1000.0)]
-    rate: f64,
     /// Session length, s (default: the longest script).
     #[arg(long)]
     duration: Option<f64>,
+    #[command(flatten)]
+    settings: Settings,
+    /// Print the statistics as JSON.
+    #[arg(long)]
+    json: bool,
+}
+
+/// What a session is made of besides its devices: shared by `ves session` and `ves view`.
+#[derive(clap::Args)]
+pub struct Settings {
+    /// Haptic rate, Hz.
+    #[arg(long, default_value_t = 1000.0)]
+    rate: f64,
     /// Modes used (default: all in the file).
     #[arg(long)]
     modes: Option<usize>,
@@ -64,22 +74,19 @@ pub struct Args {
     /// (yield / von Mises) at a hand before the strain policy acts.
     #[arg(long, default_value_t = 1.0)]
     min_safety_factor: f64,
-    /// Print the statistics as JSON.
-    #[arg(long)]
-    json: bool,
 }
 
-impl Args {
-    /// The session settings, checked before anything is loaded; `longest` is the longest script.
-    fn config(&self, longest: f64) -> Result<SessionConfig> {
+impl Settings {
+    /// The session settings for a session of `duration_s`, checked before anything is loaded;
+    /// `command` names the command in the advice.
+    pub fn config(&self, duration_s: f64, command: &str) -> Result<SessionConfig> {
         let mut coupling = Coupling::critically_damped(self.stiffness, self.max_force);
         if let Some(c) = self.damping {
             coupling.damping = c;
         }
         let cfg = SessionConfig {
             rate_hz: self.rate,
-            // A duration given is checked as given; the scripts' length gets at least one step.
-            duration_s: self.duration.unwrap_or(longest.max(1.0 / self.rate)),
+            duration_s,
             coupling,
             sleep: !self.spin,
             strain: StrainWatch {
@@ -100,7 +107,7 @@ impl Args {
                 format!(" ({})", e.unit)
             };
             anyhow::anyhow!(
-                "--{} {}: must be finite and {}{unit}; see ves session --help",
+                "--{} {}: must be finite and {}{unit}; see ves {command} --help",
                 e.setting,
                 e.value,
                 e.requirement
@@ -109,6 +116,26 @@ impl Args {
         Ok(cfg)
     }
 
+    /// The spaces of `basis` this session simulates (surface vertices only).
+    pub fn spaces(&self, basis: &Path) -> Result<Vec<SpaceInput>> {
+        Ok(match &self.space {
+            Some(space) => vec![SpaceInput {
+                basis: Arc::new(ves_runtime::basis::load(
+                    basis,
+                    &LoadOptions {
+                        space: Some(space.clone()),
+                        modes: self.modes,
+                        surface_only: true,
+                    },
+                )?),
+                transfers: vec![None],
+            }],
+            None => switching::load_spaces(basis, self.modes, true)?,
+        })
+    }
+}
+
+impl Args {
     pub fn run(self) -> Result<()> {
         let mut devices: Vec<Box<dyn Device>> = Vec::new();
         let mut longest = 0.0f64;
@@ -120,21 +147,10 @@ impl Args {
             longest = longest.max(dev.duration());
             devices.push(Box::new(dev));
         }
-        let cfg = self.config(longest)?;
-        let spaces = match &self.space {
-            Some(space) => vec![SpaceInput {
-                basis: Arc::new(basis::load(
-                    &self.basis,
-                    &LoadOptions {
-                        space: Some(space.clone()),
-                        modes: self.modes,
-                        surface_only: true,
-                    },
-                )?),
-                transfers: vec![None],
-            }],
-            None => switching::load_spaces(&self.basis, self.modes, true)?,
-        };
+        // A duration given is checked as given; the scripts' length gets at least one step.
+        let duration = self.duration.unwrap_or(longest.max(1.0 / self.settings.rate));
+        let cfg = self.settings.config(duration, "session")?;
+        let spaces = self.settings.spaces(&self.basis)?;
         let bytes: usize = spaces.iter().map(|s| s.basis.bytes_loaded).sum();
         let stats = session::run_spaces(spaces, devices, &cfg)
             .map_err(|e| anyhow::anyhow!(e))

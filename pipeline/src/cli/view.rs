@@ -1,0 +1,76 @@
+//! `ves view`: the part in a browser, with the mouse as a haptic hand.
+
+use super::session::Settings;
+use anyhow::{Context, Result};
+use std::io::Write;
+use std::net::{IpAddr, Ipv4Addr, SocketAddr};
+use std::path::PathBuf;
+use std::sync::Arc;
+use std::sync::atomic::AtomicBool;
+use ves_runtime::view::{self, ViewConfig};
+
+/// Arguments.
+#[derive(clap::Args)]
+pub struct Args {
+    /// Basis file (HDF5).
+    basis: PathBuf,
+    /// Port to serve on (0: any free port; the URL printed says which).
+    #[arg(long, default_value_t = 8765)]
+    port: u16,
+    /// Address to listen on. Loopback by default: anything else lets other machines drive the
+    /// session.
+    #[arg(long, default_value_t = IpAddr::V4(Ipv4Addr::LOCALHOST))]
+    host: IpAddr,
+    /// Stop after this many seconds (default: run until Ctrl-C).
+    #[arg(long)]
+    duration: Option<f64>,
+    #[command(flatten)]
+    settings: Settings,
+    /// At the end, print the statistics (session and server) as JSON.
+    #[arg(long)]
+    json: bool,
+}
+
+impl Args {
+    pub fn run(self) -> Result<()> {
+        let cfg = self.settings.config(self.duration.unwrap_or(f64::INFINITY), "view")?;
+        let spaces = self.settings.spaces(&self.basis)?;
+        if !self.host.is_loopback() {
+            tracing::warn!(
+                "--host {}: the viewer is reachable from other machines, and anyone who opens it can drive the session",
+                self.host
+            );
+        }
+        let name = self.basis.file_name().map_or_else(
+            || self.basis.display().to_string(),
+            |n| n.to_string_lossy().into_owned(),
+        );
+        let cfg = ViewConfig {
+            addr: SocketAddr::new(self.host, self.port),
+            session: cfg,
+            name,
+        };
+        let stop = Arc::new(AtomicBool::new(false));
+        let stats = view::serve(spaces, &cfg, stop, |addr| {
+            // The URL on stdout, flushed: scripts and tests wait for this line.
+            let host = if addr.ip().is_unspecified() {
+                "127.0.0.1".to_string()
+            } else {
+                addr.ip().to_string()
+            };
+            let host = if addr.is_ipv6() && !addr.ip().is_unspecified() {
+                format!("[{host}]")
+            } else {
+                host
+            };
+            println!("ves view: http://{host}:{}/  (Ctrl-C stops)", addr.port());
+            let _ = std::io::stdout().flush();
+        })
+        .map_err(|e| anyhow::anyhow!(e))
+        .with_context(|| self.basis.display().to_string())?;
+        if self.json {
+            println!("{}", serde_json::to_string(&stats)?);
+        }
+        Ok(())
+    }
+}

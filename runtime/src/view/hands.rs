@@ -1,0 +1,249 @@
+//! The browser as a haptic device: a hand slot written by the client that owns it, read by the
+//! haptic thread through the same [`Device`] trait as every other device.
+
+use crate::device::{Device, DeviceState};
+use crate::haptic::HandOutput;
+use crate::snapshot::Snapshot;
+use std::sync::Arc;
+use std::sync::Mutex;
+use std::sync::atomic::{AtomicU64, Ordering};
+
+/// Input layout in the snapshot: x, y, z, button, active, message sequence number.
+const INPUT: usize = 6;
+/// Output layout: force (3), vertex, contact, clamped, vertex position (3), strain, strain
+/// exceeded, von Mises, safety factor, stress exceeded, message sequence read.
+const OUTPUT: usize = 15;
+
+/// One hand shared between the web clients and the haptic thread.
+pub struct HandSlot {
+    input: Snapshot,
+    output: Snapshot,
+    /// The client driving this hand (0: none).
+    owner: AtomicU64,
+    /// One writer at a time for the input snapshot (clients are tasks on several threads).
+    writer: Mutex<()>,
+}
+
+/// What a client asked of a hand.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct HandCommand {
+    /// Target position, m (part frame).
+    pub position: [f64; 3],
+    /// Grab (true) or press (false).
+    pub button: bool,
+    /// Driving the hand; false releases it.
+    pub active: bool,
+    /// The client's sequence number of this message.
+    pub seq: u32,
+}
+
+/// What the status shows of a hand.
+#[derive(Clone, Copy, Debug, Default, serde::Serialize)]
+pub struct HandStatus {
+    /// The client driving it (0: none).
+    pub owner: u64,
+    /// Driven.
+    pub active: bool,
+    /// Grabbing (else pressing).
+    pub button: bool,
+    /// The position the client asked for, m.
+    pub target: [f64; 3],
+    /// Force on the device, N.
+    pub force: [f64; 3],
+    /// Active vertex.
+    pub vertex: u32,
+    /// Grabbing or pressing into the surface.
+    pub contact: bool,
+    /// The device force limit acted.
+    pub clamped: bool,
+    /// Deformed position of the vertex, m.
+    pub vertex_position: [f64; 3],
+    /// Surface strain at the vertex.
+    pub strain: f64,
+    /// Past the strain limit.
+    pub strain_exceeded: bool,
+    /// Von Mises stress at the vertex, Pa.
+    pub von_mises: f64,
+    /// Yield strength over von Mises (null when infinite).
+    pub safety_factor: Option<f64>,
+    /// Below the minimum safety factor.
+    pub stress_exceeded: bool,
+    /// The last of the owner's messages the haptic loop read.
+    pub seq: u32,
+}
+
+impl Default for HandSlot {
+    fn default() -> Self {
+        HandSlot {
+            input: Snapshot::new(INPUT),
+            output: Snapshot::new(OUTPUT),
+            owner: AtomicU64::new(0),
+            writer: Mutex::new(()),
+        }
+    }
+}
+
+impl HandSlot {
+    /// Applies a client's command; false when another client drives this hand (dropped).
+    pub fn command(&self, client: u64, c: &HandCommand) -> bool {
+        let _w = self.writer.lock().unwrap_or_else(|p| p.into_inner());
+        let owner = self.owner.load(Ordering::Acquire);
+        if owner != 0 && owner != client {
+            return false;
+        }
+        if !c.active && owner == 0 {
+            return true;
+        }
+        let v = [
+            c.position[0],
+            c.position[1],
+            c.position[2],
+            f64::from(u8::from(c.button)),
+            f64::from(u8::from(c.active)),
+            f64::from(c.seq),
+        ];
+        self.input.publish(&v, 0.0);
+        self.owner.store(if c.active { client } else { 0 }, Ordering::Release);
+        true
+    }
+
+    /// Lets go of the hand if `client` drives it (the client left).
+    pub fn release(&self, client: u64) {
+        let _w = self.writer.lock().unwrap_or_else(|p| p.into_inner());
+        if self.owner.load(Ordering::Acquire) == client {
+            let mut v = [0.0; INPUT];
+            self.input.read(&mut v);
+            v[4] = 0.0;
+            self.input.publish(&v, 0.0);
+            self.owner.store(0, Ordering::Release);
+        }
+    }
+
+    /// The hand as the status shows it.
+    pub fn status(&self) -> HandStatus {
+        let (mut i, mut o) = ([0.0; INPUT], [0.0; OUTPUT]);
+        self.input.read(&mut i);
+        self.output.read(&mut o);
+        let active = i[4] != 0.0;
+        let sf = o[12];
+        HandStatus {
+            owner: self.owner.load(Ordering::Relaxed),
+            active,
+            button: i[3] != 0.0,
+            target: [i[0], i[1], i[2]],
+            force: [o[0], o[1], o[2]],
+            vertex: o[3] as u32,
+            contact: active && o[4] != 0.0,
+            clamped: o[5] != 0.0,
+            vertex_position: [o[6], o[7], o[8]],
+            strain: o[9],
+            strain_exceeded: o[10] != 0.0,
+            von_mises: o[11],
+            safety_factor: sf.is_finite().then_some(sf),
+            stress_exceeded: o[13] != 0.0,
+            seq: o[14] as u32,
+        }
+    }
+
+    /// Haptic steps that reported on this hand so far.
+    pub fn steps(&self) -> u64 {
+        let mut o = [0.0; OUTPUT];
+        self.output.read(&mut o).1
+    }
+
+    /// The last message sequence number the haptic loop read.
+    pub fn seq_read(&self) -> u32 {
+        let mut o = [0.0; OUTPUT];
+        self.output.read(&mut o);
+        o[14] as u32
+    }
+}
+
+/// A hand driven from a browser: the pointer's target arrives at display rate (≈ 60 Hz) in
+/// steps; the device follows it through a first-order filter (time constant `TAU`) so the
+/// coupling spring sees a smooth path and a consistent velocity instead of 16 ms jumps.
+pub struct WebHand {
+    slot: Arc<HandSlot>,
+    dt: f64,
+    x: [f64; 3],
+    v: [f64; 3],
+    following: bool,
+    seq: u32,
+}
+
+/// The hand's smoothing time constant, s.
+pub const TAU: f64 = 0.015;
+
+impl WebHand {
+    /// A device reading `slot` at the haptic step `dt`.
+    pub fn new(slot: Arc<HandSlot>, dt: f64) -> WebHand {
+        WebHand {
+            slot,
+            dt,
+            x: [0.0; 3],
+            v: [0.0; 3],
+            following: false,
+            seq: 0,
+        }
+    }
+}
+
+impl Device for WebHand {
+    fn read(&mut self, _t: f64) -> DeviceState {
+        let mut i = [0.0; INPUT];
+        self.slot.input.read(&mut i);
+        self.seq = i[5] as u32;
+        if i[4] == 0.0 {
+            // No hand: a non-finite position gives no vertex and no force.
+            self.following = false;
+            return DeviceState {
+                position: [f64::NAN; 3],
+                velocity: [0.0; 3],
+                button: false,
+            };
+        }
+        let target = [i[0], i[1], i[2]];
+        if !self.following {
+            // A new grab starts where it was asked, at rest.
+            self.x = target;
+            self.v = [0.0; 3];
+            self.following = true;
+        } else {
+            let a = 1.0 - (-self.dt / TAU).exp();
+            for ((x, v), t) in self.x.iter_mut().zip(&mut self.v).zip(target) {
+                let step = a * (t - *x);
+                *x += step;
+                *v = step / self.dt;
+            }
+        }
+        DeviceState {
+            position: self.x,
+            velocity: self.v,
+            button: i[3] != 0.0,
+        }
+    }
+
+    fn write(&mut self, _force: [f64; 3]) {}
+
+    fn observe(&mut self, out: &HandOutput) {
+        let b = |x: bool| f64::from(u8::from(x));
+        let v = [
+            out.force[0],
+            out.force[1],
+            out.force[2],
+            f64::from(out.vertex),
+            b(out.contact),
+            b(out.clamped),
+            out.vertex_position[0],
+            out.vertex_position[1],
+            out.vertex_position[2],
+            out.strain,
+            b(out.strain_exceeded),
+            out.von_mises,
+            out.safety_factor,
+            b(out.stress_exceeded),
+            f64::from(self.seq),
+        ];
+        self.slot.output.publish(&v, 0.0);
+    }
+}

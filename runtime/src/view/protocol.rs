@@ -1,0 +1,259 @@
+//! The viewer's messages, defined once here (the page's `web/src/protocol.js` decodes them).
+//!
+//! Server → page, binary, little-endian, every array 4-byte aligned:
+//! - kind 0, a space's surface: u32 kind, space, nv, nt; f32 rest[3nv]; u32 triangles[3nt].
+//! - kind 1, a drawn frame: u32 kind, space, nv, flags (1: stress follows, 2: the part's safety
+//!   factor is below the minimum), frame seq, last hand-message seq read per hand [2]; f32 time,
+//!   pose[7]; f32 positions[3nv] (deformed and posed), |u|[nv] (elastic displacement), then von
+//!   Mises[nv] (Pa) with flag 1.
+//! - kind 2, a mode shape: u32 kind, space, mode, nv; f32 frequency (Hz); f32 φ[3nv] scaled to
+//!   max |φ| = 1.
+//!
+//! Server → page, text: JSON objects `hello` (once) and `status` (≈ 20 Hz).
+//! Page → server, text only: `{"type":"hand","hand":0|1,"active":bool,"button":bool,
+//! "position":[x,y,z],"seq":n}` and `{"type":"mode","space":s,"index":j}`. Anything else —
+//! binary, longer than [`MAX_MESSAGE`], not JSON, unknown fields, non-finite or far-away
+//! positions — is dropped and counted.
+
+use super::hands::HandCommand;
+use crate::basis::Basis;
+
+/// Longest client message accepted, bytes (a hand message is ≈ 120).
+pub const MAX_MESSAGE: usize = 1024;
+
+/// Hands the viewer simulates.
+pub const HANDS: usize = 2;
+
+fn put_u32(b: &mut Vec<u8>, v: u32) {
+    b.extend_from_slice(&v.to_le_bytes());
+}
+
+fn put_f32(b: &mut Vec<u8>, v: f32) {
+    b.extend_from_slice(&v.to_le_bytes());
+}
+
+/// Kind 0: the surface of space `space`.
+pub fn mesh(space: usize, basis: &Basis) -> Vec<u8> {
+    let (nv, nt) = (basis.vertex_count(), basis.triangles.len());
+    let mut b = Vec::with_capacity(16 + 12 * nv + 12 * nt);
+    for v in [0, space as u32, nv as u32, nt as u32] {
+        put_u32(&mut b, v);
+    }
+    for p in basis.rest.iter().flatten() {
+        put_f32(&mut b, *p as f32);
+    }
+    for t in basis.triangles.iter().flatten() {
+        put_u32(&mut b, *t);
+    }
+    b
+}
+
+/// What a frame carries besides the arrays.
+pub struct FrameHeader {
+    /// Active space.
+    pub space: usize,
+    /// Frame sequence number.
+    pub seq: u32,
+    /// The part's safety factor is below the minimum.
+    pub alarm: bool,
+    /// Last hand message read per hand.
+    pub hand_seq: [u32; HANDS],
+    /// Session time, s.
+    pub time: f64,
+    /// Pose (position, quaternion w x y z).
+    pub pose: [f64; 7],
+}
+
+/// Kind 1 into `b` (cleared first): `positions` 3n, `umag` n, `von_mises` n when present.
+pub fn frame(b: &mut Vec<u8>, h: &FrameHeader, positions: &[f32], umag: &[f32], von_mises: Option<&[f32]>) {
+    b.clear();
+    let nv = umag.len();
+    let flags = u32::from(von_mises.is_some()) | (u32::from(h.alarm) << 1);
+    for v in [1, h.space as u32, nv as u32, flags, h.seq, h.hand_seq[0], h.hand_seq[1]] {
+        put_u32(b, v);
+    }
+    put_f32(b, h.time as f32);
+    for p in h.pose {
+        put_f32(b, p as f32);
+    }
+    for v in positions.iter().chain(umag).chain(von_mises.unwrap_or(&[])) {
+        put_f32(b, *v);
+    }
+}
+
+/// Kind 2: mode `j` of space `space`, scaled to a largest vertex amplitude of 1.
+pub fn mode(space: usize, basis: &Basis, j: usize) -> Option<Vec<u8>> {
+    let n = basis.vertex_count();
+    let lambda = *basis.eigenvalues.get(j)?;
+    let phi = basis.phi.get(j * 3 * n..(j + 1) * 3 * n)?;
+    let peak = phi
+        .chunks_exact(3)
+        .map(|p| (p[0] * p[0] + p[1] * p[1] + p[2] * p[2]).sqrt())
+        .fold(0.0f32, f32::max);
+    let scale = if peak > 0.0 { 1.0 / peak } else { 0.0 };
+    let mut b = Vec::with_capacity(20 + 12 * n);
+    for v in [2, space as u32, j as u32, n as u32] {
+        put_u32(&mut b, v);
+    }
+    put_f32(&mut b, (lambda.sqrt() / (2.0 * std::f64::consts::PI)) as f32);
+    for v in phi {
+        put_f32(&mut b, v * scale);
+    }
+    Some(b)
+}
+
+/// A message from the page, as received.
+#[derive(Debug, serde::Deserialize)]
+#[serde(tag = "type", rename_all = "lowercase", deny_unknown_fields)]
+enum Raw {
+    Hand {
+        hand: usize,
+        active: bool,
+        button: bool,
+        position: [f64; 3],
+        #[serde(default)]
+        seq: u32,
+    },
+    Mode {
+        space: usize,
+        index: usize,
+    },
+}
+
+/// A checked message from the page.
+#[derive(Debug, PartialEq)]
+pub enum ClientMessage {
+    /// Drive (or let go of) a hand.
+    Hand(usize, HandCommand),
+    /// Send a mode shape.
+    Mode {
+        /// Space.
+        space: usize,
+        /// Mode index.
+        index: usize,
+    },
+}
+
+/// Where the part is: positions further than `REACH` diagonals from its centre are refused.
+#[derive(Clone, Copy, Debug)]
+pub struct Extent {
+    /// Centre of the bounding box, m.
+    pub centre: [f64; 3],
+    /// Its diagonal, m.
+    pub diagonal: f64,
+}
+
+/// How far from the part a hand may be asked to go, in bounding-box diagonals.
+pub const REACH: f64 = 10.0;
+
+impl Extent {
+    /// The bounding box of a basis's rest positions.
+    pub fn of(basis: &Basis) -> Extent {
+        let (mut lo, mut hi) = ([f64::INFINITY; 3], [f64::NEG_INFINITY; 3]);
+        for p in &basis.rest {
+            for k in 0..3 {
+                lo[k] = lo[k].min(p[k]);
+                hi[k] = hi[k].max(p[k]);
+            }
+        }
+        let centre = [0, 1, 2].map(|k| 0.5 * (lo[k] + hi[k]));
+        let diagonal = (0..3).map(|k| (hi[k] - lo[k]).powi(2)).sum::<f64>().sqrt();
+        Extent { centre, diagonal }
+    }
+}
+
+/// Parses and checks a text message; `Err` says why it was dropped.
+pub fn parse(text: &str, spaces: usize, extent: &Extent) -> Result<ClientMessage, String> {
+    if text.len() > MAX_MESSAGE {
+        return Err(format!("{} bytes (at most {MAX_MESSAGE})", text.len()));
+    }
+    let raw: Raw = serde_json::from_str(text).map_err(|e| e.to_string())?;
+    match raw {
+        Raw::Hand {
+            hand,
+            active,
+            button,
+            position,
+            seq,
+        } => {
+            if hand >= HANDS {
+                return Err(format!("hand {hand} (0 or 1)"));
+            }
+            let d2: f64 = (0..3).map(|k| (position[k] - extent.centre[k]).powi(2)).sum();
+            // NaN is refused too.
+            if d2.is_nan() || d2.sqrt() > REACH * extent.diagonal {
+                return Err(format!("position {position:?} is not finite or is far from the part"));
+            }
+            Ok(ClientMessage::Hand(
+                hand,
+                HandCommand {
+                    position,
+                    button,
+                    active,
+                    seq,
+                },
+            ))
+        }
+        Raw::Mode { space, index } if space < spaces => Ok(ClientMessage::Mode { space, index }),
+        Raw::Mode { space, .. } => Err(format!("space {space} of {spaces}")),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    const E: Extent = Extent {
+        centre: [0.5, 0.05, 0.025],
+        diagonal: 1.0,
+    };
+
+    #[test]
+    fn good_messages_parse_and_bad_ones_are_refused_with_a_reason() {
+        let ok = parse(
+            r#"{"type":"hand","hand":1,"active":true,"button":false,"position":[1,0.05,0.05],"seq":7}"#,
+            1,
+            &E,
+        );
+        assert_eq!(
+            ok,
+            Ok(ClientMessage::Hand(
+                1,
+                HandCommand {
+                    position: [1.0, 0.05, 0.05],
+                    button: false,
+                    active: true,
+                    seq: 7
+                }
+            ))
+        );
+        assert_eq!(
+            parse(r#"{"type":"mode","space":0,"index":3}"#, 1, &E),
+            Ok(ClientMessage::Mode { space: 0, index: 3 })
+        );
+        let bad = [
+            r#"{"type":"hand","hand":2,"active":true,"button":true,"position":[1,0,0]}"#,
+            r#"{"type":"hand","hand":0,"active":true,"button":true,"position":[1e300,0,0]}"#,
+            r#"{"type":"hand","hand":0,"active":true,"button":true,"position":[1,0]}"#,
+            r#"{"type":"hand","hand":0,"active":true,"button":true,"position":[1,0,0],"x":1}"#,
+            r#"{"type":"mode","space":1,"index":0}"#,
+            r#"{"type":"quit"}"#,
+            "not json",
+            "[]",
+        ];
+        for b in bad {
+            assert!(parse(b, 1, &E).is_err(), "{b}");
+        }
+        let long = format!(r#"{{"type":"mode","space":0,"index":0,"pad":"{}"}}"#, "x".repeat(2000));
+        assert!(parse(&long, 1, &E).unwrap_err().contains("bytes"));
+        // JSON has no NaN; a string in its place is refused by the parser.
+        assert!(
+            parse(
+                r#"{"type":"hand","hand":0,"active":true,"button":true,"position":["NaN",0,0]}"#,
+                1,
+                &E
+            )
+            .is_err()
+        );
+    }
+}
