@@ -111,6 +111,8 @@ pub struct SessionStats {
     pub stress_exceeded_steps: u64,
     /// Drawn frames in which the whole part's safety factor was below the watch's minimum.
     pub safety_factor_below_min_frames: u64,
+    /// The force on each device at the last step, N.
+    pub final_forces_n: Vec<[f64; 3]>,
 }
 
 /// Nanosecond timings streamed into a histogram (3 significant digits, 1 ns to 1 h): memory is
@@ -418,5 +420,6 @@ pub fn run_spaces_with(
         },
         stress_exceeded_steps: stress_steps,
         safety_factor_below_min_frames: alarm_frames.load(Ordering::Relaxed),
+        final_forces_n: outputs.iter().map(|o| o.force).collect(),
     })
 }

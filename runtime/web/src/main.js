@@ -35,7 +35,7 @@ function connect() {
   ws = new WebSocket(`ws://${location.host}/ws`);
   ws.binaryType = 'arraybuffer';
   ws.onopen = () => { $('conn').textContent = 'connected'; };
-  ws.onclose = () => { $('conn').textContent = 'disconnected'; state.ready = false; };
+  ws.onclose = () => { $('conn').textContent = 'disconnected'; state.ready = false; state.meshesIn = false; };
   ws.onmessage = (ev) => {
     if (typeof ev.data === 'string') onText(JSON.parse(ev.data));
     else onBinary(ev.data);
@@ -74,7 +74,8 @@ function addSpace(m) {
   geom.setIndex(new THREE.BufferAttribute(m.triangles, 1));
   geom.computeVertexNormals();
   geom.computeBoundingBox();
-  const mat = new THREE.MeshStandardMaterial({ vertexColors: true, roughness: 0.6, metalness: 0.1, side: THREE.DoubleSide });
+  // Flat shading: an FE surface has sharp edges that averaged normals would smear.
+  const mat = new THREE.MeshStandardMaterial({ vertexColors: true, roughness: 0.6, metalness: 0.1, side: THREE.DoubleSide, flatShading: true });
   const mesh = new THREE.Mesh(geom, mat);
   mesh.visible = m.space === state.active;
   scene.add(mesh);
@@ -86,7 +87,8 @@ function addSpace(m) {
   }
   state.spaces[m.space] = { ...m, geom, mesh, box, positions: new Float32Array(m.rest), umag: new Float32Array(m.vertices), vm: null };
   if (m.space === 0) frameCamera(geom.boundingBox);
-  if (state.spaces.filter(Boolean).length === state.hello.spaces.length) state.ready = true;
+  // Ready once every space is in and has been drawn with the framed camera (see loop).
+  if (state.spaces.filter(Boolean).length === state.hello.spaces.length) state.meshesIn = true;
 }
 
 function frameCamera(box) {
@@ -94,7 +96,7 @@ function frameCamera(box) {
   const d = box.getSize(new THREE.Vector3()).length();
   state.diag = d;
   controls.target.copy(c);
-  camera.position.set(c.x + 0.35 * d, c.y - 1.1 * d, c.z + 0.55 * d);
+  camera.position.set(c.x + 0.25 * d, c.y - 1.45 * d, c.z + 0.7 * d);
   camera.near = d / 1000; camera.far = d * 100;
   camera.updateProjectionMatrix();
   sun.position.set(c.x + d, c.y - d, c.z + 2 * d);
@@ -136,7 +138,7 @@ function draw(s) {
   const rest = posedRest(s);
   for (let i = 0; i < p.length; i++) p[i] = rest[i] + k * (s.positions[i] - rest[i]);
   s.geom.attributes.position.needsUpdate = true;
-  s.geom.computeVertexNormals();
+  s.geom.computeBoundingSphere();
   colour(s);
 }
 
@@ -218,12 +220,31 @@ function updateArrow(i, h) {
     arrows[i] = { a, label };
   }
   const { a, label } = arrows[i];
+  if (!arrows[i].spring) {
+    const g = new THREE.BufferGeometry().setFromPoints([new THREE.Vector3(), new THREE.Vector3()]);
+    arrows[i].spring = new THREE.Line(g, new THREE.LineDashedMaterial({ color: i ? 0x5ee0ff : 0xffd45e, dashSize: 0.004 * state.diag, gapSize: 0.003 * state.diag }));
+    arrows[i].handball = new THREE.Mesh(new THREE.SphereGeometry(0.006 * state.diag, 16, 12), new THREE.MeshBasicMaterial({ color: i ? 0x5ee0ff : 0xffd45e }));
+    scene.add(arrows[i].spring, arrows[i].handball);
+  }
+  const { spring, handball } = arrows[i];
+  // Anchored at the vertex as drawn (which the deformation scale moves); the spring's stretch
+  // (hand target − vertex) is the true one.
+  const s = state.spaces[state.active];
+  const drawnAt = s && h.vertex < s.vertices
+    ? new THREE.Vector3().fromBufferAttribute(s.geom.attributes.position, h.vertex) : new THREE.Vector3(...h.vertex_position);
+  spring.visible = handball.visible = h.active;
+  if (h.active) {
+    const hand = drawnAt.clone().add(new THREE.Vector3(...h.target).sub(new THREE.Vector3(...h.vertex_position)));
+    handball.position.copy(hand);
+    spring.geometry.setFromPoints([drawnAt, hand]);
+    spring.computeLineDistances();
+  }
   const f = new THREE.Vector3(...h.force);
   const mag = f.length();
   a.visible = h.active && h.contact;
   label.style.display = a.visible ? 'block' : 'none';
   if (!a.visible || !state.diag) return;
-  const at = new THREE.Vector3(...h.vertex_position);
+  const at = drawnAt;
   const len = Math.max(0.02, Math.min(1, mag / state.hello.max_force)) * 0.25 * state.diag;
   a.position.copy(at);
   a.setDirection(mag > 0 ? f.clone().normalize() : new THREE.Vector3(0, 0, 1));
@@ -270,7 +291,7 @@ function animateMode() {
   }
   s.geom.attributes.position.needsUpdate = true;
   s.geom.attributes.color.needsUpdate = true;
-  s.geom.computeVertexNormals();
+  s.geom.computeBoundingSphere();
   $('legendtitle').textContent = `mode ${m.mode + 1}, ${m.frequency.toPrecision(5)} Hz: relative amplitude (shape only)`;
   $('lo').textContent = '0'; $('mid').textContent = '0.5'; $('hi').textContent = '1';
 }
@@ -296,6 +317,7 @@ function freeHand(preferred) {
 canvas.addEventListener('pointerdown', (ev) => {
   if (!state.ready || state.mode) return;
   const s = state.spaces[state.active];
+  camera.updateMatrixWorld();
   raycaster.setFromCamera(ndc(ev), camera);
   const hit = raycaster.intersectObject(s.mesh)[0];
   if (!hit) return; // orbit
@@ -373,6 +395,7 @@ $('colour').addEventListener('change', (ev) => { state.colour = ev.target.value;
 // vertex nearest a point (m, part frame).
 state.screenOf = (space, vertex) => {
   const s = state.spaces[space];
+  camera.updateMatrixWorld();
   const v = new THREE.Vector3().fromBufferAttribute(s.geom.attributes.position, vertex).project(camera);
   const r = canvas.getBoundingClientRect();
   return [r.left + ((v.x + 1) / 2) * r.width, r.top + ((1 - v.y) / 2) * r.height];
@@ -401,6 +424,7 @@ function loop() {
   else if (state.spaces[state.active]) draw(state.spaces[state.active]);
   controls.update();
   renderer.render(scene, camera);
+  if (state.meshesIn && !state.ready && state.frames > 0) state.ready = true;
   requestAnimationFrame(loop);
 }
 connect();

@@ -1,0 +1,238 @@
+//! `ves view` end to end in a real headless Chromium (Debian's `chromium` with SwiftShader
+//! WebGL, driven by playwright-core from runtime/web's lockfile): the mouse pulls the
+//! cantilever's tip, and what the page shows is checked against the basis's own static
+//! compliance and against `ves session` replaying the same hand motion.
+
+mod common;
+use common::*;
+use std::io::{BufRead, BufReader, Read};
+use std::path::Path;
+use std::process::{Command, Stdio};
+use std::sync::Arc;
+
+/// The common steel cantilever (1 × 0.1 × 0.05 m) with 10-node tets, 20 modes, modal stress
+/// and a yield strength; mode 1 damped at ≈ 2 % so the pulled tip settles within the test's
+/// hold (β alone leaves it ringing for seconds).
+fn scene() -> String {
+    GOOD.replace("order = 1", "order = 2")
+        .replace("count = 4", "count = 20")
+        .replace("density = 7850.0", "density = 7850.0\nyield_strength = 2.5e8")
+        + "[damping]\nalpha = 10.0\nbeta = 1.0e-5\n[stress]\nenabled = true\n"
+}
+
+const COUPLING: [&str; 4] = ["--stiffness", "200", "--max-force", "100"];
+
+fn vec3(v: &serde_json::Value) -> [f64; 3] {
+    let a = v.as_array().unwrap_or_else(|| panic!("not an array: {v}"));
+    [0, 1, 2].map(|k| a[k].as_f64().unwrap_or_else(|| panic!("not a number: {v}")))
+}
+
+fn norm(v: [f64; 3]) -> f64 {
+    v.iter().map(|x| x * x).sum::<f64>().sqrt()
+}
+
+fn sub(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
+    [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
+}
+
+/// The static compliance the runtime couples to at a vertex: Σ φφᵀ/λ over the modes, plus the
+/// static correction when the basis carries one.
+fn compliance(basis: &ves_runtime::Basis, v: usize) -> [[f64; 3]; 3] {
+    let n = basis.vertex_count();
+    let mut g = [[0.0; 3]; 3];
+    for (j, l) in basis.eigenvalues.iter().enumerate() {
+        let phi = &basis.phi[j * 3 * n + 3 * v..j * 3 * n + 3 * v + 3];
+        for a in 0..3 {
+            for b in 0..3 {
+                g[a][b] += f64::from(phi[a]) * f64::from(phi[b]) / l;
+            }
+        }
+    }
+    if let Some(exact) = basis.compliance.as_ref().map(|c| c[v]).filter(|c| c[0][0].is_finite()) {
+        g = exact;
+    }
+    g
+}
+
+#[test]
+fn the_mouse_pulls_the_tip_in_a_real_browser_and_the_page_shows_the_static_response() {
+    let (dir, scene) = workdir(&scene());
+    let basis = dir.path().join("beam.h5");
+    let o = ves(&["precompute", scene.to_str().unwrap(), "-o", basis.to_str().unwrap()]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+
+    let mut server = Command::new(env!("CARGO_BIN_EXE_ves"))
+        .args([
+            "view",
+            basis.to_str().unwrap(),
+            "--port",
+            "0",
+            "--duration",
+            "120",
+            "--json",
+        ])
+        .args(COUPLING)
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .expect("ves view starts");
+    let mut out = BufReader::new(server.stdout.take().expect("stdout"));
+    let mut line = String::new();
+    out.read_line(&mut line).expect("the URL line");
+    let url = line
+        .split_whitespace()
+        .find(|w| w.starts_with("http://127.0.0.1:"))
+        .unwrap_or_else(|| panic!("no loopback URL in {line:?}"))
+        .to_string();
+
+    let web = Path::new(env!("CARGO_MANIFEST_DIR")).join("../runtime/web");
+    let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/view/drag.mjs");
+    let shot = dir.path().join("drag.png");
+    let browser = Command::new("node")
+        .arg(&script)
+        .arg(&url)
+        .arg(&web)
+        .arg(&shot)
+        .output()
+        .expect("node runs (scripts/setup installs it)");
+    // Ctrl-C ends the server cleanly, with its statistics.
+    let _ = Command::new("kill").args(["-INT", &server.id().to_string()]).status();
+    let mut rest = String::new();
+    out.read_to_string(&mut rest).expect("server output");
+    let mut err = String::new();
+    server.stderr.take().map(|mut e| e.read_to_string(&mut err));
+    let status = server.wait().expect("server exits");
+    assert!(
+        browser.status.success(),
+        "browser script failed: {}\n{}\nserver: {err}",
+        String::from_utf8_lossy(&browser.stderr),
+        String::from_utf8_lossy(&browser.stdout)
+    );
+    assert!(status.success(), "ves view after Ctrl-C: {status:?}: {err}");
+    if let Some(keep) = std::env::var_os("VES_VIEW_SCREENSHOT") {
+        std::fs::copy(&shot, keep).expect("copy the screenshot");
+    }
+    let page: serde_json::Value = serde_json::from_slice(&browser.stdout).expect("the page's JSON");
+    let stats: serde_json::Value = serde_json::from_str(rest.lines().last().expect("stats line")).expect("stats JSON");
+    assert_eq!(page["errors"].as_array().map(Vec::len), Some(0), "page errors: {page}");
+
+    // The page grabbed the vertex it aimed at, and the server agrees which one.
+    let held = &page["held"];
+    let hand = &held["hand"];
+    let vertex = page["vertex"].as_u64().unwrap() as usize;
+    assert_eq!(hand["vertex"].as_u64(), Some(vertex as u64), "{page}");
+    assert!(
+        hand["active"].as_bool().unwrap() && hand["contact"].as_bool().unwrap(),
+        "{hand}"
+    );
+    let (force, target) = (vec3(&hand["force"]), vec3(&held["target"]));
+    let (rest_p, drawn) = (vec3(&held["rest"]), vec3(&held["position"]));
+    let pulled = norm(sub(target, rest_p));
+    assert!(pulled > 0.01, "the drag moved the hand only {pulled} m: {page}");
+
+    // 1. The drawn tip moved by the static response to the force the hand feels: u = G·(−F)
+    //    (the part gets the opposite of the device's force).
+    let b = ves_runtime::basis::load(
+        &basis,
+        &ves_runtime::LoadOptions {
+            surface_only: true,
+            ..Default::default()
+        },
+    )
+    .expect("basis loads");
+    let b = Arc::new(b);
+    let g = compliance(&b, vertex);
+    let expected: [f64; 3] = [0, 1, 2].map(|a| -(0..3).map(|c| g[a][c] * force[c]).sum::<f64>());
+    let u = sub(drawn, rest_p);
+    let miss = norm(sub(u, expected)) / norm(expected);
+    assert!(
+        miss < 0.03,
+        "drawn tip displacement {u:?} m vs static response {expected:?} m to the force {force:?} N: {:.2} % apart",
+        100.0 * miss
+    );
+    // The displacement magnitude the page colours by is the same motion (f32 either way).
+    let umag = held["umag"].as_f64().unwrap();
+    assert!((umag - norm(u)).abs() < 0.02 * norm(u), "|u| {umag} vs {}", norm(u));
+    // And beam theory agrees on the scale: the vertical tip stiffness 3EI/L³.
+    let k_beam = 3.0 * 2.1e11 * (0.1 * 0.05f64.powi(3) / 12.0);
+    assert!(
+        (force[2] / -u[2] / k_beam - 1.0).abs() < 0.1,
+        "tip stiffness {} N/m vs beam theory {k_beam}",
+        force[2] / -u[2]
+    );
+
+    // 2. `ves session` given the same hand motion (grab at the vertex, move to the page's
+    //    target, hold) ends with the same force.
+    let csv = format!(
+        "t,x,y,z,button\n0,{},{},{},1\n0.3,{},{},{},1\n3,{},{},{},1\n",
+        rest_p[0], rest_p[1], rest_p[2], target[0], target[1], target[2], target[0], target[1], target[2]
+    );
+    let csv_path = write_file(dir.path(), "drag.csv", &csv);
+    let mut args = vec![
+        "session".to_string(),
+        basis.display().to_string(),
+        "--device".into(),
+        format!("script:{}", csv_path.display()),
+        "--json".into(),
+    ];
+    args.extend(COUPLING.iter().map(|s| s.to_string()));
+    let o = ves(&args.iter().map(String::as_str).collect::<Vec<_>>());
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let session = last_json(&o);
+    let f_session = vec3(&session["final_forces_n"][0]);
+    let gap = norm(sub(force, f_session)) / norm(f_session);
+    assert!(
+        gap < 0.01,
+        "page force {force:?} N vs ves session {f_session:?} N: {:.2} % apart",
+        100.0 * gap
+    );
+    eprintln!(
+        "pulled {pulled:.4} m; force {force:?} N; drawn u {u:?} m vs G·F {expected:?} ({:.3} % apart); ves session {f_session:?} N ({:.4} % apart)",
+        100.0 * miss,
+        100.0 * gap
+    );
+    // The page's readout says the same number (three significant digits, as toPrecision(3)).
+    let f = norm(force);
+    let shown = format!("{:.*}", (2 - f.log10().floor() as i32).max(0) as usize, f);
+    let text = held["handText"].as_str().unwrap();
+    assert!(text.contains(&format!("hand 1: {shown} N")), "{text} vs {f} N");
+
+    // 3. Letting go releases the hand; the mode browser animates the first mode at the
+    //    basis's frequency.
+    assert_eq!(page["released"].as_bool(), Some(false), "{page}");
+    let f1 = b.eigenvalues[0].sqrt() / (2.0 * std::f64::consts::PI);
+    let shown_f1 = page["mode"]["frequency"].as_f64().unwrap();
+    assert!(
+        (shown_f1 / f1 - 1.0).abs() < 1e-5,
+        "mode 1 shown at {shown_f1} Hz, basis {f1} Hz"
+    );
+
+    // 4. Five malformed messages were dropped and counted; frames kept coming; nothing leaked
+    //    into the session (one client drove the hand).
+    assert_eq!(page["after"]["dropped"].as_u64(), Some(5), "{page}");
+    assert!(
+        page["after"]["frames"].as_u64() > page["framesBefore"].as_u64(),
+        "{page}"
+    );
+    assert_eq!(stats["messages_dropped"].as_u64(), Some(5), "{stats}");
+    assert!(stats["clients_total"].as_u64().unwrap() >= 2, "{stats}");
+    assert!(stats["frames_sent"].as_u64().unwrap() > 10, "{stats}");
+    assert_eq!(stats["session"]["quarantined"].as_u64(), Some(0), "{stats}");
+    // The latency figures exist (measured in bench/, not asserted here).
+    assert!(held["latency_ms"].as_array().is_some_and(|l| !l.is_empty()), "{page}");
+}
+
+/// A port in use is one line naming it and what to do, exit status non-zero.
+#[test]
+fn a_port_in_use_is_a_one_line_error() {
+    let (_dir, basis) = good_basis();
+    let taken = std::net::TcpListener::bind("127.0.0.1:0").expect("a port");
+    let port = taken.local_addr().unwrap().port().to_string();
+    let o = ves(&["view", basis.to_str().unwrap(), "--port", &port, "--duration", "1"]);
+    assert_refused(&o, &format!("port {port}"));
+    assert!(
+        String::from_utf8_lossy(&o.stderr).contains("--port"),
+        "{}",
+        String::from_utf8_lossy(&o.stderr)
+    );
+}

@@ -1,0 +1,81 @@
+// End-to-end check of `ves view` in a real headless Chromium (Debian's, driven by playwright-core
+// from runtime/web's lockfile): open the page, grab the cantilever's tip with the mouse, pull it,
+// hold, and report what the page itself shows. Then send malformed messages over the page's own
+// WebSocket and check that frames still arrive. Prints one JSON object; the Rust test asserts.
+//
+// usage: node drag.mjs URL WEB_DIR SCREENSHOT.png
+import { pathToFileURL } from 'node:url';
+
+const [url, webDir, shot] = process.argv.slice(2);
+const { chromium } = await import(pathToFileURL(`${webDir}/node_modules/playwright-core/index.mjs`).href);
+const browser = await chromium.launch({
+  executablePath: process.env.VES_CHROMIUM || '/usr/bin/chromium',
+  args: ['--no-sandbox', '--use-angle=swiftshader', '--enable-unsafe-swiftshader', '--disable-background-networking',
+    '--disable-component-update', '--disable-sync', '--no-first-run'],
+});
+const errors = [];
+try {
+  const page = await browser.newPage({ viewport: { width: 1200, height: 800 } });
+  page.on('pageerror', (e) => errors.push(e.message));
+  await page.goto(url);
+  await page.waitForFunction(() => window.ves && window.ves.ready && window.ves.frames > 3, null, { timeout: 30000 });
+
+  // The tip's top edge, middle: where a user would grab a cantilever to pull it down.
+  const vertex = await page.evaluate(() => window.ves.nearestVertex(0, [1.0, 0.05, 0.05]));
+  const [x, y] = await page.evaluate((v) => window.ves.screenOf(0, v), vertex);
+  await page.mouse.move(x, y);
+  await page.mouse.down();
+  const pixels = 60;
+  for (let k = 1; k <= 12; k++) {
+    await page.mouse.move(x, y + (pixels * k) / 12);
+    await page.waitForTimeout(25);
+  }
+  await page.waitForTimeout(2500);
+  const held = await page.evaluate((v) => {
+    const s = window.ves.spaces[0];
+    const h = window.ves.status.hands[0];
+    return {
+      target: window.ves.lastTarget,
+      hand: h,
+      rest: Array.from(s.rest.subarray(3 * v, 3 * v + 3)),
+      position: Array.from(s.positions.subarray(3 * v, 3 * v + 3)),
+      umag: s.umag[v],
+      legend: [document.getElementById('lo').textContent, document.getElementById('hi').textContent],
+      handText: document.getElementById('handinfo').textContent,
+      latency_ms: window.ves.latency.slice(),
+      frames: window.ves.frames,
+    };
+  }, vertex);
+  await page.screenshot({ path: shot });
+  await page.mouse.up();
+  await page.waitForTimeout(300);
+  const released = await page.evaluate(() => window.ves.status.hands[0].active);
+
+  // Malformed input through the page's own socket: text garbage, binary, oversized, a non-finite
+  // position (JSON has no NaN: null), a hand that does not exist. All five must be dropped.
+  const before = await page.evaluate(() => window.ves.frames);
+  await page.evaluate(() => {
+    const ws = new WebSocket(`ws://${location.host}/ws`);
+    return new Promise((done) => {
+      ws.onopen = () => {
+        ws.send('garbage');
+        ws.send(new Uint8Array([1, 2, 3]));
+        ws.send(JSON.stringify({ type: 'mode', space: 0, index: 0, pad: 'x'.repeat(5000) }));
+        ws.send(JSON.stringify({ type: 'hand', hand: 0, active: true, button: true, position: [null, 0, 0] }));
+        ws.send(JSON.stringify({ type: 'hand', hand: 7, active: true, button: true, position: [1, 0, 0] }));
+        setTimeout(() => { ws.close(); done(); }, 300);
+      };
+    });
+  });
+  await page.waitForTimeout(500);
+  const after = await page.evaluate(() => ({ frames: window.ves.frames, dropped: window.ves.status.messages_dropped }));
+
+  // The mode browser: click mode 1 and check the page animates its shape.
+  await page.click('#modes button:first-child');
+  await page.waitForFunction(() => window.ves.mode !== null, null, { timeout: 5000 });
+  const mode = await page.evaluate(() => ({ mode: window.ves.mode.mode, frequency: window.ves.mode.frequency }));
+
+  console.log(JSON.stringify({ vertex, pixels, held, released, framesBefore: before, after, mode, errors }));
+} finally {
+  await browser.close();
+}
