@@ -157,8 +157,10 @@ impl SessionConfig {
         )?;
         // The step count must fit in a u64 (statistics stream, so memory does not grow with it);
         // an infinite session runs until stopped (see [`Hooks::stop`]).
-        let steps_fit = duration.is_infinite() || duration * rate < u64::MAX as f64 / 2.0;
-        InvalidSetting::check("duration", duration, "s", "> 0", duration > 0.0 && steps_fit)?;
+        if duration != f64::INFINITY {
+            let steps_fit = duration * rate < u64::MAX as f64 / 2.0;
+            InvalidSetting::check("duration", duration, "s", "> 0", duration > 0.0 && steps_fit)?;
+        }
         self.coupling.validate()?;
         let limit = self.strain.limit;
         InvalidSetting::check("strain-limit", limit, "", "> 0, e.g. 0.02", limit > 0.0)?;

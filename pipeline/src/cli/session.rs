@@ -149,6 +149,10 @@ impl Args {
         }
         // A duration given is checked as given; the scripts' length gets at least one step.
         let duration = self.duration.unwrap_or(longest.max(1.0 / self.settings.rate));
+        // The runtime runs an infinite session until stopped (ves view); scripts end.
+        if !duration.is_finite() {
+            anyhow::bail!("--duration {duration}: must be finite and > 0 (s); see ves session --help");
+        }
         let cfg = self.settings.config(duration, "session")?;
         let spaces = self.settings.spaces(&self.basis)?;
         let bytes: usize = spaces.iter().map(|s| s.basis.bytes_loaded).sum();
