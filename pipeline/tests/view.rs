@@ -197,6 +197,16 @@ fn the_mouse_pulls_the_tip_in_a_real_browser_and_the_page_shows_the_static_respo
     let text = held["handText"].as_str().unwrap();
     assert!(text.contains(&format!("hand 1: {shown} N")), "{text} vs {f} N");
 
+    // A second client drove the other hand at mid-span while the first held the tip.
+    let second = &page["second"];
+    let hands = second["hands"].as_array().expect("hands");
+    let (owner0, owner1) = (hands[0]["owner"].as_u64().unwrap(), hands[1]["owner"].as_u64().unwrap());
+    assert!(
+        hands.iter().all(|h| h["active"].as_bool() == Some(true)) && owner0 != owner1,
+        "two clients, two hands: {second}"
+    );
+    assert_eq!(second["client"].as_u64(), Some(owner1), "{second}");
+
     // 3. Letting go releases the hand; the mode browser animates the first mode at the
     //    basis's frequency.
     assert_eq!(page["released"].as_bool(), Some(false), "{page}");

@@ -47,6 +47,22 @@ try {
     };
   }, vertex);
   await page.screenshot({ path: shot });
+
+  // A second client shares the session: it may drive the other hand, not the one held here.
+  const other = await browser.newPage({ viewport: { width: 1200, height: 800 } });
+  other.on('pageerror', (e) => errors.push(e.message));
+  await other.goto(url);
+  await other.waitForFunction(() => window.ves && window.ves.ready && window.ves.status, null, { timeout: 30000 });
+  const mid = await other.evaluate(() => window.ves.nearestVertex(0, [0.5, 0.05, 0.05]));
+  const [mx, my] = await other.evaluate((v) => window.ves.screenOf(0, v), mid);
+  await other.mouse.move(mx, my);
+  await other.mouse.down();
+  await other.mouse.move(mx, my + 20, { steps: 5 });
+  await other.waitForTimeout(500);
+  const second = await other.evaluate(() => ({ client: window.ves.hello.client, hands: window.ves.status.hands }));
+  await other.mouse.up();
+  await other.close();
+
   await page.mouse.up();
   await page.waitForTimeout(300);
   const released = await page.evaluate(() => window.ves.status.hands[0].active);
@@ -75,7 +91,7 @@ try {
   await page.waitForFunction(() => window.ves.mode !== null, null, { timeout: 5000 });
   const mode = await page.evaluate(() => ({ mode: window.ves.mode.mode, frequency: window.ves.mode.frequency }));
 
-  console.log(JSON.stringify({ vertex, pixels, held, released, framesBefore: before, after, mode, errors }));
+  console.log(JSON.stringify({ vertex, pixels, held, second, released, framesBefore: before, after, mode, errors }));
 } finally {
   await browser.close();
 }
