@@ -17,14 +17,30 @@ pub const COMPONENTS: &str = "xx yy zz yz xz xy";
 /// vertex i, Pa per unit of the field. A tet whose Jacobian is not positive at a corner is left
 /// out of that vertex's average (the mesh checks keep there being none).
 pub fn vertex_stress(mesh: &Mesh, mat: &Lame, u: &[f64], r: usize) -> Vec<f64> {
+    vertex_stress_averaged(mesh, mat, u, r, Averaging::Volume)
+}
+
+/// How the corner values of the elements at a vertex are averaged.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Averaging {
+    /// Weighted by element volume (what a basis stores: a large element's corner value counts
+    /// for the region it covers).
+    Volume,
+    /// Plain mean, as CalculiX averages its extrapolated nodal values (`ves verify --stress`
+    /// compares like with like).
+    Arithmetic,
+}
+
+/// [`vertex_stress`] with a choice of averaging.
+pub fn vertex_stress_averaged(mesh: &Mesh, mat: &Lame, u: &[f64], r: usize, how: Averaging) -> Vec<f64> {
     if mesh.order == 2 {
-        accumulate::<Tet10>(mesh, mat, u, r)
+        accumulate::<Tet10>(mesh, mat, u, r, how)
     } else {
-        accumulate::<Tet4>(mesh, mat, u, r)
+        accumulate::<Tet4>(mesh, mat, u, r, how)
     }
 }
 
-fn accumulate<S: Shape>(mesh: &Mesh, mat: &Lame, u: &[f64], r: usize) -> Vec<f64> {
+fn accumulate<S: Shape>(mesh: &Mesh, mat: &Lame, u: &[f64], r: usize, how: Averaging) -> Vec<f64> {
     let nv = mesh.vertex_count;
     let n3 = 3 * mesh.nodes.len();
     let threads = rayon::current_num_threads().max(1);
@@ -39,7 +55,10 @@ fn accumulate<S: Shape>(mesh: &Mesh, mat: &Lame, u: &[f64], r: usize) -> Vec<f64
                 let t = mesh.tet(e);
                 let x: Vec<[f64; 3]> = t.iter().map(|&n| mesh.nodes[n as usize]).collect();
                 let c = |k: usize| Vector3::from(x[k]);
-                let volume = (c(1) - c(0)).cross(&(c(2) - c(0))).dot(&(c(3) - c(0))).abs() / 6.0;
+                let volume = match how {
+                    Averaging::Volume => (c(1) - c(0)).cross(&(c(2) - c(0))).dot(&(c(3) - c(0))).abs() / 6.0,
+                    Averaging::Arithmetic => 1.0,
+                };
                 let mut gl = vec![[0.0; 4]; S::NODES];
                 let mut grad = vec![[0.0; 3]; S::NODES];
                 for corner in 0..4 {

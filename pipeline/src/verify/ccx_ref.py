@@ -39,14 +39,23 @@ def deck(nodes, tets, fixed, a, step):
 
 def read_frd_disp(path, n):
     """All DISP blocks of an ASCII .frd file, each as an (n, 3) array."""
+    return read_frd(path, n, "DISP", 3)
+
+
+# CalculiX's STRESS block: SXX SYY SZZ SXY SYZ SZX; VES's Voigt order: xx yy zz yz xz xy.
+VES_FROM_CCX_STRESS = [0, 1, 2, 4, 5, 3]
+
+
+def read_frd(path, n, name, comps):
+    """All `name` blocks of an ASCII .frd file, each as an (n, comps) array."""
     blocks, cur = [], None
     with open(path) as f:
         for line in f:
-            if line.startswith(" -4  DISP"):
-                cur = np.zeros((n, 3))
+            if line.startswith(" -4  "):
+                cur = np.zeros((n, comps)) if line[5:13].strip() == name else None
             elif cur is not None and line.startswith(" -1"):
                 node = int(line[3:13])
-                vals = [float(line[13 + 12 * j: 25 + 12 * j]) for j in range(3)]
+                vals = [float(line[13 + 12 * j: 25 + 12 * j]) for j in range(comps)]
                 cur[node - 1] = vals
             elif cur is not None and line.startswith(" -3"):
                 blocks.append(cur)
@@ -70,7 +79,7 @@ def main(inp, out, workdir):
     if int(a["rigid"]) != 0:
         sys.exit("ccx reference: only supported parts (this one has rigid modes)")
     n, k = len(nodes), int(a["modes"])
-    run(workdir, "modes", deck(nodes, tets, fixed, a, ["*STEP", "*FREQUENCY", "%d" % k, "*NODE FILE", "U", "*END STEP"]))
+    run(workdir, "modes", deck(nodes, tets, fixed, a, ["*STEP", "*FREQUENCY", "%d" % k, "*NODE FILE", "U", "*EL FILE", "S", "*END STEP"]))
     with open(os.path.join(workdir, "modes.dat")) as f:
         dat = f.read()
     table = dat.split("E I G E N V A L U E   O U T P U T")[1]
@@ -78,6 +87,10 @@ def main(inp, out, workdir):
     freqs = np.array([float(r[3]) for r in rows[:k]])
     disp = read_frd_disp(os.path.join(workdir, "modes.frd"), n)[:k]
     modes = np.stack([d.reshape(-1) for d in disp], axis=1)
+    # Nodal stress of each mode shape (extrapolated from the integration points and averaged
+    # over the elements at a node by CalculiX), rows 6i+k in VES's Voigt order.
+    stress = read_frd(os.path.join(workdir, "modes.frd"), n, "STRESS", 6)[:k]
+    mode_stress = np.stack([s[:, VES_FROM_CCX_STRESS].reshape(-1) for s in stress], axis=1)
     node = int(a["load_node"])
     cload = ["%d, %d, %.13g" % (node + 1, c + 1, load[3 * node + c]) for c in range(3) if load[3 * node + c] != 0.0]
     run(workdir, "static", deck(nodes, tets, fixed, a, ["*STEP", "*STATIC", "*CLOAD", *cload, "*NODE FILE", "U", "*END STEP"]))
@@ -85,6 +98,7 @@ def main(inp, out, workdir):
     with h5py.File(out, "w") as f:
         f["frequencies_hz"] = freqs
         f["modes"] = modes
+        f["mode_stress"] = mode_stress
         f["static"] = static
         f.attrs["solver"] = "CalculiX ccx (%s)" % ("C3D10" if tets.shape[1] == 10 else "C3D4")
 

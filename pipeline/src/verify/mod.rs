@@ -39,6 +39,8 @@ pub struct ToleranceOverrides {
     pub angle: Option<f64>,
     /// Largest relative static difference.
     pub static_rel: Option<f64>,
+    /// Largest relative difference of a mode's nodal stress (`--stress`).
+    pub stress: Option<f64>,
 }
 
 /// Pass/fail thresholds.
@@ -52,6 +54,10 @@ pub struct Tolerances {
     pub angle: f64,
     /// Largest relative difference of the static displacement at the load point.
     pub static_rel: f64,
+    /// Largest relative difference (L2 over the corner vertices, all six components) between
+    /// our stress recovered from the reference's mode shape and the reference's own nodal stress
+    /// for that shape (`--stress`, CalculiX only).
+    pub stress: f64,
 }
 
 impl Tolerances {
@@ -86,6 +92,12 @@ impl Tolerances {
                 _ if curved => 1e-4,
                 _ => 1e-6,
             }),
+            // Compared with CalculiX's own averaging (an arithmetic mean of the elements' corner
+            // values at a node), the per-element stresses are the same field: CalculiX
+            // extrapolates its 4 (C3D10) or 1 (C3D4) integration-point stresses linearly to the
+            // corners, which reproduces the element's linear or constant strain. What remains
+            // is the .frd's 5 significant digits and its extrapolation (docs/validation.md).
+            stress: o.stress.unwrap_or(STRESS_TOLERANCE),
         }
     }
 }
@@ -107,6 +119,14 @@ pub struct ModeRow {
     pub group: usize,
     /// Largest principal angle between the group's subspaces, rad.
     pub group_angle_rad: f64,
+    /// With `--stress`: relative difference of our stress recovered from the reference's mode
+    /// shape and the reference's nodal stress of that shape.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub stress_rel_diff: Option<f64>,
+    /// The same with the volume-weighted averaging a basis stores (information: CalculiX
+    /// averages arithmetically, so this gap is the averaging's, not an error of either).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub stress_rel_diff_volume_weighted: Option<f64>,
 }
 
 /// One reference's comparison.
@@ -124,6 +144,9 @@ pub struct ReferenceReport {
     pub max_group_angle_rad: Option<f64>,
     /// Static displacement at the load node, ours vs reference, relative.
     pub static_rel_diff: Option<f64>,
+    /// With `--stress`: the largest relative stress difference over the modes.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub max_stress_rel_diff: Option<f64>,
     /// Wall time of the reference run, s.
     pub seconds: f64,
     /// Tolerances applied.
@@ -185,6 +208,9 @@ fn run_checked(what: &str, cmd: &mut Command) -> Result<()> {
 /// Relative gap below which two neighbouring frequencies are treated as one group.
 const GROUP_GAP: f64 = 1e-3;
 
+/// Default `--tol-stress` (see [`Tolerances::stress`]); measured in docs/validation.md.
+pub const STRESS_TOLERANCE: f64 = 1e-2;
+
 fn python_has(module: &str) -> bool {
     Command::new("python3")
         .args(["-c", &format!("import {module}")])
@@ -202,6 +228,7 @@ pub fn verify_input(
     refs: Reference,
     modes: Option<usize>,
     overrides: &ToleranceOverrides,
+    stress: bool,
 ) -> Result<VerifyReport> {
     let is_scene = input.extension().is_some_and(|e| e.eq_ignore_ascii_case("toml"));
     let (d, ours, material) = if is_scene {
@@ -213,7 +240,18 @@ pub fn verify_input(
     } else {
         discretize_basis(input, modes)?
     };
-    verify(&input.display().to_string(), &d, &ours, material, refs, overrides)
+    if stress && !matches!(refs, Reference::Calculix | Reference::All) {
+        bail!("--stress compares nodal stresses with CalculiX: use it with --against calculix (or all)");
+    }
+    verify(
+        &input.display().to_string(),
+        &d,
+        &ours,
+        material,
+        refs,
+        overrides,
+        stress,
+    )
 }
 
 /// Rebuilds the discrete problem of a basis file's global space (its own mesh, supports and
@@ -275,6 +313,7 @@ fn verify(
     material: MaterialConstants,
     refs: Reference,
     overrides: &ToleranceOverrides,
+    stress: bool,
 ) -> Result<VerifyReport> {
     let list = match refs {
         Reference::All => {
@@ -384,7 +423,9 @@ fn verify(
         }
         let curved = !d.mesh.curved_tets().is_empty();
         let tol = Tolerances::resolve(r, d.mesh.order, curved, overrides);
-        let mut rep = compare(d, ours, &result, static_ours.as_deref(), load_node, &tol)?;
+        let lame = crate::fem::element::Lame::new(material.0, material.1, material.2);
+        let stress_of = (stress && r == Reference::Calculix).then_some(&lame);
+        let mut rep = compare(d, ours, &result, static_ours.as_deref(), load_node, &tol, stress_of)?;
         rep.seconds = t.elapsed().as_secs_f64();
         reports.push(rep);
     }
@@ -493,6 +534,7 @@ fn compare(
     static_ours: Option<&[f64]>,
     load_node: usize,
     tol: &Tolerances,
+    stress: Option<&crate::fem::element::Lame>,
 ) -> Result<ReferenceReport> {
     let f = hdf5::File::open(result).with_context(|| format!("cannot read {}", result.display()))?;
     let freqs: Vec<f64> = f.dataset("frequencies_hz")?.read_raw()?;
@@ -544,8 +586,37 @@ fn compare(
             mac,
             group: group[j],
             group_angle_rad: angle,
+            stress_rel_diff: None,
+            stress_rel_diff_volume_weighted: None,
         });
     }
+    if let Some(lame) = stress {
+        let theirs_stress: Array2<f64> = f
+            .dataset("mode_stress")
+            .context("the CalculiX reference wrote no nodal stress")?
+            .read_2d()?;
+        let nv = d.mesh.vertex_count;
+        if theirs_stress.nrows() != 6 * d.mesh.nodes.len() || theirs_stress.ncols() < r {
+            bail!("{}: the reference's nodal stress has the wrong shape", result.display());
+        }
+        use crate::fem::stress::{Averaging, vertex_stress_averaged};
+        let gap = |ours: &[f64], j: usize| {
+            let (mut diff, mut norm) = (0.0, 0.0);
+            for (i, o) in ours.iter().enumerate().take(6 * nv) {
+                let t = theirs_stress[(i, j)];
+                diff += (o - t).powi(2);
+                norm += t * t;
+            }
+            (diff / norm.max(f64::MIN_POSITIVE)).sqrt()
+        };
+        for (j, row) in rows.iter_mut().enumerate() {
+            let like = vertex_stress_averaged(&d.mesh, lame, &theirs[j], 1, Averaging::Arithmetic);
+            let stored = vertex_stress_averaged(&d.mesh, lame, &theirs[j], 1, Averaging::Volume);
+            row.stress_rel_diff = Some(gap(&like, j));
+            row.stress_rel_diff_volume_weighted = Some(gap(&stored, j));
+        }
+    }
+    let max_stress = rows.iter().filter_map(|x| x.stress_rel_diff).reduce(f64::max);
     let isolated = |row: &ModeRow| rows.iter().filter(|o| o.group == row.group).count() == 1;
     let max_rel = rows.iter().map(|x| x.rel_diff).fold(0.0, f64::max);
     let min_mac = rows.iter().filter(|x| isolated(x)).map(|x| x.mac).fold(1.0, f64::min);
@@ -577,7 +648,8 @@ fn compare(
         && max_rel <= tol.freq
         && min_mac >= tol.mac
         && max_angle.is_none_or(|a| a <= tol.angle)
-        && static_rel.is_none_or(|s| s <= tol.static_rel);
+        && static_rel.is_none_or(|s| s <= tol.static_rel)
+        && max_stress.is_none_or(|s| s <= tol.stress);
     Ok(ReferenceReport {
         solver,
         tolerances: *tol,
@@ -586,6 +658,7 @@ fn compare(
         min_mac_isolated: min_mac,
         max_group_angle_rad: max_angle,
         static_rel_diff: static_rel,
+        max_stress_rel_diff: max_stress,
         seconds: 0.0,
         pass,
     })
@@ -627,7 +700,7 @@ mod tests {
                 .create("modes")
                 .expect("modes");
             f.close().expect("close");
-            let e = compare(&d, &ours, &path, None, 0, &tol).expect_err("refused");
+            let e = compare(&d, &ours, &path, None, 0, &tol, None).expect_err("refused");
             assert!(e.to_string().contains("unusable"), "{name}: {e}");
         }
     }
