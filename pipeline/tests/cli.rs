@@ -1022,6 +1022,15 @@ fn session_reports_von_mises_and_the_safety_factor() {
         part > 0.5 * beam && part < 2.0 * beam,
         "von Mises {part} Pa against beam theory {beam} Pa"
     );
+    // Bending: the largest principal stress is the top fibre's tension, near von Mises at the
+    // root; the largest principal strain of that nearly uniaxial state is close to σ₁/E.
+    let (p1, e1) = (num(&v, "principal_stress_max"), num(&v, "principal_strain_max"));
+    assert!(p1 > 0.8 * part && p1 < 1.2 * part, "σ₁ {p1} Pa vs von Mises {part} Pa");
+    assert!(
+        e1 > 0.7 * p1 / 2.1e11 && e1 < 1.3 * p1 / 2.1e11,
+        "ε₁ {e1} vs σ₁/E {}",
+        p1 / 2.1e11
+    );
     assert_eq!(v["stress_exceeded_steps"], 0);
     let device = format!("script:{}", script.display());
     let session = |extra: &[&str]| {

@@ -110,7 +110,10 @@ fn the_mouse_pulls_the_tip_in_a_real_browser_and_the_page_shows_the_static_respo
     );
     assert!(status.success(), "ves view after Ctrl-C: {status:?}: {err}");
     if let Some(keep) = std::env::var_os("VES_VIEW_SCREENSHOT") {
-        std::fs::copy(&shot, keep).expect("copy the screenshot");
+        let keep = std::path::PathBuf::from(keep);
+        std::fs::copy(&shot, &keep).expect("copy the screenshot");
+        let vm = |p: &Path| p.with_file_name(format!("{}_von_mises.png", p.file_stem().unwrap().to_string_lossy()));
+        std::fs::copy(vm(&shot), vm(&keep)).expect("copy the von Mises screenshot");
     }
     let page: serde_json::Value = serde_json::from_slice(&browser.stdout).expect("the page's JSON");
     let stats: serde_json::Value = serde_json::from_str(rest.lines().last().expect("stats line")).expect("stats JSON");
@@ -206,6 +209,27 @@ fn the_mouse_pulls_the_tip_in_a_real_browser_and_the_page_shows_the_static_respo
         "two clients, two hands: {second}"
     );
     assert_eq!(second["client"].as_u64(), Some(owner1), "{second}");
+
+    // The von Mises colouring's legend reaches the root's bending stress (beam theory F·L·c/I
+    // for the vertical force; the page shows three digits and a prefix).
+    let legend = page["vonMisesLegend"].as_array().expect("legend");
+    assert_eq!(legend[0].as_str(), Some("von Mises stress"), "{legend:?}");
+    let hi = legend[1].as_str().unwrap();
+    let root = force[2] * 1.0 * 0.025 / (0.1 * 0.05f64.powi(3) / 12.0);
+    let kpa = hi
+        .strip_suffix(" kPa")
+        .and_then(|v| v.parse::<f64>().ok())
+        .map(|v| v * 1e3);
+    let value = kpa.or_else(|| {
+        hi.strip_suffix(" MPa")
+            .and_then(|v| v.parse::<f64>().ok())
+            .map(|v| v * 1e6)
+    });
+    let value = value.unwrap_or_else(|| panic!("legend top {hi:?}"));
+    assert!(
+        value > 0.5 * root && value < 2.0 * root,
+        "legend top {hi} vs root bending {root} Pa"
+    );
 
     // 3. Letting go releases the hand; the mode browser animates the first mode at the
     //    basis's frequency.

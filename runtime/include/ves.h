@@ -113,6 +113,14 @@ typedef struct VesHandOutput {
    * Non-zero when the safety factor fell below the watch's minimum (the reaction acted).
    */
   int32_t stress_exceeded;
+  /**
+   * Largest principal stress at the vertex, Pa (0 without modal stress).
+   */
+  double principal_stress;
+  /**
+   * Largest principal strain at the vertex (0 without modal stress).
+   */
+  double principal_strain;
 } VesHandOutput;
 
 #ifdef __cplusplus
@@ -190,6 +198,17 @@ enum VesStatus ves_haptics_set_strain_watch(struct VesHaptics *h, double limit, 
  * `h` must be live and not stepped concurrently.
  */
 enum VesStatus ves_haptics_set_min_safety_factor(struct VesHaptics *h, double min);
+
+/**
+ * Raises (non-zero) or clears the whole-part stress alarm: while raised, every hand counts as
+ * past the stress criterion and the watch's reaction acts (stiffen holds the force it had).
+ * An application that draws the whole part (`ves_view_von_mises`) raises it when the part's
+ * safety factor falls below its minimum, as `ves session`'s drawing thread does.
+ *
+ * # Safety
+ * `h` must be live and not stepped concurrently.
+ */
+enum VesStatus ves_haptics_set_part_alarm(struct VesHaptics *h, int32_t on);
 
 /**
  * Releases a simulation (null is ignored).

@@ -67,6 +67,8 @@ pub struct Basis {
     pub stress: Option<Vec<f32>>,
     /// Yield strength, Pa, when the file gives it (safety factors).
     pub yield_strength: Option<f64>,
+    /// Young's modulus (Pa) and Poisson's ratio, when loaded from a file (strains from stress).
+    pub elastic: Option<(f64, f64)>,
 }
 
 impl Basis {
@@ -157,6 +159,7 @@ impl Basis {
             voi: None,
             stress: None,
             yield_strength: None,
+            elastic: None,
         })
     }
 
@@ -398,6 +401,7 @@ mod file {
         )?;
         basis.voi = s.voi;
         basis.yield_strength = m.yield_strength;
+        basis.elastic = Some((m.young, m.poisson));
         if let Some(all) = s.stress_rows(0..nv, r)? {
             let mut kept = Vec::with_capacity(6 * keep.len() * r);
             for &v in &keep {

@@ -96,6 +96,10 @@ pub struct VesHandOutput {
     pub safety_factor: f64,
     /// Non-zero when the safety factor fell below the watch's minimum (the reaction acted).
     pub stress_exceeded: i32,
+    /// Largest principal stress at the vertex, Pa (0 without modal stress).
+    pub principal_stress: f64,
+    /// Largest principal strain at the vertex (0 without modal stress).
+    pub principal_strain: f64,
 }
 
 thread_local! {
@@ -342,6 +346,26 @@ pub unsafe extern "C" fn ves_haptics_set_min_safety_factor(h: *mut VesHaptics, m
     })
 }
 
+/// Raises (non-zero) or clears the whole-part stress alarm: while raised, every hand counts as
+/// past the stress criterion and the watch's reaction acts (stiffen holds the force it had).
+/// An application that draws the whole part (`ves_view_von_mises`) raises it when the part's
+/// safety factor falls below its minimum, as `ves session`'s drawing thread does.
+///
+/// # Safety
+/// `h` must be live and not stepped concurrently.
+#[unsafe(no_mangle)]
+pub unsafe extern "C" fn ves_haptics_set_part_alarm(h: *mut VesHaptics, on: i32) -> VesStatus {
+    guard(|| {
+        // SAFETY: null-checked; exclusive use by contract.
+        let h = unsafe { h.as_mut() }.ok_or((
+            VesStatus::NullArgument,
+            "ves_haptics_set_part_alarm: null simulation".into(),
+        ))?;
+        h.sim.set_part_alarm(on != 0);
+        Ok(())
+    })
+}
+
 /// Releases a simulation (null is ignored).
 ///
 /// # Safety
@@ -437,6 +461,8 @@ fn step(
             von_mises: s.von_mises,
             safety_factor: s.safety_factor,
             stress_exceeded: i32::from(s.stress_exceeded),
+            principal_stress: s.principal_stress,
+            principal_strain: s.principal_strain,
         };
     }
     h.time += h.sim.state().dt();
@@ -610,22 +636,67 @@ mod tests {
         }
     }
 
-    /// Makes the next step panic (the only way to reach the boundary's catch from a test).
-    pub(super) static PANIC_IN_STEP: AtomicBool = AtomicBool::new(false);
-
-    #[test]
-    fn a_panic_inside_a_step_poisons_the_handle() {
-        let b = Arc::new(crate::basis::stretch_grid(1.0, 100.0, 0.0));
-        let sim = Haptics::new(b, Coupling::default(), 1e-3, Scheme::Exact, 1);
+    /// A one-hand simulation handle on `b`, as `ves_haptics_new` makes it.
+    fn handle(b: crate::Basis) -> Box<VesHaptics> {
+        let sim = Haptics::new(Arc::new(b), Coupling::default(), 1e-3, Scheme::Exact, 1);
         let published = vec![0.0; sim.published_len()];
-        let mut h = Box::new(VesHaptics {
+        Box::new(VesHaptics {
             snapshot: Arc::new(Snapshot::new(published.len())),
             sim,
             published,
             time: 0.0,
             hands: 1,
             poisoned: false,
-        });
+        })
+    }
+
+    /// The whole-part alarm from C: a grabbing hand counts as past the stress criterion while
+    /// it is raised, and not once it is cleared.
+    #[test]
+    fn the_part_alarm_is_raised_and_cleared_through_the_c_abi() {
+        let mut b = crate::basis::stretch_grid(1.0, 100.0, 0.0);
+        let mut rows = vec![0.0; 6 * b.vertex_count()];
+        rows[6 * 2] = 1e6;
+        b = b.with_stress(&rows).unwrap();
+        b.yield_strength = Some(2.5e8);
+        let at = b.rest[2];
+        let mut h = handle(b);
+        let hp: *mut VesHaptics = &mut *h;
+        let input = [VesHandInput {
+            position: at,
+            button: 1,
+            ..Default::default()
+        }];
+        let mut output = [VesHandOutput::default()];
+        let mut exceeded = |alarm: Option<i32>| {
+            if let Some(on) = alarm {
+                // SAFETY: live handle, not stepped concurrently.
+                assert_eq!(unsafe { ves_haptics_set_part_alarm(hp, on) }, VesStatus::Ok);
+            }
+            // SAFETY: live handle and one-item arrays.
+            assert_eq!(
+                unsafe { ves_haptics_step(hp, input.as_ptr(), output.as_mut_ptr(), 1) },
+                VesStatus::Ok
+            );
+            output[0].stress_exceeded
+        };
+        assert_eq!(exceeded(None), 0);
+        assert_eq!(exceeded(Some(1)), 1);
+        assert_eq!(exceeded(None), 1, "the alarm stays until cleared");
+        assert_eq!(exceeded(Some(0)), 0);
+        // SAFETY: null is refused, not dereferenced.
+        assert_eq!(
+            unsafe { ves_haptics_set_part_alarm(std::ptr::null_mut(), 1) },
+            VesStatus::NullArgument
+        );
+    }
+
+    /// Makes the next step panic (the only way to reach the boundary's catch from a test).
+    pub(super) static PANIC_IN_STEP: AtomicBool = AtomicBool::new(false);
+
+    #[test]
+    fn a_panic_inside_a_step_poisons_the_handle() {
+        let mut h = handle(crate::basis::stretch_grid(1.0, 100.0, 0.0));
         let input = [VesHandInput::default()];
         let mut output = [VesHandOutput::default()];
         let hp: *mut VesHaptics = &mut *h;

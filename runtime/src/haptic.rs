@@ -162,6 +162,10 @@ pub struct HandOutput {
     pub von_mises: f64,
     /// Yield strength over that von Mises stress (infinite without a yield strength or stress).
     pub safety_factor: f64,
+    /// Largest principal stress at the active vertex, Pa (0 without modal stress).
+    pub principal_stress: f64,
+    /// Largest principal strain there (0 without modal stress or elastic constants).
+    pub principal_strain: f64,
     /// The safety factor fell below the watch's minimum (the configured reaction acted).
     pub stress_exceeded: bool,
 }
@@ -444,8 +448,8 @@ impl Haptics {
         }
     }
 
-    /// Von Mises stress at hand `k`'s vertex for the current modal state (None without stress).
-    fn vertex_von_mises(&self, k: usize) -> Option<f64> {
+    /// Stress at hand `k`'s vertex for the current modal state (None without stress).
+    fn vertex_stress(&self, k: usize) -> Option<[f64; 6]> {
         self.basis.stress.as_ref()?;
         let hd = &self.hands[k];
         let r = self.state.q.len();
@@ -456,7 +460,7 @@ impl Haptics {
                 .map(|(a, q)| a * q)
                 .sum()
         });
-        Some(crate::visual::von_mises(s))
+        Some(s)
     }
 
     /// Largest |edge strain| at hand `k`'s vertex for the current modal state.
@@ -598,7 +602,13 @@ impl Haptics {
         out.strain_exceeded = strain > watch.limit;
         // The stress criterion: yield / von Mises below the minimum safety factor.
         let allowed = self.basis.yield_strength.map(|y| y / watch.min_safety_factor);
-        out.von_mises = self.vertex_von_mises(k).unwrap_or(0.0);
+        let stress = self.vertex_stress(k);
+        out.von_mises = stress.map_or(0.0, crate::visual::von_mises);
+        out.principal_stress = stress.map_or(0.0, |s| crate::visual::principal_stresses(s)[0]);
+        out.principal_strain = match (stress, self.basis.elastic) {
+            (Some(s), Some(e)) => crate::visual::principal_strain_max(s, e),
+            _ => 0.0,
+        };
         out.safety_factor = match self.basis.yield_strength {
             Some(y) if out.von_mises > 0.0 => y / out.von_mises,
             _ => f64::INFINITY,

@@ -111,6 +111,10 @@ pub struct SessionStats {
     pub stress_exceeded_steps: u64,
     /// Drawn frames in which the whole part's safety factor was below the watch's minimum.
     pub safety_factor_below_min_frames: u64,
+    /// Largest principal stress over the whole drawn part, Pa (null without modal stress).
+    pub principal_stress_max: Option<f64>,
+    /// Largest principal strain over the whole drawn part (null without modal stress).
+    pub principal_strain_max: Option<f64>,
     /// The force on each device at the last step, N.
     pub final_forces_n: Vec<[f64; 3]>,
 }
@@ -258,6 +262,8 @@ pub fn run_spaces_with(
     let visual_count = Arc::new(AtomicU64::new(0));
     let surface_strain = Arc::new(AtomicU64::new(0f64.to_bits()));
     let part_von_mises = Arc::new(AtomicU64::new(0f64.to_bits()));
+    // Largest principal stress and strain of the part, drawing thread.
+    let part_principal = Arc::new([AtomicU64::new(0f64.to_bits()), AtomicU64::new(0f64.to_bits())]);
     // Set by the drawing thread while the whole part's safety factor is below the minimum.
     let part_alarm = Arc::new(AtomicBool::new(false));
     let alarm_frames = Arc::new(AtomicU64::new(0));
@@ -265,7 +271,7 @@ pub fn run_spaces_with(
 
     let viz = {
         let (bases, snapshot, stop, count) = (bases.clone(), snapshot.clone(), stop.clone(), visual_count.clone());
-        let (strain, von_mises) = (surface_strain.clone(), part_von_mises.clone());
+        let (strain, von_mises, principal) = (surface_strain.clone(), part_von_mises.clone(), part_principal.clone());
         let (alarm, frames) = (part_alarm.clone(), alarm_frames.clone());
         let cap = cfg.visual_hz.map(|hz| Duration::from_secs_f64(1.0 / hz.max(1.0)));
         let mut observer = hooks.frame;
@@ -299,6 +305,12 @@ pub fn run_spaces_with(
                         von_mises.store(vm.to_bits(), Ordering::Relaxed);
                     }
                     below = bases[i].yield_strength.is_some_and(|y| y < min_sf * vm);
+                    let (p_stress, p_strain) = visual::max_principal(&sigma[i], bases[i].elastic);
+                    for (slot, v) in principal.iter().zip([Some(p_stress), p_strain]) {
+                        if let Some(v) = v.filter(|&v| v > f64::from_bits(slot.load(Ordering::Relaxed))) {
+                            slot.store(v.to_bits(), Ordering::Relaxed);
+                        }
+                    }
                     alarm.store(below, Ordering::Relaxed);
                     frames.fetch_add(u64::from(below), Ordering::Relaxed);
                 }
@@ -422,6 +434,9 @@ pub fn run_spaces_with(
         },
         stress_exceeded_steps: stress_steps,
         safety_factor_below_min_frames: alarm_frames.load(Ordering::Relaxed),
+        principal_stress_max: has_stress.then(|| f64::from_bits(part_principal[0].load(Ordering::Relaxed))),
+        principal_strain_max: (has_stress && bases[0].elastic.is_some())
+            .then(|| f64::from_bits(part_principal[1].load(Ordering::Relaxed))),
         final_forces_n: outputs.iter().map(|o| o.force).collect(),
     })
 }

@@ -36,6 +36,23 @@ pub fn von_mises(s: [f64; 6]) -> f64 {
     (0.5 * ((xx - yy).powi(2) + (yy - zz).powi(2) + (zz - xx).powi(2)) + 3.0 * (yz * yz + xz * xz + xy * xy)).sqrt()
 }
 
+/// Principal stresses of a Voigt stress (xx yy zz yz xz xy), Pa, largest first.
+pub fn principal_stresses(s: [f64; 6]) -> [f64; 3] {
+    let [xx, yy, zz, yz, xz, xy] = s;
+    let m = nalgebra::Matrix3::new(xx, xy, xz, xy, yy, yz, xz, yz, zz);
+    let mut e: [f64; 3] = m.symmetric_eigenvalues().into();
+    e.sort_by(|a, b| b.total_cmp(a));
+    e
+}
+
+/// Largest principal strain of an isotropic linear-elastic material under a Voigt stress:
+/// ε = ((1 + ν) σ − ν tr(σ) I) / E shares σ's principal directions, so its largest eigenvalue
+/// is ((1 + ν) σ₁ − ν (σ₁ + σ₂ + σ₃)) / E.
+pub fn principal_strain_max(s: [f64; 6], (young, poisson): (f64, f64)) -> f64 {
+    let p = principal_stresses(s);
+    ((1.0 + poisson) * p[0] - poisson * (p[0] + p[1] + p[2])) / young
+}
+
 /// The largest von Mises stress over the vertices of `sigma` (6 per vertex) and its vertex.
 pub fn max_von_mises(sigma: &[f32]) -> (f64, usize) {
     sigma
@@ -43,6 +60,20 @@ pub fn max_von_mises(sigma: &[f32]) -> (f64, usize) {
         .map(|s| von_mises(std::array::from_fn(|k| f64::from(s[k]))))
         .enumerate()
         .fold((0.0, 0), |best, (i, v)| if v > best.0 { (v, i) } else { best })
+}
+
+/// The largest principal stress over the vertices of `sigma` (6 per vertex), Pa, and with
+/// elastic constants the largest principal strain.
+pub fn max_principal(sigma: &[f32], elastic: Option<(f64, f64)>) -> (f64, Option<f64>) {
+    let (mut stress, mut strain) = (f64::NEG_INFINITY, f64::NEG_INFINITY);
+    for s in sigma.chunks_exact(6) {
+        let s: [f64; 6] = std::array::from_fn(|k| f64::from(s[k]));
+        stress = stress.max(principal_stresses(s)[0]);
+        if let Some(e) = elastic {
+            strain = strain.max(principal_strain_max(s, e));
+        }
+    }
+    (stress, elastic.map(|_| strain))
 }
 
 /// Writes deformed positions rest + u into `pos` (3 values per kept vertex).
@@ -111,6 +142,29 @@ pub fn max_edge_strain(basis: &Basis, pos: &[f32]) -> f64 {
 
 #[cfg(test)]
 mod tests {
+
+    /// Principal values against hand-worked cases: a rotated uniaxial stress and pure shear.
+    #[test]
+    fn principal_stress_and_strain_of_known_states() {
+        // Uniaxial 100 MPa along (1, 1, 0)/√2: σxx = σyy = σxy = 50 MPa.
+        let s = [50e6, 50e6, 0.0, 0.0, 0.0, 50e6];
+        let p = principal_stresses(s);
+        assert!(
+            (p[0] - 100e6).abs() < 1e-3 && p[1].abs() < 1e-3 && p[2].abs() < 1e-3,
+            "{p:?}"
+        );
+        // Its largest principal strain is σ/E (the lateral ones are −νσ/E).
+        let e = principal_strain_max(s, (200e9, 0.3));
+        assert!((e - 100e6 / 200e9).abs() < 1e-15, "{e}");
+        // Pure shear τ in yz: principal ±τ, von Mises √3 τ.
+        let t = [0.0, 0.0, 0.0, 10e6, 0.0, 0.0];
+        let p = principal_stresses(t);
+        assert!((p[0] - 10e6).abs() < 1e-3 && (p[2] + 10e6).abs() < 1e-3, "{p:?}");
+        assert!((von_mises(t) - 3f64.sqrt() * 10e6).abs() < 1e-3);
+        // Its largest principal strain is τ(1 + ν)/E = γ/2.
+        let e = principal_strain_max(t, (200e9, 0.3));
+        assert!((e - 10e6 * 1.3 / 200e9).abs() < 1e-15, "{e}");
+    }
     use super::*;
 
     /// Von Mises of uniaxial tension is the tension, of pure shear √3 times the shear; the

@@ -47,6 +47,12 @@ try {
     };
   }, vertex);
   await page.screenshot({ path: shot });
+  // The same moment coloured by von Mises stress: the clamped root is the hot spot.
+  await page.selectOption('#colour', 'vonmises');
+  await page.waitForTimeout(300);
+  const vonMisesLegend = await page.evaluate(() => [document.getElementById('legendtitle').textContent, document.getElementById('hi').textContent]);
+  await page.screenshot({ path: shot.replace(/\.png$/, '_von_mises.png') });
+  await page.selectOption('#colour', 'displacement');
 
   // A second client shares the session: it may drive the other hand, not the one held here.
   const other = await browser.newPage({ viewport: { width: 1200, height: 800 } });
@@ -91,7 +97,7 @@ try {
   await page.waitForFunction(() => window.ves.mode !== null, null, { timeout: 5000 });
   const mode = await page.evaluate(() => ({ mode: window.ves.mode.mode, frequency: window.ves.mode.frequency }));
 
-  console.log(JSON.stringify({ vertex, pixels, held, second, released, framesBefore: before, after, mode, errors }));
+  console.log(JSON.stringify({ vertex, pixels, held, vonMisesLegend, second, released, framesBefore: before, after, mode, errors }));
 } finally {
   await browser.close();
 }

@@ -11,8 +11,9 @@ use std::sync::atomic::{AtomicU64, Ordering};
 /// Input layout in the snapshot: x, y, z, button, active, message sequence number.
 const INPUT: usize = 6;
 /// Output layout: force (3), vertex, contact, clamped, vertex position (3), strain, strain
-/// exceeded, von Mises, safety factor, stress exceeded, message sequence read.
-const OUTPUT: usize = 15;
+/// exceeded, von Mises, safety factor, stress exceeded, message sequence read, principal
+/// stress, principal strain.
+const OUTPUT: usize = 17;
 
 /// One hand shared between the web clients and the haptic thread.
 pub struct HandSlot {
@@ -68,6 +69,10 @@ pub struct HandStatus {
     pub safety_factor: Option<f64>,
     /// Below the minimum safety factor.
     pub stress_exceeded: bool,
+    /// Largest principal stress at the vertex, Pa.
+    pub principal_stress: f64,
+    /// Largest principal strain at the vertex.
+    pub principal_strain: f64,
     /// The last of the owner's messages the haptic loop read.
     pub seq: u32,
 }
@@ -142,6 +147,8 @@ impl HandSlot {
             safety_factor: sf.is_finite().then_some(sf),
             stress_exceeded: o[13] != 0.0,
             seq: o[14] as u32,
+            principal_stress: o[15],
+            principal_strain: o[16],
         }
     }
 
@@ -243,6 +250,8 @@ impl Device for WebHand {
             out.safety_factor,
             b(out.stress_exceeded),
             f64::from(self.seq),
+            out.principal_stress,
+            out.principal_strain,
         ];
         self.slot.output.publish(&v, 0.0);
     }

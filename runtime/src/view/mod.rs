@@ -244,6 +244,7 @@ fn frame_encoder(
     let mut u: Vec<Vec<f32>> = bases.iter().map(|b| vec![0.0; 3 * b.vertex_count()]).collect();
     let mut umag: Vec<Vec<f32>> = bases.iter().map(|b| vec![0.0; b.vertex_count()]).collect();
     let mut vm: Vec<Vec<f32>> = bases.iter().map(|b| vec![0.0; b.vertex_count()]).collect();
+    let mut p1: Vec<Vec<f32>> = bases.iter().map(|b| vec![0.0; b.vertex_count()]).collect();
     let mut seq = 0u32;
     Box::new(move |f: &Frame| {
         let i = f.space;
@@ -255,8 +256,10 @@ fn frame_encoder(
             *m = (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt();
         }
         if let Some(s) = f.stress {
-            for (m, s) in vm[i].iter_mut().zip(s.chunks_exact(6)) {
-                *m = visual::von_mises(std::array::from_fn(|k| f64::from(s[k]))) as f32;
+            for ((m, p), s) in vm[i].iter_mut().zip(p1[i].iter_mut()).zip(s.chunks_exact(6)) {
+                let s: [f64; 6] = std::array::from_fn(|k| f64::from(s[k]));
+                *m = visual::von_mises(s) as f32;
+                *p = visual::principal_stresses(s)[0] as f32;
             }
         }
         seq = seq.wrapping_add(1);
@@ -271,7 +274,13 @@ fn frame_encoder(
             pose,
         };
         let mut b = Vec::new();
-        protocol::frame(&mut b, &header, f.positions, &umag[i], f.stress.map(|_| &vm[i][..]));
+        protocol::frame(
+            &mut b,
+            &header,
+            f.positions,
+            &umag[i],
+            f.stress.map(|_| (&vm[i][..], &p1[i][..])),
+        );
         tx.send_replace(Bytes::from(b));
         drawn.store(seq, Ordering::Relaxed);
         active_space.store(i as u32, Ordering::Relaxed);

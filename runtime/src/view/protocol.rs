@@ -5,7 +5,7 @@
 //! - kind 1, a drawn frame: u32 kind, space, nv, flags (1: stress follows, 2: the part's safety
 //!   factor is below the minimum), frame seq, last hand-message seq read per hand [2]; f32 time,
 //!   pose[7]; f32 positions[3nv] (deformed and posed), |u|[nv] (elastic displacement), then von
-//!   Mises[nv] (Pa) with flag 1.
+//!   Mises[nv] and largest principal stress[nv] (Pa) with flag 1.
 //! - kind 2, a mode shape: u32 kind, space, mode, nv; f32 frequency (Hz); f32 φ[3nv] scaled to
 //!   max |φ| = 1.
 //!
@@ -64,11 +64,12 @@ pub struct FrameHeader {
     pub pose: [f64; 7],
 }
 
-/// Kind 1 into `b` (cleared first): `positions` 3n, `umag` n, `von_mises` n when present.
-pub fn frame(b: &mut Vec<u8>, h: &FrameHeader, positions: &[f32], umag: &[f32], von_mises: Option<&[f32]>) {
+/// Kind 1 into `b` (cleared first): `positions` 3n, `umag` n, then von Mises and principal
+/// stress (n each) when present.
+pub fn frame(b: &mut Vec<u8>, h: &FrameHeader, positions: &[f32], umag: &[f32], stress: Option<(&[f32], &[f32])>) {
     b.clear();
     let nv = umag.len();
-    let flags = u32::from(von_mises.is_some()) | (u32::from(h.alarm) << 1);
+    let flags = u32::from(stress.is_some()) | (u32::from(h.alarm) << 1);
     for v in [1, h.space as u32, nv as u32, flags, h.seq, h.hand_seq[0], h.hand_seq[1]] {
         put_u32(b, v);
     }
@@ -76,7 +77,8 @@ pub fn frame(b: &mut Vec<u8>, h: &FrameHeader, positions: &[f32], umag: &[f32], 
     for p in h.pose {
         put_f32(b, p as f32);
     }
-    for v in positions.iter().chain(umag).chain(von_mises.unwrap_or(&[])) {
+    let (vm, p1) = stress.unwrap_or((&[], &[]));
+    for v in positions.iter().chain(umag).chain(vm).chain(p1) {
         put_f32(b, *v);
     }
 }

@@ -51,7 +51,7 @@ function onText(msg) {
     if (!msg.spaces.some((s) => s.has_stress)) {
       for (const o of $('colour').options) if (o.value !== 'displacement') o.disabled = true;
     }
-    if (msg.yield_strength == null) $('colour').options[2].disabled = true;
+    if (msg.yield_strength == null) $('colour').querySelector('option[value=safety]').disabled = true;
   } else if (msg.type === 'status') {
     state.status = msg;
     showStatus(msg);
@@ -119,6 +119,7 @@ function onFrame(f) {
   s.positions.set(f.positions);
   s.umag.set(f.umag);
   s.vm = f.vonMises;
+  s.p1 = f.principal;
   s.pose = f.pose;
   s.alarm = f.alarm;
   s.frameTime = f.time;
@@ -161,6 +162,8 @@ function colour(s) {
   const ys = state.hello.yield_strength;
   let values = s.umag, unit = 'm', title = 'displacement magnitude';
   if (state.colour === 'vonmises' && s.vm) { values = s.vm; unit = 'Pa'; title = 'von Mises stress'; }
+  let signed = false;
+  if (state.colour === 'principal' && s.p1) { values = s.p1; unit = 'Pa'; title = 'largest principal stress (tension > 0)'; signed = true; }
   if (state.colour === 'safety' && s.vm && ys) {
     title = 'safety factor (yield / von Mises), capped at 10';
     values = new Float32Array(n);
@@ -169,7 +172,9 @@ function colour(s) {
   }
   let hi = 0, lo = Infinity;
   for (let i = 0; i < n; i++) { hi = Math.max(hi, values[i]); lo = Math.min(lo, values[i]); }
-  if (unit !== '') lo = 0;
+  if (unit !== '' && !signed) lo = 0;
+  // A signed field is centred on zero: blue compression, red tension.
+  if (signed) { const m = Math.max(Math.abs(lo), Math.abs(hi)); lo = -m; hi = m; }
   const span = hi - lo > 0 ? hi - lo : 1;
   const reverse = unit === ''; // a low safety factor is the hot colour
   for (let i = 0; i < n; i++) {
@@ -199,7 +204,8 @@ function showStatus(m) {
     if (!h.active) return;
     const f = Math.hypot(...h.force);
     lines.push(`hand ${i + 1}: ${f.toPrecision(3)} N${h.clamped ? ' (at the limit)' : ''}${h.button ? '' : ' pressing'}`
-      + (h.von_mises > 0 ? ` · σvM ${siLabel(h.von_mises, 'Pa')}` : ''));
+      + (h.von_mises > 0 ? ` · σvM ${siLabel(h.von_mises, 'Pa')} · σ1 ${siLabel(h.principal_stress, 'Pa')} · ε1 ${h.principal_strain.toExponential(2)}` : '')
+      + (h.safety_factor != null && h.von_mises > 0 ? ` · safety ${h.safety_factor.toPrecision(3)}` : ''));
     if (h.strain_exceeded) warn.push(`hand ${i + 1}: strain ${h.strain.toPrecision(2)} beyond the linear model's limit`);
     if (h.stress_exceeded) warn.push(`hand ${i + 1}: safety factor ${h.safety_factor.toPrecision(2)} below the minimum`);
   });

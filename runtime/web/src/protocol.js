@@ -17,7 +17,7 @@ export function decodeMesh(buf) {
 /**
  * Kind 1: a drawn frame: u32 kind, space, nv, flags (1: stress, 2: alarm), seq, hand_seq[2];
  * f32 time, pose[7] (position, quaternion w x y z); f32 positions[3nv], |u|[nv], then von
- * Mises[nv] with flag 1.
+ * Mises[nv] and largest principal stress[nv] with flag 1.
  */
 export function decodeFrame(buf) {
   const h = new Uint32Array(buf, 0, 7);
@@ -26,8 +26,9 @@ export function decodeFrame(buf) {
   let at = 60;
   const positions = new Float32Array(buf, at, 3 * nv); at += 12 * nv;
   const umag = new Float32Array(buf, at, nv); at += 4 * nv;
-  const vonMises = flags & 1 ? new Float32Array(buf, at, nv) : null;
-  return { space, vertices: nv, alarm: (flags & 2) !== 0, seq, handSeq: [h[5], h[6]], time: f[0], pose: Array.from(f.subarray(1, 8)), positions, umag, vonMises };
+  const vonMises = flags & 1 ? new Float32Array(buf, at, nv) : null; at += 4 * nv;
+  const principal = flags & 1 ? new Float32Array(buf, at, nv) : null;
+  return { space, vertices: nv, alarm: (flags & 2) !== 0, seq, handSeq: [h[5], h[6]], time: f[0], pose: Array.from(f.subarray(1, 8)), positions, umag, vonMises, principal };
 }
 
 /** Kind 2: a mode shape: u32 kind, space, mode, nv; f32 frequency (Hz); f32 phi[3nv] (max |φ| = 1). */
