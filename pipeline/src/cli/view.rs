@@ -24,6 +24,10 @@ pub struct Args {
     /// Stop after this many seconds (default: run until Ctrl-C).
     #[arg(long)]
     duration: Option<f64>,
+    /// Gravity on a free part, m/s² along −z. Off by default here: with it, a part nobody holds
+    /// falls out of view before the page opens (ves session's default is 9.81).
+    #[arg(long, default_value_t = 0.0)]
+    gravity: f64,
     #[command(flatten)]
     settings: Settings,
     /// At the end, print the statistics (session and server) as JSON.
@@ -33,7 +37,13 @@ pub struct Args {
 
 impl Args {
     pub fn run(self) -> Result<()> {
-        let cfg = self.settings.config(self.duration.unwrap_or(f64::INFINITY), "view")?;
+        let mut cfg = self.settings.config(self.duration.unwrap_or(f64::INFINITY), "view")?;
+        if !self.gravity.is_finite() {
+            anyhow::bail!("--gravity {}: must be finite (m/s², e.g. 9.81)", self.gravity);
+        }
+        if let Some((g, _)) = cfg.free_body.as_mut() {
+            *g = [0.0, 0.0, -self.gravity];
+        }
         let spaces = self.settings.spaces(&self.basis)?;
         if !self.host.is_loopback() {
             tracing::warn!(

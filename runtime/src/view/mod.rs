@@ -315,6 +315,7 @@ fn hello(bases: &[Arc<crate::Basis>], cfg: &ViewConfig) -> String {
         "min_safety_factor": s.strain.min_safety_factor,
         "strain_limit": s.strain.limit,
         "free_body": bases[0].rigid.is_some(),
+        "gravity": s.free_body.map(|(g, _)| g),
         "spaces": spaces,
     })
     .to_string()

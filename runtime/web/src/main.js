@@ -46,7 +46,8 @@ function onText(msg) {
   if (msg.type === 'hello') {
     state.hello = msg;
     $('title').textContent = `VES view — ${msg.name}`;
-    $('limit').textContent = `device force limit ${msg.max_force.toPrecision(3)} N · coupling ${siLabel(msg.stiffness, 'N/m')}`;
+    $('limit').textContent = `device force limit ${msg.max_force.toPrecision(3)} N · coupling ${siLabel(msg.stiffness, 'N/m')}`
+      + (msg.free_body ? ` · free body, gravity ${Math.hypot(...(msg.gravity || [0, 0, 0])).toPrecision(3)} m/s²` : '');
     buildModeList(msg.spaces[0]);
     if (!msg.spaces.some((s) => s.has_stress)) {
       for (const o of $('colour').options) if (o.value !== 'displacement') o.disabled = true;
