@@ -43,17 +43,45 @@ pub fn haptic_step_ns(basis: Arc<Basis>, batches: usize, per_batch: usize) -> f6
     median(samples)
 }
 
-/// Median time of one full-field update (deformed positions of all kept vertices), ms.
-pub fn full_field_ms(basis: &Basis, repeats: usize) -> f64 {
-    let q: Vec<f64> = (0..basis.mode_count()).map(|j| 1e-4 / (1.0 + j as f64)).collect();
-    let mut pos = vec![0.0f32; 3 * basis.vertex_count()];
+/// A modal state to time the full-field updates with.
+fn some_state(basis: &Basis) -> Vec<f64> {
+    (0..basis.mode_count()).map(|j| 1e-4 / (1.0 + j as f64)).collect()
+}
+
+/// Median of `repeats` timings of `f`, ms.
+fn median_ms(repeats: usize, mut f: impl FnMut()) -> f64 {
     let samples = (0..repeats)
         .map(|_| {
             let t = Instant::now();
-            visual::positions(basis, &q, &mut pos);
-            std::hint::black_box(&pos);
+            f();
             t.elapsed().as_secs_f64() * 1e3
         })
         .collect();
     median(samples)
+}
+
+/// Median time of one full-field update (deformed positions of all kept vertices), ms.
+pub fn full_field_ms(basis: &Basis, repeats: usize) -> f64 {
+    let q = some_state(basis);
+    let mut pos = vec![0.0f32; 3 * basis.vertex_count()];
+    median_ms(repeats, || {
+        visual::positions(basis, &q, &mut pos);
+        std::hint::black_box(&pos);
+    })
+}
+
+/// Median times of the full-field stress update σ = Σ qⱼσⱼ over all kept vertices, and of the
+/// von Mises pass over its result, ms; `None` without modal stress.
+pub fn full_field_stress_ms(basis: &Basis, repeats: usize) -> Option<(f64, f64)> {
+    basis.stress.as_ref()?;
+    let q = some_state(basis);
+    let mut sigma = vec![0.0f32; 6 * basis.vertex_count()];
+    let update = median_ms(repeats, || {
+        visual::stresses(basis, &q, &mut sigma);
+        std::hint::black_box(&sigma);
+    });
+    let von_mises = median_ms(repeats, || {
+        std::hint::black_box(visual::max_von_mises(&sigma));
+    });
+    Some((update, von_mises))
 }

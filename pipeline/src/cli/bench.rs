@@ -46,6 +46,10 @@ impl Args {
         report.insert("full_field_modes".into(), field.mode_count().into());
         report.insert("full_field_vertices".into(), field.vertex_count().into());
         report.insert("full_field_ms_median".into(), bench::full_field_ms(&field, 301).into());
+        // With modal stress: σ over the same vertices and its von Mises pass (null without).
+        let stress = bench::full_field_stress_ms(&field, 301);
+        report.insert("full_field_stress_ms_median".into(), stress.map(|s| s.0).into());
+        report.insert("von_mises_ms_median".into(), stress.map(|s| s.1).into());
         report.insert("bytes_loaded".into(), field.bytes_loaded.into());
         let v = serde_json::Value::Object(report);
         if self.file.json {
