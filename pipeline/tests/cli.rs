@@ -221,6 +221,11 @@ fn session_and_bench_report_json() {
     }
     assert!(v.get("haptic_step_ns_median_r30").is_none(), "{v}");
     assert!(v["full_field_ms_median"].as_f64().unwrap() > 0.0);
+    // No modal stress in this basis: its stress timings are null, not a made-up number.
+    assert!(
+        v["full_field_stress_ms_median"].is_null() && v["von_mises_ms_median"].is_null(),
+        "{v}"
+    );
 
     let bad = ves(&[
         "session",
@@ -1032,6 +1037,14 @@ fn session_reports_von_mises_and_the_safety_factor() {
         p1 / 2.1e11
     );
     assert_eq!(v["stress_exceeded_steps"], 0);
+    // `ves bench` times the stress update on a basis that has it.
+    let o = ves(&["bench", basis.to_str().unwrap(), "--json"]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let b = last_json(&o);
+    assert!(
+        num(&b, "full_field_stress_ms_median") > 0.0 && num(&b, "von_mises_ms_median") > 0.0,
+        "{b}"
+    );
     let device = format!("script:{}", script.display());
     let session = |extra: &[&str]| {
         let args = [
