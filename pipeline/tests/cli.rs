@@ -197,6 +197,17 @@ fn session_and_bench_report_json() {
     std::fs::write(&script, "t,x,y,z,button\n0,1.0,0.05,0.05,1\n0.2,1.0,0.05,0.045,1\n").unwrap();
     let v = session_json(&basis, &script);
     assert_eq!(v["steps"], 200);
+    // Real-time hygiene: each measure either granted or refused with a reason, never silent.
+    let rt = &v["realtime"];
+    for (granted, what) in [(&rt["sched_fifo"], "SCHED_FIFO"), (&rt["memory_locked"], "mlockall")] {
+        let refused = rt["refused"].as_array().expect("refused list");
+        assert!(
+            granted.as_bool() == Some(true) || refused.iter().any(|m| m.as_str().is_some_and(|m| m.starts_with(what))),
+            "{rt}"
+        );
+    }
+    let plain = session_json_with(&basis, &script, &["--no-realtime"]);
+    assert!(plain["realtime"].is_null(), "--no-realtime: {plain}");
     for key in [
         "achieved_rate_hz",
         "step_ns_median",

@@ -33,6 +33,10 @@ pub struct SessionConfig {
     pub switching: SwitchConfig,
     /// Validity watch of the linear model at the hands.
     pub strain: StrainWatch,
+    /// Real-time hygiene ([`crate::realtime`]): SCHED_FIFO, memory locking and a core of its
+    /// own for the haptic thread. Off in the library by default
+    /// (it changes the calling thread and the process); `ves session` and `ves view` turn it on.
+    pub realtime: bool,
 }
 
 impl Default for SessionConfig {
@@ -47,6 +51,7 @@ impl Default for SessionConfig {
             free_body: Some(([0.0, 0.0, -9.81], 1.0)),
             switching: SwitchConfig::default(),
             strain: StrainWatch::default(),
+            realtime: false,
         }
     }
 }
@@ -117,6 +122,8 @@ pub struct SessionStats {
     pub principal_strain_max: Option<f64>,
     /// The force on each device at the last step, N.
     pub final_forces_n: Vec<[f64; 3]>,
+    /// What real-time hygiene the session got (null when not asked for).
+    pub realtime: Option<crate::realtime::Realtime>,
 }
 
 /// Nanosecond timings streamed into a histogram (3 significant digits, 1 ns to 1 h): memory is
@@ -339,6 +346,9 @@ pub fn run_spaces_with(
     let mut outputs = vec![HandOutput::default(); hands];
     let (mut missed, mut peak, mut clamped, mut max_energy) = (0u64, 0.0f64, 0u64, 0.0f64);
     let period = Duration::from_secs_f64(dt);
+    let rt = cfg
+        .realtime
+        .then(|| crate::realtime::haptic_thread(crate::realtime::haptic_core()));
     let start = Instant::now();
     let mut next = start;
     let mut done_steps = 0;
@@ -400,6 +410,9 @@ pub fn run_spaces_with(
     }
     let wall = start.elapsed().as_secs_f64();
     stop.store(true, Ordering::Relaxed);
+    if let Some(r) = &rt {
+        crate::realtime::restore(r);
+    }
     let has_stress = bases.iter().any(|b| b.stress.is_some());
     let viz_wall = viz.join().unwrap_or(wall);
     let updates = visual_count.load(Ordering::Relaxed);
@@ -438,5 +451,6 @@ pub fn run_spaces_with(
         principal_strain_max: (has_stress && bases[0].elastic.is_some())
             .then(|| f64::from_bits(part_principal[1].load(Ordering::Relaxed))),
         final_forces_n: outputs.iter().map(|o| o.force).collect(),
+        realtime: rt,
     })
 }

@@ -74,6 +74,10 @@ pub struct Settings {
     /// (yield / von Mises) at a hand before the strain policy acts.
     #[arg(long, default_value_t = 1.0)]
     min_safety_factor: f64,
+    /// Leave the haptic thread at normal priority: no SCHED_FIFO, no memory lock, no pinning
+    /// (what was granted otherwise is in the JSON's `realtime`).
+    #[arg(long)]
+    no_realtime: bool,
 }
 
 impl Settings {
@@ -89,6 +93,7 @@ impl Settings {
             duration_s,
             coupling,
             sleep: !self.spin,
+            realtime: !self.no_realtime,
             strain: StrainWatch {
                 limit: self.strain_limit,
                 policy: match self.strain_policy {
@@ -135,6 +140,13 @@ impl Settings {
     }
 }
 
+/// One line per real-time measure the system refused (the session ran without it).
+pub fn warn_refused(stats: &session::SessionStats) {
+    for m in stats.realtime.iter().flat_map(|r| &r.refused) {
+        tracing::warn!("real-time: {m}; the haptic loop ran without it");
+    }
+}
+
 impl Args {
     pub fn run(self) -> Result<()> {
         let mut devices: Vec<Box<dyn Device>> = Vec::new();
@@ -159,6 +171,7 @@ impl Args {
         let stats = session::run_spaces(spaces, devices, &cfg)
             .map_err(|e| anyhow::anyhow!(e))
             .with_context(|| self.basis.display().to_string())?;
+        warn_refused(&stats);
         if self.json {
             let mut v = serde_json::to_value(&stats)?;
             v["bytes_loaded"] = bytes.into();

@@ -78,6 +78,7 @@ impl Args {
         })
         .map_err(|e| anyhow::anyhow!(e))
         .with_context(|| self.basis.display().to_string())?;
+        super::session::warn_refused(&stats.session);
         if self.json {
             println!("{}", serde_json::to_string(&stats)?);
         }

@@ -38,13 +38,15 @@ pub fn last_json(o: &Output) -> serde_json::Value {
 
 /// `ves session BASIS --device script:SCRIPT --json`, which must succeed; its JSON.
 pub fn session_json(basis: &Path, script: &Path) -> serde_json::Value {
-    let o = ves(&[
-        "session",
-        basis.to_str().unwrap(),
-        "--device",
-        &format!("script:{}", script.display()),
-        "--json",
-    ]);
+    session_json_with(basis, script, &[])
+}
+
+/// [`session_json`] with more flags.
+pub fn session_json_with(basis: &Path, script: &Path, extra: &[&str]) -> serde_json::Value {
+    let device = format!("script:{}", script.display());
+    let mut args = vec!["session", basis.to_str().unwrap(), "--device", &device, "--json"];
+    args.extend_from_slice(extra);
+    let o = ves(&args);
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     last_json(&o)
 }

@@ -383,14 +383,24 @@ function handTarget(d) {
 }
 
 function sendHand(d, active) {
+  const p = handTarget(d);
+  sendTarget(d.hand, [p.x, p.y, p.z], !d.press, active);
+}
+
+// One hand message; its time is kept until a frame shows the haptic loop read it (latency).
+function sendTarget(hand, position, button, active) {
   if (!ws || ws.readyState !== 1) return;
   handSeq += 1;
-  const p = handTarget(d);
-  ws.send(JSON.stringify({ type: 'hand', hand: d.hand, active, button: !d.press, position: [p.x, p.y, p.z], seq: handSeq }));
-  pending.push([performance.now(), handSeq, d.hand]);
-  if (pending.length > 100) pending.shift();
-  state.lastTarget = [p.x, p.y, p.z];
+  ws.send(JSON.stringify({ type: 'hand', hand, active, button, position, seq: handSeq }));
+  pending.push([performance.now(), handSeq, hand]);
+  if (pending.length > 1000) pending.shift();
+  state.lastTarget = position;
 }
+
+// Drives a hand without a pointer (scripts, the console, the benchmark): grab at `position`
+// (m, part frame) or move there; `release` lets go.
+state.drive = (hand, position, button = true) => sendTarget(hand, position, button, true);
+state.release = (hand) => sendTarget(hand, state.lastTarget || [0, 0, 0], true, false);
 
 $('scale').addEventListener('change', (ev) => {
   const v = Number(ev.target.value);

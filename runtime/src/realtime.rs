@@ -1,0 +1,151 @@
+//! Real-time hygiene for a session's haptic thread: it asks for SCHED_FIFO, the process locks
+//! its memory (no page fault in the loop), and with two cores or more the haptic thread is
+//! pinned to one. The drawing thread is left free: pinned to the other core of a 2-core machine
+//! that also runs the browser, it could not use the haptic core's idle time (the FIFO thread
+//! preempts it there anyway), and the viewer's frames suffered (docs/view.md). Each step is best
+//! effort: what was not permitted is reported (one line, and in the session's statistics),
+//! never fatal.
+
+/// What the session got.
+#[derive(Clone, Debug, Default, serde::Serialize)]
+pub struct Realtime {
+    /// The haptic thread runs under SCHED_FIFO (at [`PRIORITY`]).
+    pub sched_fifo: bool,
+    /// The process's memory is locked (mlockall, current and future).
+    pub memory_locked: bool,
+    /// The core the haptic thread is pinned to.
+    pub haptic_core: Option<usize>,
+    /// What was refused, and why (empty when everything was granted).
+    pub refused: Vec<String>,
+    /// The haptic thread's cores before pinning (restored afterwards).
+    #[serde(skip)]
+    original_cores: Vec<usize>,
+}
+
+/// SCHED_FIFO priority of the haptic thread: above ordinary threads, below the kernel's own
+/// real-time threads (which run at 99 and 50).
+pub const PRIORITY: i32 = 40;
+
+/// Cores this process may run on.
+fn allowed_cores() -> Vec<usize> {
+    // SAFETY: a zeroed cpu_set_t is a valid empty set; sched_getaffinity fills it.
+    unsafe {
+        let mut set: libc::cpu_set_t = std::mem::zeroed();
+        if libc::sched_getaffinity(0, std::mem::size_of::<libc::cpu_set_t>(), &mut set) != 0 {
+            return Vec::new();
+        }
+        (0..libc::CPU_SETSIZE as usize)
+            .filter(|&c| libc::CPU_ISSET(c, &set))
+            .collect()
+    }
+}
+
+/// Pins the calling thread to `core`.
+fn pin(core: usize) -> Result<(), String> {
+    // SAFETY: the set is initialised before use; 0 = the calling thread.
+    let rc = unsafe {
+        let mut set: libc::cpu_set_t = std::mem::zeroed();
+        libc::CPU_SET(core, &mut set);
+        libc::sched_setaffinity(0, std::mem::size_of::<libc::cpu_set_t>(), &set)
+    };
+    if rc == 0 {
+        Ok(())
+    } else {
+        Err(format!("pinning to core {core}: {}", std::io::Error::last_os_error()))
+    }
+}
+
+/// The core to pin the haptic thread to (the last allowed), when there are at least two.
+pub fn haptic_core() -> Option<usize> {
+    let c = allowed_cores();
+    (c.len() >= 2).then(|| c[c.len() - 1])
+}
+
+/// Called from the haptic thread before its loop: FIFO, memory lock, pin to `core`.
+pub fn haptic_thread(core: Option<usize>) -> Realtime {
+    let mut r = Realtime {
+        original_cores: allowed_cores(),
+        ..Default::default()
+    };
+    let param = libc::sched_param {
+        sched_priority: PRIORITY,
+    };
+    // SAFETY: valid parameter for the calling thread.
+    let rc = unsafe { libc::pthread_setschedparam(libc::pthread_self(), libc::SCHED_FIFO, &param) };
+    if rc == 0 {
+        r.sched_fifo = true;
+    } else {
+        r.refused.push(format!(
+            "SCHED_FIFO: {} (run as root, or grant CAP_SYS_NICE / an rtprio limit)",
+            std::io::Error::from_raw_os_error(rc)
+        ));
+    }
+    // SAFETY: no arguments beyond the flags.
+    if unsafe { libc::mlockall(libc::MCL_CURRENT | libc::MCL_FUTURE) } == 0 {
+        r.memory_locked = true;
+    } else {
+        r.refused.push(format!(
+            "mlockall: {} (raise the memlock limit, ulimit -l)",
+            std::io::Error::last_os_error()
+        ));
+    }
+    if let Some(c) = core {
+        match pin(c) {
+            Ok(()) => r.haptic_core = Some(c),
+            Err(e) => r.refused.push(e),
+        }
+    }
+    r
+}
+
+/// Undoes what [`haptic_thread`] did to the calling thread and process (the thread may be an
+/// application's own, e.g. the main thread of `ves session`).
+pub fn restore(r: &Realtime) {
+    if r.sched_fifo {
+        let param = libc::sched_param { sched_priority: 0 };
+        // SAFETY: valid parameter for the calling thread.
+        unsafe { libc::pthread_setschedparam(libc::pthread_self(), libc::SCHED_OTHER, &param) };
+    }
+    if r.memory_locked {
+        // SAFETY: no arguments.
+        unsafe { libc::munlockall() };
+    }
+    if r.haptic_core.is_some() && !r.original_cores.is_empty() {
+        // SAFETY: the set is initialised before use; 0 = the calling thread.
+        unsafe {
+            let mut set: libc::cpu_set_t = std::mem::zeroed();
+            for &c in &r.original_cores {
+                libc::CPU_SET(c, &mut set);
+            }
+            libc::sched_setaffinity(0, std::mem::size_of::<libc::cpu_set_t>(), &set);
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Whatever this machine permits, the report is consistent and the thread is back to normal
+    /// scheduling afterwards.
+    #[test]
+    fn a_thread_gets_what_is_permitted_and_is_restored() {
+        let r = std::thread::spawn(|| {
+            let r = haptic_thread(haptic_core());
+            assert_eq!(
+                r.sched_fifo,
+                !r.refused.iter().any(|m| m.starts_with("SCHED_FIFO")),
+                "{r:?}"
+            );
+            restore(&r);
+            // SAFETY: sched_getscheduler(0) reads the calling thread's policy.
+            let policy = unsafe { libc::sched_getscheduler(0) };
+            assert_eq!(policy, libc::SCHED_OTHER, "{r:?}");
+            assert_eq!(allowed_cores(), r.original_cores, "affinity restored");
+            r
+        })
+        .join()
+        .unwrap();
+        assert!(r.haptic_core.is_none() || haptic_core().is_some(), "{r:?}");
+    }
+}
