@@ -163,13 +163,19 @@ impl Switcher {
 
     /// The space the hands ask for: the current VOI while every hand stays within its box
     /// widened by the margin; otherwise the first VOI whose box shrunk by the margin holds every
-    /// hand; otherwise the global space (index 0).
+    /// hand; otherwise the global space (index 0). A hand without a position (non-finite: no
+    /// device there, as an unused hand of `ves view`) does not count; with none, the active
+    /// space stays.
     pub fn wanted(&self, inputs: &[HandInput]) -> usize {
+        let present = |h: &&HandInput| h.position.iter().all(|v| v.is_finite());
+        if !inputs.iter().any(|h| present(&h)) {
+            return self.active;
+        }
         let holds = |b: &[[f64; 3]; 2], grow: f64| {
-            !inputs.is_empty()
-                && inputs
-                    .iter()
-                    .all(|h| (0..3).all(|c| h.position[c] >= b[0][c] - grow && h.position[c] <= b[1][c] + grow))
+            inputs
+                .iter()
+                .filter(present)
+                .all(|h| (0..3).all(|c| h.position[c] >= b[0][c] - grow && h.position[c] <= b[1][c] + grow))
         };
         // Each space's VOI is its basis's (None for the global space).
         let voi = |i: usize| self.sims[i].basis().voi;
@@ -259,4 +265,48 @@ pub fn load_spaces(
         });
     }
     Ok(out)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// An unused hand (non-finite position) neither blocks a switch into a volume of interest
+    /// nor forces one out; with no hand at all the active space stays. (`ves view` parks its
+    /// second hand that way, and the first could never enter a VOI.)
+    #[test]
+    fn an_absent_hand_does_not_count() {
+        let global = Arc::new(crate::basis::stretch_grid(1.0, 100.0, 0.0));
+        let mut local = crate::basis::stretch_grid(1.0, 100.0, 0.0);
+        local.space = "voi".into();
+        local.voi = Some([[0.0, 0.0, -0.01], [0.01, 0.01, 0.01]]);
+        let spaces = vec![
+            SpaceInput {
+                basis: global,
+                transfers: vec![None, Some(vec![1.0])],
+            },
+            SpaceInput {
+                basis: Arc::new(local),
+                transfers: vec![Some(vec![1.0]), None],
+            },
+        ];
+        let sw = Switcher::new(
+            spaces,
+            Coupling::default(),
+            1e-3,
+            Scheme::Exact,
+            2,
+            SwitchConfig::default(),
+        )
+        .unwrap();
+        let at = |p: [f64; 3]| HandInput {
+            position: p,
+            ..Default::default()
+        };
+        let (inside, outside, absent) = (at([0.005, 0.005, 0.0]), at([0.02, 0.02, 0.0]), at([f64::NAN; 3]));
+        assert_eq!(sw.wanted(&[inside, absent]), 1);
+        assert_eq!(sw.wanted(&[absent, inside]), 1);
+        assert_eq!(sw.wanted(&[inside, outside]), 0);
+        assert_eq!(sw.wanted(&[absent, absent]), 0, "none present: the active space stays");
+    }
 }
