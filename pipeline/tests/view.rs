@@ -270,3 +270,29 @@ fn a_port_in_use_is_a_one_line_error() {
         String::from_utf8_lossy(&o.stderr)
     );
 }
+
+/// Bad input to `ves view`: a missing basis, a duration that is not a positive time, a
+/// non-finite gravity: one line each naming it, exit 1. A non-loopback `--host` serves, after
+/// one warning line.
+#[test]
+fn bad_view_input_is_one_line_and_a_public_host_is_warned_about() {
+    let (_dir, basis) = good_basis();
+    let b = basis.to_str().unwrap();
+    assert_refused(
+        &ves(&["view", "/nonexistent/b.h5", "--duration", "1"]),
+        "/nonexistent/b.h5",
+    );
+    assert_refused(&ves(&["view", b, "--port", "0", "--duration=0"]), "--duration");
+    assert_refused(
+        &ves(&["view", b, "--port", "0", "--gravity", "nan", "--duration", "1"]),
+        "--gravity",
+    );
+    let o = ves(&["view", b, "--host", "0.0.0.0", "--port", "0", "--duration", "0.3"]);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(o.status.success(), "{err}");
+    assert_eq!(err.matches("reachable from other machines").count(), 1, "{err}");
+    assert!(
+        String::from_utf8_lossy(&o.stdout).contains("http://127.0.0.1:"),
+        "the URL to open"
+    );
+}
