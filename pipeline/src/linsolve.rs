@@ -5,10 +5,12 @@
 use crate::fem::assembly::NodeGraph;
 use crate::supports::Dofs;
 use faer::dyn_stack::{MemBuffer, MemStack};
+use faer::linalg::cholesky::ldlt::factor::LdltRegularization;
 use faer::linalg::cholesky::llt::factor::LltRegularization;
 use faer::perm::PermRef;
 use faer::sparse::linalg::cholesky::{
-    CholeskySymbolicParams, LltRef, SymbolicCholesky, SymmetricOrdering, factorize_symbolic_cholesky,
+    CholeskySymbolicParams, LltRef, SymbolicCholesky, SymbolicCholeskyRaw, SymmetricOrdering,
+    factorize_symbolic_cholesky,
 };
 use faer::sparse::{SparseColMatRef, SymbolicSparseColMat};
 use faer::{Conj, MatMut, Par, Side};
@@ -225,5 +227,115 @@ impl Cholesky {
             self.par,
             MemStack::new(&mut self.stack),
         );
+    }
+}
+
+/// Negative pivots of A = LDLᵀ (A symmetric, lower triangle on `pattern`, same ordering as the
+/// Cholesky factor): by Sylvester's law of inertia, the number of negative eigenvalues of A. For
+/// A = K − σM (M positive definite) it is the number of generalized eigenvalues below σ — a Sturm
+/// count that proves no eigenvalue below σ was skipped. `Err` when a pivot is exactly zero (σ is
+/// an eigenvalue to machine precision: move it).
+pub fn negative_pivots(
+    pattern: &SymbolicSparseColMat<usize>,
+    values: &[f64],
+    ordering: &(Vec<usize>, Vec<usize>),
+) -> Result<usize, FactorError> {
+    negative_pivots_with(pattern, values, ordering, CholeskySymbolicParams::default())
+}
+
+fn negative_pivots_with(
+    pattern: &SymbolicSparseColMat<usize>,
+    values: &[f64],
+    ordering: &(Vec<usize>, Vec<usize>),
+    params: CholeskySymbolicParams<'_>,
+) -> Result<usize, FactorError> {
+    let perm = PermRef::new_checked(&ordering.0, &ordering.1, pattern.nrows());
+    let symbolic = factorize_symbolic_cholesky(pattern.as_ref(), Side::Lower, SymmetricOrdering::Custom(perm), params)
+        .map_err(|e| FactorError::Symbolic(format!("{e:?}")))?;
+    let par = Par::rayon(0);
+    let a = SparseColMatRef::new(pattern.as_ref(), values);
+    let mut l = vec![0.0; symbolic.len_val()];
+    let mut stack = MemBuffer::new(symbolic.factorize_numeric_ldlt_scratch::<f64>(par, Default::default()));
+    symbolic
+        .factorize_numeric_ldlt(
+            &mut l,
+            a,
+            Side::Lower,
+            // No regularization: the signs of D are the answer.
+            LdltRegularization::default(),
+            par,
+            MemStack::new(&mut stack),
+            Default::default(),
+        )
+        .map_err(|e| FactorError::Symbolic(format!("LDLᵀ for the Sturm count: {e:?}")))?;
+    // D sits on the diagonal of L's storage (L has a unit diagonal, not stored).
+    let negative = match symbolic.raw() {
+        SymbolicCholeskyRaw::Simplicial(s) => {
+            let (cp, ri) = (s.col_ptr(), s.row_idx());
+            (0..s.nrows())
+                .filter(|&j| {
+                    let first = cp[j];
+                    debug_assert_eq!(ri[first], j, "diagonal first in each column");
+                    l[first] < 0.0
+                })
+                .count()
+        }
+        SymbolicCholeskyRaw::Supernodal(s) => {
+            let (begin, end) = (s.supernode_begin(), s.supernode_end());
+            let (rows_ptr, val_ptr) = (s.col_ptr_for_row_idx(), s.col_ptr_for_val());
+            (0..s.n_supernodes())
+                .map(|k| {
+                    let ncols = end[k] - begin[k];
+                    let nrows = ncols + (rows_ptr[k + 1] - rows_ptr[k]);
+                    let block = &l[val_ptr[k]..val_ptr[k + 1]];
+                    (0..ncols).filter(|&c| block[c * nrows + c] < 0.0).count()
+                })
+                .sum()
+        }
+    };
+    Ok(negative)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use faer::sparse::linalg::SupernodalThreshold;
+
+    /// The Sturm count equals the number of generalized eigenvalues below σ from a dense
+    /// solve, for shifts between every pair of the lowest ones, through both of faer's factor
+    /// layouts (simplicial and supernodal).
+    #[test]
+    fn negative_pivots_count_the_eigenvalues_below_the_shift() {
+        use crate::modes::EigenSolver;
+        let mesh = crate::mesh::Mesh::structured_box([4, 1, 1], 0.02, 1, |_, p| p);
+        // Clamped at x = 0.
+        let mask: Vec<bool> = mesh.nodes.iter().flat_map(|p| [p[0] < 1e-9; 3]).collect();
+        let dofs = crate::supports::Dofs::from_mask(&mask);
+        let d = crate::problem::Discretized::assemble(mesh, dofs, (2e11, 0.3, 7800.0)).expect("assembles");
+        let problem = crate::modes::EigenProblem {
+            pattern: &d.system.pattern,
+            k: &d.system.k,
+            m: &d.system.m,
+        };
+        let dense = crate::modes::dense::Dense
+            .lowest(&problem, 9, 0.0)
+            .expect("dense")
+            .values;
+        let ordering = nested_dissection(&d.system.graph, &d.dofs);
+        for threshold in [
+            SupernodalThreshold::FORCE_SIMPLICIAL,
+            SupernodalThreshold::FORCE_SUPERNODAL,
+        ] {
+            for k in 0..8 {
+                let sigma = 0.5 * (dense[k] + dense[k + 1]);
+                let shifted: Vec<f64> = d.system.k.iter().zip(&d.system.m).map(|(a, b)| a - sigma * b).collect();
+                let params = CholeskySymbolicParams {
+                    supernodal_flop_ratio_threshold: threshold,
+                    ..Default::default()
+                };
+                let n = negative_pivots_with(&d.system.pattern, &shifted, &ordering, params).unwrap();
+                assert_eq!(n, k + 1, "σ between λ{} and λ{}", k + 1, k + 2);
+            }
+        }
     }
 }

@@ -32,6 +32,8 @@ pub struct Timings {
     pub error_estimate: f64,
     /// Modal stress at the vertices (when the scene asks for it).
     pub stress: f64,
+    /// Sturm count of each space's spectrum (one LDLᵀ of K − σM).
+    pub sturm: f64,
     /// Writing the file.
     pub write: f64,
     /// Everything.
@@ -47,6 +49,7 @@ impl Timings {
         self.static_correction += o.static_correction;
         self.error_estimate += o.error_estimate;
         self.stress += o.stress;
+        self.sturm += o.sturm;
     }
 }
 
@@ -80,6 +83,8 @@ pub struct SolvedSpace {
     pub refinement: Option<Vec<crate::accuracy::refine::Step>>,
     /// Modal stress at the corner vertices, row-major [6·nv, r] (`[stress] enabled`).
     pub stress: Option<Vec<f64>>,
+    /// The Sturm count at the top of the spectrum (not under MPI).
+    pub sturm: Option<modes::SturmCount>,
 }
 
 impl SolvedSpace {
@@ -154,6 +159,27 @@ pub fn solve_space(scene: &Scene, voi: Option<&Voi>, choice: SolverChoice) -> Re
         crate::fem::stress::vertex_stress(&d.mesh, &lame, &u, r)
     });
     timings.stress = t.elapsed().as_secs_f64();
+    // Proof that no mode below the last one was skipped. Under MPI every rank would factor the
+    // whole matrix again: left to SLEPc's own checks there.
+    let sturm = if choice == SolverChoice::Slepc {
+        None
+    } else {
+        modes::sturm_count(&d, &modes)?
+    };
+    if let Some(s) = &sturm {
+        timings.sturm = s.seconds;
+        if s.complete() {
+            tracing::info!(space = %name, sigma = s.sigma, below = s.below, "Sturm count: no mode skipped");
+        } else {
+            tracing::warn!(
+                "space {name:?}: {} eigenvalues lie below σ = {:.6e} (just above the last mode found) but {} modes were                  found there: the eigen-solver skipped {}; check with more modes (modes.count) or --solver dense on a                  small mesh, and report it",
+                s.below,
+                s.sigma,
+                s.found,
+                s.below.saturating_sub(s.found)
+            );
+        }
+    }
     Ok(SolvedSpace {
         name,
         voi: voi.cloned(),
@@ -169,6 +195,7 @@ pub fn solve_space(scene: &Scene, voi: Option<&Voi>, choice: SolverChoice) -> Re
         error,
         refinement,
         stress,
+        sturm,
     })
 }
 
@@ -280,6 +307,10 @@ pub struct SpaceSummary {
     /// frequencies, largest estimated error), coarsest first.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub refinements: Option<Vec<crate::accuracy::refine::Step>>,
+    /// Sturm count at the top of the spectrum: eigenvalues below σ against modes found there
+    /// (equal: none skipped). Absent under MPI.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub sturm_count: Option<modes::SturmCount>,
 }
 
 /// Runs the whole pipeline for a scene and writes `out` (which may not be a symlink).
@@ -354,6 +385,7 @@ pub fn run_with(scene: &Scene, out: &Path, choice: SolverChoice, overwrite: Over
                 estimated_relative_error: s.error.as_ref().map(|e| e.relative()),
                 error_estimate: s.error.clone(),
                 refinements: s.refinement.clone(),
+                sturm_count: s.sturm,
                 seconds: s.timings.mesh
                     + s.timings.assemble
                     + s.timings.factorize

@@ -25,6 +25,13 @@ fn good_scene_writes_a_basis_and_json_summary() {
     assert_eq!(space["name"], "global");
     assert_eq!(space["frequencies_hz"].as_array().map(|a| a.len()), Some(4));
     assert!(space["max_relative_residual"].as_f64().unwrap() <= 1e-8);
+    // The Sturm count: exactly the 4 modes found lie below σ (none skipped).
+    let sturm = &space["sturm_count"];
+    assert_eq!(
+        (sturm["below"].as_u64(), sturm["found"].as_u64()),
+        (Some(4), Some(4)),
+        "{sturm}"
+    );
     let q = space["min_tet_quality"].as_f64().unwrap();
     assert!(q > 0.01 && q <= 1.0, "worst tet quality {q}");
     for key in ["nodes", "tets", "dofs"] {
