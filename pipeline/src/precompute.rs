@@ -172,10 +172,13 @@ pub fn solve_space(scene: &Scene, voi: Option<&Voi>, choice: SolverChoice) -> Re
             tracing::info!(space = %name, sigma = s.sigma, below = s.below, "Sturm count: no mode skipped");
         } else {
             tracing::warn!(
-                "space {name:?}: {} eigenvalues lie below σ = {:.6e} (just above the last mode found) but {} modes were                  found there: the eigen-solver skipped {}; check with more modes (modes.count) or --solver dense on a                  small mesh, and report it",
+                "space {name:?}: {} eigenvalues lie below σ = {:.6e} (just above the last mode found) but {} modes were \
+                 found there: either the last mode has a partner within 1e-6 (a repeated frequency cut in two: set \
+                 modes.count = {}) or the eigen-solver skipped {} (check with --solver dense on a small mesh, and report it)",
                 s.below,
                 s.sigma,
                 s.found,
+                s.below - s.rigid,
                 s.below.saturating_sub(s.found)
             );
         }

@@ -309,6 +309,8 @@ pub struct SturmCount {
     pub below: usize,
     /// Modes found below σ (the rigid ones dropped included).
     pub found: usize,
+    /// Of those, rigid modes.
+    pub rigid: usize,
     /// Seconds the count took (one more factorisation).
     pub seconds: f64,
 }
@@ -340,6 +342,7 @@ pub fn sturm_count(d: &crate::problem::Discretized, modes: &Modes) -> Result<Opt
         sigma,
         below,
         found: modes.rigid_dropped + modes.eigenvalues.len(),
+        rigid: modes.rigid_dropped,
         seconds: t.elapsed().as_secs_f64(),
     }))
 }
