@@ -8,7 +8,8 @@
 //! overridden from the environment (`PETSC_OPTIONS="-eps_ncv 80 -st_pc_factor_mat_solver_type
 //! superlu_dist"`), since the solver calls `EPSSetFromOptions`.
 
-mod sys;
+/// Raw declarations (public so a test can check them against the installed headers).
+pub mod sys;
 
 use std::ffi::{CStr, CString};
 use std::os::raw::{c_char, c_int};
