@@ -141,36 +141,39 @@ mod tests {
         let meshing = Meshing::default();
         let dir = tempfile::tempdir().unwrap();
         let key = dir.path().join("0123456789abcdef.mesh");
-        let reads = std::thread::scope(|s| {
+        let whole = |m: &Mesh| {
+            [&a, &b]
+                .iter()
+                .any(|x| x.nodes == m.nodes && x.tets == m.tets && x.vertex_count == m.vertex_count)
+        };
+        let writing = std::sync::atomic::AtomicUsize::new(4);
+        std::thread::scope(|s| {
             for m in [&a, &b, &a, &b] {
-                s.spawn(|| {
+                let (writing, key, meshing) = (&writing, &key, &meshing);
+                s.spawn(move || {
                     for _ in 0..50 {
-                        store(&key, m, &meshing);
+                        store(key, m, meshing);
                     }
+                    writing.fetch_sub(1, std::sync::atomic::Ordering::Release);
                 });
             }
+            // Reads for as long as anyone writes (however the threads are scheduled).
             s.spawn(|| {
-                let mut reads = 0;
-                for _ in 0..2000 {
+                while writing.load(std::sync::atomic::Ordering::Acquire) > 0 {
                     if let Some((m, _)) = lookup(&key) {
-                        let whole = [&a, &b]
-                            .iter()
-                            .any(|x| x.nodes == m.nodes && x.tets == m.tets && x.vertex_count == m.vertex_count);
                         assert!(
-                            whole,
+                            whole(&m),
                             "a mixed entry: {} vertices, {} nodes",
                             m.vertex_count,
                             m.nodes.len()
                         );
-                        reads += 1;
                     }
                 }
-                reads
-            })
-            .join()
-            .unwrap()
+            });
         });
-        assert!(reads > 0, "the entry was never readable");
+        // After the writers, the entry is there and whole.
+        let (last, _) = lookup(&key).expect("the entry is readable after the writers");
+        assert!(whole(&last));
         let left: Vec<_> = std::fs::read_dir(dir.path())
             .unwrap()
             .map(|e| e.unwrap().file_name())
