@@ -21,7 +21,7 @@ use hands::{HandSlot, HandStatus, WebHand};
 use protocol::{ClientMessage, Extent, FrameHeader, HANDS};
 use std::net::SocketAddr;
 use std::sync::Arc;
-use std::sync::atomic::{AtomicBool, AtomicU32, AtomicU64, Ordering};
+use std::sync::atomic::{AtomicBool, AtomicU32, AtomicU64, AtomicUsize, Ordering};
 use std::time::{Duration, Instant};
 use tokio::sync::watch;
 
@@ -76,6 +76,9 @@ struct Shared {
     bases: Vec<Arc<crate::Basis>>,
     extent: Extent,
     frames: watch::Receiver<Bytes>,
+    stress_frames: watch::Receiver<Bytes>,
+    /// Clients colouring by stress (the drawing thread computes stress fields only for them).
+    stress_clients: Arc<AtomicUsize>,
     status: watch::Receiver<String>,
     next_client: AtomicU64,
     clients: AtomicU64,
@@ -110,6 +113,8 @@ pub fn serve(
     let addr = listener.local_addr().map_err(|e| ViewError(e.to_string()))?;
     let bases: Vec<Arc<crate::Basis>> = spaces.iter().map(|s| s.basis.clone()).collect();
     let (frame_tx, frame_rx) = watch::channel(Bytes::new());
+    let (stress_tx, stress_rx) = watch::channel(Bytes::new());
+    let stress_clients = Arc::new(AtomicUsize::new(0));
     let (status_tx, status_rx) = watch::channel(String::new());
     let shared = Arc::new(Shared {
         hands: std::array::from_fn(|_| Arc::new(HandSlot::default())),
@@ -122,6 +127,8 @@ pub fn serve(
         extent: Extent::of(&bases[0]),
         bases: bases.clone(),
         frames: frame_rx,
+        stress_frames: stress_rx,
+        stress_clients: stress_clients.clone(),
         status: status_rx,
         next_client: AtomicU64::new(0),
         clients: AtomicU64::new(0),
@@ -147,10 +154,14 @@ pub fn serve(
         frame: Some(frame_encoder(
             &bases,
             &shared.hands,
-            frame_tx,
-            drawn.clone(),
-            active_space.clone(),
-            alarm.clone(),
+            Published {
+                frames: frame_tx,
+                stress: stress_tx,
+                stress_clients,
+                drawn: drawn.clone(),
+                active_space: active_space.clone(),
+                alarm: alarm.clone(),
+            },
         )),
     };
     let session_cfg = cfg.session;
@@ -231,14 +242,17 @@ pub fn serve(
 }
 
 /// The visualization thread's hook: encodes each drawn frame and publishes it as the latest.
-fn frame_encoder(
-    bases: &[Arc<crate::Basis>],
-    hands: &[Arc<HandSlot>; HANDS],
-    tx: watch::Sender<Bytes>,
+/// Where the drawing thread's hook publishes.
+struct Published {
+    frames: watch::Sender<Bytes>,
+    stress: watch::Sender<Bytes>,
+    stress_clients: Arc<AtomicUsize>,
     drawn: Arc<AtomicU32>,
     active_space: Arc<AtomicU32>,
     alarm: Arc<AtomicBool>,
-) -> FrameObserver {
+}
+
+fn frame_encoder(bases: &[Arc<crate::Basis>], hands: &[Arc<HandSlot>; HANDS], out: Published) -> FrameObserver {
     let bases = bases.to_vec();
     let hands = hands.clone();
     let mut u: Vec<Vec<f32>> = bases.iter().map(|b| vec![0.0; 3 * b.vertex_count()]).collect();
@@ -255,14 +269,20 @@ fn frame_encoder(
         for (m, d) in umag[i].iter_mut().zip(u[i].chunks_exact(3)) {
             *m = (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt();
         }
-        if let Some(s) = f.stress {
+        seq = seq.wrapping_add(1);
+        // The stress fields cost a 3×3 eigenvalue problem per vertex: only while a client
+        // colours by stress, and sent apart (kind 3) to those clients only.
+        let wanted = out.stress_clients.load(Ordering::Relaxed) > 0;
+        if let Some(s) = f.stress.filter(|_| wanted) {
             for ((m, p), s) in vm[i].iter_mut().zip(p1[i].iter_mut()).zip(s.chunks_exact(6)) {
                 let s: [f64; 6] = std::array::from_fn(|k| f64::from(s[k]));
                 *m = visual::von_mises(s) as f32;
                 *p = visual::principal_stresses(s)[0] as f32;
             }
+            let mut b = Vec::new();
+            protocol::stress_frame(&mut b, i, seq, &vm[i], &p1[i]);
+            out.stress.send_replace(Bytes::from(b));
         }
-        seq = seq.wrapping_add(1);
         let mut pose = [0.0; 7];
         pose.copy_from_slice(&f.pose[..7]);
         let header = FrameHeader {
@@ -274,17 +294,11 @@ fn frame_encoder(
             pose,
         };
         let mut b = Vec::new();
-        protocol::frame(
-            &mut b,
-            &header,
-            f.positions,
-            &umag[i],
-            f.stress.map(|_| (&vm[i][..], &p1[i][..])),
-        );
-        tx.send_replace(Bytes::from(b));
-        drawn.store(seq, Ordering::Relaxed);
-        active_space.store(i as u32, Ordering::Relaxed);
-        alarm.store(f.alarm, Ordering::Relaxed);
+        protocol::frame(&mut b, &header, f.positions, &umag[i], f.stress.is_some());
+        out.frames.send_replace(Bytes::from(b));
+        out.drawn.store(seq, Ordering::Relaxed);
+        out.active_space.store(i as u32, Ordering::Relaxed);
+        out.alarm.store(f.alarm, Ordering::Relaxed);
     })
 }
 
@@ -380,16 +394,26 @@ async fn client(mut socket: WebSocket, shared: Arc<Shared>) {
         ok = ok && send(&mut socket, Message::Binary(m.clone())).await;
     }
     let (mut frames, mut status) = (shared.frames.clone(), shared.status.clone());
+    let mut stress = shared.stress_frames.clone();
+    let mut wants_stress = false;
     let mut last_seq: Option<u32> = None;
     while ok {
         tokio::select! {
             m = socket.recv() => match m {
                 None | Some(Err(_)) | Some(Ok(Message::Close(_))) => break,
-                Some(Ok(Message::Text(t))) => {
-                    if let Some(reply) = handle(&shared, id, t.as_str()) {
-                        ok = send(&mut socket, Message::Binary(reply)).await;
+                Some(Ok(Message::Text(t))) => match handle(&shared, id, t.as_str()) {
+                    Reply::Send(reply) => ok = send(&mut socket, Message::Binary(reply)).await,
+                    Reply::Stress(on) if on != wants_stress => {
+                        wants_stress = on;
+                        if on {
+                            shared.stress_clients.fetch_add(1, Ordering::Relaxed);
+                            stress.mark_unchanged();
+                        } else {
+                            shared.stress_clients.fetch_sub(1, Ordering::Relaxed);
+                        }
                     }
-                }
+                    _ => {}
+                },
                 Some(Ok(Message::Binary(_))) => { shared.dropped.fetch_add(1, Ordering::Relaxed); }
                 Some(Ok(_)) => {}
             },
@@ -405,6 +429,11 @@ async fn client(mut socket: WebSocket, shared: Arc<Shared>) {
                 ok = send(&mut socket, Message::Binary(f)).await;
                 shared.frames_sent.fetch_add(u64::from(ok), Ordering::Relaxed);
             }
+            r = stress.changed(), if wants_stress => {
+                if r.is_err() { break; }
+                let f = stress.borrow_and_update().clone();
+                ok = send(&mut socket, Message::Binary(f)).await;
+            }
             r = status.changed() => {
                 if r.is_err() { break; }
                 let s = status.borrow_and_update().clone();
@@ -415,29 +444,44 @@ async fn client(mut socket: WebSocket, shared: Arc<Shared>) {
     for h in &shared.hands {
         h.release(id);
     }
+    if wants_stress {
+        shared.stress_clients.fetch_sub(1, Ordering::Relaxed);
+    }
     shared.clients.fetch_sub(1, Ordering::Relaxed);
 }
 
-/// Applies one client message; a mode request returns its reply.
-fn handle(shared: &Shared, id: u64, text: &str) -> Option<Bytes> {
+/// What a client message asks of its connection.
+enum Reply {
+    /// Nothing.
+    None,
+    /// Send these bytes (a mode shape).
+    Send(Bytes),
+    /// Send the stress frames, or stop.
+    Stress(bool),
+}
+
+/// Applies one client message.
+fn handle(shared: &Shared, id: u64, text: &str) -> Reply {
+    let dropped = || {
+        shared.dropped.fetch_add(1, Ordering::Relaxed);
+        Reply::None
+    };
     match protocol::parse(text, shared.bases.len(), &shared.extent) {
         Ok(ClientMessage::Hand(h, c)) => {
-            if !shared.hands[h].command(id, &c) {
-                shared.dropped.fetch_add(1, Ordering::Relaxed);
+            if shared.hands[h].command(id, &c) {
+                Reply::None
+            } else {
+                dropped()
             }
-            None
         }
         Ok(ClientMessage::Mode { space, index }) => match protocol::mode(space, &shared.bases[space], index) {
-            Some(b) => Some(Bytes::from(b)),
-            None => {
-                shared.dropped.fetch_add(1, Ordering::Relaxed);
-                None
-            }
+            Some(b) => Reply::Send(Bytes::from(b)),
+            None => dropped(),
         },
+        Ok(ClientMessage::Fields { stress }) => Reply::Stress(stress),
         Err(e) => {
-            shared.dropped.fetch_add(1, Ordering::Relaxed);
             tracing_drop(id, &e);
-            None
+            dropped()
         }
     }
 }

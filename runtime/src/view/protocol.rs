@@ -2,16 +2,18 @@
 //!
 //! Server → page, binary, little-endian, every array 4-byte aligned:
 //! - kind 0, a space's surface: u32 kind, space, nv, nt; f32 rest[3nv]; u32 triangles[3nt].
-//! - kind 1, a drawn frame: u32 kind, space, nv, flags (1: stress follows, 2: the part's safety
-//!   factor is below the minimum), frame seq, last hand-message seq read per hand [2]; f32 time,
-//!   pose[7]; f32 positions[3nv] (deformed and posed), |u|[nv] (elastic displacement), then von
-//!   Mises[nv] and largest principal stress[nv] (Pa) with flag 1.
+//! - kind 1, a drawn frame: u32 kind, space, nv, flags (1: the space has stress, 2: the part's
+//!   safety factor is below the minimum), frame seq, last hand-message seq read per hand [2];
+//!   f32 time, pose[7]; f32 positions[3nv] (deformed and posed), |u|[nv] (elastic displacement).
+//! - kind 3, the same frame's stress (only to clients that asked for it, see `fields`): u32 kind,
+//!   space, nv, frame seq; f32 von Mises[nv], largest principal stress[nv] (Pa).
 //! - kind 2, a mode shape: u32 kind, space, mode, nv; f32 frequency (Hz); f32 φ[3nv] scaled to
 //!   max |φ| = 1.
 //!
 //! Server → page, text: JSON objects `hello` (once) and `status` (≈ 20 Hz).
 //! Page → server, text only: `{"type":"hand","hand":0|1,"active":bool,"button":bool,
-//! "position":[x,y,z],"seq":n}` and `{"type":"mode","space":s,"index":j}`. Anything else —
+//! "position":[x,y,z],"seq":n}`, `{"type":"mode","space":s,"index":j}` and
+//! `{"type":"fields","stress":bool}` (send the stress frames or not; off at first). Anything else —
 //! binary, longer than [`MAX_MESSAGE`], not JSON, unknown fields, non-finite or far-away
 //! positions — is dropped and counted.
 
@@ -64,12 +66,11 @@ pub struct FrameHeader {
     pub pose: [f64; 7],
 }
 
-/// Kind 1 into `b` (cleared first): `positions` 3n, `umag` n, then von Mises and principal
-/// stress (n each) when present.
-pub fn frame(b: &mut Vec<u8>, h: &FrameHeader, positions: &[f32], umag: &[f32], stress: Option<(&[f32], &[f32])>) {
+/// Kind 1 into `b` (cleared first): `positions` 3n, `umag` n; `has_stress` sets flag 1.
+pub fn frame(b: &mut Vec<u8>, h: &FrameHeader, positions: &[f32], umag: &[f32], has_stress: bool) {
     b.clear();
     let nv = umag.len();
-    let flags = u32::from(stress.is_some()) | (u32::from(h.alarm) << 1);
+    let flags = u32::from(has_stress) | (u32::from(h.alarm) << 1);
     for v in [1, h.space as u32, nv as u32, flags, h.seq, h.hand_seq[0], h.hand_seq[1]] {
         put_u32(b, v);
     }
@@ -77,8 +78,19 @@ pub fn frame(b: &mut Vec<u8>, h: &FrameHeader, positions: &[f32], umag: &[f32], 
     for p in h.pose {
         put_f32(b, p as f32);
     }
-    let (vm, p1) = stress.unwrap_or((&[], &[]));
-    for v in positions.iter().chain(umag).chain(vm).chain(p1) {
+    for v in positions.iter().chain(umag) {
+        put_f32(b, *v);
+    }
+}
+
+/// Kind 3 into `b` (cleared first): the stress of frame `seq` of `space`, von Mises then the
+/// largest principal stress (n each).
+pub fn stress_frame(b: &mut Vec<u8>, space: usize, seq: u32, von_mises: &[f32], principal: &[f32]) {
+    b.clear();
+    for v in [3, space as u32, von_mises.len() as u32, seq] {
+        put_u32(b, v);
+    }
+    for v in von_mises.iter().chain(principal) {
         put_f32(b, *v);
     }
 }
@@ -120,6 +132,9 @@ enum Raw {
         space: usize,
         index: usize,
     },
+    Fields {
+        stress: bool,
+    },
 }
 
 /// A checked message from the page.
@@ -133,6 +148,11 @@ pub enum ClientMessage {
         space: usize,
         /// Mode index.
         index: usize,
+    },
+    /// Send the stress frames (kind 3) or not.
+    Fields {
+        /// Stress wanted.
+        stress: bool,
     },
 }
 
@@ -198,6 +218,7 @@ pub fn parse(text: &str, spaces: usize, extent: &Extent) -> Result<ClientMessage
         }
         Raw::Mode { space, index } if space < spaces => Ok(ClientMessage::Mode { space, index }),
         Raw::Mode { space, .. } => Err(format!("space {space} of {spaces}")),
+        Raw::Fields { stress } => Ok(ClientMessage::Fields { stress }),
     }
 }
 
@@ -232,6 +253,10 @@ mod tests {
         assert_eq!(
             parse(r#"{"type":"mode","space":0,"index":3}"#, 1, &E),
             Ok(ClientMessage::Mode { space: 0, index: 3 })
+        );
+        assert_eq!(
+            parse(r#"{"type":"fields","stress":true}"#, 1, &E),
+            Ok(ClientMessage::Fields { stress: true })
         );
         let bad = [
             r#"{"type":"hand","hand":2,"active":true,"button":true,"position":[1,0,0]}"#,

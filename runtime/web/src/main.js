@@ -3,7 +3,7 @@
 // part and sends back drawn frames (binary, little-endian f32) and a status (JSON).
 import * as THREE from 'three';
 import { OrbitControls } from 'three/examples/jsm/controls/OrbitControls.js';
-import { decodeFrame, decodeMesh, decodeMode, colourMap, siLabel } from './protocol.js';
+import { decodeFrame, decodeMesh, decodeMode, decodeStress, colourMap, siLabel } from './protocol.js';
 
 const $ = (id) => document.getElementById(id);
 const canvas = $('view');
@@ -53,6 +53,7 @@ function onText(msg) {
       for (const o of $('colour').options) if (o.value !== 'displacement') o.disabled = true;
     }
     if (msg.yield_strength == null) $('colour').querySelector('option[value=safety]').disabled = true;
+    askFields();
   } else if (msg.type === 'status') {
     state.status = msg;
     showStatus(msg);
@@ -64,6 +65,7 @@ function onBinary(buf) {
   if (kind === 0) addSpace(decodeMesh(buf));
   else if (kind === 1) onFrame(decodeFrame(buf));
   else if (kind === 2) startMode(decodeMode(buf));
+  else if (kind === 3) onStress(decodeStress(buf));
 }
 
 function addSpace(m) {
@@ -119,8 +121,7 @@ function onFrame(f) {
   s.mesh.visible = true;
   s.positions.set(f.positions);
   s.umag.set(f.umag);
-  s.vm = f.vonMises;
-  s.p1 = f.principal;
+
   s.pose = f.pose;
   s.alarm = f.alarm;
   s.frameTime = f.time;
@@ -131,6 +132,19 @@ function onFrame(f) {
     state.latency.push(performance.now() - t0);
     if (state.latency.length > 500) state.latency.shift();
   }
+}
+
+// Stress arrives apart, only while this page colours by it (the server computes it only then).
+function onStress(m) {
+  const s = state.spaces[m.space];
+  if (!s) return;
+  s.vm = m.vonMises;
+  s.p1 = m.principal;
+}
+
+const STRESS_COLOURS = new Set(['vonmises', 'principal', 'safety']);
+function askFields() {
+  if (ws && ws.readyState === 1) ws.send(JSON.stringify({ type: 'fields', stress: STRESS_COLOURS.has(state.colour) }));
 }
 
 // The drawn positions: posed rest plus the deformation times the scale (1 = true size).
@@ -406,7 +420,7 @@ $('scale').addEventListener('change', (ev) => {
   const v = Number(ev.target.value);
   if (Number.isFinite(v) && v >= 0) state.scale = v; else ev.target.value = String(state.scale);
 });
-$('colour').addEventListener('change', (ev) => { state.colour = ev.target.value; });
+$('colour').addEventListener('change', (ev) => { state.colour = ev.target.value; askFields(); });
 
 // Helpers for tests and the console: where a vertex is drawn on the screen (CSS pixels), and the
 // vertex nearest a point (m, part frame).

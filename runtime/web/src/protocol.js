@@ -1,8 +1,8 @@
 // The viewer's binary messages (little-endian; written by runtime/src/view/protocol.rs, which
 // documents the layout) and the colour scale.
 
-const MESH = 0, FRAME = 1, MODE = 2;
-export const KINDS = { MESH, FRAME, MODE };
+const MESH = 0, FRAME = 1, MODE = 2, STRESS = 3;
+export const KINDS = { MESH, FRAME, MODE, STRESS };
 
 /** Kind 0: one space's surface: u32 kind, space, nv, nt; f32 rest[3nv]; u32 triangles[3nt]. */
 export function decodeMesh(buf) {
@@ -15,9 +15,8 @@ export function decodeMesh(buf) {
 }
 
 /**
- * Kind 1: a drawn frame: u32 kind, space, nv, flags (1: stress, 2: alarm), seq, hand_seq[2];
- * f32 time, pose[7] (position, quaternion w x y z); f32 positions[3nv], |u|[nv], then von
- * Mises[nv] and largest principal stress[nv] with flag 1.
+ * Kind 1: a drawn frame: u32 kind, space, nv, flags (1: the space has stress, 2: alarm), seq,
+ * hand_seq[2]; f32 time, pose[7] (position, quaternion w x y z); f32 positions[3nv], |u|[nv].
  */
 export function decodeFrame(buf) {
   const h = new Uint32Array(buf, 0, 7);
@@ -25,10 +24,15 @@ export function decodeFrame(buf) {
   const f = new Float32Array(buf, 28, 8);
   let at = 60;
   const positions = new Float32Array(buf, at, 3 * nv); at += 12 * nv;
-  const umag = new Float32Array(buf, at, nv); at += 4 * nv;
-  const vonMises = flags & 1 ? new Float32Array(buf, at, nv) : null; at += 4 * nv;
-  const principal = flags & 1 ? new Float32Array(buf, at, nv) : null;
-  return { space, vertices: nv, alarm: (flags & 2) !== 0, seq, handSeq: [h[5], h[6]], time: f[0], pose: Array.from(f.subarray(1, 8)), positions, umag, vonMises, principal };
+  const umag = new Float32Array(buf, at, nv);
+  return { space, vertices: nv, hasStress: (flags & 1) !== 0, alarm: (flags & 2) !== 0, seq, handSeq: [h[5], h[6]], time: f[0], pose: Array.from(f.subarray(1, 8)), positions, umag };
+}
+
+/** Kind 3: a frame's stress (sent after `{"type":"fields","stress":true}`): u32 kind, space, nv,
+ * seq; f32 von Mises[nv], largest principal stress[nv]. */
+export function decodeStress(buf) {
+  const [, space, nv, seq] = new Uint32Array(buf, 0, 4);
+  return { space, seq, vonMises: new Float32Array(buf, 16, nv), principal: new Float32Array(buf, 16 + 4 * nv, nv) };
 }
 
 /** Kind 2: a mode shape: u32 kind, space, mode, nv; f32 frequency (Hz); f32 phi[3nv] (max |φ| = 1). */
