@@ -604,9 +604,11 @@ impl Haptics {
         let allowed = self.basis.yield_strength.map(|y| y / watch.min_safety_factor);
         let stress = self.vertex_stress(k);
         out.von_mises = stress.map_or(0.0, crate::visual::von_mises);
-        out.principal_stress = stress.map_or(0.0, |s| crate::visual::principal_stresses(s)[0]);
-        out.principal_strain = match (stress, self.basis.elastic) {
-            (Some(s), Some(e)) => crate::visual::principal_strain_max(s, e),
+        // One 3×3 eigenvalue problem per step serves both principal values.
+        let principal = stress.map(crate::visual::principal_stresses);
+        out.principal_stress = principal.map_or(0.0, |p| p[0]);
+        out.principal_strain = match (principal, self.basis.elastic) {
+            (Some(p), Some(e)) => crate::visual::principal_strain_max(p, e),
             _ => 0.0,
         };
         out.safety_factor = match self.basis.yield_strength {

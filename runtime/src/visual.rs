@@ -45,11 +45,10 @@ pub fn principal_stresses(s: [f64; 6]) -> [f64; 3] {
     e
 }
 
-/// Largest principal strain of an isotropic linear-elastic material under a Voigt stress:
-/// ε = ((1 + ν) σ − ν tr(σ) I) / E shares σ's principal directions, so its largest eigenvalue
-/// is ((1 + ν) σ₁ − ν (σ₁ + σ₂ + σ₃)) / E.
-pub fn principal_strain_max(s: [f64; 6], (young, poisson): (f64, f64)) -> f64 {
-    let p = principal_stresses(s);
+/// Largest principal strain of an isotropic linear-elastic material from its principal
+/// stresses `p` (largest first, [`principal_stresses`]): ε = ((1 + ν) σ − ν tr(σ) I) / E shares
+/// σ's principal directions, so its largest eigenvalue is ((1 + ν) σ₁ − ν (σ₁ + σ₂ + σ₃)) / E.
+pub fn principal_strain_max(p: [f64; 3], (young, poisson): (f64, f64)) -> f64 {
     ((1.0 + poisson) * p[0] - poisson * (p[0] + p[1] + p[2])) / young
 }
 
@@ -67,10 +66,10 @@ pub fn max_von_mises(sigma: &[f32]) -> (f64, usize) {
 pub fn max_principal(sigma: &[f32], elastic: Option<(f64, f64)>) -> (f64, Option<f64>) {
     let (mut stress, mut strain) = (f64::NEG_INFINITY, f64::NEG_INFINITY);
     for s in sigma.chunks_exact(6) {
-        let s: [f64; 6] = std::array::from_fn(|k| f64::from(s[k]));
-        stress = stress.max(principal_stresses(s)[0]);
+        let p = principal_stresses(std::array::from_fn(|k| f64::from(s[k])));
+        stress = stress.max(p[0]);
         if let Some(e) = elastic {
-            strain = strain.max(principal_strain_max(s, e));
+            strain = strain.max(principal_strain_max(p, e));
         }
     }
     (stress, elastic.map(|_| strain))
@@ -154,7 +153,7 @@ mod tests {
             "{p:?}"
         );
         // Its largest principal strain is σ/E (the lateral ones are −νσ/E).
-        let e = principal_strain_max(s, (200e9, 0.3));
+        let e = principal_strain_max(p, (200e9, 0.3));
         assert!((e - 100e6 / 200e9).abs() < 1e-15, "{e}");
         // Pure shear τ in yz: principal ±τ, von Mises √3 τ.
         let t = [0.0, 0.0, 0.0, 10e6, 0.0, 0.0];
@@ -162,7 +161,7 @@ mod tests {
         assert!((p[0] - 10e6).abs() < 1e-3 && (p[2] + 10e6).abs() < 1e-3, "{p:?}");
         assert!((von_mises(t) - 3f64.sqrt() * 10e6).abs() < 1e-3);
         // Its largest principal strain is τ(1 + ν)/E = γ/2.
-        let e = principal_strain_max(t, (200e9, 0.3));
+        let e = principal_strain_max(p, (200e9, 0.3));
         assert!((e - 10e6 * 1.3 / 200e9).abs() < 1e-15, "{e}");
     }
     use super::*;
