@@ -141,7 +141,7 @@ pub struct HandInput {
 }
 
 /// What one hand gets back.
-#[derive(Clone, Copy, Debug, Default)]
+#[derive(Clone, Copy, Debug, Default, serde::Serialize)]
 pub struct HandOutput {
     /// Force for the device, N (already limited).
     pub force: [f64; 3],

@@ -49,32 +49,55 @@ pub struct HandStatus {
     pub button: bool,
     /// The position the client asked for, m.
     pub target: [f64; 3],
-    /// Force on the device, N.
-    pub force: [f64; 3],
-    /// Active vertex.
-    pub vertex: u32,
-    /// Grabbing or pressing into the surface.
-    pub contact: bool,
-    /// The device force limit acted.
-    pub clamped: bool,
-    /// Deformed position of the vertex, m.
-    pub vertex_position: [f64; 3],
-    /// Surface strain at the vertex.
-    pub strain: f64,
-    /// Past the strain limit.
-    pub strain_exceeded: bool,
-    /// Von Mises stress at the vertex, Pa.
-    pub von_mises: f64,
-    /// Yield strength over von Mises (null when infinite).
-    pub safety_factor: Option<f64>,
-    /// Below the minimum safety factor.
-    pub stress_exceeded: bool,
-    /// Largest principal stress at the vertex, Pa.
-    pub principal_stress: f64,
-    /// Largest principal strain at the vertex.
-    pub principal_strain: f64,
     /// The last of the owner's messages the haptic loop read.
     pub seq: u32,
+    /// What the haptic loop last gave this hand (in JSON beside the fields above; an infinite
+    /// safety factor is null).
+    #[serde(flatten)]
+    pub output: HandOutput,
+}
+
+/// A hand's output and the message it answered, as the snapshot holds them (the inverse of
+/// [`decode`]).
+fn encode(out: &HandOutput, seq: u32) -> [f64; OUTPUT] {
+    let b = |x: bool| f64::from(u8::from(x));
+    [
+        out.force[0],
+        out.force[1],
+        out.force[2],
+        f64::from(out.vertex),
+        b(out.contact),
+        b(out.clamped),
+        out.vertex_position[0],
+        out.vertex_position[1],
+        out.vertex_position[2],
+        out.strain,
+        b(out.strain_exceeded),
+        out.von_mises,
+        out.safety_factor,
+        b(out.stress_exceeded),
+        f64::from(seq),
+        out.principal_stress,
+        out.principal_strain,
+    ]
+}
+
+fn decode(o: &[f64; OUTPUT]) -> (HandOutput, u32) {
+    let out = HandOutput {
+        force: [o[0], o[1], o[2]],
+        vertex: o[3] as u32,
+        contact: o[4] != 0.0,
+        clamped: o[5] != 0.0,
+        vertex_position: [o[6], o[7], o[8]],
+        strain: o[9],
+        strain_exceeded: o[10] != 0.0,
+        von_mises: o[11],
+        safety_factor: o[12],
+        stress_exceeded: o[13] != 0.0,
+        principal_stress: o[15],
+        principal_strain: o[16],
+    };
+    (out, o[14] as u32)
 }
 
 impl Default for HandSlot {
@@ -130,25 +153,16 @@ impl HandSlot {
         self.input.read(&mut i);
         self.output.read(&mut o);
         let active = i[4] != 0.0;
-        let sf = o[12];
+        let (mut output, seq) = decode(&o);
+        // A hand let go is not in contact, even before the haptic loop's next step says so.
+        output.contact &= active;
         HandStatus {
             owner: self.owner.load(Ordering::Relaxed),
             active,
             button: i[3] != 0.0,
             target: [i[0], i[1], i[2]],
-            force: [o[0], o[1], o[2]],
-            vertex: o[3] as u32,
-            contact: active && o[4] != 0.0,
-            clamped: o[5] != 0.0,
-            vertex_position: [o[6], o[7], o[8]],
-            strain: o[9],
-            strain_exceeded: o[10] != 0.0,
-            von_mises: o[11],
-            safety_factor: sf.is_finite().then_some(sf),
-            stress_exceeded: o[13] != 0.0,
-            seq: o[14] as u32,
-            principal_stress: o[15],
-            principal_strain: o[16],
+            seq,
+            output,
         }
     }
 
@@ -162,7 +176,7 @@ impl HandSlot {
     pub fn seq_read(&self) -> u32 {
         let mut o = [0.0; OUTPUT];
         self.output.read(&mut o);
-        o[14] as u32
+        decode(&o).1
     }
 }
 
@@ -233,26 +247,33 @@ impl Device for WebHand {
     fn write(&mut self, _force: [f64; 3]) {}
 
     fn observe(&mut self, out: &HandOutput) {
-        let b = |x: bool| f64::from(u8::from(x));
-        let v = [
-            out.force[0],
-            out.force[1],
-            out.force[2],
-            f64::from(out.vertex),
-            b(out.contact),
-            b(out.clamped),
-            out.vertex_position[0],
-            out.vertex_position[1],
-            out.vertex_position[2],
-            out.strain,
-            b(out.strain_exceeded),
-            out.von_mises,
-            out.safety_factor,
-            b(out.stress_exceeded),
-            f64::from(self.seq),
-            out.principal_stress,
-            out.principal_strain,
-        ];
-        self.slot.output.publish(&v, 0.0);
+        self.slot.output.publish(&encode(out, self.seq), 0.0);
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Every field crosses the snapshot to its own place (distinct values everywhere).
+    #[test]
+    fn a_hand_output_crosses_the_snapshot_unchanged() {
+        let out = HandOutput {
+            force: [1.0, 2.0, 3.0],
+            vertex: 4,
+            contact: true,
+            clamped: false,
+            vertex_position: [5.0, 6.0, 7.0],
+            strain: 8.0,
+            strain_exceeded: true,
+            von_mises: 9.0,
+            safety_factor: 10.0,
+            stress_exceeded: false,
+            principal_stress: 11.0,
+            principal_strain: 12.0,
+        };
+        let (back, seq) = decode(&encode(&out, 13));
+        assert_eq!(seq, 13);
+        assert_eq!(serde_json::to_value(back).unwrap(), serde_json::to_value(out).unwrap());
     }
 }
