@@ -71,7 +71,8 @@ pub struct ViewError(pub String);
 
 struct Shared {
     hands: [Arc<HandSlot>; HANDS],
-    hello: String,
+    /// The hello message; each client's gets its own `client` id.
+    hello: serde_json::Value,
     meshes: Vec<Bytes>,
     bases: Vec<Arc<crate::Basis>>,
     extent: Extent,
@@ -302,7 +303,7 @@ fn frame_encoder(bases: &[Arc<crate::Basis>], hands: &[Arc<HandSlot>; HANDS], ou
     })
 }
 
-fn hello(bases: &[Arc<crate::Basis>], cfg: &ViewConfig) -> String {
+fn hello(bases: &[Arc<crate::Basis>], cfg: &ViewConfig) -> serde_json::Value {
     let spaces: Vec<_> = bases
         .iter()
         .map(|b| {
@@ -332,7 +333,6 @@ fn hello(bases: &[Arc<crate::Basis>], cfg: &ViewConfig) -> String {
         "gravity": s.free_body.map(|(g, _)| g),
         "spaces": spaces,
     })
-    .to_string()
 }
 
 /// Status at [`STATUS_PERIOD`]: rates, hands, clients.
@@ -388,8 +388,9 @@ async fn client(mut socket: WebSocket, shared: Arc<Shared>) {
     let now = shared.clients.fetch_add(1, Ordering::Relaxed) + 1;
     shared.clients_total.fetch_add(1, Ordering::Relaxed);
     shared.clients_max.fetch_max(now, Ordering::Relaxed);
-    let hello = shared.hello.replacen("\"client\":0", &format!("\"client\":{id}"), 1);
-    let mut ok = send(&mut socket, Message::Text(hello.into())).await;
+    let mut hello = shared.hello.clone();
+    hello["client"] = id.into();
+    let mut ok = send(&mut socket, Message::Text(hello.to_string().into())).await;
     for m in &shared.meshes {
         ok = ok && send(&mut socket, Message::Binary(m.clone())).await;
     }
