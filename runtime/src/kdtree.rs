@@ -69,6 +69,18 @@ impl KdTree {
     }
 }
 
+/// Axis-aligned bounding box (min, max corners) of some points.
+pub(crate) fn bounds<'a>(points: impl IntoIterator<Item = &'a [f64; 3]>) -> [[f64; 3]; 2] {
+    let (mut lo, mut hi) = ([f64::INFINITY; 3], [f64::NEG_INFINITY; 3]);
+    for p in points {
+        for c in 0..3 {
+            lo[c] = lo[c].min(p[c]);
+            hi[c] = hi[c].max(p[c]);
+        }
+    }
+    [lo, hi]
+}
+
 fn build(items: &mut [([f64; 3], u32)], axis: &mut [u8], depth: usize) {
     if items.len() <= 1 {
         if let Some(a) = axis.first_mut() {
@@ -77,14 +89,7 @@ fn build(items: &mut [([f64; 3], u32)], axis: &mut [u8], depth: usize) {
         return;
     }
     // Split on the widest extent.
-    let mut lo = [f64::INFINITY; 3];
-    let mut hi = [f64::NEG_INFINITY; 3];
-    for (p, _) in items.iter() {
-        for c in 0..3 {
-            lo[c] = lo[c].min(p[c]);
-            hi[c] = hi[c].max(p[c]);
-        }
-    }
+    let [lo, hi] = bounds(items.iter().map(|(p, _)| p));
     let ax = (0..3)
         .max_by(|&a, &b| (hi[a] - lo[a]).total_cmp(&(hi[b] - lo[b])))
         .unwrap_or(depth % 3);

@@ -171,13 +171,7 @@ pub const REACH: f64 = 10.0;
 impl Extent {
     /// The bounding box of a basis's rest positions.
     pub fn of(basis: &Basis) -> Extent {
-        let (mut lo, mut hi) = ([f64::INFINITY; 3], [f64::NEG_INFINITY; 3]);
-        for p in &basis.rest {
-            for k in 0..3 {
-                lo[k] = lo[k].min(p[k]);
-                hi[k] = hi[k].max(p[k]);
-            }
-        }
+        let [lo, hi] = crate::kdtree::bounds(&basis.rest);
         let centre = [0, 1, 2].map(|k| 0.5 * (lo[k] + hi[k]));
         let diagonal = (0..3).map(|k| (hi[k] - lo[k]).powi(2)).sum::<f64>().sqrt();
         Extent { centre, diagonal }
