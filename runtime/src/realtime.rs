@@ -130,22 +130,26 @@ mod tests {
     /// scheduling afterwards.
     #[test]
     fn a_thread_gets_what_is_permitted_and_is_restored() {
-        let r = std::thread::spawn(|| {
+        std::thread::spawn(|| {
             let r = haptic_thread(haptic_core());
             assert_eq!(
                 r.sched_fifo,
                 !r.refused.iter().any(|m| m.starts_with("SCHED_FIFO")),
                 "{r:?}"
             );
+            // SAFETY: sched_getscheduler(0) reads the calling thread's policy.
+            let policy = unsafe { libc::sched_getscheduler(0) };
+            assert_eq!(policy == libc::SCHED_FIFO, r.sched_fifo, "{r:?}");
+            if let Some(c) = r.haptic_core {
+                assert_eq!(allowed_cores(), [c], "pinned: {r:?}");
+            }
             restore(&r);
             // SAFETY: sched_getscheduler(0) reads the calling thread's policy.
             let policy = unsafe { libc::sched_getscheduler(0) };
             assert_eq!(policy, libc::SCHED_OTHER, "{r:?}");
             assert_eq!(allowed_cores(), r.original_cores, "affinity restored");
-            r
         })
         .join()
         .unwrap();
-        assert!(r.haptic_core.is_none() || haptic_core().is_some(), "{r:?}");
     }
 }
