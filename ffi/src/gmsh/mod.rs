@@ -347,6 +347,34 @@ impl Gmsh {
         unsafe { sys::gmshModelMeshFieldSetAsBackgroundMesh(tag, &mut ierr) };
         check("model/mesh/field/setAsBackgroundMesh", ierr)
     }
+
+    /// Adds a list-based view of scalar values on tetrahedra ("SS") and returns its tag: per
+    /// tet, the x of its four corners, their y, their z, then the four values. A "PostView" size
+    /// field reads it (option "ViewTag").
+    pub fn view_scalar_tets(&self, name: &str, data: &[f64]) -> Result<i32> {
+        const PER_TET: usize = 16;
+        if !data.len().is_multiple_of(PER_TET) {
+            return Err(GmshError {
+                call: "view/addListData",
+                message: format!("{} values is not 16 per tet", data.len()),
+            });
+        }
+        let count = i32::try_from(data.len() / PER_TET).map_err(|_| GmshError {
+            call: "view/addListData",
+            message: format!("{} tets is more than a view holds", data.len() / PER_TET),
+        })?;
+        let c = cstring("view/add", name)?;
+        let mut ierr = 0;
+        // SAFETY: valid C string; tag -1 lets gmsh choose.
+        let tag = unsafe { sys::gmshViewAdd(c.as_ptr(), -1, &mut ierr) };
+        check("view/add", ierr)?;
+        let kind = cstring("view/addListData", "SS")?;
+        let mut v = data.to_vec();
+        // SAFETY: valid C string; a buffer of v.len() values, 16 per tet as counted (gmsh copies it).
+        unsafe { sys::gmshViewAddListData(tag, kind.as_ptr(), count, v.as_mut_ptr(), v.len(), &mut ierr) };
+        check("view/addListData", ierr)?;
+        Ok(tag)
+    }
 }
 
 impl Drop for Gmsh {

@@ -73,4 +73,13 @@ unsafe extern "C" {
         ierr: *mut c_int,
     );
     pub fn gmshModelMeshFieldSetAsBackgroundMesh(tag: c_int, ierr: *mut c_int);
+    pub fn gmshViewAdd(name: *const c_char, tag: c_int, ierr: *mut c_int) -> c_int;
+    pub fn gmshViewAddListData(
+        tag: c_int,
+        data_type: *const c_char,
+        num_ele: c_int,
+        data: *mut c_double,
+        data_n: usize,
+        ierr: *mut c_int,
+    );
 }

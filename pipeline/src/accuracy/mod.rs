@@ -2,6 +2,7 @@
 //! coarser meshes of the same space, paired by MAC (modes change order between meshes), and
 //! extrapolated at the measured rate ([`richardson`]). docs/accuracy.md says how far to trust it.
 
+pub mod indicator;
 pub mod refine;
 pub mod richardson;
 
@@ -220,6 +221,9 @@ impl Solved {
         let t = Instant::now();
         let mut at = scene.clone();
         at.mesh.size *= factor;
+        if factor != 1.0 {
+            at.size_field = at.size_field.map(|f| std::sync::Arc::new(f.scaled(factor)));
+        }
         let voi = voi.cloned().map(|mut v| {
             v.size *= factor;
             v

@@ -8,14 +8,16 @@
 
 use super::{ErrorEstimate, Solved};
 use crate::modes::SolverChoice;
-use crate::scene::{Scene, Voi};
+use crate::scene::{Refinement, Scene, Voi};
 use anyhow::Result;
 
 /// One mesh of the refinement.
 #[derive(Clone, Debug, serde::Serialize)]
 pub struct Step {
-    /// Element size, m.
+    /// Element size, m (the largest, with a size field).
     pub size: f64,
+    /// The smallest element size asked for (= `size` on a uniform mesh), m.
+    pub smallest_size: f64,
     /// Mesh nodes.
     pub nodes: usize,
     /// Free unknowns.
@@ -77,6 +79,7 @@ pub fn refine(scene: &Scene, voi: Option<&Voi>, choice: SolverChoice, target: f6
             .map_or(f64::NAN, |w| w.1);
         steps.push(Step {
             size: current.size,
+            smallest_size: scene.size_field.as_ref().map_or(current.size, |f| f.smallest()),
             nodes: current.d.mesh.nodes.len(),
             dofs: current.d.dofs.free_count(),
             seconds: current.seconds,
@@ -92,6 +95,10 @@ pub fn refine(scene: &Scene, voi: Option<&Voi>, choice: SolverChoice, target: f6
         if worst <= target {
             return Ok(finish(current, estimate, steps, true, start));
         }
+        let local = match (scene.mesh.refinement, estimate.as_ref()) {
+            (Refinement::Local, Some(e)) if worst.is_finite() => local_field(&scene, &current, e, kept, target),
+            _ => None,
+        };
         // Each mode asks for the size that would bring it to 70 % of the target at its rate.
         // Without an estimate (a mesh so coarse that gmsh's coarser ones are no coarser), a
         // fixed step.
@@ -106,16 +113,14 @@ pub fn refine(scene: &Scene, voi: Option<&Voi>, choice: SolverChoice, target: f6
             _ => 1.0 / super::COARSENING,
         };
         let next_size = current.size * factor;
-        let predicted = current.d.dofs.free_count() as f64 / factor.powi(3);
+        let growth = local.as_ref().map_or(factor.powi(-3), |n| n.growth);
+        let predicted = current.d.dofs.free_count() as f64 * growth;
         if predicted > scene.mesh.max_dofs as f64 || steps.len() >= MAX_STEPS {
             tracing::warn!(
-                "mesh.target_error = {target}: stopped at an estimated error of {:.2} % (mesh.size = {:.3e} m, {} unknowns): the \
-                 next mesh (size {:.3e} m) would have about {:.2e} unknowns, above mesh.max_dofs = {}{}; raise \
-                 mesh.max_dofs or accept this error",
+                "mesh.target_error = {target}: stopped at an estimated error of {:.2} % ({} unknowns): the next mesh \
+                 would have about {:.2e} unknowns, above mesh.max_dofs = {}{}; raise mesh.max_dofs or accept this error",
                 100.0 * worst,
-                current.size,
                 current.d.dofs.free_count(),
-                next_size,
                 predicted,
                 scene.mesh.max_dofs,
                 if steps.len() >= MAX_STEPS {
@@ -126,10 +131,46 @@ pub fn refine(scene: &Scene, voi: Option<&Voi>, choice: SolverChoice, target: f6
             );
             return Ok(finish(current, estimate, steps, false, start));
         }
-        scene.mesh.size = next_size;
+        match local {
+            Some(next) => scene.size_field = Some(std::sync::Arc::new(next.field)),
+            None => {
+                scene.size_field = None;
+                scene.mesh.size = next_size;
+            }
+        }
         current = Solved::at(&scene, scaled_voi(next_size).as_ref(), 1.0, kept, choice, false)?;
         estimate = estimate_of(&scene, &current);
     }
+}
+
+/// The size field of the next mesh from the indicator of `current`'s kept modes, aiming each
+/// mode at 70 % of the target.
+fn local_field(
+    scene: &Scene,
+    current: &Solved,
+    estimate: &ErrorEstimate,
+    kept: usize,
+    target: f64,
+) -> Option<super::indicator::NextField> {
+    let d = &current.d;
+    let r = kept.min(current.modes.eigenvalues.len()).min(estimate.modes.len());
+    let nf = d.dofs.free_count();
+    let u: Vec<f64> = (0..r)
+        .flat_map(|j| d.dofs.expand(&current.modes.vectors[j * nf..(j + 1) * nf]))
+        .collect();
+    let m = &scene.material;
+    let lame = crate::fem::element::Lame::new(m.young, m.poisson, m.density);
+    let shares = super::indicator::shares(&d.mesh, &lame, &u, r);
+    let errors: Vec<f64> = estimate.modes[..r].iter().map(|m| m.relative).collect();
+    let rates: Vec<f64> = estimate.modes[..r].iter().map(|m| m.rate).collect();
+    let next = super::indicator::next_field(&d.mesh, &shares, &errors, &rates, 0.7 * target)?;
+    tracing::info!(
+        growth = next.growth,
+        smallest = next.field.smallest(),
+        largest = next.field.largest(),
+        "local refinement: next size field"
+    );
+    Some(next)
 }
 
 fn finish(

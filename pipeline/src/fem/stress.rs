@@ -42,7 +42,6 @@ pub fn vertex_stress_averaged(mesh: &Mesh, mat: &Lame, u: &[f64], r: usize, how:
 
 fn accumulate<S: Shape>(mesh: &Mesh, mat: &Lame, u: &[f64], r: usize, how: Averaging) -> Vec<f64> {
     let nv = mesh.vertex_count;
-    let n3 = 3 * mesh.nodes.len();
     let threads = rayon::current_num_threads().max(1);
     let tets = mesh.tet_count();
     // Per thread: Σ w σ (6·nv·r) and Σ w (nv).
@@ -50,50 +49,27 @@ fn accumulate<S: Shape>(mesh: &Mesh, mat: &Lame, u: &[f64], r: usize, how: Avera
         .into_par_iter()
         .with_min_len(tets.div_ceil(threads).max(1))
         .fold(
-            || (vec![0.0; 6 * nv * r], vec![0.0; nv]),
-            |(mut sum, mut weight), e| {
-                let t = mesh.tet(e);
-                let x: Vec<[f64; 3]> = t.iter().map(|&n| mesh.nodes[n as usize]).collect();
-                let c = |k: usize| Vector3::from(x[k]);
+            || (vec![0.0; 6 * nv * r], vec![0.0; nv], Corners::<S>::new(r)),
+            |(mut sum, mut weight, mut corners), e| {
                 let volume = match how {
-                    Averaging::Volume => (c(1) - c(0)).cross(&(c(2) - c(0))).dot(&(c(3) - c(0))).abs() / 6.0,
+                    Averaging::Volume => mesh.corner_volume(e),
                     Averaging::Arithmetic => 1.0,
                 };
-                let mut gl = vec![[0.0; 4]; S::NODES];
-                let mut grad = vec![[0.0; 3]; S::NODES];
-                for corner in 0..4 {
-                    let mut l = [0.0; 4];
-                    l[corner] = 1.0;
-                    S::bary_gradients(l, &mut gl);
-                    if physical_gradients(&x, &gl, &mut grad).is_err() {
-                        continue;
-                    }
+                let t = mesh.tet(e);
+                let valid = corners.evaluate(mesh, mat, u, e);
+                for corner in (0..4).filter(|&c| valid[c]) {
                     let v = t[corner] as usize;
                     weight[v] += volume;
                     for j in 0..r {
-                        let uj = &u[j * n3..(j + 1) * n3];
-                        // ∇u = Σ_a u_a ⊗ ∇N_a.
-                        let h: Matrix3<f64> = t
-                            .iter()
-                            .zip(&grad)
-                            .map(|(&n, g)| {
-                                let n = n as usize;
-                                Vector3::new(uj[3 * n], uj[3 * n + 1], uj[3 * n + 2]) * Vector3::from(*g).transpose()
-                            })
-                            .sum();
-                        let eps = 0.5 * (h + h.transpose());
-                        let s = Matrix3::identity() * (mat.lambda * eps.trace()) + eps * (2.0 * mat.mu);
-                        for (k, value) in [s[(0, 0)], s[(1, 1)], s[(2, 2)], s[(1, 2)], s[(0, 2)], s[(0, 1)]]
-                            .into_iter()
-                            .enumerate()
-                        {
+                        for (k, value) in corners.at(corner, j).iter().enumerate() {
                             sum[(6 * v + k) * r + j] += volume * value;
                         }
                     }
                 }
-                (sum, weight)
+                (sum, weight, corners)
             },
         )
+        .map(|(s, w, _)| (s, w))
         .reduce(
             || (vec![0.0; 6 * nv * r], vec![0.0; nv]),
             |(mut a, mut wa), (b, wb)| {
@@ -108,6 +84,69 @@ fn accumulate<S: Shape>(mesh: &Mesh, mat: &Lame, u: &[f64], r: usize, how: Avera
         out[6 * v * r..6 * (v + 1) * r].iter_mut().for_each(|s| *s *= inv);
     }
     out
+}
+
+/// The stress of `r` displacement fields at the four corners of one tet at a time (strain at a
+/// corner, σ = λ tr(ε) I + 2μ ε), with its scratch space.
+pub struct Corners<S: Shape> {
+    r: usize,
+    gl: Vec<[f64; 4]>,
+    grad: Vec<[f64; 3]>,
+    /// [corner][field][component], Voigt order.
+    stress: Vec<[f64; 6]>,
+    shape: std::marker::PhantomData<fn() -> S>,
+}
+
+impl<S: Shape> Corners<S> {
+    /// Scratch space for `r` fields.
+    pub fn new(r: usize) -> Self {
+        Corners {
+            r,
+            gl: vec![[0.0; 4]; S::NODES],
+            grad: vec![[0.0; 3]; S::NODES],
+            stress: vec![[0.0; 6]; 4 * r],
+            shape: std::marker::PhantomData,
+        }
+    }
+
+    /// Evaluates tet `e` of `mesh` for the fields `u` (each 3n, field `j` at `u[j·3n..]`); a
+    /// corner whose Jacobian is not positive is reported false and left unset.
+    pub fn evaluate(&mut self, mesh: &Mesh, mat: &Lame, u: &[f64], e: usize) -> [bool; 4] {
+        let n3 = 3 * mesh.nodes.len();
+        let t = mesh.tet(e);
+        let x: Vec<[f64; 3]> = t.iter().map(|&n| mesh.nodes[n as usize]).collect();
+        let mut valid = [false; 4];
+        for (corner, ok) in valid.iter_mut().enumerate() {
+            let mut l = [0.0; 4];
+            l[corner] = 1.0;
+            S::bary_gradients(l, &mut self.gl);
+            if physical_gradients(&x, &self.gl, &mut self.grad).is_err() {
+                continue;
+            }
+            *ok = true;
+            for j in 0..self.r {
+                let uj = &u[j * n3..(j + 1) * n3];
+                // ∇u = Σ_a u_a ⊗ ∇N_a.
+                let h: Matrix3<f64> = t
+                    .iter()
+                    .zip(&self.grad)
+                    .map(|(&n, g)| {
+                        let n = n as usize;
+                        Vector3::new(uj[3 * n], uj[3 * n + 1], uj[3 * n + 2]) * Vector3::from(*g).transpose()
+                    })
+                    .sum();
+                let eps = 0.5 * (h + h.transpose());
+                let s = Matrix3::identity() * (mat.lambda * eps.trace()) + eps * (2.0 * mat.mu);
+                self.stress[corner * self.r + j] = [s[(0, 0)], s[(1, 1)], s[(2, 2)], s[(1, 2)], s[(0, 2)], s[(0, 1)]];
+            }
+        }
+        valid
+    }
+
+    /// The stress of field `j` at `corner` of the last tet evaluated.
+    pub fn at(&self, corner: usize, j: usize) -> &[f64; 6] {
+        &self.stress[corner * self.r + j]
+    }
 }
 
 #[cfg(test)]

@@ -11,7 +11,7 @@
 //! is never cached (it may read other files). gmsh itself is not in the key: a rebuild against
 //! another gmsh should start from an empty cache.
 
-use super::{LADDER, Mesh, Meshing, Request, isolation};
+use super::{LADDER, Mesh, Meshing, Request, field, isolation};
 use std::path::PathBuf;
 
 /// The meshing code: part of every key.
@@ -52,6 +52,7 @@ pub(super) fn key(req: &Request) -> Option<PathBuf> {
         req.mesh.size,
         req.mesh.order,
         req.voi.as_ref().map(|v| (v.bbox, v.size)),
+        req.field.as_ref().map(field::SizeField::fingerprint),
     ))
     .ok()?;
     let mut h = crate::fingerprint::Fingerprint::default();

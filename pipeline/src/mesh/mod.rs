@@ -4,6 +4,7 @@ use crate::scene::{LengthUnit, Scene, Voi};
 use nalgebra::Vector3;
 
 mod cache;
+pub mod field;
 mod isolation;
 pub mod quality;
 pub mod walls;
@@ -75,6 +76,11 @@ impl Mesh {
     pub fn tet(&self, e: usize) -> &[u32] {
         let p = self.nodes_per_tet();
         &self.tets[e * p..(e + 1) * p]
+    }
+
+    /// Volume of the straight-sided tet on the corners of tet `e`, m³.
+    pub fn corner_volume(&self, e: usize) -> f64 {
+        signed_volume(&self.nodes, self.tet(e)).abs() / 6.0
     }
 
     /// Bounding box of the nodes.
@@ -239,7 +245,7 @@ impl Mesh {
 }
 
 /// Six times the signed volume of the corner tet.
-fn signed_volume(nodes: &[[f64; 3]], tet: &[u32]) -> f64 {
+pub(crate) fn signed_volume(nodes: &[[f64; 3]], tet: &[u32]) -> f64 {
     let x = |i: usize| Vector3::from(nodes[tet[i] as usize]);
     (x(1) - x(0)).dot(&(x(2) - x(0)).cross(&(x(3) - x(0))))
 }
@@ -333,6 +339,7 @@ pub fn generate_with(scene: &Scene, voi: Option<&Voi>, quiet: bool) -> Result<(M
         unit: scene.unit,
         mesh: scene.mesh,
         voi: voi.cloned(),
+        field: scene.size_field.as_deref().cloned(),
         quiet,
     };
     let key = cache::key(&request);
@@ -376,6 +383,8 @@ pub struct Request {
     pub mesh: crate::scene::MeshSettings,
     /// A volume of interest meshed finer, if any.
     pub voi: Option<Voi>,
+    /// A size that varies over the part: replaces `mesh.size` and the VOI's size.
+    pub field: Option<field::SizeField>,
     /// Warnings as info lines.
     pub quiet: bool,
 }
@@ -604,13 +613,18 @@ fn attempt(req: &Request, rung: &Rung, phase: &mut dyn FnMut(&str)) -> Result<(M
     }
     let (lo, hi) = session.bounding_box().map_err(g)?;
     let extent: [f64; 3] = std::array::from_fn(|c| (hi[c] - lo[c]) * scale);
-    let size = if req.mesh.size > 0.0 {
+    let size = if let Some(f) = &req.field {
+        f.largest()
+    } else if req.mesh.size > 0.0 {
         req.mesh.size
     } else {
         extent.iter().copied().fold(0.0, f64::max) / AUTO_SIZE_FRACTION
     };
     let h = size / scale;
-    check_element_budget(&path, extent, size, voi).map_err(fatal)?;
+    match &req.field {
+        Some(f) => check_field_budget(&path, f).map_err(fatal)?,
+        None => check_element_budget(&path, extent, size, voi).map_err(fatal)?,
+    }
     session.set_number("Mesh.MeshSizeMax", h).map_err(g)?;
     session.set_number("Mesh.MeshSizeMin", 0.0).map_err(g)?;
     // Delaunay (1) gives the same mesh on every run; HXT (10) is ~2x faster here but its
@@ -623,7 +637,14 @@ fn attempt(req: &Request, rung: &Rung, phase: &mut dyn FnMut(&str)) -> Result<(M
     for opt in ["Mesh.MaxNumThreads1D", "Mesh.MaxNumThreads2D", "Mesh.MaxNumThreads3D"] {
         session.set_number(opt, 1.0).map_err(g)?;
     }
-    if let Some(v) = voi {
+    if let Some(field) = &req.field {
+        // The field came from a mesh of this space: it already holds the VOI's sizes.
+        let view = session.view_scalar_tets("size", &field.list_data(scale)).map_err(g)?;
+        let f = session.field_add("PostView").map_err(g)?;
+        session.field_set_number(f, "ViewTag", view as f64).map_err(g)?;
+        session.field_set_as_background(f).map_err(g)?;
+        only_background_sizes(&session).map_err(g)?;
+    } else if let Some(v) = voi {
         let f = session.field_add("Box").map_err(g)?;
         session.field_set_number(f, "VIn", v.size / scale).map_err(g)?;
         session.field_set_number(f, "VOut", h).map_err(g)?;
@@ -638,13 +659,7 @@ fn attempt(req: &Request, rung: &Rung, phase: &mut dyn FnMut(&str)) -> Result<(M
         // Grade from the fine to the global size over about two global elements.
         session.field_set_number(f, "Thickness", 2.0 * h).map_err(g)?;
         session.field_set_as_background(f).map_err(g)?;
-        for opt in [
-            "Mesh.MeshSizeExtendFromBoundary",
-            "Mesh.MeshSizeFromPoints",
-            "Mesh.MeshSizeFromCurvature",
-        ] {
-            session.set_number(opt, 0.0).map_err(g)?;
-        }
+        only_background_sizes(&session).map_err(g)?;
     }
     let retry = |e: MeshError, session: &gmsh::Gmsh| Attempt::Retry(e, session.log());
     phase("meshing");
@@ -711,6 +726,35 @@ fn attempt(req: &Request, rung: &Rung, phase: &mut dyn FnMut(&str)) -> Result<(M
     }
     drop(session);
     Ok((mesh, meshing))
+}
+
+/// Sizes come from the background field alone (not from the boundary, points or curvature).
+fn only_background_sizes(session: &gmsh::Gmsh) -> gmsh::Result<()> {
+    for opt in [
+        "Mesh.MeshSizeExtendFromBoundary",
+        "Mesh.MeshSizeFromPoints",
+        "Mesh.MeshSizeFromCurvature",
+    ] {
+        session.set_number(opt, 0.0)?;
+    }
+    Ok(())
+}
+
+/// A size field that would make more tets than [`MAX_TETS`] is refused before meshing.
+fn check_field_budget(path: &str, field: &field::SizeField) -> Result<(), MeshError> {
+    let tets = field.expected_tets();
+    if tets > MAX_TETS || field.smallest().partial_cmp(&0.0) != Some(std::cmp::Ordering::Greater) {
+        return Err(MeshError::Geometry {
+            path: path.to_string(),
+            message: format!(
+                "the refined size field ({:.2e}…{:.2e} m) would make about {tets:.1e} tets (limit {MAX_TETS:.0e}); \
+                 lower mesh.max_dofs or raise mesh.target_error",
+                field.smallest(),
+                field.largest()
+            ),
+        });
+    }
+    Ok(())
 }
 
 /// gmsh's optimiser for curved elements. "HighOrder" (the direct optimiser) takes 10–90 s on

@@ -29,8 +29,7 @@ impl Mesh {
         let (mut total, mut spanning) = (0.0, 0.0);
         for e in 0..self.tet_count() {
             let t = &self.tet(e)[..4];
-            let x: [Vector3<f64>; 4] = std::array::from_fn(|k| Vector3::from(self.nodes[t[k] as usize]));
-            let v = ((x[1] - x[0]).cross(&(x[2] - x[0]))).dot(&(x[3] - x[0])).abs() / 6.0;
+            let v = self.corner_volume(e);
             total += v;
             if t.iter().all(|&n| on_surface[n as usize]) {
                 spanning += v;
