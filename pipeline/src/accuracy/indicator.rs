@@ -134,7 +134,7 @@ pub fn next_field(mesh: &Mesh, shares: &[f64], errors: &[f64], rates: &[f64], go
                 if !modes.contains(&j) {
                     return errors[j];
                 }
-                let q = rates[j].clamp(0.5, Q);
+                let q = rates[j].clamp(0.5, 2.0 * Q);
                 errors[j] * (0..tets).map(|e| share(e, j) * (sized[e] / h[e]).powf(q)).sum::<f64>()
             })
             .collect()
