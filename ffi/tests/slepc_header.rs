@@ -40,11 +40,19 @@ fn every_declared_constant_and_type_size_matches_the_headers() {
         ("sizeof(PC)", std::mem::size_of::<sys::PC>() as i64),
         ("sizeof(VecScatter)", std::mem::size_of::<sys::VecScatter>() as i64),
         ("PetscScalar is real", 1),
+        ("MPI_INT is &ompi_mpi_int", 1),
+        ("MPI_SUM is &ompi_mpi_op_sum", 1),
+        ("MPI_MIN is &ompi_mpi_op_min", 1),
+        ("sizeof(int)", std::mem::size_of::<std::os::raw::c_int>() as i64),
     ];
     let mut c = String::from("#include <stdio.h>\n#include <slepceps.h>\nint main(void) {\n");
     for (name, _) in &rust {
         let expr = match *name {
             "PetscScalar is real" => "(long)(sizeof(PetscScalar) == sizeof(PetscReal))".to_string(),
+            // The addresses the Rust side passes for Open MPI's predefined handles.
+            "MPI_INT is &ompi_mpi_int" => "(long)((void *)MPI_INT == (void *)&ompi_mpi_int)".to_string(),
+            "MPI_SUM is &ompi_mpi_op_sum" => "(long)((void *)MPI_SUM == (void *)&ompi_mpi_op_sum)".to_string(),
+            "MPI_MIN is &ompi_mpi_op_min" => "(long)((void *)MPI_MIN == (void *)&ompi_mpi_op_min)".to_string(),
             n => format!("(long)({n})"),
         };
         c += &format!("  printf(\"%s\\t%ld\\n\", \"{name}\", {expr});\n");

@@ -324,9 +324,10 @@ pub fn run(scene: &Scene, out: &Path, choice: SolverChoice) -> Result<Summary> {
 /// [`run`], saying what the output may replace.
 pub fn run_with(scene: &Scene, out: &Path, choice: SolverChoice, overwrite: Overwrite) -> Result<Summary> {
     let start = Instant::now();
-    // Under MPI every rank computes; rank 0 alone writes.
+    // Under MPI every rank computes; rank 0 alone writes. Every rank checks the output (the
+    // same answer on a shared file system) and they agree, so that a refusal stops them all.
     let root = modes::slepc::rank() == 0;
-    if root {
+    modes::slepc::agree((|| {
         crate::output::check(out, &scene.inputs(), overwrite)?;
         if store::sidecar_path(out) == out {
             anyhow::bail!(
@@ -334,8 +335,8 @@ pub fn run_with(scene: &Scene, out: &Path, choice: SolverChoice, overwrite: Over
                 out.display()
             );
         }
-        crate::output::check(&store::sidecar_path(out), &scene.inputs(), overwrite)?;
-    }
+        crate::output::check(&store::sidecar_path(out), &scene.inputs(), overwrite)
+    })())?;
     let mut spaces = Vec::with_capacity(1 + scene.voi.len());
     let targets: Vec<Option<&Voi>> = std::iter::once(None).chain(scene.voi.iter().map(Some)).collect();
     let bar = crate::progress::bar(targets.len() as u64, "spaces");

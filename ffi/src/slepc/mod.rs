@@ -107,6 +107,56 @@ impl Slepc {
         unsafe { PetscGlobalSize as usize }
     }
 
+    /// Element-wise sum of `values` over every rank, in place. Collective: every rank must call
+    /// it with the same length.
+    pub fn sum_over_ranks(&self, values: &mut [i32]) -> Result<(), PetscError> {
+        self.all_reduce(values, &raw const ompi_mpi_op_sum)
+    }
+
+    /// Element-wise minimum of `values` over every rank, in place. Collective.
+    pub fn min_over_ranks(&self, values: &mut [i32]) -> Result<(), PetscError> {
+        self.all_reduce(values, &raw const ompi_mpi_op_min)
+    }
+
+    fn all_reduce(&self, values: &mut [i32], op: *const u8) -> Result<(), PetscError> {
+        let count = c_int::try_from(values.len()).map_err(|_| PetscError {
+            call: "MPI_Allreduce",
+            code: -1,
+            message: format!("{} values is more than one call reduces", values.len()),
+        })?;
+        let send = values.to_vec();
+        // SAFETY: MPI is initialised (a token exists); both buffers hold `count` ints; the
+        // handles are Open MPI's predefined ones (MPI_INT, MPI_SUM/MPI_MIN), checked against
+        // mpi.h by the header test.
+        let code = unsafe {
+            MPI_Allreduce(
+                send.as_ptr().cast(),
+                values.as_mut_ptr().cast(),
+                count,
+                (&raw const ompi_mpi_int).cast(),
+                op.cast(),
+                PETSC_COMM_WORLD,
+            )
+        };
+        if code == 0 {
+            Ok(())
+        } else {
+            Err(PetscError {
+                call: "MPI_Allreduce",
+                code,
+                message: format!("MPI error {code}"),
+            })
+        }
+    }
+
+    /// Ends every process of the job with exit status `code` (`MPI_Abort`): for an error on
+    /// some ranks only, which would leave the others waiting in a collective call forever.
+    pub fn abort(&self, code: i32) -> ! {
+        // SAFETY: MPI is initialised; MPI_Abort does not return (Open MPI kills every rank).
+        unsafe { MPI_Abort(PETSC_COMM_WORLD, code) };
+        std::process::exit(code)
+    }
+
     /// The `nev` eigenpairs of K x = λ M x nearest `target` (below the spectrum: the lowest),
     /// by Krylov–Schur in shift-invert with a MUMPS Cholesky factorisation of K − σM. Every
     /// rank must call it with the same arguments (it is collective); every rank gets all the

@@ -144,3 +144,22 @@ unsafe extern "C" {
     pub fn PCSetType(pc: PC, t: *const c_char) -> PetscErrorCode;
     pub fn PCFactorSetMatSolverType(pc: PC, t: *const c_char) -> PetscErrorCode;
 }
+
+// MPI itself (Open MPI, Debian's `libopenmpi-dev`): the few calls that make an error on one rank
+// every rank's. Open MPI's predefined handles are the addresses of these globals (`MPI_INT` is
+// `&ompi_mpi_int`, `MPI_SUM` is `&ompi_mpi_op_sum`): checked against mpi.h by the header test.
+#[link(name = "mpi")]
+unsafe extern "C" {
+    pub static ompi_mpi_int: u8;
+    pub static ompi_mpi_op_sum: u8;
+    pub static ompi_mpi_op_min: u8;
+    pub fn MPI_Allreduce(
+        sendbuf: *const c_void,
+        recvbuf: *mut c_void,
+        count: c_int,
+        datatype: *const c_void,
+        op: *const c_void,
+        comm: MPI_Comm,
+    ) -> c_int;
+    pub fn MPI_Abort(comm: MPI_Comm, errorcode: c_int) -> c_int;
+}

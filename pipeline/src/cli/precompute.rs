@@ -44,7 +44,14 @@ impl Args {
             }
             _ => None,
         };
-        let mut scene = Scene::load_with(&self.scene, self.write.scene())?;
+        // Under MPI an error on one rank must end all of them (before the guard finalises MPI).
+        slepc::finish(self.solve())
+    }
+
+    fn solve(self) -> Result<()> {
+        // A scene one rank cannot read (an MPMD launch, a file system that differs between
+        // nodes) stops every rank here, not in the eigen-solver's collective calls.
+        let mut scene = slepc::agree(Scene::load_with(&self.scene, self.write.scene()).map_err(Into::into))?;
         if let Some(m) = self.modes {
             scene.modes.count = m;
         }
