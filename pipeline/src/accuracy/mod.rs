@@ -117,14 +117,8 @@ pub fn partners(coarse: &SpaceView<'_>, coarse_lambda: &[f64], fine: &SpaceView<
 }
 
 /// Combines the finest mesh (`dofs`, frequencies) with coarser levels into per-mode errors.
-pub fn combine(dofs: usize, frequencies_hz: &[f64], levels: &[Level], order: u8, thin_walls: bool) -> Vec<ModeError> {
-    // One element through the walls on every level: only the in-plane size changed.
-    let dimension = if thin_walls {
-        refined_dimension(dofs, levels)
-    } else {
-        3.0
-    };
-    let credited = max_rate(order) * 3.0 / dimension;
+pub fn combine(dofs: usize, frequencies_hz: &[f64], levels: &[Level], order: u8) -> Vec<ModeError> {
+    let credited = max_rate(order);
     (0..frequencies_hz.len())
         .map(|i| {
             // The levels on which this mode was paired, in order.
@@ -147,24 +141,6 @@ pub fn combine(dofs: usize, frequencies_hz: &[f64], levels: &[Level], order: u8,
             })
         })
         .collect()
-}
-
-/// How many directions the coarsening acted in, d with unknowns ∝ size^(−d) over the levels
-/// (each [`COARSENING`] times coarser than the last): 3 for a solid, 2 for walls one element
-/// thick, where only the in-plane size changes. The rates are measured in h = unknowns^(−1/3),
-/// so a rate of q in the element size shows as 3q/d: the credited maximum scales the same way.
-/// (Measured on the 200:1 plate: rates of 4–6 in unknowns^(−1/3), and with the maximum left at
-/// 2 estimates 1.7–2.3× the true error; with it at 3, 0.6–1.7×.) Applied only when the walls
-/// are one element thick: elsewhere a slow growth of the unknowns means a coarse level limited
-/// by a feature, not in-plane refinement.
-pub fn refined_dimension(dofs: usize, levels: &[Level]) -> f64 {
-    match levels.last() {
-        Some(l) if l.dofs > 0 && dofs > l.dofs => {
-            let d = (dofs as f64 / l.dofs as f64).ln() / (levels.len() as f64 * COARSENING.ln());
-            d.clamp(2.0, 3.0)
-        }
-        _ => 3.0,
-    }
 }
 
 /// Meshes `fine`'s space [`LEVELS`] times coarser, solves each and estimates the error of each
@@ -206,11 +182,10 @@ fn from_coarser<'a>(
         .iter()
         .map(|l| l.max(0.0).sqrt() / (2.0 * std::f64::consts::PI))
         .collect();
+    let mut modes = combine(fine.dofs.free_count(), &fine_f, &levels, order);
     // Walls one element thick stay one element thick on every coarser mesh: the error of that
     // is invisible to the comparison (docs/accuracy.md), so no mode's estimate is vouched for.
-    let thin = fine.mesh.walls().spanning_fraction > crate::mesh::walls::ONE_ELEMENT_THICK;
-    let mut modes = combine(fine.dofs.free_count(), &fine_f, &levels, order, thin);
-    if thin {
+    if fine.mesh.walls().spanning_fraction > crate::mesh::walls::ONE_ELEMENT_THICK {
         for m in &mut modes {
             m.reliable = false;
         }
