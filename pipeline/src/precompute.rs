@@ -123,7 +123,7 @@ pub fn solve_space(scene: &Scene, voi: Option<&Voi>, choice: SolverChoice) -> Re
             let solved_s = t.elapsed().as_secs_f64();
             let error = if scene.mesh.error_estimate {
                 let view = crate::transfer::SpaceView::of(&d.mesh, &d.dofs, &d.system, &modes, usize::MAX);
-                crate::accuracy::estimate(scene, voi, &view, &modes.eigenvalues, choice)
+                crate::accuracy::estimate(scene, voi, None, &view, &modes.eigenvalues, choice)
             } else {
                 None
             };

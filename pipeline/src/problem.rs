@@ -29,13 +29,18 @@ pub struct Discretized {
 
 /// Meshes and assembles one space.
 pub fn discretize(scene: &Scene, voi: Option<&Voi>) -> Result<Discretized> {
-    discretize_with(scene, voi, false)
+    discretize_with(scene, voi, None, false)
 }
 
 /// [`discretize`]; `quiet` for a helper mesh (its warnings become info lines).
-pub fn discretize_with(scene: &Scene, voi: Option<&Voi>, quiet: bool) -> Result<Discretized> {
+pub fn discretize_with(
+    scene: &Scene,
+    voi: Option<&Voi>,
+    field: Option<&mesh::field::SizeField>,
+    quiet: bool,
+) -> Result<Discretized> {
     let t = Instant::now();
-    let (mesh, meshing) = mesh::generate_with(scene, voi, quiet)?;
+    let (mesh, meshing) = mesh::generate_with(scene, voi, field, quiet)?;
     let mesh_s = t.elapsed().as_secs_f64();
     let (quality, at) = mesh.worst_quality();
     tracing::info!(

@@ -296,9 +296,6 @@ pub struct Scene {
     pub stress: bool,
     /// Probe points for `ves report`.
     pub probes: Vec<Probe>,
-    /// A size that varies over the part, set by local refinement (never by the file): it
-    /// replaces `mesh.size` and the VOI's size when meshing.
-    pub size_field: Option<std::sync::Arc<crate::mesh::field::SizeField>>,
 }
 
 const GEOMETRY_EXTENSIONS: [&str; 6] = ["step", "stp", "brep", "geo", "iges", "igs"];
@@ -538,7 +535,6 @@ impl Scene {
             static_correction: raw.static_correction,
             stress: raw.stress.is_some_and(|s| s.enabled),
             probes: raw.probe,
-            size_field: None,
         })
     }
 }

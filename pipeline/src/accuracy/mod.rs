@@ -6,6 +6,7 @@ pub mod indicator;
 pub mod refine;
 pub mod richardson;
 
+use crate::mesh::field::SizeField;
 use crate::modes::{self, SolverChoice};
 use crate::problem::{Discretized, discretize_with};
 use crate::scene::{Scene, Voi};
@@ -149,6 +150,7 @@ pub fn combine(dofs: usize, frequencies_hz: &[f64], levels: &[Level], order: u8)
 pub fn estimate(
     scene: &Scene,
     voi: Option<&Voi>,
+    field: Option<&SizeField>,
     fine: &SpaceView<'_>,
     fine_lambda: &[f64],
     choice: SolverChoice,
@@ -156,7 +158,7 @@ pub fn estimate(
     let mut coarse = Vec::new();
     for k in 1..=LEVELS {
         let factor = COARSENING.powi(k as i32);
-        match Solved::at(scene, voi, factor, fine.r, choice, true) {
+        match Solved::at(scene, voi, field, factor, fine.r, choice, true) {
             Ok(s) => coarse.push(s),
             Err(e) => {
                 tracing::info!("error estimate: the mesh {factor}× coarser failed: {e:#}");
@@ -208,11 +210,12 @@ pub struct Solved {
 }
 
 impl Solved {
-    /// The space meshed with `factor` × the scene's size (its VOI's too), solved for more than
-    /// `kept` modes.
+    /// The space meshed with `factor` × the scene's size (its VOI's too; or × `field`'s sizes
+    /// when given), solved for more than `kept` modes.
     pub fn at(
         scene: &Scene,
         voi: Option<&Voi>,
+        field: Option<&SizeField>,
         factor: f64,
         kept: usize,
         choice: SolverChoice,
@@ -221,14 +224,12 @@ impl Solved {
         let t = Instant::now();
         let mut at = scene.clone();
         at.mesh.size *= factor;
-        if factor != 1.0 {
-            at.size_field = at.size_field.map(|f| std::sync::Arc::new(f.scaled(factor)));
-        }
+        let field = field.map(|f| f.scaled(factor));
         let voi = voi.cloned().map(|mut v| {
             v.size *= factor;
             v
         });
-        let d = discretize_with(&at, voi.as_ref(), quiet)?;
+        let d = discretize_with(&at, voi.as_ref(), field.as_ref(), quiet)?;
         let count = (kept + kept / 2 + 2).min(d.dofs.free_count() / 3).max(1);
         let (modes, ordering_s) = modes::solve(&d, count, choice)?;
         Ok(Solved {

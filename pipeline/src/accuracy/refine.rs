@@ -7,6 +7,7 @@
 //! 5.5 % where the error was below 0.8 %.
 
 use super::{ErrorEstimate, Solved};
+use crate::mesh::field::SizeField;
 use crate::modes::SolverChoice;
 use crate::scene::{Refinement, Scene, Voi};
 use anyhow::Result;
@@ -53,7 +54,9 @@ pub fn refine(scene: &Scene, voi: Option<&Voi>, choice: SolverChoice, target: f6
     let kept = scene.modes.count;
     let mut scene = scene.clone();
     let start = std::time::Instant::now();
-    let mut current = Solved::at(&scene, voi, 1.0, kept, choice, false)?;
+    // The size field of local refinement, once there is one (it then replaces the sizes).
+    let mut field: Option<SizeField> = None;
+    let mut current = Solved::at(&scene, voi, None, 1.0, kept, choice, false)?;
     // The size the mesher picked when the scene left it open; the VOI's keeps its ratio.
     let first_size = current.size;
     let voi_ratio = voi.map(|v| v.size / scene.mesh.size.max(f64::MIN_POSITIVE));
@@ -66,11 +69,11 @@ pub fn refine(scene: &Scene, voi: Option<&Voi>, choice: SolverChoice, target: f6
             v
         })
     };
-    let estimate_of = |scene: &Scene, s: &Solved| {
+    let estimate_of = |scene: &Scene, field: Option<&SizeField>, s: &Solved| {
         let lambda = &s.modes.eigenvalues[..kept.min(s.modes.eigenvalues.len())];
-        super::estimate(scene, scaled_voi(s.size).as_ref(), &s.view(kept), lambda, choice)
+        super::estimate(scene, scaled_voi(s.size).as_ref(), field, &s.view(kept), lambda, choice)
     };
-    let mut estimate = estimate_of(&scene, &current);
+    let mut estimate = estimate_of(&scene, None, &current);
     let mut steps = Vec::new();
     loop {
         let worst = estimate
@@ -79,7 +82,7 @@ pub fn refine(scene: &Scene, voi: Option<&Voi>, choice: SolverChoice, target: f6
             .map_or(f64::NAN, |w| w.1);
         steps.push(Step {
             size: current.size,
-            smallest_size: scene.size_field.as_ref().map_or(current.size, |f| f.smallest()),
+            smallest_size: field.as_ref().map_or(current.size, |f| f.smallest()),
             nodes: current.d.mesh.nodes.len(),
             dofs: current.d.dofs.free_count(),
             seconds: current.seconds,
@@ -132,14 +135,22 @@ pub fn refine(scene: &Scene, voi: Option<&Voi>, choice: SolverChoice, target: f6
             return Ok(finish(current, estimate, steps, false, start));
         }
         match local {
-            Some(next) => scene.size_field = Some(std::sync::Arc::new(next.field)),
+            Some(next) => field = Some(next.field),
             None => {
-                scene.size_field = None;
+                field = None;
                 scene.mesh.size = next_size;
             }
         }
-        current = Solved::at(&scene, scaled_voi(next_size).as_ref(), 1.0, kept, choice, false)?;
-        estimate = estimate_of(&scene, &current);
+        current = Solved::at(
+            &scene,
+            scaled_voi(next_size).as_ref(),
+            field.as_ref(),
+            1.0,
+            kept,
+            choice,
+            false,
+        )?;
+        estimate = estimate_of(&scene, field.as_ref(), &current);
     }
 }
 

@@ -328,18 +328,24 @@ fn check_element_budget(path: &str, extent: [f64; 3], size: f64, voi: Option<&Vo
 /// Meshes the scene's geometry (with the finer size inside `voi`, if given), on gmsh's own
 /// thread so the same input always gives the same mesh.
 pub fn generate(scene: &Scene, voi: Option<&Voi>) -> Result<(Mesh, Meshing), MeshError> {
-    generate_with(scene, voi, false)
+    generate_with(scene, voi, None, false)
 }
 
-/// [`generate`]; `quiet` turns its warnings into info lines (a helper mesh, such as a coarser
-/// one for the error estimate, is not what the user asked about).
-pub fn generate_with(scene: &Scene, voi: Option<&Voi>, quiet: bool) -> Result<(Mesh, Meshing), MeshError> {
+/// [`generate`], with the sizes of `field` instead of the scene's and the VOI's when given
+/// (local refinement); `quiet` turns its warnings into info lines (a helper mesh, such as a
+/// coarser one for the error estimate, is not what the user asked about).
+pub fn generate_with(
+    scene: &Scene,
+    voi: Option<&Voi>,
+    field: Option<&field::SizeField>,
+    quiet: bool,
+) -> Result<(Mesh, Meshing), MeshError> {
     let request = Request {
         geometry: scene.geometry.clone(),
         unit: scene.unit,
         mesh: scene.mesh,
         voi: voi.cloned(),
-        field: scene.size_field.as_deref().cloned(),
+        field: field.cloned(),
         quiet,
     };
     let key = cache::key(&request);

@@ -64,9 +64,11 @@ pub fn ranks() -> usize {
 
 /// Whether an error has been made every rank's by [`agree`] (then no rank waits for another,
 /// and the job ends cleanly).
+#[cfg(feature = "slepc")]
 static AGREED: std::sync::atomic::AtomicBool = std::sync::atomic::AtomicBool::new(false);
 
 /// Longest error message [`agree`] passes between ranks, bytes (longer ones are cut).
+#[cfg(feature = "slepc")]
 const MESSAGE_BYTES: usize = 2048;
 
 /// A step that may fail on some ranks and not others (reading the scene, checking the output),

@@ -337,7 +337,7 @@ impl Sweep<'_> {
         let k = ESTIMATE_MODES.min(top.eigenvalues.len());
         let view = crate::transfer::SpaceView::of(&d.mesh, &d.dofs, &d.system, &top, k);
         let estimated_relative_error =
-            crate::accuracy::estimate(&scene, None, &view, &top.eigenvalues[..k], SolverChoice::Auto)
+            crate::accuracy::estimate(&scene, None, None, &view, &top.eigenvalues[..k], SolverChoice::Auto)
                 .map(|e| e.relative());
         let measured_relative_error: Vec<f64> = if is_reference {
             Vec::new()
