@@ -178,7 +178,10 @@ pub fn assemble(mesh: &Mesh, young: f64, poisson: f64, density: f64, dofs: &Dofs
     let lame = Lame::new(young, poisson, density);
     let graph = node_graph(mesh);
     let ne = mesh.tet_count();
-    let chunks = rayon::current_num_threads().max(1) * 2;
+    // One partial per thread, then summed into the first in a fixed order (the same sums on
+    // every run: a basis must be reproducible to the last bit). Collecting twice as many and
+    // adding them into a separate total kept 2·threads + 1 full-size arrays alive at once.
+    let chunks = rayon::current_num_threads().max(1);
     let step = ne.div_ceil(chunks).max(1);
     let ranges: Vec<_> = (0..ne).step_by(step).map(|s| s..(s + step).min(ne)).collect();
     let partials: Vec<Partial> = ranges
@@ -191,7 +194,8 @@ pub fn assemble(mesh: &Mesh, young: f64, poisson: f64, density: f64, dofs: &Dofs
             }
         })
         .collect::<Result<_, _>>()?;
-    let mut total = Partial::zeros(graph.rows.len());
+    let mut partials = partials.into_iter();
+    let mut total = partials.next().unwrap_or_else(|| Partial::zeros(graph.rows.len()));
     for p in partials {
         total.k.par_iter_mut().zip(&p.k).for_each(|(a, b)| *a += b);
         total.m.par_iter_mut().zip(&p.m).for_each(|(a, b)| *a += b);
@@ -199,14 +203,12 @@ pub fn assemble(mesh: &Mesh, young: f64, poisson: f64, density: f64, dofs: &Dofs
     }
     let mass = mass_properties(total.mass, total.first, total.second);
 
-    // Expand node blocks to the free-DOF lower triangle.
+    // Expand node blocks to the free-DOF lower triangle, sized exactly up front (growing the
+    // vectors would overshoot by up to 2×).
     let nf = dofs.free_count();
-    let mut col_ptr = Vec::with_capacity(nf + 1);
-    col_ptr.push(0usize);
-    let mut row_idx = Vec::new();
-    let (mut kv, mut mv) = (Vec::new(), Vec::new());
-    for &d in &dofs.free {
+    let entries = |d: u32, mut each: Option<&mut dyn FnMut(usize, usize, usize, usize)>| {
         let (gj, cj) = (d as usize / 3, d as usize % 3);
+        let mut count = 0;
         for blk in graph.col_ptr[gj]..graph.col_ptr[gj + 1] {
             let gi = graph.rows[blk] as usize;
             for ci in 0..3 {
@@ -215,13 +217,31 @@ pub fn assemble(mesh: &Mesh, young: f64, poisson: f64, density: f64, dofs: &Dofs
                 if row < d as usize || r == u32::MAX {
                     continue;
                 }
-                row_idx.push(r as usize);
-                kv.push(total.k[9 * blk + 3 * ci + cj]);
-                mv.push(if ci == cj { total.m[blk] } else { 0.0 });
+                count += 1;
+                if let Some(f) = each.as_mut() {
+                    f(r as usize, blk, ci, cj);
+                }
             }
         }
+        count
+    };
+    let len: usize = dofs.free.iter().map(|&d| entries(d, None)).sum();
+    let mut col_ptr = Vec::with_capacity(nf + 1);
+    col_ptr.push(0usize);
+    let mut row_idx = Vec::with_capacity(len);
+    let (mut kv, mut mv) = (Vec::with_capacity(len), Vec::with_capacity(len));
+    for &d in &dofs.free {
+        entries(
+            d,
+            Some(&mut |r, blk, ci, cj| {
+                row_idx.push(r);
+                kv.push(total.k[9 * blk + 3 * ci + cj]);
+                mv.push(if ci == cj { total.m[blk] } else { 0.0 });
+            }),
+        );
         col_ptr.push(row_idx.len());
     }
+    drop(total);
     let pattern = SymbolicSparseColMat::new_checked(nf, nf, col_ptr, None, row_idx);
     Ok(Assembled {
         pattern,
