@@ -113,6 +113,11 @@ pub fn precompute_case(name: &str, size: f64, order: u8, modes: usize, dir: &std
     scene.mesh.order = order;
     scene.modes.count = modes;
     let out = dir.join(format!("{name}.h5"));
+    // One in-process precompute at a time: two tests of the capi binary precomputing the same
+    // case at once twice left a file that HDF5 then could not open (CI only, cause not found;
+    // `ves precompute` runs one per process).
+    static ONE_AT_A_TIME: std::sync::Mutex<()> = std::sync::Mutex::new(());
+    let _one = ONE_AT_A_TIME.lock().unwrap_or_else(|p| p.into_inner());
     ves_pipeline::precompute::run(&scene, &out, ves_pipeline::modes::SolverChoice::Auto)
         .unwrap_or_else(|e| panic!("{e:#}"));
     out

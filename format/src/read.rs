@@ -66,8 +66,12 @@ impl BasisReader {
             return Err(err("not a regular file; give the .h5 file written by `ves precompute`"));
         }
         guarded(path, || {
-            let file =
-                hdf5::File::open(path).map_err(|_| err("not a readable HDF5 file (truncated or another format)"))?;
+            let file = hdf5::File::open(path).map_err(|e| {
+                err(&format!(
+                    "not a readable HDF5 file (truncated or another format): {}",
+                    e.to_string().replace('\n', " ")
+                ))
+            })?;
             let reader = BasisReader {
                 file,
                 path: path.to_path_buf(),
