@@ -43,6 +43,8 @@ fn every_declared_constant_and_type_size_matches_the_headers() {
         ("MPI_INT is &ompi_mpi_int", 1),
         ("MPI_SUM is &ompi_mpi_op_sum", 1),
         ("MPI_MIN is &ompi_mpi_op_min", 1),
+        ("MPI_BYTE is &ompi_mpi_byte", 1),
+        ("MPI_STATUS_IGNORE is NULL", 1),
         ("sizeof(int)", std::mem::size_of::<std::os::raw::c_int>() as i64),
     ];
     let mut c = String::from("#include <stdio.h>\n#include <slepceps.h>\nint main(void) {\n");
@@ -53,6 +55,8 @@ fn every_declared_constant_and_type_size_matches_the_headers() {
             "MPI_INT is &ompi_mpi_int" => "(long)((void *)MPI_INT == (void *)&ompi_mpi_int)".to_string(),
             "MPI_SUM is &ompi_mpi_op_sum" => "(long)((void *)MPI_SUM == (void *)&ompi_mpi_op_sum)".to_string(),
             "MPI_MIN is &ompi_mpi_op_min" => "(long)((void *)MPI_MIN == (void *)&ompi_mpi_op_min)".to_string(),
+            "MPI_BYTE is &ompi_mpi_byte" => "(long)((void *)MPI_BYTE == (void *)&ompi_mpi_byte)".to_string(),
+            "MPI_STATUS_IGNORE is NULL" => "(long)((void *)MPI_STATUS_IGNORE == (void *)0)".to_string(),
             n => format!("(long)({n})"),
         };
         c += &format!("  printf(\"%s\\t%ld\\n\", \"{name}\", {expr});\n");

@@ -159,8 +159,8 @@ pub fn solve_space(scene: &Scene, voi: Option<&Voi>, choice: SolverChoice) -> Re
         crate::fem::stress::vertex_stress(&d.mesh, &lame, &u, r)
     });
     timings.stress = t.elapsed().as_secs_f64();
-    // Proof that no mode below the last one was skipped. Under MPI every rank would factor the
-    // whole matrix again: left to SLEPc's own checks there.
+    // Proof that no mode below the last one was skipped. With SLEPc rank 0 would factor the
+    // whole matrix again on its own (the memory MPI is there to share): left to SLEPc's checks.
     let sturm = if choice == SolverChoice::Slepc {
         None
     } else {
@@ -324,9 +324,11 @@ pub fn run(scene: &Scene, out: &Path, choice: SolverChoice) -> Result<Summary> {
 /// [`run`], saying what the output may replace.
 pub fn run_with(scene: &Scene, out: &Path, choice: SolverChoice, overwrite: Overwrite) -> Result<Summary> {
     let start = Instant::now();
-    // Under MPI every rank computes; rank 0 alone writes. Every rank checks the output (the
-    // same answer on a shared file system) and they agree, so that a refusal stops them all.
+    // Under MPI rank 0 runs the pipeline and the other ranks serve its eigen-solves. Every rank
+    // checks the output (the same answer on a shared file system) and they agree, so that a
+    // refusal stops them all before any work.
     let root = modes::slepc::rank() == 0;
+    let distributed = choice == SolverChoice::Slepc && modes::slepc::ranks() > 1;
     modes::slepc::agree((|| {
         crate::output::check(out, &scene.inputs(), overwrite)?;
         if store::sidecar_path(out) == out {
@@ -337,6 +339,25 @@ pub fn run_with(scene: &Scene, out: &Path, choice: SolverChoice, overwrite: Over
         }
         crate::output::check(&store::sidecar_path(out), &scene.inputs(), overwrite)
     })())?;
+    if distributed && !root {
+        modes::slepc::serve()?;
+        return Ok(Summary {
+            output: out.display().to_string(),
+            spaces: Vec::new(),
+            timings_s: Timings::default(),
+            peak_rss_bytes: peak_rss_bytes(),
+        });
+    }
+    let result = pipeline(scene, out, choice, start);
+    if distributed {
+        modes::slepc::release(result)
+    } else {
+        result
+    }
+}
+
+/// Everything after the output check: each space solved, transfers, the basis written.
+fn pipeline(scene: &Scene, out: &Path, choice: SolverChoice, start: Instant) -> Result<Summary> {
     let mut spaces = Vec::with_capacity(1 + scene.voi.len());
     let targets: Vec<Option<&Voi>> = std::iter::once(None).chain(scene.voi.iter().map(Some)).collect();
     let bar = crate::progress::bar(targets.len() as u64, "spaces");
@@ -354,15 +375,11 @@ pub fn run_with(scene: &Scene, out: &Path, choice: SolverChoice, overwrite: Over
     }
     bar.finish_and_clear();
     let t = Instant::now();
-    if root {
-        add_transfers(&mut spaces);
-    }
+    add_transfers(&mut spaces);
     let transfer_s = t.elapsed().as_secs_f64();
     let t = Instant::now();
     let views: Vec<store::Space<'_>> = spaces.iter().map(SolvedSpace::view).collect();
-    if root {
-        store::write(out, scene, &views)?;
-    }
+    store::write(out, scene, &views)?;
     let mut timings = Timings::default();
     for s in &spaces {
         timings.add(&s.timings);

@@ -145,6 +145,27 @@ fn an_error_on_one_rank_ends_every_rank() {
     assert!(!out.exists(), "nothing written");
 }
 
+/// An error that only rank 0 can meet (it alone meshes and selects the supports; here a
+/// support plane beside the part) while the other rank waits to serve its eigen-solves: rank 0
+/// tells it, and the job ends with one message and status 1, not with MPI_Abort.
+#[test]
+fn an_error_on_rank_0_while_the_others_serve_ends_the_job_with_one_message() {
+    let scene = GOOD.replace("value = 0.0", "value = 5000.0");
+    assert_ne!(scene, GOOD);
+    let (dir, path) = workdir(&scene);
+    let out = dir.path().join("out.h5");
+    let child = mpirun(&[app(2, &path, &out)]).spawn().expect("mpirun runs");
+    let (o, _) = finish(child, "support beside the part");
+    let stderr = String::from_utf8_lossy(&o.stderr);
+    assert!(!o.status.success(), "{stderr}");
+    let errors = error_lines(&stderr);
+    assert_eq!(errors.len(), 1, "one message: {stderr}");
+    assert!(errors[0].contains("fixed"), "{stderr}");
+    assert!(!errors[0].contains("MPI rank"), "rank 0's own error: {stderr}");
+    assert!(!stderr.contains("MPI_ABORT"), "{stderr}");
+    assert!(!out.exists(), "nothing written");
+}
+
 /// A rank killed while the job solves (SIGKILL: no chance to report): mpirun ends the other
 /// rank and exits non-zero, and no process of the job is left.
 #[test]

@@ -2,8 +2,8 @@
 //! generalized symmetric eigen-solve K x = λ M x in shift-invert around a target with a parallel
 //! direct factorisation (MUMPS Cholesky), over every rank of `PETSC_COMM_WORLD`.
 //!
-//! Each rank inserts the rows it owns into distributed AIJ matrices; the eigenvectors are
-//! gathered to every rank. Every PETSc error code becomes a [`PetscError`] carrying PETSc's own
+//! Each rank inserts the rows it owns (handed to it as [`LocalRows`], which rank 0 can send with
+//! [`Slepc::send`]) into distributed AIJ matrices; the eigenvectors are gathered to rank 0 only. Every PETSc error code becomes a [`PetscError`] carrying PETSc's own
 //! message (its printing error handler is replaced by the silent one). Options can still be
 //! overridden from the environment (`PETSC_OPTIONS="-eps_ncv 80 -st_pc_factor_mat_solver_type
 //! superlu_dist"`), since the solver calls `EPSSetFromOptions`.
@@ -157,18 +157,66 @@ impl Slepc {
         std::process::exit(code)
     }
 
+    /// Sends `data` to rank `dest` (a matching [`Slepc::receive`] of the same length and type
+    /// must be posted there). Large arrays go in pieces of at most 1 GiB (MPI counts are ints).
+    pub fn send<T: Plain>(&self, dest: usize, data: &[T]) -> Result<(), PetscError> {
+        // SAFETY: `Plain` types are plain old data without padding: their bytes can be sent.
+        let bytes = unsafe { std::slice::from_raw_parts(data.as_ptr().cast::<u8>(), std::mem::size_of_val(data)) };
+        for piece in bytes.chunks(PIECE) {
+            // SAFETY: MPI is initialised; `piece` holds `len` bytes; MPI_BYTE is Open MPI's
+            // predefined handle (checked against mpi.h by the header test).
+            let code = unsafe {
+                MPI_Send(
+                    piece.as_ptr().cast(),
+                    piece.len() as c_int,
+                    (&raw const ompi_mpi_byte).cast(),
+                    dest as c_int,
+                    TAG,
+                    PETSC_COMM_WORLD,
+                )
+            };
+            mpi_check("MPI_Send", code)?;
+        }
+        Ok(())
+    }
+
+    /// Receives `len` values sent by rank `from` with [`Slepc::send`].
+    pub fn receive<T: Plain>(&self, from: usize, len: usize) -> Result<Vec<T>, PetscError> {
+        let mut data = vec![T::default(); len];
+        // SAFETY: as in `send`; every bit pattern is a valid `Plain` value.
+        let bytes =
+            unsafe { std::slice::from_raw_parts_mut(data.as_mut_ptr().cast::<u8>(), std::mem::size_of_val(&data[..])) };
+        for piece in bytes.chunks_mut(PIECE) {
+            // SAFETY: `piece` has room for `len` bytes; a null status is MPI_STATUS_IGNORE.
+            let code = unsafe {
+                MPI_Recv(
+                    piece.as_mut_ptr().cast(),
+                    piece.len() as c_int,
+                    (&raw const ompi_mpi_byte).cast(),
+                    from as c_int,
+                    TAG,
+                    PETSC_COMM_WORLD,
+                    ptr::null_mut(),
+                )
+            };
+            mpi_check("MPI_Recv", code)?;
+        }
+        Ok(data)
+    }
+
     /// The `nev` eigenpairs of K x = λ M x nearest `target` (below the spectrum: the lowest),
-    /// by Krylov–Schur in shift-invert with a MUMPS Cholesky factorisation of K − σM. Every
-    /// rank must call it with the same arguments (it is collective); every rank gets all the
-    /// eigenpairs: values ascending by distance to the target, vectors column-major `n × nev`.
+    /// by Krylov–Schur in shift-invert with a MUMPS Cholesky factorisation of K − σM, on an
+    /// order-`n` problem of which this rank holds the rows `rows` (its [`ownership`] range).
+    /// Collective: every rank calls it with its own rows and the same other arguments. The
+    /// eigenvectors are gathered to rank 0 only (column-major `n × nev`; empty on other ranks).
     pub fn lowest_eigenpairs(
         &self,
-        a: &SymmetricPair<'_>,
+        n: usize,
+        rows: &LocalRows,
         nev: usize,
         target: f64,
         tol: f64,
     ) -> Result<Eigenpairs, PetscError> {
-        let n = a.n;
         let size_err = |what: &str| PetscError {
             call: "lowest_eigenpairs",
             code: -1,
@@ -177,14 +225,13 @@ impl Slepc {
         if n == 0 || nev == 0 || nev >= n || n > i32::MAX as usize / 2 {
             return Err(size_err(&format!("{nev} eigenpairs of an order-{n} problem")));
         }
+        if (rows.lo, rows.hi) != ownership(n, self.size(), self.rank()) {
+            return Err(size_err("rows given are not this rank's share"));
+        }
+        // SAFETY: set by SlepcInitialize.
         let world = unsafe { PETSC_COMM_WORLD };
-        let (rank, size) = (self.rank(), self.size().max(1));
-        // PETSc's default split: the first n % size ranks get one row more.
-        let local = n / size + usize::from(rank < n % size);
-        let lo = rank * (n / size) + rank.min(n % size);
-        let hi = lo + local;
-        let k = DistMatrix::from_lower(world, a, a.k, lo, hi)?;
-        let m = DistMatrix::from_lower(world, a, a.m, lo, hi)?;
+        let k = DistMatrix::from_rows(world, n, rows, &rows.k)?;
+        let m = DistMatrix::from_rows(world, n, rows, &rows.m)?;
         let mut eps = Eps(ptr::null_mut());
         let stype = CString::new("sinvert").expect("static");
         let (ksp_type, pc_type, solver) = (c"preonly", c"cholesky", c"mumps");
@@ -239,18 +286,19 @@ impl Slepc {
                 ),
             });
         }
+        let root = self.rank() == 0;
         let mut x = Vector(ptr::null_mut());
         let mut all = Vector(ptr::null_mut());
         let mut scatter = Scatter(ptr::null_mut());
         let mut values = Vec::with_capacity(nev);
-        let mut vectors = vec![0.0; n * nev];
+        let mut vectors = if root { vec![0.0; n * nev] } else { Vec::new() };
         let mut errors = Vec::with_capacity(nev);
-        // SAFETY: as above; the gathered vector has n entries on every rank.
+        // SAFETY: as above; the gathered vector has n entries on rank 0 and none elsewhere.
         unsafe {
             check("MatCreateVecs", MatCreateVecs(k.0, &mut x.0, ptr::null_mut()))?;
             check(
-                "VecScatterCreateToAll",
-                VecScatterCreateToAll(x.0, &mut scatter.0, &mut all.0),
+                "VecScatterCreateToZero",
+                VecScatterCreateToZero(x.0, &mut scatter.0, &mut all.0),
             )?;
             for i in 0..nev {
                 let (mut kr, mut ki) = (0.0, 0.0);
@@ -271,15 +319,17 @@ impl Slepc {
                     "VecScatterEnd",
                     VecScatterEnd(scatter.0, x.0, all.0, INSERT_VALUES, SCATTER_FORWARD),
                 )?;
-                let mut len = 0;
-                check("VecGetSize", VecGetSize(all.0, &mut len))?;
-                let mut data: *const f64 = ptr::null();
-                check("VecGetArrayRead", VecGetArrayRead(all.0, &mut data))?;
-                if len as usize != n || data.is_null() {
-                    return Err(size_err("gathered eigenvector has the wrong length"));
+                if root {
+                    let mut len = 0;
+                    check("VecGetLocalSize", VecGetLocalSize(all.0, &mut len))?;
+                    let mut data: *const f64 = ptr::null();
+                    check("VecGetArrayRead", VecGetArrayRead(all.0, &mut data))?;
+                    if len as usize != n || data.is_null() {
+                        return Err(size_err("gathered eigenvector has the wrong length"));
+                    }
+                    vectors[i * n..(i + 1) * n].copy_from_slice(std::slice::from_raw_parts(data, n));
+                    check("VecRestoreArrayRead", VecRestoreArrayRead(all.0, &mut data))?;
                 }
-                vectors[i * n..(i + 1) * n].copy_from_slice(std::slice::from_raw_parts(data, n));
-                check("VecRestoreArrayRead", VecRestoreArrayRead(all.0, &mut data))?;
                 values.push(kr);
                 errors.push(err);
             }
@@ -292,6 +342,113 @@ impl Slepc {
             setup_s,
             solve_s: t1.elapsed().as_secs_f64(),
         })
+    }
+}
+
+/// Largest piece one MPI message carries, bytes.
+const PIECE: usize = 1 << 30;
+
+/// The tag of every message [`Slepc::send`] sends (PETSc's own messages travel on duplicated
+/// communicators, so they cannot be confused with these).
+const TAG: c_int = 7017;
+
+fn mpi_check(call: &'static str, code: c_int) -> Result<(), PetscError> {
+    if code == 0 {
+        Ok(())
+    } else {
+        Err(PetscError {
+            call,
+            code,
+            message: format!("MPI error {code}"),
+        })
+    }
+}
+
+/// Types whose values can travel between ranks as raw bytes: no padding, every bit pattern
+/// valid.
+pub trait Plain: Copy + Default + private::Sealed {}
+impl Plain for f64 {}
+impl Plain for u64 {}
+impl Plain for i32 {}
+mod private {
+    pub trait Sealed {}
+    impl Sealed for f64 {}
+    impl Sealed for u64 {}
+    impl Sealed for i32 {}
+}
+
+/// The rows `lo..hi` of an order-`n` matrix that rank `rank` of `size` owns: PETSc's default
+/// split (the first `n % size` ranks get one row more).
+pub fn ownership(n: usize, size: usize, rank: usize) -> (usize, usize) {
+    let size = size.max(1);
+    let lo = rank * (n / size) + rank.min(n % size);
+    (lo, lo + n / size + usize::from(rank < n % size))
+}
+
+/// One rank's rows `lo..hi` of the full (both triangles) symmetric K and M, as CSR with global
+/// column indices: what the rank inserts into PETSc's distributed matrices.
+pub struct LocalRows {
+    /// First row.
+    pub lo: usize,
+    /// One past the last row.
+    pub hi: usize,
+    /// Row pointers (hi − lo + 1).
+    pub row_ptr: Vec<u64>,
+    /// Column of each entry.
+    pub cols: Vec<PetscInt>,
+    /// K's values.
+    pub k: Vec<f64>,
+    /// M's values.
+    pub m: Vec<f64>,
+}
+
+impl LocalRows {
+    /// Rows `lo..hi` of the full matrices whose lower triangles `a` holds.
+    pub fn from_lower(a: &SymmetricPair<'_>, lo: usize, hi: usize) -> LocalRows {
+        let n = a.n;
+        let owned = |i: usize| (lo..hi).contains(&i);
+        // (i, j) for each stored (i ≥ j), and (j, i).
+        let mut count = vec![0u64; hi - lo + 1];
+        for j in 0..n {
+            for &i in &a.row_idx[a.col_ptr[j]..a.col_ptr[j + 1]] {
+                if owned(i) {
+                    count[i - lo + 1] += 1;
+                }
+                if i != j && owned(j) {
+                    count[j - lo + 1] += 1;
+                }
+            }
+        }
+        for r in 0..hi - lo {
+            count[r + 1] += count[r];
+        }
+        let nnz = count[hi - lo] as usize;
+        let mut fill: Vec<usize> = count.iter().map(|&c| c as usize).collect();
+        let (mut cols, mut k, mut m) = (vec![0 as PetscInt; nnz], vec![0.0; nnz], vec![0.0; nnz]);
+        for j in 0..n {
+            for e in a.col_ptr[j]..a.col_ptr[j + 1] {
+                let i = a.row_idx[e];
+                let mut put = |row: usize, col: usize| {
+                    let at = fill[row - lo];
+                    (cols[at], k[at], m[at]) = (col as PetscInt, a.k[e], a.m[e]);
+                    fill[row - lo] += 1;
+                };
+                if owned(i) {
+                    put(i, j);
+                }
+                if i != j && owned(j) {
+                    put(j, i);
+                }
+            }
+        }
+        LocalRows {
+            lo,
+            hi,
+            row_ptr: count,
+            cols,
+            k,
+            m,
+        }
     }
 }
 
@@ -336,59 +493,18 @@ pub struct Eigenpairs {
 struct DistMatrix(Mat);
 
 impl DistMatrix {
-    /// The full symmetric matrix from its lower triangle; this rank inserts rows lo..hi.
-    fn from_lower(
-        world: MPI_Comm,
-        a: &SymmetricPair<'_>,
-        values: &[f64],
-        lo: usize,
-        hi: usize,
-    ) -> Result<DistMatrix, PetscError> {
-        let n = a.n;
-        let owned = |i: usize| (lo..hi).contains(&i);
-        // Rows lo..hi of the full matrix, as CSR: (i, j) for each stored (i ≥ j), and (j, i).
-        let mut count = vec![0usize; hi - lo + 1];
-        for j in 0..n {
-            for &i in &a.row_idx[a.col_ptr[j]..a.col_ptr[j + 1]] {
-                if owned(i) {
-                    count[i - lo + 1] += 1;
-                }
-                if i != j && owned(j) {
-                    count[j - lo + 1] += 1;
-                }
-            }
-        }
-        for r in 0..hi - lo {
-            count[r + 1] += count[r];
-        }
-        let mut fill = count.clone();
-        let mut cols = vec![0 as PetscInt; count[hi - lo]];
-        let mut vals = vec![0.0; count[hi - lo]];
-        for j in 0..n {
-            let range = a.col_ptr[j]..a.col_ptr[j + 1];
-            for (&i, &v) in a.row_idx[range.clone()].iter().zip(&values[range]) {
-                if owned(i) {
-                    cols[fill[i - lo]] = j as PetscInt;
-                    vals[fill[i - lo]] = v;
-                    fill[i - lo] += 1;
-                }
-                if i != j && owned(j) {
-                    cols[fill[j - lo]] = i as PetscInt;
-                    vals[fill[j - lo]] = v;
-                    fill[j - lo] += 1;
-                }
-            }
-        }
+    /// An order-`n` distributed AIJ matrix of which this rank inserts `rows` (with `values` on
+    /// their pattern), preallocated exactly.
+    fn from_rows(world: MPI_Comm, n: usize, rows: &LocalRows, values: &[f64]) -> Result<DistMatrix, PetscError> {
+        let (lo, hi) = (rows.lo, rows.hi);
+        let owned = |c: PetscInt| (lo..hi).contains(&(c as usize));
+        let span = |r: usize| rows.row_ptr[r] as usize..rows.row_ptr[r + 1] as usize;
         let mut d_nnz = vec![0 as PetscInt; hi - lo];
         let mut o_nnz = vec![0 as PetscInt; hi - lo];
         for r in 0..hi - lo {
-            for &c in &cols[count[r]..count[r + 1]] {
-                if owned(c as usize) {
-                    d_nnz[r] += 1;
-                } else {
-                    o_nnz[r] += 1;
-                }
-            }
+            let d = rows.cols[span(r)].iter().filter(|&&c| owned(c)).count() as PetscInt;
+            d_nnz[r] = d;
+            o_nnz[r] = span(r).len() as PetscInt - d;
         }
         let mut mat = DistMatrix(ptr::null_mut());
         let local = (hi - lo) as PetscInt;
@@ -420,16 +536,16 @@ impl DistMatrix {
             }
             for r in 0..hi - lo {
                 let row = (lo + r) as PetscInt;
-                let (s, e) = (count[r], count[r + 1]);
+                let e = span(r);
                 check(
                     "MatSetValues",
                     MatSetValues(
                         mat.0,
                         1,
                         &row,
-                        (e - s) as PetscInt,
-                        cols[s..e].as_ptr(),
-                        vals[s..e].as_ptr(),
+                        e.len() as PetscInt,
+                        rows.cols[e.clone()].as_ptr(),
+                        values[e].as_ptr(),
                         INSERT_VALUES,
                     ),
                 )?;
@@ -465,7 +581,7 @@ struct Vector(PetscVec);
 impl Drop for Vector {
     fn drop(&mut self) {
         if !self.0.is_null() {
-            // SAFETY: created by MatCreateVecs / VecScatterCreateToAll.
+            // SAFETY: created by MatCreateVecs / VecScatterCreateToZero.
             unsafe { VecDestroy(&mut self.0) };
         }
     }
@@ -475,7 +591,7 @@ struct Scatter(VecScatter);
 impl Drop for Scatter {
     fn drop(&mut self) {
         if !self.0.is_null() {
-            // SAFETY: created by VecScatterCreateToAll.
+            // SAFETY: created by VecScatterCreateToZero.
             unsafe { VecScatterDestroy(&mut self.0) };
         }
     }

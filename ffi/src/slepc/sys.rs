@@ -131,12 +131,14 @@ unsafe extern "C" {
     pub fn MatDestroy(a: *mut Mat) -> PetscErrorCode;
 
     pub fn VecScatterCreateToAll(vin: PetscVec, ctx: *mut VecScatter, vout: *mut PetscVec) -> PetscErrorCode;
+    pub fn VecScatterCreateToZero(vin: PetscVec, ctx: *mut VecScatter, vout: *mut PetscVec) -> PetscErrorCode;
     pub fn VecScatterBegin(ctx: VecScatter, x: PetscVec, y: PetscVec, mode: c_int, smode: c_int) -> PetscErrorCode;
     pub fn VecScatterEnd(ctx: VecScatter, x: PetscVec, y: PetscVec, mode: c_int, smode: c_int) -> PetscErrorCode;
     pub fn VecScatterDestroy(ctx: *mut VecScatter) -> PetscErrorCode;
     pub fn VecGetArrayRead(x: PetscVec, a: *mut *const PetscScalar) -> PetscErrorCode;
     pub fn VecRestoreArrayRead(x: PetscVec, a: *mut *const PetscScalar) -> PetscErrorCode;
     pub fn VecGetSize(x: PetscVec, n: *mut PetscInt) -> PetscErrorCode;
+    pub fn VecGetLocalSize(x: PetscVec, n: *mut PetscInt) -> PetscErrorCode;
     pub fn VecDestroy(x: *mut PetscVec) -> PetscErrorCode;
 
     pub fn KSPSetType(ksp: KSP, t: *const c_char) -> PetscErrorCode;
@@ -153,6 +155,7 @@ unsafe extern "C" {
     pub static ompi_mpi_int: u8;
     pub static ompi_mpi_op_sum: u8;
     pub static ompi_mpi_op_min: u8;
+    pub static ompi_mpi_byte: u8;
     pub fn MPI_Allreduce(
         sendbuf: *const c_void,
         recvbuf: *mut c_void,
@@ -162,4 +165,22 @@ unsafe extern "C" {
         comm: MPI_Comm,
     ) -> c_int;
     pub fn MPI_Abort(comm: MPI_Comm, errorcode: c_int) -> c_int;
+    pub fn MPI_Send(
+        buf: *const c_void,
+        count: c_int,
+        datatype: *const c_void,
+        dest: c_int,
+        tag: c_int,
+        comm: MPI_Comm,
+    ) -> c_int;
+    /// `status` may be null: Open MPI's `MPI_STATUS_IGNORE` (checked by the header test).
+    pub fn MPI_Recv(
+        buf: *mut c_void,
+        count: c_int,
+        datatype: *const c_void,
+        source: c_int,
+        tag: c_int,
+        comm: MPI_Comm,
+        status: *mut c_void,
+    ) -> c_int;
 }

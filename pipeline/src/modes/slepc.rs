@@ -1,8 +1,12 @@
 //! SLEPc Krylov–Schur in shift-invert with a MUMPS factorisation, over every MPI rank
-//! (`ves precompute --solver slepc`, alone or under `mpirun -n N`). Each rank holds the same
-//! K and M (meshing and assembly are repeated on every rank: gmsh is deterministic) and inserts
-//! its share of the rows into PETSc's distributed matrices; the factorisation and the
-//! eigen-solve are distributed, the eigenvectors gathered back to every rank.
+//! (`ves precompute --solver slepc`, alone or under `mpirun -n N`).
+//!
+//! Under MPI rank 0 runs the pipeline alone (meshing, assembly, checks, error estimate,
+//! writing) and the other ranks only [`serve`] its eigen-solves: for each one rank 0 sends every
+//! other rank its share of the rows of K and M and nothing else, all ranks factor and iterate
+//! together, and the eigenvectors come back to rank 0 only. So the memory of ranks 1.. is their
+//! share of the matrices, the factor and the Krylov vectors, and falls with the number of ranks;
+//! rank 0 holds in addition what the whole pipeline needs (mesh, K, M, basis).
 
 use super::{EigenProblem, EigenSolver, ModesError, Spectrum};
 
@@ -164,19 +168,17 @@ impl EigenSolver for Slepc {
             let token = t
                 .as_ref()
                 .ok_or_else(|| ModesError::Slepc("SLEPc is not initialised (SlepcGuard::init)".into()))?;
+            let n = problem.size();
             let pair = ves_ffi::slepc::SymmetricPair {
-                n: problem.size(),
+                n,
                 col_ptr: problem.pattern.col_ptr(),
                 row_idx: problem.pattern.row_idx(),
                 k: problem.k,
                 m: problem.m,
             };
-            let e = token
-                .lowest_eigenpairs(&pair, nev, sigma, self.tol)
-                .map_err(|e| ModesError::Slepc(e.to_string()))?;
+            let e = distribute(token, &pair, nev, sigma, self.tol).map_err(|e| ModesError::Slepc(e.to_string()))?;
             tracing::debug!(iterations = e.iterations, errors = ?e.relative_errors, "SLEPc converged");
             // Ascending (nearest a target below the spectrum is already ascending; make sure).
-            let n = problem.size();
             let mut order: Vec<usize> = (0..e.values.len()).collect();
             order.sort_by(|&a, &b| e.values[a].total_cmp(&e.values[b]));
             let values = order.iter().map(|&i| e.values[i]).collect();
@@ -197,4 +199,135 @@ impl EigenSolver for Slepc {
     fn lowest(&self, _: &EigenProblem<'_>, _: usize, _: f64) -> Result<Spectrum, ModesError> {
         Err(not_built())
     }
+}
+
+/// What rank 0 tells the other ranks (the first word of a [`HEADER`]-word message).
+#[cfg(feature = "slepc")]
+mod message {
+    /// The pipeline is done: return.
+    pub const STOP: u64 = 0;
+    /// An eigen-solve: its rows follow.
+    pub const SOLVE: u64 = 1;
+    /// Rank 0 failed outside a solve (and says why itself): return that error.
+    pub const FAIL: u64 = 2;
+}
+
+/// Words of a message header: kind, order, eigenpairs, entries of the rows sent, target and
+/// tolerance (as f64 bits).
+#[cfg(feature = "slepc")]
+const HEADER: usize = 6;
+
+/// True while rank 0 is inside a solve the other ranks take part in: an error then may leave
+/// them in a collective call, so it must end the job ([`finish`]) rather than be told to them.
+#[cfg(feature = "slepc")]
+static IN_SOLVE: std::sync::atomic::AtomicBool = std::sync::atomic::AtomicBool::new(false);
+
+/// Rank 0's side of a solve: every other rank (waiting in [`serve`]) gets its rows, then all
+/// solve together.
+#[cfg(feature = "slepc")]
+fn distribute(
+    token: &ves_ffi::slepc::Slepc,
+    pair: &ves_ffi::slepc::SymmetricPair<'_>,
+    nev: usize,
+    sigma: f64,
+    tol: f64,
+) -> Result<ves_ffi::slepc::Eigenpairs, ves_ffi::slepc::PetscError> {
+    use ves_ffi::slepc::{LocalRows, ownership};
+    let (n, size) = (pair.n, token.size());
+    IN_SOLVE.store(true, std::sync::atomic::Ordering::SeqCst);
+    // One rank's rows at a time: rank 0 never holds more than its own and one other share.
+    for r in 1..size {
+        let (lo, hi) = ownership(n, size, r);
+        let rows = LocalRows::from_lower(pair, lo, hi);
+        let header = [
+            message::SOLVE,
+            n as u64,
+            nev as u64,
+            rows.cols.len() as u64,
+            sigma.to_bits(),
+            tol.to_bits(),
+        ];
+        token.send(r, &header)?;
+        token.send(r, &rows.row_ptr)?;
+        token.send(r, &rows.cols)?;
+        token.send(r, &rows.k)?;
+        token.send(r, &rows.m)?;
+    }
+    let (lo, hi) = ownership(n, size, 0);
+    let e = token.lowest_eigenpairs(n, &LocalRows::from_lower(pair, lo, hi), nev, sigma, tol)?;
+    IN_SOLVE.store(false, std::sync::atomic::Ordering::SeqCst);
+    Ok(e)
+}
+
+/// The life of ranks 1.. under MPI: take part in each eigen-solve rank 0 starts, until it says
+/// the pipeline is done (Ok) or failed (an error that rank 0 reports: nothing to print here).
+pub fn serve() -> anyhow::Result<()> {
+    #[cfg(feature = "slepc")]
+    {
+        TOKEN.with(|t| -> anyhow::Result<()> {
+            let guard = t.borrow();
+            let token = guard
+                .as_ref()
+                .ok_or_else(|| anyhow::anyhow!("SLEPc is not initialised (SlepcGuard::init)"))?;
+            loop {
+                let h: Vec<u64> = token.receive(0, HEADER)?;
+                match h[0] {
+                    message::STOP => return Ok(()),
+                    message::FAIL => {
+                        AGREED.store(true, std::sync::atomic::Ordering::SeqCst);
+                        anyhow::bail!("rank 0 failed");
+                    }
+                    message::SOLVE => {}
+                    other => anyhow::bail!("rank 0 sent message kind {other}, which this ves does not know"),
+                }
+                let (n, nev, nnz) = (h[1] as usize, h[2] as usize, h[3] as usize);
+                let (sigma, tol) = (f64::from_bits(h[4]), f64::from_bits(h[5]));
+                let (lo, hi) = ves_ffi::slepc::ownership(n, token.size(), token.rank());
+                let rows = ves_ffi::slepc::LocalRows {
+                    lo,
+                    hi,
+                    row_ptr: token.receive(0, hi - lo + 1)?,
+                    cols: token.receive(0, nnz)?,
+                    k: token.receive(0, nnz)?,
+                    m: token.receive(0, nnz)?,
+                };
+                token.lowest_eigenpairs(n, &rows, nev, sigma, tol)?;
+            }
+        })
+    }
+    #[cfg(not(feature = "slepc"))]
+    Err(not_built().into())
+}
+
+/// Rank 0's end of the pipeline under MPI: tells the ranks in [`serve`] to return, with the
+/// pipeline's outcome (an error is then every rank's, reported once by rank 0). An error inside
+/// a solve is left to [`finish`], which ends the job.
+pub fn release<T>(result: anyhow::Result<T>) -> anyhow::Result<T> {
+    #[cfg(feature = "slepc")]
+    {
+        use std::sync::atomic::Ordering::SeqCst;
+        if ranks() <= 1 || rank() != 0 || IN_SOLVE.load(SeqCst) {
+            return result;
+        }
+        let kind = if result.is_ok() { message::STOP } else { message::FAIL };
+        let told = TOKEN.with(|t| -> Result<(), ves_ffi::slepc::PetscError> {
+            if let Some(token) = t.borrow().as_ref() {
+                for r in 1..token.size() {
+                    token.send(r, &[kind, 0, 0, 0, 0, 0])?;
+                }
+            }
+            Ok(())
+        });
+        match told {
+            Ok(()) => {
+                if result.is_err() {
+                    AGREED.store(true, SeqCst);
+                }
+                result
+            }
+            Err(e) => Err(anyhow::anyhow!("{e}")),
+        }
+    }
+    #[cfg(not(feature = "slepc"))]
+    result
 }
