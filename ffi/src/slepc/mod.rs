@@ -206,13 +206,14 @@ impl Slepc {
 
     /// The `nev` eigenpairs of K x = λ M x nearest `target` (below the spectrum: the lowest),
     /// by Krylov–Schur in shift-invert with a MUMPS Cholesky factorisation of K − σM, on an
-    /// order-`n` problem of which this rank holds the rows `rows` (its [`ownership`] range).
-    /// Collective: every rank calls it with its own rows and the same other arguments. The
-    /// eigenvectors are gathered to rank 0 only (column-major `n × nev`; empty on other ranks).
+    /// order-`n` problem of which this rank holds the rows `rows` (its [`ownership`] range;
+    /// freed once PETSc has copied them). Collective: every rank calls it with its own rows and
+    /// the same other arguments. The eigenvectors are gathered to rank 0 only (column-major
+    /// `n × nev`; empty on other ranks).
     pub fn lowest_eigenpairs(
         &self,
         n: usize,
-        rows: &LocalRows,
+        rows: LocalRows,
         nev: usize,
         target: f64,
         tol: f64,
@@ -230,8 +231,9 @@ impl Slepc {
         }
         // SAFETY: set by SlepcInitialize.
         let world = unsafe { PETSC_COMM_WORLD };
-        let k = DistMatrix::from_rows(world, n, rows, &rows.k)?;
-        let m = DistMatrix::from_rows(world, n, rows, &rows.m)?;
+        let k = DistMatrix::from_rows(world, n, &rows, &rows.k)?;
+        let m = DistMatrix::from_rows(world, n, &rows, &rows.m)?;
+        drop(rows);
         let mut eps = Eps(ptr::null_mut());
         let stype = CString::new("sinvert").expect("static");
         let (ksp_type, pc_type, solver) = (c"preonly", c"cholesky", c"mumps");

@@ -254,7 +254,7 @@ fn distribute(
         token.send(r, &rows.m)?;
     }
     let (lo, hi) = ownership(n, size, 0);
-    let e = token.lowest_eigenpairs(n, &LocalRows::from_lower(pair, lo, hi), nev, sigma, tol)?;
+    let e = token.lowest_eigenpairs(n, LocalRows::from_lower(pair, lo, hi), nev, sigma, tol)?;
     IN_SOLVE.store(false, std::sync::atomic::Ordering::SeqCst);
     Ok(e)
 }
@@ -291,7 +291,7 @@ pub fn serve() -> anyhow::Result<()> {
                     k: token.receive(0, nnz)?,
                     m: token.receive(0, nnz)?,
                 };
-                token.lowest_eigenpairs(n, &rows, nev, sigma, tol)?;
+                token.lowest_eigenpairs(n, rows, nev, sigma, tol)?;
             }
         })
     }
