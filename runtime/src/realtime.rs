@@ -17,6 +17,11 @@ pub struct Realtime {
     pub haptic_core: Option<usize>,
     /// What was refused, and why (empty when everything was granted).
     pub refused: Vec<String>,
+    /// With `--spin` under SCHED_FIFO and the kernel's real-time throttling on: the haptic
+    /// thread sleeps until this many µs before each deadline instead of spinning the whole
+    /// period (a FIFO thread that never sleeps is stopped for 50 ms of every second).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub spin_window_us: Option<u64>,
     /// The haptic thread's cores before pinning (restored afterwards).
     #[serde(skip)]
     original_cores: Vec<usize>,
@@ -52,6 +57,22 @@ fn pin(core: usize) -> Result<(), String> {
         Ok(())
     } else {
         Err(format!("pinning to core {core}: {}", std::io::Error::last_os_error()))
+    }
+}
+
+/// Whether the kernel throttles real-time threads (`sched_rt_runtime_us` below
+/// `sched_rt_period_us`; -1 turns it off): a SCHED_FIFO thread that never sleeps is then stopped
+/// for the rest of each period (by default 50 ms of every second).
+pub fn rt_throttled() -> bool {
+    let read = |f: &str| {
+        std::fs::read_to_string(format!("/proc/sys/kernel/{f}"))
+            .ok()
+            .and_then(|s| s.trim().parse::<i64>().ok())
+    };
+    match (read("sched_rt_runtime_us"), read("sched_rt_period_us")) {
+        (Some(runtime), Some(period)) => runtime >= 0 && runtime < period,
+        // Unknown: assume the default (throttled).
+        _ => true,
     }
 }
 
