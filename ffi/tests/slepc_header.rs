@@ -39,6 +39,8 @@ fn every_declared_constant_and_type_size_matches_the_headers() {
         ("sizeof(KSP)", std::mem::size_of::<sys::KSP>() as i64),
         ("sizeof(PC)", std::mem::size_of::<sys::PC>() as i64),
         ("sizeof(VecScatter)", std::mem::size_of::<sys::VecScatter>() as i64),
+        ("sizeof(MatNullSpace)", std::mem::size_of::<sys::MatNullSpace>() as i64),
+        ("PETSC_FALSE", sys::PETSC_FALSE as i64),
         ("PetscScalar is real", 1),
         ("MPI_INT is &ompi_mpi_int", 1),
         ("MPI_SUM is &ompi_mpi_op_sum", 1),

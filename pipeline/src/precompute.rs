@@ -161,7 +161,7 @@ pub fn solve_space(scene: &Scene, voi: Option<&Voi>, choice: SolverChoice) -> Re
     timings.stress = t.elapsed().as_secs_f64();
     // Proof that no mode below the last one was skipped. With SLEPc rank 0 would factor the
     // whole matrix again on its own (the memory MPI is there to share): left to SLEPc's checks.
-    let sturm = if choice == SolverChoice::Slepc {
+    let sturm = if choice.is_slepc() {
         None
     } else {
         modes::sturm_count(&d, &modes)?
@@ -328,7 +328,7 @@ pub fn run_with(scene: &Scene, out: &Path, choice: SolverChoice, overwrite: Over
     // checks the output (the same answer on a shared file system) and they agree, so that a
     // refusal stops them all before any work.
     let root = modes::slepc::rank() == 0;
-    let distributed = choice == SolverChoice::Slepc && modes::slepc::ranks() > 1;
+    let distributed = choice.is_slepc() && modes::slepc::ranks() > 1;
     modes::slepc::agree((|| {
         crate::output::check(out, &scene.inputs(), overwrite)?;
         if store::sidecar_path(out) == out {

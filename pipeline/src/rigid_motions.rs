@@ -27,13 +27,8 @@ pub fn rigid_motions(nodes: &[[f64; 3]], center: [f64; 3], length: f64) -> [Vec<
     })
 }
 
-/// Number of rigid motions the supports do not prevent: 6 − rank of the rigid motions
-/// restricted to the supported DOFs. 6 for a free body, 0 for a clamped one, 3 for a plate
-/// supported only out of plane.
-pub fn free_rigid_count(nodes: &[[f64; 3]], dofs: &Dofs) -> usize {
-    if dofs.fixed.is_empty() {
-        return 6;
-    }
+/// [`rigid_motions`] about the centre of the nodes' bounding box, scaled by its largest side.
+fn scaled_rigid_motions(nodes: &[[f64; 3]]) -> [Vec<f64>; 6] {
     let (mut lo, mut hi) = ([f64::INFINITY; 3], [f64::NEG_INFINITY; 3]);
     for p in nodes {
         for c in 0..3 {
@@ -43,7 +38,27 @@ pub fn free_rigid_count(nodes: &[[f64; 3]], dofs: &Dofs) -> usize {
     }
     let center = [(lo[0] + hi[0]) / 2.0, (lo[1] + hi[1]) / 2.0, (lo[2] + hi[2]) / 2.0];
     let length = (0..3).map(|c| hi[c] - lo[c]).fold(0.0, f64::max).max(f64::MIN_POSITIVE);
-    let modes = rigid_motions(nodes, center, length);
+    rigid_motions(nodes, center, length)
+}
+
+/// The six rigid motions on the free DOFs, six values per free DOF (row-major `free × 6`): the
+/// near-null space an algebraic multigrid preconditioner of elasticity needs.
+pub fn on_free_dofs(nodes: &[[f64; 3]], dofs: &Dofs) -> Vec<f64> {
+    let modes = scaled_rigid_motions(nodes);
+    dofs.free
+        .iter()
+        .flat_map(|&g| modes.iter().map(move |m| m[g as usize]))
+        .collect()
+}
+
+/// Number of rigid motions the supports do not prevent: 6 − rank of the rigid motions
+/// restricted to the supported DOFs. 6 for a free body, 0 for a clamped one, 3 for a plate
+/// supported only out of plane.
+pub fn free_rigid_count(nodes: &[[f64; 3]], dofs: &Dofs) -> usize {
+    if dofs.fixed.is_empty() {
+        return 6;
+    }
+    let modes = scaled_rigid_motions(nodes);
     // Gram matrix of the restrictions to the fixed DOFs; its rank is the constrained count.
     let gram = faer::Mat::<f64>::from_fn(6, 6, |a, b| {
         dofs.fixed

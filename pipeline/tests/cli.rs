@@ -701,6 +701,19 @@ fn batch_skips_up_to_date_survives_a_bad_scene_and_resumes() {
 #[cfg(feature = "slepc")]
 #[test]
 fn slepc_on_two_mpi_ranks_matches_arpack() {
+    slepc_matches_arpack("slepc");
+}
+
+/// The iterative method (Jacobi–Davidson + GAMG with the rigid-body near-null space) on two
+/// ranks, against ARPACK the same way.
+#[cfg(feature = "slepc")]
+#[test]
+fn slepc_iterative_on_two_mpi_ranks_matches_arpack() {
+    slepc_matches_arpack("slepc-iterative");
+}
+
+#[cfg(feature = "slepc")]
+fn slepc_matches_arpack(solver: &str) {
     let scene = GOOD
         .replace("count = 4", "count = 12")
         .replace("order = 1", "order = 2");
@@ -726,7 +739,7 @@ fn slepc_on_two_mpi_ranks_matches_arpack() {
             "-o",
             s.to_str().unwrap(),
             "--solver",
-            "slepc",
+            solver,
             "--json",
         ])
         .output()

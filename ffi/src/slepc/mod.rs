@@ -11,7 +11,7 @@
 /// Raw declarations (public so a test can check them against the installed headers).
 pub mod sys;
 
-use std::ffi::{CStr, CString};
+use std::ffi::CStr;
 use std::os::raw::{c_char, c_int};
 use std::ptr;
 use std::sync::atomic::{AtomicBool, Ordering};
@@ -217,6 +217,7 @@ impl Slepc {
         nev: usize,
         target: f64,
         tol: f64,
+        method: Method,
     ) -> Result<Eigenpairs, PetscError> {
         let size_err = |what: &str| PetscError {
             call: "lowest_eigenpairs",
@@ -233,14 +234,23 @@ impl Slepc {
         let world = unsafe { PETSC_COMM_WORLD };
         let k = DistMatrix::from_rows(world, n, &rows, &rows.k)?;
         let m = DistMatrix::from_rows(world, n, &rows, &rows.m)?;
+        // The preconditioner's near-null space (GAMG builds its coarse spaces from it): kept
+        // alive by K.
+        let _near_null = match method {
+            Method::Iterative if !rows.near_null.is_empty() => Some(NearNull::attach(&k, &rows)?),
+            _ => None,
+        };
         drop(rows);
         let mut eps = Eps(ptr::null_mut());
-        let stype = CString::new("sinvert").expect("static");
-        let (ksp_type, pc_type, solver) = (c"preonly", c"cholesky", c"mumps");
+        let (eps_type, st_type, ksp_type, pc_type) = match method {
+            Method::ShiftInvert => (c"krylovschur", c"sinvert", c"preonly", c"cholesky"),
+            Method::Iterative => (c"jd", c"precond", c"bcgsl", c"gamg"),
+        };
         let t0 = std::time::Instant::now();
         // SAFETY: every handle below is created here, checked, and destroyed by its guard.
         unsafe {
             check("EPSCreate", EPSCreate(world, &mut eps.0))?;
+            check("EPSSetType", EPSSetType(eps.0, eps_type.as_ptr()))?;
             check("EPSSetOperators", EPSSetOperators(eps.0, k.0, m.0))?;
             check("EPSSetProblemType", EPSSetProblemType(eps.0, EPS_GHEP))?;
             check(
@@ -252,21 +262,31 @@ impl Slepc {
                 "EPSSetWhichEigenpairs",
                 EPSSetWhichEigenpairs(eps.0, EPS_TARGET_MAGNITUDE),
             )?;
-            check("EPSSetTolerances", EPSSetTolerances(eps.0, tol, 1000))?;
+            let max_it = if method == Method::Iterative { 10_000 } else { 1000 };
+            check("EPSSetTolerances", EPSSetTolerances(eps.0, tol, max_it))?;
             let mut st = ptr::null_mut();
             check("EPSGetST", EPSGetST(eps.0, &mut st))?;
-            check("STSetType", STSetType(st, stype.as_ptr()))?;
+            check("STSetType", STSetType(st, st_type.as_ptr()))?;
             check("STSetMatStructure", STSetMatStructure(st, SAME_NONZERO_PATTERN))?;
             let mut ksp = ptr::null_mut();
             check("STGetKSP", STGetKSP(st, &mut ksp))?;
             check("KSPSetType", KSPSetType(ksp, ksp_type.as_ptr()))?;
+            if method == Method::Iterative {
+                // Jacobi–Davidson needs the correction equation only roughly solved.
+                check(
+                    "KSPSetTolerances",
+                    KSPSetTolerances(ksp, 1e-3, PETSC_DEFAULT as f64, PETSC_DEFAULT as f64, 40),
+                )?;
+            }
             let mut pc = ptr::null_mut();
             check("KSPGetPC", KSPGetPC(ksp, &mut pc))?;
             check("PCSetType", PCSetType(pc, pc_type.as_ptr()))?;
-            check(
-                "PCFactorSetMatSolverType",
-                PCFactorSetMatSolverType(pc, solver.as_ptr()),
-            )?;
+            if method == Method::ShiftInvert {
+                check(
+                    "PCFactorSetMatSolverType",
+                    PCFactorSetMatSolverType(pc, c"mumps".as_ptr()),
+                )?;
+            }
             check("EPSSetFromOptions", EPSSetFromOptions(eps.0))?;
             check("EPSSetUp", EPSSetUp(eps.0))?;
         }
@@ -347,6 +367,89 @@ impl Slepc {
     }
 }
 
+/// How the eigenpairs are found.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Method {
+    /// Krylov–Schur in shift-invert, K − σM factored by MUMPS (Cholesky): the reference; its
+    /// factor is the memory wall of very large parts.
+    ShiftInvert,
+    /// Jacobi–Davidson with an algebraic multigrid preconditioner (GAMG, given the rows'
+    /// near-null space: rigid-body motions): no factorisation, memory about that of K and M.
+    Iterative,
+}
+
+/// The near-null space set on K, orthonormalised (PETSc requires it), destroyed with its
+/// vectors.
+struct NearNull {
+    space: MatNullSpace,
+    vectors: Vec<Vector>,
+}
+
+impl NearNull {
+    /// The `rows.near_null_count` vectors of `rows` (this rank's entries of each) set as K's
+    /// near-null space.
+    fn attach(k: &DistMatrix, rows: &LocalRows) -> Result<NearNull, PetscError> {
+        let (count, local) = (rows.near_null_count, rows.hi - rows.lo);
+        let mut vectors: Vec<Vector> = Vec::with_capacity(count);
+        // SAFETY: vectors are created from K's layout (local length `local`), filled through
+        // their arrays, and destroyed by their guards; the space is destroyed by `Drop`.
+        unsafe {
+            for v in 0..count {
+                let mut x = Vector(ptr::null_mut());
+                check("MatCreateVecs", MatCreateVecs(k.0, &mut x.0, ptr::null_mut()))?;
+                let mut data: *mut f64 = ptr::null_mut();
+                check("VecGetArray", VecGetArray(x.0, &mut data))?;
+                let out = std::slice::from_raw_parts_mut(data, local);
+                for (r, o) in out.iter_mut().enumerate() {
+                    *o = rows.near_null[r * count + v];
+                }
+                check("VecRestoreArray", VecRestoreArray(x.0, &mut data))?;
+                // Modified Gram–Schmidt against the vectors before it.
+                for prev in &vectors {
+                    let mut dot = 0.0;
+                    check("VecDot", VecDot(x.0, prev.0, &mut dot))?;
+                    check("VecAXPY", VecAXPY(x.0, -dot, prev.0))?;
+                }
+                let mut norm = 0.0;
+                check("VecNormalize", VecNormalize(x.0, &mut norm))?;
+                if !(norm > 0.0 && norm.is_finite()) {
+                    return Err(PetscError {
+                        call: "VecNormalize",
+                        code: -1,
+                        message: format!("near-null vector {v} is dependent on the others"),
+                    });
+                }
+                vectors.push(x);
+            }
+            let handles: Vec<PetscVec> = vectors.iter().map(|v| v.0).collect();
+            let mut space = ptr::null_mut();
+            check(
+                "MatNullSpaceCreate",
+                MatNullSpaceCreate(
+                    PETSC_COMM_WORLD,
+                    PETSC_FALSE,
+                    count as PetscInt,
+                    handles.as_ptr(),
+                    &mut space,
+                ),
+            )?;
+            let near = NearNull { space, vectors };
+            check("MatSetNearNullSpace", MatSetNearNullSpace(k.0, near.space))?;
+            Ok(near)
+        }
+    }
+}
+
+impl Drop for NearNull {
+    fn drop(&mut self) {
+        if !self.space.is_null() {
+            // SAFETY: created by MatNullSpaceCreate (K holds its own reference).
+            unsafe { MatNullSpaceDestroy(&mut self.space) };
+        }
+        self.vectors.clear();
+    }
+}
+
 /// Largest piece one MPI message carries, bytes.
 const PIECE: usize = 1 << 30;
 
@@ -402,6 +505,11 @@ pub struct LocalRows {
     pub k: Vec<f64>,
     /// M's values.
     pub m: Vec<f64>,
+    /// For [`Method::Iterative`]: each row's entries of the near-null space vectors (the
+    /// rigid-body motions), `near_null_count` per row; empty otherwise.
+    pub near_null: Vec<f64>,
+    /// Vectors in `near_null`.
+    pub near_null_count: usize,
 }
 
 impl LocalRows {
@@ -450,6 +558,8 @@ impl LocalRows {
             cols,
             k,
             m,
+            near_null: Vec::new(),
+            near_null_count: 0,
         }
     }
 }

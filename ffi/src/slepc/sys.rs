@@ -21,8 +21,10 @@ pub type ST = *mut c_void;
 pub type KSP = *mut c_void;
 pub type PC = *mut c_void;
 pub type VecScatter = *mut c_void;
+pub type MatNullSpace = *mut c_void;
 
 pub const PETSC_TRUE: PetscBool = 1;
+pub const PETSC_FALSE: PetscBool = 0;
 pub const PETSC_DECIDE: PetscInt = -1;
 pub const PETSC_DEFAULT: PetscInt = -2;
 pub const INSERT_VALUES: c_int = 1;
@@ -59,6 +61,7 @@ unsafe extern "C" {
     pub fn EPSCreate(comm: MPI_Comm, eps: *mut EPS) -> PetscErrorCode;
     pub fn EPSSetOperators(eps: EPS, a: Mat, b: Mat) -> PetscErrorCode;
     pub fn EPSSetProblemType(eps: EPS, t: c_int) -> PetscErrorCode;
+    pub fn EPSSetType(eps: EPS, t: *const c_char) -> PetscErrorCode;
     pub fn EPSSetDimensions(eps: EPS, nev: PetscInt, ncv: PetscInt, mpd: PetscInt) -> PetscErrorCode;
     pub fn EPSSetTarget(eps: EPS, target: PetscScalar) -> PetscErrorCode;
     pub fn EPSSetWhichEigenpairs(eps: EPS, which: c_int) -> PetscErrorCode;
@@ -140,8 +143,30 @@ unsafe extern "C" {
     pub fn VecGetSize(x: PetscVec, n: *mut PetscInt) -> PetscErrorCode;
     pub fn VecGetLocalSize(x: PetscVec, n: *mut PetscInt) -> PetscErrorCode;
     pub fn VecDestroy(x: *mut PetscVec) -> PetscErrorCode;
+    pub fn VecDuplicate(v: PetscVec, out: *mut PetscVec) -> PetscErrorCode;
+    pub fn VecGetArray(x: PetscVec, a: *mut *mut PetscScalar) -> PetscErrorCode;
+    pub fn VecRestoreArray(x: PetscVec, a: *mut *mut PetscScalar) -> PetscErrorCode;
+    pub fn VecDot(x: PetscVec, y: PetscVec, val: *mut PetscScalar) -> PetscErrorCode;
+    pub fn VecAXPY(y: PetscVec, alpha: PetscScalar, x: PetscVec) -> PetscErrorCode;
+    pub fn VecNormalize(x: PetscVec, norm: *mut PetscReal) -> PetscErrorCode;
+    pub fn MatNullSpaceCreate(
+        comm: MPI_Comm,
+        has_cnst: PetscBool,
+        n: PetscInt,
+        vecs: *const PetscVec,
+        sp: *mut MatNullSpace,
+    ) -> PetscErrorCode;
+    pub fn MatNullSpaceDestroy(sp: *mut MatNullSpace) -> PetscErrorCode;
+    pub fn MatSetNearNullSpace(a: Mat, sp: MatNullSpace) -> PetscErrorCode;
 
     pub fn KSPSetType(ksp: KSP, t: *const c_char) -> PetscErrorCode;
+    pub fn KSPSetTolerances(
+        ksp: KSP,
+        rtol: PetscReal,
+        abstol: PetscReal,
+        dtol: PetscReal,
+        maxits: PetscInt,
+    ) -> PetscErrorCode;
     pub fn KSPGetPC(ksp: KSP, pc: *mut PC) -> PetscErrorCode;
     pub fn PCSetType(pc: PC, t: *const c_char) -> PetscErrorCode;
     pub fn PCFactorSetMatSolverType(pc: PC, t: *const c_char) -> PetscErrorCode;

@@ -36,7 +36,7 @@ impl Args {
             self.jobs
         );
         anyhow::ensure!(
-            self.solver != SolverChoice::Slepc,
+            !self.solver.is_slepc(),
             "--solver slepc: not available in ves batch (MPI runs one scene at a time); use `mpirun ves precompute` per scene"
         );
         let scenes = batch::collect(&self.inputs)?;

@@ -34,7 +34,7 @@ impl Args {
         }
         // SLEPc brings MPI up first: under mpirun every rank runs this command.
         let _slepc = match self.solver {
-            SolverChoice::Slepc => {
+            SolverChoice::Slepc | SolverChoice::SlepcIterative => {
                 let s = slepc::SlepcGuard::init()?;
                 super::set_rank(slepc::rank());
                 if slepc::rank() != 0 {

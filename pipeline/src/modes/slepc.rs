@@ -158,6 +158,9 @@ pub fn finish<T>(result: anyhow::Result<T>) -> anyhow::Result<T> {
 pub struct Slepc {
     /// Relative tolerance of the eigenpairs.
     pub tol: f64,
+    /// `None`: shift-invert with MUMPS. Some: Jacobi–Davidson with GAMG, given this near-null
+    /// space ([`crate::rigid_motions::on_free_dofs`], 6 values per unknown).
+    pub near_null: Option<Vec<f64>>,
 }
 
 impl EigenSolver for Slepc {
@@ -176,7 +179,8 @@ impl EigenSolver for Slepc {
                 k: problem.k,
                 m: problem.m,
             };
-            let e = distribute(token, &pair, nev, sigma, self.tol).map_err(|e| ModesError::Slepc(e.to_string()))?;
+            let e = distribute(token, &pair, self.near_null.as_deref(), nev, sigma, self.tol)
+                .map_err(|e| ModesError::Slepc(e.to_string()))?;
             tracing::debug!(iterations = e.iterations, errors = ?e.relative_errors, "SLEPc converged");
             // Ascending (nearest a target below the spectrum is already ascending; make sure).
             let mut order: Vec<usize> = (0..e.values.len()).collect();
@@ -213,9 +217,38 @@ mod message {
 }
 
 /// Words of a message header: kind, order, eigenpairs, entries of the rows sent, target and
-/// tolerance (as f64 bits).
+/// tolerance (as f64 bits), near-null vectors (0: shift-invert; > 0: the iterative method).
 #[cfg(feature = "slepc")]
-const HEADER: usize = 6;
+const HEADER: usize = 7;
+
+/// Near-null vectors per unknown of the iterative method (the rigid-body motions).
+#[cfg(feature = "slepc")]
+const NEAR_NULL: usize = 6;
+
+/// This rank's rows of `pair`, with their near-null entries when given (iterative method).
+#[cfg(feature = "slepc")]
+fn rows_of(
+    pair: &ves_ffi::slepc::SymmetricPair<'_>,
+    near_null: Option<&[f64]>,
+    (lo, hi): (usize, usize),
+) -> ves_ffi::slepc::LocalRows {
+    let mut rows = ves_ffi::slepc::LocalRows::from_lower(pair, lo, hi);
+    if let Some(v) = near_null {
+        rows.near_null = v[NEAR_NULL * lo..NEAR_NULL * hi].to_vec();
+        rows.near_null_count = NEAR_NULL;
+    }
+    rows
+}
+
+/// The method the rows ask for.
+#[cfg(feature = "slepc")]
+fn method_of(rows: &ves_ffi::slepc::LocalRows) -> ves_ffi::slepc::Method {
+    if rows.near_null_count > 0 {
+        ves_ffi::slepc::Method::Iterative
+    } else {
+        ves_ffi::slepc::Method::ShiftInvert
+    }
+}
 
 /// True while rank 0 is inside a solve the other ranks take part in: an error then may leave
 /// them in a collective call, so it must end the job ([`finish`]) rather than be told to them.
@@ -228,17 +261,17 @@ static IN_SOLVE: std::sync::atomic::AtomicBool = std::sync::atomic::AtomicBool::
 fn distribute(
     token: &ves_ffi::slepc::Slepc,
     pair: &ves_ffi::slepc::SymmetricPair<'_>,
+    near_null: Option<&[f64]>,
     nev: usize,
     sigma: f64,
     tol: f64,
 ) -> Result<ves_ffi::slepc::Eigenpairs, ves_ffi::slepc::PetscError> {
-    use ves_ffi::slepc::{LocalRows, ownership};
+    use ves_ffi::slepc::ownership;
     let (n, size) = (pair.n, token.size());
     IN_SOLVE.store(true, std::sync::atomic::Ordering::SeqCst);
     // One rank's rows at a time: rank 0 never holds more than its own and one other share.
     for r in 1..size {
-        let (lo, hi) = ownership(n, size, r);
-        let rows = LocalRows::from_lower(pair, lo, hi);
+        let rows = rows_of(pair, near_null, ownership(n, size, r));
         let header = [
             message::SOLVE,
             n as u64,
@@ -246,15 +279,18 @@ fn distribute(
             rows.cols.len() as u64,
             sigma.to_bits(),
             tol.to_bits(),
+            rows.near_null_count as u64,
         ];
         token.send(r, &header)?;
         token.send(r, &rows.row_ptr)?;
         token.send(r, &rows.cols)?;
         token.send(r, &rows.k)?;
         token.send(r, &rows.m)?;
+        token.send(r, &rows.near_null)?;
     }
-    let (lo, hi) = ownership(n, size, 0);
-    let e = token.lowest_eigenpairs(n, LocalRows::from_lower(pair, lo, hi), nev, sigma, tol)?;
+    let rows = rows_of(pair, near_null, ownership(n, size, 0));
+    let method = method_of(&rows);
+    let e = token.lowest_eigenpairs(n, rows, nev, sigma, tol, method)?;
     IN_SOLVE.store(false, std::sync::atomic::Ordering::SeqCst);
     Ok(e)
 }
@@ -283,6 +319,7 @@ pub fn serve() -> anyhow::Result<()> {
                 let (n, nev, nnz) = (h[1] as usize, h[2] as usize, h[3] as usize);
                 let (sigma, tol) = (f64::from_bits(h[4]), f64::from_bits(h[5]));
                 let (lo, hi) = ves_ffi::slepc::ownership(n, token.size(), token.rank());
+                let near_null_count = h[6] as usize;
                 let rows = ves_ffi::slepc::LocalRows {
                     lo,
                     hi,
@@ -290,8 +327,11 @@ pub fn serve() -> anyhow::Result<()> {
                     cols: token.receive(0, nnz)?,
                     k: token.receive(0, nnz)?,
                     m: token.receive(0, nnz)?,
+                    near_null: token.receive(0, near_null_count * (hi - lo))?,
+                    near_null_count,
                 };
-                token.lowest_eigenpairs(n, rows, nev, sigma, tol)?;
+                let method = method_of(&rows);
+                token.lowest_eigenpairs(n, rows, nev, sigma, tol, method)?;
             }
         })
     }
@@ -313,7 +353,7 @@ pub fn release<T>(result: anyhow::Result<T>) -> anyhow::Result<T> {
         let told = TOKEN.with(|t| -> Result<(), ves_ffi::slepc::PetscError> {
             if let Some(token) = t.borrow().as_ref() {
                 for r in 1..token.size() {
-                    token.send(r, &[kind, 0, 0, 0, 0, 0])?;
+                    token.send(r, &[kind, 0, 0, 0, 0, 0, 0])?;
                 }
             }
             Ok(())
