@@ -172,6 +172,10 @@ pub struct HandOutput {
 
 struct Hand {
     vertex: Option<u32>,
+    /// Where the last nearest-vertex search was made, its answer, and how far the hand may move
+    /// from there and keep that nearest vertex (exact: half the gap to the second nearest).
+    /// Pressing hands move micrometres per step: most steps skip the search.
+    near: Option<([f64; 3], u32, f64)>,
     grabbed: bool,
     rows: Vec<f64>,
     /// How far the vertex moves per newton of its own force over one step: the modes, and for a
@@ -275,6 +279,7 @@ impl Haptics {
         let hands = (0..hands)
             .map(|_| Hand {
                 vertex: None,
+                near: None,
                 grabbed: false,
                 rows: vec![0.0; 3 * r],
                 g: M3::zeros(),
@@ -518,7 +523,19 @@ impl Haptics {
             self.hands[k].latched = false;
         }
         if !self.hands[k].grabbed {
-            let (v, _) = self.tree.nearest(input.position.into())?;
+            let q: [f64; 3] = input.position.into();
+            let cached = self.hands[k].near.and_then(|(at, v, within)| {
+                let moved = (q[0] - at[0]).powi(2) + (q[1] - at[1]).powi(2) + (q[2] - at[2]).powi(2);
+                (moved < within * within).then_some(v)
+            });
+            let v = match cached {
+                Some(v) => v,
+                None => {
+                    let n = self.tree.nearest_two(q)?;
+                    self.hands[k].near = Some((q, n.id, n.stable_within()));
+                    n.id
+                }
+            };
             self.select(k, v);
             self.hands[k].grabbed = input.button;
         } else if !input.button {
@@ -815,6 +832,45 @@ mod strain_tests {
             h.step(&[input], &mut out);
         }
         (h, out[0])
+    }
+
+    /// A pressing hand skips most nearest-vertex searches (it moves less than half the gap to
+    /// the second nearest vertex) and still gets the exact nearest vertex every step: a slow
+    /// sweep above the grid, diagonally across every Voronoi boundary, against brute force.
+    #[test]
+    fn a_pressing_hand_gets_the_exact_nearest_vertex_every_step() {
+        let basis = stretch_basis();
+        let mut h = Haptics::new(basis.clone(), Coupling::default(), 1e-3, Scheme::Exact, 1);
+        let mut out = [HandOutput::default()];
+        let (mut searches, steps) = (0, 2000);
+        for k in 0..steps {
+            let t = k as f64 / steps as f64;
+            let q = [-0.002 + 0.024 * t, 0.0213 * t, 0.003];
+            let before = h.hands[0].near.map(|n| n.0);
+            h.step(
+                &[HandInput {
+                    position: q,
+                    velocity: [0.0; 3],
+                    button: false,
+                }],
+                &mut out,
+            );
+            searches += usize::from(h.hands[0].near.map(|n| n.0) != before);
+            let brute = basis
+                .surface_vertices
+                .iter()
+                .copied()
+                .min_by(|&a, &b| {
+                    let d = |v: u32| {
+                        let p = basis.rest[v as usize];
+                        (p[0] - q[0]).powi(2) + (p[1] - q[1]).powi(2) + (p[2] - q[2]).powi(2)
+                    };
+                    d(a).total_cmp(&d(b))
+                })
+                .expect("vertices");
+            assert_eq!(out[0].vertex, brute, "step {k} at {q:?}");
+        }
+        assert!(searches < steps / 4, "{searches} searches in {steps} steps");
     }
 
     #[test]

@@ -37,23 +37,43 @@ impl KdTree {
 
     /// The id and squared distance of the point nearest `q` (`None` if empty). No allocation.
     pub fn nearest(&self, q: [f64; 3]) -> Option<(u32, f64)> {
+        self.nearest_two(q).map(|n| (n.id, n.d2))
+    }
+
+    /// The point nearest `q` and the squared distance of the second nearest (`None` if empty).
+    /// No allocation.
+    pub fn nearest_two(&self, q: [f64; 3]) -> Option<Nearest> {
         if self.pts.is_empty() || q.iter().any(|v| !v.is_finite()) {
             return None;
         }
-        let mut best = (0usize, f64::INFINITY);
-        self.search(0, self.pts.len(), q, &mut best);
-        Some((self.ids[best.0], best.1))
+        let mut best = Best {
+            at: 0,
+            d2: f64::INFINITY,
+            second: f64::INFINITY,
+        };
+        self.search(0, self.pts.len(), q, &mut best, 0.0, &mut [0.0; 3]);
+        Some(Nearest {
+            id: self.ids[best.at],
+            d2: best.d2,
+            second_d2: best.second,
+        })
     }
 
-    fn search(&self, lo: usize, hi: usize, q: [f64; 3], best: &mut (usize, f64)) {
+    /// Searches the subtree `lo..hi`, whose cell lies at squared distance `rd` from `q`, `off`
+    /// being `q`'s offset from the cell along each axis (Arya & Mount's incremental distance: a
+    /// far cell is pruned by its whole box, not only by its splitting plane).
+    fn search(&self, lo: usize, hi: usize, q: [f64; 3], best: &mut Best, rd: f64, off: &mut [f64; 3]) {
         if lo >= hi {
             return;
         }
         let mid = lo + (hi - lo) / 2;
         let p = self.pts[mid];
         let d2 = (p[0] - q[0]).powi(2) + (p[1] - q[1]).powi(2) + (p[2] - q[2]).powi(2);
-        if d2 < best.1 {
-            *best = (mid, d2);
+        if d2 < best.d2 {
+            best.second = best.d2;
+            (best.at, best.d2) = (mid, d2);
+        } else if d2 < best.second {
+            best.second = d2;
         }
         let ax = self.axis[mid] as usize;
         let diff = q[ax] - p[ax];
@@ -62,10 +82,42 @@ impl KdTree {
         } else {
             ((mid + 1, hi), (lo, mid))
         };
-        self.search(near.0, near.1, q, best);
-        if diff * diff < best.1 {
-            self.search(far.0, far.1, q, best);
+        self.search(near.0, near.1, q, best, rd, off);
+        let old = off[ax];
+        let far_rd = rd - old * old + diff * diff;
+        // The second nearest must be found too: prune against it.
+        if far_rd < best.second {
+            off[ax] = diff;
+            self.search(far.0, far.1, q, best, far_rd, off);
+            off[ax] = old;
         }
+    }
+}
+
+/// The two best distances of a search so far.
+struct Best {
+    at: usize,
+    d2: f64,
+    second: f64,
+}
+
+/// A nearest-point query's answer.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Nearest {
+    /// Caller's id of the nearest point.
+    pub id: u32,
+    /// Its squared distance.
+    pub d2: f64,
+    /// Squared distance of the second nearest point (infinite with one point).
+    pub second_d2: f64,
+}
+
+impl Nearest {
+    /// How far a query may move from where this answer was found and keep the same nearest
+    /// point: half the gap between the nearest and second nearest distances (every other
+    /// point stays at least `√second − δ` away, the nearest at most `√d2 + δ`).
+    pub fn stable_within(&self) -> f64 {
+        0.5 * (self.second_d2.sqrt() - self.d2.sqrt())
     }
 }
 
@@ -127,6 +179,13 @@ mod tests {
                 .map(|p| (p[0] - q[0]).powi(2) + (p[1] - q[1]).powi(2) + (p[2] - q[2]).powi(2))
                 .fold(f64::INFINITY, f64::min);
             assert_eq!(d2, brute);
+            let mut all: Vec<f64> = pts
+                .iter()
+                .map(|p| (p[0] - q[0]).powi(2) + (p[1] - q[1]).powi(2) + (p[2] - q[2]).powi(2))
+                .collect();
+            all.sort_by(f64::total_cmp);
+            let two = tree.nearest_two(q).expect("non-empty");
+            assert_eq!((two.d2, two.second_d2), (all[0], all[1]));
             let p = pts[(id / 7) as usize];
             assert_eq!(
                 (p[0] - q[0]).powi(2) + (p[1] - q[1]).powi(2) + (p[2] - q[2]).powi(2),
