@@ -1,7 +1,7 @@
 //! ARPACK shift-invert Lanczos; each step solves with one sparse Cholesky factor of K − σM.
 
 use super::{EigenProblem, EigenSolver, ModesError, Spectrum};
-use crate::linsolve::{Cholesky, sym_matvec};
+use crate::linsolve::sym_matvec;
 use std::time::Instant;
 use ves_ffi::arpack::{ShiftInvert, shift_invert};
 
@@ -16,9 +16,7 @@ pub struct Arpack<'g> {
 impl EigenSolver for Arpack<'_> {
     fn lowest(&self, problem: &EigenProblem<'_>, nev: usize, sigma: f64) -> Result<Spectrum, ModesError> {
         let t = Instant::now();
-        let shifted: Vec<f64> = problem.k.iter().zip(problem.m).map(|(k, m)| k - sigma * m).collect();
-        let symbolic = Cholesky::analyse(problem.pattern, self.ordering)?;
-        let mut chol = Cholesky::factor(symbolic, problem.pattern, &shifted, sigma)?;
+        let mut chol = super::factor_shifted(problem, self.ordering, sigma)?;
         let factorize_s = t.elapsed().as_secs_f64();
         let t = Instant::now();
         let cfg = ShiftInvert {
