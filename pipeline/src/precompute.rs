@@ -119,8 +119,13 @@ pub fn solve_space(scene: &Scene, voi: Option<&Voi>, choice: SolverChoice) -> Re
         }
         None => {
             let d = discretize(scene, voi)?;
+            let prefetch = scene
+                .mesh
+                .error_estimate
+                .then(|| crate::accuracy::Prefetch::start(scene, voi, None));
             let (modes, ordering_s) = modes::solve(&d, scene.modes.count, choice)?;
             let solved_s = t.elapsed().as_secs_f64();
+            drop(prefetch);
             let error = if scene.mesh.error_estimate {
                 let view = crate::transfer::SpaceView::of(&d.mesh, &d.dofs, &d.system, &modes, usize::MAX);
                 crate::accuracy::estimate(scene, voi, None, &view, &modes.eigenvalues, choice)

@@ -1144,8 +1144,9 @@ fn session_reports_von_mises_and_the_safety_factor() {
     assert_refused(&session(&["--min-safety-factor", "0"]), "--min-safety-factor 0");
 }
 
-/// The mesh cache: a second precompute of the same part with another material meshes nothing
-/// (three hits: the mesh and the estimate's two coarser ones, no new entries) and, on the same
+/// The mesh cache: a first precompute meshes the estimate's coarser meshes ahead into it (two
+/// hits), a second one of the same part with another material meshes nothing (three hits: the
+/// mesh and the estimate's two coarser ones, no new entries) and, on the same
 /// meshes, its frequencies scale exactly as √E; `VES_MESH_CACHE=off` stores nothing.
 #[test]
 fn a_second_scenario_of_the_same_part_reuses_its_meshes() {
@@ -1174,7 +1175,9 @@ fn a_second_scenario_of_the_same_part_reuses_its_meshes() {
     };
     let entries = || std::fs::read_dir(cache.join("meshes")).map_or(0, |d| d.count());
     let (hits, f) = run(&path, &[]);
-    assert_eq!((hits, entries()), (0, 3), "three meshes, one file each");
+    // The estimate's two coarser meshes were made ahead while the fine one was solved
+    // (`accuracy::Prefetch`): the estimate itself finds them in the cache.
+    assert_eq!((hits, entries()), (2, 3), "three meshes, one file each");
     let stiffer = write_file(
         dir.path(),
         "stiff.toml",

@@ -331,6 +331,23 @@ pub fn generate(scene: &Scene, voi: Option<&Voi>) -> Result<(Mesh, Meshing), Mes
     generate_with(scene, voi, None, false)
 }
 
+/// Meshes ahead into the mesh cache, so a later [`generate_with`] of the same input is a
+/// cache hit; false (and nothing done) unless the cache is on and meshing runs in child
+/// processes (in-process gmsh gave other meshes while other threads of the process were busy).
+/// Errors are left to the later call, which meets them again and reports them.
+pub fn warm_cache(scene: &Scene, voi: Option<&Voi>, field: Option<&field::SizeField>) -> bool {
+    let request = Request::new(scene, voi, field, true);
+    let Some(key) = cache::key(&request).filter(|_| isolation::is_on()) else {
+        return false;
+    };
+    if cache::lookup(&key).is_none()
+        && let Ok((mesh, meshing)) = walk_ladder(&request)
+    {
+        cache::store(&key, &mesh, &meshing);
+    }
+    true
+}
+
 /// [`generate`], with the sizes of `field` instead of the scene's and the VOI's when given
 /// (local refinement); `quiet` turns its warnings into info lines (a helper mesh, such as a
 /// coarser one for the error estimate, is not what the user asked about).
@@ -340,14 +357,7 @@ pub fn generate_with(
     field: Option<&field::SizeField>,
     quiet: bool,
 ) -> Result<(Mesh, Meshing), MeshError> {
-    let request = Request {
-        geometry: scene.geometry.clone(),
-        unit: scene.unit,
-        mesh: scene.mesh,
-        voi: voi.cloned(),
-        field: field.cloned(),
-        quiet,
-    };
+    let request = Request::new(scene, voi, field, quiet);
     let key = cache::key(&request);
     if let Some((mesh, meshing)) = key.as_deref().and_then(cache::lookup) {
         tracing::info!(nodes = mesh.nodes.len(), "mesh cache hit");
@@ -393,6 +403,19 @@ pub struct Request {
     pub field: Option<field::SizeField>,
     /// Warnings as info lines.
     pub quiet: bool,
+}
+
+impl Request {
+    fn new(scene: &Scene, voi: Option<&Voi>, field: Option<&field::SizeField>, quiet: bool) -> Request {
+        Request {
+            geometry: scene.geometry.clone(),
+            unit: scene.unit,
+            mesh: scene.mesh,
+            voi: voi.cloned(),
+            field: field.cloned(),
+            quiet,
+        }
+    }
 }
 
 /// A warning, or an info line for a quiet request.
