@@ -58,7 +58,7 @@ impl EigenSolver for BlockKrylov<'_> {
         let factorize_s = t.elapsed().as_secs_f64();
         let t = Instant::now();
         let mut s = State::new(problem, n, m, b);
-        s.start(&chol);
+        s.start(&chol)?;
         let mut restarts = 0;
         let mut solves = b;
         let (theta, y) = loop {
@@ -181,13 +181,14 @@ impl<'p> State<'p> {
     /// random vector carries every mesh-scale component; left in the basis they come back in
     /// the Ritz vectors amplified by λ_max in the residual (ARPACK's dgetv0 does the same:
     /// cantilever, max residual 1.4e-8 from a raw start).
-    fn start(&mut self, chol: &Cholesky) {
+    fn start(&mut self, chol: &Cholesky) -> Result<(), ModesError> {
         let (n, b) = (self.n, self.b);
         for i in 0..n * b {
             self.v[i] = self.random();
         }
         chol.solve_many_in_place(&mut self.v[..n * b], b);
-        self.orthonormalize(0, b);
+        self.orthonormalize(0, b)?;
+        Ok(())
     }
 
     /// T applied to the next block, orthogonalised against the basis; H gains a block column.
@@ -211,7 +212,7 @@ impl<'p> State<'p> {
         if new.iter().any(|x| !x.is_finite()) {
             return Err(ModesError::Block("non-finite value in a solve".into()));
         }
-        let (c, r) = self.orthonormalize(k + b, b);
+        let (c, r) = self.orthonormalize(k + b, b)?;
         // T V_p = V c + Q r: column block p of H, and r couples the new block.
         for j in 0..b {
             for i in 0..k + b {
@@ -228,7 +229,7 @@ impl<'p> State<'p> {
     /// M-orthonormalises columns `from..from+width` of V against columns 0..from and among
     /// themselves (W updated): returns the Gram–Schmidt coefficients c (from × width) and the
     /// triangle-like factor r (width × width) with Z = V c + Q r.
-    fn orthonormalize(&mut self, from: usize, width: usize) -> (Mat<f64>, Mat<f64>) {
+    fn orthonormalize(&mut self, from: usize, width: usize) -> Result<(Mat<f64>, Mat<f64>), ModesError> {
         let n = self.n;
         let t = Instant::now();
         let mut c = Mat::<f64>::zeros(from, width);
@@ -263,11 +264,9 @@ impl<'p> State<'p> {
                     .map(|j| g[(j, j)] + (0..from).map(|i| c[(i, j)].powi(2)).sum::<f64>())
                     .fold(0.0, f64::max);
             }
-            let Ok((s, u)) = self_adjoint_eigen_qr(g.as_ref()) else {
-                // Never seen: a symmetric eigen-solve of a small finite matrix. Start afresh.
-                self.randomize(from, width);
-                return (c, Mat::zeros(width, width));
-            };
+            // A symmetric eigen-solve of a small finite matrix: its failure is reported, never
+            // worked around.
+            let (s, u) = self_adjoint_eigen_qr(g.as_ref())?;
             // Directions that vanished (the block met an invariant subspace) go last, replaced
             // by random ones below; r has zero rows for them.
             let good: Vec<usize> = (0..width)
@@ -294,14 +293,11 @@ impl<'p> State<'p> {
                 let g = good.len();
                 self.randomize(from + g, width - g);
                 // The replacements are orthogonal to everything before them, good ones included.
-                let _ = self.orthonormalize(from + g, width - g);
-                if pass == 0 {
-                    continue;
-                }
+                self.orthonormalize(from + g, width - g)?;
             }
         }
         self.seconds[2] += t.elapsed().as_secs_f64();
-        (c, r)
+        Ok((c, r))
     }
 
     /// Random columns.
