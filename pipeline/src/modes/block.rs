@@ -30,6 +30,19 @@ pub struct BlockKrylov<'g> {
     pub block: usize,
 }
 
+/// Vectors in the basis for `nev` wanted pairs and blocks of `b`.
+fn basis_size(nev: usize, b: usize) -> usize {
+    (3 * nev).max(nev + 4 * b).div_ceil(b) * b
+}
+
+impl BlockKrylov<'_> {
+    /// Bytes of the basis and its M-image for `n` unknowns and `nev` pairs: what the block
+    /// solver holds in place of ARPACK's Krylov vectors (about 3× as many).
+    pub fn basis_bytes(n: usize, nev: usize, b: usize) -> usize {
+        2 * (basis_size(nev, b) + b) * n * std::mem::size_of::<f64>()
+    }
+}
+
 /// Restarts before giving up (each restart keeps the best half of the basis).
 const MAX_RESTARTS: usize = 300;
 
@@ -44,7 +57,7 @@ impl EigenSolver for BlockKrylov<'_> {
         // Basis size: three times the wanted count and at least four blocks beyond it, in
         // blocks (on the mould, 30 modes: 64 took 15 restarts and 304 solves, 96 four and 232,
         // 128 two and 224 for 33 % more memory).
-        let m = (3 * nev).max(nev + 4 * b).div_ceil(b) * b;
+        let m = basis_size(nev, b);
         if m + 2 * b > n {
             // Too small to block: ARPACK does it as well.
             return super::arpack::Arpack {
