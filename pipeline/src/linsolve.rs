@@ -392,11 +392,7 @@ mod tests {
         let mask: Vec<bool> = mesh.nodes.iter().flat_map(|p| [p[0] < 1e-9; 3]).collect();
         let dofs = crate::supports::Dofs::from_mask(&mask);
         let d = crate::problem::Discretized::assemble(mesh, dofs, (2e11, 0.3, 7800.0)).expect("assembles");
-        let problem = crate::modes::EigenProblem {
-            pattern: &d.system.pattern,
-            k: &d.system.k,
-            m: &d.system.m,
-        };
+        let problem = crate::modes::EigenProblem::of(&d.system);
         let dense = crate::modes::dense::Dense
             .lowest(&problem, 9, 0.0)
             .expect("dense")

@@ -423,11 +423,7 @@ mod tests {
     #[test]
     fn block_krylov_schur_equals_the_dense_solve_on_a_clamped_beam() {
         let d = beam(true);
-        let p = EigenProblem {
-            pattern: &d.system.pattern,
-            k: &d.system.k,
-            m: &d.system.m,
-        };
+        let p = EigenProblem::of(&d.system);
         let dense = Dense.lowest(&p, 10, 0.0).expect("dense");
         let ordering = nested_dissection(&d.system.graph, &d.dofs);
         let arpack = crate::modes::arpack::Arpack {
@@ -463,11 +459,7 @@ mod tests {
     #[test]
     fn block_krylov_schur_separates_the_rigid_modes_of_a_free_beam() {
         let d = beam(false);
-        let p = EigenProblem {
-            pattern: &d.system.pattern,
-            k: &d.system.k,
-            m: &d.system.m,
-        };
+        let p = EigenProblem::of(&d.system);
         let ordering = nested_dissection(&d.system.graph, &d.dofs);
         let block = BlockKrylov {
             ordering: &ordering,

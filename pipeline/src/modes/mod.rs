@@ -26,7 +26,16 @@ pub struct EigenProblem<'a> {
     pub m: &'a [f64],
 }
 
-impl EigenProblem<'_> {
+impl<'a> EigenProblem<'a> {
+    /// The problem of an assembled space.
+    pub fn of(system: &'a crate::fem::Assembled) -> Self {
+        EigenProblem {
+            pattern: &system.pattern,
+            k: &system.k,
+            m: &system.m,
+        }
+    }
+
     /// Unknowns.
     pub fn size(&self) -> usize {
         self.pattern.nrows()
@@ -416,11 +425,7 @@ impl SolverChoice {
 /// Solves the eigenproblem of a discretized space.
 pub fn solve(d: &crate::problem::Discretized, count: usize, choice: SolverChoice) -> Result<(Modes, f64), ModesError> {
     let t = Instant::now();
-    let problem = EigenProblem {
-        pattern: &d.system.pattern,
-        k: &d.system.k,
-        m: &d.system.m,
-    };
+    let problem = EigenProblem::of(&d.system);
     let dense = match choice {
         SolverChoice::Dense => true,
         SolverChoice::Arpack | SolverChoice::Block | SolverChoice::Slepc | SolverChoice::SlepcIterative => false,

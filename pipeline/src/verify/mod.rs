@@ -286,11 +286,7 @@ pub fn discretize_basis(path: &Path, modes: Option<usize>) -> Result<(Discretize
     for j in 0..r {
         vectors.extend(d.dofs.free.iter().map(|&k| basis[k as usize * r + j]));
     }
-    let problem = crate::modes::EigenProblem {
-        pattern: &d.system.pattern,
-        k: &d.system.k,
-        m: &d.system.m,
-    };
+    let problem = crate::modes::EigenProblem::of(&d.system);
     let sigma = -1e-8 * problem.stiffness_scale();
     let ours = Modes {
         eigenvalues: lam[..r].to_vec(),
