@@ -9,7 +9,7 @@
 
 use crate::basis::Basis;
 use crate::integrator::{ModalState, Scheme};
-use crate::kdtree::KdTree;
+use crate::kdtree::{KdTree, Neighbourhood};
 use crate::rigid_body::{M3, RigidBody, V3, m3};
 
 /// Virtual coupling between the haptic interaction point (HIP) and the part.
@@ -172,10 +172,10 @@ pub struct HandOutput {
 
 struct Hand {
     vertex: Option<u32>,
-    /// Where the last nearest-vertex search was made, its answer, and how far the hand may move
-    /// from there and keep that nearest vertex (exact: half the gap to the second nearest).
-    /// Pressing hands move micrometres per step: most steps skip the search.
-    near: Option<([f64; 3], u32, f64)>,
+    /// The surface vertices nearest where the last search was made: pressing hands move
+    /// micrometres per step, so most steps find their exact nearest vertex among these few
+    /// instead of searching the tree (even on a tie between two vertices).
+    near: Option<Neighbourhood>,
     grabbed: bool,
     rows: Vec<f64>,
     /// How far the vertex moves per newton of its own force over one step: the modes, and for a
@@ -524,16 +524,13 @@ impl Haptics {
         }
         if !self.hands[k].grabbed {
             let q: [f64; 3] = input.position.into();
-            let cached = self.hands[k].near.and_then(|(at, v, within)| {
-                let moved = (q[0] - at[0]).powi(2) + (q[1] - at[1]).powi(2) + (q[2] - at[2]).powi(2);
-                (moved < within * within).then_some(v)
-            });
+            let cached = self.hands[k].near.as_ref().and_then(|n| n.nearest(q));
             let v = match cached {
                 Some(v) => v,
                 None => {
-                    let n = self.tree.nearest_two(q)?;
-                    self.hands[k].near = Some((q, n.id, n.stable_within()));
-                    n.id
+                    let n = self.tree.neighbourhood(q)?;
+                    self.hands[k].near = Some(n);
+                    n.first()
                 }
             };
             self.select(k, v);
@@ -834,8 +831,8 @@ mod strain_tests {
         (h, out[0])
     }
 
-    /// A pressing hand skips most nearest-vertex searches (it moves less than half the gap to
-    /// the second nearest vertex) and still gets the exact nearest vertex every step: a slow
+    /// A pressing hand skips most nearest-vertex searches (its nearest vertex is proven to be
+    /// among the few found by the last search) and still gets the exact nearest vertex every step: a slow
     /// sweep above the grid, diagonally across every Voronoi boundary, against brute force.
     #[test]
     fn a_pressing_hand_gets_the_exact_nearest_vertex_every_step() {
@@ -846,7 +843,7 @@ mod strain_tests {
         for k in 0..steps {
             let t = k as f64 / steps as f64;
             let q = [-0.002 + 0.024 * t, 0.0213 * t, 0.003];
-            let before = h.hands[0].near.map(|n| n.0);
+            let before = h.hands[0].near.map(|n| n.at);
             h.step(
                 &[HandInput {
                     position: q,
@@ -855,7 +852,7 @@ mod strain_tests {
                 }],
                 &mut out,
             );
-            searches += usize::from(h.hands[0].near.map(|n| n.0) != before);
+            searches += usize::from(h.hands[0].near.map(|n| n.at) != before);
             let brute = basis
                 .surface_vertices
                 .iter()

@@ -37,43 +37,61 @@ impl KdTree {
 
     /// The id and squared distance of the point nearest `q` (`None` if empty). No allocation.
     pub fn nearest(&self, q: [f64; 3]) -> Option<(u32, f64)> {
-        self.nearest_two(q).map(|n| (n.id, n.d2))
+        let mut best = [(usize::MAX, f64::INFINITY)];
+        self.k_nearest(q, &mut best)?;
+        Some((self.ids[best[0].0], best[0].1))
     }
 
-    /// The point nearest `q` and the squared distance of the second nearest (`None` if empty).
-    /// No allocation.
-    pub fn nearest_two(&self, q: [f64; 3]) -> Option<Nearest> {
-        if self.pts.is_empty() || q.iter().any(|v| !v.is_finite()) {
+    /// The [`NEIGHBOURS`] points nearest `q` and the distance of the next one: enough to find
+    /// the nearest point exactly, without a search, for queries that stay close to `q`
+    /// (`None` if empty). No allocation.
+    pub fn neighbourhood(&self, q: [f64; 3]) -> Option<Neighbourhood> {
+        let mut best = [(usize::MAX, f64::INFINITY); NEIGHBOURS + 1];
+        self.k_nearest(q, &mut best)?;
+        let mut n = Neighbourhood {
+            at: q,
+            ids: [0; NEIGHBOURS],
+            pts: [[0.0; 3]; NEIGHBOURS],
+            len: 0,
+            beyond: best[NEIGHBOURS].1.sqrt(),
+        };
+        for &(at, _) in best[..NEIGHBOURS].iter().take_while(|b| b.0 != usize::MAX) {
+            (n.ids[n.len], n.pts[n.len]) = (self.ids[at], self.pts[at]);
+            n.len += 1;
+        }
+        Some(n)
+    }
+
+    /// Fills `best` with the positions and squared distances of the `best.len()` points nearest
+    /// `q`, nearest first (`usize::MAX` and infinity past the number of points); `None` if the
+    /// tree is empty or `q` not finite.
+    fn k_nearest(&self, q: [f64; 3], best: &mut [(usize, f64)]) -> Option<()> {
+        if self.pts.is_empty() || best.is_empty() || q.iter().any(|v| !v.is_finite()) {
             return None;
         }
-        let mut best = Best {
-            at: 0,
-            d2: f64::INFINITY,
-            second: f64::INFINITY,
-        };
-        self.search(0, self.pts.len(), q, &mut best, 0.0, &mut [0.0; 3]);
-        Some(Nearest {
-            id: self.ids[best.at],
-            d2: best.d2,
-            second_d2: best.second,
-        })
+        self.search(0, self.pts.len(), q, best, 0.0, &mut [0.0; 3]);
+        Some(())
     }
 
     /// Searches the subtree `lo..hi`, whose cell lies at squared distance `rd` from `q`, `off`
     /// being `q`'s offset from the cell along each axis (Arya & Mount's incremental distance: a
     /// far cell is pruned by its whole box, not only by its splitting plane).
-    fn search(&self, lo: usize, hi: usize, q: [f64; 3], best: &mut Best, rd: f64, off: &mut [f64; 3]) {
+    fn search(&self, lo: usize, hi: usize, q: [f64; 3], best: &mut [(usize, f64)], rd: f64, off: &mut [f64; 3]) {
         if lo >= hi {
             return;
         }
         let mid = lo + (hi - lo) / 2;
         let p = self.pts[mid];
         let d2 = (p[0] - q[0]).powi(2) + (p[1] - q[1]).powi(2) + (p[2] - q[2]).powi(2);
-        if d2 < best.d2 {
-            best.second = best.d2;
-            (best.at, best.d2) = (mid, d2);
-        } else if d2 < best.second {
-            best.second = d2;
+        let last = best.len() - 1;
+        if d2 < best[last].1 {
+            // Insert in order; a tie keeps the point found first ahead.
+            let mut j = last;
+            while j > 0 && best[j - 1].1 > d2 {
+                best[j] = best[j - 1];
+                j -= 1;
+            }
+            best[j] = (mid, d2);
         }
         let ax = self.axis[mid] as usize;
         let diff = q[ax] - p[ax];
@@ -85,8 +103,8 @@ impl KdTree {
         self.search(near.0, near.1, q, best, rd, off);
         let old = off[ax];
         let far_rd = rd - old * old + diff * diff;
-        // The second nearest must be found too: prune against it.
-        if far_rd < best.second {
+        // Every point kept must be exact, the last one too: prune against it.
+        if far_rd < best[last].1 {
             off[ax] = diff;
             self.search(far.0, far.1, q, best, far_rd, off);
             off[ax] = old;
@@ -94,30 +112,40 @@ impl KdTree {
     }
 }
 
-/// The two best distances of a search so far.
-struct Best {
-    at: usize,
-    d2: f64,
-    second: f64,
+/// How many nearest points a [`Neighbourhood`] keeps.
+pub const NEIGHBOURS: usize = 8;
+
+/// The points nearest a query point `at` and the distance beyond which all others lie.
+#[derive(Clone, Copy, Debug)]
+pub struct Neighbourhood {
+    pub(crate) at: [f64; 3],
+    ids: [u32; NEIGHBOURS],
+    pts: [[f64; 3]; NEIGHBOURS],
+    len: usize,
+    /// Distance from `at` of the nearest point not kept (infinite when all are kept).
+    beyond: f64,
 }
 
-/// A nearest-point query's answer.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct Nearest {
-    /// Caller's id of the nearest point.
-    pub id: u32,
-    /// Its squared distance.
-    pub d2: f64,
-    /// Squared distance of the second nearest point (infinite with one point).
-    pub second_d2: f64,
-}
+impl Neighbourhood {
+    /// The id of the point nearest `at`, where the neighbourhood was found.
+    pub fn first(&self) -> u32 {
+        self.ids[0]
+    }
 
-impl Nearest {
-    /// How far a query may move from where this answer was found and keep the same nearest
-    /// point: half the gap between the nearest and second nearest distances (every other
-    /// point stays at least `√second − δ` away, the nearest at most `√d2 + δ`).
-    pub fn stable_within(&self) -> f64 {
-        0.5 * (self.second_d2.sqrt() - self.d2.sqrt())
+    /// The id of the point nearest `q` when this neighbourhood proves it, else `None` (search
+    /// again). Exact: `q` moved by δ from `at`, every point not kept is at least `beyond − δ`
+    /// from `q`, so the nearest kept point wins if it is closer than that.
+    pub fn nearest(&self, q: [f64; 3]) -> Option<u32> {
+        let d = |p: [f64; 3]| (p[0] - q[0]).powi(2) + (p[1] - q[1]).powi(2) + (p[2] - q[2]).powi(2);
+        let (mut id, mut d2) = (None, f64::INFINITY);
+        for i in 0..self.len {
+            let di = d(self.pts[i]);
+            if di < d2 {
+                (id, d2) = (Some(self.ids[i]), di);
+            }
+        }
+        let reach = self.beyond - d(self.at).sqrt();
+        (d2.sqrt() < reach).then_some(id).flatten()
     }
 }
 
@@ -158,15 +186,19 @@ fn build(items: &mut [([f64; 3], u32)], axis: &mut [u8], depth: usize) {
 mod tests {
     use super::*;
 
-    #[test]
-    fn nearest_equals_brute_force_inside_and_far_outside() {
-        let mut s = 12345u64;
-        let mut rnd = || {
+    /// Uniform numbers in [0, 1) from a xorshift generator.
+    fn uniform(mut s: u64) -> impl FnMut() -> f64 {
+        move || {
             s ^= s << 13;
             s ^= s >> 7;
             s ^= s << 17;
             (s >> 11) as f64 / (1u64 << 53) as f64
-        };
+        }
+    }
+
+    #[test]
+    fn nearest_equals_brute_force_inside_and_far_outside() {
+        let mut rnd = uniform(12345u64);
         let pts: Vec<[f64; 3]> = (0..2000).map(|_| [rnd(), 0.2 * rnd(), 0.05 * rnd()]).collect();
         let ids: Vec<u32> = (0..2000).map(|i| i * 7).collect();
         let tree = KdTree::new(&pts, &ids);
@@ -184,8 +216,14 @@ mod tests {
                 .map(|p| (p[0] - q[0]).powi(2) + (p[1] - q[1]).powi(2) + (p[2] - q[2]).powi(2))
                 .collect();
             all.sort_by(f64::total_cmp);
-            let two = tree.nearest_two(q).expect("non-empty");
-            assert_eq!((two.d2, two.second_d2), (all[0], all[1]));
+            let n = tree.neighbourhood(q).expect("non-empty");
+            let mut kept: Vec<f64> = n.pts[..n.len]
+                .iter()
+                .map(|p| (p[0] - q[0]).powi(2) + (p[1] - q[1]).powi(2) + (p[2] - q[2]).powi(2))
+                .collect();
+            kept.sort_by(f64::total_cmp);
+            assert_eq!(kept, all[..NEIGHBOURS]);
+            assert_eq!(n.beyond, all[NEIGHBOURS].sqrt());
             let p = pts[(id / 7) as usize];
             assert_eq!(
                 (p[0] - q[0]).powi(2) + (p[1] - q[1]).powi(2) + (p[2] - q[2]).powi(2),
@@ -193,5 +231,44 @@ mod tests {
             );
         }
         assert!(tree.nearest([f64::NAN, 0.0, 0.0]).is_none());
+    }
+
+    /// Answers from a neighbourhood are the exact nearest point or none: a slow jittered sweep
+    /// through random points (across some 15 Voronoi cells), and a walk along the bisector of two points (a tie at every
+    /// step, where half the gap to the second nearest point is zero), against brute force.
+    #[test]
+    fn a_neighbourhood_answers_exactly_or_not_at_all() {
+        let mut rnd = uniform(777u64);
+        let random: Vec<[f64; 3]> = (0..2000).map(|_| [rnd(), rnd(), 0.1 * rnd()]).collect();
+        let lattice: Vec<[f64; 3]> = (0..400).map(|i| [(i % 20) as f64, (i / 20) as f64, 0.0]).collect();
+        let mut walk = [0.1, 0.2, 0.2];
+        let mut random_walk = Vec::new();
+        for _ in 0..5000 {
+            let drift = [1.5e-4, 1e-4, 0.0];
+            walk = std::array::from_fn(|c| walk[c] + drift[c] + 2e-4 * (rnd() - 0.5));
+            random_walk.push(walk);
+        }
+        let bisector: Vec<[f64; 3]> = (0..5000).map(|k| [7.5, 5.0 + 1e-4 * k as f64, 0.3]).collect();
+        for (pts, queries) in [(random, random_walk), (lattice, bisector)] {
+            let ids: Vec<u32> = (0..pts.len() as u32).collect();
+            let tree = KdTree::new(&pts, &ids);
+            let d2 = |p: [f64; 3], q: [f64; 3]| (p[0] - q[0]).powi(2) + (p[1] - q[1]).powi(2) + (p[2] - q[2]).powi(2);
+            let mut near = tree.neighbourhood(queries[0]).expect("points");
+            let mut searches = 0;
+            for &q in &queries {
+                let id = near.nearest(q).unwrap_or_else(|| {
+                    searches += 1;
+                    near = tree.neighbourhood(q).expect("points");
+                    near.first()
+                });
+                let brute = pts.iter().map(|&p| d2(p, q)).fold(f64::INFINITY, f64::min);
+                assert_eq!(d2(pts[id as usize], q), brute, "at {q:?}");
+            }
+            assert!(
+                searches < queries.len() / 20,
+                "{searches} searches in {} steps",
+                queries.len()
+            );
+        }
     }
 }
