@@ -253,6 +253,12 @@ impl Cholesky {
         })
     }
 
+    /// The symbolic analysis (ordering and structure), for another factorisation of a matrix
+    /// with the same pattern.
+    pub fn into_symbolic(self) -> SymbolicCholesky<usize> {
+        self.symbolic
+    }
+
     /// Parallelism of later solves (sequential by default).
     pub fn set_parallelism(&mut self, par: Par) {
         self.par = par;
@@ -290,28 +296,17 @@ impl Cholesky {
     }
 }
 
-/// Negative pivots of A = LDLᵀ (A symmetric, lower triangle on `pattern`, same ordering as the
-/// Cholesky factor): by Sylvester's law of inertia, the number of negative eigenvalues of A. For
-/// A = K − σM (M positive definite) it is the number of generalized eigenvalues below σ — a Sturm
-/// count that proves no eigenvalue below σ was skipped. `Err` when a pivot is exactly zero (σ is
-/// an eigenvalue to machine precision: move it).
+/// Negative pivots of A = LDLᵀ (A symmetric, lower triangle on `pattern`, `symbolic` its
+/// analysis, e.g. the one of the Cholesky factor of the shift-invert solve: same pattern): by
+/// Sylvester's law of inertia, the number of negative eigenvalues of A. For A = K − σM (M
+/// positive definite) it is the number of generalized eigenvalues below σ — a Sturm count that
+/// proves no eigenvalue below σ was skipped. `Err` when a pivot is exactly zero (σ is an
+/// eigenvalue to machine precision: move it).
 pub fn negative_pivots(
+    symbolic: &SymbolicCholesky<usize>,
     pattern: &SymbolicSparseColMat<usize>,
     values: &[f64],
-    ordering: &(Vec<usize>, Vec<usize>),
 ) -> Result<usize, FactorError> {
-    negative_pivots_with(pattern, values, ordering, CholeskySymbolicParams::default())
-}
-
-fn negative_pivots_with(
-    pattern: &SymbolicSparseColMat<usize>,
-    values: &[f64],
-    ordering: &(Vec<usize>, Vec<usize>),
-    params: CholeskySymbolicParams<'_>,
-) -> Result<usize, FactorError> {
-    let perm = PermRef::new_checked(&ordering.0, &ordering.1, pattern.nrows());
-    let symbolic = factorize_symbolic_cholesky(pattern.as_ref(), Side::Lower, SymmetricOrdering::Custom(perm), params)
-        .map_err(|e| FactorError::Symbolic(format!("{e:?}")))?;
     let par = Par::rayon(0);
     let a = SparseColMatRef::new(pattern.as_ref(), values);
     let mut l = vec![0.0; symbolic.len_val()];
@@ -409,7 +404,15 @@ mod tests {
                     supernodal_flop_ratio_threshold: threshold,
                     ..Default::default()
                 };
-                let n = negative_pivots_with(&d.system.pattern, &shifted, &ordering, params).unwrap();
+                let perm = PermRef::new_checked(&ordering.0, &ordering.1, d.system.pattern.nrows());
+                let symbolic = factorize_symbolic_cholesky(
+                    d.system.pattern.as_ref(),
+                    Side::Lower,
+                    SymmetricOrdering::Custom(perm),
+                    params,
+                )
+                .unwrap();
+                let n = negative_pivots(&symbolic, &d.system.pattern, &shifted).unwrap();
                 assert_eq!(n, k + 1, "σ between λ{} and λ{}", k + 1, k + 2);
             }
         }

@@ -83,6 +83,7 @@ impl EigenSolver for Dense {
             vectors,
             factorize_s,
             eigensolve_s: t.elapsed().as_secs_f64(),
+            symbolic: None,
         })
     }
 }

@@ -14,6 +14,7 @@ pub mod slepc;
 use crate::linsolve::{FactorError, nested_dissection, sym_matvec};
 use crate::supports::Dofs;
 use faer::sparse::SymbolicSparseColMat;
+use faer::sparse::linalg::cholesky::SymbolicCholesky;
 use std::time::Instant;
 
 /// K and M on the free DOFs (lower triangles on one pattern).
@@ -90,6 +91,8 @@ pub struct Spectrum {
     pub factorize_s: f64,
     /// Seconds spent iterating.
     pub eigensolve_s: f64,
+    /// The symbolic analysis of the factor of K − σM, when the solver made one.
+    pub symbolic: Option<SymbolicCholesky<usize>>,
 }
 
 /// Analyses and factorises K − σM (the shift-invert operator of ARPACK and the block solver).
@@ -181,6 +184,9 @@ pub struct Modes {
     pub factorize_s: f64,
     /// Seconds spent iterating.
     pub eigensolve_s: f64,
+    /// The symbolic analysis (ordering and structure) of the solve's factor of K − σM, kept for
+    /// the Sturm count's factorisation of the same pattern (METIS and the analysis not redone).
+    pub symbolic: Option<SymbolicCholesky<usize>>,
 }
 
 impl Modes {
@@ -345,6 +351,7 @@ pub fn compute(
         sigma,
         factorize_s: spectrum.factorize_s,
         eigensolve_s: spectrum.eigensolve_s + t.elapsed().as_secs_f64(),
+        symbolic: spectrum.symbolic,
     })
 }
 
@@ -385,8 +392,16 @@ pub fn sturm_count(d: &crate::problem::Discretized, modes: &Modes) -> Result<Opt
     let t = Instant::now();
     let sigma = top * (1.0 + STURM_MARGIN);
     let shifted: Vec<f64> = d.system.k.iter().zip(&d.system.m).map(|(k, m)| k - sigma * m).collect();
-    let ordering = nested_dissection(&d.system.graph, &d.dofs);
-    let below = crate::linsolve::negative_pivots(&d.system.pattern, &shifted, &ordering)?;
+    let analysed;
+    let symbolic = match &modes.symbolic {
+        Some(s) => s,
+        None => {
+            let ordering = nested_dissection(&d.system.graph, &d.dofs);
+            analysed = crate::linsolve::Cholesky::analyse(&d.system.pattern, &ordering)?;
+            &analysed
+        }
+    };
+    let below = crate::linsolve::negative_pivots(symbolic, &d.system.pattern, &shifted)?;
     Ok(Some(SturmCount {
         sigma,
         below,

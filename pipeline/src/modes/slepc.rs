@@ -195,6 +195,7 @@ impl EigenSolver for Slepc {
                 vectors,
                 factorize_s: e.setup_s,
                 eigensolve_s: e.solve_s,
+                symbolic: None,
             })
         })
     }

@@ -297,6 +297,7 @@ pub fn discretize_basis(path: &Path, modes: Option<usize>) -> Result<(Discretize
         sigma,
         factorize_s: 0.0,
         eigensolve_s: 0.0,
+        symbolic: None,
     };
     Ok((d, ours, material))
 }
@@ -681,6 +682,7 @@ mod tests {
             sigma: 0.0,
             factorize_s: 0.0,
             eigensolve_s: 0.0,
+            symbolic: None,
         };
         let dir = tempfile::tempdir().expect("tempdir");
         let tol = Tolerances::resolve(Reference::ScikitFem, 1, false, &ToleranceOverrides::default());
