@@ -4,7 +4,7 @@ use crate::fem::{self, MassProperties};
 use crate::mesh::Mesh;
 use crate::modes::{self, Modes, SolverChoice};
 use crate::output::Overwrite;
-use crate::problem::discretize;
+use crate::problem::{Discretized, discretize};
 use crate::scene::{Scene, Voi};
 use crate::store;
 use crate::supports::Dofs;
@@ -111,11 +111,31 @@ impl SolvedSpace {
 pub fn solve_space(scene: &Scene, voi: Option<&Voi>, choice: SolverChoice) -> Result<SolvedSpace> {
     let name = voi.map_or("global".to_string(), |v| v.name.clone());
     let t = Instant::now();
-    let (d, modes, ordering_s, error, refinement, estimate_s) = match scene.mesh.target_error {
+    // Proof that no mode below the last one was skipped, made right after the solve (its
+    // factor's memory is free again, the error estimate's not yet taken). With SLEPc rank 0
+    // would factor the whole matrix again on its own (the memory MPI is there to share): left
+    // to SLEPc's checks.
+    let sturm_of = |d: &Discretized, modes: &modes::Modes| {
+        if choice.is_slepc() {
+            Ok(None)
+        } else {
+            modes::sturm_count(d, modes)
+        }
+    };
+    let (d, modes, ordering_s, error, refinement, estimate_s, sturm) = match scene.mesh.target_error {
         Some(target) => {
             let r = crate::accuracy::refine::refine(scene, voi, choice, target)?;
             let s = r.last;
-            (s.d, s.modes, s.ordering_s, r.estimate, Some(r.steps), r.overhead_s)
+            let sturm = sturm_of(&s.d, &s.modes)?;
+            (
+                s.d,
+                s.modes,
+                s.ordering_s,
+                r.estimate,
+                Some(r.steps),
+                r.overhead_s,
+                sturm,
+            )
         }
         None => {
             let d = discretize(scene, voi)?;
@@ -124,6 +144,8 @@ pub fn solve_space(scene: &Scene, voi: Option<&Voi>, choice: SolverChoice) -> Re
                 .error_estimate
                 .then(|| crate::accuracy::Prefetch::start(scene, voi, None));
             let (modes, ordering_s) = modes::solve(&d, scene.modes.count, choice)?;
+            release_free_memory();
+            let sturm = sturm_of(&d, &modes)?;
             let solved_s = t.elapsed().as_secs_f64();
             drop(prefetch);
             let error = if scene.mesh.error_estimate {
@@ -132,7 +154,16 @@ pub fn solve_space(scene: &Scene, voi: Option<&Voi>, choice: SolverChoice) -> Re
             } else {
                 None
             };
-            (d, modes, ordering_s, error, None, t.elapsed().as_secs_f64() - solved_s)
+            release_free_memory();
+            (
+                d,
+                modes,
+                ordering_s,
+                error,
+                None,
+                t.elapsed().as_secs_f64() - solved_s,
+                sturm,
+            )
         }
     };
     if scene.mesh.error_estimate {
@@ -164,13 +195,6 @@ pub fn solve_space(scene: &Scene, voi: Option<&Voi>, choice: SolverChoice) -> Re
         crate::fem::stress::vertex_stress(&d.mesh, &lame, &u, r)
     });
     timings.stress = t.elapsed().as_secs_f64();
-    // Proof that no mode below the last one was skipped. With SLEPc rank 0 would factor the
-    // whole matrix again on its own (the memory MPI is there to share): left to SLEPc's checks.
-    let sturm = if choice.is_slepc() {
-        None
-    } else {
-        modes::sturm_count(&d, &modes)?
-    };
     if let Some(s) = &sturm {
         timings.sturm = s.seconds;
         if s.complete() {
@@ -205,6 +229,15 @@ pub fn solve_space(scene: &Scene, voi: Option<&Voi>, choice: SolverChoice) -> Re
         stress,
         sturm,
     })
+}
+
+/// Gives the free heap pages back to the system (glibc keeps them, in every thread's arena):
+/// the stages after a solve would otherwise add their peak on top of the solve's.
+fn release_free_memory() {
+    // SAFETY: malloc_trim only releases pages that malloc holds free; no pointer is touched.
+    unsafe {
+        libc::malloc_trim(0);
+    }
 }
 
 /// One line when a space has no estimate or one above [`crate::accuracy::WARN_ABOVE`], and one
