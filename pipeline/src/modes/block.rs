@@ -46,6 +46,10 @@ impl BlockKrylov<'_> {
 /// Restarts before giving up (each restart keeps the best half of the basis).
 const MAX_RESTARTS: usize = 300;
 
+/// SVQB runs a second pass unless the Gram matrix of the block had a condition number below
+/// this (its orthonormality error is ~ε·κ): on the mould κ was 1.3–7 for every block.
+const SVQB_ONCE: f64 = 1e2;
+
 /// A block direction whose M-norm² after orthogonalisation is below this fraction of what it
 /// was before lies in the basis already (an invariant subspace): it is replaced by a random one.
 const DEFLATION: f64 = 1e-24;
@@ -157,6 +161,8 @@ struct State<'p> {
     /// H on the expanded vectors plus the coupling B of the next block (rows k..k+b).
     h: Mat<f64>,
     k: usize,
+    /// `k` right after the last thick restart (0 before any): the kept Ritz vectors end here.
+    restarted_at: usize,
     rng: u64,
     /// Seconds in the solves, the M products, the Gram–Schmidt and SVQB GEMMs (for the log).
     seconds: [f64; 3],
@@ -172,6 +178,7 @@ impl<'p> State<'p> {
             w: vec![0.0; n * (capacity + b)],
             h: Mat::zeros(capacity + b, capacity + b),
             k: 0,
+            restarted_at: 0,
             rng: 0x9E37_79B9_7F4A_7C15,
             seconds: [0.0; 3],
         }
@@ -201,7 +208,7 @@ impl<'p> State<'p> {
             self.v[i] = self.random();
         }
         chol.solve_many_in_place(&mut self.v[..n * b], b);
-        self.orthonormalize(0, b)?;
+        self.orthonormalize(0, b, 0)?;
         Ok(())
     }
 
@@ -226,7 +233,12 @@ impl<'p> State<'p> {
         if new.iter().any(|x| !x.is_finite()) {
             return Err(ModesError::Block("non-finite value in a solve".into()));
         }
-        let (c, r) = self.orthonormalize(k + b, b)?;
+        // In exact arithmetic T V_p couples only to the block before it and to itself (block
+        // Lanczos), and right after a restart to the kept Ritz vectors as well: the first
+        // Gram–Schmidt pass needs no more; the second, over the whole basis, takes off what
+        // round-off left along the rest.
+        let local = if k > self.restarted_at { k - b } else { 0 };
+        let (c, r) = self.orthonormalize(k + b, b, local)?;
         // T V_p = V c + Q r: column block p of H, and r couples the new block.
         for j in 0..b {
             for i in 0..k + b {
@@ -242,21 +254,23 @@ impl<'p> State<'p> {
 
     /// M-orthonormalises columns `from..from+width` of V against columns 0..from and among
     /// themselves (W updated): returns the Gram–Schmidt coefficients c (from × width) and the
-    /// triangle-like factor r (width × width) with Z = V c + Q r.
-    fn orthonormalize(&mut self, from: usize, width: usize) -> Result<(Mat<f64>, Mat<f64>), ModesError> {
+    /// triangle-like factor r (width × width) with Z = V c + Q r. The first Gram–Schmidt pass
+    /// runs against columns `local..from` only (see [`State::expand`]), the second against all.
+    fn orthonormalize(&mut self, from: usize, width: usize, local: usize) -> Result<(Mat<f64>, Mat<f64>), ModesError> {
         let n = self.n;
         let t = Instant::now();
         let mut c = Mat::<f64>::zeros(from, width);
         if from > 0 {
-            for _ in 0..2 {
+            for lo in [local, 0] {
                 let (basis, z) = self.v.split_at_mut(from * n);
                 let z = MatMut::from_column_major_slice_mut(&mut z[..width * n], n, width);
-                let wb = MatRef::from_column_major_slice(&self.w[..from * n], n, from);
-                let vb = MatRef::from_column_major_slice(basis, n, from);
-                let mut d = Mat::<f64>::zeros(from, width);
+                let wb = MatRef::from_column_major_slice(&self.w[lo * n..from * n], n, from - lo);
+                let vb = MatRef::from_column_major_slice(&basis[lo * n..], n, from - lo);
+                let mut d = Mat::<f64>::zeros(from - lo, width);
                 matmul(d.as_mut(), Accum::Replace, wb.transpose(), z.as_ref(), 1.0, par());
                 matmul(z, Accum::Add, vb, d.as_ref(), -1.0, par());
-                c += &d;
+                let mut part = c.subrows_mut(lo, from - lo);
+                part += &d;
             }
         }
         self.seconds[2] += t.elapsed().as_secs_f64();
@@ -307,7 +321,12 @@ impl<'p> State<'p> {
                 let g = good.len();
                 self.randomize(from + g, width - g);
                 // The replacements are orthogonal to everything before them, good ones included.
-                self.orthonormalize(from + g, width - g)?;
+                self.orthonormalize(from + g, width - g, 0)?;
+            } else if s.iter().fold(0.0f64, |a, &x| a.max(x))
+                <= SVQB_ONCE * s.iter().fold(f64::INFINITY, |a, &x| a.min(x))
+            {
+                // A well-conditioned block is orthonormal to ~ε·κ(G) after one pass.
+                break;
             }
         }
         self.seconds[2] += t.elapsed().as_secs_f64();
@@ -375,6 +394,7 @@ impl<'p> State<'p> {
             }
         }
         self.k = keep;
+        self.restarted_at = keep;
     }
 }
 
