@@ -180,7 +180,7 @@ fn a_part_no_rung_can_mesh_gets_advice_that_works() {
     let err = String::from_utf8_lossy(&o.stderr);
     assert_eq!(o.status.code(), Some(1), "{err}");
     assert_eq!(err.lines().count(), 1, "{err}");
-    assert!(err.contains("any of its 6 strategies") && err.contains("PLC"), "{err}");
+    assert!(err.contains("any of its 5 strategies") && err.contains("PLC"), "{err}");
     let advised = number_after(&err, "try mesh.size = ");
     let out = dir.path().join("cone.h5");
     let o = ves(&[
