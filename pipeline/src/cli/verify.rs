@@ -77,13 +77,14 @@ fn print_table(report: &VerifyReport) {
         );
         let stress = r.max_stress_rel_diff.is_some();
         println!(
-            "  mode     ours (Hz)      reference (Hz)   rel. diff      MAC          group  angle (rad){}",
+            "  mode   ref     ours (Hz)      reference (Hz)   rel. diff      MAC          group  angle (rad){}",
             if stress { "  stress diff (volume-weighted)" } else { "" }
         );
         for m in &r.modes {
             println!(
-                "  {:>4} {:>14.6} {:>18.6} {:>12.2e} {:>14.10} {:>6} {:.2e}{}",
+                "  {:>4} {:>5} {:>14.6} {:>18.6} {:>12.2e} {:>14.10} {:>6} {:.2e}{}",
                 m.mode + 1,
+                m.reference_mode + 1,
                 m.ours_hz,
                 m.reference_hz,
                 m.rel_diff,

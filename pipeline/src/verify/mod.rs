@@ -107,13 +107,15 @@ impl Tolerances {
 pub struct ModeRow {
     /// Index (0-based, elastic modes).
     pub mode: usize,
+    /// The reference's mode it is paired with (0-based): the one of largest MAC, one to one.
+    pub reference_mode: usize,
     /// Ours, Hz.
     pub ours_hz: f64,
     /// Reference, Hz.
     pub reference_hz: f64,
     /// |ours − ref| / ref.
     pub rel_diff: f64,
-    /// Modal assurance criterion with the reference mode of the same index (M-weighted).
+    /// Modal assurance criterion with the paired reference mode (M-weighted).
     pub mac: f64,
     /// Group of (near-)repeated frequencies this mode belongs to.
     pub group: usize,
@@ -504,6 +506,46 @@ fn m_dot(d: &Discretized, a: &[f64], b: &[f64]) -> f64 {
     fa.iter().zip(&mb).map(|(x, y)| x * y).sum()
 }
 
+/// MAC of every pair (ours j, reference k): (aᵀMb)² / (aᵀMa · bᵀMb) on the free DOFs.
+fn mac_matrix(d: &Discretized, ours: &[Vec<f64>], theirs: &[Vec<f64>]) -> faer::Mat<f64> {
+    let free = |v: &Vec<f64>| -> Vec<f64> { d.dofs.free.iter().map(|&g| v[g as usize]).collect() };
+    let times_m = |v: &[f64]| {
+        let mut mv = vec![0.0; v.len()];
+        sym_matvec(&d.system.pattern, &d.system.m, v, &mut mv);
+        mv
+    };
+    let dot = |a: &[f64], b: &[f64]| a.iter().zip(b).map(|(x, y)| x * y).sum::<f64>();
+    let a: Vec<Vec<f64>> = ours.iter().map(free).collect();
+    let b: Vec<Vec<f64>> = theirs.iter().map(free).collect();
+    let mb: Vec<Vec<f64>> = b.iter().map(|v| times_m(v)).collect();
+    let na: Vec<f64> = a.iter().map(|v| dot(v, &times_m(v))).collect();
+    let nb: Vec<f64> = b.iter().zip(&mb).map(|(v, m)| dot(v, m)).collect();
+    faer::Mat::from_fn(a.len(), b.len(), |j, k| dot(&a[j], &mb[k]).powi(2) / (na[j] * nb[k]))
+}
+
+/// One-to-one pairs of largest MAC (greedy: the best remaining pair first); `partner[j]` is the
+/// column paired with row j. Square matrices only.
+fn pair_by_mac(macs: &faer::Mat<f64>) -> Vec<usize> {
+    let r = macs.nrows();
+    let mut all: Vec<(usize, usize)> = (0..r).flat_map(|j| (0..r).map(move |k| (j, k))).collect();
+    // Ties (and NaN, last) go to the pair of nearer indices: the order the modes came in.
+    all.sort_by(|&(j, k), &(a, b)| {
+        let (x, y) = (macs[(j, k)], macs[(a, b)]);
+        y.partial_cmp(&x)
+            .unwrap_or_else(|| x.is_nan().cmp(&y.is_nan()))
+            .then(j.abs_diff(k).cmp(&a.abs_diff(b)))
+    });
+    let mut partner = vec![usize::MAX; r];
+    let mut taken = vec![false; r];
+    for (j, k) in all {
+        if partner[j] == usize::MAX && !taken[k] {
+            partner[j] = k;
+            taken[k] = true;
+        }
+    }
+    partner
+}
+
 /// Largest principal angle between span(A) and span(B) (full-DOF column sets), M-inner product.
 fn principal_angle(d: &Discretized, a: &[Vec<f64>], b: &[Vec<f64>]) -> f64 {
     let gram =
@@ -563,23 +605,29 @@ fn compare(
             group[j - 1] + 1
         };
     }
+    // Pairs by shape, not by index: two modes close in frequency can come in the other order
+    // from another discretisation (the P1 ribplate against CalculiX's C3D4: two modes 0.75 %
+    // apart swap, and index pairs compared different shapes, MAC 2e-8).
+    let macs = mac_matrix(d, &ours_full, &theirs);
+    let partner = pair_by_mac(&macs);
     let mut rows = Vec::with_capacity(r);
     for j in 0..r {
-        let (a, b) = (&ours_full[j], &theirs[j]);
-        let mac = m_dot(d, a, b).powi(2) / (m_dot(d, a, a) * m_dot(d, b, b));
+        let p = partner[j];
+        let mac = macs[(j, p)];
         let members: Vec<usize> = (0..r).filter(|&k| group[k] == group[j]).collect();
         let angle = if members.len() > 1 {
             let sa: Vec<Vec<f64>> = members.iter().map(|&k| ours_full[k].clone()).collect();
-            let sb: Vec<Vec<f64>> = members.iter().map(|&k| theirs[k].clone()).collect();
+            let sb: Vec<Vec<f64>> = members.iter().map(|&k| theirs[partner[k]].clone()).collect();
             principal_angle(d, &sa, &sb)
         } else {
             mac.clamp(0.0, 1.0).sqrt().acos()
         };
         rows.push(ModeRow {
             mode: j,
+            reference_mode: p,
             ours_hz: ours_f[j],
-            reference_hz: freqs[j],
-            rel_diff: (ours_f[j] - freqs[j]).abs() / freqs[j],
+            reference_hz: freqs[p],
+            rel_diff: (ours_f[j] - freqs[p]).abs() / freqs[p],
             mac,
             group: group[j],
             group_angle_rad: angle,
@@ -701,5 +749,20 @@ mod tests {
             let e = compare(&d, &ours, &path, None, 0, &tol, None).expect_err("refused");
             assert!(e.to_string().contains("unusable"), "{name}: {e}");
         }
+    }
+
+    /// Two modes that swap order between the discretisations are paired by shape; a shared
+    /// MAC (a repeated frequency) keeps the order they came in.
+    #[test]
+    fn modes_are_paired_by_mac_one_to_one() {
+        let macs = faer::mat![
+            [0.99, 0.01, 0.0, 0.0],
+            [0.0, 0.02, 0.97, 0.0],
+            [0.0, 0.98, 0.03, 0.0],
+            [0.0, 0.0, 0.0, f64::NAN],
+        ];
+        assert_eq!(pair_by_mac(&macs), vec![0, 2, 1, 3]);
+        let tie = faer::mat![[0.5, 0.5], [0.5, 0.5]];
+        assert_eq!(pair_by_mac(&tie), vec![0, 1]);
     }
 }
