@@ -5,7 +5,7 @@
 //! its energy-consistent norm — computed offline, so a switch at run time is an r×r product.
 
 use crate::fem::element::{Shape, tet4::Tet4, tet10::Tet10};
-use crate::linsolve::sym_matvec;
+use crate::linsolve::sym_matmul;
 use crate::mesh::Mesh;
 use crate::supports::Dofs;
 use faer::sparse::SymbolicSparseColMat;
@@ -240,29 +240,37 @@ pub struct Projections {
 pub fn projections(a: &SpaceView<'_>, b: &SpaceView<'_>) -> Projections {
     let interp = locate(a.mesh, b.mesh);
     let (nfa, nfb) = (a.dofs.free_count(), b.dofs.free_count());
-    let columns: Vec<(Vec<f64>, f64)> = (0..a.r)
-        .into_par_iter()
-        .map(|j| {
-            let full = a.dofs.expand(&a.modes[j * nfa..(j + 1) * nfa]);
-            let mut at_b = vec![0.0; b.dofs.total];
-            interpolate(a.mesh, &interp, &full, &mut at_b);
-            let u: Vec<f64> = b.dofs.free.iter().map(|&g| at_b[g as usize]).collect();
-            let mut mu = vec![0.0; nfb];
-            sym_matvec(b.pattern, b.m, &u, &mut mu);
-            let dot = |x: &[f64]| x.iter().zip(&mu).map(|(x, y)| x * y).sum::<f64>();
-            let col = (0..b.r).map(|i| dot(&b.modes[i * nfb..(i + 1) * nfb])).collect();
-            (col, dot(&u))
-        })
-        .collect();
-    let mut t = vec![0.0; b.r * a.r];
-    for (j, (col, _)) in columns.iter().enumerate() {
-        for (i, v) in col.iter().enumerate() {
-            t[i * a.r + j] = *v;
+    // I Φ_a on b's free DOFs, column-major; then M_b I Φ_a for all columns at once (one pass
+    // over M_b per few columns) and T as one product.
+    let mut u = vec![0.0; nfb * a.r];
+    u.par_chunks_mut(nfb.max(1)).enumerate().for_each(|(j, col)| {
+        let full = a.dofs.expand(&a.modes[j * nfa..(j + 1) * nfa]);
+        let mut at_b = vec![0.0; b.dofs.total];
+        interpolate(a.mesh, &interp, &full, &mut at_b);
+        for (x, &g) in col.iter_mut().zip(&b.dofs.free) {
+            *x = at_b[g as usize];
         }
-    }
+    });
+    let mut mu = vec![0.0; nfb * a.r];
+    sym_matmul(b.pattern, b.m, &u, &mut mu);
+    let norms: Vec<f64> = u
+        .par_chunks(nfb.max(1))
+        .zip(mu.par_chunks(nfb.max(1)))
+        .map(|(x, y)| x.iter().zip(y).map(|(x, y)| x * y).sum())
+        .collect();
+    // T (b.r × a.r) stored row-major = Tᵀ column-major = (M_b I Φ_a)ᵀ Φ_b.
+    let mut t = vec![0.0; b.r * a.r];
+    faer::linalg::matmul::matmul(
+        faer::MatMut::from_column_major_slice_mut(&mut t, a.r, b.r),
+        faer::Accum::Replace,
+        faer::MatRef::from_column_major_slice(&mu, nfb, a.r).transpose(),
+        faer::MatRef::from_column_major_slice(&b.modes[..nfb * b.r], nfb, b.r),
+        1.0,
+        faer::Par::rayon(0),
+    );
     Projections {
         t,
-        norms: columns.iter().map(|c| c.1).collect(),
+        norms,
         worst_outside: interp.worst_outside,
     }
 }
