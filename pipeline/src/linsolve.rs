@@ -142,11 +142,15 @@ pub fn nested_dissection(graph: &NodeGraph, dofs: &Dofs) -> (Vec<usize>, Vec<usi
         }
     }
     let mut node_order: Vec<i32> = (0..n as i32).collect();
+    let key = crate::mesh::ordering_key(&xadj, &adj);
+    let cached = key.as_deref().and_then(|k| crate::mesh::ordering_lookup(k, n));
     // METIS draws random numbers from process-wide state: one call at a time, fixed seed, so
     // the ordering (and the round-off of everything after it) is reproducible.
     static METIS_LOCK: std::sync::Mutex<()> = std::sync::Mutex::new(());
     let _serial = METIS_LOCK.lock().unwrap_or_else(|p| p.into_inner());
-    if n > 1 && !adj.is_empty() {
+    if let Some(order) = cached {
+        node_order = order;
+    } else if n > 1 && !adj.is_empty() {
         let mut options = [0 as metis_sys::idx_t; metis_sys::METIS_NOPTIONS as usize];
         // SAFETY: options has METIS_NOPTIONS entries.
         unsafe { metis_sys::METIS_SetDefaultOptions(options.as_mut_ptr()) };
@@ -168,6 +172,9 @@ pub fn nested_dissection(graph: &NodeGraph, dofs: &Dofs) -> (Vec<usize>, Vec<usi
         };
         if status == metis_sys::rstatus_et_METIS_OK {
             node_order = perm;
+            if let Some(k) = &key {
+                crate::mesh::ordering_store(k, &node_order);
+            }
         }
         // On failure the natural order is kept: slower, never wrong.
     }

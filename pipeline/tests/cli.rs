@@ -1173,11 +1173,22 @@ fn a_second_scenario_of_the_same_part_reuses_its_meshes() {
             .collect();
         (hits, f)
     };
-    let entries = || std::fs::read_dir(cache.join("meshes")).map_or(0, |d| d.count());
+    // Files of one kind in the cache: `mesh` (a mesh each) or `order` (a node ordering each).
+    let count = |kind: &str| {
+        std::fs::read_dir(cache.join("meshes")).map_or(0, |d| {
+            d.flatten()
+                .filter(|e| e.path().extension().is_some_and(|x| x == kind))
+                .count()
+        })
+    };
+    let entries = || count("mesh");
     let (hits, f) = run(&path, &[]);
     // The estimate's two coarser meshes were made ahead while the fine one was solved
     // (`accuracy::Prefetch`): the estimate itself finds them in the cache.
     assert_eq!((hits, entries()), (2, 3), "three meshes, one file each");
+    // The fine mesh's METIS ordering (the coarser ones are small enough for the dense solver).
+    let orders = count("order");
+    assert!(orders >= 1, "{orders} orderings");
     let stiffer = write_file(
         dir.path(),
         "stiff.toml",
@@ -1185,6 +1196,7 @@ fn a_second_scenario_of_the_same_part_reuses_its_meshes() {
     );
     let (hits, g) = run(&stiffer, &[]);
     assert_eq!((hits, entries()), (3, 3));
+    assert_eq!(count("order"), orders, "the same graphs: the orderings are reused");
     for (a, b) in f.iter().zip(&g) {
         assert!((b / a - 2.0).abs() < 1e-9, "{a} → {b}");
     }

@@ -10,8 +10,12 @@
 //! name and renamed, so concurrent runs and threads never read half an entry or a mix of two. A `.geo` script
 //! is never cached (it may read other files). gmsh itself is not in the key: a rebuild against
 //! another gmsh should start from an empty cache.
+//!
+//! The METIS node orderings of the meshes solved live beside them (`*.order`, keyed by the
+//! node graph): a rerun, or another support of the same mesh, skips METIS too.
 
 use super::{LADDER, Mesh, Meshing, Request, field, isolation};
+use std::io::Write;
 use std::path::PathBuf;
 
 /// The meshing code: part of every key.
@@ -95,26 +99,36 @@ pub(super) fn lookup(key: &std::path::Path) -> Option<(Mesh, Meshing)> {
 /// renamed after the other, let a reader pair one run's description with another run's mesh
 /// while both stored the same key: gmsh's meshes of one input can differ between runs.)
 pub(super) fn store(key: &std::path::Path, mesh: &Mesh, meshing: &Meshing) {
-    use std::io::Write;
+    let entry = Entry {
+        meshing: *meshing,
+        vertex_count: mesh.vertex_count,
+        order: mesh.order,
+    };
+    write_atomically(key, |w| {
+        let text = serde_json::to_vec(&entry).map_err(std::io::Error::other)?;
+        w.write_all(&(text.len() as u64).to_le_bytes())?;
+        w.write_all(&text)?;
+        isolation::write_mesh_to(w, mesh)
+    });
+}
+
+/// Writes `key` under a name no other process or thread uses, then renames it into place; a
+/// failure only costs the next run the work (logged).
+fn write_atomically(
+    key: &std::path::Path,
+    body: impl FnOnce(&mut std::io::BufWriter<std::fs::File>) -> std::io::Result<()>,
+) {
     use std::sync::atomic::{AtomicU64, Ordering};
     static SERIAL: AtomicU64 = AtomicU64::new(0);
     let result = (|| -> std::io::Result<()> {
         if let Some(d) = key.parent() {
             std::fs::create_dir_all(d)?;
         }
-        let entry = Entry {
-            meshing: *meshing,
-            vertex_count: mesh.vertex_count,
-            order: mesh.order,
-        };
-        let text = serde_json::to_vec(&entry).map_err(std::io::Error::other)?;
         let unique = format!("tmp{}.{}", std::process::id(), SERIAL.fetch_add(1, Ordering::Relaxed));
         let tmp = key.with_extension(unique);
         let written = (|| {
             let mut w = std::io::BufWriter::new(std::fs::File::create(&tmp)?);
-            w.write_all(&(text.len() as u64).to_le_bytes())?;
-            w.write_all(&text)?;
-            isolation::write_mesh_to(&mut w, mesh)?;
+            body(&mut w)?;
             w.flush()?;
             std::fs::rename(&tmp, key)
         })();
@@ -124,8 +138,47 @@ pub(super) fn store(key: &std::path::Path, mesh: &Mesh, meshing: &Meshing) {
         written
     })();
     if let Err(e) = result {
-        tracing::info!("mesh cache: cannot store {}: {e}", key.display());
+        tracing::info!("cache: cannot store {}: {e}", key.display());
     }
+}
+
+/// Where the fill-reducing node ordering of a node graph (CSR `xadj`, `adj`) is cached: beside
+/// the meshes, keyed by the graph itself and the ordering code, so the same mesh with other
+/// supports (a batch of scenarios, a rerun) skips METIS. None when the cache is off.
+pub(crate) fn ordering_key(xadj: &[i32], adj: &[i32]) -> Option<PathBuf> {
+    let dir = dir()?;
+    let bytes = |v: &[i32]| -> Vec<u8> { v.iter().flat_map(|x| x.to_le_bytes()).collect() };
+    let mut h = crate::fingerprint::Fingerprint::default();
+    h.field(env!("CARGO_PKG_VERSION").as_bytes())
+        .field(include_str!("../linsolve.rs").as_bytes())
+        .field(&bytes(xadj))
+        .field(&bytes(adj));
+    Some(dir.join(format!("{:016x}.order", h.value())))
+}
+
+/// The cached ordering under `key`: a permutation of 0..n, else None.
+pub(crate) fn ordering_lookup(key: &std::path::Path, n: usize) -> Option<Vec<i32>> {
+    let bytes = std::fs::read(key).ok()?;
+    if bytes.len() != 4 * n {
+        return None;
+    }
+    let order: Vec<i32> = bytes
+        .chunks_exact(4)
+        .map(|c| i32::from_le_bytes([c[0], c[1], c[2], c[3]]))
+        .collect();
+    let mut seen = vec![false; n];
+    for &v in &order {
+        let slot = usize::try_from(v).ok().and_then(|v| seen.get_mut(v))?;
+        if std::mem::replace(slot, true) {
+            return None;
+        }
+    }
+    Some(order)
+}
+
+/// Stores an ordering under `key`.
+pub(crate) fn ordering_store(key: &std::path::Path, order: &[i32]) {
+    write_atomically(key, |w| order.iter().try_for_each(|v| w.write_all(&v.to_le_bytes())));
 }
 
 #[cfg(test)]
@@ -180,5 +233,20 @@ mod tests {
             .map(|e| e.unwrap().file_name())
             .collect();
         assert_eq!(left.len(), 1, "temporary files left: {left:?}");
+    }
+
+    /// A stored ordering reads back; a file that is not a permutation of 0..n (a duplicate, a
+    /// value out of range, the wrong length: damage, or another graph's) is not used.
+    #[test]
+    fn an_ordering_reads_back_only_as_a_permutation() {
+        let dir = tempfile::tempdir().unwrap();
+        let key = dir.path().join("0123456789abcdef.order");
+        ordering_store(&key, &[2, 0, 3, 1]);
+        assert_eq!(ordering_lookup(&key, 4), Some(vec![2, 0, 3, 1]));
+        assert_eq!(ordering_lookup(&key, 5), None);
+        for bad in [[2, 0, 2, 1], [2, 0, 4, 1], [2, 0, -1, 1]] {
+            ordering_store(&key, &bad);
+            assert_eq!(ordering_lookup(&key, 4), None, "{bad:?}");
+        }
     }
 }

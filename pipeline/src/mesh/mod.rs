@@ -8,6 +8,7 @@ pub mod field;
 mod isolation;
 pub mod quality;
 pub mod walls;
+pub(crate) use cache::{ordering_key, ordering_lookup, ordering_store};
 pub use isolation::{isolate_with, serve as serve_rung};
 use std::collections::HashMap;
 use ves_ffi::gmsh::{self, element_type};
