@@ -138,16 +138,20 @@ pub fn solve_space(scene: &Scene, voi: Option<&Voi>, choice: SolverChoice) -> Re
             )
         }
         None => {
-            let d = discretize(scene, voi)?;
+            // The coarser meshes are made beside the fine one (each gmsh in its own process,
+            // one core each), so the fine solve later has both cores to itself.
             let prefetch = scene
                 .mesh
                 .error_estimate
                 .then(|| crate::accuracy::Prefetch::start(scene, voi, None));
+            let d = discretize(scene, voi)?;
             let (modes, ordering_s) = modes::solve(&d, scene.modes.count, choice)?;
             release_free_memory();
             let sturm = sturm_of(&d, &modes)?;
             let solved_s = t.elapsed().as_secs_f64();
-            drop(prefetch);
+            if let Some(p) = prefetch {
+                p.finish();
+            }
             let error = if scene.mesh.error_estimate {
                 let view = crate::transfer::SpaceView::of(&d.mesh, &d.dofs, &d.system, &modes, usize::MAX);
                 crate::accuracy::estimate(scene, voi, None, &view, &modes.eigenvalues, choice)

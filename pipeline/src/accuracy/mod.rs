@@ -186,34 +186,49 @@ fn coarser(
 }
 
 /// The coarser meshes of [`estimate`] made ahead on another thread (gmsh runs in child
-/// processes), while the fine mesh is being solved: [`estimate`] then finds them in the mesh
-/// cache. On the mould this takes their ~2.7 s of meshing off the critical path. Joined when
-/// dropped.
-pub struct Prefetch(Option<std::thread::JoinHandle<()>>);
+/// processes) while the fine mesh is made and solved: [`estimate`] then finds them in the mesh
+/// cache. On the mould this takes their meshing off the critical path. [`Prefetch::finish`]
+/// waits for all of them; dropped unfinished (the fine mesh failed), it starts no further level
+/// and waits only for the one under way.
+pub struct Prefetch {
+    handle: Option<std::thread::JoinHandle<()>>,
+    cancel: std::sync::Arc<std::sync::atomic::AtomicBool>,
+}
 
 impl Prefetch {
     /// Starts meshing the coarser levels of a space (nothing when the mesh cache is off).
     pub fn start(scene: &Scene, voi: Option<&Voi>, field: Option<&SizeField>) -> Prefetch {
+        use std::sync::atomic::Ordering;
         let levels: Vec<_> = (1..=LEVELS)
             .map(|k| coarser(scene, voi, field, COARSENING.powi(k as i32)))
             .collect();
+        let cancel = std::sync::Arc::new(std::sync::atomic::AtomicBool::new(false));
+        let stop = cancel.clone();
         let handle = std::thread::Builder::new()
             .name("ves-prefetch".into())
             .spawn(move || {
                 for (at, voi, field) in &levels {
-                    if !crate::mesh::warm_cache(at, voi.as_ref(), field.as_ref()) {
+                    if stop.load(Ordering::Relaxed) || !crate::mesh::warm_cache(at, voi.as_ref(), field.as_ref()) {
                         return;
                     }
                 }
             })
             .ok();
-        Prefetch(handle)
+        Prefetch { handle, cancel }
+    }
+
+    /// Waits until every level is in the cache (or failed).
+    pub fn finish(mut self) {
+        if let Some(h) = self.handle.take() {
+            let _ = h.join();
+        }
     }
 }
 
 impl Drop for Prefetch {
     fn drop(&mut self) {
-        if let Some(h) = self.0.take() {
+        if let Some(h) = self.handle.take() {
+            self.cancel.store(true, std::sync::atomic::Ordering::Relaxed);
             let _ = h.join();
         }
     }
