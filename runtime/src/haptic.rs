@@ -630,14 +630,21 @@ impl Haptics {
             _ => f64::INFINITY,
         };
         out.stress_exceeded = allowed.is_some_and(|a| out.von_mises > a) || self.part_alarm;
-        if !self.part_alarm {
-            self.hands[k].alarm_force = None;
+        // A peak elsewhere in the part (the drawing thread's alarm) caps this hand's load at what
+        // it was when the alarm came. The cap stays after the alarm clears until the hand pulls
+        // less than it: held at the cap the part sits at the limit, the alarm flickers from
+        // frame to frame, and a cap renewed at each flicker crept up with the pull.
+        let now = force.norm();
+        match self.hands[k].alarm_force {
+            None if self.part_alarm => self.hands[k].alarm_force = Some(now),
+            Some(a) if !self.part_alarm && now <= a => self.hands[k].alarm_force = None,
+            _ => {}
         }
         let exceeded = out.strain_exceeded || out.stress_exceeded;
         let (mut force, mut device) = (force, force);
         match watch.policy {
             StrainPolicy::Flag => {}
-            StrainPolicy::Stiffen if exceeded || self.hands[k].capped => {
+            StrainPolicy::Stiffen if exceeded || self.hands[k].capped || self.hands[k].alarm_force.is_some() => {
                 // Static strain per newton along this force's direction, over the edges.
                 let hd = &self.hands[k];
                 let now = force.norm();
@@ -653,8 +660,8 @@ impl Haptics {
                     cap = cap.min(a / vm.max(1e-300));
                 }
                 // A peak elsewhere: no load through this vertex beyond what it carried then.
-                if self.part_alarm {
-                    cap = cap.min(*self.hands[k].alarm_force.get_or_insert(now));
+                if let Some(a) = hd.alarm_force {
+                    cap = cap.min(a);
                 }
                 let capped = now > cap;
                 if capped {
