@@ -234,7 +234,12 @@ fn session_and_bench_report_json() {
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     let v: serde_json::Value = serde_json::from_slice(&o.stdout).expect("bench JSON");
     // Only 4 modes in this basis: r = 30 and 100 cannot be measured, the 4 it has are.
-    for key in ["haptic_step_ns_median_r4", "full_field_ms_median", "bytes_loaded"] {
+    for key in [
+        "haptic_step_ns_median_r4",
+        "haptic_press_step_ns_median_r4",
+        "full_field_ms_median",
+        "bytes_loaded",
+    ] {
         assert!(v[key].as_f64().is_some_and(|x| x > 0.0), "{key} missing: {v}");
     }
     assert!(v.get("haptic_step_ns_median_r30").is_none(), "{v}");

@@ -15,10 +15,21 @@ fn median(mut v: Vec<f64>) -> f64 {
 
 /// Median time of one haptic step (one hand grabbing a surface vertex and moving), ns.
 pub fn haptic_step_ns(basis: Arc<Basis>, batches: usize, per_batch: usize) -> f64 {
+    step_ns(basis, batches, per_batch, false)
+}
+
+/// Median time of one haptic step of a hand pressing 0.5 mm into the surface at a vertex while
+/// sliding ±10 mm across it (button up: the nearest vertex is found every step), ns.
+pub fn haptic_press_step_ns(basis: Arc<Basis>, batches: usize, per_batch: usize) -> f64 {
+    step_ns(basis, batches, per_batch, true)
+}
+
+fn step_ns(basis: Arc<Basis>, batches: usize, per_batch: usize, press: bool) -> f64 {
     let Some(&v) = basis.surface_vertices.first() else {
         return f64::NAN;
     };
     let p = basis.rest[v as usize];
+    let n = basis.normals.get(v as usize).copied().unwrap_or([0.0, 0.0, 1.0]);
     let mut h = Haptics::new(basis, Coupling::default(), 1e-3, Scheme::Exact, 1);
     let mut out = [HandOutput::default()];
     let mut samples = Vec::with_capacity(batches);
@@ -27,12 +38,24 @@ pub fn haptic_step_ns(basis: Arc<Basis>, batches: usize, per_batch: usize) -> f6
         let t = Instant::now();
         for _ in 0..per_batch {
             k += 1;
-            let z = p[2] + 1e-3 * ((k % 1000) as f64 / 1000.0 - 0.5);
+            let s = (k % 1000) as f64 / 1000.0 - 0.5;
+            let position = if press {
+                // Across the vertex along a tangent, 0.5 mm inside.
+                let tangent = if n[0].abs() < 0.9 {
+                    [0.0, -n[2], n[1]]
+                } else {
+                    [-n[2], 0.0, n[0]]
+                };
+                let norm = tangent.iter().map(|x| x * x).sum::<f64>().sqrt().max(1e-300);
+                std::array::from_fn(|c| p[c] - 5e-4 * n[c] + 2e-2 * s * tangent[c] / norm)
+            } else {
+                [p[0], p[1], p[2] + 1e-3 * s]
+            };
             h.step(
                 &[HandInput {
-                    position: [p[0], p[1], z],
+                    position,
                     velocity: [0.0; 3],
-                    button: true,
+                    button: !press,
                 }],
                 &mut out,
             );

@@ -29,8 +29,11 @@ impl Args {
                 ..Default::default()
             };
             let b = basis::load(&self.file.basis, &opts).with_context(|| format!("haptic benchmark with {r} modes"))?;
-            let ns = bench::haptic_step_ns(Arc::new(b), 201, 2000);
+            let b = Arc::new(b);
+            let ns = bench::haptic_step_ns(b.clone(), 201, 2000);
             report.insert(format!("haptic_step_ns_median_r{r}"), ns.into());
+            let ns = bench::haptic_press_step_ns(b, 201, 2000);
+            report.insert(format!("haptic_press_step_ns_median_r{r}"), ns.into());
         }
         let field = if available >= 30 {
             basis::load(
