@@ -647,7 +647,6 @@ impl Haptics {
             StrainPolicy::Stiffen if exceeded || self.hands[k].capped || self.hands[k].alarm_force.is_some() => {
                 // Static strain per newton along this force's direction, over the edges.
                 let hd = &self.hands[k];
-                let now = force.norm();
                 let dir = force / now.max(1e-300);
                 let per_newton = hd.strain_per_newton[..hd.edges]
                     .iter()

@@ -82,7 +82,7 @@ impl KdTree {
         }
         let mid = lo + (hi - lo) / 2;
         let p = self.pts[mid];
-        let d2 = (p[0] - q[0]).powi(2) + (p[1] - q[1]).powi(2) + (p[2] - q[2]).powi(2);
+        let d2 = dist2(p, q);
         let last = best.len() - 1;
         if d2 < best[last].1 {
             // Insert in order; a tie keeps the point found first ahead.
@@ -136,17 +136,21 @@ impl Neighbourhood {
     /// again). Exact: `q` moved by δ from `at`, every point not kept is at least `beyond − δ`
     /// from `q`, so the nearest kept point wins if it is closer than that.
     pub fn nearest(&self, q: [f64; 3]) -> Option<u32> {
-        let d = |p: [f64; 3]| (p[0] - q[0]).powi(2) + (p[1] - q[1]).powi(2) + (p[2] - q[2]).powi(2);
         let (mut id, mut d2) = (None, f64::INFINITY);
         for i in 0..self.len {
-            let di = d(self.pts[i]);
+            let di = dist2(self.pts[i], q);
             if di < d2 {
                 (id, d2) = (Some(self.ids[i]), di);
             }
         }
-        let reach = self.beyond - d(self.at).sqrt();
+        let reach = self.beyond - dist2(self.at, q).sqrt();
         (d2.sqrt() < reach).then_some(id).flatten()
     }
+}
+
+/// Squared distance between two points.
+fn dist2(a: [f64; 3], b: [f64; 3]) -> f64 {
+    (a[0] - b[0]).powi(2) + (a[1] - b[1]).powi(2) + (a[2] - b[2]).powi(2)
 }
 
 /// Axis-aligned bounding box (min, max corners) of some points.
@@ -206,36 +210,23 @@ mod tests {
             let scale = if k % 5 == 0 { 1e3 } else { 1.2 };
             let q = [scale * (rnd() - 0.5), scale * (rnd() - 0.5), scale * (rnd() - 0.5)];
             let (id, d2) = tree.nearest(q).expect("non-empty");
-            let brute = pts
-                .iter()
-                .map(|p| (p[0] - q[0]).powi(2) + (p[1] - q[1]).powi(2) + (p[2] - q[2]).powi(2))
-                .fold(f64::INFINITY, f64::min);
-            assert_eq!(d2, brute);
-            let mut all: Vec<f64> = pts
-                .iter()
-                .map(|p| (p[0] - q[0]).powi(2) + (p[1] - q[1]).powi(2) + (p[2] - q[2]).powi(2))
-                .collect();
+            let mut all: Vec<f64> = pts.iter().map(|&p| dist2(p, q)).collect();
             all.sort_by(f64::total_cmp);
+            assert_eq!(d2, all[0]);
             let n = tree.neighbourhood(q).expect("non-empty");
-            let mut kept: Vec<f64> = n.pts[..n.len]
-                .iter()
-                .map(|p| (p[0] - q[0]).powi(2) + (p[1] - q[1]).powi(2) + (p[2] - q[2]).powi(2))
-                .collect();
+            let mut kept: Vec<f64> = n.pts[..n.len].iter().map(|&p| dist2(p, q)).collect();
             kept.sort_by(f64::total_cmp);
             assert_eq!(kept, all[..NEIGHBOURS]);
             assert_eq!(n.beyond, all[NEIGHBOURS].sqrt());
-            let p = pts[(id / 7) as usize];
-            assert_eq!(
-                (p[0] - q[0]).powi(2) + (p[1] - q[1]).powi(2) + (p[2] - q[2]).powi(2),
-                d2
-            );
+            assert_eq!(dist2(pts[(id / 7) as usize], q), d2);
         }
         assert!(tree.nearest([f64::NAN, 0.0, 0.0]).is_none());
     }
 
     /// Answers from a neighbourhood are the exact nearest point or none: a slow jittered sweep
-    /// through random points (across some 15 Voronoi cells), and a walk along the bisector of two points (a tie at every
-    /// step, where half the gap to the second nearest point is zero), against brute force.
+    /// through random points (across some 15 Voronoi cells), and a walk along the bisector of
+    /// two points (a tie at every step, where half the gap to the second nearest point is
+    /// zero), against brute force.
     #[test]
     fn a_neighbourhood_answers_exactly_or_not_at_all() {
         let mut rnd = uniform(777u64);
@@ -252,7 +243,6 @@ mod tests {
         for (pts, queries) in [(random, random_walk), (lattice, bisector)] {
             let ids: Vec<u32> = (0..pts.len() as u32).collect();
             let tree = KdTree::new(&pts, &ids);
-            let d2 = |p: [f64; 3], q: [f64; 3]| (p[0] - q[0]).powi(2) + (p[1] - q[1]).powi(2) + (p[2] - q[2]).powi(2);
             let mut near = tree.neighbourhood(queries[0]).expect("points");
             let mut searches = 0;
             for &q in &queries {
@@ -261,8 +251,8 @@ mod tests {
                     near = tree.neighbourhood(q).expect("points");
                     near.first()
                 });
-                let brute = pts.iter().map(|&p| d2(p, q)).fold(f64::INFINITY, f64::min);
-                assert_eq!(d2(pts[id as usize], q), brute, "at {q:?}");
+                let brute = pts.iter().map(|&p| dist2(p, q)).fold(f64::INFINITY, f64::min);
+                assert_eq!(dist2(pts[id as usize], q), brute, "at {q:?}");
             }
             assert!(
                 searches < queries.len() / 20,
