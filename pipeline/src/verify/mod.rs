@@ -497,30 +497,40 @@ fn write_problem(
     Ok(())
 }
 
-/// M-inner products of full-DOF vectors restricted to the free DOFs.
-fn m_dot(d: &Discretized, a: &[f64], b: &[f64]) -> f64 {
-    let fa: Vec<f64> = d.dofs.free.iter().map(|&g| a[g as usize]).collect();
-    let fb: Vec<f64> = d.dofs.free.iter().map(|&g| b[g as usize]).collect();
-    let mut mb = vec![0.0; fb.len()];
-    sym_matvec(&d.system.pattern, &d.system.m, &fb, &mut mb);
-    fa.iter().zip(&mb).map(|(x, y)| x * y).sum()
+/// Full-DOF vectors restricted to the free DOFs, and M times each: the pieces of their
+/// M-inner products ([`gram`]), M applied once per vector.
+fn with_m(d: &Discretized, x: &[Vec<f64>]) -> (Vec<Vec<f64>>, Vec<Vec<f64>>) {
+    let free: Vec<Vec<f64>> = x
+        .iter()
+        .map(|v| d.dofs.free.iter().map(|&g| v[g as usize]).collect())
+        .collect();
+    let m = free
+        .iter()
+        .map(|v| {
+            let mut mv = vec![0.0; v.len()];
+            sym_matvec(&d.system.pattern, &d.system.m, v, &mut mv);
+            mv
+        })
+        .collect();
+    (free, m)
+}
+
+fn dot(a: &[f64], b: &[f64]) -> f64 {
+    a.iter().zip(b).map(|(x, y)| x * y).sum()
+}
+
+/// G_ij = x_iᵀ (M y)_j, from free vectors and the M products of [`with_m`].
+fn gram(x: &[Vec<f64>], my: &[Vec<f64>]) -> faer::Mat<f64> {
+    faer::Mat::from_fn(x.len(), my.len(), |i, j| dot(&x[i], &my[j]))
 }
 
 /// MAC of every pair (ours j, reference k): (aᵀMb)² / (aᵀMa · bᵀMb) on the free DOFs.
 fn mac_matrix(d: &Discretized, ours: &[Vec<f64>], theirs: &[Vec<f64>]) -> faer::Mat<f64> {
-    let free = |v: &Vec<f64>| -> Vec<f64> { d.dofs.free.iter().map(|&g| v[g as usize]).collect() };
-    let times_m = |v: &[f64]| {
-        let mut mv = vec![0.0; v.len()];
-        sym_matvec(&d.system.pattern, &d.system.m, v, &mut mv);
-        mv
-    };
-    let dot = |a: &[f64], b: &[f64]| a.iter().zip(b).map(|(x, y)| x * y).sum::<f64>();
-    let a: Vec<Vec<f64>> = ours.iter().map(free).collect();
-    let b: Vec<Vec<f64>> = theirs.iter().map(free).collect();
-    let mb: Vec<Vec<f64>> = b.iter().map(|v| times_m(v)).collect();
-    let na: Vec<f64> = a.iter().map(|v| dot(v, &times_m(v))).collect();
+    let ((a, ma), (b, mb)) = (with_m(d, ours), with_m(d, theirs));
+    let na: Vec<f64> = a.iter().zip(&ma).map(|(v, m)| dot(v, m)).collect();
     let nb: Vec<f64> = b.iter().zip(&mb).map(|(v, m)| dot(v, m)).collect();
-    faer::Mat::from_fn(a.len(), b.len(), |j, k| dot(&a[j], &mb[k]).powi(2) / (na[j] * nb[k]))
+    let g = gram(&a, &mb);
+    faer::Mat::from_fn(a.len(), b.len(), |j, k| g[(j, k)].powi(2) / (na[j] * nb[k]))
 }
 
 /// One-to-one pairs of largest MAC (greedy: the best remaining pair first); `partner[j]` is the
@@ -548,9 +558,8 @@ fn pair_by_mac(macs: &faer::Mat<f64>) -> Vec<usize> {
 
 /// Largest principal angle between span(A) and span(B) (full-DOF column sets), M-inner product.
 fn principal_angle(d: &Discretized, a: &[Vec<f64>], b: &[Vec<f64>]) -> f64 {
-    let gram =
-        |x: &[Vec<f64>], y: &[Vec<f64>]| faer::Mat::<f64>::from_fn(x.len(), y.len(), |i, j| m_dot(d, &x[i], &y[j]));
-    let (gaa, gbb, gab) = (gram(a, a), gram(b, b), gram(a, b));
+    let ((fa, ma), (fb, mb)) = (with_m(d, a), with_m(d, b));
+    let (gaa, gbb, gab) = (gram(&fa, &ma), gram(&fb, &mb), gram(&fa, &mb));
     let (Ok(la), Ok(lb)) = (gaa.llt(faer::Side::Lower), gbb.llt(faer::Side::Lower)) else {
         return std::f64::consts::FRAC_PI_2;
     };
