@@ -196,9 +196,12 @@ pub fn nested_dissection(graph: &NodeGraph, dofs: &Dofs) -> (Vec<usize>, Vec<usi
 
 /// Factorises the stiffness K of a supported part (METIS ordering).
 pub fn factor_stiffness(system: &crate::fem::Assembled, dofs: &Dofs) -> Result<Cholesky, FactorError> {
-    let ordering = nested_dissection(&system.graph, dofs);
-    let symbolic = Cholesky::analyse(&system.pattern, &ordering)?;
-    Cholesky::factor(symbolic, &system.pattern, &system.k, 0.0)
+    Cholesky::factor(analyse(system, dofs)?, &system.pattern, &system.k, 0.0)
+}
+
+/// The symbolic analysis of a system's pattern in its METIS ordering.
+pub fn analyse(system: &crate::fem::Assembled, dofs: &Dofs) -> Result<SymbolicCholesky<usize>, FactorError> {
+    Cholesky::analyse(&system.pattern, &nested_dissection(&system.graph, dofs))
 }
 
 /// Sparse Cholesky factor of a symmetric positive definite matrix.

@@ -240,10 +240,11 @@ pub struct Projections {
 pub fn projections(a: &SpaceView<'_>, b: &SpaceView<'_>) -> Projections {
     let interp = locate(a.mesh, b.mesh);
     let (nfa, nfb) = (a.dofs.free_count(), b.dofs.free_count());
+    let column = nfb.max(1);
     // I Φ_a on b's free DOFs, column-major; then M_b I Φ_a for all columns at once (one pass
     // over M_b per few columns) and T as one product.
     let mut u = vec![0.0; nfb * a.r];
-    u.par_chunks_mut(nfb.max(1)).enumerate().for_each(|(j, col)| {
+    u.par_chunks_mut(column).enumerate().for_each(|(j, col)| {
         let full = a.dofs.expand(&a.modes[j * nfa..(j + 1) * nfa]);
         let mut at_b = vec![0.0; b.dofs.total];
         interpolate(a.mesh, &interp, &full, &mut at_b);
@@ -254,8 +255,8 @@ pub fn projections(a: &SpaceView<'_>, b: &SpaceView<'_>) -> Projections {
     let mut mu = vec![0.0; nfb * a.r];
     sym_matmul(b.pattern, b.m, &u, &mut mu);
     let norms: Vec<f64> = u
-        .par_chunks(nfb.max(1))
-        .zip(mu.par_chunks(nfb.max(1)))
+        .par_chunks(column)
+        .zip(mu.par_chunks(column))
         .map(|(x, y)| x.iter().zip(y).map(|(x, y)| x * y).sum())
         .collect();
     // T (b.r × a.r) stored row-major = Tᵀ column-major = (M_b I Φ_a)ᵀ Φ_b.

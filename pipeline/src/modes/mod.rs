@@ -310,13 +310,13 @@ pub fn compute(
         .zip(m_phi.par_chunks(n))
         .zip(&eigenvalues)
         .map(|((kx, mx), &lam)| {
-            let r = kx
+            let residual = kx
                 .iter()
                 .zip(mx)
                 .map(|(k, m)| (k - lam * m).powi(2))
                 .sum::<f64>()
                 .sqrt();
-            r / kx.iter().map(|k| k * k).sum::<f64>().sqrt()
+            residual / kx.iter().map(|k| k * k).sum::<f64>().sqrt()
         })
         .collect();
     drop(k_phi);
@@ -414,8 +414,7 @@ pub fn sturm_count(d: &crate::problem::Discretized, modes: &Modes) -> Result<Opt
     let symbolic = match &modes.symbolic {
         Some(s) => s,
         None => {
-            let ordering = nested_dissection(&d.system.graph, &d.dofs);
-            analysed = crate::linsolve::Cholesky::analyse(&d.system.pattern, &ordering)?;
+            analysed = crate::linsolve::analyse(&d.system, &d.dofs)?;
             &analysed
         }
     };
@@ -529,6 +528,7 @@ fn blame_petsc_options(e: ModesError, petsc_options: bool) -> ModesError {
 mod tests {
     use super::*;
     use crate::mesh::Mesh;
+    use crate::problem::Discretized;
 
     #[test]
     fn a_failed_check_under_petsc_options_names_them() {
@@ -543,7 +543,6 @@ mod tests {
         let other = blame_petsc_options(ModesError::Block("x".into()), true).to_string();
         assert!(!other.contains("PETSC_OPTIONS"), "{other}");
     }
-    use crate::problem::Discretized;
 
     /// The count agrees with what ARPACK found on a clamped beam, and catches a mode taken out
     /// of the middle of the spectrum (as a solver that skipped one would leave it).
