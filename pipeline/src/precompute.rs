@@ -144,8 +144,18 @@ pub fn solve_space(scene: &Scene, voi: Option<&Voi>, choice: SolverChoice) -> Re
                 .mesh
                 .error_estimate
                 .then(|| crate::accuracy::Prefetch::start(scene, voi, None));
-            let d = discretize(scene, voi)?;
-            let (modes, ordering_s) = modes::solve(&d, scene.modes.count, choice)?;
+            let (d, modes, ordering_s) = if choice.is_slepc() && !needs_whole_system(scene) {
+                // K and M are assembled on the ranks, each its rows, and stay there.
+                let mut d = crate::problem::discretize_unassembled(scene, voi, None, false)?;
+                let s = modes::slepc::solve(&d.mesh, &d.dofs, d.material, d.rigid, scene.modes.count, choice)?;
+                d.system.mass = s.moments.properties();
+                d.assemble_s += s.assemble_s;
+                (d, s.modes, 0.0)
+            } else {
+                let d = discretize(scene, voi)?;
+                let (modes, ordering_s) = modes::solve(&d, scene.modes.count, choice)?;
+                (d, modes, ordering_s)
+            };
             release_free_memory();
             let sturm = sturm_of(&d, &modes)?;
             let solved_s = t.elapsed().as_secs_f64();
@@ -233,6 +243,14 @@ pub fn solve_space(scene: &Scene, voi: Option<&Voi>, choice: SolverChoice) -> Re
         stress,
         sturm,
     })
+}
+
+/// Whether a stage after the eigen-solve needs the whole K and M of a space on this process: the
+/// error estimate (it pairs modes in the M-inner product), static correction (it factors K) and
+/// the transfers between VOI spaces (M-projections). Without them SLEPc leaves K and M on the
+/// ranks that assembled them, and rank 0 never holds them whole.
+pub fn needs_whole_system(scene: &Scene) -> bool {
+    scene.mesh.error_estimate || scene.static_correction.is_some() || !scene.voi.is_empty()
 }
 
 /// Gives the free heap pages back to the system (glibc keeps them, in every thread's arena):

@@ -19,6 +19,8 @@ pub struct Discretized {
     pub system: fem::Assembled,
     /// Rigid motions left by the supports.
     pub rigid: usize,
+    /// Young's modulus, Poisson's ratio, density.
+    pub material: (f64, f64, f64),
     /// Seconds spent meshing.
     pub mesh_s: f64,
     /// What making the mesh order 2 needed (repairs of curved tets).
@@ -34,6 +36,23 @@ pub fn discretize(scene: &Scene, voi: Option<&Voi>) -> Result<Discretized> {
 
 /// [`discretize`]; `quiet` for a helper mesh (its warnings become info lines).
 pub fn discretize_with(
+    scene: &Scene,
+    voi: Option<&Voi>,
+    field: Option<&mesh::field::SizeField>,
+    quiet: bool,
+) -> Result<Discretized> {
+    let mut d = discretize_unassembled(scene, voi, field, quiet)?;
+    let t = Instant::now();
+    let (young, poisson, density) = d.material;
+    d.system = fem::assemble(&d.mesh, young, poisson, density, &d.dofs)
+        .with_context(|| scene.geometry.display().to_string())?;
+    d.assemble_s += t.elapsed().as_secs_f64();
+    Ok(d)
+}
+
+/// Meshes one space and selects its supports, without assembling K and M (`system` is
+/// [`fem::Assembled::unassembled`]): for SLEPc under MPI, where each rank assembles its rows.
+pub fn discretize_unassembled(
     scene: &Scene,
     voi: Option<&Voi>,
     field: Option<&mesh::field::SizeField>,
@@ -64,17 +83,23 @@ pub fn discretize_with(
         unheld_body(&mesh, &dofs).map_err(|m| anyhow::anyhow!("{}: {m}", scene.path.display()))?;
     }
     let m = &scene.material;
-    let mut d = Discretized::assemble(mesh, dofs, (m.young, m.poisson, m.density))
-        .with_context(|| scene.geometry.display().to_string())?;
-    d.mesh_s = mesh_s;
-    d.meshing = meshing;
-    d.assemble_s = t.elapsed().as_secs_f64();
-    Ok(d)
+    let rigid = free_rigid_count(&mesh.nodes, &dofs);
+    Ok(Discretized {
+        mesh,
+        dofs,
+        system: fem::Assembled::unassembled(),
+        rigid,
+        material: (m.young, m.poisson, m.density),
+        mesh_s,
+        meshing,
+        assemble_s: t.elapsed().as_secs_f64(),
+    })
 }
 
 impl Discretized {
     /// Assembles K and M on a given mesh and DOF numbering (E, ν, ρ); stage times left at zero.
-    pub fn assemble(mesh: Mesh, dofs: Dofs, (young, poisson, density): (f64, f64, f64)) -> Result<Discretized> {
+    pub fn assemble(mesh: Mesh, dofs: Dofs, material: (f64, f64, f64)) -> Result<Discretized> {
+        let (young, poisson, density) = material;
         let system = fem::assemble(&mesh, young, poisson, density, &dofs)?;
         let rigid = free_rigid_count(&mesh.nodes, &dofs);
         Ok(Discretized {
@@ -82,6 +107,7 @@ impl Discretized {
             dofs,
             system,
             rigid,
+            material,
             mesh_s: 0.0,
             meshing: mesh::Meshing::default(),
             assemble_s: 0.0,

@@ -29,6 +29,14 @@ pub fn rigid_motions(nodes: &[[f64; 3]], center: [f64; 3], length: f64) -> [Vec<
 
 /// [`rigid_motions`] about the centre of the nodes' bounding box, scaled by its largest side.
 fn scaled_rigid_motions(nodes: &[[f64; 3]]) -> [Vec<f64>; 6] {
+    let (center, length) = frame(nodes);
+    rigid_motions(nodes, center, length)
+}
+
+/// The centre of the nodes' bounding box and its largest side: the frame the rigid motions of
+/// [`on_free_dofs`] are taken in (a part of the mesh must use the whole mesh's frame for its
+/// pieces of the vectors to be pieces of the same rigid motions).
+pub fn frame(nodes: &[[f64; 3]]) -> ([f64; 3], f64) {
     let (mut lo, mut hi) = ([f64::INFINITY; 3], [f64::NEG_INFINITY; 3]);
     for p in nodes {
         for c in 0..3 {
@@ -38,13 +46,18 @@ fn scaled_rigid_motions(nodes: &[[f64; 3]]) -> [Vec<f64>; 6] {
     }
     let center = [(lo[0] + hi[0]) / 2.0, (lo[1] + hi[1]) / 2.0, (lo[2] + hi[2]) / 2.0];
     let length = (0..3).map(|c| hi[c] - lo[c]).fold(0.0, f64::max).max(f64::MIN_POSITIVE);
-    rigid_motions(nodes, center, length)
+    (center, length)
 }
 
 /// The six rigid motions on the free DOFs, six values per free DOF (row-major `free × 6`): the
 /// near-null space an algebraic multigrid preconditioner of elasticity needs.
 pub fn on_free_dofs(nodes: &[[f64; 3]], dofs: &Dofs) -> Vec<f64> {
-    let modes = scaled_rigid_motions(nodes);
+    on_free_dofs_in(nodes, dofs, frame(nodes))
+}
+
+/// [`on_free_dofs`] in a given [`frame`].
+pub fn on_free_dofs_in(nodes: &[[f64; 3]], dofs: &Dofs, (center, length): ([f64; 3], f64)) -> Vec<f64> {
+    let modes = rigid_motions(nodes, center, length);
     dofs.free
         .iter()
         .flat_map(|&g| modes.iter().map(move |m| m[g as usize]))

@@ -109,44 +109,41 @@ impl Slepc {
 
     /// Element-wise sum of `values` over every rank, in place. Collective: every rank must call
     /// it with the same length.
-    pub fn sum_over_ranks(&self, values: &mut [i32]) -> Result<(), PetscError> {
+    pub fn sum_over_ranks<T: Reducible>(&self, values: &mut [T]) -> Result<(), PetscError> {
         self.all_reduce(values, &raw const ompi_mpi_op_sum)
     }
 
     /// Element-wise minimum of `values` over every rank, in place. Collective.
-    pub fn min_over_ranks(&self, values: &mut [i32]) -> Result<(), PetscError> {
+    pub fn min_over_ranks<T: Reducible>(&self, values: &mut [T]) -> Result<(), PetscError> {
         self.all_reduce(values, &raw const ompi_mpi_op_min)
     }
 
-    fn all_reduce(&self, values: &mut [i32], op: *const u8) -> Result<(), PetscError> {
+    /// Element-wise maximum of `values` over every rank, in place. Collective.
+    pub fn max_over_ranks<T: Reducible>(&self, values: &mut [T]) -> Result<(), PetscError> {
+        self.all_reduce(values, &raw const ompi_mpi_op_max)
+    }
+
+    fn all_reduce<T: Reducible>(&self, values: &mut [T], op: *const u8) -> Result<(), PetscError> {
         let count = c_int::try_from(values.len()).map_err(|_| PetscError {
             call: "MPI_Allreduce",
             code: -1,
             message: format!("{} values is more than one call reduces", values.len()),
         })?;
         let send = values.to_vec();
-        // SAFETY: MPI is initialised (a token exists); both buffers hold `count` ints; the
-        // handles are Open MPI's predefined ones (MPI_INT, MPI_SUM/MPI_MIN), checked against
-        // mpi.h by the header test.
+        // SAFETY: MPI is initialised (a token exists); both buffers hold `count` values of the
+        // type `T::datatype` names; the handles are Open MPI's predefined ones (MPI_INT,
+        // MPI_DOUBLE, MPI_SUM/MIN/MAX), checked against mpi.h by the header test.
         let code = unsafe {
             MPI_Allreduce(
                 send.as_ptr().cast(),
                 values.as_mut_ptr().cast(),
                 count,
-                (&raw const ompi_mpi_int).cast(),
+                T::datatype(),
                 op.cast(),
                 PETSC_COMM_WORLD,
             )
         };
-        if code == 0 {
-            Ok(())
-        } else {
-            Err(PetscError {
-                call: "MPI_Allreduce",
-                code,
-                message: format!("MPI error {code}"),
-            })
-        }
+        mpi_check("MPI_Allreduce", code)
     }
 
     /// Ends every process of the job with exit status `code` (`MPI_Abort`): for an error on
@@ -204,43 +201,66 @@ impl Slepc {
         Ok(data)
     }
 
-    /// The `nev` eigenpairs of K x = λ M x nearest `target` (below the spectrum: the lowest),
-    /// by Krylov–Schur in shift-invert with a MUMPS Cholesky factorisation of K − σM, on an
-    /// order-`n` problem of which this rank holds the rows `rows` (its [`ownership`] range;
-    /// freed once PETSc has copied them). Collective: every rank calls it with its own rows and
-    /// the same other arguments. The eigenvectors are gathered to rank 0 only (column-major
-    /// `n × nev`; empty on other ranks).
-    pub fn lowest_eigenpairs(
-        &self,
-        n: usize,
-        rows: LocalRows,
-        nev: usize,
-        target: f64,
-        tol: f64,
-        method: Method,
-    ) -> Result<Eigenpairs, PetscError> {
-        let size_err = |what: &str| PetscError {
-            call: "lowest_eigenpairs",
+    /// K and M over every rank, of which this rank holds the rows `rows` (its [`ownership`]
+    /// range of an order-`n` problem; freed once PETSc has copied them), with K's near-null
+    /// space when the rows carry one. Collective: every rank calls it with its own rows.
+    pub fn operators(&self, n: usize, rows: LocalRows) -> Result<Operators, PetscError> {
+        let size_err = |what: String| PetscError {
+            call: "operators",
             code: -1,
-            message: what.to_string(),
+            message: what,
         };
-        if n == 0 || nev == 0 || nev >= n || n > i32::MAX as usize / 2 {
-            return Err(size_err(&format!("{nev} eigenpairs of an order-{n} problem")));
+        if n == 0 || n > i32::MAX as usize / 2 {
+            return Err(size_err(format!("an order-{n} problem")));
         }
         if (rows.lo, rows.hi) != ownership(n, self.size(), self.rank()) {
-            return Err(size_err("rows given are not this rank's share"));
+            return Err(size_err("rows given are not this rank's share".into()));
         }
         // SAFETY: set by SlepcInitialize.
         let world = unsafe { PETSC_COMM_WORLD };
         let k = DistMatrix::from_rows(world, n, &rows, &rows.k)?;
         let m = DistMatrix::from_rows(world, n, &rows, &rows.m)?;
         // The preconditioner's near-null space (GAMG builds its coarse spaces from it): kept
-        // alive by K.
-        let _near_null = match method {
-            Method::Iterative if !rows.near_null.is_empty() => Some(NearNull::attach(&k, &rows)?),
-            _ => None,
+        // alive with K.
+        let near_null = match rows.near_null.is_empty() {
+            true => None,
+            false => Some(NearNull::attach(&k, &rows)?),
         };
-        drop(rows);
+        Ok(Operators {
+            n,
+            k,
+            m,
+            _near_null: near_null,
+        })
+    }
+
+    /// The `nev` eigenpairs of K x = λ M x nearest `target` (below the spectrum: the lowest),
+    /// by Krylov–Schur in shift-invert with a MUMPS Cholesky factorisation of K − σM (or the
+    /// iterative `method`), then checked where the vectors live: each one M-normalised, its
+    /// relative residual ‖Kx − λMx‖/‖Kx‖ and the M-inner products of all pairs computed on every
+    /// rank's rows. Collective: every rank calls it with its own [`Operators`] and the same
+    /// other arguments. The eigenvectors are gathered to rank 0 only (column-major `n × nev`;
+    /// empty on other ranks).
+    pub fn lowest_eigenpairs(
+        &self,
+        ops: &Operators,
+        nev: usize,
+        target: f64,
+        tol: f64,
+        method: Method,
+    ) -> Result<Eigenpairs, PetscError> {
+        let n = ops.n;
+        let size_err = |what: &str| PetscError {
+            call: "lowest_eigenpairs",
+            code: -1,
+            message: what.to_string(),
+        };
+        if nev == 0 || nev >= n {
+            return Err(size_err(&format!("{nev} eigenpairs of an order-{n} problem")));
+        }
+        // SAFETY: set by SlepcInitialize.
+        let world = unsafe { PETSC_COMM_WORLD };
+        let (k, m) = (&ops.k, &ops.m);
         let mut eps = Eps(ptr::null_mut());
         let (eps_type, st_type, ksp_type, pc_type) = match method {
             Method::ShiftInvert => (c"krylovschur", c"sinvert", c"preonly", c"cholesky"),
@@ -309,20 +329,27 @@ impl Slepc {
             });
         }
         let root = self.rank() == 0;
-        let mut x = Vector(ptr::null_mut());
+        let (mut kx, mut mx) = (Vector(ptr::null_mut()), Vector(ptr::null_mut()));
         let mut all = Vector(ptr::null_mut());
         let mut scatter = Scatter(ptr::null_mut());
         let mut values = Vec::with_capacity(nev);
         let mut vectors = if root { vec![0.0; n * nev] } else { Vec::new() };
         let mut errors = Vec::with_capacity(nev);
-        // SAFETY: as above; the gathered vector has n entries on rank 0 and none elsewhere.
+        let mut residuals = Vec::with_capacity(nev);
+        // Every vector is kept (distributed) for the M-inner products with the later ones.
+        let mut xs: Vec<Vector> = Vec::with_capacity(nev);
+        let mut gram = vec![0.0; nev * nev];
+        // SAFETY: as above; every vector has K's layout; the gathered one has n entries on rank
+        // 0 and none elsewhere.
         unsafe {
-            check("MatCreateVecs", MatCreateVecs(k.0, &mut x.0, ptr::null_mut()))?;
+            check("MatCreateVecs", MatCreateVecs(k.0, &mut kx.0, &mut mx.0))?;
             check(
                 "VecScatterCreateToZero",
-                VecScatterCreateToZero(x.0, &mut scatter.0, &mut all.0),
+                VecScatterCreateToZero(kx.0, &mut scatter.0, &mut all.0),
             )?;
             for i in 0..nev {
+                let mut x = Vector(ptr::null_mut());
+                check("MatCreateVecs", MatCreateVecs(k.0, &mut x.0, ptr::null_mut()))?;
                 let (mut kr, mut ki) = (0.0, 0.0);
                 check(
                     "EPSGetEigenpair",
@@ -333,6 +360,35 @@ impl Slepc {
                     "EPSComputeError",
                     EPSComputeError(eps.0, i as PetscInt, EPS_ERROR_RELATIVE, &mut err),
                 )?;
+                // M-normalised (SLEPc normalises in the B-norm too; made exact here).
+                check("MatMult", MatMult(m.0, x.0, mx.0))?;
+                let mut xmx = 0.0;
+                check("VecDot", VecDot(x.0, mx.0, &mut xmx))?;
+                if xmx > 0.0 && xmx.is_finite() {
+                    let s = 1.0 / xmx.sqrt();
+                    check("VecScale", VecScale(x.0, s))?;
+                    check("VecScale", VecScale(mx.0, s))?;
+                }
+                // ‖Kx − λMx‖ / ‖Kx‖.
+                check("MatMult", MatMult(k.0, x.0, kx.0))?;
+                let (mut kn, mut rn) = (0.0, 0.0);
+                check("VecNorm", VecNorm(kx.0, NORM_2, &mut kn))?;
+                check("VecAXPY", VecAXPY(kx.0, -kr, mx.0))?;
+                check("VecNorm", VecNorm(kx.0, NORM_2, &mut rn))?;
+                residuals.push(rn / kn);
+                xs.push(x);
+                // Row i of XᵀMX against every vector so far (itself included).
+                let handles: Vec<PetscVec> = xs.iter().map(|v| v.0).collect();
+                let mut row = vec![0.0; i + 1];
+                check(
+                    "VecMDot",
+                    VecMDot(mx.0, (i + 1) as PetscInt, handles.as_ptr(), row.as_mut_ptr()),
+                )?;
+                for (j, &g) in row.iter().enumerate() {
+                    gram[i * nev + j] = g;
+                    gram[j * nev + i] = g;
+                }
+                let x = &xs[i];
                 check(
                     "VecScatterBegin",
                     VecScatterBegin(scatter.0, x.0, all.0, INSERT_VALUES, SCATTER_FORWARD),
@@ -360,6 +416,8 @@ impl Slepc {
             values,
             vectors,
             relative_errors: errors,
+            residuals,
+            gram,
             iterations: its as usize,
             setup_s,
             solve_s: t1.elapsed().as_secs_f64(),
@@ -475,11 +533,31 @@ pub trait Plain: Copy + Default + private::Sealed {}
 impl Plain for f64 {}
 impl Plain for u64 {}
 impl Plain for i32 {}
+impl Plain for u32 {}
 mod private {
     pub trait Sealed {}
     impl Sealed for f64 {}
     impl Sealed for u64 {}
     impl Sealed for i32 {}
+    impl Sealed for u32 {}
+}
+
+/// [`Plain`] types MPI can reduce (sum, min, max), with their MPI datatype.
+pub trait Reducible: Plain {
+    /// The predefined MPI datatype of `Self`.
+    fn datatype() -> *const std::os::raw::c_void;
+}
+
+impl Reducible for i32 {
+    fn datatype() -> *const std::os::raw::c_void {
+        (&raw const ompi_mpi_int).cast()
+    }
+}
+
+impl Reducible for f64 {
+    fn datatype() -> *const std::os::raw::c_void {
+        (&raw const ompi_mpi_double).cast()
+    }
 }
 
 /// The rows `lo..hi` of an order-`n` matrix that rank `rank` of `size` owns: PETSc's default
@@ -513,19 +591,22 @@ pub struct LocalRows {
 }
 
 impl LocalRows {
-    /// Rows `lo..hi` of the full matrices whose lower triangles `a` holds.
-    pub fn from_lower(a: &SymmetricPair<'_>, lo: usize, hi: usize) -> LocalRows {
+    /// Rows `lo..hi` of the full matrices whose lower triangles `a` holds in a local numbering:
+    /// local index `i` is global row and column `global[i]` (`a` may be a part of the whole
+    /// problem holding every entry of the rows `lo..hi`; rows outside are skipped).
+    pub fn from_lower(a: &SymmetricPair<'_>, global: &[u32], lo: usize, hi: usize) -> LocalRows {
         let n = a.n;
         let owned = |i: usize| (lo..hi).contains(&i);
+        let g = |i: usize| global[i] as usize;
         // (i, j) for each stored (i ≥ j), and (j, i).
         let mut count = vec![0u64; hi - lo + 1];
         for j in 0..n {
             for &i in &a.row_idx[a.col_ptr[j]..a.col_ptr[j + 1]] {
-                if owned(i) {
-                    count[i - lo + 1] += 1;
+                if owned(g(i)) {
+                    count[g(i) - lo + 1] += 1;
                 }
-                if i != j && owned(j) {
-                    count[j - lo + 1] += 1;
+                if i != j && owned(g(j)) {
+                    count[g(j) - lo + 1] += 1;
                 }
             }
         }
@@ -543,11 +624,11 @@ impl LocalRows {
                     (cols[at], k[at], m[at]) = (col as PetscInt, a.k[e], a.m[e]);
                     fill[row - lo] += 1;
                 };
-                if owned(i) {
-                    put(i, j);
+                if owned(g(i)) {
+                    put(g(i), g(j));
                 }
-                if i != j && owned(j) {
-                    put(j, i);
+                if i != j && owned(g(j)) {
+                    put(g(j), g(i));
                 }
             }
         }
@@ -590,16 +671,36 @@ pub struct SymmetricPair<'a> {
 pub struct Eigenpairs {
     /// Eigenvalues, nearest the target first.
     pub values: Vec<f64>,
-    /// Column-major `n × nev`.
+    /// Column-major `n × nev`, M-normalised (rank 0 only; empty elsewhere).
     pub vectors: Vec<f64>,
     /// SLEPc's relative error estimate ‖Kx − λMx‖/‖λx‖ per pair.
     pub relative_errors: Vec<f64>,
+    /// ‖Kx − λMx‖ / ‖Kx‖ per pair, as the pipeline's mode checks define it.
+    pub residuals: Vec<f64>,
+    /// XᵀMX, `nev × nev` (column-major, symmetric).
+    pub gram: Vec<f64>,
     /// Krylov–Schur restarts.
     pub iterations: usize,
     /// Seconds in `EPSSetUp` (the factorisation).
     pub setup_s: f64,
     /// Seconds in `EPSSolve` and gathering.
     pub solve_s: f64,
+}
+
+/// K and M distributed over the ranks ([`Slepc::operators`]), kept for every eigen-solve of one
+/// problem (the shift may change between solves; the matrices do not).
+pub struct Operators {
+    n: usize,
+    k: DistMatrix,
+    m: DistMatrix,
+    _near_null: Option<NearNull>,
+}
+
+impl Operators {
+    /// Order of the problem.
+    pub fn size(&self) -> usize {
+        self.n
+    }
 }
 
 struct DistMatrix(Mat);

@@ -36,6 +36,7 @@ pub const EPS_TARGET_MAGNITUDE: c_int = 7;
 pub const EPS_ERROR_RELATIVE: c_int = 1;
 /// `SAME_NONZERO_PATTERN` of `MatStructure` (petscmat.h: DIFFERENT = 0, SUBSET = 1, SAME = 2).
 pub const SAME_NONZERO_PATTERN: c_int = 2;
+pub const NORM_2: c_int = 1;
 
 pub type ErrorHandler = unsafe extern "C" fn(
     MPI_Comm,
@@ -130,6 +131,7 @@ unsafe extern "C" {
     pub fn MatAssemblyBegin(a: Mat, t: c_int) -> PetscErrorCode;
     pub fn MatAssemblyEnd(a: Mat, t: c_int) -> PetscErrorCode;
     pub fn MatSetOption(a: Mat, op: c_int, flg: PetscBool) -> PetscErrorCode;
+    pub fn MatMult(a: Mat, x: PetscVec, y: PetscVec) -> PetscErrorCode;
     pub fn MatCreateVecs(a: Mat, right: *mut PetscVec, left: *mut PetscVec) -> PetscErrorCode;
     pub fn MatDestroy(a: *mut Mat) -> PetscErrorCode;
 
@@ -148,6 +150,9 @@ unsafe extern "C" {
     pub fn VecRestoreArray(x: PetscVec, a: *mut *mut PetscScalar) -> PetscErrorCode;
     pub fn VecDot(x: PetscVec, y: PetscVec, val: *mut PetscScalar) -> PetscErrorCode;
     pub fn VecAXPY(y: PetscVec, alpha: PetscScalar, x: PetscVec) -> PetscErrorCode;
+    pub fn VecNorm(x: PetscVec, t: c_int, val: *mut PetscReal) -> PetscErrorCode;
+    pub fn VecScale(x: PetscVec, alpha: PetscScalar) -> PetscErrorCode;
+    pub fn VecMDot(x: PetscVec, nv: PetscInt, y: *const PetscVec, val: *mut PetscScalar) -> PetscErrorCode;
     pub fn VecNormalize(x: PetscVec, norm: *mut PetscReal) -> PetscErrorCode;
     pub fn MatNullSpaceCreate(
         comm: MPI_Comm,
@@ -180,6 +185,8 @@ unsafe extern "C" {
     pub static ompi_mpi_int: u8;
     pub static ompi_mpi_op_sum: u8;
     pub static ompi_mpi_op_min: u8;
+    pub static ompi_mpi_op_max: u8;
+    pub static ompi_mpi_double: u8;
     pub static ompi_mpi_byte: u8;
     pub fn MPI_Allreduce(
         sendbuf: *const c_void,

@@ -54,6 +54,23 @@ pub struct Assembled {
     pub mass: MassProperties,
 }
 
+impl Assembled {
+    /// No K and M (a problem whose matrices live on the MPI ranks that solve it): an empty
+    /// pattern, and no mass until it is set.
+    pub fn unassembled() -> Assembled {
+        Assembled {
+            pattern: SymbolicSparseColMat::new_checked(0, 0, vec![0], None, Vec::new()),
+            k: Vec::new(),
+            m: Vec::new(),
+            graph: NodeGraph {
+                col_ptr: vec![0],
+                rows: Vec::new(),
+            },
+            mass: MassProperties::default(),
+        }
+    }
+}
+
 /// An element with a non-positive Jacobian was met.
 #[derive(Debug, thiserror::Error)]
 #[error(
@@ -96,12 +113,64 @@ fn node_graph(mesh: &Mesh) -> NodeGraph {
     NodeGraph { col_ptr, rows }
 }
 
+/// Mass and its first and second moments (about the origin) of a set of elements: what
+/// shares of a mesh sum (over threads, over MPI ranks) before [`Moments::properties`].
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct Moments {
+    /// ∫ρ, kg.
+    pub mass: f64,
+    /// ∫ρ r, kg·m.
+    pub first: [f64; 3],
+    /// ∫ρ r rᵀ, kg·m².
+    pub second: [[f64; 3]; 3],
+}
+
+impl Moments {
+    /// Adds another set's moments.
+    pub fn add(&mut self, o: &Moments) {
+        self.mass += o.mass;
+        for r in 0..3 {
+            self.first[r] += o.first[r];
+            for c in 0..3 {
+                self.second[r][c] += o.second[r][c];
+            }
+        }
+    }
+
+    /// The 13 numbers, flat (to be summed over MPI ranks).
+    pub fn to_array(&self) -> [f64; 13] {
+        let mut a = [0.0; 13];
+        a[0] = self.mass;
+        a[1..4].copy_from_slice(&self.first);
+        for r in 0..3 {
+            a[4 + 3 * r..7 + 3 * r].copy_from_slice(&self.second[r]);
+        }
+        a
+    }
+
+    /// [`Moments::to_array`] back.
+    pub fn from_array(a: &[f64; 13]) -> Moments {
+        let mut m = Moments {
+            mass: a[0],
+            first: [a[1], a[2], a[3]],
+            ..Moments::default()
+        };
+        for r in 0..3 {
+            m.second[r].copy_from_slice(&a[4 + 3 * r..7 + 3 * r]);
+        }
+        m
+    }
+
+    /// Mass, centre and inertia about the centre.
+    pub fn properties(&self) -> MassProperties {
+        mass_properties(self.mass, self.first, self.second)
+    }
+}
+
 struct Partial {
     k: Vec<f64>,
     m: Vec<f64>,
-    mass: f64,
-    first: [f64; 3],
-    second: [[f64; 3]; 3],
+    moments: Moments,
 }
 
 impl Partial {
@@ -109,20 +178,7 @@ impl Partial {
         Partial {
             k: vec![0.0; 9 * blocks],
             m: vec![0.0; blocks],
-            mass: 0.0,
-            first: [0.0; 3],
-            second: [[0.0; 3]; 3],
-        }
-    }
-
-    /// Adds mass, first and second moments.
-    fn add_moments(&mut self, (mass, first, second): (f64, [f64; 3], [[f64; 3]; 3])) {
-        self.mass += mass;
-        for (r, row) in second.iter().enumerate() {
-            self.first[r] += first[r];
-            for (c, v) in row.iter().enumerate() {
-                self.second[r][c] += v;
-            }
+            moments: Moments::default(),
         }
     }
 }
@@ -132,6 +188,7 @@ fn accumulate<S: Shape>(
     graph: &NodeGraph,
     lame: &Lame,
     range: std::ops::Range<usize>,
+    counted: usize,
 ) -> Result<Partial, AssemblyError> {
     let nb = graph.rows.len();
     let mut part = Partial::zeros(nb);
@@ -168,13 +225,30 @@ fn accumulate<S: Shape>(
                 }
             }
         }
-        part.add_moments(em.moments);
+        if e < counted {
+            let (mass, first, second) = em.moments;
+            part.moments.add(&Moments { mass, first, second });
+        }
     }
     Ok(part)
 }
 
 /// Assembles K and M of the mesh for the material, on the free DOFs of `dofs`.
 pub fn assemble(mesh: &Mesh, young: f64, poisson: f64, density: f64, dofs: &Dofs) -> Result<Assembled, AssemblyError> {
+    assemble_counting(mesh, young, poisson, density, dofs, mesh.tet_count()).map(|(a, _)| a)
+}
+
+/// [`assemble`], and the moments of the first `counted` elements only (a rank's share of a
+/// mesh holds the elements it owns first, then those it shares with other ranks: each element's
+/// mass is counted once over all ranks). `Assembled::mass` is that of the counted ones.
+pub fn assemble_counting(
+    mesh: &Mesh,
+    young: f64,
+    poisson: f64,
+    density: f64,
+    dofs: &Dofs,
+    counted: usize,
+) -> Result<(Assembled, Moments), AssemblyError> {
     let lame = Lame::new(young, poisson, density);
     let graph = node_graph(mesh);
     let ne = mesh.tet_count();
@@ -188,9 +262,9 @@ pub fn assemble(mesh: &Mesh, young: f64, poisson: f64, density: f64, dofs: &Dofs
         .into_par_iter()
         .map(|r| {
             if mesh.order == 2 {
-                accumulate::<Tet10>(mesh, &graph, &lame, r)
+                accumulate::<Tet10>(mesh, &graph, &lame, r, counted)
             } else {
-                accumulate::<Tet4>(mesh, &graph, &lame, r)
+                accumulate::<Tet4>(mesh, &graph, &lame, r, counted)
             }
         })
         .collect::<Result<_, _>>()?;
@@ -199,9 +273,10 @@ pub fn assemble(mesh: &Mesh, young: f64, poisson: f64, density: f64, dofs: &Dofs
     for p in partials {
         total.k.par_iter_mut().zip(&p.k).for_each(|(a, b)| *a += b);
         total.m.par_iter_mut().zip(&p.m).for_each(|(a, b)| *a += b);
-        total.add_moments((p.mass, p.first, p.second));
+        total.moments.add(&p.moments);
     }
-    let mass = mass_properties(total.mass, total.first, total.second);
+    let moments = total.moments;
+    let mass = moments.properties();
 
     // Expand node blocks to the free-DOF lower triangle, sized exactly up front (growing the
     // vectors would overshoot by up to 2×).
@@ -243,13 +318,16 @@ pub fn assemble(mesh: &Mesh, young: f64, poisson: f64, density: f64, dofs: &Dofs
     }
     drop(total);
     let pattern = SymbolicSparseColMat::new_checked(nf, nf, col_ptr, None, row_idx);
-    Ok(Assembled {
-        pattern,
-        k: kv,
-        m: mv,
-        graph,
-        mass,
-    })
+    Ok((
+        Assembled {
+            pattern,
+            k: kv,
+            m: mv,
+            graph,
+            mass,
+        },
+        moments,
+    ))
 }
 
 fn mass_properties(mass: f64, first: [f64; 3], second: [[f64; 3]; 3]) -> MassProperties {

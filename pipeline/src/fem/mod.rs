@@ -3,6 +3,7 @@
 pub mod assembly;
 pub mod element;
 pub mod quadrature;
+pub mod share;
 pub mod stress;
 
-pub use assembly::{Assembled, MassProperties, assemble};
+pub use assembly::{Assembled, MassProperties, Moments, assemble};

@@ -137,6 +137,7 @@ impl EigenSolver for BlockKrylov<'_> {
             factorize_s,
             eigensolve_s: t.elapsed().as_secs_f64(),
             symbolic: Some(chol.into_symbolic()),
+            checked: None,
         })
     }
 }

@@ -84,6 +84,7 @@ impl EigenSolver for Dense {
             factorize_s,
             eigensolve_s: t.elapsed().as_secs_f64(),
             symbolic: None,
+            checked: None,
         })
     }
 }

@@ -43,42 +43,63 @@ impl<'a> EigenProblem<'a> {
         self.pattern.nrows()
     }
 
+    /// The scales of its diagonals.
+    pub fn scales(&self) -> Scales {
+        let (cp, ri) = (self.pattern.col_ptr(), self.pattern.row_idx());
+        Scales::of_diagonal(
+            self.size(),
+            (0..self.size()).filter_map(|j| (cp[j]..cp[j + 1]).find(|&k| ri[k] == j).map(|k| (self.k[k], self.m[k]))),
+        )
+    }
+}
+
+/// What the mode selection and checks need to know of K and M besides the solver: sums over
+/// their diagonals (of the whole problem, or of one MPI rank's rows, then reduced).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Scales {
+    /// Unknowns.
+    pub size: usize,
+    /// Σ K_jj.
+    pub diag_k: f64,
+    /// Σ M_jj.
+    pub diag_m: f64,
+    /// max K_jj / M_jj.
+    pub max_ratio: f64,
+}
+
+impl Scales {
+    /// The scales of `size` unknowns from their diagonal entries (K_jj, M_jj) (all of them, or a
+    /// part to be reduced with the other parts by sum, sum, max).
+    pub fn of_diagonal(size: usize, diagonal: impl Iterator<Item = (f64, f64)>) -> Scales {
+        let mut s = Scales {
+            size,
+            diag_k: 0.0,
+            diag_m: 0.0,
+            max_ratio: 0.0,
+        };
+        for (k, m) in diagonal {
+            s.diag_k += k;
+            s.diag_m += m;
+            s.max_ratio = s.max_ratio.max(k / m);
+        }
+        s
+    }
+
     /// mean(diag K) / mean(diag M): the squared angular frequency of the mesh scale, used to
     /// make shifts and thresholds independent of units.
-    pub fn stiffness_scale(&self) -> f64 {
-        let (dk, dm) = self.diagonal_sums();
-        dk / dm
+    pub fn stiffness(&self) -> f64 {
+        self.diag_k / self.diag_m
     }
 
     /// mean(diag M): about ‖Mx‖/‖x‖ for a smooth x.
-    pub fn mass_scale(&self) -> f64 {
-        self.diagonal_sums().1 / self.size().max(1) as f64
-    }
-
-    /// Sums of the diagonals of K and M.
-    fn diagonal_sums(&self) -> (f64, f64) {
-        let (cp, ri) = (self.pattern.col_ptr(), self.pattern.row_idx());
-        let (mut dk, mut dm) = (0.0, 0.0);
-        for j in 0..self.size() {
-            if let Some(k) = (cp[j]..cp[j + 1]).find(|&k| ri[k] == j) {
-                dk += self.k[k];
-                dm += self.m[k];
-            }
-        }
-        (dk, dm)
+    pub fn mass(&self) -> f64 {
+        self.diag_m / self.size.max(1) as f64
     }
 
     /// An upper estimate of λ_max: 10 × the largest diagonal ratio K_jj / M_jj (the consistent
     /// mass spreads a node's mass over its neighbours, so the ratio alone underestimates it).
     pub fn lambda_max_estimate(&self) -> f64 {
-        let (cp, ri) = (self.pattern.col_ptr(), self.pattern.row_idx());
-        let mut worst = 0.0f64;
-        for j in 0..self.size() {
-            if let Some(k) = (cp[j]..cp[j + 1]).find(|&k| ri[k] == j) {
-                worst = worst.max(self.k[k] / self.m[k]);
-            }
-        }
-        10.0 * worst
+        10.0 * self.max_ratio
     }
 }
 
@@ -94,6 +115,17 @@ pub struct Spectrum {
     pub eigensolve_s: f64,
     /// The symbolic analysis of the factor of K − σM, when the solver made one.
     pub symbolic: Option<SymbolicCholesky<usize>>,
+    /// The checks, when the solver made them where the vectors live (SLEPc, on every rank):
+    /// then `vectors` are already M-normalised.
+    pub checked: Option<Checked>,
+}
+
+/// Mode checks a solver made itself, for every pair it returned (in its order).
+pub struct Checked {
+    /// ‖Kφ − λMφ‖ / ‖Kφ‖ per pair.
+    pub residuals: Vec<f64>,
+    /// ΦᵀMΦ, column-major, square.
+    pub gram: Vec<f64>,
 }
 
 /// Analyses and factorises K − σM (the shift-invert operator of ARPACK and the block solver).
@@ -149,6 +181,10 @@ pub enum ModesError {
     /// SLEPc/PETSc failed or is not available.
     #[error("SLEPc: {0}")]
     Slepc(String),
+    /// Assembling an MPI rank's share of the problem failed (on that rank; the message says
+    /// which when it is not rank 0).
+    #[error("{0}")]
+    Rank(String),
     /// The block Krylov–Schur solver failed.
     #[error("block eigen-solver: {0}")]
     Block(String),
@@ -235,33 +271,54 @@ pub fn compute(
     count: usize,
     solver: &dyn EigenSolver,
 ) -> Result<Modes, ModesError> {
-    let n = problem.size();
-    debug_assert_eq!(n, dofs.free_count());
-    let nev = count + rigid;
-    if nev + 1 >= n {
+    debug_assert_eq!(problem.size(), dofs.free_count());
+    select(
+        &problem.scales(),
+        rigid,
+        count,
+        |nev, sigma| solver.lowest(problem, nev, sigma),
+        Some(problem),
+    )
+}
+
+/// The eigenpairs to ask a solver for `count` elastic modes with `rigid` rigid ones, if `n`
+/// unknowns have room for them.
+fn eigenpairs_wanted(n: usize, count: usize, rigid: usize) -> Result<usize, ModesError> {
+    if count + rigid + 1 >= n {
         return Err(ModesError::TooFewUnknowns {
             unknowns: n,
             wanted: count,
             rigid,
         });
     }
+    Ok(count + rigid)
+}
+
+/// The lowest `count` elastic modes from a solver (`lowest(nev, sigma)`), the `rigid` rigid ones
+/// dropped, each checked: by the solver itself ([`Spectrum::checked`]) or here against the
+/// whole `problem`.
+pub fn select(
+    scales: &Scales,
+    rigid: usize,
+    count: usize,
+    mut lowest: impl FnMut(usize, f64) -> Result<Spectrum, ModesError>,
+    problem: Option<&EigenProblem<'_>>,
+) -> Result<Modes, ModesError> {
+    let n = scales.size;
+    let nev = eigenpairs_wanted(n, count, rigid)?;
     // The shift. A supported part: σ = 0 (K is SPD; shift-invert on K⁻¹M). With rigid modes
     // K is singular, so σ < 0: first relative to the mesh's stiffness scale, then, if that
     // lands far below the first elastic eigenvalue λ₁ (thin or soft parts, where λ₁/λ_max can
     // be 1e-10 and the low modes crowd together as seen from σ), again at σ = −λ₁/100.
-    let mut sigma = if rigid == 0 {
-        0.0
-    } else {
-        -1e-6 * problem.stiffness_scale()
-    };
-    let mut spectrum = solver.lowest(problem, nev, sigma)?;
+    let mut sigma = if rigid == 0 { 0.0 } else { -1e-6 * scales.stiffness() };
+    let mut spectrum = lowest(nev, sigma)?;
     if let Some(&l1) = spectrum
         .values
         .get(rigid)
         .filter(|&&l1| rigid > 0 && l1 > 0.0 && -sigma > 0.01 * l1)
     {
         sigma = -0.01 * l1;
-        let again = solver.lowest(problem, nev, sigma)?;
+        let again = lowest(nev, sigma)?;
         spectrum = Spectrum {
             factorize_s: spectrum.factorize_s + again.factorize_s,
             eigensolve_s: spectrum.eigensolve_s + again.eigensolve_s,
@@ -291,36 +348,27 @@ pub fn compute(
             });
         }
     }
-    // M-normalised, then checked: the products for all modes at once (each pass over K or M
-    // serves several vectors), the columns in parallel.
-    let mut m_phi = vec![0.0; n * r];
-    sym_matmul(problem.pattern, problem.m, &vectors, &mut m_phi);
-    vectors
-        .par_chunks_mut(n)
-        .zip(m_phi.par_chunks_mut(n))
-        .for_each(|(phi, mx)| {
-            let norm = phi.iter().zip(mx.iter()).map(|(a, b)| a * b).sum::<f64>().sqrt();
-            phi.iter_mut().for_each(|v| *v /= norm);
-            mx.iter_mut().for_each(|v| *v /= norm);
-        });
-    let mut k_phi = vec![0.0; n * r];
-    sym_matmul(problem.pattern, problem.k, &vectors, &mut k_phi);
-    let residuals: Vec<f64> = k_phi
-        .par_chunks(n)
-        .zip(m_phi.par_chunks(n))
-        .zip(&eigenvalues)
-        .map(|((kx, mx), &lam)| {
-            let residual = kx
-                .iter()
-                .zip(mx)
-                .map(|(k, m)| (k - lam * m).powi(2))
-                .sum::<f64>()
-                .sqrt();
-            residual / kx.iter().map(|k| k * k).sum::<f64>().sqrt()
-        })
-        .collect();
-    drop(k_phi);
-    let lambda_max = problem.lambda_max_estimate();
+    let (residuals, orthonormality_error) = match spectrum.checked.take() {
+        Some(c) => {
+            let nev = c.residuals.len();
+            let mut worst = 0.0f64;
+            for a in 0..r {
+                for b in 0..=a {
+                    let target = if a == b { 1.0 } else { 0.0 };
+                    worst = worst.max((c.gram[(rigid + a) * nev + rigid + b] - target).abs());
+                }
+            }
+            (c.residuals[rigid..].to_vec(), worst)
+        }
+        None => {
+            let problem = problem.ok_or_else(|| ModesError::Check {
+                mode: 0,
+                what: "the solver made no checks and K, M are not at hand".into(),
+            })?;
+            check(problem, &mut vectors, &eigenvalues)
+        }
+    };
+    let lambda_max = scales.lambda_max_estimate();
     for (j, (&rel, &lam)) in residuals.iter().zip(&eigenvalues).enumerate() {
         // Double precision cannot promise better than about ε·λ_max/λ relative to ‖Kφ‖ (the
         // backward error of the solves): on meshes of flat elements (thin plates) that bound
@@ -343,23 +391,6 @@ pub fn compute(
             );
         }
     }
-    // max |ΦᵀMΦ − I|.
-    let mut gram = faer::Mat::<f64>::zeros(r, r);
-    faer::linalg::matmul::matmul(
-        gram.as_mut(),
-        faer::Accum::Replace,
-        faer::MatRef::from_column_major_slice(&vectors, n, r).transpose(),
-        faer::MatRef::from_column_major_slice(&m_phi, n, r),
-        1.0,
-        faer::Par::rayon(0),
-    );
-    let mut orthonormality_error = 0.0f64;
-    for a in 0..r {
-        for b in 0..=a {
-            let target = if a == b { 1.0 } else { 0.0 };
-            orthonormality_error = orthonormality_error.max((gram[(a, b)] - target).abs());
-        }
-    }
     Ok(Modes {
         eigenvalues,
         vectors,
@@ -371,6 +402,57 @@ pub fn compute(
         eigensolve_s: spectrum.eigensolve_s + t.elapsed().as_secs_f64(),
         symbolic: spectrum.symbolic,
     })
+}
+
+/// M-normalises the modes (column-major, n × r) and checks them against the whole problem:
+/// each one's ‖Kφ − λMφ‖ / ‖Kφ‖, and max |ΦᵀMΦ − I|. The products for all modes at once (each
+/// pass over K or M serves several vectors), the columns in parallel.
+fn check(problem: &EigenProblem<'_>, vectors: &mut [f64], eigenvalues: &[f64]) -> (Vec<f64>, f64) {
+    let (n, r) = (problem.size(), eigenvalues.len());
+    let mut m_phi = vec![0.0; n * r];
+    sym_matmul(problem.pattern, problem.m, vectors, &mut m_phi);
+    vectors
+        .par_chunks_mut(n)
+        .zip(m_phi.par_chunks_mut(n))
+        .for_each(|(phi, mx)| {
+            let norm = phi.iter().zip(mx.iter()).map(|(a, b)| a * b).sum::<f64>().sqrt();
+            phi.iter_mut().for_each(|v| *v /= norm);
+            mx.iter_mut().for_each(|v| *v /= norm);
+        });
+    let mut k_phi = vec![0.0; n * r];
+    sym_matmul(problem.pattern, problem.k, vectors, &mut k_phi);
+    let residuals: Vec<f64> = k_phi
+        .par_chunks(n)
+        .zip(m_phi.par_chunks(n))
+        .zip(eigenvalues)
+        .map(|((kx, mx), &lam)| {
+            let residual = kx
+                .iter()
+                .zip(mx)
+                .map(|(k, m)| (k - lam * m).powi(2))
+                .sum::<f64>()
+                .sqrt();
+            residual / kx.iter().map(|k| k * k).sum::<f64>().sqrt()
+        })
+        .collect();
+    drop(k_phi);
+    let mut gram = faer::Mat::<f64>::zeros(r, r);
+    faer::linalg::matmul::matmul(
+        gram.as_mut(),
+        faer::Accum::Replace,
+        faer::MatRef::from_column_major_slice(vectors, n, r).transpose(),
+        faer::MatRef::from_column_major_slice(&m_phi, n, r),
+        1.0,
+        faer::Par::rayon(0),
+    );
+    let mut orthonormality_error = 0.0f64;
+    for a in 0..r {
+        for b in 0..=a {
+            let target = if a == b { 1.0 } else { 0.0 };
+            orthonormality_error = orthonormality_error.max((gram[(a, b)] - target).abs());
+        }
+    }
+    (residuals, orthonormality_error)
 }
 
 /// A Sturm count at the top of the spectrum found: how many eigenvalues lie below σ, from the
@@ -454,9 +536,15 @@ impl SolverChoice {
     }
 }
 
-/// Solves the eigenproblem of a discretized space.
+/// Solves the eigenproblem of a discretized space; also the seconds spent before the solver
+/// (the fill-reducing ordering, or under SLEPc the ranks' assembly of their rows).
 pub fn solve(d: &crate::problem::Discretized, count: usize, choice: SolverChoice) -> Result<(Modes, f64), ModesError> {
     let t = Instant::now();
+    if choice.is_slepc() {
+        // The ranks assemble their own rows from the mesh (rank 0's whole K and M are not sent).
+        let s = slepc::solve(&d.mesh, &d.dofs, d.material, d.rigid, count, choice)?;
+        return Ok((s.modes, s.assemble_s));
+    }
     let problem = EigenProblem::of(&d.system);
     let dense = match choice {
         SolverChoice::Dense => true,
@@ -464,22 +552,7 @@ pub fn solve(d: &crate::problem::Discretized, count: usize, choice: SolverChoice
         SolverChoice::Auto => problem.size() <= 500,
     };
     let ordering;
-    let solver: Box<dyn EigenSolver> = if choice == SolverChoice::Slepc {
-        Box::new(slepc::Slepc {
-            tol: 1e-12,
-            near_null: None,
-        })
-    } else if choice == SolverChoice::SlepcIterative {
-        // SLEPc's relative error ‖Kx − λMx‖/(|λ|‖x‖) is the mode checks' ‖Kx − λMx‖/‖Kx‖ times
-        // ‖Mx‖/‖x‖ ≈ mean(diag M): aim at 1e-7 by the checks' measure (they ask 1e-6). A fixed
-        // tolerance fails one way or the other: 1e-9 left the P1 mould's mode 16 at 1.13e-6,
-        // and at 1e-10 the cantilever converged nothing in 10,000 iterations (Jacobi–Davidson's
-        // explicit residuals stall).
-        Box::new(slepc::Slepc {
-            tol: (ITERATIVE_RESIDUAL * problem.mass_scale()).clamp(1e-13, 1e-8),
-            near_null: Some(crate::rigid_motions::on_free_dofs(&d.mesh.nodes, &d.dofs)),
-        })
-    } else if dense {
+    let solver: Box<dyn EigenSolver> = if dense {
         Box::new(dense::Dense)
     } else if choice == SolverChoice::Block
         || (choice == SolverChoice::Auto
@@ -502,16 +575,29 @@ pub fn solve(d: &crate::problem::Discretized, count: usize, choice: SolverChoice
         })
     };
     let ordering_s = t.elapsed().as_secs_f64();
-    let petsc_options = choice.is_slepc() && std::env::var_os("PETSC_OPTIONS").is_some();
-    let modes = compute(&problem, &d.dofs, d.rigid, count, solver.as_ref())
-        .map_err(|e| blame_petsc_options(e, petsc_options))?;
+    let modes = compute(&problem, &d.dofs, d.rigid, count, solver.as_ref())?;
     Ok((modes, ordering_s))
+}
+
+/// SLEPc's tolerance for a method, given the problem's mean(diag M).
+pub fn slepc_tolerance(choice: SolverChoice, mass_scale: f64) -> f64 {
+    if choice == SolverChoice::SlepcIterative {
+        // SLEPc's relative error ‖Kx − λMx‖/(|λ|‖x‖) is the mode checks' ‖Kx − λMx‖/‖Kx‖ times
+        // ‖Mx‖/‖x‖ ≈ mean(diag M): aim at 1e-7 by the checks' measure (they ask 1e-6). A fixed
+        // tolerance fails one way or the other: 1e-9 left the P1 mould's mode 16 at 1.13e-6,
+        // and at 1e-10 the cantilever converged nothing in 10,000 iterations (Jacobi–Davidson's
+        // explicit residuals stall).
+        (ITERATIVE_RESIDUAL * mass_scale).clamp(1e-13, 1e-8)
+    } else {
+        1e-12
+    }
 }
 
 /// A failed mode check under SLEPc with `PETSC_OPTIONS` set names it: an approximate factor
 /// there (measured: MUMPS block low-rank with CNTL(7) = 1e-8 left residuals of 1e-5 on the P2
 /// mould) or a loose tolerance fails the checks, and no mesh change would help.
-fn blame_petsc_options(e: ModesError, petsc_options: bool) -> ModesError {
+#[cfg_attr(not(feature = "slepc"), allow(dead_code))]
+pub(crate) fn blame_petsc_options(e: ModesError, petsc_options: bool) -> ModesError {
     match e {
         ModesError::Check { mode, what } if petsc_options => ModesError::Check {
             mode,

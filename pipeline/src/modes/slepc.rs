@@ -1,14 +1,20 @@
-//! SLEPc Krylov–Schur in shift-invert with a MUMPS factorisation, over every MPI rank
-//! (`ves precompute --solver slepc`, alone or under `mpirun -n N`).
+//! SLEPc Krylov–Schur in shift-invert with a MUMPS factorisation (or Jacobi–Davidson with
+//! GAMG), over every MPI rank (`ves precompute --solver slepc`, alone or under `mpirun -n N`).
 //!
-//! Under MPI rank 0 runs the pipeline alone (meshing, assembly, checks, error estimate,
-//! writing) and the other ranks only [`serve`] its eigen-solves: for each one rank 0 sends every
-//! other rank its share of the rows of K and M and nothing else, all ranks factor and iterate
-//! together, and the eigenvectors come back to rank 0 only. So the memory of ranks 1.. is their
-//! share of the matrices, the factor and the Krylov vectors, and falls with the number of ranks;
-//! rank 0 holds in addition what the whole pipeline needs (mesh, K, M, basis).
+//! Under MPI rank 0 runs the pipeline (meshing, checks of the scene, writing) and the other
+//! ranks only [`serve`] its eigen-solves. For each space rank 0 partitions the mesh by rows of
+//! K and M (contiguous ranges of the free DOFs) and sends every rank its [`Share`] of the mesh:
+//! the elements touching its rows. Each rank, rank 0 included, assembles only its rows; all
+//! factor, iterate and check the modes together (residuals and M-inner products are computed on
+//! each rank's rows); only the eigenvectors come back, to rank 0. So rank 0 never holds the whole
+//! K and M (unless a later stage needs them: the error estimate, static correction, VOI
+//! transfers), and every rank's memory is its share of the matrices, the factor and the Krylov
+//! vectors, falling with the number of ranks; rank 0 holds in addition the mesh and the basis.
 
-use super::{EigenProblem, EigenSolver, ModesError, Spectrum};
+use super::{Modes, ModesError, SolverChoice};
+use crate::fem::Moments;
+use crate::mesh::Mesh;
+use crate::supports::Dofs;
 
 #[cfg(feature = "slepc")]
 thread_local! {
@@ -154,55 +160,86 @@ pub fn finish<T>(result: anyhow::Result<T>) -> anyhow::Result<T> {
     result
 }
 
-/// The SLEPc solver (needs a [`SlepcGuard`] on this thread).
-pub struct Slepc {
-    /// Relative tolerance of the eigenpairs.
-    pub tol: f64,
-    /// `None`: shift-invert with MUMPS. Some: Jacobi–Davidson with GAMG, given this near-null
-    /// space ([`crate::rigid_motions::on_free_dofs`], 6 values per unknown).
-    pub near_null: Option<Vec<f64>>,
+/// The result of [`solve`].
+pub struct Solved {
+    /// The modes, checked.
+    pub modes: Modes,
+    /// Mass and moments of the whole part (each rank's elements, summed).
+    pub moments: Moments,
+    /// Seconds the ranks spent partitioning and assembling.
+    pub assemble_s: f64,
 }
 
-impl EigenSolver for Slepc {
+/// Solves K φ = λ M φ of `mesh` (E, ν, ρ; supports in `dofs`, `rigid` rigid motions left) with
+/// SLEPc over every MPI rank: rank 0 calls this while the others are in [`serve`]. The `count`
+/// lowest elastic modes come back checked, with the part's mass moments.
+pub fn solve(
+    mesh: &Mesh,
+    dofs: &Dofs,
+    material: (f64, f64, f64),
+    rigid: usize,
+    count: usize,
+    choice: SolverChoice,
+) -> Result<Solved, ModesError> {
     #[cfg(feature = "slepc")]
-    fn lowest(&self, problem: &EigenProblem<'_>, nev: usize, sigma: f64) -> Result<Spectrum, ModesError> {
+    {
+        use std::sync::atomic::Ordering::SeqCst;
         TOKEN.with(|t| {
             let t = t.borrow();
             let token = t
                 .as_ref()
                 .ok_or_else(|| ModesError::Slepc("SLEPc is not initialised (SlepcGuard::init)".into()))?;
-            let n = problem.size();
-            let pair = ves_ffi::slepc::SymmetricPair {
-                n,
-                col_ptr: problem.pattern.col_ptr(),
-                row_idx: problem.pattern.row_idx(),
-                k: problem.k,
-                m: problem.m,
-            };
-            let e = distribute(token, &pair, self.near_null.as_deref(), nev, sigma, self.tol)
-                .map_err(|e| ModesError::Slepc(e.to_string()))?;
-            tracing::debug!(iterations = e.iterations, errors = ?e.relative_errors, "SLEPc converged");
-            // Ascending (nearest a target below the spectrum is already ascending; make sure).
-            let mut order: Vec<usize> = (0..e.values.len()).collect();
-            order.sort_by(|&a, &b| e.values[a].total_cmp(&e.values[b]));
-            let values = order.iter().map(|&i| e.values[i]).collect();
-            let vectors = order
-                .iter()
-                .flat_map(|&i| e.vectors[i * n..(i + 1) * n].iter().copied())
-                .collect();
-            Ok(Spectrum {
-                values,
-                vectors,
-                factorize_s: e.setup_s,
-                eigensolve_s: e.solve_s,
-                symbolic: None,
+            // Refused before the ranks assemble anything.
+            super::eigenpairs_wanted(dofs.free_count(), count, rigid)?;
+            let t0 = std::time::Instant::now();
+            let method = method_of(choice);
+            IN_SOLVE.store(true, SeqCst);
+            let (ops, scales, moments) = assemble(token, mesh, dofs, material, method)?;
+            IN_SOLVE.store(false, SeqCst);
+            let assemble_s = t0.elapsed().as_secs_f64();
+            let tol = super::slepc_tolerance(choice, scales.mass());
+            let petsc_options = std::env::var_os("PETSC_OPTIONS").is_some();
+            let modes = super::select(
+                &scales,
+                rigid,
+                count,
+                |nev, sigma| lowest(token, &ops, nev, sigma, tol, method),
+                None,
+            )
+            .map_err(|e| super::blame_petsc_options(e, petsc_options));
+            // A failed solve may have left the other ranks in a collective call: then only
+            // `finish` can end them. Otherwise they wait for a message: free their matrices.
+            if !IN_SOLVE.load(SeqCst) {
+                for r in 1..token.size() {
+                    token.send(r, &header(message::RELEASE, &[])).map_err(slepc_error)?;
+                }
+            }
+            Ok(Solved {
+                modes: modes?,
+                moments,
+                assemble_s,
             })
         })
     }
-
     #[cfg(not(feature = "slepc"))]
-    fn lowest(&self, _: &EigenProblem<'_>, _: usize, _: f64) -> Result<Spectrum, ModesError> {
+    {
+        let _ = (mesh, dofs, material, rigid, count, choice);
         Err(not_built())
+    }
+}
+
+#[cfg(feature = "slepc")]
+fn slepc_error(e: ves_ffi::slepc::PetscError) -> ModesError {
+    ModesError::Slepc(e.to_string())
+}
+
+/// The SLEPc method of a solver choice.
+#[cfg(feature = "slepc")]
+fn method_of(choice: SolverChoice) -> ves_ffi::slepc::Method {
+    if choice == SolverChoice::SlepcIterative {
+        ves_ffi::slepc::Method::Iterative
+    } else {
+        ves_ffi::slepc::Method::ShiftInvert
     }
 }
 
@@ -211,93 +248,215 @@ impl EigenSolver for Slepc {
 mod message {
     /// The pipeline is done: return.
     pub const STOP: u64 = 0;
-    /// An eigen-solve: its rows follow.
+    /// An eigen-solve on the operators assembled last: nev, σ, tolerance, method.
     pub const SOLVE: u64 = 1;
     /// Rank 0 failed outside a solve (and says why itself): return that error.
     pub const FAIL: u64 = 2;
+    /// A share of a new problem follows: assemble its rows (the operators of the solves after).
+    pub const ASSEMBLE: u64 = 3;
+    /// The problem's solves are done: free its operators.
+    pub const RELEASE: u64 = 4;
 }
 
-/// Words of a message header: kind, order, eigenpairs, entries of the rows sent, target and
-/// tolerance (as f64 bits), near-null vectors (0: shift-invert; > 0: the iterative method).
+/// Words of a message header: its kind, then the kind's numbers.
 #[cfg(feature = "slepc")]
-const HEADER: usize = 7;
+const HEADER: usize = 10;
+
+#[cfg(feature = "slepc")]
+fn header(kind: u64, words: &[u64]) -> [u64; HEADER] {
+    let mut h = [0; HEADER];
+    h[0] = kind;
+    h[1..=words.len()].copy_from_slice(words);
+    h
+}
 
 /// Near-null vectors per unknown of the iterative method (the rigid-body motions).
 #[cfg(feature = "slepc")]
 const NEAR_NULL: usize = 6;
 
-/// This rank's rows of `pair`, with their near-null entries when given (iterative method).
-#[cfg(feature = "slepc")]
-fn rows_of(
-    pair: &ves_ffi::slepc::SymmetricPair<'_>,
-    near_null: Option<&[f64]>,
-    (lo, hi): (usize, usize),
-) -> ves_ffi::slepc::LocalRows {
-    let mut rows = ves_ffi::slepc::LocalRows::from_lower(pair, lo, hi);
-    if let Some(v) = near_null {
-        rows.near_null = v[NEAR_NULL * lo..NEAR_NULL * hi].to_vec();
-        rows.near_null_count = NEAR_NULL;
-    }
-    rows
-}
-
-/// The method the rows ask for.
-#[cfg(feature = "slepc")]
-fn method_of(rows: &ves_ffi::slepc::LocalRows) -> ves_ffi::slepc::Method {
-    if rows.near_null_count > 0 {
-        ves_ffi::slepc::Method::Iterative
-    } else {
-        ves_ffi::slepc::Method::ShiftInvert
-    }
-}
-
-/// True while rank 0 is inside a solve the other ranks take part in: an error then may leave
-/// them in a collective call, so it must end the job ([`finish`]) rather than be told to them.
+/// True while rank 0 is in a step every rank takes part in: an error then may leave the others
+/// in a collective call, so it must end the job ([`finish`]) rather than be told to them.
 #[cfg(feature = "slepc")]
 static IN_SOLVE: std::sync::atomic::AtomicBool = std::sync::atomic::AtomicBool::new(false);
 
-/// Rank 0's side of a solve: every other rank (waiting in [`serve`]) gets its rows, then all
-/// solve together.
+/// Rank 0's side of the assembly: every other rank (waiting in [`serve`]) gets its share of the
+/// mesh, one rank at a time (rank 0 never holds more than its own and one other share), then all
+/// assemble their rows together ([`build`]).
 #[cfg(feature = "slepc")]
-fn distribute(
+fn assemble(
     token: &ves_ffi::slepc::Slepc,
-    pair: &ves_ffi::slepc::SymmetricPair<'_>,
-    near_null: Option<&[f64]>,
+    mesh: &Mesh,
+    dofs: &Dofs,
+    material: (f64, f64, f64),
+    method: ves_ffi::slepc::Method,
+) -> Result<(ves_ffi::slepc::Operators, super::Scales, Moments), ModesError> {
+    use crate::fem::share::{Share, partition};
+    use ves_ffi::slepc::ownership;
+    let (n, size) = (dofs.free_count(), token.size());
+    let bounds: Vec<usize> = (0..size).map(|r| ownership(n, size, r).0).chain([n]).collect();
+    let mut parts = partition(mesh, dofs, &bounds);
+    let frame = (method == ves_ffi::slepc::Method::Iterative).then(|| crate::rigid_motions::frame(&mesh.nodes));
+    let (c, l) = frame.unwrap_or(([0.0; 3], 0.0));
+    let numbers = [material.0, material.1, material.2, c[0], c[1], c[2], l];
+    for (r, part) in parts.iter_mut().enumerate().skip(1) {
+        let (elements, owned) = std::mem::take(part);
+        let s = Share::of(mesh, dofs, elements, owned);
+        let words = [
+            n as u64,
+            (s.xyz.len() / 3) as u64,
+            s.tets.len() as u64,
+            s.elements.len() as u64,
+            s.owned as u64,
+            s.order as u64,
+            s.vertex_count as u64,
+            u64::from(frame.is_some()),
+        ];
+        let sent = token
+            .send(r, &header(message::ASSEMBLE, &words))
+            .and_then(|_| token.send(r, &numbers))
+            .and_then(|_| token.send(r, &s.xyz))
+            .and_then(|_| token.send(r, &s.free))
+            .and_then(|_| token.send(r, &s.tets))
+            .and_then(|_| token.send(r, &s.elements));
+        sent.map_err(slepc_error)?;
+    }
+    let (elements, owned) = std::mem::take(&mut parts[0]);
+    drop(parts);
+    let own = Share::of(mesh, dofs, elements, owned);
+    build(token, n, &own, material, frame).map_err(|e| ModesError::Rank(format!("{e:#}")))
+}
+
+/// Every rank's side of the assembly (collective): its rows of K and M from its share (with the
+/// rigid motions in `frame` as near-null space, for the iterative method), an error on any rank
+/// made every rank's, the scales and mass moments summed over the ranks, and the operators.
+#[cfg(feature = "slepc")]
+fn build(
+    token: &ves_ffi::slepc::Slepc,
+    n: usize,
+    share: &crate::fem::share::Share,
+    material: (f64, f64, f64),
+    frame: Option<([f64; 3], f64)>,
+) -> anyhow::Result<(ves_ffi::slepc::Operators, super::Scales, Moments)> {
+    let (lo, hi) = ves_ffi::slepc::ownership(n, token.size(), token.rank());
+    let (rows, moments) = agree(rows_of(share, material, frame, lo, hi))?;
+    let local = super::Scales::of_diagonal(
+        n,
+        (0..hi - lo).filter_map(|r| {
+            let span = rows.row_ptr[r] as usize..rows.row_ptr[r + 1] as usize;
+            span.clone()
+                .find(|&e| rows.cols[e] as usize == lo + r)
+                .map(|e| (rows.k[e], rows.m[e]))
+        }),
+    );
+    let mut sums = [0.0; 15];
+    sums[0] = local.diag_k;
+    sums[1] = local.diag_m;
+    sums[2..].copy_from_slice(&moments.to_array());
+    token.sum_over_ranks(&mut sums)?;
+    let mut ratio = [local.max_ratio];
+    token.max_over_ranks(&mut ratio)?;
+    let scales = super::Scales {
+        size: n,
+        diag_k: sums[0],
+        diag_m: sums[1],
+        max_ratio: ratio[0],
+    };
+    let moments = Moments::from_array(sums[2..].try_into().unwrap_or(&[0.0; 13]));
+    let ops = token.operators(n, rows)?;
+    Ok((ops, scales, moments))
+}
+
+/// This rank's rows `lo..hi` of K and M from its share, and the moments of the elements it owns.
+#[cfg(feature = "slepc")]
+fn rows_of(
+    share: &crate::fem::share::Share,
+    material: (f64, f64, f64),
+    frame: Option<([f64; 3], f64)>,
+    lo: usize,
+    hi: usize,
+) -> anyhow::Result<(ves_ffi::slepc::LocalRows, Moments)> {
+    let (a, global, moments, mesh, dofs) = share.assemble(material)?;
+    let pair = ves_ffi::slepc::SymmetricPair {
+        n: global.len(),
+        col_ptr: a.pattern.col_ptr(),
+        row_idx: a.pattern.row_idx(),
+        k: &a.k,
+        m: &a.m,
+    };
+    let mut rows = ves_ffi::slepc::LocalRows::from_lower(&pair, &global, lo, hi);
+    drop(a);
+    if let Some(r) = (0..hi - lo).find(|&r| rows.row_ptr[r + 1] == rows.row_ptr[r]) {
+        anyhow::bail!(
+            "unknown {} belongs to no element of this rank's share of the mesh (a node outside every tet): remesh",
+            lo + r
+        );
+    }
+    if let Some(frame) = frame {
+        let motions = crate::rigid_motions::on_free_dofs_in(&mesh.nodes, &dofs, frame);
+        rows.near_null = vec![0.0; NEAR_NULL * (hi - lo)];
+        for (k, &g) in global.iter().enumerate() {
+            let g = g as usize;
+            if (lo..hi).contains(&g) {
+                rows.near_null[NEAR_NULL * (g - lo)..NEAR_NULL * (g - lo + 1)]
+                    .copy_from_slice(&motions[NEAR_NULL * k..NEAR_NULL * (k + 1)]);
+            }
+        }
+        rows.near_null_count = NEAR_NULL;
+    }
+    Ok((rows, moments))
+}
+
+/// Rank 0's side of one eigen-solve on the assembled operators: the other ranks are told σ and
+/// the rest, then all solve together; the pairs come back ascending with their checks.
+#[cfg(feature = "slepc")]
+fn lowest(
+    token: &ves_ffi::slepc::Slepc,
+    ops: &ves_ffi::slepc::Operators,
     nev: usize,
     sigma: f64,
     tol: f64,
-) -> Result<ves_ffi::slepc::Eigenpairs, ves_ffi::slepc::PetscError> {
-    use ves_ffi::slepc::ownership;
-    let (n, size) = (pair.n, token.size());
-    IN_SOLVE.store(true, std::sync::atomic::Ordering::SeqCst);
-    // One rank's rows at a time: rank 0 never holds more than its own and one other share.
-    for r in 1..size {
-        let rows = rows_of(pair, near_null, ownership(n, size, r));
-        let header = [
-            message::SOLVE,
-            n as u64,
-            nev as u64,
-            rows.cols.len() as u64,
-            sigma.to_bits(),
-            tol.to_bits(),
-            rows.near_null_count as u64,
-        ];
-        token.send(r, &header)?;
-        token.send(r, &rows.row_ptr)?;
-        token.send(r, &rows.cols)?;
-        token.send(r, &rows.k)?;
-        token.send(r, &rows.m)?;
-        token.send(r, &rows.near_null)?;
+    method: ves_ffi::slepc::Method,
+) -> Result<super::Spectrum, ModesError> {
+    use std::sync::atomic::Ordering::SeqCst;
+    IN_SOLVE.store(true, SeqCst);
+    let words = [
+        nev as u64,
+        sigma.to_bits(),
+        tol.to_bits(),
+        u64::from(method == ves_ffi::slepc::Method::Iterative),
+    ];
+    for r in 1..token.size() {
+        token.send(r, &header(message::SOLVE, &words)).map_err(slepc_error)?;
     }
-    let rows = rows_of(pair, near_null, ownership(n, size, 0));
-    let method = method_of(&rows);
-    let e = token.lowest_eigenpairs(n, rows, nev, sigma, tol, method)?;
-    IN_SOLVE.store(false, std::sync::atomic::Ordering::SeqCst);
-    Ok(e)
+    let e = token
+        .lowest_eigenpairs(ops, nev, sigma, tol, method)
+        .map_err(slepc_error)?;
+    IN_SOLVE.store(false, SeqCst);
+    tracing::debug!(iterations = e.iterations, errors = ?e.relative_errors, "SLEPc converged");
+    // Ascending (nearest a target below the spectrum is already ascending; make sure).
+    let mut order: Vec<usize> = (0..e.values.len()).collect();
+    order.sort_by(|&a, &b| e.values[a].total_cmp(&e.values[b]));
+    let n = ops.size();
+    let k = order.len();
+    Ok(super::Spectrum {
+        values: order.iter().map(|&i| e.values[i]).collect(),
+        vectors: order
+            .iter()
+            .flat_map(|&i| e.vectors[i * n..(i + 1) * n].iter().copied())
+            .collect(),
+        factorize_s: e.setup_s,
+        eigensolve_s: e.solve_s,
+        symbolic: None,
+        checked: Some(super::Checked {
+            residuals: order.iter().map(|&i| e.residuals[i]).collect(),
+            gram: (0..k * k).map(|x| e.gram[order[x / k] * k + order[x % k]]).collect(),
+        }),
+    })
 }
 
-/// The life of ranks 1.. under MPI: take part in each eigen-solve rank 0 starts, until it says
-/// the pipeline is done (Ok) or failed (an error that rank 0 reports: nothing to print here).
+/// The life of ranks 1.. under MPI: assemble each problem rank 0 sends a share of and take part
+/// in its eigen-solves, until rank 0 says the pipeline is done (Ok) or failed (an error that rank
+/// 0 reports: nothing to print here).
 pub fn serve() -> anyhow::Result<()> {
     #[cfg(feature = "slepc")]
     {
@@ -306,6 +465,7 @@ pub fn serve() -> anyhow::Result<()> {
             let token = guard
                 .as_ref()
                 .ok_or_else(|| anyhow::anyhow!("SLEPc is not initialised (SlepcGuard::init)"))?;
+            let mut ops = None;
             loop {
                 let h: Vec<u64> = token.receive(0, HEADER)?;
                 match h[0] {
@@ -314,25 +474,40 @@ pub fn serve() -> anyhow::Result<()> {
                         AGREED.store(true, std::sync::atomic::Ordering::SeqCst);
                         anyhow::bail!("rank 0 failed");
                     }
-                    message::SOLVE => {}
+                    message::RELEASE => ops = None,
+                    message::ASSEMBLE => {
+                        // The last problem's matrices go before this one's are built.
+                        drop(ops.take());
+                        let n = h[1] as usize;
+                        let (nodes, tets, elements) = (h[2] as usize, h[3] as usize, h[4] as usize);
+                        let numbers: Vec<f64> = token.receive(0, 7)?;
+                        let share = crate::fem::share::Share {
+                            owned: h[5] as usize,
+                            order: h[6] as u8,
+                            vertex_count: h[7] as usize,
+                            xyz: token.receive(0, 3 * nodes)?,
+                            free: token.receive(0, 3 * nodes)?,
+                            tets: token.receive(0, tets)?,
+                            elements: token.receive(0, elements)?,
+                        };
+                        let material = (numbers[0], numbers[1], numbers[2]);
+                        let frame = (h[8] == 1).then(|| ([numbers[3], numbers[4], numbers[5]], numbers[6]));
+                        ops = Some(build(token, n, &share, material, frame)?.0);
+                    }
+                    message::SOLVE => {
+                        let o = ops
+                            .as_ref()
+                            .ok_or_else(|| anyhow::anyhow!("rank 0 asked for a solve before an assembly"))?;
+                        let method = if h[4] == 1 {
+                            ves_ffi::slepc::Method::Iterative
+                        } else {
+                            ves_ffi::slepc::Method::ShiftInvert
+                        };
+                        let (nev, sigma, tol) = (h[1] as usize, f64::from_bits(h[2]), f64::from_bits(h[3]));
+                        token.lowest_eigenpairs(o, nev, sigma, tol, method)?;
+                    }
                     other => anyhow::bail!("rank 0 sent message kind {other}, which this ves does not know"),
                 }
-                let (n, nev, nnz) = (h[1] as usize, h[2] as usize, h[3] as usize);
-                let (sigma, tol) = (f64::from_bits(h[4]), f64::from_bits(h[5]));
-                let (lo, hi) = ves_ffi::slepc::ownership(n, token.size(), token.rank());
-                let near_null_count = h[6] as usize;
-                let rows = ves_ffi::slepc::LocalRows {
-                    lo,
-                    hi,
-                    row_ptr: token.receive(0, hi - lo + 1)?,
-                    cols: token.receive(0, nnz)?,
-                    k: token.receive(0, nnz)?,
-                    m: token.receive(0, nnz)?,
-                    near_null: token.receive(0, near_null_count * (hi - lo))?,
-                    near_null_count,
-                };
-                let method = method_of(&rows);
-                token.lowest_eigenpairs(n, rows, nev, sigma, tol, method)?;
             }
         })
     }
@@ -354,7 +529,7 @@ pub fn release<T>(result: anyhow::Result<T>) -> anyhow::Result<T> {
         let told = TOKEN.with(|t| -> Result<(), ves_ffi::slepc::PetscError> {
             if let Some(token) = t.borrow().as_ref() {
                 for r in 1..token.size() {
-                    token.send(r, &[kind, 0, 0, 0, 0, 0, 0])?;
+                    token.send(r, &header(kind, &[]))?;
                 }
             }
             Ok(())

@@ -289,7 +289,7 @@ pub fn discretize_basis(path: &Path, modes: Option<usize>) -> Result<(Discretize
         vectors.extend(d.dofs.free.iter().map(|&k| basis[k as usize * r + j]));
     }
     let problem = crate::modes::EigenProblem::of(&d.system);
-    let sigma = -1e-8 * problem.stiffness_scale();
+    let sigma = -1e-8 * problem.scales().stiffness();
     let ours = Modes {
         eigenvalues: lam[..r].to_vec(),
         vectors,
