@@ -255,7 +255,7 @@ pub fn needs_whole_system(scene: &Scene) -> bool {
 
 /// Gives the free heap pages back to the system (glibc keeps them, in every thread's arena):
 /// the stages after a solve would otherwise add their peak on top of the solve's.
-fn release_free_memory() {
+pub(crate) fn release_free_memory() {
     // SAFETY: malloc_trim only releases pages that malloc holds free; no pointer is touched.
     unsafe {
         libc::malloc_trim(0);
@@ -320,14 +320,24 @@ pub struct Summary {
 
 /// Peak resident set size of this process (Linux `/proc/self/status`, `VmHWM`), bytes.
 pub fn peak_rss_bytes() -> u64 {
+    status_kb("VmHWM:") * 1024
+}
+
+/// Resident memory now, bytes (0 where /proc is not available).
+pub fn rss_bytes() -> u64 {
+    status_kb("VmRSS:") * 1024
+}
+
+/// A kB field of /proc/self/status.
+fn status_kb(field: &str) -> u64 {
     std::fs::read_to_string("/proc/self/status")
         .ok()
         .and_then(|s| {
             s.lines()
-                .find_map(|l| l.strip_prefix("VmHWM:"))
+                .find_map(|l| l.strip_prefix(field))
                 .and_then(|v| v.trim().trim_end_matches("kB").trim().parse::<u64>().ok())
         })
-        .map_or(0, |kb| kb * 1024)
+        .unwrap_or(0)
 }
 
 /// One space in the summary.

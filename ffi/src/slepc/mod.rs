@@ -201,8 +201,9 @@ impl Slepc {
         Ok(data)
     }
 
-    /// K and M over every rank, of which this rank holds the rows `rows` (its [`ownership`]
-    /// range of an order-`n` problem; freed once PETSc has copied them), with K's near-null
+    /// K and M over every rank, of which this rank holds the rows `rows` (a contiguous range of
+    /// an order-`n` problem, the ranks' ranges in rank order: [`ownership`] or any other split;
+    /// freed once PETSc has copied them), with K's near-null
     /// space when the rows carry one. Collective: every rank calls it with its own rows.
     pub fn operators(&self, n: usize, rows: LocalRows) -> Result<Operators, PetscError> {
         let size_err = |what: String| PetscError {
@@ -213,8 +214,13 @@ impl Slepc {
         if n == 0 || n > i32::MAX as usize / 2 {
             return Err(size_err(format!("an order-{n} problem")));
         }
-        if (rows.lo, rows.hi) != ownership(n, self.size(), self.rank()) {
-            return Err(size_err("rows given are not this rank's share".into()));
+        // Any contiguous split in rank order (PETSc checks that the ranks' counts add up to n;
+        // `DistMatrix::from_rows` that this rank got the range it was given).
+        if rows.lo > rows.hi || rows.hi > n {
+            return Err(size_err(format!(
+                "rows {}..{} of an order-{n} problem",
+                rows.lo, rows.hi
+            )));
         }
         // SAFETY: set by SlepcInitialize.
         let world = unsafe { PETSC_COMM_WORLD };

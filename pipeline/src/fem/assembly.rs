@@ -86,7 +86,8 @@ pub struct AssemblyError {
     pub det: f64,
 }
 
-fn node_graph(mesh: &Mesh) -> NodeGraph {
+/// The node-level lower-triangular pattern of the mesh's connectivity.
+pub fn node_graph(mesh: &Mesh) -> NodeGraph {
     let p = mesh.nodes_per_tet();
     let mut keys: Vec<u64> = mesh
         .tets

@@ -339,7 +339,9 @@ pub fn select(
     }
     let eigenvalues: Vec<f64> = vals[rigid..].to_vec();
     let r = eigenvalues.len();
-    let mut vectors = spectrum.vectors[rigid * n..].to_vec();
+    // The rigid modes' vectors dropped in place (no second copy of the basis).
+    let mut vectors = std::mem::take(&mut spectrum.vectors);
+    vectors.drain(..rigid * n);
     for (j, &lam) in eigenvalues.iter().enumerate() {
         if !(lam > 0.0 && lam.is_finite()) || vectors[j * n..(j + 1) * n].iter().any(|v| !v.is_finite()) {
             return Err(ModesError::Check {

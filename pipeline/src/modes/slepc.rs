@@ -13,6 +13,8 @@
 
 use super::{Modes, ModesError, SolverChoice};
 use crate::fem::Moments;
+#[cfg(feature = "slepc")]
+use crate::fem::share::Numbering;
 use crate::mesh::Mesh;
 use crate::supports::Dofs;
 
@@ -194,7 +196,7 @@ pub fn solve(
             let t0 = std::time::Instant::now();
             let method = method_of(choice);
             IN_SOLVE.store(true, SeqCst);
-            let (ops, scales, moments) = assemble(token, mesh, dofs, material, method)?;
+            let (ops, scales, moments, numbering) = assemble(token, mesh, dofs, material, method)?;
             IN_SOLVE.store(false, SeqCst);
             let assemble_s = t0.elapsed().as_secs_f64();
             let tol = super::slepc_tolerance(choice, scales.mass());
@@ -203,7 +205,7 @@ pub fn solve(
                 &scales,
                 rigid,
                 count,
-                |nev, sigma| lowest(token, &ops, nev, sigma, tol, method),
+                |nev, sigma| lowest(token, &ops, &numbering, nev, sigma, tol, method),
                 None,
             )
             .map_err(|e| super::blame_petsc_options(e, petsc_options));
@@ -260,7 +262,7 @@ mod message {
 
 /// Words of a message header: its kind, then the kind's numbers.
 #[cfg(feature = "slepc")]
-const HEADER: usize = 10;
+const HEADER: usize = 12;
 
 #[cfg(feature = "slepc")]
 fn header(kind: u64, words: &[u64]) -> [u64; HEADER] {
@@ -279,9 +281,10 @@ const NEAR_NULL: usize = 6;
 #[cfg(feature = "slepc")]
 static IN_SOLVE: std::sync::atomic::AtomicBool = std::sync::atomic::AtomicBool::new(false);
 
-/// Rank 0's side of the assembly: every other rank (waiting in [`serve`]) gets its share of the
-/// mesh, one rank at a time (rank 0 never holds more than its own and one other share), then all
-/// assemble their rows together ([`build`]).
+/// Rank 0's side of the assembly: the free DOFs numbered rank by rank (one compact region of the
+/// part each), every other rank (waiting in [`serve`]) sent its share of the mesh, one rank at a
+/// time (rank 0 never holds more than its own and one other share), then all assemble their rows
+/// together ([`build`]). Also the numbering (to put the eigenvectors back into the DOFs' own).
 #[cfg(feature = "slepc")]
 fn assemble(
     token: &ves_ffi::slepc::Slepc,
@@ -289,20 +292,22 @@ fn assemble(
     dofs: &Dofs,
     material: (f64, f64, f64),
     method: ves_ffi::slepc::Method,
-) -> Result<(ves_ffi::slepc::Operators, super::Scales, Moments), ModesError> {
+) -> Result<(ves_ffi::slepc::Operators, super::Scales, Moments, Numbering), ModesError> {
     use crate::fem::share::{Share, partition};
-    use ves_ffi::slepc::ownership;
     let (n, size) = (dofs.free_count(), token.size());
-    let bounds: Vec<usize> = (0..size).map(|r| ownership(n, size, r).0).chain([n]).collect();
-    let mut parts = partition(mesh, dofs, &bounds);
+    let numbering = Numbering::new(mesh, dofs, size);
+    let mut parts = partition(mesh, &numbering);
     let frame = (method == ves_ffi::slepc::Method::Iterative).then(|| crate::rigid_motions::frame(&mesh.nodes));
     let (c, l) = frame.unwrap_or(([0.0; 3], 0.0));
     let numbers = [material.0, material.1, material.2, c[0], c[1], c[2], l];
+    let range = |r: usize| (numbering.bounds[r], numbering.bounds[r + 1]);
     for (r, part) in parts.iter_mut().enumerate().skip(1) {
         let (elements, owned) = std::mem::take(part);
-        let s = Share::of(mesh, dofs, elements, owned);
+        let s = Share::of(mesh, &numbering, elements, owned);
         let words = [
             n as u64,
+            range(r).0 as u64,
+            range(r).1 as u64,
             (s.xyz.len() / 3) as u64,
             s.tets.len() as u64,
             s.elements.len() as u64,
@@ -322,8 +327,10 @@ fn assemble(
     }
     let (elements, owned) = std::mem::take(&mut parts[0]);
     drop(parts);
-    let own = Share::of(mesh, dofs, elements, owned);
-    build(token, n, &own, material, frame).map_err(|e| ModesError::Rank(format!("{e:#}")))
+    let own = Share::of(mesh, &numbering, elements, owned);
+    let (ops, scales, moments) =
+        build(token, n, range(0), &own, material, frame).map_err(|e| ModesError::Rank(format!("{e:#}")))?;
+    Ok((ops, scales, moments, numbering))
 }
 
 /// Every rank's side of the assembly (collective): its rows of K and M from its share (with the
@@ -333,12 +340,13 @@ fn assemble(
 fn build(
     token: &ves_ffi::slepc::Slepc,
     n: usize,
+    (lo, hi): (usize, usize),
     share: &crate::fem::share::Share,
     material: (f64, f64, f64),
     frame: Option<([f64; 3], f64)>,
 ) -> anyhow::Result<(ves_ffi::slepc::Operators, super::Scales, Moments)> {
-    let (lo, hi) = ves_ffi::slepc::ownership(n, token.size(), token.rank());
     let (rows, moments) = agree(rows_of(share, material, frame, lo, hi))?;
+
     let local = super::Scales::of_diagonal(
         n,
         (0..hi - lo).filter_map(|r| {
@@ -363,6 +371,15 @@ fn build(
     };
     let moments = Moments::from_array(sums[2..].try_into().unwrap_or(&[0.0; 13]));
     let ops = token.operators(n, rows)?;
+    // The share's assembly and the rows are freed now, but malloc keeps their pages (measured
+    // on the 556k mould: 0.3–0.5 GB per rank): given back before MUMPS takes its own.
+    crate::precompute::release_free_memory();
+    tracing::debug!(
+        rank = token.rank(),
+        rows = hi - lo,
+        rss_gb = crate::precompute::rss_bytes() as f64 / 1e9,
+        "operators assembled"
+    );
     Ok((ops, scales, moments))
 }
 
@@ -412,6 +429,7 @@ fn rows_of(
 fn lowest(
     token: &ves_ffi::slepc::Slepc,
     ops: &ves_ffi::slepc::Operators,
+    numbering: &Numbering,
     nev: usize,
     sigma: f64,
     tol: f64,
@@ -438,12 +456,20 @@ fn lowest(
     order.sort_by(|&a, &b| e.values[a].total_cmp(&e.values[b]));
     let n = ops.size();
     let k = order.len();
-    Ok(super::Spectrum {
-        values: order.iter().map(|&i| e.values[i]).collect(),
-        vectors: order
+    // Usually in order already: then the gathered vectors are kept, not copied (n × nev).
+    let mut vectors = if order.iter().enumerate().all(|(i, &o)| i == o) {
+        e.vectors
+    } else {
+        order
             .iter()
             .flat_map(|&i| e.vectors[i * n..(i + 1) * n].iter().copied())
-            .collect(),
+            .collect()
+    };
+    // Rows back from the ranks' numbering to the DOFs' own.
+    numbering.restore(&mut vectors);
+    Ok(super::Spectrum {
+        values: order.iter().map(|&i| e.values[i]).collect(),
+        vectors,
         factorize_s: e.setup_s,
         eigensolve_s: e.solve_s,
         symbolic: None,
@@ -478,21 +504,21 @@ pub fn serve() -> anyhow::Result<()> {
                     message::ASSEMBLE => {
                         // The last problem's matrices go before this one's are built.
                         drop(ops.take());
-                        let n = h[1] as usize;
-                        let (nodes, tets, elements) = (h[2] as usize, h[3] as usize, h[4] as usize);
+                        let (n, lo, hi) = (h[1] as usize, h[2] as usize, h[3] as usize);
+                        let (nodes, tets, elements) = (h[4] as usize, h[5] as usize, h[6] as usize);
                         let numbers: Vec<f64> = token.receive(0, 7)?;
                         let share = crate::fem::share::Share {
-                            owned: h[5] as usize,
-                            order: h[6] as u8,
-                            vertex_count: h[7] as usize,
+                            owned: h[7] as usize,
+                            order: h[8] as u8,
+                            vertex_count: h[9] as usize,
                             xyz: token.receive(0, 3 * nodes)?,
                             free: token.receive(0, 3 * nodes)?,
                             tets: token.receive(0, tets)?,
                             elements: token.receive(0, elements)?,
                         };
                         let material = (numbers[0], numbers[1], numbers[2]);
-                        let frame = (h[8] == 1).then(|| ([numbers[3], numbers[4], numbers[5]], numbers[6]));
-                        ops = Some(build(token, n, &share, material, frame)?.0);
+                        let frame = (h[10] == 1).then(|| ([numbers[3], numbers[4], numbers[5]], numbers[6]));
+                        ops = Some(build(token, n, (lo, hi), &share, material, frame)?.0);
                     }
                     message::SOLVE => {
                         let o = ops
