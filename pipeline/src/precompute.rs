@@ -418,6 +418,24 @@ pub fn run_with(scene: &Scene, out: &Path, choice: SolverChoice, overwrite: Over
             peak_rss_bytes: peak_rss_bytes(),
         });
     }
+    if distributed && needs_whole_system(scene) {
+        let mut stages = Vec::new();
+        if scene.mesh.error_estimate {
+            stages.push("the error estimate (set mesh.error_estimate = false)");
+        }
+        if scene.static_correction.is_some() {
+            stages.push("static correction (it also factors K on rank 0; remove [static_correction])");
+        }
+        if !scene.voi.is_empty() {
+            stages.push("the VOI transfers (remove the [[voi]] spaces)");
+        }
+        tracing::warn!(
+            "{}: under MPI rank 0 assembles each space's whole K and M for {}: its memory then grows with the part \
+             as on one machine; turn them off for parts that need the ranks' memory",
+            scene.path.display(),
+            stages.join(", ")
+        );
+    }
     let result = pipeline(scene, out, choice, start);
     if distributed {
         modes::slepc::release(result)
