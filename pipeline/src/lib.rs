@@ -10,6 +10,7 @@ pub mod export;
 pub mod fem;
 pub mod fingerprint;
 pub mod linsolve;
+pub mod memory;
 pub mod mesh;
 pub mod modes;
 pub mod output;

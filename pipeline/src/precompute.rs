@@ -156,7 +156,7 @@ pub fn solve_space(scene: &Scene, voi: Option<&Voi>, choice: SolverChoice) -> Re
                 let (modes, ordering_s) = modes::solve(&d, scene.modes.count, choice)?;
                 (d, modes, ordering_s)
             };
-            release_free_memory();
+            crate::memory::release_free_memory();
             let sturm = sturm_of(&d, &modes)?;
             let solved_s = t.elapsed().as_secs_f64();
             if let Some(p) = prefetch {
@@ -168,7 +168,7 @@ pub fn solve_space(scene: &Scene, voi: Option<&Voi>, choice: SolverChoice) -> Re
             } else {
                 None
             };
-            release_free_memory();
+            crate::memory::release_free_memory();
             (
                 d,
                 modes,
@@ -253,15 +253,6 @@ pub fn needs_whole_system(scene: &Scene) -> bool {
     scene.mesh.error_estimate || scene.static_correction.is_some() || !scene.voi.is_empty()
 }
 
-/// Gives the free heap pages back to the system (glibc keeps them, in every thread's arena):
-/// the stages after a solve would otherwise add their peak on top of the solve's.
-pub(crate) fn release_free_memory() {
-    // SAFETY: malloc_trim only releases pages that malloc holds free; no pointer is touched.
-    unsafe {
-        libc::malloc_trim(0);
-    }
-}
-
 /// One line when a space has no estimate or one above [`crate::accuracy::WARN_ABOVE`], and one
 /// when its walls are one element thick and the estimate does not vouch for them.
 fn warn_about_error(scene: &Scene, name: &str, mesh: &Mesh, size: f64, error: Option<&crate::accuracy::ErrorEstimate>) {
@@ -316,28 +307,6 @@ pub struct Summary {
     pub timings_s: Timings,
     /// Peak resident memory of this process so far, bytes (Linux `VmHWM`; 0 where unknown).
     pub peak_rss_bytes: u64,
-}
-
-/// Peak resident set size of this process (Linux `/proc/self/status`, `VmHWM`), bytes.
-pub fn peak_rss_bytes() -> u64 {
-    status_kb("VmHWM:") * 1024
-}
-
-/// Resident memory now, bytes (0 where /proc is not available).
-pub fn rss_bytes() -> u64 {
-    status_kb("VmRSS:") * 1024
-}
-
-/// A kB field of /proc/self/status.
-fn status_kb(field: &str) -> u64 {
-    std::fs::read_to_string("/proc/self/status")
-        .ok()
-        .and_then(|s| {
-            s.lines()
-                .find_map(|l| l.strip_prefix(field))
-                .and_then(|v| v.trim().trim_end_matches("kB").trim().parse::<u64>().ok())
-        })
-        .unwrap_or(0)
 }
 
 /// One space in the summary.
@@ -415,7 +384,7 @@ pub fn run_with(scene: &Scene, out: &Path, choice: SolverChoice, overwrite: Over
             output: out.display().to_string(),
             spaces: Vec::new(),
             timings_s: Timings::default(),
-            peak_rss_bytes: peak_rss_bytes(),
+            peak_rss_bytes: crate::memory::peak_rss_bytes(),
         });
     }
     if distributed && needs_whole_system(scene) {
@@ -503,7 +472,7 @@ fn pipeline(scene: &Scene, out: &Path, choice: SolverChoice, start: Instant) -> 
             })
             .collect(),
         timings_s: timings,
-        peak_rss_bytes: peak_rss_bytes(),
+        peak_rss_bytes: crate::memory::peak_rss_bytes(),
     })
 }
 

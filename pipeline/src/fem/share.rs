@@ -4,13 +4,12 @@
 //! computed on both, so no matrix entry travels between ranks), and rank 0, which meshes, never
 //! holds the whole K and M.
 
-use super::assembly::{AssemblyError, Moments, assemble_counting, node_graph};
+use super::assembly::{AssemblyError, Moments, assemble_counting};
 use crate::mesh::Mesh;
 use crate::supports::Dofs;
 
 /// The free DOFs numbered rank by rank: rank r owns the rows `bounds[r]..bounds[r + 1]`, the
-/// free DOFs of one compact region of the part (METIS k-way on the node graph), each node's
-/// DOFs together.
+/// free DOFs of its nodes (one compact region of the part), each node's DOFs together.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Numbering {
     /// Full DOF → its number here, or `u32::MAX` where supported.
@@ -22,20 +21,23 @@ pub struct Numbering {
 }
 
 impl Numbering {
-    /// The free DOFs of `dofs` split over `ranks` ranks (as they are, for one rank).
-    pub fn new(mesh: &Mesh, dofs: &Dofs, ranks: usize) -> Numbering {
+    /// The free DOFs of `dofs` as they are, all on one rank.
+    pub fn single(dofs: &Dofs) -> Numbering {
         let n = dofs.free_count();
-        if ranks <= 1 {
-            return Numbering {
-                free_of: dofs.free_of.clone(),
-                bounds: vec![0, n],
-                old_of_new: (0..n as u32).collect(),
-            };
+        Numbering {
+            free_of: dofs.free_of.clone(),
+            bounds: vec![0, n],
+            old_of_new: (0..n as u32).collect(),
         }
-        let part = crate::linsolve::node_parts(&node_graph(mesh), dofs, ranks);
+    }
+
+    /// The free DOFs of `dofs` over `ranks` ranks, rank r owning the nodes with `part[i] == r`
+    /// (the SLEPc solver takes them from METIS k-way on the node graph).
+    pub fn from_parts(dofs: &Dofs, part: &[u32], ranks: usize) -> Numbering {
+        let n = dofs.free_count();
         // Nodes by part (counting sort; ascending within a part).
         let mut start = vec![0usize; ranks + 1];
-        for &p in &part {
+        for &p in part {
             start[p as usize + 1] += 1;
         }
         for r in 0..ranks {
@@ -233,7 +235,13 @@ mod tests {
         let (whole, whole_moments) =
             assemble_counting(&mesh, material.0, material.1, material.2, &dofs, mesh.tet_count()).unwrap();
         for ranks in [1usize, 2, 3, 4] {
-            let numbering = Numbering::new(&mesh, &dofs, ranks);
+            // Slabs along x: compact regions, as METIS would give.
+            let part: Vec<u32> = mesh
+                .nodes
+                .iter()
+                .map(|p| ((p[0] / 0.8 * ranks as f64) as usize).min(ranks - 1) as u32)
+                .collect();
+            let numbering = Numbering::from_parts(&dofs, &part, ranks);
             let mut seen = numbering.old_of_new.clone();
             seen.sort_unstable();
             assert!(seen.iter().enumerate().all(|(i, &o)| i == o as usize), "a permutation");

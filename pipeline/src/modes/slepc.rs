@@ -2,9 +2,10 @@
 //! GAMG), over every MPI rank (`ves precompute --solver slepc`, alone or under `mpirun -n N`).
 //!
 //! Under MPI rank 0 runs the pipeline (meshing, checks of the scene, writing) and the other
-//! ranks only [`serve`] its eigen-solves. For each space rank 0 partitions the mesh by rows of
-//! K and M (contiguous ranges of the free DOFs) and sends every rank its [`Share`] of the mesh:
-//! the elements touching its rows. Each rank, rank 0 included, assembles only its rows; all
+//! ranks only [`serve`] its eigen-solves. For each space rank 0 splits the part into one compact
+//! region per rank (METIS), numbers the free DOFs rank by rank so that each rank's rows are its
+//! region's DOFs ([`crate::fem::share::Numbering`]), and sends every rank its share of the
+//! mesh: the elements touching its rows. Each rank, rank 0 included, assembles only its rows; all
 //! factor, iterate and check the modes together (residuals and M-inner products are computed on
 //! each rank's rows); only the eigenvectors come back, to rank 0. So rank 0 never holds the whole
 //! K and M (unless a later stage needs them: the error estimate, static correction, VOI
@@ -295,7 +296,12 @@ fn assemble(
 ) -> Result<(ves_ffi::slepc::Operators, super::Scales, Moments, Numbering), ModesError> {
     use crate::fem::share::{Share, partition};
     let (n, size) = (dofs.free_count(), token.size());
-    let numbering = Numbering::new(mesh, dofs, size);
+    let numbering = if size > 1 {
+        let graph = crate::fem::assembly::node_graph(mesh);
+        Numbering::from_parts(dofs, &crate::linsolve::node_parts(&graph, dofs, size), size)
+    } else {
+        Numbering::single(dofs)
+    };
     let mut parts = partition(mesh, &numbering);
     let frame = (method == ves_ffi::slepc::Method::Iterative).then(|| crate::rigid_motions::frame(&mesh.nodes));
     let (c, l) = frame.unwrap_or(([0.0; 3], 0.0));
@@ -373,11 +379,11 @@ fn build(
     let ops = token.operators(n, rows)?;
     // The share's assembly and the rows are freed now, but malloc keeps their pages (measured
     // on the 556k mould: 0.3–0.5 GB per rank): given back before MUMPS takes its own.
-    crate::precompute::release_free_memory();
+    crate::memory::release_free_memory();
     tracing::debug!(
         rank = token.rank(),
         rows = hi - lo,
-        rss_gb = crate::precompute::rss_bytes() as f64 / 1e9,
+        rss_gb = crate::memory::rss_bytes() as f64 / 1e9,
         "operators assembled"
     );
     Ok((ops, scales, moments))
