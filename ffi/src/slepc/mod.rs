@@ -2,8 +2,10 @@
 //! generalized symmetric eigen-solve K x = λ M x in shift-invert around a target with a parallel
 //! direct factorisation (MUMPS Cholesky), over every rank of `PETSC_COMM_WORLD`.
 //!
-//! Each rank inserts the rows it owns (handed to it as [`LocalRows`], which rank 0 can send with
-//! [`Slepc::send`]) into distributed AIJ matrices; the eigenvectors are gathered to rank 0 only. Every PETSc error code becomes a [`PetscError`] carrying PETSc's own
+//! Each rank inserts the rows it owns ([`LocalRows`], which it builds from its own part of the
+//! problem) into distributed AIJ matrices ([`Operators`]); the modes are checked on every rank
+//! (residuals, M-inner products) and the eigenvectors gathered to rank 0 only. Every PETSc error
+//! code becomes a [`PetscError`] carrying PETSc's own
 //! message (its printing error handler is replaced by the silent one). Options can still be
 //! overridden from the environment (`PETSC_OPTIONS="-eps_ncv 80 -st_pc_factor_mat_solver_type
 //! superlu_dist"`), since the solver calls `EPSSetFromOptions`.
@@ -202,9 +204,8 @@ impl Slepc {
     }
 
     /// K and M over every rank, of which this rank holds the rows `rows` (a contiguous range of
-    /// an order-`n` problem, the ranks' ranges in rank order: [`ownership`] or any other split;
-    /// freed once PETSc has copied them), with K's near-null
-    /// space when the rows carry one. Collective: every rank calls it with its own rows.
+    /// an order-`n` problem, the ranks' ranges adjacent in rank order, of any sizes; freed once
+    /// PETSc has copied them), with K's near-null space when the rows carry one. Collective: every rank calls it with its own rows.
     pub fn operators(&self, n: usize, rows: LocalRows) -> Result<Operators, PetscError> {
         let size_err = |what: String| PetscError {
             call: "operators",
@@ -564,14 +565,6 @@ impl Reducible for f64 {
     fn datatype() -> *const std::os::raw::c_void {
         (&raw const ompi_mpi_double).cast()
     }
-}
-
-/// The rows `lo..hi` of an order-`n` matrix that rank `rank` of `size` owns: PETSc's default
-/// split (the first `n % size` ranks get one row more).
-pub fn ownership(n: usize, size: usize, rank: usize) -> (usize, usize) {
-    let size = size.max(1);
-    let lo = rank * (n / size) + rank.min(n % size);
-    (lo, lo + n / size + usize::from(rank < n % size))
 }
 
 /// One rank's rows `lo..hi` of the full (both triangles) symmetric K and M, as CSR with global
