@@ -144,12 +144,18 @@ pub fn solve_space(scene: &Scene, voi: Option<&Voi>, choice: SolverChoice) -> Re
                 .mesh
                 .error_estimate
                 .then(|| crate::accuracy::Prefetch::start(scene, voi, None));
-            let (d, modes, ordering_s) = if choice.is_slepc() && !needs_whole_system(scene) {
-                // K and M are assembled on the ranks, each its rows, and stay there.
+            let (d, modes, ordering_s) = if choice.is_slepc() {
+                // K and M are assembled on the ranks, each its rows, and stay there; rank 0
+                // assembles them whole only after the solve, and only for a stage that needs them.
                 let mut d = crate::problem::discretize_unassembled(scene, voi, None, false)?;
                 let s = modes::slepc::solve(&d.mesh, &d.dofs, d.material, d.rigid, scene.modes.count, choice)?;
                 d.system.mass = s.moments.properties();
                 d.assemble_s += s.assemble_s;
+                if needs_whole_system(scene) {
+                    crate::memory::release_free_memory();
+                    d.assemble_system()
+                        .with_context(|| scene.geometry.display().to_string())?;
+                }
                 (d, s.modes, 0.0)
             } else {
                 let d = discretize(scene, voi)?;
@@ -248,7 +254,8 @@ pub fn solve_space(scene: &Scene, voi: Option<&Voi>, choice: SolverChoice) -> Re
 /// Whether a stage after the eigen-solve needs the whole K and M of a space on this process: the
 /// error estimate (it pairs modes in the M-inner product), static correction (it factors K) and
 /// the transfers between VOI spaces (M-projections). Without them SLEPc leaves K and M on the
-/// ranks that assembled them, and rank 0 never holds them whole.
+/// ranks that assembled them, and rank 0 never holds them whole; with them rank 0 assembles them
+/// after the solve.
 pub fn needs_whole_system(scene: &Scene) -> bool {
     scene.mesh.error_estimate || scene.static_correction.is_some() || !scene.voi.is_empty()
 }

@@ -42,11 +42,8 @@ pub fn discretize_with(
     quiet: bool,
 ) -> Result<Discretized> {
     let mut d = discretize_unassembled(scene, voi, field, quiet)?;
-    let t = Instant::now();
-    let (young, poisson, density) = d.material;
-    d.system = fem::assemble(&d.mesh, young, poisson, density, &d.dofs)
+    d.assemble_system()
         .with_context(|| scene.geometry.display().to_string())?;
-    d.assemble_s += t.elapsed().as_secs_f64();
     Ok(d)
 }
 
@@ -97,6 +94,15 @@ pub fn discretize_unassembled(
 }
 
 impl Discretized {
+    /// Assembles `system` (K, M and the mass) on this process; its seconds join `assemble_s`.
+    pub fn assemble_system(&mut self) -> Result<(), fem::assembly::AssemblyError> {
+        let t = Instant::now();
+        let (young, poisson, density) = self.material;
+        self.system = fem::assemble(&self.mesh, young, poisson, density, &self.dofs)?;
+        self.assemble_s += t.elapsed().as_secs_f64();
+        Ok(())
+    }
+
     /// Assembles K and M on a given mesh and DOF numbering (E, ν, ρ); stage times left at zero.
     pub fn assemble(mesh: Mesh, dofs: Dofs, material: (f64, f64, f64)) -> Result<Discretized> {
         let (young, poisson, density) = material;
