@@ -144,6 +144,8 @@ pub fn write_file(path: &Path, data: &FileData<'_>) -> Result<(), WriteError> {
             ..e
         })?;
     }
+    // Errors of writes HDF5 deferred (metadata, cached raw data) surface here, not in a drop.
+    file.flush().ctx("flushing the file")?;
     file.close().ctx("closing the file")
 }
 

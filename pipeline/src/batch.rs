@@ -170,6 +170,9 @@ fn one(path: &Path, opts: &BatchOptions, claimed: &Mutex<Vec<(PathBuf, String)>>
         crate::output::remove_stale_temps(&out);
         let hash = store::source_hash(&scene)?;
         if out.is_file() && store::stored_source_hash(&out).as_deref() == Some(hash.as_str()) {
+            if store::repair_sidecar(&out)? {
+                tracing::warn!(output = %out.display(), "the XDMF sidecar did not match its basis; rewritten");
+            }
             return Ok(Status::UpToDate);
         }
         precompute::run(&scene, &out, opts.solver)?;

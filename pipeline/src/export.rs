@@ -40,5 +40,32 @@ fn write_to(out: &Path, d: &Discretized) -> Result<()> {
     file.new_attr::<u32>()
         .create("rigid_modes")?
         .write_scalar(&(d.rigid as u32))?;
+    // Errors of writes HDF5 deferred (metadata, cached raw data) surface here, not in a drop.
+    file.flush().context("flushing the file")?;
+    file.close().context("closing the file")?;
+    // Read back in full: a write the disk could not hold, whatever layer swallowed its error,
+    // is found before the rename.
+    let back = hdf5::File::open(out).context("reading the written file back")?;
+    let count = |name: &str| -> Result<usize> {
+        let ds = back.dataset(name)?;
+        Ok(match name {
+            "k" | "m" | "nodes" => ds.read_raw::<f64>()?.len(),
+            "col_ptr" | "row_idx" => ds.read_raw::<u64>()?.len(),
+            _ => ds.read_raw::<u32>()?.len(),
+        })
+    };
+    let expected = [
+        ("col_ptr", p.col_ptr().len()),
+        ("row_idx", p.row_idx().len()),
+        ("k", d.system.k.len()),
+        ("m", d.system.m.len()),
+        ("free_dofs", d.dofs.free.len()),
+        ("nodes", 3 * n),
+        ("tets", d.mesh.tets.len()),
+    ];
+    for (name, len) in expected {
+        let got = count(name).with_context(|| format!("{name}: unreadable after writing"))?;
+        anyhow::ensure!(got == len, "{name}: {got} values read back, {len} written");
+    }
     Ok(())
 }

@@ -1,7 +1,9 @@
 //! Where results go: every output path is checked before any work (it must not be an input, a
 //! directory, a device or a symlink, and its directory must be writable), and every file is
-//! written under a temporary name, flushed to disk and renamed, so a killed run never leaves a
-//! half-written file under the final name and never touches what was there.
+//! written under a fresh temporary name (created exclusively, never through a planted link),
+//! flushed to disk and renamed, so a killed run or a full disk never leaves a half-written file
+//! under the final name and never touches what was there. Files that belong together (a basis
+//! and its XDMF sidecar) are all written and flushed before the first is renamed.
 
 use anyhow::{Context, Result, bail};
 use std::path::{Path, PathBuf};
@@ -65,46 +67,87 @@ pub fn check(out: &Path, inputs: &[&Path], policy: Overwrite) -> Result<()> {
         }
     }
     // A read-only directory is found now, not after the whole computation.
-    let probe = temp_name(out, "probe");
-    std::fs::File::create(&probe).with_context(|| {
+    temporary_beside(out).with_context(|| {
         format!(
             "{}: cannot write in {}; choose another -o",
             out.display(),
             dir.display()
         )
     })?;
-    let _ = std::fs::remove_file(&probe);
     remove_stale_temps(out);
     Ok(())
 }
 
-/// `out` with `.tmp-<tag>-<pid>` appended, in the same directory (so the rename is atomic).
-fn temp_name(out: &Path, tag: &str) -> PathBuf {
-    let mut name = out.file_name().map(|n| n.to_os_string()).unwrap_or_default();
-    name.push(format!(".tmp-{tag}-{}", std::process::id()));
-    out.with_file_name(name)
+/// A new empty file beside `out` (same directory, so the rename is atomic), named
+/// `<out name>.tmp-<pid>.<random>` and created exclusively (`O_EXCL`: a planted file or link of
+/// that name is never opened). Removed when dropped unless persisted.
+fn temporary_beside(out: &Path) -> Result<tempfile::NamedTempFile> {
+    let name = out
+        .file_name()
+        .map(|n| n.to_string_lossy().into_owned())
+        .unwrap_or_default();
+    Ok(tempfile::Builder::new()
+        .prefix(&format!("{name}.tmp-{}.", std::process::id()))
+        .rand_bytes(8)
+        .tempfile_in(directory_of(out))?)
 }
 
-/// Writes a file through `write` (given a temporary path beside `out`), flushes it to disk and
-/// renames it to `out`. On failure nothing is left and whatever was at `out` is untouched.
-pub fn write_atomically(out: &Path, write: impl FnOnce(&Path) -> Result<()>) -> Result<()> {
-    let tmp = temp_name(out, "w");
-    let result = write(&tmp).and_then(|()| {
-        // The data reaches the disk before the name does: a crash leaves the old file or the
-        // new one, never an empty one.
-        std::fs::File::open(&tmp)
-            .and_then(|f| f.sync_all())
-            .with_context(|| format!("cannot flush {}", tmp.display()))?;
-        std::fs::rename(&tmp, out).with_context(|| format!("cannot move {} to {}", tmp.display(), out.display()))?;
-        if let Ok(d) = std::fs::File::open(directory_of(out)) {
-            let _ = d.sync_all();
+/// Files written together: each is written and flushed to disk under a temporary name by
+/// [`Staging::stage`]; [`Staging::commit`] then renames them all, in the order staged. A failure
+/// before the commit (a full disk, an error of the writer, a kill) leaves every final name as it
+/// was. Dropping an uncommitted staging removes its temporaries.
+#[derive(Default)]
+pub struct Staging {
+    files: Vec<(tempfile::NamedTempFile, PathBuf)>,
+}
+
+impl Staging {
+    /// Writes one file through `write` (given the temporary path; it may reopen and truncate it,
+    /// as HDF5 does) and flushes it to disk.
+    pub fn stage(&mut self, out: &Path, write: impl FnOnce(&Path) -> Result<()>) -> Result<()> {
+        let tmp = temporary_beside(out)
+            .with_context(|| format!("{}: cannot create a temporary file beside it", out.display()))?;
+        write(tmp.path())
+            .and_then(|()| {
+                // The data reaches the disk before the name does: a crash leaves the old file or
+                // the new one, never an empty one. A write the file system could not keep (a full
+                // disk with delayed allocation) fails here.
+                std::fs::File::open(tmp.path())
+                    .and_then(|f| f.sync_all())
+                    .with_context(|| format!("cannot flush {}", tmp.path().display()))
+            })
+            .with_context(|| format!("{}: nothing was written", out.display()))?;
+        self.files.push((tmp, out.to_path_buf()));
+        Ok(())
+    }
+
+    /// Renames every staged file to its final name, then flushes the directories.
+    pub fn commit(self) -> Result<()> {
+        let mut dirs: Vec<PathBuf> = Vec::new();
+        for (tmp, out) in self.files {
+            tmp.persist(&out)
+                .map_err(|e| e.error)
+                .with_context(|| format!("{}: cannot move the finished file to its name", out.display()))?;
+            let d = directory_of(&out).to_path_buf();
+            if !dirs.contains(&d) {
+                dirs.push(d);
+            }
+        }
+        for d in dirs {
+            if let Ok(d) = std::fs::File::open(d) {
+                let _ = d.sync_all();
+            }
         }
         Ok(())
-    });
-    if result.is_err() {
-        let _ = std::fs::remove_file(&tmp);
     }
-    result.with_context(|| format!("{}: nothing was written", out.display()))
+}
+
+/// Writes one file through `write` (given a temporary path beside `out`), flushes it to disk and
+/// renames it to `out`. On failure nothing is left and whatever was at `out` is untouched.
+pub fn write_atomically(out: &Path, write: impl FnOnce(&Path) -> Result<()>) -> Result<()> {
+    let mut staging = Staging::default();
+    staging.stage(out, write)?;
+    staging.commit()
 }
 
 /// Removes temporary files a killed run left beside `out` (their process is gone).
@@ -121,9 +164,12 @@ pub fn remove_stale_temps(out: &Path) {
         let Some(rest) = file.strip_prefix(&prefix) else {
             continue;
         };
-        // `<tag>-<pid>`, or `<pid>` alone from earlier versions.
-        let pid = rest.rsplit('-').next().and_then(|p| p.parse::<u32>().ok());
+        // `<pid>.<random>`, or `<tag>-<pid>` and `<pid>` from earlier versions.
+        let stem = rest.split('.').next().unwrap_or(rest);
+        let pid = stem.rsplit('-').next().and_then(|p| p.parse::<u32>().ok());
+        let is_file = e.file_type().is_ok_and(|t| t.is_file() || t.is_symlink());
         if let Some(pid) = pid
+            && is_file
             && !Path::new(&format!("/proc/{pid}")).exists()
         {
             tracing::info!(file, "removing a temporary file left by a killed run");
@@ -158,6 +204,8 @@ mod tests {
         assert!(check(Path::new("/dev/null"), &[], Overwrite { force: true }).is_err());
         assert!(check(dir.path(), &[], none).is_err());
         check(&dir.path().join("new.h5"), &[&scene], none).expect("a new file is fine");
+        // The writability probe left nothing behind.
+        assert_eq!(std::fs::read_dir(dir.path()).expect("dir").count(), 2);
     }
 
     #[test]
@@ -177,17 +225,64 @@ mod tests {
     }
 
     #[test]
+    fn a_pair_is_replaced_together_or_not_at_all() {
+        let dir = tempfile::tempdir().expect("tempdir");
+        let (a, b) = (dir.path().join("b.h5"), dir.path().join("b.xdmf"));
+        std::fs::write(&a, "old a").expect("write");
+        std::fs::write(&b, "old b").expect("write");
+        // The second file fails after the first was written in full: neither is replaced.
+        let mut s = Staging::default();
+        s.stage(&a, |t| Ok(std::fs::write(t, "new a")?)).expect("stage a");
+        assert!(s.stage(&b, |_| bail!("disk full")).is_err());
+        drop(s);
+        assert_eq!(std::fs::read_to_string(&a).expect("read"), "old a");
+        assert_eq!(std::fs::read_to_string(&b).expect("read"), "old b");
+        assert_eq!(
+            std::fs::read_dir(dir.path()).expect("dir").count(),
+            2,
+            "temporaries left"
+        );
+        let mut s = Staging::default();
+        s.stage(&a, |t| Ok(std::fs::write(t, "new a")?)).expect("stage a");
+        s.stage(&b, |t| Ok(std::fs::write(t, "new b")?)).expect("stage b");
+        // Nothing is visible before the commit.
+        assert_eq!(std::fs::read_to_string(&a).expect("read"), "old a");
+        s.commit().expect("commit");
+        assert_eq!(std::fs::read_to_string(&a).expect("read"), "new a");
+        assert_eq!(std::fs::read_to_string(&b).expect("read"), "new b");
+        assert_eq!(std::fs::read_dir(dir.path()).expect("dir").count(), 2);
+    }
+
+    #[test]
+    fn temporaries_never_open_a_planted_link() {
+        let dir = tempfile::tempdir().expect("tempdir");
+        let victim = dir.path().join("victim");
+        std::fs::write(&victim, "precious").expect("write");
+        let out = dir.path().join("out.h5");
+        // Every name an older version would have used for this process's temporaries.
+        for tag in ["w", "probe"] {
+            let planted = dir.path().join(format!("out.h5.tmp-{tag}-{}", std::process::id()));
+            std::os::unix::fs::symlink(&victim, planted).expect("symlink");
+        }
+        check(&out, &[], Overwrite::default()).expect("check");
+        write_atomically(&out, |tmp| Ok(std::fs::write(tmp, "new")?)).expect("write");
+        assert_eq!(std::fs::read_to_string(&victim).expect("read"), "precious");
+        assert_eq!(std::fs::read_to_string(&out).expect("read"), "new");
+    }
+
+    #[test]
     fn stale_temporaries_of_dead_processes_are_removed() {
         let dir = tempfile::tempdir().expect("tempdir");
         let out = dir.path().join("out.h5");
         // pid_max on Linux is at most 2^22: this process cannot exist.
-        let dead = dir.path().join("out.h5.tmp-w-4999999");
-        let old_style = dir.path().join("out.h5.tmp-4999998");
-        let alive = dir.path().join(format!("out.h5.tmp-w-{}", std::process::id()));
-        for f in [&dead, &old_style, &alive] {
+        let dead = dir.path().join("out.h5.tmp-4999997.Ab3dEf9h");
+        let old_style = dir.path().join("out.h5.tmp-w-4999999");
+        let older_style = dir.path().join("out.h5.tmp-4999998");
+        let alive = dir.path().join(format!("out.h5.tmp-{}.Zz9yXx8w", std::process::id()));
+        for f in [&dead, &old_style, &older_style, &alive] {
             std::fs::write(f, "x").expect("write");
         }
         remove_stale_temps(&out);
-        assert!(!dead.exists() && !old_style.exists() && alive.exists());
+        assert!(!dead.exists() && !old_style.exists() && !older_style.exists() && alive.exists());
     }
 }

@@ -86,8 +86,10 @@ impl Space<'_> {
     }
 }
 
-/// Writes all spaces of a scene to `out` atomically (temporary file, flushed, then renamed).
-/// The caller checked `out` first ([`crate::output::check`]).
+/// Writes all spaces of a scene to `out` and its XDMF sidecar beside it, together: both are
+/// written in full under temporary names, flushed and checked before either is renamed, so a
+/// failure (a full disk, a kill) leaves the old pair as it was. The caller checked both paths
+/// first ([`crate::output::check`]).
 pub fn write(out: &Path, scene: &Scene, spaces: &[Space<'_>]) -> Result<()> {
     let bases: Vec<Vec<f64>> = spaces.iter().map(Space::full_basis).collect();
     let generator = format!("ves {}", env!("CARGO_PKG_VERSION"));
@@ -107,9 +109,26 @@ pub fn write(out: &Path, scene: &Scene, spaces: &[Space<'_>]) -> Result<()> {
         },
         spaces: spaces.iter().zip(&bases).map(|(s, b)| s.write(b)).collect(),
     };
-    crate::output::write_atomically(out, |tmp| Ok(ves_format::write_file(tmp, &data)?))
+    let mut staging = crate::output::Staging::default();
+    let mut sidecar_text = String::new();
+    staging
+        .stage(out, |tmp| {
+            ves_format::write_file(tmp, &data)?;
+            // What was written is read back through the guarded reader: a write the disk
+            // could not hold, whatever layer swallowed its error, is found before the rename.
+            let reader = ves_format::BasisReader::open(tmp)?;
+            for name in reader.space_names()? {
+                reader.space(&name)?.validate()?;
+            }
+            sidecar_text = sidecar_of(&reader, out)?;
+            Ok(())
+        })
         .context("writing the basis failed")?;
-    write_sidecar(out, spaces)
+    let sidecar = sidecar_path(out);
+    staging
+        .stage(&sidecar, |tmp| Ok(std::fs::write(tmp, sidecar_text.as_bytes())?))
+        .with_context(|| format!("{}: writing the XDMF sidecar failed", sidecar.display()))?;
+    staging.commit()
 }
 
 /// The XDMF file ParaView opens beside a basis `B.h5`: `B.xdmf`.
@@ -117,30 +136,59 @@ pub fn sidecar_path(out: &Path) -> std::path::PathBuf {
     out.with_extension("xdmf")
 }
 
-/// Writes the XDMF sidecar of the basis just written at `out` (it points into the basis).
-fn write_sidecar(out: &Path, spaces: &[Space<'_>]) -> Result<()> {
-    let frequencies: Vec<Vec<f64>> = spaces.iter().map(|s| s.modes.frequencies_hz()).collect();
+/// Rewrites the XDMF sidecar of the basis at `out` when it is missing or does not describe the
+/// file (a run stopped between the two renames leaves the new basis beside the old sidecar).
+/// Returns whether it was rewritten.
+pub fn repair_sidecar(out: &Path) -> Result<bool> {
+    let text = sidecar_of(&ves_format::BasisReader::open(out)?, out)?;
+    let path = sidecar_path(out);
+    if std::fs::read(&path).is_ok_and(|b| b == text.as_bytes()) {
+        return Ok(false);
+    }
+    crate::output::check(&path, &[out], crate::output::Overwrite::default())?;
+    crate::output::write_atomically(&path, |tmp| Ok(std::fs::write(tmp, text.as_bytes())?))?;
+    Ok(true)
+}
+
+/// The XDMF sidecar's text for the basis `reader` reads, which will be found at `out` (the
+/// sidecar points into it by file name).
+fn sidecar_of(reader: &ves_format::BasisReader, out: &Path) -> Result<String> {
+    let mut spaces = Vec::new();
+    for name in reader.space_names()? {
+        let s = reader.space(&name)?;
+        let frequencies = s.frequencies_hz()?;
+        let stress = s.stress_rows(0..0, 0)?.is_some();
+        spaces.push((
+            name,
+            s.node_count,
+            s.vertex_count,
+            s.tet_count,
+            s.element_order,
+            frequencies,
+            stress,
+        ));
+    }
     let views: Vec<ves_format::xdmf::XdmfSpace<'_>> = spaces
         .iter()
-        .zip(&frequencies)
-        .map(|(s, f)| ves_format::xdmf::XdmfSpace {
-            name: s.name,
-            nodes: s.mesh.nodes.len(),
-            vertices: s.mesh.vertex_count,
-            tets: s.mesh.tet_count(),
-            order: s.mesh.order,
-            frequencies_hz: f,
-            stress: s.stress.is_some(),
-        })
+        .map(
+            |(name, nodes, vertices, tets, order, f, stress)| ves_format::xdmf::XdmfSpace {
+                name,
+                nodes: *nodes,
+                vertices: *vertices,
+                tets: *tets,
+                order: *order,
+                frequencies_hz: f,
+                stress: *stress,
+            },
+        )
         .collect();
-    let name = out
-        .file_name()
+    Ok(ves_format::xdmf::sidecar(&file_name(out), &views))
+}
+
+fn file_name(out: &Path) -> String {
+    out.file_name()
         .map(|n| n.to_string_lossy().into_owned())
-        .unwrap_or_default();
-    let text = ves_format::xdmf::sidecar(&name, &views);
-    let path = sidecar_path(out);
-    crate::output::write_atomically(&path, |tmp| Ok(std::fs::write(tmp, text.as_bytes())?))
-        .with_context(|| format!("{}: writing the XDMF sidecar failed", path.display()))
+        .unwrap_or_default()
 }
 
 /// A content hash of what a basis depends on: the tool version, the scene text, the effective

@@ -1,0 +1,120 @@
+//! Faults while writing results: a full disk (a file-size limit, which fails writes exactly as
+//! ENOSPC does, at any chosen byte) must give a non-zero exit with one clear line, and leave the
+//! old basis and its XDMF sidecar as they were, with no temporary left beside them.
+
+mod common;
+
+use common::*;
+use std::os::unix::process::CommandExt;
+use std::path::Path;
+use std::process::{Command, Output};
+
+/// `ves args…` with writes limited to files of `limit` bytes (SIGXFSZ ignored, so a write past
+/// the limit fails with EFBIG instead of killing the process), the mesh cache in `cache`.
+fn ves_limited(args: &[&str], limit: u64, cache: &Path) -> Output {
+    let mut c = Command::new(env!("CARGO_BIN_EXE_ves"));
+    c.args(args).env("VES_CACHE_DIR", cache);
+    // SAFETY: only async-signal-safe calls between fork and exec.
+    unsafe {
+        c.pre_exec(move || {
+            libc::signal(libc::SIGXFSZ, libc::SIG_IGN);
+            let r = libc::rlimit {
+                rlim_cur: limit,
+                rlim_max: limit,
+            };
+            if libc::setrlimit(libc::RLIMIT_FSIZE, &r) != 0 {
+                return Err(std::io::Error::last_os_error());
+            }
+            Ok(())
+        });
+    }
+    c.output().expect("ves runs")
+}
+
+fn run(args: &[&str], cache: &Path) -> Output {
+    ves_limited(args, libc::RLIM_INFINITY, cache)
+}
+
+fn names_in(dir: &Path) -> Vec<String> {
+    let mut v: Vec<String> = std::fs::read_dir(dir)
+        .expect("dir")
+        .filter_map(|e| e.ok())
+        .map(|e| e.file_name().to_string_lossy().into_owned())
+        .collect();
+    v.sort();
+    v
+}
+
+#[test]
+fn a_full_disk_leaves_the_old_basis_and_sidecar_and_fails() {
+    let (dir, scene) = workdir(GOOD);
+    let cache = dir.path().join("cache");
+    let out = dir.path().join("beam.h5");
+    let sidecar = dir.path().join("beam.xdmf");
+    let (s, o) = (scene.to_str().unwrap(), out.to_str().unwrap());
+    let first = run(&["precompute", s, "-o", o], &cache);
+    assert!(first.status.success(), "{}", String::from_utf8_lossy(&first.stderr));
+    let (old_basis, old_sidecar) = (
+        std::fs::read(&out).expect("basis"),
+        std::fs::read(&sidecar).expect("xdmf"),
+    );
+    let listing = names_in(dir.path());
+    // A different, larger result (six modes), the mesh from the cache: only the outputs are
+    // written, and each limit below the old file's size is below the new one's.
+    std::fs::write(&scene, GOOD.replace("count = 4", "count = 6")).expect("scene");
+    let size = old_basis.len() as u64;
+    for limit in [0, 4096, 12 << 10, size / 2, size - 512] {
+        let e = ves_limited(&["precompute", s, "-o", o], limit, &cache);
+        let err = String::from_utf8_lossy(&e.stderr);
+        assert!(!e.status.success(), "limit {limit} B: exit 0 ({err})");
+        let last = err.lines().rfind(|l| !l.trim().is_empty()).unwrap_or("");
+        assert!(
+            last.contains("beam.h5"),
+            "limit {limit} B: the error does not name the output: {err}"
+        );
+        assert_eq!(
+            std::fs::read(&out).expect("basis"),
+            old_basis,
+            "limit {limit} B: basis replaced"
+        );
+        assert_eq!(
+            std::fs::read(&sidecar).expect("xdmf"),
+            old_sidecar,
+            "limit {limit} B: sidecar replaced"
+        );
+        assert_eq!(names_in(dir.path()), listing, "limit {limit} B: files left behind");
+    }
+    // With room enough, the same run replaces both.
+    let e = ves_limited(&["precompute", s, "-o", o], size + (64 << 10), &cache);
+    assert!(e.status.success(), "{}", String::from_utf8_lossy(&e.stderr));
+    let info = run(&["info", o, "--json"], &cache);
+    assert!(info.status.success(), "{}", String::from_utf8_lossy(&info.stderr));
+    let v: serde_json::Value = serde_json::from_slice(&info.stdout).expect("info JSON");
+    assert_eq!(v["spaces"][0]["modes"], 6);
+    assert_ne!(
+        std::fs::read(&sidecar).expect("xdmf"),
+        old_sidecar,
+        "sidecar not replaced"
+    );
+}
+
+#[test]
+fn a_full_disk_during_matrices_fails_and_keeps_the_old_file() {
+    let (dir, scene) = workdir(GOOD);
+    let cache = dir.path().join("cache");
+    let out = dir.path().join("km.h5");
+    let (s, o) = (scene.to_str().unwrap(), out.to_str().unwrap());
+    let first = run(&["matrices", s, "-o", o], &cache);
+    assert!(first.status.success(), "{}", String::from_utf8_lossy(&first.stderr));
+    let old = std::fs::read(&out).expect("matrices");
+    std::fs::write(&scene, GOOD.replace("young = 2.1e11", "young = 7.0e10")).expect("scene");
+    for limit in [4096, old.len() as u64 / 2, old.len() as u64 - 256] {
+        let e = ves_limited(&["matrices", s, "-o", o], limit, &cache);
+        assert!(
+            !e.status.success(),
+            "limit {limit} B: exit 0 ({})",
+            String::from_utf8_lossy(&e.stderr)
+        );
+        assert_eq!(std::fs::read(&out).expect("matrices"), old, "limit {limit} B: replaced");
+    }
+}
