@@ -3,7 +3,9 @@
 Usage: python3 plot.py report.json OUTDIR  (writes error_vs_online.{png,svg}, error_vs_offline.{png,svg})
 """
 import json
+import os
 import sys
+import tempfile
 
 import matplotlib
 
@@ -90,5 +92,13 @@ for name, xlabel, x_plain, x_corr in axes_x:
         ax.legend(fontsize=7)
     fig.suptitle(f"{report['scene']}: error against {name} time (labels: number of modes)")
     for ext in ("png", "svg"):
-        fig.savefig(f"{out}/error_vs_{name}.{ext}", dpi=110)
+        # A new file of our own (never a planted link), renamed when complete.
+        fd, tmp = tempfile.mkstemp(dir=out, prefix=f".error_vs_{name}.", suffix=f".{ext}")
+        try:
+            with os.fdopen(fd, "wb") as f:
+                fig.savefig(f, format=ext, dpi=110)
+            os.replace(tmp, f"{out}/error_vs_{name}.{ext}")
+        except BaseException:
+            os.unlink(tmp)
+            raise
     plt.close(fig)

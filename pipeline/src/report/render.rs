@@ -10,17 +10,26 @@ const PLOT: &str = include_str!("plot.py");
 /// Writes every output of the report into `dir`.
 pub fn write_all(report: &Report, dir: &Path) -> Result<()> {
     let json = serde_json::to_string_pretty(report)?;
-    write_atomic(&dir.join("report.json"), &json)?;
-    write_atomic(&dir.join("report.md"), &markdown(report))?;
-    let script = dir.join(".plot.py");
-    std::fs::write(&script, PLOT)?;
-    let out = std::process::Command::new("python3")
-        .arg(&script)
+    write_text(&dir.join("report.json"), &json)?;
+    write_text(&dir.join("report.md"), &markdown(report))?;
+    // The plotting script goes to python3 on its standard input: no file of ours in `dir` that a
+    // planted link could redirect.
+    let mut child = std::process::Command::new("python3")
+        .arg("-")
         .arg(dir.join("report.json"))
         .arg(dir)
-        .output()
+        .stdin(std::process::Stdio::piped())
+        .stdout(std::process::Stdio::piped())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
         .context("cannot run python3 for the plots")?;
-    let _ = std::fs::remove_file(&script);
+    if let Some(mut stdin) = child.stdin.take() {
+        use std::io::Write as _;
+        stdin
+            .write_all(PLOT.as_bytes())
+            .context("cannot send the plotting script to python3")?;
+    }
+    let out = child.wait_with_output().context("python3 for the plots")?;
     if !out.status.success() {
         let err = String::from_utf8_lossy(&out.stderr);
         bail!("plotting failed: {}", err.lines().last().unwrap_or("no message"));
@@ -28,12 +37,9 @@ pub fn write_all(report: &Report, dir: &Path) -> Result<()> {
     Ok(())
 }
 
-/// A reader never sees a half-written file: temporary name, then rename.
-fn write_atomic(path: &Path, text: &str) -> Result<()> {
-    let tmp = path.with_extension("tmp");
-    std::fs::write(&tmp, text).with_context(|| format!("cannot write {}", tmp.display()))?;
-    std::fs::rename(&tmp, path).with_context(|| format!("cannot write {}", path.display()))?;
-    Ok(())
+/// A reader never sees a half-written file (the one atomic writer of every output).
+fn write_text(path: &Path, text: &str) -> Result<()> {
+    crate::output::write_atomically(path, |tmp| Ok(std::fs::write(tmp, text)?))
 }
 
 fn pct(v: f64) -> String {
