@@ -150,3 +150,36 @@ fn readme_layout_names_every_folder() {
     }
     assert!(missing.is_empty(), "README.md's layout table does not name {missing:?}");
 }
+
+/// C declarations (`extern "C" { … }` blocks) and calls into `-sys` crates of C libraries
+/// belong in `ffi/`, apart from the rest; exported C functions (`extern "C" fn`) are the C ABI's.
+#[test]
+fn c_declarations_live_only_in_ffi() {
+    let root = workspace();
+    let mut offenders = Vec::new();
+    for krate in ["format", "pipeline", "runtime", "tests"] {
+        let mut files = Vec::new();
+        rust_files(&root.join(krate), &mut files);
+        for f in files
+            .iter()
+            .filter(|f| !f.components().any(|c| c.as_os_str() == "target"))
+        {
+            let text = std::fs::read_to_string(f).expect("source");
+            for (i, line) in text.lines().enumerate() {
+                let code = line.split("//").next().unwrap_or("");
+                let declares = code.contains("extern \"C\" {") || code.contains("extern \"C\"{");
+                let sys_crate = code
+                    .split(|c: char| !(c.is_alphanumeric() || c == '_' || c == ':'))
+                    .any(|w| w.contains(concat!("_sys", "::")) && !w.starts_with("libfuzzer_sys"));
+                if declares || sys_crate {
+                    offenders.push(format!("{}:{}: {}", f.display(), i + 1, line.trim()));
+                }
+            }
+        }
+    }
+    assert!(
+        offenders.is_empty(),
+        "C declarations outside ffi/:\n{}",
+        offenders.join("\n")
+    );
+}

@@ -142,19 +142,6 @@ fn adjacency(graph: &NodeGraph) -> (Vec<i32>, Vec<i32>) {
     (xadj, adj)
 }
 
-/// METIS draws random numbers from process-wide state: one call at a time, with a fixed seed,
-/// so orderings and partitions (and the round-off of everything after them) are reproducible.
-static METIS_LOCK: std::sync::Mutex<()> = std::sync::Mutex::new(());
-
-/// METIS options with the fixed seed.
-fn metis_options() -> [metis_sys::idx_t; metis_sys::METIS_NOPTIONS as usize] {
-    let mut options = [0 as metis_sys::idx_t; metis_sys::METIS_NOPTIONS as usize];
-    // SAFETY: options has METIS_NOPTIONS entries.
-    unsafe { metis_sys::METIS_SetDefaultOptions(options.as_mut_ptr()) };
-    options[metis_sys::moptions_et_METIS_OPTION_SEED as usize] = 7;
-    options
-}
-
 /// The nodes split into `parts` compact pieces of about equal free DOFs (METIS k-way on the
 /// node graph, each node weighted by its free DOFs): the part of each node. For MPI ranks,
 /// whose rows of K and M are then the DOFs of one region of the part, not a stripe of the
@@ -164,78 +151,43 @@ pub fn node_parts(graph: &NodeGraph, dofs: &Dofs, parts: usize) -> Vec<u32> {
     if parts <= 1 || n <= parts {
         return (0..n).map(|i| (i * parts.max(1) / n.max(1)) as u32).collect();
     }
-    let (mut xadj, mut adj) = adjacency(graph);
+    let (xadj, adj) = adjacency(graph);
     // Fully supported nodes weigh 1, not 0 (METIS needs positive weights; the imbalance is
     // negligible).
-    let mut weight: Vec<i32> = (0..n)
+    let weight: Vec<i32> = (0..n)
         .map(|i| (0..3).filter(|&c| dofs.free_of[3 * i + c] != u32::MAX).count().max(1) as i32)
         .collect();
-    let _serial = METIS_LOCK.lock().unwrap_or_else(|p| p.into_inner());
-    let mut options = metis_options();
-    let (mut nv, mut ncon, mut np, mut cut) = (n as i32, 1i32, parts as i32, 0i32);
-    let mut part = vec![0i32; n];
-    // SAFETY: CSR arrays of a valid symmetric graph of nv vertices, nv weights; `part` has
-    // length nv; null arrays are METIS's defaults.
-    let status = unsafe {
-        metis_sys::METIS_PartGraphKway(
-            &mut nv,
-            &mut ncon,
-            xadj.as_mut_ptr(),
-            adj.as_mut_ptr(),
-            weight.as_mut_ptr(),
-            std::ptr::null_mut(),
-            std::ptr::null_mut(),
-            &mut np,
-            std::ptr::null_mut(),
-            std::ptr::null_mut(),
-            options.as_mut_ptr(),
-            &mut cut,
-            part.as_mut_ptr(),
-        )
+    let graph = ves_ffi::metis::Graph {
+        offsets: &xadj,
+        adjacency: &adj,
     };
-    if status == metis_sys::rstatus_et_METIS_OK {
-        part.into_iter().map(|p| p as u32).collect()
-    } else {
-        // Stripes of the numbering: correct, only less local.
-        (0..n).map(|i| (i * parts / n) as u32).collect()
-    }
+    // On failure, stripes of the numbering: correct, only less local.
+    ves_ffi::metis::partition(&graph, &weight, parts)
+        .unwrap_or_else(|| (0..n).map(|i| (i * parts / n) as u32).collect())
 }
 
 /// Fill-reducing ordering of the free DOFs: METIS nested dissection of the node graph,
 /// each node's free DOFs kept together. Returns (new→old, old→new).
 pub fn nested_dissection(graph: &NodeGraph, dofs: &Dofs) -> (Vec<usize>, Vec<usize>) {
     let n = graph.col_ptr.len() - 1;
-    let (mut xadj, mut adj) = adjacency(graph);
+    let (xadj, adj) = adjacency(graph);
     let mut node_order: Vec<i32> = (0..n as i32).collect();
     let key = crate::mesh::ordering_key(&xadj, &adj);
     let cached = key.as_deref().and_then(|k| crate::mesh::ordering_lookup(k, n));
-    let _serial = METIS_LOCK.lock().unwrap_or_else(|p| p.into_inner());
     if let Some(order) = cached {
         node_order = order;
     } else if n > 1 && !adj.is_empty() {
-        let mut options = metis_options();
-        let mut nv = n as i32;
-        let mut perm = vec![0i32; n];
-        let mut iperm = vec![0i32; n];
-        // SAFETY: CSR arrays of a valid symmetric graph of nv vertices; outputs have length nv.
-        let status = unsafe {
-            metis_sys::METIS_NodeND(
-                &mut nv,
-                xadj.as_mut_ptr(),
-                adj.as_mut_ptr(),
-                std::ptr::null_mut(),
-                options.as_mut_ptr(),
-                perm.as_mut_ptr(),
-                iperm.as_mut_ptr(),
-            )
+        let graph = ves_ffi::metis::Graph {
+            offsets: &xadj,
+            adjacency: &adj,
         };
-        if status == metis_sys::rstatus_et_METIS_OK {
+        // On failure the natural order is kept: slower, never wrong.
+        if let Some(perm) = ves_ffi::metis::nested_dissection(&graph) {
             node_order = perm;
             if let Some(k) = &key {
                 crate::mesh::ordering_store(k, &node_order);
             }
         }
-        // On failure the natural order is kept: slower, never wrong.
     }
     let mut fwd = Vec::with_capacity(dofs.free_count());
     for &node in &node_order {
