@@ -1,4 +1,4 @@
-//! The VES modal-basis file, version 1 (HDF5; DESIGN.md §3), defined once: its names
+//! The VES modal-basis file, version 1 (HDF5; docs/format.md), defined once: its names
 //! ([`names`]), one guarded reader ([`read`]) and one writer ([`write`]), and the XDMF sidecar
 //! that shows a basis to ParaView ([`xdmf`]).
 //!

@@ -1,4 +1,4 @@
-//! Static correction (DESIGN.md §1, offline step 4): the exact static compliance blocks
+//! Static correction (`[static_correction]`, docs/scene.md): the exact static compliance blocks
 //! Gᵢᵢ = (K⁻¹)ᵢᵢ of the candidate contact vertices. The runtime adds (Gᵢᵢ − Φᵢ Λ⁻¹ Φᵢᵀ) F at the
 //! active vertex, so the felt stiffness is exact whatever the number of modes kept.
 

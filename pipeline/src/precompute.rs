@@ -303,7 +303,7 @@ fn warn_about_error(scene: &Scene, name: &str, mesh: &Mesh, size: f64, error: Op
     }
 }
 
-/// The `--json` summary (DESIGN.md §3).
+/// The `--json` summary (README, `--json`).
 #[derive(Debug, Serialize)]
 pub struct Summary {
     /// Output file.

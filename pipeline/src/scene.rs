@@ -1,4 +1,4 @@
-//! Scene file, version 1 (DESIGN.md §3): parsing and validation.
+//! Scene file, version 1 (docs/scene.md): parsing and validation.
 //!
 //! Parsing is strict: unknown keys are errors, and every error names the file, the key and what
 //! to change. A [`Scene`] that exists has passed validation, and its paths are absolute.

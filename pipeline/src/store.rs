@@ -1,4 +1,4 @@
-//! Modal basis file, version 1 (HDF5; DESIGN.md §3). Written under a temporary name and renamed
+//! Modal basis file, version 1 (HDF5; docs/format.md). Written under a temporary name and renamed
 //! when complete, so a killed run never leaves a half-written basis under the final name.
 
 use crate::fem::MassProperties;

@@ -1,4 +1,4 @@
-//! State transfer between modal spaces of one part (VOI switching, DESIGN.md §1): the matrix
+//! State transfer between modal spaces of one part (VOI switching; docs/format.md): the matrix
 //! T = Φ_bᵀ M_b I_{a→b} Φ_a maps modal coordinates of space a to those of space b, where I_{a→b}
 //! evaluates a's finite-element field (its own shape functions) at b's nodes. It is the
 //! M_b-orthogonal projection of a's displacement onto b's modes — the best b can represent in

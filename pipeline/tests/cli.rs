@@ -40,7 +40,7 @@ fn good_scene_writes_a_basis_and_json_summary() {
     for key in ["mesh", "assemble", "factorize", "eigensolve", "write", "total"] {
         assert!(v["timings_s"][key].as_f64().is_some(), "timing {key}");
     }
-    // DESIGN §3: peak resident memory, at least what the basis written occupies.
+    // The summary's peak resident memory: at least what the basis written occupies.
     let rss = v["peak_rss_bytes"].as_u64().expect("peak_rss_bytes");
     let file = std::fs::metadata(&out).expect("basis").len();
     assert!(rss > file && rss < 24 << 30, "peak RSS {rss} B for a {file}-byte basis");

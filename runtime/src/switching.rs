@@ -1,4 +1,4 @@
-//! Volume-of-interest switching (DESIGN.md §1): one simulation per modal space of a part, the
+//! Volume-of-interest switching (README, volumes of interest): one simulation per modal space of a part, the
 //! one whose VOI holds the haptic point(s) active. At a switch the new space takes over the
 //! state through the precomputed transfer matrix (q_new = T q_old, the mass-weighted
 //! projection), and for a short window both spaces run and the force sent to the device is

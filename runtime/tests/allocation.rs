@@ -1,4 +1,4 @@
-//! The haptic step allocates nothing (DESIGN.md: hot paths get buffers sized up front): counted
+//! The haptic step allocates nothing (hot paths get buffers sized up front): counted
 //! by a global allocator over many steps of grabbing, pressing and a free body, with the
 //! validity watch and its reactions on.
 

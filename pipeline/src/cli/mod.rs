@@ -148,7 +148,7 @@ fn set_rank(r: usize) {
     RANK.store(r, Ordering::Relaxed);
 }
 
-/// Prints `value` as one JSON line (the last line of stdout, DESIGN.md §3).
+/// Prints `value` as one JSON line (the last line of stdout, README `--json`).
 fn print_json<T: serde::Serialize>(value: &T) -> anyhow::Result<()> {
     println!("{}", serde_json::to_string(value)?);
     Ok(())

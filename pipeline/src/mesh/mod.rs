@@ -16,7 +16,7 @@ use ves_ffi::gmsh::{self, element_type};
 /// Vertex pairs of the mid-edge nodes 4..9 of a 10-node tet, in gmsh's node order.
 pub const TET10_EDGES: [(usize, usize); 6] = [(0, 1), (1, 2), (2, 0), (3, 0), (3, 2), (3, 1)];
 
-/// A tetrahedral mesh in the layout of the basis file (DESIGN.md §3).
+/// A tetrahedral mesh in the layout of the basis file (docs/format.md).
 #[derive(Clone, Debug)]
 pub struct Mesh {
     /// Node coordinates, metres: corner vertices first, then mid-edge nodes.
