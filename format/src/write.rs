@@ -80,8 +80,28 @@ impl<T, E: std::fmt::Display> Ctx<T> for Result<T, E> {
     fn ctx(self, what: &str) -> Result<T, WriteError> {
         self.map_err(|e| WriteError {
             what: what.to_string(),
-            message: e.to_string(),
+            message: one_line(&e.to_string()),
         })
+    }
+}
+
+/// HDF5's message on one line; of a failed system call, only what the system said (HDF5 adds
+/// the time, the buffer address and the byte counts).
+fn one_line(message: &str) -> String {
+    let flat = message.split_whitespace().collect::<Vec<_>>().join(" ");
+    match flat
+        .split_once("error message = '")
+        .and_then(|(_, rest)| rest.split_once('\''))
+    {
+        Some((system, _)) => {
+            let errno = flat
+                .split_once("errno = ")
+                .and_then(|(_, rest)| rest.split(',').next())
+                .map(|n| format!(" (errno {n})"))
+                .unwrap_or_default();
+            format!("{system}{errno}")
+        }
+        None => flat,
     }
 }
 
@@ -116,8 +136,10 @@ pub fn write_file(path: &Path, data: &FileData<'_>) -> Result<(), WriteError> {
     // The 1.8+ file format (v2 object headers, v3 superblock) checksums every piece of metadata:
     // a damaged header is refused by libhdf5 instead of parsed (the fuzzer found libhdf5 1.10
     // reading freed memory when parsing corrupted v1 headers).
+    // Strong close: closing the file closes everything in it and really closes it, so that its
+    // errors are ours and a reader opening the path next reads the disk, not this handle's cache.
     let file = hdf5::File::with_options()
-        .with_fapl(|p| p.libver_v18())
+        .with_fapl(|p| p.libver_v18().fclose_degree(hdf5::file::FileCloseDegree::Strong))
         .create(path)
         .ctx(&path.display().to_string())?;
     attr_str(&file, root::FORMAT, names::FORMAT)?;
@@ -145,8 +167,8 @@ pub fn write_file(path: &Path, data: &FileData<'_>) -> Result<(), WriteError> {
         })?;
     }
     // Errors of writes HDF5 deferred (metadata, cached raw data) surface here, not in a drop.
-    file.flush().ctx("flushing the file")?;
-    file.close().ctx("closing the file")
+    file.flush().ctx("the file's cached data")?;
+    file.close().ctx("the file's last data")
 }
 
 fn write_space(file: &hdf5::File, s: &SpaceData<'_>) -> Result<(), WriteError> {
@@ -252,4 +274,14 @@ fn vector<T: hdf5::H5Type + Clone>(g: &hdf5::Group, name: &str, v: &[T]) -> Resu
         .create(name)
         .map(drop)
         .ctx(name)
+}
+
+#[cfg(test)]
+mod tests {
+    #[test]
+    fn a_failed_system_write_is_told_in_a_few_words() {
+        let hdf5 = "H5Fflush(): unable to flush file's cached information: file write failed: time = Wed Nov 25 19:31:56 2026\n, filename = '/tmp/b.h5', file descriptor = 4, errno = 28, error message = 'No space left on device', buf = 0x55bf, total write size = 1395";
+        assert_eq!(super::one_line(hdf5), "No space left on device (errno 28)");
+        assert_eq!(super::one_line("bad\n  thing"), "bad thing");
+    }
 }

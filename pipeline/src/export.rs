@@ -13,7 +13,12 @@ pub fn write_matrices(out: &Path, d: &Discretized) -> Result<()> {
 }
 
 fn write_to(out: &Path, d: &Discretized) -> Result<()> {
-    let file = hdf5::File::create(out).with_context(|| format!("cannot create {}", out.display()))?;
+    // Strong close: closing really closes (errors are ours), and the read-back below reads the
+    // disk, not this handle's cache.
+    let file = hdf5::File::with_options()
+        .with_fapl(|p| p.fclose_degree(hdf5::file::FileCloseDegree::Strong))
+        .create(out)
+        .with_context(|| format!("cannot create {}", out.display()))?;
     let p = &d.system.pattern;
     let as_u64 = |v: &[usize]| Array1::from(v.iter().map(|&x| x as u64).collect::<Vec<_>>());
     file.new_dataset_builder()

@@ -116,7 +116,22 @@ impl Staging {
                     .and_then(|f| f.sync_all())
                     .with_context(|| format!("cannot flush {}", tmp.path().display()))
             })
-            .with_context(|| format!("{}: nothing was written", out.display()))?;
+            .map_err(|e| {
+                // A full disk is the likely cause of a failed write: say what to do about it.
+                let chain = format!("{e:#}");
+                let full = ["No space left", "File too large", "Disk quota"]
+                    .iter()
+                    .any(|m| chain.contains(m));
+                let advice = if full {
+                    "; free space on its disk (or choose another -o)"
+                } else {
+                    ""
+                };
+                e.context(format!(
+                    "{}: nothing was written, the previous file is kept{advice}",
+                    out.display()
+                ))
+            })?;
         self.files.push((tmp, out.to_path_buf()));
         Ok(())
     }

@@ -59,18 +59,27 @@ fn a_full_disk_leaves_the_old_basis_and_sidecar_and_fails() {
         std::fs::read(&sidecar).expect("xdmf"),
     );
     let listing = names_in(dir.path());
-    // A different, larger result (six modes), the mesh from the cache: only the outputs are
-    // written, and each limit below the old file's size is below the new one's.
-    std::fs::write(&scene, GOOD.replace("count = 4", "count = 6")).expect("scene");
-    let size = old_basis.len() as u64;
-    for limit in [0, 4096, 12 << 10, size / 2, size - 512] {
+    // A different result (three modes), the mesh from the cache: only the outputs are written.
+    // Its size, from a run elsewhere, places the limits across the whole new file.
+    std::fs::write(&scene, GOOD.replace("count = 4", "count = 3")).expect("scene");
+    let elsewhere = dir.path().join("cache").join("new.h5");
+    let r = run(&["precompute", s, "-o", elsewhere.to_str().unwrap()], &cache);
+    assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
+    let size = std::fs::metadata(&elsewhere).expect("new basis").len();
+    let fractions = [0.25, 0.4, 0.5, 0.55, 0.6, 0.65, 0.7, 0.8, 0.9, 0.95, 0.99];
+    let limits = [0, 4096].into_iter().chain(fractions.map(|f| (f * size as f64) as u64));
+    for limit in limits {
         let e = ves_limited(&["precompute", s, "-o", o], limit, &cache);
         let err = String::from_utf8_lossy(&e.stderr);
         assert!(!e.status.success(), "limit {limit} B: exit 0 ({err})");
-        let last = err.lines().rfind(|l| !l.trim().is_empty()).unwrap_or("");
+        // One line (warnings aside) that names the output and the cause.
+        let errors: Vec<&str> = err
+            .lines()
+            .filter(|l| !l.contains(" WARN ") && !l.trim().is_empty())
+            .collect();
         assert!(
-            last.contains("beam.h5"),
-            "limit {limit} B: the error does not name the output: {err}"
+            errors.len() == 1 && errors[0].contains("beam.h5") && errors[0].contains("free space"),
+            "limit {limit} B: not one line naming the output and what to do: {err}"
         );
         assert_eq!(
             std::fs::read(&out).expect("basis"),
@@ -85,12 +94,12 @@ fn a_full_disk_leaves_the_old_basis_and_sidecar_and_fails() {
         assert_eq!(names_in(dir.path()), listing, "limit {limit} B: files left behind");
     }
     // With room enough, the same run replaces both.
-    let e = ves_limited(&["precompute", s, "-o", o], size + (64 << 10), &cache);
+    let e = ves_limited(&["precompute", s, "-o", o], size + 4096, &cache);
     assert!(e.status.success(), "{}", String::from_utf8_lossy(&e.stderr));
     let info = run(&["info", o, "--json"], &cache);
     assert!(info.status.success(), "{}", String::from_utf8_lossy(&info.stderr));
     let v: serde_json::Value = serde_json::from_slice(&info.stdout).expect("info JSON");
-    assert_eq!(v["spaces"][0]["modes"], 6);
+    assert_eq!(v["spaces"][0]["modes"], 3);
     assert_ne!(
         std::fs::read(&sidecar).expect("xdmf"),
         old_sidecar,
@@ -108,7 +117,8 @@ fn a_full_disk_during_matrices_fails_and_keeps_the_old_file() {
     assert!(first.status.success(), "{}", String::from_utf8_lossy(&first.stderr));
     let old = std::fs::read(&out).expect("matrices");
     std::fs::write(&scene, GOOD.replace("young = 2.1e11", "young = 7.0e10")).expect("scene");
-    for limit in [4096, old.len() as u64 / 2, old.len() as u64 - 256] {
+    let limits = [0.1, 0.3, 0.5, 0.6, 0.7, 0.8, 0.9, 0.99].map(|f| (f * old.len() as f64) as u64);
+    for limit in limits {
         let e = ves_limited(&["matrices", s, "-o", o], limit, &cache);
         assert!(
             !e.status.success(),
