@@ -159,7 +159,11 @@ fn split_authority(a: &str) -> Option<(&str, u16)> {
     let (host, port) = if a.starts_with('[') {
         let end = a.find(']')?;
         let rest = &a[end + 1..];
-        let port = if rest.is_empty() { None } else { Some(rest.strip_prefix(':')?) };
+        let port = if rest.is_empty() {
+            None
+        } else {
+            Some(rest.strip_prefix(':')?)
+        };
         (&a[..=end], port)
     } else {
         match a.rsplit_once(':') {
@@ -318,9 +322,19 @@ mod tests {
     #[test]
     fn a_loopback_server_answers_to_its_loopback_names_on_its_port_only() {
         let g = Guard::new("127.0.0.1:8765".parse().unwrap());
-        for ok in ["127.0.0.1:8765", "localhost:8765", "LocalHost:8765", "[::1]:8765", "127.0.0.2:8765"] {
+        for ok in [
+            "127.0.0.1:8765",
+            "localhost:8765",
+            "LocalHost:8765",
+            "[::1]:8765",
+            "127.0.0.2:8765",
+        ] {
             assert_eq!(status(&g, &[("host", ok)]), 200, "{ok}");
-            assert_eq!(status(&g, &[("host", ok), ("origin", &format!("http://{ok}"))]), 200, "{ok}");
+            assert_eq!(
+                status(&g, &[("host", ok), ("origin", &format!("http://{ok}"))]),
+                200,
+                "{ok}"
+            );
         }
         for bad in [
             "attacker.example:8765",
@@ -351,7 +365,10 @@ mod tests {
         }
         let ws = [own, ("upgrade", "websocket"), ("connection", "Upgrade")];
         assert_eq!(status(&g, &ws), 403, "a WebSocket handshake without Origin");
-        assert_eq!(status(&g, &[ws[0], ws[1], ws[2], ("origin", "http://localhost:8765")]), 200);
+        assert_eq!(
+            status(&g, &[ws[0], ws[1], ws[2], ("origin", "http://localhost:8765")]),
+            200
+        );
         // An absolute request URI must name this server too.
         let uri = Uri::from_static("http://attacker.example:8765/");
         assert!(g.check(&uri, &headers(&[own])).is_err());
@@ -363,7 +380,11 @@ mod tests {
     fn a_server_on_all_interfaces_answers_to_addresses_and_its_host_name() {
         let g = Guard::new("0.0.0.0:8765".parse().unwrap());
         for ok in ["192.168.1.7:8765", "[fe80::1]:8765", "localhost:8765", "10.0.0.2:8765"] {
-            assert_eq!(status(&g, &[("host", ok), ("origin", &format!("http://{ok}"))]), 200, "{ok}");
+            assert_eq!(
+                status(&g, &[("host", ok), ("origin", &format!("http://{ok}"))]),
+                200,
+                "{ok}"
+            );
         }
         if let Some(h) = hostname() {
             assert_eq!(status(&g, &[("host", &format!("{h}:8765"))]), 200, "{h}");
@@ -377,6 +398,9 @@ mod tests {
         assert_eq!(status(&g, &[("host", "192.168.1.8:8765")]), 421);
         // Port 80: a browser leaves it out.
         let g = Guard::new("127.0.0.1:80".parse().unwrap());
-        assert_eq!(status(&g, &[("host", "localhost"), ("origin", "http://localhost")]), 200);
+        assert_eq!(
+            status(&g, &[("host", "localhost"), ("origin", "http://localhost")]),
+            200
+        );
     }
 }

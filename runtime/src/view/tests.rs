@@ -137,11 +137,19 @@ fn only_the_servers_own_host_and_origin_get_the_page_and_the_websocket() {
     let mut refused = 0;
     for (request, expected, what) in [
         (get(&rebound, None), 421, "foreign Host"),
-        (get(&format!("127.0.0.1:{}", port.wrapping_add(1)), None), 421, "another port in Host"),
+        (
+            get(&format!("127.0.0.1:{}", port.wrapping_add(1)), None),
+            421,
+            "another port in Host",
+        ),
         (get(&own, Some(evil)), 403, "foreign Origin on a page request"),
         (websocket(&own, Some(evil)), 403, "foreign Origin on the WebSocket"),
         (websocket(&own, None), 403, "WebSocket without Origin"),
-        (websocket(&rebound, Some(&format!("http://{rebound}"))), 421, "rebound WebSocket"),
+        (
+            websocket(&rebound, Some(&format!("http://{rebound}"))),
+            421,
+            "rebound WebSocket",
+        ),
     ] {
         let (status, body) = server.exchange(&request);
         assert_eq!(status, expected, "{what}: {}", String::from_utf8_lossy(&body));
