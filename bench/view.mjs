@@ -17,7 +17,8 @@ const quantile = (a, q) => { const s = [...a].sort((x, y) => x - y); return s.le
 
 // Plain WebSocket clients counting the frames they receive.
 function client() {
-  const c = { frames: 0, ws: new WebSocket(url.replace('http', 'ws') + 'ws') };
+  // The server takes WebSockets from its own page only; a browser sends this Origin itself.
+  const c = { frames: 0, ws: new WebSocket(url.replace('http', 'ws') + 'ws', { origin: new URL(url).origin }) };
   c.ws.on('message', (data, binary) => { if (binary && new Uint32Array(new Uint8Array(data).buffer, 0, 1)[0] === 1) c.frames += 1; });
   c.open = new Promise((r) => c.ws.on('open', r));
   return c;

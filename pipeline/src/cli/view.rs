@@ -59,6 +59,7 @@ impl Args {
             addr: SocketAddr::new(self.host, self.port),
             session: cfg,
             name,
+            limits: view::Limits::default(),
         };
         let stop = Arc::new(AtomicBool::new(false));
         let stats = view::serve(spaces, &cfg, stop, |addr| {

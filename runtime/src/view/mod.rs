@@ -2,10 +2,14 @@
 //! the real session ([`crate::session::run_spaces_with`], the code `ves session` runs) steps the
 //! haptic loop at its rate with one [`hands::WebHand`] per hand, and its visualization thread
 //! hands each drawn frame to the server, which keeps only the latest: a slow client skips
-//! frames instead of queueing them, and a vanished one costs nothing but its own task.
+//! frames instead of queueing them, and a vanished one costs nothing but its own task. Only
+//! this server's own page may use it, within connection limits ([`server`]).
 
 pub mod hands;
 pub mod protocol;
+pub mod server;
+#[cfg(test)]
+mod tests;
 
 use crate::device::Device;
 use crate::session::{self, Frame, FrameObserver, Hooks, SessionConfig, SessionStats};
@@ -14,16 +18,17 @@ use crate::visual;
 use axum::body::Bytes;
 use axum::extract::State;
 use axum::extract::ws::{Message, WebSocket, WebSocketUpgrade};
-use axum::http::header;
-use axum::response::IntoResponse;
+use axum::http::{StatusCode, header};
+use axum::response::{IntoResponse, Response};
 use axum::routing::get;
 use hands::{HandSlot, HandStatus, WebHand};
 use protocol::{ClientMessage, Extent, FrameHeader, HANDS};
+pub use server::Limits;
 use std::net::SocketAddr;
 use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, AtomicU32, AtomicU64, AtomicUsize, Ordering};
 use std::time::{Duration, Instant};
-use tokio::sync::watch;
+use tokio::sync::{Semaphore, watch};
 
 const INDEX_HTML: &str = include_str!("../../web/index.html");
 const APP_JS: &str = include_str!(concat!(env!("OUT_DIR"), "/app.js"));
@@ -42,6 +47,8 @@ pub struct ViewConfig {
     pub session: SessionConfig,
     /// Shown in the page's title (the basis file's name).
     pub name: String,
+    /// Connection limits (header timeout, connections and clients at once).
+    pub limits: Limits,
 }
 
 /// What a viewer run measured.
@@ -62,6 +69,9 @@ pub struct ViewStats {
     pub frames_skipped: u64,
     /// Frames the session drew.
     pub frames_drawn: u64,
+    /// Requests refused: a `Host` or `Origin` other than this server's, or a WebSocket client
+    /// beyond the limit.
+    pub requests_refused: u64,
 }
 
 /// The viewer could not start.
@@ -88,6 +98,10 @@ struct Shared {
     dropped: AtomicU64,
     frames_sent: AtomicU64,
     frames_skipped: AtomicU64,
+    /// One permit per WebSocket client.
+    client_slots: Arc<Semaphore>,
+    max_clients: usize,
+    refused: Arc<AtomicU64>,
 }
 
 /// Serves the viewer until the session ends (its duration, Ctrl-C, or `stop`). `ready` gets
@@ -138,6 +152,9 @@ pub fn serve(
         dropped: AtomicU64::new(0),
         frames_sent: AtomicU64::new(0),
         frames_skipped: AtomicU64::new(0),
+        client_slots: Arc::new(Semaphore::new(cfg.limits.clients)),
+        max_clients: cfg.limits.clients,
+        refused: Arc::new(AtomicU64::new(0)),
     });
     let drawn = Arc::new(AtomicU32::new(0));
     let active_space = Arc::new(AtomicU32::new(0));
@@ -214,15 +231,19 @@ pub fn serve(
                 session
             }
         };
-        let (tx, rx) = tokio::sync::oneshot::channel();
-        let server = axum::serve(listener, app).with_graceful_shutdown(async move {
-            let _ = rx.await;
-        });
-        let server = tokio::spawn(async move { server.await });
+        let (tx, rx) = watch::channel(false);
+        let server = tokio::spawn(server::run(
+            listener,
+            app,
+            Arc::new(server::Guard::new(addr)),
+            cfg.limits,
+            shared.refused.clone(),
+            rx,
+        ));
         let session = ended.await;
-        let _ = tx.send(());
+        let _ = tx.send(true);
         status.abort();
-        // Open WebSockets keep a graceful shutdown waiting: give it a moment, then go.
+        // Open connections are dropped; the WebSockets end with the runtime below.
         let _ = tokio::time::timeout(Duration::from_secs(1), server).await;
         Ok::<_, ViewError>(session)
     })?;
@@ -239,6 +260,7 @@ pub fn serve(
         frames_sent: shared.frames_sent.load(Ordering::Relaxed),
         frames_skipped: shared.frames_skipped.load(Ordering::Relaxed),
         frames_drawn: u64::from(drawn.load(Ordering::Relaxed)),
+        requests_refused: shared.refused.load(Ordering::Relaxed),
     })
 }
 
@@ -371,12 +393,24 @@ async fn status_loop(
     }
 }
 
-async fn upgrade(ws: WebSocketUpgrade, State(shared): State<Arc<Shared>>) -> impl IntoResponse {
+async fn upgrade(ws: WebSocketUpgrade, State(shared): State<Arc<Shared>>) -> Response {
+    let Ok(slot) = shared.client_slots.clone().try_acquire_owned() else {
+        shared.refused.fetch_add(1, Ordering::Relaxed);
+        let why = format!(
+            "{} clients are connected, the most this server takes: close a page and reload",
+            shared.max_clients
+        );
+        return (StatusCode::SERVICE_UNAVAILABLE, why).into_response();
+    };
     // Oversized messages beyond this end the connection inside the WebSocket layer; up to it,
     // `protocol::parse` drops and counts them.
     ws.max_message_size(64 * 1024)
         .max_frame_size(64 * 1024)
-        .on_upgrade(move |socket| client(socket, shared))
+        .on_upgrade(move |socket| async move {
+            client(socket, shared).await;
+            drop(slot);
+        })
+        .into_response()
 }
 
 async fn send(socket: &mut WebSocket, m: Message) -> bool {
