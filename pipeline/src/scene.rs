@@ -499,9 +499,12 @@ impl Scene {
         for (i, v) in raw.voi.iter().enumerate() {
             finite_positive(&format!("voi[{i}].size"), v.size, "m").map_err(err)?;
             check_box(&format!("voi[{i}].box"), &v.bbox).map_err(err)?;
-            if v.name.is_empty() || v.name.contains('/') || names.contains(&v.name) {
+            // The name becomes an HDF5 group, a .vtu file name and part of messages.
+            ves_format::check_identifier(&format!("voi[{i}].name"), &v.name).map_err(err)?;
+            if names.contains(&v.name) {
                 return Err(err(format!(
-                    "voi[{i}].name = {:?}: names must be non-empty, unique, without '/', and not \"global\"",
+                    "voi[{i}].name = {:?}: names must be unique and not \"global\" (the whole part's space); \
+                     rename this VOI",
                     v.name
                 )));
             }
