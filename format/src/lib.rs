@@ -4,6 +4,7 @@
 //!
 //! Permissive (MIT OR Apache-2.0): the runtime reads with it, the pipeline writes with it.
 
+pub mod identifier;
 pub mod names;
 #[cfg(feature = "hdf5")]
 pub mod read;
@@ -13,6 +14,7 @@ pub mod strings;
 pub mod write;
 pub mod xdmf;
 
+pub use identifier::check_identifier;
 pub use names::{FORMAT, VERSION};
 #[cfg(feature = "hdf5")]
 pub use read::{BasisReader, ReadError, SpaceReader, guarded};

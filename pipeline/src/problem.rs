@@ -58,6 +58,12 @@ pub fn discretize_unassembled(
     let t = Instant::now();
     let (mesh, meshing) = mesh::generate_with(scene, voi, field, quiet)?;
     let mesh_s = t.elapsed().as_secs_f64();
+    // The part's extent is known only now; a VOI or probe off the part is refused before the solve.
+    let (lo, hi) = mesh.bounding_box();
+    scene.check_regions_on_part(lo, hi)?;
+    if voi.is_none() {
+        mesh::check_voi_budgets(scene, std::array::from_fn(|c| hi[c] - lo[c]))?;
+    }
     let (quality, at) = mesh.worst_quality();
     tracing::info!(
         nodes = mesh.nodes.len(),

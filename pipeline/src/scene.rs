@@ -499,9 +499,12 @@ impl Scene {
         for (i, v) in raw.voi.iter().enumerate() {
             finite_positive(&format!("voi[{i}].size"), v.size, "m").map_err(err)?;
             check_box(&format!("voi[{i}].box"), &v.bbox).map_err(err)?;
-            if v.name.is_empty() || v.name.contains('/') || names.contains(&v.name) {
+            // The name becomes an HDF5 group, a .vtu file name and part of messages.
+            ves_format::check_identifier(&format!("voi[{i}].name"), &v.name).map_err(err)?;
+            if names.contains(&v.name) {
                 return Err(err(format!(
-                    "voi[{i}].name = {:?}: names must be non-empty, unique, without '/', and not \"global\"",
+                    "voi[{i}].name = {:?}: names must be unique and not \"global\" (the whole part's space); \
+                     rename this VOI",
                     v.name
                 )));
             }
@@ -575,6 +578,71 @@ fn finite_positive(key: &str, v: f64, unit: &str) -> Result<(), String> {
     } else {
         Err(format!("{key} = {v}: must be a finite number > 0 ({unit})"))
     }
+}
+
+/// How far a probe may lie outside the part's bounding box, as a fraction of the box's largest
+/// extent: a probe is snapped to the nearest surface vertex, so a point just off the surface is
+/// meant; one farther away is a mistake (another unit, a wrong sign).
+pub const PROBE_OUTSIDE_FRACTION: f64 = 0.01;
+
+impl Scene {
+    /// Refuses a VOI box that does not overlap the part's bounding box `lo`–`hi` (m) and a probe
+    /// farther than [`PROBE_OUTSIDE_FRACTION`] of the part outside it. The bounding box is known
+    /// once the part is meshed: called then, before any solve.
+    pub fn check_regions_on_part(&self, lo: [f64; 3], hi: [f64; 3]) -> Result<(), SceneError> {
+        let err = |message: String| SceneError {
+            file: self.path.clone(),
+            message,
+        };
+        let largest = (0..3).map(|c| hi[c] - lo[c]).fold(0.0, f64::max);
+        let part = format!(
+            "the part's bounding box is min {} max {} m",
+            fmt3(lo, largest),
+            fmt3(hi, largest)
+        );
+        for (i, v) in self.voi.iter().enumerate() {
+            let b = &v.bbox;
+            if (0..3).any(|c| b.min[c] >= hi[c] || b.max[c] <= lo[c]) {
+                return Err(err(format!(
+                    "voi[{i}] ({:?}): box min {:?} max {:?} m does not overlap the part ({part}); \
+                     move the box onto the part (in metres, as the part is placed in its geometry file)",
+                    v.name, b.min, b.max
+                )));
+            }
+        }
+        let tol = PROBE_OUTSIDE_FRACTION * largest;
+        for (i, p) in self.probes.iter().enumerate() {
+            let outside = (0..3)
+                .map(|c| (lo[c] - p.at[c]).max(p.at[c] - hi[c]).max(0.0))
+                .map(|d| d * d)
+                .sum::<f64>()
+                .sqrt();
+            if outside > tol {
+                return Err(err(format!(
+                    "probe[{i}]: at {:?} m lies {} m outside the part ({part}); \
+                     give a point on the part's surface (in metres, as the part is placed in its geometry file)",
+                    p.at,
+                    fmt1(outside, largest)
+                )));
+            }
+        }
+        Ok(())
+    }
+}
+
+/// A length on a part whose largest extent is `size`, to a thousandth of it or better.
+fn fmt1(x: f64, size: f64) -> String {
+    let decimals = if size > 0.0 && size.is_finite() {
+        (3 - size.log10().floor() as i32).clamp(0, 12) as usize
+    } else {
+        6
+    };
+    format!("{x:.decimals$}")
+}
+
+/// A point on a part whose largest extent is `size` (see [`fmt1`]).
+fn fmt3(p: [f64; 3], size: f64) -> String {
+    format!("[{}, {}, {}]", fmt1(p[0], size), fmt1(p[1], size), fmt1(p[2], size))
 }
 
 fn check_box(key: &str, b: &BoxRegion) -> Result<(), String> {

@@ -8,6 +8,8 @@ use anyhow::{Context, Result, bail};
 use std::io::Write;
 use std::path::{Path, PathBuf};
 
+use crate::output::Overwrite;
+
 use ves_format::xdmf::{TET10_TO_VTK, escape, mode_name};
 
 /// VTK's symmetric-tensor order (xx yy zz xy yz xz) from the file's Voigt (xx yy zz yz xz xy).
@@ -41,15 +43,44 @@ impl Data<'_> {
 }
 
 /// Writes the basis at `basis` into `dir` (created if missing); returns the files written.
-pub fn export(basis: &Path, dir: &Path) -> Result<Vec<PathBuf>> {
+/// Every output is checked before the first is written ([`crate::output::check`]: a symbolic
+/// link is replaced only under `overwrite.force`, the basis itself never), and a space name that
+/// would leave `dir` or give two spaces one file is refused.
+pub fn export(basis: &Path, dir: &Path, overwrite: Overwrite) -> Result<Vec<PathBuf>> {
     let file = ves_format::BasisReader::open(basis)?;
     if dir.exists() && !dir.is_dir() {
         bail!("{}: is a file; give a directory for the VTK files", dir.display());
     }
     std::fs::create_dir_all(dir).with_context(|| format!("{}: cannot create the directory", dir.display()))?;
-    let mut written = Vec::new();
+    // (space, its .vtu, its vertices' .vtu when it has stress)
+    let mut plan: Vec<(String, PathBuf, Option<PathBuf>)> = Vec::new();
     for name in file.space_names()? {
+        // The name becomes a file name: it must stay one name in `dir`.
+        ves_format::check_identifier("space name", &name)
+            .map_err(|e| anyhow::anyhow!("{}: {e}; precompute the basis again", basis.display()))?;
+        // One vertex of one mode says whether the space has stress.
         let s = file.space(&name)?;
+        let stress = s.stress_rows(0..s.vertex_count.min(1), s.mode_count.min(1))?.is_some();
+        let grid = dir.join(format!("{name}.vtu"));
+        let vertices = stress.then(|| dir.join(format!("{name}_vertices.vtu")));
+        plan.push((name, grid, vertices));
+    }
+    let mut outputs: Vec<&Path> = Vec::new();
+    for p in plan.iter().flat_map(|(_, g, v)| std::iter::once(g).chain(v)) {
+        if outputs.contains(&p.as_path()) {
+            bail!(
+                "{}: two spaces of {} would both be written there (a VOI named like another space's \
+                 `_vertices` file); rename that VOI in the scene and precompute again",
+                p.display(),
+                basis.display()
+            );
+        }
+        crate::output::check(p, &[basis], overwrite)?;
+        outputs.push(p);
+    }
+    let mut written = Vec::new();
+    for (name, grid, vertices) in &plan {
+        let s = file.space(name)?;
         let (n, nv, r) = (s.node_count, s.vertex_count, s.mode_count);
         let nodes: Vec<f64> = s.nodes(n)?.into_iter().flatten().collect();
         let tets = s.tets()?;
@@ -68,10 +99,11 @@ pub fn export(basis: &Path, dir: &Path) -> Result<Vec<PathBuf>> {
             .flat_map(|t| order.iter().map(move |&k| i64::from(t[k])))
             .collect();
         let kind = if per == 10 { VTK_QUADRATIC_TETRA } else { VTK_TETRA };
-        let path = dir.join(format!("{name}.vtu"));
-        write_grid(&path, &nodes, &cells, per, kind, &shapes)?;
-        written.push(path);
-        if let Some(stress) = s.stress_rows(0..nv, r)? {
+        write_grid(grid, &nodes, &cells, per, kind, &shapes)?;
+        written.push(grid.clone());
+        if let Some(path) = vertices
+            && let Some(stress) = s.stress_rows(0..nv, r)?
+        {
             let fields: Vec<(String, usize, Vec<f64>)> = (0..r)
                 .map(|j| {
                     let v = (0..nv)
@@ -84,9 +116,8 @@ pub fn export(basis: &Path, dir: &Path) -> Result<Vec<PathBuf>> {
                 .chunks_exact(per)
                 .flat_map(|t| t[..4].iter().map(|&v| i64::from(v)))
                 .collect();
-            let path = dir.join(format!("{name}_vertices.vtu"));
-            write_grid(&path, &nodes[..3 * nv], &corners, 4, VTK_TETRA, &fields)?;
-            written.push(path);
+            write_grid(path, &nodes[..3 * nv], &corners, 4, VTK_TETRA, &fields)?;
+            written.push(path.clone());
         }
     }
     Ok(written)

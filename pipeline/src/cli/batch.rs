@@ -8,7 +8,10 @@ use ves_pipeline::modes::SolverChoice;
 /// Arguments.
 #[derive(clap::Args)]
 pub struct Args {
-    /// Scene files or directories.
+    /// Scene files or directories (searched recursively for *.toml). Each scene is done once,
+    /// however many names reach it. Links named here are followed; inside a directory, links to
+    /// scene files are followed but links to directories are not entered (a link loop cannot
+    /// make the search endless): name such a directory here to include it.
     #[arg(required = true)]
     inputs: Vec<PathBuf>,
     /// Scenes precomputed at once.

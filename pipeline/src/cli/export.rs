@@ -1,4 +1,4 @@
-//! `ves export BASIS --vtu DIR`.
+//! `ves export BASIS --vtu DIR [--force]`.
 
 use anyhow::Result;
 use std::path::PathBuf;
@@ -11,11 +11,18 @@ pub struct Args {
     /// Directory for the .vtu files (created if missing; files of the same names replaced).
     #[arg(long, value_name = "DIR")]
     vtu: PathBuf,
+    /// Replace a symbolic link at an output path (the link, not its target).
+    #[arg(long)]
+    force: bool,
 }
 
 impl Args {
     pub fn run(self) -> Result<()> {
-        for f in ves_pipeline::vtu::export(&self.basis, &self.vtu)? {
+        for f in ves_pipeline::vtu::export(
+            &self.basis,
+            &self.vtu,
+            ves_pipeline::output::Overwrite { force: self.force },
+        )? {
             println!("wrote {}", f.display());
         }
         Ok(())

@@ -278,8 +278,43 @@ fn regular_tet_volume(h: f64) -> f64 {
     h * h * h / (6.0 * std::f64::consts::SQRT_2)
 }
 
+/// Upper estimate of the tets of a box of extent `e` (m) filled with regular tets of edge `h`; a
+/// flat or thin box gets at least one element across each direction. Decreases as `h` grows.
+fn tets_in(e: [f64; 3], h: f64) -> f64 {
+    e.iter().map(|&x| x.max(h)).product::<f64>() / regular_tet_volume(h)
+}
+
+/// The smallest size, as printed with three significant digits (`{:.2e}`), whose [`tets_in`] `e`
+/// is at most `budget` (which must exceed the 8.5 tets of one element filling the box).
+fn size_for_budget(e: [f64; 3], budget: f64) -> f64 {
+    let (mut lo, mut hi) = (f64::MIN_POSITIVE, e.iter().copied().fold(0.0, f64::max));
+    // Bisection in log space: the sizes asked of it span many decades.
+    for _ in 0..200 {
+        let mid = (lo * hi).sqrt();
+        if tets_in(e, mid) > budget {
+            lo = mid;
+        } else {
+            hi = mid;
+        }
+    }
+    // Up, so that the size as printed (and read back by the user) still keeps to the budget.
+    let scale = 10f64.powi(hi.log10().floor() as i32 - 2);
+    let printed = |h: f64| format!("{h:.2e}").parse::<f64>().unwrap_or(h);
+    let mut h = printed((hi / scale).ceil() * scale);
+    // 1 % up is at least one step of the third digit: each turn prints a larger size.
+    for _ in 0..100 {
+        if tets_in(e, h) <= budget {
+            break;
+        }
+        h = printed(h * 1.01);
+    }
+    h
+}
+
 /// Refuses, before meshing, a size that would make far too many tets: an upper estimate from
-/// the bounding box (`extent`, m) filled with regular tets of the requested sizes.
+/// the bounding box (`extent`, m) filled with regular tets of the requested sizes. The advice
+/// names the sizes to change (only the VOI's when the VOI alone is too fine) and is checked
+/// against the same estimate before it is given.
 fn check_element_budget(path: &str, extent: [f64; 3], size: f64, voi: Option<&Voi>) -> Result<(), MeshError> {
     // Scale mistakes first (a size in mm written as m, or the other way round).
     let largest = extent.iter().copied().fold(0.0, f64::max);
@@ -296,32 +331,73 @@ fn check_element_budget(path: &str, extent: [f64; 3], size: f64, voi: Option<&Vo
             ),
         });
     }
-    // A flat or thin part: at least one element across each direction.
-    let volume = |e: [f64; 3], h: f64| e.iter().map(|&x| x.max(h)).product::<f64>();
-    let mut tets = volume(extent, size) / regular_tet_volume(size);
-    if let Some(v) = voi {
+    let global = tets_in(extent, size);
+    // The VOI's share: its box clipped to the part's extent.
+    let inside = voi.map(|v| {
         let e: [f64; 3] = std::array::from_fn(|c| (v.bbox.max[c] - v.bbox.min[c]).min(extent[c]).max(0.0));
-        tets += volume(e, v.size) / regular_tet_volume(v.size);
+        (v, e, tets_in(e, v.size))
+    });
+    let tets = global + inside.map_or(0.0, |(_, _, t)| t);
+    if tets <= MAX_TETS {
+        return Ok(());
     }
-    if tets > MAX_TETS {
-        let factor = (tets / MAX_TETS).cbrt();
-        let advice = match voi {
-            Some(v) => format!(
-                "use mesh.size ≥ {:.2e} m and voi {:?} size ≥ {:.2e} m",
-                size * factor,
-                v.name,
-                v.size * factor
-            ),
-            None => format!("use mesh.size ≥ {:.2e} m", size * factor),
-        };
-        return Err(MeshError::Geometry {
-            path: path.to_string(),
-            message: format!(
-                "mesh.size = {size:e} m would make about {tets:.1e} tets in a part of {:.3e} × {:.3e} × {:.3e} m \
-                 (limit {MAX_TETS:.0e}); {advice}",
-                extent[0], extent[1], extent[2]
-            ),
-        });
+    // Whichever part is within half the budget keeps its size; the other gets the rest.
+    let half = MAX_TETS / 2.0;
+    let (advice, estimate) = match inside {
+        None => {
+            let h = size_for_budget(extent, MAX_TETS);
+            (format!("use mesh.size ≥ {h:.2e} m"), tets_in(extent, h))
+        }
+        Some((v, e, fine)) => {
+            let keep_global = global <= half;
+            let keep_voi = fine <= half;
+            let h = if keep_global {
+                size
+            } else {
+                size_for_budget(extent, MAX_TETS - fine.min(half))
+            };
+            let hv = if keep_voi {
+                v.size
+            } else {
+                size_for_budget(e, MAX_TETS - global.min(half))
+            };
+            let advice = match (keep_global, keep_voi) {
+                (true, _) => format!(
+                    "use voi {:?} size ≥ {hv:.2e} m (the VOI makes {fine:.1e} of them)",
+                    v.name
+                ),
+                (false, true) => format!("use mesh.size ≥ {h:.2e} m"),
+                (false, false) => format!("use mesh.size ≥ {h:.2e} m and voi {:?} size ≥ {hv:.2e} m", v.name),
+            };
+            (advice, tets_in(extent, h) + tets_in(e, hv))
+        }
+    };
+    // The advice keeps to the budget by construction; an advice that does not is a bug here.
+    debug_assert!(estimate <= MAX_TETS, "advice {advice} gives {estimate:e} tets");
+    let sizes = match voi {
+        Some(v) => format!("mesh.size = {size:e} m and voi {:?} size = {:e} m", v.name, v.size),
+        None => format!("mesh.size = {size:e} m"),
+    };
+    Err(MeshError::Geometry {
+        path: path.to_string(),
+        message: format!(
+            "{sizes} would make about {tets:.1e} tets in a part of {:.3e} × {:.3e} × {:.3e} m \
+             (limit {MAX_TETS:.0e}); {advice}",
+            extent[0], extent[1], extent[2]
+        ),
+    })
+}
+
+/// Refuses every VOI whose size would make too many tets in the part of extent `extent` (m),
+/// once the extent is known (the whole part meshed): before the first solve, not after it when
+/// that VOI's own space is meshed. An automatic `mesh.size` is left to the meshing itself.
+pub fn check_voi_budgets(scene: &Scene, extent: [f64; 3]) -> Result<(), MeshError> {
+    if scene.mesh.size <= 0.0 {
+        return Ok(());
+    }
+    let path = scene.geometry.display().to_string();
+    for v in &scene.voi {
+        check_element_budget(&path, extent, scene.mesh.size, Some(v))?;
     }
     Ok(())
 }
@@ -872,5 +948,52 @@ mod tests {
         assert!(q > 0.0 && q < 1e-3, "{q}");
         assert!((at[0] - 0.5).abs() < 1e-12 && (at[1] - 0.5).abs() < 1e-12);
         assert_eq!(m.surface.len(), 4, "a single tet is all boundary");
+    }
+
+    /// The size after `marker` in a budget message (`… ≥ 1.23e-3 m`).
+    fn advised(message: &str, marker: &str) -> Option<f64> {
+        message.split(marker).nth(1)?.split_whitespace().next()?.parse().ok()
+    }
+
+    fn budget_message(extent: [f64; 3], size: f64, voi: Option<&Voi>) -> String {
+        match check_element_budget("beam.step", extent, size, voi) {
+            Err(MeshError::Geometry { message, .. }) => message,
+            other => panic!("expected a budget refusal, got {other:?}"),
+        }
+    }
+
+    /// `voi.size = 1e-5` in a 1 m beam advised "mesh.size ≥ 4.73 m" (larger than the part, and
+    /// the VOI still too fine): the advice must name the size at fault and work when followed.
+    #[test]
+    fn element_budget_advice_names_the_size_at_fault_and_keeps_to_the_budget() {
+        let extent = [1.0, 0.1, 0.05];
+        let voi = |size: f64| Voi {
+            name: "rib".into(),
+            bbox: crate::scene::BoxRegion {
+                min: [0.0; 3],
+                max: [0.1, 0.1, 0.05],
+            },
+            size,
+        };
+        // Only the VOI is too fine: mesh.size stays, the VOI's size is advised.
+        let m = budget_message(extent, 0.05, Some(&voi(1e-5)));
+        assert!(!m.contains("mesh.size ≥"), "{m}");
+        let hv = advised(&m, "size ≥ ").expect("a VOI size");
+        assert!(hv > 1e-5 && hv < 0.05, "{m}");
+        check_element_budget("beam.step", extent, 0.05, Some(&voi(hv))).expect("the advice works");
+        // Both too fine: both advised, and together they fit.
+        let m = budget_message(extent, 1e-4, Some(&voi(1e-5)));
+        let h = advised(&m, "mesh.size ≥ ").expect("a mesh size");
+        let hv = advised(&m, "\"rib\" size ≥ ").expect("a VOI size");
+        assert!(h <= 1.0 && hv <= h, "{m}");
+        check_element_budget("beam.step", extent, h, Some(&voi(hv))).expect("the advice works");
+        // Without a VOI the global size, which fits (and is as printed: three digits).
+        let m = budget_message(extent, 1e-9, None);
+        let h = advised(&m, "mesh.size ≥ ").expect("a mesh size");
+        check_element_budget("beam.step", extent, h, None).expect("the advice works");
+        assert!(
+            tets_in(extent, h) > 0.9 * MAX_TETS,
+            "the advice is far from the limit: {m}"
+        );
     }
 }

@@ -1,0 +1,106 @@
+//! Names that become file names, HDF5 group names and lines of messages (a scene's `name`, a
+//! VOI's `name`, a space of a basis file): one rule for all of them, so that no name can leave
+//! its directory or group, hide in a terminal, or break a one-line error in two.
+
+/// Longest identifier, bytes: a name becomes `<name>.h5` plus a temporary suffix, and file names
+/// stop at 255 bytes.
+pub const MAX_IDENTIFIER_BYTES: usize = 128;
+
+/// Characters that are not control characters but still change how a line reads: bidirectional
+/// overrides and isolates (text shown in another order than stored), invisible marks and
+/// zero-width characters, and Unicode's line and paragraph separators.
+fn is_hidden(c: char) -> bool {
+    matches!(
+        c,
+        '\u{061C}'
+            | '\u{200B}'..='\u{200F}'
+            | '\u{2028}'..='\u{202E}'
+            | '\u{2066}'..='\u{2069}'
+            | '\u{FEFF}'
+    )
+}
+
+/// Checks that `name` is an identifier: not empty, at most [`MAX_IDENTIFIER_BYTES`] bytes, no
+/// '/' or '\\', not "." and no "..", no control character (U+0000–U+001F, U+007F–U+009F) and no
+/// bidirectional, invisible or line-separating character (U+061C, U+200B–U+200F,
+/// U+2028–U+202E, U+2066–U+2069, U+FEFF). `what` names the key in the message (e.g.
+/// `voi[2].name`); the message is one line and says what to change.
+pub fn check_identifier(what: &str, name: &str) -> Result<(), String> {
+    const ADVICE: &str = "use letters, digits, '-', '_' and '.', e.g. \"rib_1\"";
+    if name.is_empty() {
+        return Err(format!("{what} is empty; {ADVICE}"));
+    }
+    if name.len() > MAX_IDENTIFIER_BYTES {
+        let head: String = name.chars().take(24).collect();
+        return Err(format!(
+            "{what} = \"{}…\" is {} bytes long; at most {MAX_IDENTIFIER_BYTES}",
+            shown(&head),
+            name.len()
+        ));
+    }
+    let why = if let Some(c) = name.chars().find(|&c| c.is_control() || is_hidden(c)) {
+        format!(
+            "holds the invisible character U+{:04X} (a control, bidirectional or zero-width character)",
+            u32::from(c)
+        )
+    } else if name.contains(['/', '\\']) {
+        "holds a path separator ('/' or '\\')".to_string()
+    } else if name == "." || name.contains("..") {
+        "is \".\" or holds \"..\" (a path to another directory)".to_string()
+    } else {
+        return Ok(());
+    };
+    Err(format!("{what} = \"{}\" {why}; {ADVICE}", shown(name)))
+}
+
+/// `name` with its control and hidden characters written as `\u{…}`, so the message shows
+/// them and stays one line.
+fn shown(name: &str) -> String {
+    name.chars()
+        .map(|c| {
+            if c.is_control() || is_hidden(c) || c == '"' || c == '\\' {
+                c.escape_default().to_string()
+            } else {
+                c.to_string()
+            }
+        })
+        .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::check_identifier;
+
+    #[test]
+    fn identifiers_keep_to_one_name_in_one_place() {
+        for good in ["rib1", "rib_1", "Rippe-2", "v1.2", "ärmel", "梁"] {
+            assert_eq!(check_identifier("voi[0].name", good), Ok(()), "{good}");
+        }
+        for bad in [
+            "",
+            "a/b",
+            "a\\b",
+            ".",
+            "..",
+            "a..b",
+            "../x",
+            "a\0b",
+            "a\nb",
+            "a\u{7f}",
+            "a\u{85}",
+            "a\u{202E}b",
+            "a\u{2066}b",
+            "a\u{200B}b",
+            "a\u{2028}b",
+            "\u{FEFF}a",
+        ] {
+            let e = check_identifier("voi[0].name", bad).expect_err(bad);
+            assert!(e.starts_with("voi[0].name") && !e.contains('\n'), "{e}");
+        }
+        let long = "x".repeat(10_000);
+        let e = check_identifier("name", &long).expect_err("long");
+        assert!(e.len() < 200, "the message repeats the whole name: {e}");
+        let e = check_identifier("voi[1].name", "a\u{202E}b").expect_err("bidi");
+        assert!(e.contains("U+202E") && !e.contains('\u{202E}'), "{e}");
+    }
+}
