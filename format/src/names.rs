@@ -106,3 +106,84 @@ pub mod space {
     /// Optional group: `transfer/<from>` f64 [r_to, r_from].
     pub const TRANSFER: &str = "transfer";
 }
+
+/// Most spaces a file may hold: "global" and one per volume of interest. A file listing more is
+/// refused before any space is read, so a crafted file cannot multiply the reading work.
+pub const MAX_SPACES: usize = 64;
+
+/// Longest space name, bytes (it becomes a file name in `ves export`).
+pub const MAX_SPACE_NAME_BYTES: usize = 128;
+
+/// Checks a space name as the scene and the file may give it: not empty, at most
+/// [`MAX_SPACE_NAME_BYTES`], no '/', no control character and no bidirectional-text control
+/// (names are printed to terminals and become file names). `Err` says what is wrong.
+pub fn check_space_name(name: &str) -> Result<(), String> {
+    if name.is_empty() {
+        return Err("a space name is empty".into());
+    }
+    if name.len() > MAX_SPACE_NAME_BYTES {
+        return Err(format!(
+            "space name \"{}\" is {} bytes long, more than {MAX_SPACE_NAME_BYTES}",
+            escape_for_terminal(name),
+            name.len()
+        ));
+    }
+    if let Some(c) = name.chars().find(|&c| c == '/' || c == '\\' || is_unsafe_char(c)) {
+        return Err(format!(
+            "space name \"{}\" contains {}: names must not contain '/', '\\', control or bidirectional-text characters",
+            escape_for_terminal(name),
+            escape_for_terminal(&format!("{c:?}"))
+        ));
+    }
+    if name == "." || name == ".." {
+        return Err(format!("space name {name:?} is not a name"));
+    }
+    Ok(())
+}
+
+/// Control characters (C0, DEL, C1) and the Unicode bidirectional-text controls (U+200E/F,
+/// U+202A–U+202E, U+2066–U+2069, U+061C): they move a terminal's cursor or reorder what it shows.
+fn is_unsafe_char(c: char) -> bool {
+    c.is_control()
+        || matches!(c, '\u{200E}' | '\u{200F}' | '\u{061C}' | '\u{202A}'..='\u{202E}' | '\u{2066}'..='\u{2069}')
+}
+
+/// `text` from a file, safe to print to a terminal: control and bidirectional-text characters
+/// are written as `\u{..}` escapes, everything else as is.
+pub fn escape_for_terminal(text: &str) -> String {
+    let mut out = String::with_capacity(text.len());
+    for c in text.chars() {
+        if is_unsafe_char(c) {
+            out.push_str(&format!("\\u{{{:x}}}", c as u32));
+        } else {
+            out.push(c);
+        }
+    }
+    out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn space_names_that_would_drive_a_terminal_or_a_path_are_refused() {
+        for bad in [
+            "",
+            "a/b",
+            "..",
+            "\u{1b}]0;x\u{7}",
+            "x\u{202E}y",
+            "x\u{2066}",
+            "tab\there",
+            "a\\b",
+        ] {
+            assert!(check_space_name(bad).is_err(), "{bad:?}");
+        }
+        assert!(check_space_name(&"x".repeat(MAX_SPACE_NAME_BYTES + 1)).is_err());
+        for good in ["global", "rib 1", "Rippe_ä", "voi-2.5"] {
+            assert!(check_space_name(good).is_ok(), "{good:?}");
+        }
+        assert_eq!(escape_for_terminal("a\u{1b}[2Jb\u{202E}"), "a\\u{1b}[2Jb\\u{202e}");
+    }
+}

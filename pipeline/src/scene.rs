@@ -495,13 +495,24 @@ impl Scene {
         for (i, f) in raw.fixed.iter().enumerate() {
             fixed.push(support(i, f).map_err(err)?);
         }
+        if raw.voi.len() >= ves_format::names::MAX_SPACES {
+            return Err(err(format!(
+                "{} [[voi]]: a basis holds at most {} spaces (\"global\" and {} volumes of interest)",
+                raw.voi.len(),
+                ves_format::names::MAX_SPACES,
+                ves_format::names::MAX_SPACES - 1
+            )));
+        }
         let mut names = vec!["global".to_string()];
         for (i, v) in raw.voi.iter().enumerate() {
             finite_positive(&format!("voi[{i}].size"), v.size, "m").map_err(err)?;
             check_box(&format!("voi[{i}].box"), &v.bbox).map_err(err)?;
-            if v.name.is_empty() || v.name.contains('/') || names.contains(&v.name) {
+            if let Err(m) = ves_format::names::check_space_name(&v.name) {
+                return Err(err(format!("voi[{i}].name: {m}")));
+            }
+            if names.contains(&v.name) {
                 return Err(err(format!(
-                    "voi[{i}].name = {:?}: names must be non-empty, unique, without '/', and not \"global\"",
+                    "voi[{i}].name = {:?}: names must be unique and not \"global\"",
                     v.name
                 )));
             }
