@@ -31,7 +31,7 @@ pub fn damping(alpha: f64, beta: f64, eigenvalues: &[f64]) -> Result<(), String>
     };
     for l in [eigenvalues.first(), eigenvalues.last()].into_iter().flatten() {
         let z = ratio(*l);
-        if !(z <= MAX_DAMPING_RATIO) {
+        if z.is_nan() || z > MAX_DAMPING_RATIO {
             return Err(format!(
                 "Rayleigh damping (α {alpha} 1/s, β {beta} s) gives a damping ratio of {z:.3e} at {:.4e} Hz, \
                  above {MAX_DAMPING_RATIO:e}: no solid is damped so; check the units of rayleigh_alpha/rayleigh_beta",
@@ -65,7 +65,7 @@ pub fn frequencies(lambda: &[f64], hz: &[f64]) -> Result<(), String> {
     }
     for (i, (&l, &f)) in lambda.iter().zip(hz).enumerate() {
         let want = l.sqrt() / (2.0 * std::f64::consts::PI);
-        if !((f - want).abs() <= RELATIVE_TOLERANCE * want) {
+        if f.is_nan() || (f - want).abs() > RELATIVE_TOLERANCE * want {
             return Err(format!(
                 "frequency {i} is {f} Hz but its eigenvalue {l} gives {want} Hz (√λ/2π)"
             ));
@@ -112,12 +112,10 @@ pub fn symmetric_positive_definite(b: &Block3, free: [bool; 3]) -> Result<f64, S
     let mut l = [[0.0f64; 3]; 3];
     for a in 0..k {
         for c in 0..=a {
-            let mut s = 0.5 * (b[idx[a]][idx[c]] + b[idx[c]][idx[a]]) / scale;
-            for m in 0..c {
-                s -= l[a][m] * l[c][m];
-            }
+            let s = 0.5 * (b[idx[a]][idx[c]] + b[idx[c]][idx[a]]) / scale
+                - l[a][..c].iter().zip(&l[c][..c]).map(|(x, y)| x * y).sum::<f64>();
             if a == c {
-                if !(s > 0.0) {
+                if s.is_nan() || s <= 0.0 {
                     return Err(format!(
                         "not positive definite (pivot {a} is {:.3e}): it must be positive in every unsupported direction",
                         s * scale

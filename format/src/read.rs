@@ -800,7 +800,7 @@ impl<'a> SpaceReader<'a> {
                 };
                 let c = checks::symmetric_positive_definite(b, free).map_err(bad)?;
                 let dimensionless = c * young * size;
-                if !(dimensionless <= checks::MAX_DIMENSIONLESS_COMPLIANCE) {
+                if dimensionless.is_nan() || dimensionless > checks::MAX_DIMENSIONLESS_COMPLIANCE {
                     return Err(bad(format!(
                         "compliance {c:e} m/N is {dimensionless:.1e} / (E·L) with E {young:e} Pa and the part's size L \
                          {size:e} m, above {:e}: no elastic part is so soft",
