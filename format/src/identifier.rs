@@ -53,18 +53,24 @@ pub fn check_identifier(what: &str, name: &str) -> Result<(), String> {
     Err(format!("{what} = \"{}\" {why}; {ADVICE}", shown(name)))
 }
 
-/// `name` with its control and hidden characters written as `\u{…}`, so the message shows
-/// them and stays one line.
+/// `name` with its control and hidden characters written as `\u{…}`, and its quotes and
+/// backslashes escaped, so a message quoting it shows them and stays one line.
 fn shown(name: &str) -> String {
-    name.chars()
-        .map(|c| {
-            if c.is_control() || is_hidden(c) || c == '"' || c == '\\' {
-                c.escape_default().to_string()
-            } else {
-                c.to_string()
-            }
-        })
-        .collect()
+    escape_for_terminal(&name.replace('\\', "\\\\").replace('"', "\\\""))
+}
+
+/// `text` from a file, safe to print to a terminal: control, bidirectional and other hidden
+/// characters are written as `\u{…}` escapes, everything else as is.
+pub fn escape_for_terminal(text: &str) -> String {
+    let mut out = String::with_capacity(text.len());
+    for c in text.chars() {
+        if c.is_control() || is_hidden(c) {
+            out.push_str(&format!("\\u{{{:x}}}", u32::from(c)));
+        } else {
+            out.push(c);
+        }
+    }
+    out
 }
 
 #[cfg(test)]

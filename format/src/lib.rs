@@ -4,6 +4,7 @@
 //!
 //! Permissive (MIT OR Apache-2.0): the runtime reads with it, the pipeline writes with it.
 
+pub mod checks;
 pub mod identifier;
 pub mod names;
 #[cfg(feature = "hdf5")]

@@ -106,3 +106,45 @@ pub mod space {
     /// Optional group: `transfer/<from>` f64 [r_to, r_from].
     pub const TRANSFER: &str = "transfer";
 }
+
+/// Most spaces a file may hold: "global" and one per volume of interest. A file listing more is
+/// refused before any space is read, so a crafted file cannot multiply the reading work.
+pub const MAX_SPACES: usize = 64;
+
+/// Longest space name, bytes (it becomes a file name in `ves export`).
+pub const MAX_SPACE_NAME_BYTES: usize = crate::identifier::MAX_IDENTIFIER_BYTES;
+
+pub use crate::identifier::escape_for_terminal;
+
+/// Checks a space name as the scene and the file may give it: an identifier
+/// ([`crate::check_identifier`]: names are printed to terminals and become file names). `Err`
+/// says what is wrong.
+pub fn check_space_name(name: &str) -> Result<(), String> {
+    crate::check_identifier("space name", name)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn space_names_that_would_drive_a_terminal_or_a_path_are_refused() {
+        for bad in [
+            "",
+            "a/b",
+            "..",
+            "\u{1b}]0;x\u{7}",
+            "x\u{202E}y",
+            "x\u{2066}",
+            "tab\there",
+            "a\\b",
+        ] {
+            assert!(check_space_name(bad).is_err(), "{bad:?}");
+        }
+        assert!(check_space_name(&"x".repeat(MAX_SPACE_NAME_BYTES + 1)).is_err());
+        for good in ["global", "rib 1", "Rippe_ä", "voi-2.5"] {
+            assert!(check_space_name(good).is_ok(), "{good:?}");
+        }
+        assert_eq!(escape_for_terminal("a\u{1b}[2Jb\u{202E}"), "a\\u{1b}[2Jb\\u{202e}");
+    }
+}

@@ -1,13 +1,24 @@
 //! The one reader of basis files. Whatever it returns has been checked: dtypes exactly as the
 //! format declares them (no silent conversion of an int32 basis), shapes against each other,
 //! declared sizes against the file's size before anything is allocated, finite values, indices
-//! in range. Every method runs behind [`guarded`]: a panic of the HDF5 layer on a damaged file
-//! is an error.
+//! in range, and what physics requires ([`crate::checks`]). Every method runs behind
+//! [`guarded`]: a panic of the HDF5 layer on a damaged file is an error.
+//!
+//! Before any value of a dataset is read, its storage is checked: data held in the file itself
+//! (contiguous, chunked or compact layout; no external raw storage, no virtual dataset, no link
+//! into another file, which would read local files such as /etc/passwd into an export), only
+//! the filters the writer uses (deflate, shuffle), and no object reached by two names. The work
+//! per open file is bounded: at most [`names::MAX_SPACES`] spaces, and the stored bytes read at
+//! most [`READ_PASSES`] times the file's size.
 
+use crate::checks;
 use crate::names::{self, material as mat, root, space as sp};
 use crate::{Material, RigidProperties};
 use hdf5::H5Type;
+use hdf5::dataset::Layout;
+use hdf5::filters::Filter;
 use ndarray::s;
+use std::cell::Cell;
 use std::ops::Range;
 use std::path::Path;
 
@@ -37,11 +48,21 @@ pub fn guarded<T, E: From<ReadError>>(path: &Path, f: impl FnOnce() -> Result<T,
 /// this many times the file's size has a damaged header.
 const MAX_COMPRESSION: u128 = 1100;
 
+/// Stored bytes one open file may read, in multiples of its size. Reading a whole basis once for
+/// its check and once more for use costs about 2; a file whose spaces share their data through
+/// links would cost one pass per link (2000 linked spaces took 31 s and 660 MB).
+pub const READ_PASSES: u128 = 8;
+
 /// An open basis file whose format and version were checked.
 pub struct BasisReader {
     file: hdf5::File,
     path: std::path::PathBuf,
     file_bytes: u128,
+    /// Identifies this file among those libhdf5 has open: an object elsewhere was reached
+    /// through an external link.
+    fileno: u64,
+    /// Stored bytes read so far (see [`READ_PASSES`]).
+    charged: Cell<u128>,
 }
 
 impl BasisReader {
@@ -72,10 +93,16 @@ impl BasisReader {
                     e.to_string().replace('\n', " ")
                 ))
             })?;
+            let fileno = file
+                .loc_info()
+                .map_err(|_| err("damaged file: the root group's header is unreadable"))?
+                .fileno;
             let reader = BasisReader {
                 file,
                 path: path.to_path_buf(),
                 file_bytes: u128::from(meta.len()),
+                fileno,
+                charged: Cell::new(0),
             };
             let format = reader.string(root::FORMAT).ok_or_else(|| {
                 err("not a VES modal basis (no `format` attribute); produce one with `ves precompute`")
@@ -128,24 +155,151 @@ impl BasisReader {
         .flatten()
     }
 
-    /// The space a reader opens when it names none ("global" when the attribute is missing).
-    pub fn default_space(&self) -> String {
-        self.string(root::DEFAULT_SPACE)
-            .unwrap_or_else(|| names::GLOBAL_SPACE.into())
+    /// Checks that `loc` (reached as `name`) lives in this file and has one name only: an
+    /// external link would read another file, a hard link shares data between spaces.
+    fn check_object(&self, loc: &hdf5::Location, name: &str) -> Result<(), ReadError> {
+        let info = loc
+            .loc_info()
+            .map_err(|_| self.err(format!("{name}: object header unreadable; the file is damaged")))?;
+        if info.fileno != self.fileno {
+            return Err(self.err(format!(
+                "{name} is a link into another file; a basis holds all its data itself (refused: it would read that file)"
+            )));
+        }
+        if info.num_links != 1 {
+            return Err(self.err(format!(
+                "{name} has {} hard links; the writer gives every object one name (refused: shared data multiplies the work)",
+                info.num_links
+            )));
+        }
+        Ok(())
+    }
+
+    /// Checks, before any value is read, that dataset `name` keeps its data in this file in a way
+    /// the writer uses: contiguous, chunked or compact layout, no external raw storage, no
+    /// virtual mapping, no filter but deflate and shuffle.
+    fn check_storage(&self, ds: &hdf5::Dataset, name: &str) -> Result<(), ReadError> {
+        self.check_object(ds, name)?;
+        let unreadable = |what: &str| self.err(format!("{name}: {what} unreadable; the file is damaged"));
+        let dcpl = ds.dcpl().map_err(|_| unreadable("creation properties"))?;
+        match dcpl.get_layout().map_err(|_| unreadable("layout"))? {
+            Layout::Contiguous | Layout::Chunked | Layout::Compact => {}
+            other => {
+                return Err(self.err(format!(
+                    "{name} is a {other:?} dataset (its data drawn from other datasets or files); a basis holds its data itself: refused"
+                )));
+            }
+        }
+        let external = dcpl.get_external().map_err(|_| unreadable("external storage list"))?;
+        if let Some(e) = external.first() {
+            return Err(self.err(format!(
+                "{name} keeps its data in external file \"{}\"; a basis holds its data itself: refused (it would read that file)",
+                names::escape_for_terminal(&e.name)
+            )));
+        }
+        for f in dcpl.get_filters().map_err(|_| unreadable("filter pipeline"))? {
+            if !matches!(f, Filter::Deflate(_) | Filter::Shuffle) {
+                return Err(self.err(format!(
+                    "{name} is stored through filter {f:?}; the format uses deflate and shuffle only: refused"
+                )));
+            }
+        }
+        Ok(())
+    }
+
+    /// Counts `bytes` of dataset `ds` (of `total` bytes) as read: at their share of its stored
+    /// size, and at least 1/[`MAX_COMPRESSION`] of them; refuses once the file has been read
+    /// [`READ_PASSES`] times over.
+    fn charge(&self, name: &str, ds: &hdf5::Dataset, bytes: u128, total: u128) -> Result<(), ReadError> {
+        let stored = u128::from(ds.storage_size());
+        let share = if total == 0 {
+            0
+        } else {
+            (bytes * stored).div_ceil(total)
+        };
+        let cost = share.max(bytes.div_ceil(MAX_COMPRESSION));
+        let sum = self.charged.get().saturating_add(cost);
+        let limit = READ_PASSES * self.file_bytes.max(1);
+        if sum > limit {
+            return Err(self.err(format!(
+                "{name}: reading it would read {sum} stored bytes of a {}-byte file, more than {READ_PASSES} times its \
+                 size; its spaces share data through links (refused)",
+                self.file_bytes
+            )));
+        }
+        self.charged.set(sum);
+        Ok(())
+    }
+
+    /// The names listed under /spaces, checked (at most [`names::MAX_SPACES`], each a valid
+    /// name), in the file's order.
+    fn listed_spaces(&self) -> Result<Vec<String>, ReadError> {
+        let g = self
+            .file
+            .group(names::SPACES)
+            .map_err(|_| self.err("no /spaces group; the file is damaged"))?;
+        self.check_object(&g, names::SPACES)?;
+        let too_many = |count: usize| {
+            self.err(format!(
+                "/spaces holds {count} spaces, more than {}: refused before reading them",
+                names::MAX_SPACES
+            ))
+        };
+        // The link count is in the group's header: the names are not even listed.
+        let count = usize::try_from(g.len()).unwrap_or(usize::MAX);
+        if count > names::MAX_SPACES {
+            return Err(too_many(count));
+        }
+        let listed = g
+            .member_names()
+            .map_err(|_| self.err("/spaces unreadable; the file is damaged"))?;
+        if listed.len() > names::MAX_SPACES {
+            return Err(too_many(listed.len()));
+        }
+        if listed.is_empty() {
+            return Err(self.err("the file holds no space; the file is damaged"));
+        }
+        for n in &listed {
+            names::check_space_name(n).map_err(|m| self.err(format!("/spaces: {m}")))?;
+        }
+        Ok(listed)
+    }
+
+    /// The space a reader opens when it names none ("global" when the attribute is missing),
+    /// checked to exist.
+    pub fn default_space(&self) -> Result<String, ReadError> {
+        self.guard(|| {
+            let listed = self.listed_spaces()?;
+            self.default_among(&listed)
+        })
+    }
+
+    fn default_among(&self, listed: &[String]) -> Result<String, ReadError> {
+        let default = match self.string(root::DEFAULT_SPACE) {
+            Some(d) => d,
+            None if self.file.attr(root::DEFAULT_SPACE).is_ok() => {
+                return Err(self.err(format!(
+                    "attribute {} is not a string; the file is damaged",
+                    root::DEFAULT_SPACE
+                )));
+            }
+            None => names::GLOBAL_SPACE.into(),
+        };
+        if !listed.contains(&default) {
+            return Err(self.err(format!(
+                "attribute {} names space \"{}\", which the file does not hold (it holds {listed:?}); the file is damaged",
+                root::DEFAULT_SPACE,
+                names::escape_for_terminal(&default)
+            )));
+        }
+        Ok(default)
     }
 
     /// Names of the spaces, the default space first, then by name.
     pub fn space_names(&self) -> Result<Vec<String>, ReadError> {
         self.guard(|| {
-            let mut names = self
-                .file
-                .group(names::SPACES)
-                .and_then(|g| g.member_names())
-                .map_err(|_| self.err("no /spaces group; the file is damaged"))?;
-            if names.is_empty() {
-                return Err(self.err("the file holds no space; the file is damaged"));
-            }
-            let default = self.default_space();
+            let mut names = self.listed_spaces()?;
+            let default = self.default_among(&names)?;
             names.sort_by_key(|n| (*n != default, n.clone()));
             Ok(names)
         })
@@ -158,6 +312,7 @@ impl BasisReader {
                 .file
                 .group(mat::GROUP)
                 .map_err(|_| self.err("no /material group; the file is damaged"))?;
+            self.check_object(&g, mat::GROUP)?;
             let get = |name: &str| {
                 scalar_attr::<f64>(&g, name)
                     .filter(|v| v.is_finite())
@@ -243,10 +398,13 @@ pub struct SpaceReader<'a> {
 
 impl<'a> SpaceReader<'a> {
     fn open(file: &'a BasisReader, name: &str) -> Result<SpaceReader<'a>, ReadError> {
+        names::check_space_name(name).map_err(|m| file.err(m))?;
+        let path = format!("{}/{name}", names::SPACES);
         let group = file
             .file
-            .group(&format!("{}/{name}", names::SPACES))
+            .group(&path)
             .map_err(|_| file.err(format!("no space {name:?} in the file")))?;
+        file.check_object(&group, &path)?;
         let bad = |what: &str| file.err(format!("space {name:?}: {what}"));
         let order: u32 = scalar_attr(&group, sp::ELEMENT_ORDER)
             .filter(|o| *o == 1 || *o == 2)
@@ -255,6 +413,7 @@ impl<'a> SpaceReader<'a> {
             .filter(|r| *r <= 6)
             .ok_or_else(|| bad("rigid_modes_dropped missing or above 6"))?;
         let mesh_group = group.group(sp::MESH).map_err(|_| bad("mesh group missing"))?;
+        file.check_object(&mesh_group, &format!("{path}/{}", sp::MESH))?;
         let nv: u32 =
             scalar_attr(&mesh_group, sp::VERTEX_COUNT).ok_or_else(|| bad("mesh vertex_count missing or not u32"))?;
         let meshing_strategy = crate::strings::read(&mesh_group, sp::MESHING_STRATEGY);
@@ -264,6 +423,11 @@ impl<'a> SpaceReader<'a> {
                 let (a, b) = f64_array_attr(&group, sp::VOI_MIN, 3)
                     .zip(f64_array_attr(&group, sp::VOI_MAX, 3))
                     .ok_or_else(|| bad("voi_min/voi_max are not two finite f64[3]"))?;
+                if (0..3).any(|c| a[c] >= b[c]) {
+                    return Err(bad(&format!(
+                        "voi_min {a:?} is not below voi_max {b:?} in every axis; the file is damaged"
+                    )));
+                }
                 Some([[a[0], a[1], a[2]], [b[0], b[1], b[2]]])
             }
         };
@@ -337,6 +501,8 @@ impl<'a> SpaceReader<'a> {
             .group
             .dataset(name)
             .map_err(|_| self.err(format!("{name} missing")))?;
+        self.file
+            .check_storage(&ds, &format!("{}/{}/{name}", names::SPACES, self.name))?;
         let ty = ds
             .dtype()
             .and_then(|t| t.to_descriptor())
@@ -370,8 +536,17 @@ impl<'a> SpaceReader<'a> {
         self.dataset::<T>(name, rank).map(|(_, s)| s)
     }
 
+    /// Counts `elements` of `T` read from dataset `name` of shape `shape` (see
+    /// [`BasisReader::charge`]).
+    fn charge<T>(&self, name: &str, ds: &hdf5::Dataset, shape: &[usize], elements: usize) -> Result<(), ReadError> {
+        let size = std::mem::size_of::<T>() as u128;
+        let total = shape.iter().map(|&d| d as u128).product::<u128>() * size;
+        self.file.charge(name, ds, elements as u128 * size, total)
+    }
+
     fn read_all<T: H5Type + Copy>(&self, name: &str, rank: usize) -> Result<Vec<T>, ReadError> {
-        let (ds, _) = self.dataset::<T>(name, rank)?;
+        let (ds, shape) = self.dataset::<T>(name, rank)?;
+        self.charge::<T>(name, &ds, &shape, shape.iter().product())?;
         ds.read_raw()
             .map_err(|_| self.err(format!("{name}: data unreadable (damaged)")))
     }
@@ -398,7 +573,8 @@ impl<'a> SpaceReader<'a> {
     pub fn nodes(&self, count: usize) -> Result<Vec<[f64; 3]>, ReadError> {
         self.guard(|| {
             let count = count.min(self.node_count);
-            let (ds, _) = self.dataset::<f64>(sp::NODES, 2)?;
+            let (ds, shape) = self.dataset::<f64>(sp::NODES, 2)?;
+            self.charge::<f64>(sp::NODES, &ds, &shape, 3 * count)?;
             let a: ndarray::Array2<f64> = ds
                 .read_slice(s![0..count, ..])
                 .map_err(|_| self.err("mesh/nodes: data unreadable (damaged)"))?;
@@ -407,19 +583,25 @@ impl<'a> SpaceReader<'a> {
         })
     }
 
-    /// Tet connectivity, `nodes_per_tet` (4 or 10) indices per tet, all below the node count.
+    /// Tet connectivity, `nodes_per_tet` (4 or 10) indices per tet, all below the node count and
+    /// distinct within a tet.
     pub fn tets(&self) -> Result<Vec<u32>, ReadError> {
         self.guard(|| {
             let v = self.read_all::<u32>(sp::TETS, 2)?;
-            self.indices(sp::TETS, v, self.node_count)
+            let v = self.indices(sp::TETS, v, self.node_count)?;
+            let per = if self.element_order == 2 { 10 } else { 4 };
+            checks::tets(&v, per).map_err(|m| self.err(format!("{}: {m}; the file is damaged", sp::TETS)))?;
+            Ok(v)
         })
     }
 
-    /// Surface triangles, on corner vertices.
+    /// Surface triangles, on three distinct corner vertices each.
     pub fn surface_triangles(&self) -> Result<Vec<[u32; 3]>, ReadError> {
         self.guard(|| {
             let v = self.read_all::<u32>(sp::SURFACE_TRIANGLES, 2)?;
             let v = self.indices(sp::SURFACE_TRIANGLES, v, self.vertex_count)?;
+            checks::triangles(&v)
+                .map_err(|m| self.err(format!("{}: {m}; the file is damaged", sp::SURFACE_TRIANGLES)))?;
             Ok(v.chunks_exact(3).map(|t| [t[0], t[1], t[2]]).collect())
         })
     }
@@ -432,25 +614,40 @@ impl<'a> SpaceReader<'a> {
         })
     }
 
-    /// Elastic eigenvalues λ = ω², finite and positive.
+    /// Eigenvalues and frequencies, read together so that neither is used unchecked against the
+    /// other: λ finite, > 0 and ascending; f = √λ/2π.
+    fn modal(&self) -> Result<(Vec<f64>, Vec<f64>), ReadError> {
+        let lam = self.finite(sp::EIGENVALUES, self.read_all(sp::EIGENVALUES, 1)?)?;
+        checks::eigenvalues(&lam).map_err(|m| self.err(format!("{}: {m}; the file is damaged", sp::EIGENVALUES)))?;
+        let hz = self.finite(sp::FREQUENCIES_HZ, self.read_all(sp::FREQUENCIES_HZ, 1)?)?;
+        checks::frequencies(&lam, &hz)
+            .map_err(|m| self.err(format!("{}: {m}; the file is damaged", sp::FREQUENCIES_HZ)))?;
+        Ok((lam, hz))
+    }
+
+    /// Elastic eigenvalues λ = ω², finite, positive, ascending, agreeing with the frequencies.
     pub fn eigenvalues(&self) -> Result<Vec<f64>, ReadError> {
+        self.guard(|| self.modal().map(|m| m.0))
+    }
+
+    /// Frequencies, Hz: √λ/2π of the checked eigenvalues.
+    pub fn frequencies_hz(&self) -> Result<Vec<f64>, ReadError> {
+        self.guard(|| self.modal().map(|m| m.1))
+    }
+
+    /// Relative residuals, finite and ≥ 0.
+    pub fn relative_residuals(&self) -> Result<Vec<f64>, ReadError> {
         self.guard(|| {
-            let v = self.finite(sp::EIGENVALUES, self.read_all(sp::EIGENVALUES, 1)?)?;
-            match v.iter().find(|&&l| l <= 0.0) {
-                Some(l) => Err(self.err(format!("elastic eigenvalue {l} is not positive; the file is damaged"))),
+            let v = self.finite(sp::RELATIVE_RESIDUALS, self.read_all(sp::RELATIVE_RESIDUALS, 1)?)?;
+            match v.iter().position(|&x| x < 0.0) {
+                Some(i) => Err(self.err(format!(
+                    "{} holds {} at entry {i}: a residual norm is ≥ 0; the file is damaged",
+                    sp::RELATIVE_RESIDUALS,
+                    v[i]
+                ))),
                 None => Ok(v),
             }
         })
-    }
-
-    /// Frequencies, Hz, finite.
-    pub fn frequencies_hz(&self) -> Result<Vec<f64>, ReadError> {
-        self.guard(|| self.finite(sp::FREQUENCIES_HZ, self.read_all(sp::FREQUENCIES_HZ, 1)?))
-    }
-
-    /// Relative residuals, finite.
-    pub fn relative_residuals(&self) -> Result<Vec<f64>, ReadError> {
-        self.guard(|| self.finite(sp::RELATIVE_RESIDUALS, self.read_all(sp::RELATIVE_RESIDUALS, 1)?))
     }
 
     /// The modal stress of the first `cols` modes at corner vertices `vertices`, row-major
@@ -461,7 +658,7 @@ impl<'a> SpaceReader<'a> {
             let Ok(ds) = self.group.dataset(sp::STRESS) else {
                 return Ok(None);
             };
-            let (_, shape) = self.dataset::<f64>(sp::STRESS, 2)?;
+            let (checked, shape) = self.dataset::<f64>(sp::STRESS, 2)?;
             if shape != [6 * self.vertex_count, self.mode_count] {
                 return Err(self.err(format!(
                     "{} has shape {shape:?}, expected [{}, {}] (6 per corner vertex, one column per mode)",
@@ -476,6 +673,7 @@ impl<'a> SpaceReader<'a> {
                     self.vertex_count, self.mode_count
                 )));
             }
+            self.charge::<f64>(sp::STRESS, &checked, &shape, 6 * vertices.len() * cols)?;
             let block: ndarray::Array2<f64> = ds
                 .read_slice(ndarray::s![6 * vertices.start..6 * vertices.end, 0..cols])
                 .map_err(|e| self.err(format!("{}: {e}", sp::STRESS)))?;
@@ -520,7 +718,8 @@ impl<'a> SpaceReader<'a> {
                     self.mode_count
                 )));
             }
-            let (ds, _) = self.dataset::<f64>(sp::BASIS, 2)?;
+            let (ds, shape) = self.dataset::<f64>(sp::BASIS, 2)?;
+            self.charge::<f64>(sp::BASIS, &ds, &shape, rows.len() * cols.len())?;
             let a: ndarray::Array2<f64> = ds
                 .read_slice(s![rows, cols])
                 .map_err(|_| self.err("modes/basis: data unreadable (damaged)"))?;
@@ -561,12 +760,16 @@ impl<'a> SpaceReader<'a> {
         self.check_block_finite(0..rows.min(all_rows), cols.min(all_cols)..all_cols)
     }
 
-    /// Static compliance: node indices (below n) and their 3×3 blocks (finite), if stored.
+    /// Static compliance: node indices (below n) and their 3×3 blocks, if stored. Each block is
+    /// finite, symmetric, zero in the supported components' rows and columns, positive definite
+    /// in the others, and below [`checks::MAX_DIMENSIONLESS_COMPLIANCE`] / (E·L).
     pub fn compliance(&self) -> Result<Option<crate::Compliance>, ReadError> {
         self.guard(|| {
-            if self.group.group(sp::COMPLIANCE).is_err() {
+            let Ok(group) = self.group.group(sp::COMPLIANCE) else {
                 return Ok(None);
-            }
+            };
+            self.file
+                .check_object(&group, &format!("{}/{}/{}", names::SPACES, self.name, sp::COMPLIANCE))?;
             let nodes = self.read_all::<u32>(sp::COMPLIANCE_NODES, 1)?;
             let nodes = self.indices(sp::COMPLIANCE_NODES, nodes, self.node_count)?;
             let (_, shape) = self.dataset::<f64>(sp::COMPLIANCE_BLOCKS, 3)?;
@@ -577,10 +780,34 @@ impl<'a> SpaceReader<'a> {
                 )));
             }
             let flat = self.finite(sp::COMPLIANCE_BLOCKS, self.read_all(sp::COMPLIANCE_BLOCKS, 3)?)?;
-            let blocks = flat
+            let blocks: Vec<crate::Block3> = flat
                 .chunks_exact(9)
                 .map(|b| std::array::from_fn(|a| std::array::from_fn(|c| b[3 * a + c])))
                 .collect();
+            let mut supported = vec![false; 3 * self.node_count];
+            for d in self.fixed_dofs()? {
+                supported[d as usize] = true;
+            }
+            let young = self.file.material()?.young;
+            let size = self.size()?;
+            for (k, (&node, b)) in nodes.iter().zip(&blocks).enumerate() {
+                let free = std::array::from_fn(|c| !supported[3 * node as usize + c]);
+                let bad = |m: String| {
+                    self.err(format!(
+                        "{} block {k} (node {node}): {m}; the file is damaged",
+                        sp::COMPLIANCE_BLOCKS
+                    ))
+                };
+                let c = checks::symmetric_positive_definite(b, free).map_err(bad)?;
+                let dimensionless = c * young * size;
+                if dimensionless.is_nan() || dimensionless > checks::MAX_DIMENSIONLESS_COMPLIANCE {
+                    return Err(bad(format!(
+                        "compliance {c:e} m/N is {dimensionless:.1e} / (E·L) with E {young:e} Pa and the part's size L \
+                         {size:e} m, above {:e}: no elastic part is so soft",
+                        checks::MAX_DIMENSIONLESS_COMPLIANCE
+                    )));
+                }
+            }
             Ok(Some((nodes, blocks)))
         })
     }
@@ -594,12 +821,19 @@ impl<'a> SpaceReader<'a> {
             let mass = scalar_attr::<f64>(&g, sp::MASS).filter(|m| m.is_finite() && *m > 0.0);
             let c = f64_array_attr(&g, sp::CENTER_OF_MASS, 3);
             let i = f64_array_attr(&g, sp::INERTIA, 9);
+            self.file
+                .check_object(&g, &format!("{}/{}/{}", names::SPACES, self.name, sp::RIGID))?;
             match (mass, c, i) {
-                (Some(mass), Some(c), Some(i)) => Ok(Some(RigidProperties {
-                    mass,
-                    center: [c[0], c[1], c[2]],
-                    inertia: [[i[0], i[1], i[2]], [i[3], i[4], i[5]], [i[6], i[7], i[8]]],
-                })),
+                (Some(mass), Some(c), Some(i)) => {
+                    let inertia = [[i[0], i[1], i[2]], [i[3], i[4], i[5]], [i[6], i[7], i[8]]];
+                    checks::symmetric_positive_definite(&inertia, [true; 3])
+                        .map_err(|m| self.err(format!("rigid/ inertia: {m}; the file is damaged")))?;
+                    Ok(Some(RigidProperties {
+                        mass,
+                        center: [c[0], c[1], c[2]],
+                        inertia,
+                    }))
+                }
                 _ => Err(self.err("rigid/ mass, center_of_mass or inertia missing or not finite")),
             }
         })
@@ -609,6 +843,7 @@ impl<'a> SpaceReader<'a> {
     /// when the file holds one.
     pub fn transfer(&self, from: &str, r_to: usize, r_from: usize) -> Result<Option<Vec<f64>>, ReadError> {
         self.guard(|| {
+            names::check_space_name(from).map_err(|m| self.err(format!("transfer: {m}")))?;
             let name = format!("{}/{from}", sp::TRANSFER);
             if self.group.dataset(&name).is_err() {
                 return Ok(None);
@@ -620,11 +855,35 @@ impl<'a> SpaceReader<'a> {
                     self.mode_count
                 )));
             }
+            self.charge::<f64>(&name, &ds, &shape, r_to * r_from)?;
             let a: ndarray::Array2<f64> = ds
                 .read_slice(s![0..r_to, 0..r_from])
                 .map_err(|_| self.err(format!("{name}: data unreadable (damaged)")))?;
             self.finite(&name, a.iter().copied().collect()).map(Some)
         })
+    }
+
+    /// Checks Rayleigh damping (α, β) against eigenvalues `lam` of this space
+    /// ([`checks::damping`]).
+    pub fn check_damping(&self, alpha: f64, beta: f64, lam: &[f64]) -> Result<(), ReadError> {
+        checks::damping(alpha, beta, lam).map_err(|m| {
+            self.file
+                .err(format!("{}/{} and {}: {m}", mat::GROUP, mat::ALPHA, mat::BETA))
+        })
+    }
+
+    /// Diagonal of the bounding box of the space's nodes, m.
+    fn size(&self) -> Result<f64, ReadError> {
+        let nodes = self.nodes(self.node_count)?;
+        let mut lo = [f64::INFINITY; 3];
+        let mut hi = [f64::NEG_INFINITY; 3];
+        for p in &nodes {
+            for c in 0..3 {
+                lo[c] = lo[c].min(p[c]);
+                hi[c] = hi[c].max(p[c]);
+            }
+        }
+        Ok((0..3).map(|c| (hi[c] - lo[c]).powi(2)).sum::<f64>().sqrt())
     }
 
     /// Reads and checks everything in the space (the full basis streamed): what `ves info` and
@@ -634,8 +893,9 @@ impl<'a> SpaceReader<'a> {
         self.tets()?;
         self.surface_triangles()?;
         self.fixed_dofs()?;
-        self.eigenvalues()?;
-        self.frequencies_hz()?;
+        let lam = self.eigenvalues()?;
+        let m = self.file.material()?;
+        self.check_damping(m.alpha, m.beta, &lam)?;
         self.relative_residuals()?;
         self.check_basis_finite()?;
         self.compliance()?;

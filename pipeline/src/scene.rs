@@ -495,6 +495,14 @@ impl Scene {
         for (i, f) in raw.fixed.iter().enumerate() {
             fixed.push(support(i, f).map_err(err)?);
         }
+        if raw.voi.len() >= ves_format::names::MAX_SPACES {
+            return Err(err(format!(
+                "{} [[voi]]: a basis holds at most {} spaces (\"global\" and {} volumes of interest)",
+                raw.voi.len(),
+                ves_format::names::MAX_SPACES,
+                ves_format::names::MAX_SPACES - 1
+            )));
+        }
         let mut names = vec!["global".to_string()];
         for (i, v) in raw.voi.iter().enumerate() {
             finite_positive(&format!("voi[{i}].size"), v.size, "m").map_err(err)?;
@@ -518,11 +526,23 @@ impl Scene {
                 )));
             }
         }
-        let name = raw.name.unwrap_or_else(|| {
-            path.file_stem()
-                .map(|s| s.to_string_lossy().into_owned())
-                .unwrap_or_default()
-        });
+        // The name becomes the output's file name (`<name>.h5`, in `ves batch --out DIR` too):
+        // an identifier, never a path.
+        let name = match raw.name {
+            Some(n) => {
+                ves_format::check_identifier("name", &n).map_err(err)?;
+                n
+            }
+            None => {
+                let stem = path
+                    .file_stem()
+                    .map(|s| s.to_string_lossy().into_owned())
+                    .unwrap_or_default();
+                ves_format::check_identifier("name (the scene file's name, its default)", &stem)
+                    .map_err(|m| err(format!("{m}; or set name = \"…\" in the scene")))?;
+                stem
+            }
+        };
         Ok(Scene {
             name,
             path: path.to_path_buf(),

@@ -286,7 +286,7 @@ pub fn info(path: &Path) -> Result<BasisInfo> {
         path: path.display().to_string(),
         bytes: file.file_bytes(),
         generator: file.string(ves_format::names::root::GENERATOR).unwrap_or_default(),
-        default_space: file.default_space(),
+        default_space: file.default_space()?,
         spaces,
     })
 }

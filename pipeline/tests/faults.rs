@@ -128,3 +128,60 @@ fn a_full_disk_during_matrices_fails_and_keeps_the_old_file() {
         assert_eq!(std::fs::read(&out).expect("matrices"), old, "limit {limit} B: replaced");
     }
 }
+
+/// A scene's `name` names its output file: `../x`, an absolute path, an empty name, a newline or
+/// a bidi override must be refused before any work, and nothing outside `--out` touched.
+#[test]
+fn scene_names_that_are_paths_or_hide_characters_are_refused() {
+    let (dir, _) = workdir(GOOD);
+    let victim_dir = dir.path().join("victim");
+    std::fs::create_dir(&victim_dir).expect("dir");
+    let victim = victim_dir.join("important.h5");
+    std::fs::write(&victim, "precious").expect("write");
+    let abs = dir.path().join("abs");
+    std::fs::write(abs.with_extension("h5"), "precious").expect("write");
+    let out = dir.path().join("bout");
+    std::fs::create_dir(&out).expect("dir");
+    let names = [
+        "../victim/important".to_string(),
+        abs.display().to_string(),
+        String::new(),
+        "a\nb".to_string(),
+        "evil\u{202E}5h.exe".to_string(),
+        "..".to_string(),
+    ];
+    for name in &names {
+        let text = GOOD.replace("name = \"beam\"", &format!("name = {name:?}"));
+        let scene = write_file(dir.path(), "s.toml", &text);
+        for args in [
+            vec!["batch", scene.to_str().unwrap(), "--out", out.to_str().unwrap()],
+            vec!["precompute", scene.to_str().unwrap()],
+        ] {
+            let o = ves(&args);
+            let err = String::from_utf8_lossy(&o.stderr);
+            assert!(!o.status.success(), "{args:?} with name {name:?}: exit 0 ({err})");
+            assert!(err.contains("name"), "{name:?}: the error does not name the key: {err}");
+            assert!(!err.contains('\u{202E}'), "the bidi override is printed raw: {err}");
+        }
+        assert_eq!(std::fs::read_to_string(&victim).expect("victim"), "precious");
+        assert_eq!(
+            std::fs::read_to_string(abs.with_extension("h5")).expect("abs"),
+            "precious"
+        );
+        assert_eq!(
+            std::fs::read_dir(&out).expect("out").count(),
+            0,
+            "{name:?} wrote into --out"
+        );
+    }
+    // A scene file whose stem is not a name is told to set one; with a name it runs.
+    let bad_stem = write_file(dir.path(), "a\u{202E}b.toml", &GOOD.replace("name = \"beam\"\n", ""));
+    let o = ves(&[
+        "precompute",
+        bad_stem.to_str().unwrap(),
+        "-o",
+        out.join("x.h5").to_str().unwrap(),
+    ]);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(!o.status.success() && err.contains("set name"), "{err}");
+}

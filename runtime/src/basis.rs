@@ -117,14 +117,10 @@ impl Basis {
                 "mode values beyond single precision (|φ| > 3.4e38): the file is damaged".into(),
             ));
         }
-        if let Some(l) = eigenvalues.iter().find(|&&l| l <= 0.0) {
-            return Err(err(format!("elastic eigenvalue {l} is not positive")));
-        }
-        if !(alpha >= 0.0 && beta >= 0.0) {
-            return Err(err(format!(
-                "Rayleigh damping ({alpha}, {beta}) must be finite and ≥ 0"
-            )));
-        }
+        ves_format::checks::eigenvalues(&eigenvalues).map_err(|m| err(format!("space {space:?}: {m}")))?;
+        ves_format::checks::damping(alpha, beta, &eigenvalues).map_err(|m| err(format!("space {space:?}: {m}")))?;
+        ves_format::checks::triangles(triangles.as_flattened())
+            .map_err(|m| err(format!("space {space:?}: surface {m}")))?;
         let mut phi = vec![0.0f32; 3 * n * r];
         for (k, row) in rows.chunks_exact(r).enumerate() {
             for (j, v) in row.iter().enumerate() {
@@ -351,7 +347,10 @@ mod file {
     /// [`load`] from an open file.
     pub fn load_space(file: &BasisReader, opts: &LoadOptions) -> Result<Basis, LoadError> {
         let p = file.path().display().to_string();
-        let space = opts.space.clone().unwrap_or_else(|| file.default_space());
+        let space = match &opts.space {
+            Some(s) => s.clone(),
+            None => file.default_space()?,
+        };
         let s = file.space(&space)?;
         let nv = s.vertex_count;
         let r = opts.modes.unwrap_or(s.mode_count);

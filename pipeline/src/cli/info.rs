@@ -15,7 +15,10 @@ impl Args {
         if self.file.json {
             return super::print_json(&info);
         }
-        println!("{} ({} bytes, {})", info.path, info.bytes, info.generator);
+        // Text from the file goes to a terminal: control and bidirectional-text characters are
+        // shown escaped, never interpreted.
+        let esc = ves_format::names::escape_for_terminal;
+        println!("{} ({} bytes, {})", info.path, info.bytes, esc(&info.generator));
         for s in &info.spaces {
             let correction = if s.static_correction_vertices > 0 {
                 format!(", static correction at {} vertices", s.static_correction_vertices)
@@ -25,11 +28,11 @@ impl Args {
             let meshing = s
                 .meshing_strategy
                 .as_deref()
-                .map_or(String::new(), |m| format!(", meshed by strategy {m:?}"));
+                .map_or(String::new(), |m| format!(", meshed by strategy \"{}\"", esc(m)));
             let error = ves_pipeline::accuracy::summary_text(s.estimated_relative_error.as_deref());
             println!(
                 "  {}: {} nodes ({} vertices), {} tets of order {}, {} modes {:.4}..{:.4} Hz, max residual {:.1e}, {} rigid dropped{correction}{meshing}{error}",
-                s.name,
+                esc(&s.name),
                 s.nodes,
                 s.vertices,
                 s.tets,

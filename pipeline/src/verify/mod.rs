@@ -195,13 +195,17 @@ fn fenicsx_python() -> Option<&'static str> {
     })
 }
 
-fn run_checked(what: &str, cmd: &mut Command) -> Result<()> {
-    let out = cmd.output().with_context(|| format!("cannot run {what}"))?;
+/// Runs a reference driver on the problem made from `input`; its failure names `input` and the
+/// driver's last line of stderr (a Python traceback's exception).
+fn run_checked(input: &str, what: &str, cmd: &mut Command) -> Result<()> {
+    let out = cmd.output().with_context(|| format!("{input}: cannot run {what}"))?;
     if !out.status.success() {
         let err = String::from_utf8_lossy(&out.stderr);
         bail!(
-            "{what} failed: {}",
-            err.lines().rev().find(|l| !l.trim().is_empty()).unwrap_or("no message")
+            "{input}: the reference solver {what} failed on it: {}",
+            ves_format::names::escape_for_terminal(
+                err.lines().rev().find(|l| !l.trim().is_empty()).unwrap_or("no message")
+            )
         );
     }
     Ok(())
@@ -257,12 +261,15 @@ pub fn verify_input(
 }
 
 /// Rebuilds the discrete problem of a basis file's global space (its own mesh, supports and
-/// material) and takes its stored modes. The whole space is checked first (the one reader).
+/// material) and takes its stored modes. The whole file is checked first by the one reader, so a
+/// damaged or crafted basis ends in its one-line message naming the file, not in a solver's failure.
 pub fn discretize_basis(path: &Path, modes: Option<usize>) -> Result<(Discretized, Modes, MaterialConstants)> {
     let file = ves_format::BasisReader::open(path)?;
     let m = file.material()?;
     let material = (m.young, m.poisson, m.density);
+    file.space_names()?;
     let g = file.space(ves_format::names::GLOBAL_SPACE)?;
+    g.validate()?;
     let n = g.node_count;
     let lam = g.eigenvalues()?;
     let r = modes.unwrap_or(lam.len()).min(lam.len());
@@ -282,7 +289,8 @@ pub fn discretize_basis(path: &Path, modes: Option<usize>) -> Result<(Discretize
         mask[f as usize] = true;
     }
     let dofs = crate::supports::Dofs::from_mask(&mask);
-    let d = Discretized::assemble(mesh, dofs, material)?;
+    let d = Discretized::assemble(mesh, dofs, material)
+        .with_context(|| format!("{}: rebuilding its stiffness and mass", path.display()))?;
     let nf = d.dofs.free_count();
     let mut vectors = Vec::with_capacity(nf * r);
     for j in 0..r {
@@ -374,6 +382,7 @@ fn verify(
                 }
                 let py = script("skfem_ref.py", SKFEM)?;
                 run_checked(
+                    input,
                     "skfem_ref.py",
                     Command::new("python3").arg(py).arg(&problem).arg(&result),
                 )?;
@@ -388,6 +397,7 @@ fn verify(
                 }
                 let py = script("ccx_ref.py", CCX)?;
                 run_checked(
+                    input,
                     "ccx_ref.py",
                     Command::new("python3").arg(py).arg(&problem).arg(&result).arg(&dir_tmp),
                 )?;
@@ -400,6 +410,7 @@ fn verify(
                 };
                 let bridge = script("fx_bridge.py", FX_BRIDGE)?;
                 run_checked(
+                    input,
                     "fx_bridge.py",
                     Command::new("python3")
                         .arg(&bridge)
@@ -408,8 +419,9 @@ fn verify(
                         .arg(&dir_tmp),
                 )?;
                 let py = script("fenicsx_ref.py", FENICSX)?;
-                run_checked("fenicsx_ref.py", Command::new(fx).arg(py).arg(&dir_tmp))?;
+                run_checked(input, "fenicsx_ref.py", Command::new(fx).arg(py).arg(&dir_tmp))?;
                 run_checked(
+                    input,
                     "fx_bridge.py",
                     Command::new("python3")
                         .arg(&bridge)
