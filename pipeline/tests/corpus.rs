@@ -4,8 +4,8 @@
 //! every residual ≤ 1e-8, and the modes must equal scikit-fem's on the same (curved) mesh to its
 //! tolerance for curved elements, 1e-4 (see `verify::Tolerances::resolve`).
 //!
-//! CI runs the three parts in `cases/corpus/` (copies); `VES_CORPUS=DIR` runs every `*.step` of DIR (the
-//! team's `../shared/geometry/corpus`) and prints a table row per part.
+//! CI runs the three parts in `cases/corpus/` (copies); `VES_CORPUS=DIR` runs every `*.step` of DIR
+//! (absolute, or relative to the workspace root) and prints a table row per part.
 
 mod common;
 
@@ -125,8 +125,11 @@ fn corpus_parts_precompute_at_default_settings_with_valid_elements() {
     let dir = tempfile::tempdir().expect("temp dir");
     let (parts, verify): (Vec<PathBuf>, bool) = match std::env::var_os("VES_CORPUS") {
         Some(d) => {
+            // A relative path is taken from the workspace root, where the docs' command runs
+            // (cargo runs the test in the crate's folder).
+            let d = Path::new(env!("CARGO_MANIFEST_DIR")).join("..").join(d);
             let mut v: Vec<PathBuf> = std::fs::read_dir(&d)
-                .expect("VES_CORPUS is a directory")
+                .unwrap_or_else(|e| panic!("VES_CORPUS = {}: {e}", d.display()))
                 .filter_map(|e| e.ok().map(|e| e.path()))
                 .filter(|p| p.extension().is_some_and(|x| x.eq_ignore_ascii_case("step")))
                 .collect();
