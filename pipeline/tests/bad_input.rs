@@ -531,16 +531,16 @@ fn a_killed_precompute_leaves_no_worker_and_the_next_run_removes_its_directory()
         .spawn()
         .unwrap();
     let pid = parent.id();
-    // Until the worker runs gmsh: its phase file is written after it has read its job.
+    // Until the worker runs gmsh: its phase file (in the job's directory inside the private
+    // one) is written after it has read its job. The only run using `tmp`: any name will do.
     let deadline = std::time::Instant::now() + std::time::Duration::from_secs(60);
-    let ours = format!("ves-mesh-pid{pid}-");
     let private = loop {
         let found = std::fs::read_dir(&tmp)
             .unwrap()
             .flatten()
-            .find(|e| e.file_name().to_string_lossy().starts_with(&ours))
+            .find(|e| e.file_name().to_string_lossy().starts_with("ves-mesh-"))
             .map(|e| e.path())
-            .filter(|d| d.join("rung0/phase").exists());
+            .filter(|d| d.join("phase").exists() || d.join("rung0/phase").exists());
         if let Some(d) = found {
             break d;
         }

@@ -440,15 +440,23 @@ mod tests {
         bad(lookup(&key));
     }
 
-    /// A header that claims 2^62 tets is refused from the file's size, not allocated.
+    /// A header that claims 2^62 more tet indices than it holds: 4 bytes each, the extra
+    /// 2^64 bytes wrap around to a size that matches (it ended in "capacity overflow"). Refused
+    /// from the file's size, not allocated.
     #[test]
     fn a_huge_count_in_an_entry_is_bad_not_an_allocation() {
         let dir = tempfile::tempdir().unwrap();
-        let (key, _) = stored(dir.path());
+        let key = dir.path().join("0123456789abcdef.mesh");
+        store(
+            &key,
+            &Mesh::structured_box([3, 1, 1], 0.01, 1, |_, p| p),
+            &Meshing::default(),
+        );
         let mut bytes = std::fs::read(&key).unwrap();
         let len = u64::from_le_bytes(bytes[8..16].try_into().unwrap()) as usize;
-        let tets = 16 + len + 8;
-        bytes[tets..tets + 8].copy_from_slice(&(1u64 << 62).to_le_bytes());
+        let at = 16 + len + 8;
+        let tets = u64::from_le_bytes(bytes[at..at + 8].try_into().unwrap());
+        bytes[at..at + 8].copy_from_slice(&(tets + (1u64 << 62)).to_le_bytes());
         std::fs::write(&key, &bytes).unwrap();
         bad(lookup(&key));
     }
