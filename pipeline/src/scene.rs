@@ -340,7 +340,7 @@ impl Scene {
             .geometry
             .extension()
             .is_some_and(|e| e.eq_ignore_ascii_case("step") || e.eq_ignore_ascii_case("stp"));
-        let Some(bytes) = is_step.then(|| std::fs::read(&self.geometry).ok()).flatten() else {
+        let Some(bytes) = is_step.then(|| crate::mesh::input::read(&self.geometry).ok()).flatten() else {
             return;
         };
         let Some(file_unit) = crate::step_units::length_unit(&String::from_utf8_lossy(&bytes)) else {
@@ -470,25 +470,22 @@ impl Scene {
             .and_then(|e| e.to_str())
             .map(str::to_ascii_lowercase)
             .unwrap_or_default();
-        if !GEOMETRY_EXTENSIONS.contains(&ext.as_str()) {
-            return Err(err(format!(
+        let unsupported = || {
+            err(format!(
                 "geometry.step = {:?}: unsupported file type; use a .step/.stp, .iges, .brep or .geo file",
                 raw.geometry.step
-            )));
+            ))
+        };
+        let supported = GEOMETRY_EXTENSIONS.contains(&ext.as_str());
+        // Type and size before any byte is read: a FIFO or a device would block or never end.
+        if let Err(e) = crate::mesh::input::open(&geometry) {
+            if !supported && !geometry.exists() {
+                return Err(unsupported());
+            }
+            return Err(err(format!("geometry.step = {:?}: {e}", raw.geometry.step)));
         }
-        if geometry.is_dir() {
-            return Err(err(format!(
-                "geometry.step = {:?}: {} is a directory; give the part's STEP file",
-                raw.geometry.step,
-                geometry.display()
-            )));
-        }
-        if !geometry.is_file() {
-            return Err(err(format!(
-                "geometry.step = {:?}: file not found at {}",
-                raw.geometry.step,
-                geometry.display()
-            )));
+        if !supported {
+            return Err(unsupported());
         }
 
         let mut fixed = Vec::with_capacity(raw.fixed.len());

@@ -375,3 +375,264 @@ fn an_output_named_like_its_own_sidecar_is_refused() {
     assert_refused(&o, "name the output .h5");
     assert!(!out.exists());
 }
+
+/// `mkfifo path`.
+fn mkfifo(path: &Path) {
+    let c = std::ffi::CString::new(path.as_os_str().as_encoded_bytes()).unwrap();
+    assert_eq!(
+        unsafe { libc::mkfifo(c.as_ptr(), 0o600) },
+        0,
+        "mkfifo {}",
+        path.display()
+    );
+}
+
+/// Issue "Nothing lost, nobody in": a FIFO or /dev/zero as geometry said "file not found"; a
+/// 2 GB sparse `.step` took 60 s and 4.25 GB of memory before failing. Each is refused at once
+/// in one line saying what the file is.
+#[test]
+fn a_fifo_a_device_or_a_huge_file_as_geometry_is_refused_at_once() {
+    let (dir, _) = workdir(GOOD);
+    mkfifo(&dir.path().join("pipe.step"));
+    std::os::unix::fs::symlink("/dev/zero", dir.path().join("zero.step")).unwrap();
+    std::fs::File::create(dir.path().join("big.step"))
+        .unwrap()
+        .set_len(2 << 30)
+        .unwrap();
+    for (step, expect) in [
+        ("pipe.step", &["pipe.step", "FIFO", "not a regular file"][..]),
+        ("/dev/zero", &["/dev/zero", "character device", "not a regular file"]),
+        ("zero.step", &["zero.step", "character device", "not a regular file"]),
+        ("big.step", &["big.step", "2.00 GiB", "over 1 GiB"]),
+    ] {
+        let scene = write_file(dir.path(), "s.toml", &GOOD.replace("beam.step", step));
+        let out = dir.path().join("out.h5");
+        let t = std::time::Instant::now();
+        let o = ves(&["precompute", scene.to_str().unwrap(), "-o", out.to_str().unwrap()]);
+        let err = stderr(&o);
+        assert_eq!(o.status.code(), Some(1), "{step}: {err}");
+        assert_eq!(err.lines().count(), 1, "{step}: {err}");
+        for e in expect {
+            assert!(err.contains(e), "{step}: {e:?} not in {err}");
+        }
+        assert!(t.elapsed().as_secs_f64() < 10.0, "{step}: {:?}", t.elapsed());
+        assert!(!out.exists());
+    }
+}
+
+/// `ves precompute` with `VES_CACHE_DIR=cache` and `TMPDIR=tmp` in `dir`: its output.
+fn precompute_in(dir: &Path, scene: &Path, extra: &[&str]) -> std::process::Output {
+    std::process::Command::new(env!("CARGO_BIN_EXE_ves"))
+        .args(["precompute", scene.to_str().unwrap(), "-o"])
+        .arg(dir.join("b.h5"))
+        .args(["--force", "--json"])
+        .args(extra)
+        .env("VES_CACHE_DIR", dir.join("cache"))
+        .env("TMPDIR", dir.join("tmp"))
+        .output()
+        .expect("ves runs")
+}
+
+fn frequencies(o: &std::process::Output) -> Vec<f64> {
+    last_json(o)["spaces"][0]["frequencies_hz"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|x| x.as_f64().unwrap())
+        .collect()
+}
+
+/// An edited mesh cache entry (one byte of a coordinate flipped) was used as it was: a wrong
+/// basis, exit 0. Now it is a miss, said in one warning line naming it; the part is meshed
+/// again (the same frequencies as the first run) and the entry replaced.
+#[test]
+fn a_damaged_cache_entry_is_a_miss_said_once_and_replaced() {
+    let (dir, scene) = workdir(GOOD);
+    std::fs::create_dir(dir.path().join("tmp")).unwrap();
+    let o = precompute_in(dir.path(), &scene, &[]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let first = frequencies(&o);
+    // The fine mesh: the largest entry (the others are the error estimate's coarser meshes).
+    let entry = std::fs::read_dir(dir.path().join("cache/meshes"))
+        .unwrap()
+        .flatten()
+        .map(|e| e.path())
+        .filter(|p| p.extension().is_some_and(|x| x == "mesh"))
+        .max_by_key(|p| std::fs::metadata(p).unwrap().len())
+        .expect("a mesh entry");
+    let mut bytes = std::fs::read(&entry).unwrap();
+    let at = bytes.len() / 2;
+    bytes[at] ^= 0x40;
+    std::fs::write(&entry, &bytes).unwrap();
+    let o = precompute_in(dir.path(), &scene, &[]);
+    let err = stderr(&o);
+    assert!(o.status.success(), "{err}");
+    let name = entry.file_name().unwrap().to_str().unwrap();
+    let warned: Vec<&str> = err.lines().filter(|l| l.contains(name)).collect();
+    assert_eq!(warned.len(), 1, "{err}");
+    assert!(warned[0].contains("damaged mesh cache entry"), "{err}");
+    assert_eq!(frequencies(&o), first, "the same mesh, made again");
+    assert_ne!(std::fs::read(&entry).unwrap(), bytes, "the entry was not replaced");
+    let o = precompute_in(dir.path(), &scene, &[]);
+    assert!(!stderr(&o).contains("damaged"), "{}", stderr(&o));
+}
+
+/// Processes whose parent is `pid`, from /proc (zombies excluded: they have ended).
+fn children_of(pid: u32) -> Vec<u32> {
+    let mut found = Vec::new();
+    for e in std::fs::read_dir("/proc").unwrap().flatten() {
+        let Ok(stat) = std::fs::read_to_string(e.path().join("stat")) else {
+            continue;
+        };
+        // "pid (comm) state ppid …": the command may hold spaces and parentheses.
+        let Some((_, rest)) = stat.rsplit_once(')') else {
+            continue;
+        };
+        let fields: Vec<&str> = rest.split_whitespace().collect();
+        if fields.len() > 1 && fields[1] == pid.to_string() && fields[0] != "Z" {
+            found.push(stat.split_whitespace().next().unwrap().parse().unwrap());
+        }
+    }
+    found
+}
+
+fn alive(pid: u32) -> bool {
+    std::fs::read_to_string(format!("/proc/{pid}/stat"))
+        .ok()
+        .and_then(|s| {
+            s.rsplit_once(')')
+                .map(|(_, r)| r.split_whitespace().next() != Some("Z"))
+        })
+        .unwrap_or(false)
+}
+
+/// A `ves precompute` killed with SIGKILL while gmsh meshed left its `ves mesh-worker` running
+/// (up to 40 s, parent 1) and its `ves-mesh-*` directory in $TMPDIR forever. Now the worker
+/// dies with it, and the next run removes the directory.
+#[test]
+fn a_killed_precompute_leaves_no_worker_and_the_next_run_removes_its_directory() {
+    let (dir, _) = workdir(GOOD);
+    let tmp = dir.path().join("tmp");
+    std::fs::create_dir(&tmp).unwrap();
+    // A script that keeps gmsh busy far longer than the test waits.
+    write_file(
+        dir.path(),
+        "slow.geo",
+        "Sleep 120;\nSetFactory(\"OpenCASCADE\");\nBox(1) = {0, 0, 0, 1, 0.2, 0.2};\n",
+    );
+    let slow = write_file(dir.path(), "slow.toml", &GOOD.replace("beam.step", "slow.geo"));
+    let mut parent = std::process::Command::new(env!("CARGO_BIN_EXE_ves"))
+        .args(["precompute", slow.to_str().unwrap(), "--allow-geo-scripts", "-o"])
+        .arg(dir.path().join("slow.h5"))
+        .env("TMPDIR", &tmp)
+        .env("VES_MESH_CACHE", "off")
+        .stdout(std::process::Stdio::null())
+        .stderr(std::process::Stdio::null())
+        .spawn()
+        .unwrap();
+    let pid = parent.id();
+    // Until the worker runs gmsh: its phase file (in the job's directory inside the private
+    // one) is written after it has read its job. The only run using `tmp`: any name will do.
+    let deadline = std::time::Instant::now() + std::time::Duration::from_secs(60);
+    let private = loop {
+        let found = std::fs::read_dir(&tmp)
+            .unwrap()
+            .flatten()
+            .find(|e| e.file_name().to_string_lossy().starts_with("ves-mesh-"))
+            .map(|e| e.path())
+            .filter(|d| d.join("phase").exists() || d.join("rung0/phase").exists());
+        if let Some(d) = found {
+            break d;
+        }
+        assert!(std::time::Instant::now() < deadline, "no meshing process started");
+        std::thread::sleep(std::time::Duration::from_millis(50));
+    };
+    let workers = children_of(pid);
+    assert_eq!(workers.len(), 1, "{workers:?}");
+    unsafe { libc::kill(pid as i32, libc::SIGKILL) };
+    parent.wait().unwrap();
+    let deadline = std::time::Instant::now() + std::time::Duration::from_secs(10);
+    while alive(workers[0]) {
+        assert!(
+            std::time::Instant::now() < deadline,
+            "the meshing process {} outlived its parent by 10 s",
+            workers[0]
+        );
+        std::thread::sleep(std::time::Duration::from_millis(50));
+    }
+    assert!(
+        private.exists(),
+        "a SIGKILL leaves the directory: the next run removes it"
+    );
+    let (good_dir, good) = workdir(GOOD);
+    let o = std::process::Command::new(env!("CARGO_BIN_EXE_ves"))
+        .args(["precompute", good.to_str().unwrap(), "-o"])
+        .arg(good_dir.path().join("b.h5"))
+        .env("TMPDIR", &tmp)
+        .env("VES_MESH_CACHE", "off")
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(!private.exists(), "{} was left", private.display());
+    let left: Vec<_> = std::fs::read_dir(&tmp)
+        .unwrap()
+        .flatten()
+        .map(|e| e.file_name())
+        .filter(|n| n.to_string_lossy().starts_with("ves-mesh-"))
+        .collect();
+    assert!(left.is_empty(), "{left:?}");
+}
+
+/// A closed surface whose faces intersect (a box with one corner pushed through the opposite
+/// face): gmsh's "PLC Error: A segment and a facet intersect" at every size. The line said
+/// "try mesh.size = half", which fails the same way; now it names the face and the point, says
+/// that the faces intersect (the half size was tried and failed too) and what to repair.
+#[test]
+fn intersecting_faces_are_named_and_no_size_is_advised() {
+    let (dir, _) = workdir(GOOD);
+    write_file(dir.path(), "self.geo", SELF_INTERSECTING_GEO);
+    let scene = write_file(
+        dir.path(),
+        "self.toml",
+        &GOOD
+            .replace("beam.step", "self.geo")
+            .replace("size = 0.05", "size = 0.00025"),
+    );
+    let o = ves(&["precompute", scene.to_str().unwrap(), "--allow-geo-scripts"]);
+    let err = stderr(&o);
+    assert_eq!(o.status.code(), Some(1), "{err}");
+    assert_eq!(err.lines().count(), 1, "{err}");
+    for e in [
+        "self.geo",
+        "crosses itself on CAD face",
+        "near (0.000",
+        "segment and a facet intersect",
+        "half and a quarter of the mesh size fail too",
+        "repair those faces in CAD",
+        "defeature",
+    ] {
+        assert!(err.contains(e), "{e:?} not in {err}");
+    }
+    assert!(!err.contains("try mesh.size"), "{err}");
+}
+
+/// The unit box (mm) in triangles, corner (1, 1, 1) moved to (0.7, 0.7, −0.5): through the
+/// bottom face. gmsh's boundary recovery fails on it at any element size (tried 2…0.0625 mm).
+const SELF_INTERSECTING_GEO: &str = "\
+Point(1) = {0, 0, 0, 0.5}; Point(2) = {1, 0, 0, 0.5}; Point(3) = {1, 1, 0, 0.5};
+Point(4) = {0, 1, 0, 0.5}; Point(5) = {0, 0, 1, 0.5}; Point(6) = {1, 0, 1, 0.5};
+Point(7) = {0.7, 0.7, -0.5, 0.5}; Point(8) = {0, 1, 1, 0.5};
+Line(1) = {1, 4}; Line(2) = {4, 3}; Line(3) = {3, 1}; Line(4) = {3, 2}; Line(5) = {2, 1};
+Line(6) = {5, 6}; Line(7) = {6, 7}; Line(8) = {7, 5}; Line(9) = {7, 8}; Line(10) = {8, 5};
+Line(11) = {2, 6}; Line(12) = {6, 1}; Line(13) = {5, 1}; Line(14) = {3, 7}; Line(15) = {7, 2};
+Line(16) = {4, 8}; Line(17) = {8, 3}; Line(18) = {5, 4};
+Curve Loop(1) = {1, 2, 3}; Curve Loop(2) = {-3, 4, 5}; Curve Loop(3) = {6, 7, 8};
+Curve Loop(4) = {-8, 9, 10}; Curve Loop(5) = {-5, 11, 12}; Curve Loop(6) = {-12, -6, 13};
+Curve Loop(7) = {-4, 14, 15}; Curve Loop(8) = {-15, -7, -11}; Curve Loop(9) = {-2, 16, 17};
+Curve Loop(10) = {-17, -9, -14}; Curve Loop(11) = {-1, -13, 18}; Curve Loop(12) = {-18, -10, -16};
+For s In {1:12}
+  Plane Surface(s) = {s};
+EndFor
+Surface Loop(1) = {1:12};
+Volume(1) = {1};
+";

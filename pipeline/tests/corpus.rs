@@ -157,8 +157,9 @@ fn corpus_parts_precompute_at_default_settings_with_valid_elements() {
 }
 
 /// A thin-walled cover at a coarse size: gmsh fails on every rung of the meshing ladder (a PLC
-/// error). One line says so and gives a size; following it works, and the basis records the
-/// strategy that made its mesh.
+/// error: the surface meshes of the wall's two sides cross). One line says so, where, and gives
+/// the size it tried and that meshed; following it works, and the basis records the strategy
+/// that made its mesh.
 #[test]
 fn a_part_no_rung_can_mesh_gets_advice_that_works() {
     let dir = tempfile::tempdir().expect("temp dir");
@@ -184,7 +185,11 @@ fn a_part_no_rung_can_mesh_gets_advice_that_works() {
     assert_eq!(o.status.code(), Some(1), "{err}");
     assert_eq!(err.lines().count(), 1, "{err}");
     assert!(err.contains("any of its 5 strategies") && err.contains("PLC"), "{err}");
-    let advised = number_after(&err, "try mesh.size = ");
+    assert!(
+        err.contains("crosses itself on CAD face") && err.contains("meshes it (tried)"),
+        "{err}"
+    );
+    let advised = number_after(&err, "mesh.size = ");
     let out = dir.path().join("cone.h5");
     let o = ves(&[
         "precompute",

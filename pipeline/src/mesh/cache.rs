@@ -2,28 +2,36 @@
 //! support, mode count or damping — the everyday batch of scenarios — and the coarser meshes of
 //! the error estimate skip gmsh entirely.
 //!
-//! Key: the geometry file's bytes, what shapes the mesh (unit, size, order, the VOI's box and
-//! size), the VES version and the text of the meshing code itself (so any change to how meshes
-//! are made misses the old entries without a version to bump). Entries live in
-//! `$VES_CACHE_DIR/meshes`, else `$XDG_CACHE_HOME/ves/meshes`, else `~/.cache/ves/meshes`;
-//! `VES_MESH_CACHE=off` turns the cache off. Each entry is one file written under a temporary
-//! name and renamed, so concurrent runs and threads never read half an entry or a mix of two. A `.geo` script
-//! is never cached (it may read other files). gmsh itself is not in the key: a rebuild against
-//! another gmsh should start from an empty cache.
+//! Key: the geometry file's bytes (read once; gmsh meshes a private copy of the same bytes),
+//! what shapes the mesh (unit, size, order, the VOI's box and size), the VES version and the
+//! text of the meshing code itself (so any change to how meshes are made misses the old entries
+//! without a version to bump). Entries live in `$VES_CACHE_DIR/meshes`, else
+//! `$XDG_CACHE_HOME/ves/meshes`, else `~/.cache/ves/meshes`; `VES_MESH_CACHE=off` turns the
+//! cache off. Each entry is one file with a checksum, written under a new temporary name and
+//! renamed, so concurrent runs and threads never read half an entry or a mix of two; anything
+//! else at an entry's path (damaged, truncated, a FIFO, a symlink) is a miss and is replaced. A
+//! `.geo` script is never cached (it may read other files). gmsh itself is not in the key: a
+//! rebuild against another gmsh should start from an empty cache.
 //!
 //! The METIS node orderings of the meshes solved live beside them (`*.order`, keyed by the
 //! node graph): a rerun, or another support of the same mesh, skips METIS too.
 
 use super::{LADDER, Mesh, Meshing, Request, field, isolation};
-use std::io::Write;
-use std::path::PathBuf;
+use std::fs::File;
+use std::io::{Read, Write};
+use std::os::unix::fs::OpenOptionsExt;
+use std::path::{Path, PathBuf};
 
-/// The meshing code: part of every key.
-const SOURCES: [&str; 3] = [
+/// The meshing code and the entries' format: part of every key.
+const SOURCES: [&str; 4] = [
     include_str!("mod.rs"),
     include_str!("quality.rs"),
     include_str!("isolation.rs"),
+    include_str!("cache.rs"),
 ];
+
+/// First bytes of a mesh entry.
+const MAGIC: &[u8; 8] = b"VESMESH\x02";
 
 /// What the description of an entry holds besides the mesh file.
 #[derive(serde::Serialize, serde::Deserialize)]
@@ -44,13 +52,14 @@ fn dir() -> Option<PathBuf> {
     Some(base.join("meshes"))
 }
 
-/// The entry a request would have (None: not cacheable, or the cache is off).
-pub(super) fn key(req: &Request) -> Option<PathBuf> {
+/// The entry a request would have, from `geometry`: the bytes of the geometry file that are
+/// meshed (read once; the file itself may change meanwhile). None: not cacheable (a `.geo`
+/// script), or the cache is off.
+pub(super) fn key(req: &Request, geometry: &[u8]) -> Option<PathBuf> {
     let ext = req.geometry.extension()?.to_str()?.to_ascii_lowercase();
     if ext == "geo" {
         return None;
     }
-    let geometry = std::fs::read(&req.geometry).ok()?;
     let shape = serde_json::to_string(&(
         req.unit,
         req.mesh.size,
@@ -64,41 +73,150 @@ pub(super) fn key(req: &Request) -> Option<PathBuf> {
     for s in SOURCES {
         h.field(s.as_bytes());
     }
-    h.field(shape.as_bytes()).field(&geometry);
+    // The extension too: it picks gmsh's reader.
+    h.field(shape.as_bytes()).field(ext.as_bytes()).field(geometry);
     Some(dir()?.join(format!("{:016x}.mesh", h.value())))
 }
 
 /// Longest description accepted when reading an entry (a damaged length is not allocated).
 const MAX_DESCRIPTION: u64 = 1 << 16;
 
-/// The cached mesh of `key`, if complete and readable.
-pub(super) fn lookup(key: &std::path::Path) -> Option<(Mesh, Meshing)> {
-    use std::io::Read;
-    let file = std::fs::File::open(key).ok()?;
-    let size = file.metadata().ok()?.len();
-    let mut r = std::io::BufReader::new(file);
+/// What a lookup found.
+pub(super) enum Found {
+    /// A whole entry whose checksum matches.
+    Hit(Mesh, Meshing),
+    /// No entry.
+    Absent,
+    /// Something at the entry's path that is not a whole entry: why.
+    Bad(String),
+}
+
+/// Checksum of an entry's content: FNV-1a, 64 bits, over every byte before it. Against
+/// corruption and edits that do not also recompute it (every change of one byte is detected,
+/// since each step of FNV-1a is a bijection of its state; other damage slips through with
+/// probability 2⁻⁶⁴). Not against deliberate forgery: the cache is the user's own directory,
+/// and anyone who can write it can write a matching checksum.
+#[derive(Clone, Copy)]
+struct Checksum(u64);
+
+impl Checksum {
+    const fn new() -> Self {
+        Checksum(0xcbf2_9ce4_8422_2325)
+    }
+    fn update(&mut self, bytes: &[u8]) {
+        for &b in bytes {
+            self.0 = (self.0 ^ u64::from(b)).wrapping_mul(0x0000_0100_0000_01b3);
+        }
+    }
+}
+
+/// A reader or writer that checksums what passes through it.
+struct Summed<T> {
+    inner: T,
+    sum: Checksum,
+}
+
+impl<R: Read> Read for Summed<R> {
+    fn read(&mut self, buf: &mut [u8]) -> std::io::Result<usize> {
+        let n = self.inner.read(buf)?;
+        self.sum.update(&buf[..n]);
+        Ok(n)
+    }
+}
+
+impl<W: Write> Write for Summed<W> {
+    fn write(&mut self, buf: &[u8]) -> std::io::Result<usize> {
+        let n = self.inner.write(buf)?;
+        self.sum.update(&buf[..n]);
+        Ok(n)
+    }
+    fn flush(&mut self) -> std::io::Result<()> {
+        self.inner.flush()
+    }
+}
+
+/// Opens the cache file `path` if it is a regular file: never through a symlink, and never
+/// blocking (a FIFO there would hang the run). Ok(None): nothing there.
+fn open_entry(path: &Path) -> Result<Option<(File, u64)>, String> {
+    // O_NOFOLLOW: a symlink is refused (ELOOP); O_NONBLOCK: opening a FIFO returns at once.
+    // The type is then checked on the open file, so a swap after a check cannot slip through.
+    let file = match std::fs::OpenOptions::new()
+        .read(true)
+        .custom_flags(libc::O_NOFOLLOW | libc::O_NONBLOCK)
+        .open(path)
+    {
+        Ok(f) => f,
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok(None),
+        Err(e) if e.raw_os_error() == Some(libc::ELOOP) => return Err("a symbolic link, not an entry".into()),
+        Err(e) => return Err(format!("cannot be opened: {e}")),
+    };
+    let meta = file.metadata().map_err(|e| format!("cannot be examined: {e}"))?;
+    if !meta.file_type().is_file() {
+        let kind = super::input::kind(&meta).unwrap_or("not a file");
+        return Err(format!("{kind}, not a regular file"));
+    }
+    Ok(Some((file, meta.len())))
+}
+
+/// The cached mesh of `key`: [`Found::Hit`] only for a whole entry with the right checksum.
+pub(super) fn lookup(key: &Path) -> Found {
+    let (file, size) = match open_entry(key) {
+        Ok(Some(f)) => f,
+        Ok(None) => return Found::Absent,
+        Err(why) => return Found::Bad(why),
+    };
+    match read_entry(file, size) {
+        Ok(found) => Found::Hit(found.0, found.1),
+        Err(why) => Found::Bad(why),
+    }
+}
+
+fn read_entry(file: File, size: u64) -> Result<(Mesh, Meshing), String> {
+    let short = |e: std::io::Error| format!("truncated or unreadable ({size} bytes): {e}");
+    let mut r = Summed {
+        inner: std::io::BufReader::new(file),
+        sum: Checksum::new(),
+    };
     let mut word = [0u8; 8];
-    r.read_exact(&mut word).ok()?;
+    r.read_exact(&mut word).map_err(short)?;
+    if &word != MAGIC {
+        return Err("not a mesh entry of this version (wrong first bytes)".into());
+    }
+    r.read_exact(&mut word).map_err(short)?;
     let len = u64::from_le_bytes(word);
-    if len > MAX_DESCRIPTION || 8 + len > size {
-        return None;
+    // Magic, length, description, mesh, checksum.
+    if len > MAX_DESCRIPTION || 8 + 8 + len + 8 > size {
+        return Err(format!("a description of {len} bytes in a file of {size}"));
     }
     let mut text = vec![0u8; len as usize];
-    r.read_exact(&mut text).ok()?;
-    let entry: Entry = serde_json::from_slice(&text).ok()?;
-    let mesh = isolation::read_mesh_from(&mut r, size - 8 - len, entry.vertex_count, entry.order).ok()?;
+    r.read_exact(&mut text).map_err(short)?;
+    let entry: Entry = serde_json::from_slice(&text).map_err(|e| format!("unreadable description: {e}"))?;
+    let mesh = isolation::read_mesh_from(&mut r, size - 8 - 8 - len - 8, entry.vertex_count, entry.order)
+        .map_err(|e| format!("damaged mesh: {e}"))?;
+    let computed = r.sum.0;
+    r.inner.read_exact(&mut word).map_err(short)?;
+    if u64::from_le_bytes(word) != computed {
+        return Err(format!(
+            "checksum mismatch (stored {:016x}, content {computed:016x})",
+            u64::from_le_bytes(word)
+        ));
+    }
     let mut meshing = entry.meshing;
-    meshing.strategy = LADDER.get(meshing.rung)?.name;
-    Some((mesh, meshing))
+    meshing.strategy = LADDER
+        .get(meshing.rung)
+        .ok_or_else(|| format!("no meshing rung {}", meshing.rung))?
+        .name;
+    Ok((mesh, meshing))
 }
 
 /// Stores a mesh under `key`; a failure only costs the next run its meshing (logged).
 ///
-/// One file per entry (its description, then the mesh), written under a name no other process
-/// or thread uses and renamed into place: a reader sees a whole entry or none. (Two files, one
-/// renamed after the other, let a reader pair one run's description with another run's mesh
-/// while both stored the same key: gmsh's meshes of one input can differ between runs.)
-pub(super) fn store(key: &std::path::Path, mesh: &Mesh, meshing: &Meshing) {
+/// One file per entry (its description, then the mesh, then the checksum), written under a
+/// name no other process or thread uses and renamed into place: a reader sees a whole entry or
+/// none. (Two files, one renamed after the other, let a reader pair one run's description with
+/// another run's mesh while both stored the same key: gmsh's meshes of one input can differ
+/// between runs.)
+pub(super) fn store(key: &Path, mesh: &Mesh, meshing: &Meshing) {
     let entry = Entry {
         meshing: *meshing,
         vertex_count: mesh.vertex_count,
@@ -106,28 +224,64 @@ pub(super) fn store(key: &std::path::Path, mesh: &Mesh, meshing: &Meshing) {
     };
     write_atomically(key, |w| {
         let text = serde_json::to_vec(&entry).map_err(std::io::Error::other)?;
-        w.write_all(&(text.len() as u64).to_le_bytes())?;
-        w.write_all(&text)?;
-        isolation::write_mesh_to(w, mesh)
+        let mut s = Summed {
+            inner: &mut *w,
+            sum: Checksum::new(),
+        };
+        s.write_all(MAGIC)?;
+        s.write_all(&(text.len() as u64).to_le_bytes())?;
+        s.write_all(&text)?;
+        isolation::write_mesh_to(&mut s, mesh)?;
+        let sum = s.sum.0;
+        w.write_all(&sum.to_le_bytes())
     });
 }
 
+/// Serial numbers of the temporary files of this process.
+static SERIAL: std::sync::atomic::AtomicU64 = std::sync::atomic::AtomicU64::new(0);
+
+/// Creates a new file beside `key` for writing it: a name of this process and serial number
+/// (then random ones if that is taken), created exclusively and never through a symlink, so
+/// whatever sits at the name (another run's file, a symlink planted in a shared cache) is left
+/// alone.
+fn create_temporary(key: &Path) -> std::io::Result<(PathBuf, File)> {
+    use std::hash::{BuildHasher, Hasher};
+    let serial = SERIAL.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+    let mut last = None;
+    for attempt in 0..16 {
+        let unique = if attempt == 0 {
+            format!("tmp{}.{serial}", std::process::id())
+        } else {
+            let random = std::collections::hash_map::RandomState::new().build_hasher().finish();
+            format!("tmp{}.{serial}.{random:016x}", std::process::id())
+        };
+        let tmp = key.with_extension(unique);
+        match std::fs::OpenOptions::new()
+            .write(true)
+            .create_new(true)
+            .custom_flags(libc::O_NOFOLLOW)
+            .mode(0o644)
+            .open(&tmp)
+        {
+            Ok(f) => return Ok((tmp, f)),
+            Err(e) if e.kind() == std::io::ErrorKind::AlreadyExists => last = Some(e),
+            Err(e) => return Err(e),
+        }
+    }
+    Err(last.unwrap_or_else(|| std::io::Error::other("no free temporary name")))
+}
+
 /// Writes `key` under a name no other process or thread uses, then renames it into place; a
-/// failure only costs the next run the work (logged).
-fn write_atomically(
-    key: &std::path::Path,
-    body: impl FnOnce(&mut std::io::BufWriter<std::fs::File>) -> std::io::Result<()>,
-) {
-    use std::sync::atomic::{AtomicU64, Ordering};
-    static SERIAL: AtomicU64 = AtomicU64::new(0);
+/// failure only costs the next run the work (logged). Caches: no fsync (a lost entry is a miss,
+/// a torn one fails its checks).
+fn write_atomically(key: &Path, body: impl FnOnce(&mut std::io::BufWriter<File>) -> std::io::Result<()>) {
     let result = (|| -> std::io::Result<()> {
         if let Some(d) = key.parent() {
             std::fs::create_dir_all(d)?;
         }
-        let unique = format!("tmp{}.{}", std::process::id(), SERIAL.fetch_add(1, Ordering::Relaxed));
-        let tmp = key.with_extension(unique);
+        let (tmp, file) = create_temporary(key)?;
         let written = (|| {
-            let mut w = std::io::BufWriter::new(std::fs::File::create(&tmp)?);
+            let mut w = std::io::BufWriter::new(file);
             body(&mut w)?;
             w.flush()?;
             std::fs::rename(&tmp, key)
@@ -158,7 +312,20 @@ pub(crate) fn ordering_key(xadj: &[i32], adj: &[i32]) -> Option<PathBuf> {
 
 /// The cached ordering under `key`: a permutation of 0..n, else None.
 pub(crate) fn ordering_lookup(key: &std::path::Path, n: usize) -> Option<Vec<i32>> {
-    let bytes = std::fs::read(key).ok()?;
+    let (file, size) = match open_entry(key) {
+        Ok(Some(f)) => f,
+        Ok(None) => return None,
+        Err(why) => {
+            tracing::warn!("{}: damaged cache entry ignored ({why}); it is replaced", key.display());
+            return None;
+        }
+    };
+    // The size first: nothing is read from (or allocated for) a file of another length.
+    if size != 4 * n as u64 {
+        return None;
+    }
+    let mut bytes = Vec::with_capacity(4 * n);
+    file.take(size).read_to_end(&mut bytes).ok()?;
     if bytes.len() != 4 * n {
         return None;
     }
@@ -214,7 +381,7 @@ mod tests {
             // Reads for as long as anyone writes (however the threads are scheduled).
             s.spawn(|| {
                 while writing.load(std::sync::atomic::Ordering::Acquire) > 0 {
-                    if let Some((m, _)) = lookup(&key) {
+                    if let Found::Hit(m, _) = lookup(&key) {
                         assert!(
                             whole(&m),
                             "a mixed entry: {} vertices, {} nodes",
@@ -226,13 +393,128 @@ mod tests {
             });
         });
         // After the writers, the entry is there and whole.
-        let (last, _) = lookup(&key).expect("the entry is readable after the writers");
+        let Found::Hit(last, _) = lookup(&key) else {
+            panic!("the entry is not readable after the writers")
+        };
         assert!(whole(&last));
         let left: Vec<_> = std::fs::read_dir(dir.path())
             .unwrap()
             .map(|e| e.unwrap().file_name())
             .collect();
         assert_eq!(left.len(), 1, "temporary files left: {left:?}");
+    }
+
+    fn stored(dir: &Path) -> (PathBuf, Mesh) {
+        let m = Mesh::structured_box([3, 1, 1], 0.01, 2, |_, p| p);
+        let key = dir.join("0123456789abcdef.mesh");
+        store(&key, &m, &Meshing::default());
+        (key, m)
+    }
+
+    fn bad(found: Found) -> String {
+        match found {
+            Found::Bad(why) => why,
+            Found::Hit(m, _) => panic!("read as an entry: {} nodes, x₀ = {}", m.nodes.len(), m.nodes[0][0]),
+            Found::Absent => panic!("read as absent"),
+        }
+    }
+
+    /// An entry edited by hand (a coordinate doubled: one byte of its exponent) or cut short
+    /// is not used: its checksum or its length says so.
+    #[test]
+    fn an_edited_or_truncated_entry_is_bad() {
+        let dir = tempfile::tempdir().unwrap();
+        let (key, m) = stored(dir.path());
+        assert!(matches!(lookup(&key), Found::Hit(..)));
+        let good = std::fs::read(&key).unwrap();
+        // The last node's x: doubling it adds one to the exponent (bytes 6-7 of the f64).
+        let len = u64::from_le_bytes(good[8..16].try_into().unwrap()) as usize;
+        let x = 16 + len + 24 + 24 * (m.nodes.len() - 1);
+        let mut edited = good.clone();
+        let doubled = (f64::from_le_bytes(good[x..x + 8].try_into().unwrap()) * 2.0).to_le_bytes();
+        assert_ne!(m.nodes.last().unwrap()[0], 0.0);
+        edited[x..x + 8].copy_from_slice(&doubled);
+        std::fs::write(&key, &edited).unwrap();
+        assert!(bad(lookup(&key)).contains("checksum"));
+        std::fs::write(&key, &good[..good.len() - 3]).unwrap();
+        bad(lookup(&key));
+    }
+
+    /// A header that claims 2^62 more tet indices than it holds: 4 bytes each, the extra
+    /// 2^64 bytes wrap around to a size that matches (it ended in "capacity overflow"). Refused
+    /// from the file's size, not allocated.
+    #[test]
+    fn a_huge_count_in_an_entry_is_bad_not_an_allocation() {
+        let dir = tempfile::tempdir().unwrap();
+        let key = dir.path().join("0123456789abcdef.mesh");
+        store(
+            &key,
+            &Mesh::structured_box([3, 1, 1], 0.01, 1, |_, p| p),
+            &Meshing::default(),
+        );
+        let mut bytes = std::fs::read(&key).unwrap();
+        let len = u64::from_le_bytes(bytes[8..16].try_into().unwrap()) as usize;
+        let at = 16 + len + 8;
+        let tets = u64::from_le_bytes(bytes[at..at + 8].try_into().unwrap());
+        bytes[at..at + 8].copy_from_slice(&(tets + (1u64 << 62)).to_le_bytes());
+        std::fs::write(&key, &bytes).unwrap();
+        bad(lookup(&key));
+    }
+
+    /// A FIFO, a symlink or a directory at an entry's path is a bad entry, found at once (a
+    /// regression that blocks on the FIFO fails here after 10 s instead of hanging the suite).
+    #[test]
+    fn a_fifo_symlink_or_directory_at_an_entry_is_bad_without_blocking() {
+        let dir = tempfile::tempdir().unwrap();
+        let (good, _) = stored(dir.path());
+        let fifo = dir.path().join("fifo.mesh");
+        let c = std::ffi::CString::new(fifo.as_os_str().as_encoded_bytes()).unwrap();
+        assert_eq!(unsafe { libc::mkfifo(c.as_ptr(), 0o600) }, 0);
+        let link = dir.path().join("link.mesh");
+        std::os::unix::fs::symlink(&good, &link).unwrap();
+        let sub = dir.path().join("dir.mesh");
+        std::fs::create_dir(&sub).unwrap();
+        for (path, what) in [(fifo, "regular"), (link, "symbolic link"), (sub, "regular")] {
+            let (tx, rx) = std::sync::mpsc::channel();
+            let p = path.clone();
+            std::thread::spawn(move || {
+                let _ = tx.send(bad(lookup(&p)));
+            });
+            let why = rx
+                .recv_timeout(std::time::Duration::from_secs(10))
+                .unwrap_or_else(|_| panic!("lookup of {} blocked", path.display()));
+            assert!(why.contains(what), "{why}");
+        }
+        // The ordering cache opens its files the same way.
+        let order = dir.path().join("fifo.order");
+        let c = std::ffi::CString::new(order.as_os_str().as_encoded_bytes()).unwrap();
+        assert_eq!(unsafe { libc::mkfifo(c.as_ptr(), 0o600) }, 0);
+        let (tx, rx) = std::sync::mpsc::channel();
+        std::thread::spawn(move || {
+            let _ = tx.send(ordering_lookup(&order, 4));
+        });
+        let found = rx.recv_timeout(std::time::Duration::from_secs(10));
+        assert_eq!(found, Ok(None), "the ordering lookup blocked on a FIFO");
+    }
+
+    /// Symlinks planted at every temporary name this process would use (a shared cache) are
+    /// left alone: the file they point to is not written, and the entry is stored beside them.
+    #[test]
+    fn a_symlink_planted_at_the_temporary_name_is_not_followed() {
+        let dir = tempfile::tempdir().unwrap();
+        let victim = dir.path().join("victim");
+        std::fs::write(&victim, b"someone else's file").unwrap();
+        let key = dir.path().join("0123456789abcdef.mesh");
+        let from = SERIAL.load(std::sync::atomic::Ordering::Relaxed);
+        for s in from..from + 5000 {
+            let tmp = key.with_extension(format!("tmp{}.{s}", std::process::id()));
+            std::os::unix::fs::symlink(&victim, tmp).unwrap();
+        }
+        let m = Mesh::structured_box([3, 1, 1], 0.01, 1, |_, p| p);
+        store(&key, &m, &Meshing::default());
+        assert_eq!(std::fs::read(&victim).unwrap(), b"someone else's file");
+        assert!(std::fs::symlink_metadata(&key).unwrap().file_type().is_file());
+        assert!(matches!(lookup(&key), Found::Hit(..)));
     }
 
     /// A stored ordering reads back; a file that is not a permutation of 0..n (a duplicate, a

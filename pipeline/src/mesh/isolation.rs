@@ -7,6 +7,7 @@
 
 use super::{Attempt, LADDER, Mesh, MeshError, Meshing, Request};
 use std::io::{BufReader, BufWriter, Read, Write};
+use std::os::unix::fs::OpenOptionsExt;
 use std::path::{Path, PathBuf};
 use std::sync::OnceLock;
 
@@ -50,10 +51,103 @@ enum Reply {
 struct Job {
     request: Request,
     rung: usize,
+    /// The parent's process id: the child ends at once if it already has another parent.
+    parent: u32,
+}
+
+/// Names of the private directories of meshing: `ves-mesh-pid<PID>-<random>`.
+const PREFIX: &str = "ves-mesh-pid";
+/// Held (flock) by the owner of a private directory for as long as it lives.
+const LOCK: &str = "owner.lock";
+
+/// A private directory (mode 0700, in `$TMPDIR`) for one meshing of a part: the copy of its
+/// geometry that gmsh reads, and each rung's job, reply and mesh. Removed when dropped; one
+/// left by a process that was killed is removed by the next run that meshes (its name says
+/// whose it is, and the owner holds a lock on a file inside while it lives).
+pub(super) struct WorkDir {
+    dir: tempfile::TempDir,
+    _lock: std::fs::File,
+}
+
+impl WorkDir {
+    /// A new private directory; the first one of a process first removes those whose owners
+    /// are gone.
+    pub(super) fn new() -> std::io::Result<WorkDir> {
+        static SWEPT: std::sync::Once = std::sync::Once::new();
+        SWEPT.call_once(|| remove_stale(&std::env::temp_dir()));
+        let dir = tempfile::Builder::new()
+            .prefix(&format!("{PREFIX}{}-", std::process::id()))
+            .tempdir()?;
+        let lock = std::fs::File::create_new(dir.path().join(LOCK))?;
+        // Exclusive until this process ends (the kernel drops it even on SIGKILL); children do
+        // not inherit it (the descriptor is close-on-exec).
+        if unsafe { libc::flock(std::os::fd::AsRawFd::as_raw_fd(&lock), libc::LOCK_EX | libc::LOCK_NB) } != 0 {
+            return Err(std::io::Error::last_os_error());
+        }
+        Ok(WorkDir { dir, _lock: lock })
+    }
+
+    /// Its path.
+    pub(super) fn path(&self) -> &Path {
+        self.dir.path()
+    }
+}
+
+/// Removes the private directories in `tmp` of processes that no longer run: only this
+/// user's, only real directories (not symlinks), and not one whose lock is still held (its
+/// owner may run in another PID namespace sharing `tmp`).
+pub(super) fn remove_stale(tmp: &Path) {
+    use std::os::unix::fs::MetadataExt;
+    let Ok(entries) = std::fs::read_dir(tmp) else { return };
+    let me = std::process::id();
+    let uid = unsafe { libc::geteuid() };
+    for entry in entries.flatten() {
+        let name = entry.file_name();
+        let Some(pid) = name
+            .to_str()
+            .and_then(|n| n.strip_prefix(PREFIX))
+            .and_then(|n| n.split_once('-'))
+            .and_then(|(pid, _)| pid.parse::<u32>().ok())
+        else {
+            continue;
+        };
+        let path = entry.path();
+        let Ok(meta) = std::fs::symlink_metadata(&path) else {
+            continue;
+        };
+        if pid == me || !meta.is_dir() || meta.uid() != uid || process_runs(pid) {
+            continue;
+        }
+        if let Ok(lock) = std::fs::OpenOptions::new()
+            .read(true)
+            .custom_flags(libc::O_NOFOLLOW | libc::O_NONBLOCK)
+            .open(path.join(LOCK))
+        {
+            let fd = std::os::fd::AsRawFd::as_raw_fd(&lock);
+            if unsafe { libc::flock(fd, libc::LOCK_EX | libc::LOCK_NB) } != 0 {
+                continue;
+            }
+        }
+        match std::fs::remove_dir_all(&path) {
+            Ok(()) => tracing::info!("removed {}, left by process {pid} that no longer runs", path.display()),
+            Err(e) => tracing::info!("cannot remove {} (left by process {pid}): {e}", path.display()),
+        }
+    }
+}
+
+/// Whether process `pid` exists (kill(pid, 0): ESRCH means gone; EPERM, another user's).
+fn process_runs(pid: u32) -> bool {
+    let Ok(pid) = libc::pid_t::try_from(pid) else {
+        return false;
+    };
+    // SAFETY: signal 0 only checks that the process exists.
+    let found = unsafe { libc::kill(pid, 0) } == 0;
+    found || std::io::Error::last_os_error().raw_os_error() == Some(libc::EPERM)
 }
 
 /// Runs rung `rung` of the ladder: in a child process when isolation is on.
-pub(super) fn attempt(req: &Request, rung: usize) -> Result<(Mesh, Meshing), Attempt> {
+/// `dir`: a new directory for the job's files, inside the meshing's private directory.
+pub(super) fn attempt(req: &Request, rung: usize, dir: &Path) -> Result<(Mesh, Meshing), Attempt> {
     let Some(exe) = WORKER.get() else {
         return super::attempt(req, &LADDER[rung], &mut |_| {});
     };
@@ -67,28 +161,26 @@ pub(super) fn attempt(req: &Request, rung: usize) -> Result<(Mesh, Meshing), Att
             Vec::new(),
         )
     };
-    let dir = tempfile::Builder::new()
-        .prefix("ves-mesh-")
-        .tempdir()
-        .map_err(|e| failed(format!("cannot create a temporary directory for meshing: {e}")))?;
+    std::fs::create_dir(dir).map_err(|e| failed(format!("cannot create the directory {}: {e}", dir.display())))?;
     let job = Job {
         request: req.clone(),
         rung,
+        parent: std::process::id(),
     };
     let text = serde_json::to_string(&job).map_err(|e| failed(format!("cannot encode the meshing job: {e}")))?;
-    std::fs::write(dir.path().join("job.json"), text)
-        .map_err(|e| failed(format!("cannot write the meshing job to {}: {e}", dir.path().display())))?;
+    std::fs::write(dir.join("job.json"), text)
+        .map_err(|e| failed(format!("cannot write the meshing job to {}: {e}", dir.display())))?;
     let status = std::process::Command::new(exe)
         .arg(WORKER_COMMAND)
-        .arg(dir.path())
+        .arg(dir)
         .stdin(std::process::Stdio::null())
         // gmsh may print to stdout; VES's stdout is for results (--json).
         .stdout(std::process::Stdio::null())
         .status()
         .map_err(|e| failed(format!("cannot start the meshing process {}: {e}", exe.display())))?;
-    let reply = std::fs::read_to_string(dir.path().join("reply.json")).ok();
+    let reply = std::fs::read_to_string(dir.join("reply.json")).ok();
     let Some(reply) = reply.and_then(|r| serde_json::from_str::<Reply>(&r).ok()) else {
-        let phase = std::fs::read_to_string(dir.path().join("phase")).unwrap_or_else(|_| "starting".into());
+        let phase = std::fs::read_to_string(dir.join("phase")).unwrap_or_else(|_| "starting".into());
         let what = if phase == READING {
             WHILE_READING.to_string()
         } else {
@@ -106,7 +198,7 @@ pub(super) fn attempt(req: &Request, rung: usize) -> Result<(Mesh, Meshing), Att
             vertex_count,
             order,
         } => {
-            let mesh = read_mesh(&dir.path().join("mesh.bin"), vertex_count, order)
+            let mesh = read_mesh(&dir.join("mesh.bin"), vertex_count, order)
                 .map_err(|e| failed(format!("the meshing process left an unreadable mesh: {e}")))?;
             Ok((mesh, meshing))
         }
@@ -131,9 +223,16 @@ fn describe(status: std::process::ExitStatus) -> String {
 /// The child's side: runs the job in `dir` and leaves its reply there. An error is about the
 /// job's files only (the meshing's own failures are replies).
 pub fn serve(dir: &Path) -> Result<(), String> {
+    // Die with the parent: a killed `ves` must not leave gmsh running for minutes.
+    // SAFETY: prctl with these arguments only sets this process's parent-death signal.
+    unsafe { libc::prctl(libc::PR_SET_PDEATHSIG, libc::SIGKILL as libc::c_ulong, 0, 0, 0) };
     let job_file = dir.join("job.json");
     let text = std::fs::read_to_string(&job_file).map_err(|e| format!("{}: {e}", job_file.display()))?;
     let job: Job = serde_json::from_str(&text).map_err(|e| format!("{}: {e}", job_file.display()))?;
+    // The parent may have died before the line above: then the signal never comes.
+    if unsafe { libc::getppid() } as u32 != job.parent {
+        return Err(format!("the parent process {} is gone", job.parent));
+    }
     let rung = LADDER
         .get(job.rung)
         .ok_or_else(|| format!("{}: no rung {}", job_file.display(), job.rung))?;
@@ -187,22 +286,35 @@ pub(super) fn read_mesh(path: &Path, vertex_count: usize, order: u8) -> std::io:
     read_mesh_from(&mut BufReader::new(file), size, vertex_count, order)
 }
 
+/// Largest mesh file read: 4 GiB, several times the largest mesh [`super::MAX_TETS`] allows
+/// (10⁷ 10-node tets and their nodes take about 0.8 GB).
+const MAX_MESH_BYTES: u64 = 4 << 30;
+
 /// Reads what [`write_mesh_to`] wrote, `size` bytes in all, checking counts and indices.
 pub(super) fn read_mesh_from(r: &mut impl Read, size: u64, vertex_count: usize, order: u8) -> std::io::Result<Mesh> {
     let mut word = [0u8; 8];
-    let mut counts = [0usize; 3];
+    let mut counts = [0u64; 3];
     for c in &mut counts {
         r.read_exact(&mut word)?;
-        *c = u64::from_le_bytes(word) as usize;
+        *c = u64::from_le_bytes(word);
     }
     let [nodes, tets, faces] = counts;
-    let expected = 24 + 24 * nodes as u64 + 4 * tets as u64 + 12 * faces as u64;
-    let per_tet = if order == 2 { 10 } else { 4 };
-    if size != expected || vertex_count > nodes || tets % per_tet != 0 {
-        return Err(std::io::Error::other(format!(
+    // Every count is bounded by the size before anything is allocated for it (checked
+    // arithmetic: a damaged count must not wrap around to a size that matches).
+    let expected = [(nodes, 24), (tets, 4), (faces, 12)]
+        .iter()
+        .try_fold(24u64, |sum, &(n, bytes)| n.checked_mul(bytes)?.checked_add(sum));
+    let per_tet: u64 = if order == 2 { 10 } else { 4 };
+    let bad = || {
+        std::io::Error::other(format!(
             "{size} bytes for {nodes} nodes, {tets} tet indices, {faces} faces"
-        )));
+        ))
+    };
+    if expected != Some(size) || size > MAX_MESH_BYTES || vertex_count as u64 > nodes || tets % per_tet != 0 {
+        return Err(bad());
     }
+    let to_usize = |n: u64| usize::try_from(n).map_err(|_| bad());
+    let (nodes, tets, faces, per_tet) = (to_usize(nodes)?, to_usize(tets)?, to_usize(faces)?, per_tet as usize);
     let f64s = (0..nodes)
         .map(|_| {
             let mut p = [0.0; 3];
@@ -243,6 +355,20 @@ pub(super) fn read_mesh_from(r: &mut impl Read, size: u64, vertex_count: usize, 
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// 2^62 tet indices take 4·2^62 bytes, which wraps to 0 in 64 bits: the size of this
+    /// 48-byte file (three counts, one node) seemed to match, and the allocation failed with
+    /// "capacity overflow". Counts are bounded by the size with checked arithmetic.
+    #[test]
+    fn a_count_that_wraps_around_is_refused_before_allocating() {
+        let mut bytes = Vec::new();
+        for n in [1u64, 1 << 62, 0] {
+            bytes.extend(n.to_le_bytes());
+        }
+        bytes.extend([0u8; 24]);
+        let e = read_mesh_from(&mut &bytes[..], bytes.len() as u64, 1, 1).unwrap_err();
+        assert!(e.to_string().contains("tet indices"), "{e}");
+    }
 
     #[test]
     fn a_mesh_crosses_the_process_boundary_unchanged_and_a_short_file_is_refused() {

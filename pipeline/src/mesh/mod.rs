@@ -5,6 +5,7 @@ use nalgebra::Vector3;
 
 mod cache;
 pub mod field;
+pub mod input;
 mod isolation;
 pub mod quality;
 pub mod walls;
@@ -413,12 +414,17 @@ pub fn generate(scene: &Scene, voi: Option<&Voi>) -> Result<(Mesh, Meshing), Mes
 /// processes (in-process gmsh gave other meshes while other threads of the process were busy).
 /// Errors are left to the later call, which meets them again and reports them.
 pub fn warm_cache(scene: &Scene, voi: Option<&Voi>, field: Option<&field::SizeField>) -> bool {
-    let request = Request::new(scene, voi, field, true);
-    let Some(key) = cache::key(&request).filter(|_| isolation::is_on()) else {
+    if !isolation::is_on() {
+        return false;
+    }
+    let Ok(mut part) = Part::read(Request::new(scene, voi, field, true)) else {
         return false;
     };
-    if cache::lookup(&key).is_none()
-        && let Ok((mesh, meshing)) = walk_ladder(&request)
+    let Some(key) = part.key.clone() else {
+        return false;
+    };
+    if part.cached().is_none()
+        && let Ok((mesh, meshing)) = part.mesh()
     {
         cache::store(&key, &mesh, &meshing);
     }
@@ -434,16 +440,15 @@ pub fn generate_with(
     field: Option<&field::SizeField>,
     quiet: bool,
 ) -> Result<(Mesh, Meshing), MeshError> {
-    let request = Request::new(scene, voi, field, quiet);
-    let key = cache::key(&request);
-    if let Some((mesh, meshing)) = key.as_deref().and_then(cache::lookup) {
+    let mut part = Part::read(Request::new(scene, voi, field, quiet))?;
+    if let Some((mesh, meshing)) = part.cached() {
         tracing::info!(nodes = mesh.nodes.len(), "mesh cache hit");
         if meshing.straightened > 0 || meshing.rung > 0 {
             notice(
-                &request,
+                &part.request,
                 format!(
                     "{}: (cached mesh) meshed on rung {} ({}); {} curved tets made straight-sided",
-                    request.geometry.display(),
+                    part.request.geometry.display(),
                     meshing.rung,
                     meshing.strategy,
                     meshing.straightened
@@ -452,17 +457,96 @@ pub fn generate_with(
         }
         return Ok((mesh, meshing));
     }
-    let made = if isolation::is_on() {
-        // Each rung runs in its own process: the ladder itself needs no gmsh.
-        walk_ladder(&request)
-    } else {
-        let request = request.clone();
-        gmsh::on_gmsh_thread(move || walk_ladder(&request))
-    }?;
-    if let Some(k) = &key {
+    let made = part.mesh()?;
+    if let Some(k) = &part.key {
         cache::store(k, &made.0, &made.1);
     }
     Ok(made)
+}
+
+/// A part to mesh: its geometry's bytes, read once, and the cache key computed from them. gmsh
+/// meshes a private copy of those same bytes, so the mesh stored under the key is the mesh of
+/// the bytes in the key even if the file is replaced meanwhile.
+struct Part {
+    request: Request,
+    /// None for a `.geo` script (gmsh reads it and the files it names itself; never cached).
+    bytes: Option<Vec<u8>>,
+    key: Option<std::path::PathBuf>,
+}
+
+impl Part {
+    fn read(request: Request) -> Result<Part, MeshError> {
+        let is_geo = request
+            .geometry
+            .extension()
+            .is_some_and(|e| e.eq_ignore_ascii_case("geo"));
+        let bytes = if is_geo {
+            None
+        } else {
+            Some(input::read(&request.geometry).map_err(|message| MeshError::Geometry {
+                path: request.geometry.display().to_string(),
+                message,
+            })?)
+        };
+        let key = bytes.as_deref().and_then(|b| cache::key(&request, b));
+        Ok(Part { request, bytes, key })
+    }
+
+    /// The cached mesh, if a whole entry is there; a damaged one is a miss, said in one line.
+    fn cached(&self) -> Option<(Mesh, Meshing)> {
+        let key = self.key.as_deref()?;
+        match cache::lookup(key) {
+            cache::Found::Hit(mesh, meshing) => Some((mesh, meshing)),
+            cache::Found::Absent => None,
+            cache::Found::Bad(why) => {
+                tracing::warn!(
+                    "{}: damaged mesh cache entry ignored ({why}); the part is meshed again and the entry replaced",
+                    key.display()
+                );
+                None
+            }
+        }
+    }
+
+    /// Meshes the bytes read, from a copy in a private directory.
+    fn mesh(&mut self) -> Result<(Mesh, Meshing), MeshError> {
+        let (work, request) = self.private_copy()?;
+        if isolation::is_on() {
+            // Each rung runs in its own process: the ladder itself needs no gmsh.
+            walk_ladder(&request, work.path())
+        } else {
+            let dir = work.path().to_path_buf();
+            gmsh::on_gmsh_thread(move || walk_ladder(&request, &dir))
+        }
+    }
+
+    /// A private directory holding the bytes read (once: they are not kept), and the request
+    /// that makes gmsh read that copy.
+    fn private_copy(&mut self) -> Result<(isolation::WorkDir, Request), MeshError> {
+        let path = self.request.geometry.display().to_string();
+        let failed = |what: &str, e: std::io::Error| MeshError::Geometry {
+            path: path.clone(),
+            message: format!("cannot {what} for meshing: {e}"),
+        };
+        let work = isolation::WorkDir::new().map_err(|e| failed("create a private temporary directory", e))?;
+        let mut request = self.request.clone();
+        if let Some(bytes) = self.bytes.take() {
+            let ext = request
+                .geometry
+                .extension()
+                .map(|e| e.to_string_lossy().to_ascii_lowercase())
+                .unwrap_or_default();
+            let copy = work.path().join(format!("geometry.{ext}"));
+            std::fs::OpenOptions::new()
+                .write(true)
+                .create_new(true)
+                .open(&copy)
+                .and_then(|mut f| std::io::Write::write_all(&mut f, &bytes))
+                .map_err(|e| failed("copy the geometry", e))?;
+            request.source = Some(copy);
+        }
+        Ok((work, request))
+    }
 }
 
 /// All that meshing needs of a scene (and all a meshing process is sent).
@@ -480,6 +564,13 @@ pub struct Request {
     pub field: Option<field::SizeField>,
     /// Warnings as info lines.
     pub quiet: bool,
+    /// The file gmsh opens, when not `geometry` itself: a private copy of the bytes read.
+    #[serde(default)]
+    pub source: Option<std::path::PathBuf>,
+    /// The global size (the scene's, or the automatic one) times this: a trial of a finer
+    /// size for advice, never stored in the cache.
+    #[serde(default)]
+    pub size_factor: Option<f64>,
 }
 
 impl Request {
@@ -491,6 +582,8 @@ impl Request {
             voi: voi.cloned(),
             field: field.cloned(),
             quiet,
+            source: None,
+            size_factor: None,
         }
     }
 }
@@ -556,10 +649,10 @@ const LADDER: [Rung; 5] = [
 
 /// Walks the ladder; a failure of gmsh's meshing or a degenerate element sends it one rung
 /// further, anything else (no solid, a size beyond the budget) ends it.
-fn walk_ladder(req: &Request) -> Result<(Mesh, Meshing), MeshError> {
+fn walk_ladder(req: &Request, work: &std::path::Path) -> Result<(Mesh, Meshing), MeshError> {
     let mut first: Option<(MeshError, Vec<String>)> = None;
     for (i, rung) in LADDER.iter().enumerate() {
-        match isolation::attempt(req, i) {
+        match isolation::attempt(req, i, &work.join(format!("rung{i}"))) {
             Ok((mesh, mut report)) => {
                 report.strategy = rung.name;
                 report.rung = i;
@@ -588,10 +681,144 @@ fn walk_ladder(req: &Request) -> Result<(Mesh, Meshing), MeshError> {
         }
     }
     let (e, log) = first.expect("the ladder has rungs");
+    let message = if is_intersection(&e, &log) {
+        intersection_advice(&e, &log, req, work)
+    } else {
+        ladder_advice(&e, &log, req)
+    };
     Err(MeshError::Geometry {
         path: req.geometry.display().to_string(),
-        message: ladder_advice(&e, &log, req),
+        message,
     })
+}
+
+/// Whether gmsh failed because its surface mesh crosses itself: tetgen's "PLC Error: A segment
+/// and a facet intersect", "Invalid boundary mesh (segment-facet intersection | overlapping
+/// facets)".
+fn is_intersection(e: &MeshError, log: &[String]) -> bool {
+    let cause = e.cause();
+    cause.contains("PLC Error")
+        || cause.contains("intersect")
+        || log
+            .iter()
+            .any(|l| l.contains("segment-facet intersection") || l.contains("overlapping facets"))
+}
+
+/// The point of an intersection as gmsh's log gives it ("…, intersection (x,y,z)"), in the
+/// units gmsh works in.
+fn intersection_point(log: &[String]) -> Option<[f64; 3]> {
+    log.iter().find_map(|l| {
+        let inner = l.split("intersection (").nth(1)?.split(')').next()?;
+        let v: Vec<f64> = inner.split(',').map(|x| x.trim().parse().ok()).collect::<Option<_>>()?;
+        (v.len() == 3 && v.iter().all(|x| x.is_finite())).then(|| [v[0], v[1], v[2]])
+    })
+}
+
+/// The CAD faces (gmsh's surface tags as imported, what a support's `faces = […]` names) that
+/// gmsh's error lines name.
+fn faces_named(log: &[String]) -> Vec<u64> {
+    let mut faces: Vec<u64> = log
+        .iter()
+        .filter(|l| l.contains("Error") || l.contains("intersect") || l.contains("overlapping"))
+        .flat_map(|l| {
+            let words: Vec<&str> = l.split_whitespace().collect();
+            words
+                .windows(2)
+                .filter(|w| w[0].eq_ignore_ascii_case("surface"))
+                .filter_map(|w| w[1].trim_matches(|c: char| !c.is_ascii_digit()).parse().ok())
+                .collect::<Vec<_>>()
+        })
+        .collect();
+    faces.sort_unstable();
+    faces.dedup();
+    faces
+}
+
+/// The one line when every rung failed because the surface mesh crosses itself: where, what
+/// that means, and what to do. Whether a finer mesh cures it is tried (half the size, on the
+/// default rung), not guessed: on a thin wall it does; where faces of the part really intersect
+/// no size does, and only repairing the faces in CAD helps.
+fn intersection_advice(e: &MeshError, log: &[String], req: &Request, work: &std::path::Path) -> String {
+    let faces = faces_named(log);
+    let on = match faces.as_slice() {
+        [] => String::new(),
+        [f] => format!(" on CAD face {f}"),
+        fs => format!(
+            " on CAD faces {}",
+            fs.iter().map(u64::to_string).collect::<Vec<_>>().join(", ")
+        ),
+    };
+    let scale = gmsh_scale(req);
+    let near = intersection_point(log)
+        .map(|p| {
+            format!(
+                " near ({:.6}, {:.6}, {:.6}) m",
+                p[0] * scale,
+                p[1] * scale,
+                p[2] * scale
+            )
+        })
+        .unwrap_or_default();
+    let repair = "repair those faces in CAD (its geometry check finds self-intersecting and overlapping faces; \
+                  rebuild, trim or sew them) or defeature there (remove the small feature), then export the part again";
+    let head = format!(
+        "gmsh could not mesh it with any of its {} strategies: its surface mesh crosses itself{on}{near} ({})",
+        LADDER.len(),
+        e.cause()
+    );
+    if req.field.is_some() {
+        return format!(
+            "{head}: faces of the part intersect or overlap there, or lie closer than the mesh resolves; {repair}"
+        );
+    }
+    // Finer sizes, tried on the default rung: a thin wall meshes at one of them, faces that
+    // really intersect at none (a size beyond the tet budget ends the trials).
+    let mut failed = Vec::new();
+    for (factor, name) in [(0.5, "half"), (0.25, "a quarter")] {
+        let mut finer = req.clone();
+        finer.quiet = true;
+        finer.size_factor = Some(factor);
+        if let Some(v) = &mut finer.voi {
+            v.size *= factor;
+        }
+        match isolation::attempt(&finer, 0, &work.join(format!("size-{factor}"))) {
+            Ok((_, meshing)) => {
+                return format!(
+                    "{head}: two faces there lie closer than the mesh resolves (a thin wall); mesh.size = {:.3e} m \
+                     ({name} of the size used) meshes it (tried): use that size, or {repair}",
+                    meshing.size
+                );
+            }
+            Err(Attempt::Retry(..)) => failed.push(name),
+            Err(Attempt::Fatal(_)) => break,
+        }
+    }
+    match failed.as_slice() {
+        [] => format!(
+            "{head}: faces of the part intersect or overlap there, or lie closer than the mesh resolves; {repair}"
+        ),
+        tried => format!(
+            "{head}: the faces there intersect or overlap ({} of the mesh size {} too, tried); {repair}",
+            tried.join(" and "),
+            if tried.len() > 1 { "fail" } else { "fails" }
+        ),
+    }
+}
+
+/// Metres per unit of the coordinates gmsh works in: STEP/IGES are converted to millimetres,
+/// BREP and GEO are in the scene's `unit`.
+fn gmsh_scale(req: &Request) -> f64 {
+    let ext = req
+        .geometry
+        .extension()
+        .and_then(|e| e.to_str())
+        .map(str::to_ascii_lowercase)
+        .unwrap_or_default();
+    if matches!(ext.as_str(), "step" | "stp" | "iges" | "igs") {
+        LengthUnit::Millimetre.to_metres()
+    } else {
+        req.unit.to_metres()
+    }
 }
 
 /// The one line when every rung failed: where (gmsh's entities), and what to change.
@@ -656,6 +883,29 @@ enum Attempt {
 
 /// One rung; `phase` is told what gmsh is doing (for a report if the process dies in it).
 fn attempt(req: &Request, rung: &Rung, phase: &mut dyn FnMut(&str)) -> Result<(Mesh, Meshing), Attempt> {
+    match attempt_once(req, rung, phase, false) {
+        // gmsh stops at its first error, but the point and the face of a PLC error come in the
+        // lines after it: the default rung (whose failure is reported) once more, to the end.
+        Err(Attempt::Retry(e, log))
+            if e.cause().contains("PLC Error") && rung.name == LADDER[0].name && req.size_factor.is_none() =>
+        {
+            let log = match attempt_once(req, rung, phase, true) {
+                Err(Attempt::Retry(_, full)) => full,
+                _ => log,
+            };
+            Err(Attempt::Retry(e, log))
+        }
+        made => made,
+    }
+}
+
+/// [`attempt`] once; `keep_going`: gmsh goes on after errors, and only its log is returned.
+fn attempt_once(
+    req: &Request,
+    rung: &Rung,
+    phase: &mut dyn FnMut(&str),
+    keep_going: bool,
+) -> Result<(Mesh, Meshing), Attempt> {
     let voi = req.voi.as_ref();
     let path = req.geometry.display().to_string();
     let g = |cause| {
@@ -680,21 +930,12 @@ fn attempt(req: &Request, rung: &Rung, phase: &mut dyn FnMut(&str)) -> Result<(M
     // STEP/IGES carry their own unit: OpenCASCADE converts it, always to millimetres, so the
     // mesh is the same whatever `unit` the scene gives (results independent of units to round-off).
     // BREP/GEO have no unit: the scene's `unit` says what their numbers are.
-    let ext = req
-        .geometry
-        .extension()
-        .and_then(|e| e.to_str())
-        .map(str::to_ascii_lowercase)
-        .unwrap_or_default();
-    let has_unit = matches!(ext.as_str(), "step" | "stp" | "iges" | "igs");
-    let scale = if has_unit {
-        LengthUnit::Millimetre.to_metres()
-    } else {
-        req.unit.to_metres()
-    };
+    let scale = gmsh_scale(req);
     session.set_string("Geometry.OCCTargetUnit", "MM").map_err(g)?;
     phase(isolation::READING);
-    session.open(&req.geometry).map_err(g)?;
+    session
+        .open(req.source.as_deref().unwrap_or(req.geometry.as_path()))
+        .map_err(g)?;
     let volumes = session.entities(3).map_err(g)?;
     if volumes.is_empty() {
         let faces = session.entities(2).map_err(g)?.len();
@@ -723,7 +964,7 @@ fn attempt(req: &Request, rung: &Rung, phase: &mut dyn FnMut(&str)) -> Result<(M
         req.mesh.size
     } else {
         extent.iter().copied().fold(0.0, f64::max) / AUTO_SIZE_FRACTION
-    };
+    } * req.size_factor.unwrap_or(1.0);
     let h = size / scale;
     match &req.field {
         Some(f) => check_field_budget(&path, f).map_err(fatal)?,
@@ -767,6 +1008,17 @@ fn attempt(req: &Request, rung: &Rung, phase: &mut dyn FnMut(&str)) -> Result<(M
     }
     let retry = |e: MeshError, session: &gmsh::Gmsh| Attempt::Retry(e, session.log());
     phase("meshing");
+    if keep_going {
+        session.set_number("General.AbortOnError", 0.0).map_err(g)?;
+        let _ = session.generate(3);
+        return Err(retry(
+            MeshError::Geometry {
+                path: path.clone(),
+                message: "gmsh's log to its end".into(),
+            },
+            &session,
+        ));
+    }
     if let Err(cause) = session.generate(3) {
         return Err(retry(
             MeshError::Gmsh {
@@ -936,6 +1188,32 @@ fn extract(session: &gmsh::Gmsh, order: u8, scale: f64, path: &str) -> Result<Me
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The part's file replaced by another part after it was read (between the cache key and
+    /// gmsh): the key is of the bytes read, and gmsh reads a private copy of those same bytes,
+    /// never the file the other part now fills.
+    #[test]
+    fn the_key_and_the_copy_meshed_are_of_the_same_bytes() {
+        let dir = tempfile::tempdir().unwrap();
+        let step = dir.path().join("part.step");
+        std::fs::write(&step, b"first part").unwrap();
+        let scene = dir.path().join("s.toml");
+        let text = "[geometry]\nstep = \"part.step\"\nunit = \"mm\"\n[material]\nyoung = 2e11\npoisson = 0.3\ndensity = 7800.0\n\
+                    [mesh]\nsize = 0.01\norder = 1\n[modes]\ncount = 4\n";
+        let scene = Scene::parse(&scene, text).unwrap();
+        let request = Request::new(&scene, None, None, false);
+        let mut part = Part::read(request.clone()).unwrap();
+        std::fs::write(&step, b"second part, another shape").unwrap();
+        let (work, meshed) = part.private_copy().unwrap();
+        let copy = meshed.source.clone().expect("gmsh reads a copy");
+        assert!(copy.starts_with(work.path()), "{}", copy.display());
+        assert_eq!(std::fs::read(&copy).unwrap(), b"first part");
+        assert_eq!(meshed.geometry, step, "messages still name the user's file");
+        if part.key.is_some() {
+            assert_eq!(part.key, cache::key(&request, b"first part"));
+            assert_ne!(part.key, cache::key(&request, b"second part, another shape"));
+        }
+    }
 
     #[test]
     fn shape_quality_is_one_for_a_regular_tet_and_tiny_for_a_sliver() {
