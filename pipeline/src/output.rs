@@ -86,9 +86,13 @@ fn temporary_beside(out: &Path) -> Result<tempfile::NamedTempFile> {
         .file_name()
         .map(|n| n.to_string_lossy().into_owned())
         .unwrap_or_default();
+    // 0666 less the umask, as any new file: the default 0600 of temporaries would make every
+    // output private to its writer.
+    use std::os::unix::fs::PermissionsExt;
     Ok(tempfile::Builder::new()
         .prefix(&format!("{name}.tmp-{}.", std::process::id()))
         .rand_bytes(8)
+        .permissions(std::fs::Permissions::from_mode(0o666))
         .tempfile_in(directory_of(out))?)
 }
 

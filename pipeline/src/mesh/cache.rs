@@ -237,62 +237,28 @@ pub(super) fn store(key: &Path, mesh: &Mesh, meshing: &Meshing) {
     });
 }
 
-/// Serial numbers of the temporary files of this process.
-static SERIAL: std::sync::atomic::AtomicU64 = std::sync::atomic::AtomicU64::new(0);
-
-/// Creates a new file beside `key` for writing it: a name of this process and serial number
-/// (then random ones if that is taken), created exclusively and never through a symlink, so
-/// whatever sits at the name (another run's file, a symlink planted in a shared cache) is left
-/// alone.
-fn create_temporary(key: &Path) -> std::io::Result<(PathBuf, File)> {
-    use std::hash::{BuildHasher, Hasher};
-    let serial = SERIAL.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
-    let mut last = None;
-    for attempt in 0..16 {
-        let unique = if attempt == 0 {
-            format!("tmp{}.{serial}", std::process::id())
-        } else {
-            let random = std::collections::hash_map::RandomState::new().build_hasher().finish();
-            format!("tmp{}.{serial}.{random:016x}", std::process::id())
-        };
-        let tmp = key.with_extension(unique);
-        match std::fs::OpenOptions::new()
-            .write(true)
-            .create_new(true)
-            .custom_flags(libc::O_NOFOLLOW)
-            .mode(0o644)
-            .open(&tmp)
-        {
-            Ok(f) => return Ok((tmp, f)),
-            Err(e) if e.kind() == std::io::ErrorKind::AlreadyExists => last = Some(e),
-            Err(e) => return Err(e),
-        }
-    }
-    Err(last.unwrap_or_else(|| std::io::Error::other("no free temporary name")))
-}
-
-/// Writes `key` under a name no other process or thread uses, then renames it into place; a
-/// failure only costs the next run the work (logged). Caches: no fsync (a lost entry is a miss,
-/// a torn one fails its checks).
+/// Writes `key` through the one atomic writer of every output (a fresh temporary created
+/// exclusively, never through a planted link, then renamed); temporaries that killed runs left
+/// beside it are removed first. A failure only costs the next run the work (logged).
 fn write_atomically(key: &Path, body: impl FnOnce(&mut std::io::BufWriter<File>) -> std::io::Result<()>) {
-    let result = (|| -> std::io::Result<()> {
+    let result = (|| -> anyhow::Result<()> {
         if let Some(d) = key.parent() {
             std::fs::create_dir_all(d)?;
         }
-        let (tmp, file) = create_temporary(key)?;
-        let written = (|| {
+        crate::output::remove_stale_temps(key);
+        crate::output::write_atomically(key, |tmp| {
+            let file = std::fs::OpenOptions::new()
+                .write(true)
+                .custom_flags(libc::O_NOFOLLOW)
+                .open(tmp)?;
             let mut w = std::io::BufWriter::new(file);
             body(&mut w)?;
             w.flush()?;
-            std::fs::rename(&tmp, key)
-        })();
-        if written.is_err() {
-            let _ = std::fs::remove_file(&tmp);
-        }
-        written
+            Ok(())
+        })
     })();
     if let Err(e) = result {
-        tracing::info!("cache: cannot store {}: {e}", key.display());
+        tracing::info!("cache: cannot store {}: {e:#}", key.display());
     }
 }
 
@@ -497,7 +463,7 @@ mod tests {
         assert_eq!(found, Ok(None), "the ordering lookup blocked on a FIFO");
     }
 
-    /// Symlinks planted at every temporary name this process would use (a shared cache) are
+    /// Symlinks planted at the temporary names a process could predict (a shared cache) are
     /// left alone: the file they point to is not written, and the entry is stored beside them.
     #[test]
     fn a_symlink_planted_at_the_temporary_name_is_not_followed() {
@@ -505,11 +471,12 @@ mod tests {
         let victim = dir.path().join("victim");
         std::fs::write(&victim, b"someone else's file").unwrap();
         let key = dir.path().join("0123456789abcdef.mesh");
-        let from = SERIAL.load(std::sync::atomic::Ordering::Relaxed);
-        for s in from..from + 5000 {
-            let tmp = key.with_extension(format!("tmp{}.{s}", std::process::id()));
-            std::os::unix::fs::symlink(&victim, tmp).unwrap();
+        // Predictable names: this process's, with serial numbers, and the older `.tmp<pid>`.
+        let pid = std::process::id();
+        for s in 0..500 {
+            std::os::unix::fs::symlink(&victim, key.with_extension(format!("tmp{pid}.{s}"))).unwrap();
         }
+        std::os::unix::fs::symlink(&victim, key.with_extension(format!("tmp{pid}"))).unwrap();
         let m = Mesh::structured_box([3, 1, 1], 0.01, 1, |_, p| p);
         store(&key, &m, &Meshing::default());
         assert_eq!(std::fs::read(&victim).unwrap(), b"someone else's file");
