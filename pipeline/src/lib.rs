@@ -9,6 +9,7 @@ pub mod compliance;
 pub mod export;
 pub mod fem;
 pub mod fingerprint;
+pub mod input;
 pub mod linsolve;
 pub mod memory;
 pub mod mesh;

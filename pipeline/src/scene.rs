@@ -320,7 +320,7 @@ impl Scene {
             file: path.to_path_buf(),
             message,
         };
-        let text = std::fs::read_to_string(path).map_err(|e| err(format!("cannot read the scene file: {e}")))?;
+        let text = crate::input::read_scene(path).map_err(err)?;
         let scene = Self::parse(path, &text)?;
         if scene.is_script() && !opts.allow_geo_scripts {
             return Err(err(format!(
@@ -340,7 +340,7 @@ impl Scene {
             .geometry
             .extension()
             .is_some_and(|e| e.eq_ignore_ascii_case("step") || e.eq_ignore_ascii_case("stp"));
-        let Some(bytes) = is_step.then(|| crate::mesh::input::read(&self.geometry).ok()).flatten() else {
+        let Some(bytes) = is_step.then(|| crate::input::read(&self.geometry).ok()).flatten() else {
             return;
         };
         let Some(file_unit) = crate::step_units::length_unit(&String::from_utf8_lossy(&bytes)) else {
@@ -478,7 +478,7 @@ impl Scene {
         };
         let supported = GEOMETRY_EXTENSIONS.contains(&ext.as_str());
         // Type and size before any byte is read: a FIFO or a device would block or never end.
-        if let Err(e) = crate::mesh::input::open(&geometry) {
+        if let Err(e) = crate::input::open(&geometry) {
             if !supported && !geometry.exists() {
                 return Err(unsupported());
             }

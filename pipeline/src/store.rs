@@ -194,7 +194,7 @@ fn file_name(out: &Path) -> String {
 /// A content hash of what a basis depends on: the tool version, the scene text, the effective
 /// mode count and the geometry file's bytes (FNV-1a, 64 bits: change detection, not security).
 pub fn source_hash(scene: &Scene) -> Result<String> {
-    let geometry = crate::mesh::input::read(&scene.geometry).map_err(anyhow::Error::msg)?;
+    let geometry = crate::input::read(&scene.geometry).map_err(anyhow::Error::msg)?;
     let h = crate::fingerprint::Fingerprint::default()
         .field(concat!("ves ", env!("CARGO_PKG_VERSION")).as_bytes())
         .field(scene.toml.as_bytes())

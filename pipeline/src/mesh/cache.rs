@@ -152,7 +152,7 @@ fn open_entry(path: &Path) -> Result<Option<(File, u64)>, String> {
     };
     let meta = file.metadata().map_err(|e| format!("cannot be examined: {e}"))?;
     if !meta.file_type().is_file() {
-        let kind = super::input::kind(&meta).unwrap_or("not a file");
+        let kind = crate::input::kind(&meta).unwrap_or("not a file");
         return Err(format!("{kind}, not a regular file"));
     }
     Ok(Some((file, meta.len())))

@@ -5,7 +5,6 @@ use nalgebra::Vector3;
 
 mod cache;
 pub mod field;
-pub mod input;
 mod isolation;
 pub mod quality;
 pub mod walls;
@@ -483,10 +482,12 @@ impl Part {
         let bytes = if is_geo {
             None
         } else {
-            Some(input::read(&request.geometry).map_err(|message| MeshError::Geometry {
-                path: request.geometry.display().to_string(),
-                message,
-            })?)
+            Some(
+                crate::input::read(&request.geometry).map_err(|message| MeshError::Geometry {
+                    path: request.geometry.display().to_string(),
+                    message,
+                })?,
+            )
         };
         let key = bytes.as_deref().and_then(|b| cache::key(&request, b));
         Ok(Part { request, bytes, key })
