@@ -1,76 +1,186 @@
-//! `ves matrices`: the assembled K and M of a scene's global space, for external solvers and
-//! benchmarks (scipy reads them with h5py). Lower triangles in CSC form on the free DOFs.
+//! `ves export BASIS --vtu DIR`: a basis as VTK unstructured-grid files, for tools that read VTK
+//! but not the XDMF sidecar (meshio, VTK scripts). Per space `<space>.vtu`: its 4- or 10-node
+//! tets (VTK node order) with every mode shape as a point vector; with modal stress also
+//! `<space>_vertices.vtu` on the corner vertices with each mode's stress as a symmetric tensor
+//! (VTK's order xx yy zz xy yz xz). Binary data appended raw (little-endian, 64-bit headers).
 
-use crate::problem::Discretized;
-use anyhow::{Context, Result};
-use ndarray::{Array1, Array2};
-use std::path::Path;
+use anyhow::{Context, Result, bail};
+use std::io::Write;
+use std::path::{Path, PathBuf};
 
-/// Writes `col_ptr`, `row_idx`, `k`, `m` (lower-triangle CSC), `free_dofs`, `nodes`, `tets`.
-/// The file is written atomically (the caller checked `out` with [`crate::output::check`]).
-pub fn write_matrices(out: &Path, d: &Discretized) -> Result<()> {
-    crate::output::write_atomically(out, |tmp| write_to(tmp, d))
+use crate::output::Overwrite;
+
+use ves_format::xdmf::{TET10_TO_VTK, escape, mode_name};
+
+/// VTK's symmetric-tensor order (xx yy zz xy yz xz) from the file's Voigt (xx yy zz yz xz xy).
+const VOIGT_TO_VTK: [usize; 6] = [0, 1, 2, 5, 3, 4];
+const VTK_TETRA: u8 = 10;
+const VTK_QUADRATIC_TETRA: u8 = 24;
+
+/// One array of an unstructured grid.
+enum Data<'a> {
+    F64(&'a [f64]),
+    I64(&'a [i64]),
+    U8(&'a [u8]),
 }
 
-fn write_to(out: &Path, d: &Discretized) -> Result<()> {
-    // Strong close: closing really closes (errors are ours), and the read-back below reads the
-    // disk, not this handle's cache.
-    let file = hdf5::File::with_options()
-        .with_fapl(|p| p.fclose_degree(hdf5::file::FileCloseDegree::Strong))
-        .create(out)
-        .with_context(|| format!("cannot create {}", out.display()))?;
-    let p = &d.system.pattern;
-    let as_u64 = |v: &[usize]| Array1::from(v.iter().map(|&x| x as u64).collect::<Vec<_>>());
-    file.new_dataset_builder()
-        .with_data(&as_u64(p.col_ptr()))
-        .create("col_ptr")?;
-    file.new_dataset_builder()
-        .with_data(&as_u64(p.row_idx()))
-        .create("row_idx")?;
-    file.new_dataset_builder()
-        .with_data(&Array1::from(d.system.k.clone()))
-        .create("k")?;
-    file.new_dataset_builder()
-        .with_data(&Array1::from(d.system.m.clone()))
-        .create("m")?;
-    file.new_dataset_builder()
-        .with_data(&Array1::from(d.dofs.free.clone()))
-        .create("free_dofs")?;
-    let n = d.mesh.nodes.len();
-    file.new_dataset_builder()
-        .with_data(&Array2::from_shape_fn((n, 3), |(i, c)| d.mesh.nodes[i][c]))
-        .create("nodes")?;
-    let tets = Array2::from_shape_vec((d.mesh.tet_count(), d.mesh.nodes_per_tet()), d.mesh.tets.clone())?;
-    file.new_dataset_builder().with_data(&tets).create("tets")?;
-    file.new_attr::<u32>()
-        .create("rigid_modes")?
-        .write_scalar(&(d.rigid as u32))?;
-    // Errors of writes HDF5 deferred (metadata, cached raw data) surface here, not in a drop.
-    file.flush().context("flushing the file")?;
-    file.close().context("closing the file")?;
-    // Read back in full: a write the disk could not hold, whatever layer swallowed its error,
-    // is found before the rename.
-    let back = hdf5::File::open(out).context("reading the written file back")?;
-    let count = |name: &str| -> Result<usize> {
-        let ds = back.dataset(name)?;
-        Ok(match name {
-            "k" | "m" | "nodes" => ds.read_raw::<f64>()?.len(),
-            "col_ptr" | "row_idx" => ds.read_raw::<u64>()?.len(),
-            _ => ds.read_raw::<u32>()?.len(),
-        })
-    };
-    let expected = [
-        ("col_ptr", p.col_ptr().len()),
-        ("row_idx", p.row_idx().len()),
-        ("k", d.system.k.len()),
-        ("m", d.system.m.len()),
-        ("free_dofs", d.dofs.free.len()),
-        ("nodes", 3 * n),
-        ("tets", d.mesh.tets.len()),
-    ];
-    for (name, len) in expected {
-        let got = count(name).with_context(|| format!("{name}: unreadable after writing"))?;
-        anyhow::ensure!(got == len, "{name}: {got} values read back, {len} written");
+impl Data<'_> {
+    fn vtk_type(&self) -> &'static str {
+        match self {
+            Data::F64(_) => "Float64",
+            Data::I64(_) => "Int64",
+            Data::U8(_) => "UInt8",
+        }
     }
-    Ok(())
+
+    fn bytes(&self) -> Vec<u8> {
+        match self {
+            Data::F64(v) => v.iter().flat_map(|x| x.to_le_bytes()).collect(),
+            Data::I64(v) => v.iter().flat_map(|x| x.to_le_bytes()).collect(),
+            Data::U8(v) => v.to_vec(),
+        }
+    }
+}
+
+/// Writes the basis at `basis` into `dir` (created if missing); returns the files written.
+/// Every output is checked before the first is written ([`crate::output::check`]: a symbolic
+/// link is replaced only under `overwrite.force`, the basis itself never), and a space name that
+/// would leave `dir` or give two spaces one file is refused.
+pub fn export(basis: &Path, dir: &Path, overwrite: Overwrite) -> Result<Vec<PathBuf>> {
+    let file = ves_format::BasisReader::open(basis)?;
+    if dir.exists() && !dir.is_dir() {
+        bail!("{}: is a file; give a directory for the VTK files", dir.display());
+    }
+    std::fs::create_dir_all(dir).with_context(|| format!("{}: cannot create the directory", dir.display()))?;
+    // (space, its .vtu, its vertices' .vtu when it has stress)
+    let mut plan: Vec<(String, PathBuf, Option<PathBuf>)> = Vec::new();
+    for name in file.space_names()? {
+        // The name becomes a file name: it must stay one name in `dir`.
+        ves_format::check_identifier("space name", &name)
+            .map_err(|e| anyhow::anyhow!("{}: {e}; precompute the basis again", basis.display()))?;
+        // One vertex of one mode says whether the space has stress.
+        let s = file.space(&name)?;
+        let stress = s.stress_rows(0..s.vertex_count.min(1), s.mode_count.min(1))?.is_some();
+        let grid = dir.join(format!("{name}.vtu"));
+        let vertices = stress.then(|| dir.join(format!("{name}_vertices.vtu")));
+        plan.push((name, grid, vertices));
+    }
+    let mut outputs: Vec<&Path> = Vec::new();
+    for p in plan.iter().flat_map(|(_, g, v)| std::iter::once(g).chain(v)) {
+        if outputs.contains(&p.as_path()) {
+            bail!(
+                "{}: two spaces of {} would both be written there (a VOI named like another space's \
+                 `_vertices` file); rename that VOI in the scene and precompute again",
+                p.display(),
+                basis.display()
+            );
+        }
+        crate::output::check(p, &[basis], overwrite)?;
+        outputs.push(p);
+    }
+    let mut written = Vec::new();
+    for (name, grid, vertices) in &plan {
+        let s = file.space(name)?;
+        let (n, nv, r) = (s.node_count, s.vertex_count, s.mode_count);
+        let nodes: Vec<f64> = s.nodes(n)?.into_iter().flatten().collect();
+        let tets = s.tets()?;
+        let per = if s.element_order == 2 { 10 } else { 4 };
+        let order: &[usize] = if per == 10 { &TET10_TO_VTK } else { &[0, 1, 2, 3] };
+        let frequencies = s.frequencies_hz()?;
+        let rows = s.basis_rows(0..3 * n, r)?;
+        let shapes: Vec<(String, usize, Vec<f64>)> = (0..r)
+            .map(|j| {
+                let v = (0..3 * n).map(|i| rows[i * r + j]).collect();
+                (mode_name(j, r, frequencies[j], "shape"), 3, v)
+            })
+            .collect();
+        let cells: Vec<i64> = tets
+            .chunks_exact(per)
+            .flat_map(|t| order.iter().map(move |&k| i64::from(t[k])))
+            .collect();
+        let kind = if per == 10 { VTK_QUADRATIC_TETRA } else { VTK_TETRA };
+        write_grid(grid, &nodes, &cells, per, kind, &shapes)?;
+        written.push(grid.clone());
+        if let Some(path) = vertices
+            && let Some(stress) = s.stress_rows(0..nv, r)?
+        {
+            let fields: Vec<(String, usize, Vec<f64>)> = (0..r)
+                .map(|j| {
+                    let v = (0..nv)
+                        .flat_map(|i| VOIGT_TO_VTK.map(|k| stress[(6 * i + k) * r + j]))
+                        .collect();
+                    (mode_name(j, r, frequencies[j], "stress"), 6, v)
+                })
+                .collect();
+            let corners: Vec<i64> = tets
+                .chunks_exact(per)
+                .flat_map(|t| t[..4].iter().map(|&v| i64::from(v)))
+                .collect();
+            write_grid(path, &nodes[..3 * nv], &corners, 4, VTK_TETRA, &fields)?;
+            written.push(path.clone());
+        }
+    }
+    Ok(written)
+}
+
+fn write_grid(
+    path: &Path,
+    points: &[f64],
+    cells: &[i64],
+    per_cell: usize,
+    kind: u8,
+    fields: &[(String, usize, Vec<f64>)],
+) -> Result<()> {
+    let m = cells.len() / per_cell;
+    let offsets: Vec<i64> = (1..=m).map(|e| (e * per_cell) as i64).collect();
+    let types = vec![kind; m];
+    // (name, components, data) in the order they are appended.
+    let mut arrays: Vec<(&str, usize, Data<'_>)> = vec![("Points", 3, Data::F64(points))];
+    arrays.extend(fields.iter().map(|(name, c, v)| (name.as_str(), *c, Data::F64(v))));
+    arrays.push(("connectivity", 1, Data::I64(cells)));
+    arrays.push(("offsets", 1, Data::I64(&offsets)));
+    arrays.push(("types", 1, Data::U8(&types)));
+    let mut xml = String::new();
+    let mut offset = 0usize;
+    let mut blobs = Vec::new();
+    let mut item = |a: &(&str, usize, Data<'_>)| {
+        let bytes = a.2.bytes();
+        let tag = format!(
+            r#"<DataArray type="{}" Name="{}" NumberOfComponents="{}" format="appended" offset="{offset}"/>"#,
+            a.2.vtk_type(),
+            escape(a.0),
+            a.1
+        );
+        offset += 8 + bytes.len();
+        blobs.push(bytes);
+        tag
+    };
+    xml.push_str(r#"<?xml version="1.0"?>"#);
+    xml.push('\n');
+    xml.push_str(r#"<VTKFile type="UnstructuredGrid" version="1.0" byte_order="LittleEndian" header_type="UInt64">"#);
+    xml.push_str(&format!(
+        "\n<UnstructuredGrid>\n<Piece NumberOfPoints=\"{}\" NumberOfCells=\"{m}\">\n<Points>{}</Points>\n<PointData>",
+        points.len() / 3,
+        item(&arrays[0])
+    ));
+    for a in &arrays[1..1 + fields.len()] {
+        xml.push_str(&item(a));
+    }
+    xml.push_str("</PointData>\n<Cells>");
+    for a in &arrays[1 + fields.len()..] {
+        xml.push_str(&item(a));
+    }
+    xml.push_str("</Cells>\n</Piece>\n</UnstructuredGrid>\n<AppendedData encoding=\"raw\">_");
+    crate::output::write_atomically(path, |tmp| {
+        let mut w = std::io::BufWriter::new(std::fs::File::create(tmp)?);
+        w.write_all(xml.as_bytes())?;
+        for b in &blobs {
+            w.write_all(&(b.len() as u64).to_le_bytes())?;
+            w.write_all(b)?;
+        }
+        w.write_all(b"\n</AppendedData>\n</VTKFile>\n")?;
+        w.flush()?;
+        Ok(())
+    })
+    .with_context(|| format!("{}: writing failed", path.display()))
 }

@@ -40,7 +40,7 @@ pub struct Space<'a> {
 
 impl Space<'_> {
     /// The file writer's view: plain slices, the basis scattered to all 3n rows.
-    fn write<'b>(&'b self, basis: &'b [f64]) -> ves_format::SpaceData<'b> {
+    fn file_data<'b>(&'b self, basis: &'b [f64]) -> ves_format::SpaceData<'b> {
         ves_format::SpaceData {
             name: self.name,
             element_order: self.mesh.order,
@@ -107,7 +107,7 @@ pub fn write(out: &Path, scene: &Scene, spaces: &[Space<'_>]) -> Result<()> {
             beta: scene.damping.beta,
             yield_strength: scene.material.yield_strength,
         },
-        spaces: spaces.iter().zip(&bases).map(|(s, b)| s.write(b)).collect(),
+        spaces: spaces.iter().zip(&bases).map(|(s, b)| s.file_data(b)).collect(),
     };
     let mut staging = crate::output::Staging::default();
     let mut sidecar_text = String::new();

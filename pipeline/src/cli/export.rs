@@ -18,7 +18,7 @@ pub struct Args {
 
 impl Args {
     pub fn run(self) -> Result<()> {
-        for f in ves_pipeline::vtu::export(
+        for f in ves_pipeline::export::export(
             &self.basis,
             &self.vtu,
             ves_pipeline::output::Overwrite { force: self.force },

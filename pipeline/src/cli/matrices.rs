@@ -22,7 +22,7 @@ impl Args {
         let scene = Scene::load_with(&self.scene, self.write.scene())?;
         output::check(&self.output, &scene.inputs(), self.write.overwrite())?;
         let d = ves_pipeline::problem::discretize(&scene, None)?;
-        ves_pipeline::export::write_matrices(&self.output, &d)?;
+        ves_pipeline::matrices::write_matrices(&self.output, &d)?;
         println!(
             "wrote {} ({} unknowns, {} rigid modes)",
             self.output.display(),
