@@ -10,20 +10,35 @@ pub const MAX_IDENTIFIER_BYTES: usize = 128;
 /// overrides and isolates (text shown in another order than stored), invisible marks and
 /// zero-width characters, and Unicode's line and paragraph separators.
 fn is_hidden(c: char) -> bool {
+    // Unicode's default-ignorable code points (shown as nothing), the bidirectional controls
+    // among them, and the line and paragraph separators.
     matches!(
         c,
-        '\u{061C}'
+        '\u{00AD}'
+            | '\u{034F}'
+            | '\u{061C}'
+            | '\u{115F}'..='\u{1160}'
+            | '\u{17B4}'..='\u{17B5}'
+            | '\u{180B}'..='\u{180F}'
             | '\u{200B}'..='\u{200F}'
             | '\u{2028}'..='\u{202E}'
-            | '\u{2066}'..='\u{2069}'
+            | '\u{2060}'..='\u{206F}'
+            | '\u{3164}'
+            | '\u{FE00}'..='\u{FE0F}'
             | '\u{FEFF}'
+            | '\u{FFA0}'
+            | '\u{FFF0}'..='\u{FFFB}'
+            | '\u{1BCA0}'..='\u{1BCA3}'
+            | '\u{1D173}'..='\u{1D17A}'
+            | '\u{E0000}'..='\u{E0FFF}'
     )
 }
 
 /// Checks that `name` is an identifier: not empty, at most [`MAX_IDENTIFIER_BYTES`] bytes, no
-/// '/' or '\\', not "." and no "..", no control character (U+0000–U+001F, U+007F–U+009F) and no
-/// bidirectional, invisible or line-separating character (U+061C, U+200B–U+200F,
-/// U+2028–U+202E, U+2066–U+2069, U+FEFF). `what` names the key in the message (e.g.
+/// '/' or '\\', not "." and no "..", no space at either end, no control character
+/// (U+0000–U+001F, U+007F–U+009F) and no default-ignorable (invisible), bidirectional or
+/// line-separating character (U+00AD, U+061C, U+200B–U+200F, U+2028–U+202E, U+2060–U+206F,
+/// U+FEFF, tags U+E0000–U+E0FFF and the others Unicode lists as default-ignorable). `what` names the key in the message (e.g.
 /// `voi[2].name`); the message is one line and says what to change.
 pub fn check_identifier(what: &str, name: &str) -> Result<(), String> {
     const ADVICE: &str = "use letters, digits, '-', '_' and '.', e.g. \"rib_1\"";
@@ -43,6 +58,8 @@ pub fn check_identifier(what: &str, name: &str) -> Result<(), String> {
             "holds the invisible character U+{:04X} (a control, bidirectional or zero-width character)",
             u32::from(c)
         )
+    } else if name.starts_with(char::is_whitespace) || name.ends_with(char::is_whitespace) {
+        "begins or ends with a space (a file name no one can tell apart)".to_string()
     } else if name.contains(['/', '\\']) {
         "holds a path separator ('/' or '\\')".to_string()
     } else if name == "." || name.contains("..") {
@@ -99,6 +116,13 @@ mod tests {
             "a\u{200B}b",
             "a\u{2028}b",
             "\u{FEFF}a",
+            "w\u{2060}j",
+            "a\u{AD}b",
+            "a\u{E0041}",
+            "a\u{3164}",
+            " ",
+            " a",
+            "a ",
         ] {
             let e = check_identifier("voi[0].name", bad).expect_err(bad);
             assert!(e.starts_with("voi[0].name") && !e.contains('\n'), "{e}");

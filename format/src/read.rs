@@ -529,6 +529,19 @@ impl<'a> SpaceReader<'a> {
                 self.file.file_bytes
             )));
         }
+        // What the dataset itself stores must hold its values (a file's size says nothing of a
+        // sparse file: a dataset never written reads back at full size from a few kilobytes).
+        let stored = u128::from(ds.storage_size());
+        let holds = if ds.filters().is_empty() {
+            stored
+        } else {
+            stored * MAX_COMPRESSION
+        };
+        if bytes > holds {
+            return Err(self.err(format!(
+                "{name} has {bytes} bytes of values but stores {stored}: it was never written in full; the file is damaged"
+            )));
+        }
         Ok((ds, shape))
     }
 

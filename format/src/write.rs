@@ -87,7 +87,7 @@ impl<T, E: std::fmt::Display> Ctx<T> for Result<T, E> {
 
 /// HDF5's message on one line; of a failed system call, only what the system said (HDF5 adds
 /// the time, the buffer address and the byte counts).
-fn one_line(message: &str) -> String {
+pub fn one_line(message: &str) -> String {
     let flat = message.split_whitespace().collect::<Vec<_>>().join(" ");
     match flat
         .split_once("error message = '")

@@ -121,20 +121,21 @@ impl Staging {
                     .with_context(|| format!("cannot flush {}", tmp.path().display()))
             })
             .map_err(|e| {
-                // A full disk is the likely cause of a failed write: say what to do about it.
-                let chain = format!("{e:#}");
+                // One line whatever the writer said (HDF5's messages span lines); a full disk is
+                // the likely cause of a failed write: say what to do about it.
+                let chain = ves_format::write::one_line(&format!("{e:#}"));
                 let full = ["No space left", "File too large", "Disk quota"]
                     .iter()
                     .any(|m| chain.contains(m));
                 let advice = if full {
-                    "; free space on its disk (or choose another -o)"
+                    "; free space on its disk or write elsewhere"
                 } else {
                     ""
                 };
-                e.context(format!(
-                    "{}: nothing was written, the previous file is kept{advice}",
+                anyhow::anyhow!(
+                    "{}: nothing was written, the previous file is kept{advice}: {chain}",
                     out.display()
-                ))
+                )
             })?;
         self.files.push((tmp, out.to_path_buf()));
         Ok(())

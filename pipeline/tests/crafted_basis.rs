@@ -291,3 +291,29 @@ fn verify_checks_the_basis_first_and_names_it() {
         );
     }
 }
+
+/// A dataset declared at 1 GB but never written, in a file made sparse to pass the file-size
+/// check: `ves info` allocated the whole of it (4 GB asked in the reported case) and aborted.
+#[test]
+fn a_dataset_never_written_in_a_sparse_file_is_refused_before_it_is_read() {
+    let (_dir, basis) = common::good_basis();
+    let crafted = craft(
+        &basis,
+        "sparse.h5",
+        "del g['mesh/tets']\ng.create_dataset('mesh/tets', shape=(62_500_000, 4), dtype='u4', chunks=(65536, 4))",
+    );
+    // Apparent size 5 GiB, a few kilobytes on disk.
+    std::fs::OpenOptions::new()
+        .write(true)
+        .open(&crafted)
+        .and_then(|f| f.set_len(5 << 30))
+        .expect("sparse");
+    let path = crafted.to_str().unwrap();
+    refused(&["info", path], &crafted, &["mesh/tets", "never written"]);
+    let out = crafted.with_file_name("vtu");
+    refused(
+        &["export", path, "--vtu", out.to_str().unwrap()],
+        &crafted,
+        &["never written"],
+    );
+}

@@ -12,6 +12,8 @@ import matplotlib
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 
+UMASK = os.umask(0)
+os.umask(UMASK)
 report = json.load(open(sys.argv[1]))
 out = sys.argv[2]
 meshes = report["meshes"]
@@ -95,6 +97,7 @@ for name, xlabel, x_plain, x_corr in axes_x:
         # A new file of our own (never a planted link), renamed when complete.
         fd, tmp = tempfile.mkstemp(dir=out, prefix=f".error_vs_{name}.", suffix=f".{ext}")
         try:
+            os.chmod(tmp, 0o666 & ~UMASK)  # as any new file (mkstemp makes it private)
             with os.fdopen(fd, "wb") as f:
                 fig.savefig(f, format=ext, dpi=110)
             os.replace(tmp, f"{out}/error_vs_{name}.{ext}")
