@@ -288,9 +288,7 @@ mod tests {
         assert_eq!(found.len(), 2, "{found:?}");
         // A FIFO named like a scene is no scene (reading it would block).
         let fifo = d.join("sub/pipe.toml");
-        let c = std::ffi::CString::new(fifo.to_str().expect("utf-8")).expect("no NUL");
-        // SAFETY: a valid NUL-terminated path.
-        assert_eq!(unsafe { libc::mkfifo(c.as_ptr(), 0o600) }, 0);
+        crate::make_fifo(&fifo);
         assert_eq!(collect_within_seconds(vec![d.to_path_buf()]).expect("scenes").len(), 2);
         assert!(collect_within_seconds(vec![fifo]).is_err());
     }

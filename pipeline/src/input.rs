@@ -153,8 +153,7 @@ mod tests {
     fn only_regular_files_of_sane_size_are_read() {
         let dir = tempfile::tempdir().unwrap();
         let fifo = dir.path().join("part.step");
-        let c = std::ffi::CString::new(fifo.as_os_str().as_encoded_bytes()).unwrap();
-        assert_eq!(unsafe { libc::mkfifo(c.as_ptr(), 0o600) }, 0);
+        crate::make_fifo(&fifo);
         let t = std::time::Instant::now();
         let e = read(&fifo).unwrap_err();
         assert!(e.contains("FIFO") && e.contains("not a regular file"), "{e}");
@@ -175,8 +174,7 @@ mod tests {
         );
         // The scene file: the same checks, its own limit.
         let scene_fifo = dir.path().join("s.toml");
-        let c = std::ffi::CString::new(scene_fifo.as_os_str().as_encoded_bytes()).unwrap();
-        assert_eq!(unsafe { libc::mkfifo(c.as_ptr(), 0o600) }, 0);
+        crate::make_fifo(&scene_fifo);
         assert!(read_scene(&scene_fifo).unwrap_err().contains("TOML"));
         assert!(
             read_scene(Path::new("/dev/zero"))

@@ -27,3 +27,16 @@ pub mod store;
 pub mod supports;
 pub mod transfer;
 pub mod verify;
+
+/// Makes a FIFO at `path`: the tests' stand-in for an input that would block a reader.
+#[cfg(test)]
+pub(crate) fn make_fifo(path: &std::path::Path) {
+    let c = std::ffi::CString::new(path.as_os_str().as_encoded_bytes()).expect("no NUL in a test path");
+    // SAFETY: a valid NUL-terminated path.
+    assert_eq!(
+        unsafe { libc::mkfifo(c.as_ptr(), 0o600) },
+        0,
+        "mkfifo {}",
+        path.display()
+    );
+}

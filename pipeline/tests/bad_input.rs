@@ -376,17 +376,6 @@ fn an_output_named_like_its_own_sidecar_is_refused() {
     assert!(!out.exists());
 }
 
-/// `mkfifo path`.
-fn mkfifo(path: &Path) {
-    let c = std::ffi::CString::new(path.as_os_str().as_encoded_bytes()).unwrap();
-    assert_eq!(
-        unsafe { libc::mkfifo(c.as_ptr(), 0o600) },
-        0,
-        "mkfifo {}",
-        path.display()
-    );
-}
-
 /// Issue "Nothing lost, nobody in": a FIFO or /dev/zero as geometry said "file not found"; a
 /// 2 GB sparse `.step` took 60 s and 4.25 GB of memory before failing. Each is refused at once
 /// in one line saying what the file is.

@@ -434,8 +434,7 @@ mod tests {
         let dir = tempfile::tempdir().unwrap();
         let (good, _) = stored(dir.path());
         let fifo = dir.path().join("fifo.mesh");
-        let c = std::ffi::CString::new(fifo.as_os_str().as_encoded_bytes()).unwrap();
-        assert_eq!(unsafe { libc::mkfifo(c.as_ptr(), 0o600) }, 0);
+        crate::make_fifo(&fifo);
         let link = dir.path().join("link.mesh");
         std::os::unix::fs::symlink(&good, &link).unwrap();
         let sub = dir.path().join("dir.mesh");
@@ -453,8 +452,7 @@ mod tests {
         }
         // The ordering cache opens its files the same way.
         let order = dir.path().join("fifo.order");
-        let c = std::ffi::CString::new(order.as_os_str().as_encoded_bytes()).unwrap();
-        assert_eq!(unsafe { libc::mkfifo(c.as_ptr(), 0o600) }, 0);
+        crate::make_fifo(&order);
         let (tx, rx) = std::sync::mpsc::channel();
         std::thread::spawn(move || {
             let _ = tx.send(ordering_lookup(&order, 4));

@@ -715,24 +715,40 @@ fn intersection_point(log: &[String]) -> Option<[f64; 3]> {
     })
 }
 
-/// The CAD faces (gmsh's surface tags as imported, what a support's `faces = […]` names) that
-/// gmsh's error lines name.
-fn faces_named(log: &[String]) -> Vec<u64> {
-    let mut faces: Vec<u64> = log
+/// The entities gmsh's error lines name, in lines like "… on surface 70 surface 235" or
+/// "curve 12": ("surface" or "curve", tag), sorted, each once.
+fn entities_named(log: &[String]) -> Vec<(&'static str, u64)> {
+    let mut named: Vec<(&'static str, u64)> = log
         .iter()
         .filter(|l| l.contains("Error") || l.contains("intersect") || l.contains("overlapping"))
         .flat_map(|l| {
             let words: Vec<&str> = l.split_whitespace().collect();
             words
                 .windows(2)
-                .filter(|w| w[0].eq_ignore_ascii_case("surface"))
-                .filter_map(|w| w[1].trim_matches(|c: char| !c.is_ascii_digit()).parse().ok())
+                .filter_map(|w| {
+                    let kind = match w[0] {
+                        "surface" | "Surface" => "surface",
+                        "curve" | "Curve" => "curve",
+                        _ => return None,
+                    };
+                    let tag = w[1].trim_matches(|c: char| !c.is_ascii_digit()).parse().ok()?;
+                    Some((kind, tag))
+                })
                 .collect::<Vec<_>>()
         })
         .collect();
-    faces.sort_unstable();
-    faces.dedup();
-    faces
+    named.sort_unstable();
+    named.dedup();
+    named
+}
+
+/// The CAD faces (gmsh's surface tags as imported, what a support's `faces = […]` names) that
+/// gmsh's error lines name.
+fn faces_named(log: &[String]) -> Vec<u64> {
+    entities_named(log)
+        .into_iter()
+        .filter_map(|(kind, tag)| (kind == "surface").then_some(tag))
+        .collect()
 }
 
 /// The one line when every rung failed because the surface mesh crosses itself: where, what
@@ -825,27 +841,10 @@ fn gmsh_scale(req: &Request) -> f64 {
 /// The one line when every rung failed: where (gmsh's entities), and what to change.
 fn ladder_advice(e: &MeshError, log: &[String], req: &Request) -> String {
     let cause = e.cause();
-    // gmsh names the entities in lines like "… on surface 70 surface 235" or "curve 12".
-    let mut places: Vec<String> = log
-        .iter()
-        .filter(|l| l.contains("Error") || l.contains("intersect") || l.contains("overlapping"))
-        .flat_map(|l| {
-            let words: Vec<&str> = l.split_whitespace().collect();
-            words
-                .windows(2)
-                .filter(|w| matches!(w[0], "surface" | "curve" | "Surface" | "Curve"))
-                .map(|w| {
-                    format!(
-                        "{} {}",
-                        w[0].to_lowercase(),
-                        w[1].trim_matches(|c: char| !c.is_ascii_digit())
-                    )
-                })
-                .collect::<Vec<_>>()
-        })
+    let places: Vec<String> = entities_named(log)
+        .into_iter()
+        .map(|(kind, tag)| format!("{kind} {tag}"))
         .collect();
-    places.sort();
-    places.dedup();
     let at = if places.is_empty() {
         String::new()
     } else {
