@@ -69,6 +69,9 @@ pub struct Basis {
     pub yield_strength: Option<f64>,
     /// Young's modulus (Pa) and Poisson's ratio, when loaded from a file (strains from stress).
     pub elastic: Option<(f64, f64)>,
+    /// Supported components per kept vertex: bit c set when component c (x, y, z) is fixed
+    /// (drawn as supports by the viewer).
+    pub fixed: Vec<u8>,
 }
 
 impl Basis {
@@ -156,6 +159,7 @@ impl Basis {
             stress: None,
             yield_strength: None,
             elastic: None,
+            fixed: vec![0; n],
         })
     }
 
@@ -206,6 +210,34 @@ impl Basis {
         self.bytes_loaded += blocks.len() * 72;
         self.compliance = Some(blocks);
         Ok(self)
+    }
+
+    /// The largest static compliance over the surface vertices, m/N: the largest eigenvalue of
+    /// each vertex's 3×3 block (stored, else the modal Σ φφᵀ/λ), and that vertex. The
+    /// displacement a force F can give anywhere on the surface is at most F times this.
+    pub fn largest_compliance(&self) -> (f64, u32) {
+        let n = self.rest.len();
+        let mut best = (0.0, 0);
+        for &v in &self.surface_vertices {
+            let i = v as usize;
+            let g = match self.compliance_of(i) {
+                Some(g) => nalgebra::Matrix3::from_fn(|a, b| g[a][b]),
+                None => {
+                    let mut g = nalgebra::Matrix3::<f64>::zeros();
+                    for (j, l) in self.eigenvalues.iter().enumerate() {
+                        let p = &self.phi[j * 3 * n + 3 * i..j * 3 * n + 3 * i + 3];
+                        let p = nalgebra::Vector3::new(f64::from(p[0]), f64::from(p[1]), f64::from(p[2]));
+                        g += p * p.transpose() / *l;
+                    }
+                    g
+                }
+            };
+            let top = g.symmetric_eigenvalues().max();
+            if top > best.0 {
+                best = (top, v);
+            }
+        }
+        best
     }
 
     /// The compliance block of kept vertex `i`, if stored.
@@ -399,6 +431,16 @@ mod file {
             s.rigid()?,
         )?;
         basis.voi = s.voi;
+        let mut slot = vec![u32::MAX; s.node_count];
+        for (k, &v) in keep.iter().enumerate() {
+            slot[v as usize] = k as u32;
+        }
+        for d in s.fixed_dofs()? {
+            let (node, c) = (d as usize / 3, d % 3);
+            if let Some(&k) = slot.get(node).filter(|&&k| k != u32::MAX) {
+                basis.fixed[k as usize] |= 1 << c;
+            }
+        }
         basis.yield_strength = m.yield_strength;
         basis.elastic = Some((m.young, m.poisson));
         if let Some(all) = s.stress_rows(0..nv, r)? {
@@ -410,10 +452,6 @@ mod file {
         }
         match s.compliance()? {
             Some((nodes, blocks)) => {
-                let mut slot = vec![u32::MAX; s.node_count];
-                for (k, &v) in keep.iter().enumerate() {
-                    slot[v as usize] = k as u32;
-                }
                 let mut per_vertex = vec![[[f64::NAN; 3]; 3]; keep.len()];
                 for (&node, block) in nodes.iter().zip(blocks) {
                     if let Some(&k) = slot.get(node as usize).filter(|&&k| k != u32::MAX) {

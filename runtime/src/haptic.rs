@@ -216,6 +216,8 @@ pub struct Haptics {
     coupling: Coupling,
     rigid: Option<RigidBody>,
     saved_rigid: Option<RigidBody>,
+    /// The free body as it started (what [`Haptics::reset`] returns to).
+    initial_rigid: Option<RigidBody>,
     static_correction: bool,
     strain_watch: StrainWatch,
     /// Steps whose result was non-finite and was rolled back.
@@ -305,6 +307,7 @@ impl Haptics {
             coupling,
             rigid: None,
             saved_rigid: None,
+            initial_rigid: None,
             static_correction: true,
             strain_watch: StrainWatch::default(),
             quarantined: 0,
@@ -324,6 +327,7 @@ impl Haptics {
         let mut body = RigidBody::new(&props, gravity).ok_or("the stored inertia tensor is singular")?;
         body.damping = damping.max(0.0);
         self.rigid = Some(body);
+        self.initial_rigid = Some(body);
         for h in &mut self.hands {
             h.vertex = None; // the step compliance gains the rigid part at the next pick
         }
@@ -482,6 +486,28 @@ impl Haptics {
                     .abs()
             })
             .fold(0.0, f64::max)
+    }
+
+    /// Back to the start: the part at rest (and a free body where and as it started), every
+    /// hand let go. No allocation (callable from the haptic thread).
+    pub fn reset(&mut self) {
+        self.state.q.fill(0.0);
+        self.state.v.fill(0.0);
+        self.rigid = self.initial_rigid;
+        for h in &mut self.hands {
+            h.vertex = None;
+            h.near = None;
+            h.grabbed = false;
+            h.last_force = V3::zeros();
+            h.capped = false;
+            h.alarm_force = None;
+            h.latched = false;
+        }
+    }
+
+    /// The vertex hand `k` holds by a grab, if it does.
+    pub fn grabbed_vertex(&self, k: usize) -> Option<u32> {
+        self.hands.get(k).filter(|h| h.grabbed).and_then(|h| h.vertex)
     }
 
     /// One haptic step for every hand in `inputs` (at most the number given to `new`), in named

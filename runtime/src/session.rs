@@ -201,6 +201,8 @@ pub struct Frame<'a> {
     pub stress: Option<&'a [f32]>,
     /// The whole part's safety factor is below the watch's minimum.
     pub alarm: bool,
+    /// The part's largest von Mises stress (Pa) and its vertex, when the space has stress.
+    pub von_mises_max: Option<(f64, usize)>,
     /// Session time of the state, s.
     pub time: f64,
 }
@@ -215,6 +217,9 @@ pub struct Hooks {
     pub stop: Option<Arc<AtomicBool>>,
     /// Called by the visualization thread with every frame it draws.
     pub frame: Option<FrameObserver>,
+    /// When set, the haptic thread brings the part back to rest (hands let go, a free body
+    /// where it started) at its next step and clears it.
+    pub reset: Option<Arc<AtomicBool>>,
 }
 
 /// Runs a session on one space with one hand per device; returns when `duration_s` has
@@ -255,6 +260,7 @@ pub fn run_spaces_with(
     // Saturates at u64::MAX for an infinite session.
     let steps = (cfg.duration_s * rate).round().max(1.0) as u64;
     let external_stop = hooks.stop.unwrap_or_default();
+    let reset = hooks.reset.unwrap_or_default();
     let bases: Vec<Arc<Basis>> = spaces.iter().map(|s| s.basis.clone()).collect();
     let mut haptics =
         Switcher::new(spaces, cfg.coupling, dt, cfg.scheme, hands, cfg.switching).map_err(|e| e.to_string())?;
@@ -313,8 +319,10 @@ pub fn run_spaces_with(
                 // And the largest von Mises stress (rigid motion carries no stress: q alone).
                 let has_stress = visual::stresses(&bases[i], &q[8..8 + r], &mut sigma[i]);
                 let mut below = false;
+                let mut peak = None;
                 if has_stress {
-                    let (vm, _) = visual::max_von_mises(&sigma[i]);
+                    let (vm, at) = visual::max_von_mises(&sigma[i]);
+                    peak = Some((vm, at));
                     if vm > f64::from_bits(von_mises.load(Ordering::Relaxed)) {
                         von_mises.store(vm.to_bits(), Ordering::Relaxed);
                     }
@@ -336,6 +344,7 @@ pub fn run_spaces_with(
                         positions: &pos[i],
                         stress: has_stress.then_some(&sigma[i][..]),
                         alarm: below,
+                        von_mises_max: peak,
                         time,
                     });
                 }
@@ -395,6 +404,9 @@ pub fn run_spaces_with(
                 velocity: s.velocity,
                 button: s.button,
             };
+        }
+        if reset.load(Ordering::Relaxed) && reset.swap(false, Ordering::Relaxed) {
+            haptics.reset();
         }
         let alarm = part_alarm.load(Ordering::Relaxed);
         for sim in haptics.sims_mut() {

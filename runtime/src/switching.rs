@@ -76,6 +76,9 @@ pub struct Switcher {
     /// (old space, steps of blending left).
     fading: Option<(usize, usize)>,
     old_out: Vec<HandOutput>,
+    /// Per hand, where it acts while it holds a grab (the grabbed vertex's rest position): a
+    /// held grab keeps the space that resolves the point it pulls, wherever the hand goes.
+    held: Vec<Option<[f64; 3]>>,
     cfg: SwitchConfig,
     /// Switches so far.
     pub switches: u64,
@@ -134,6 +137,7 @@ impl Switcher {
             active: 0,
             fading: None,
             old_out: vec![HandOutput::default(); hands],
+            held: vec![None; hands],
             cfg,
             switches: 0,
             last_switch_ns: 0,
@@ -163,19 +167,30 @@ impl Switcher {
 
     /// The space the hands ask for: the current VOI while every hand stays within its box
     /// widened by the margin; otherwise the first VOI whose box shrunk by the margin holds every
-    /// hand; otherwise the global space (index 0). A hand without a position (non-finite: no
-    /// device there, as an unused hand of `ves view`) does not count; with none, the active
-    /// space stays.
+    /// hand; otherwise the global space (index 0). A hand counts where it acts: at the vertex it
+    /// holds while it holds a grab (pulling a rib out of its box keeps the rib's space until the
+    /// grab ends), else at its position. A hand without a position (non-finite: no device
+    /// there, as an unused hand of `ves view`) does not count; with none, the active space stays.
     pub fn wanted(&self, inputs: &[HandInput]) -> usize {
-        let present = |h: &&HandInput| h.position.iter().all(|v| v.is_finite());
-        if !inputs.iter().any(|h| present(&h)) {
+        let at = |k: usize, h: &HandInput| {
+            let p = self
+                .held
+                .get(k)
+                .copied()
+                .flatten()
+                .filter(|_| h.button)
+                .unwrap_or(h.position);
+            p.iter().all(|v| v.is_finite()).then_some(p)
+        };
+        if !inputs.iter().enumerate().any(|(k, h)| at(k, h).is_some()) {
             return self.active;
         }
         let holds = |b: &[[f64; 3]; 2], grow: f64| {
             inputs
                 .iter()
-                .filter(present)
-                .all(|h| (0..3).all(|c| h.position[c] >= b[0][c] - grow && h.position[c] <= b[1][c] + grow))
+                .enumerate()
+                .filter_map(|(k, h)| at(k, h))
+                .all(|p| (0..3).all(|c| p[c] >= b[0][c] - grow && p[c] <= b[1][c] + grow))
         };
         // Each space's VOI is its basis's (None for the global space).
         let voi = |i: usize| self.sims[i].basis().voi;
@@ -209,6 +224,20 @@ impl Switcher {
             }
             self.fading = (left > 1).then_some((old, left - 1));
         }
+        let sim = &self.sims[self.active];
+        for (k, held) in self.held.iter_mut().enumerate() {
+            *held = sim.grabbed_vertex(k).map(|v| sim.basis().rest[v as usize]);
+        }
+    }
+
+    /// Back to the start: every space at rest, hands let go, the global space active.
+    pub fn reset(&mut self) {
+        for sim in &mut self.sims {
+            sim.reset();
+        }
+        self.active = 0;
+        self.fading = None;
+        self.held.fill(None);
     }
 
     fn switch_to(&mut self, to: usize) {
@@ -308,5 +337,105 @@ mod tests {
         assert_eq!(sw.wanted(&[absent, inside]), 1);
         assert_eq!(sw.wanted(&[inside, outside]), 0);
         assert_eq!(sw.wanted(&[absent, absent]), 0, "none present: the active space stays");
+    }
+
+    fn two_spaces() -> Switcher {
+        let global = Arc::new(crate::basis::stretch_grid(1.0, 100.0, 0.0));
+        let mut local = crate::basis::stretch_grid(1.0, 100.0, 0.0);
+        local.space = "voi".into();
+        local.voi = Some([[0.0, 0.0, -0.01], [0.01, 0.01, 0.01]]);
+        let spaces = vec![
+            SpaceInput {
+                basis: global,
+                transfers: vec![None, Some(vec![1.0])],
+            },
+            SpaceInput {
+                basis: Arc::new(local),
+                transfers: vec![Some(vec![1.0]), None],
+            },
+        ];
+        Switcher::new(
+            spaces,
+            Coupling::default(),
+            1e-3,
+            Scheme::Exact,
+            1,
+            SwitchConfig::default(),
+        )
+        .unwrap()
+    }
+
+    /// A hand that grabbed inside a volume of interest keeps that space while it holds, however
+    /// far it pulls out of the box; letting go returns to the global space. Before, the switch
+    /// followed the hand: pulling a rib upward dropped the session to the coarse space mid-pull.
+    #[test]
+    fn a_held_grab_keeps_its_space_until_released() {
+        let mut sw = two_spaces();
+        let mut out = [HandOutput::default()];
+        let hand = |p: [f64; 3], button| HandInput {
+            position: p,
+            button,
+            ..Default::default()
+        };
+        for _ in 0..10 {
+            sw.step(&[hand([0.005, 0.005, 0.0], true)], &mut out);
+        }
+        assert_eq!(sw.active(), 1, "grabbed inside the box");
+        let v = sw.sim(1).grabbed_vertex(0).expect("a grab");
+        // Pulled 5 cm out of a 1 cm box, button held: the same space, the same vertex.
+        for _ in 0..50 {
+            sw.step(&[hand([0.05, 0.05, 0.0], true)], &mut out);
+            assert_eq!(sw.active(), 1);
+        }
+        assert_eq!(sw.sim(1).grabbed_vertex(0), Some(v));
+        assert!(
+            out[0].force.iter().any(|f| f.abs() > 1.0),
+            "still pulling: {:?}",
+            out[0].force
+        );
+        // Let go out there: back to the global space at the next step.
+        sw.step(&[hand([0.05, 0.05, 0.0], false)], &mut out);
+        sw.step(&[hand([0.05, 0.05, 0.0], false)], &mut out);
+        assert_eq!(sw.active(), 0);
+        // Without a grab the hand's own position rules: out of the box is the global space.
+        sw.step(&[hand([0.05, 0.05, 0.0], true)], &mut out);
+        assert_eq!(sw.active(), 0);
+    }
+
+    /// Reset brings every space to rest, lets go of the hands and makes the global space
+    /// active, whatever happened before.
+    #[test]
+    fn reset_returns_to_rest() {
+        let mut sw = two_spaces();
+        let mut out = [HandOutput::default()];
+        let pull = HandInput {
+            position: [0.03, 0.005, 0.0],
+            button: true,
+            ..Default::default()
+        };
+        let grab = HandInput {
+            position: [0.005, 0.005, 0.0],
+            button: true,
+            ..Default::default()
+        };
+        sw.step(&[grab], &mut out);
+        for _ in 0..30 {
+            sw.step(&[pull], &mut out);
+        }
+        assert_eq!(sw.active(), 1);
+        assert!(sw.sim(1).state().q[0].abs() > 0.0);
+        sw.reset();
+        assert_eq!(sw.active(), 0);
+        for i in 0..2 {
+            assert!(
+                sw.sim(i)
+                    .state()
+                    .q
+                    .iter()
+                    .chain(&sw.sim(i).state().v)
+                    .all(|&x| x == 0.0)
+            );
+            assert_eq!(sw.sim(i).grabbed_vertex(0), None);
+        }
     }
 }

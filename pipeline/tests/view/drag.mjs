@@ -20,9 +20,14 @@ try {
   await page.goto(url);
   await page.waitForFunction(() => window.ves && window.ves.ready && window.ves.frames > 3, null, { timeout: 30000 });
 
+  // At rest the legend says so instead of spreading its colours over round-off.
+  const atRest = await page.evaluate(() => ({ legend: window.ves.legend, scale: window.ves.drawnScale, auto: window.ves.scaleAuto }));
+
   // The tip's top edge, middle: where a user would grab a cantilever to pull it down.
   const vertex = await page.evaluate(() => window.ves.nearestVertex(0, [1.0, 0.05, 0.05]));
+  const root = await page.evaluate(() => window.ves.nearestVertex(0, [0.0, 0.05, 0.05]));
   const [x, y] = await page.evaluate((v) => window.ves.screenOf(0, v), vertex);
+  const [rx, ry] = await page.evaluate((v) => window.ves.screenOf(0, v), root);
   await page.mouse.move(x, y);
   await page.mouse.down();
   const pixels = 60;
@@ -30,7 +35,16 @@ try {
     await page.mouse.move(x, y + (pixels * k) / 12);
     await page.waitForTimeout(25);
   }
-  await page.waitForTimeout(2500);
+  // Held until the grabbed vertex's true displacement is steady (1 s of frames within 0.2 %).
+  await page.waitForFunction((v) => {
+    const s = window.ves.spaces[0];
+    const h = (window.__steady ||= []);
+    h.push(s.umag[v]);
+    if (h.length > 20) h.shift();
+    const [lo, hi] = [Math.min(...h), Math.max(...h)];
+    return h.length === 20 && hi > 0 && hi - lo < 2e-3 * hi;
+  }, vertex, { polling: 50, timeout: 30000 });
+  const [x2, y2] = await page.evaluate((v) => window.ves.screenOf(0, v), vertex);
   const held = await page.evaluate((v) => {
     const s = window.ves.spaces[0];
     const h = window.ves.status.hands[0];
@@ -38,14 +52,20 @@ try {
       target: window.ves.lastTarget,
       hand: h,
       rest: Array.from(s.rest.subarray(3 * v, 3 * v + 3)),
-      position: Array.from(s.positions.subarray(3 * v, 3 * v + 3)),
+      position: window.ves.trueOf(0, v),
+      u: Array.from(s.u.subarray(3 * v, 3 * v + 3)),
+      drawn: window.ves.drawnOf(0, v),
+      scale: window.ves.drawnScale,
       umag: s.umag[v],
-      legend: [document.getElementById('lo').textContent, document.getElementById('hi').textContent],
+      legend: window.ves.legend,
+      scaleText: document.getElementById('scaleshown').textContent,
       handText: document.getElementById('handinfo').textContent,
       latency_ms: window.ves.latency.slice(),
       frames: window.ves.frames,
     };
   }, vertex);
+  held.screenMoved = Math.hypot(x2 - x, y2 - y);
+  held.screenLength = Math.hypot(x - rx, y - ry);
   await page.screenshot({ path: shot });
   // The same moment coloured by von Mises stress: the clamped root is the hot spot.
   await page.selectOption('#colour', 'vonmises');
@@ -92,12 +112,25 @@ try {
   await page.waitForTimeout(500);
   const after = await page.evaluate(() => ({ frames: window.ves.frames, dropped: window.ves.status.messages_dropped }));
 
+  // Lost in space: a wild orbit (dragged off the part) and a deep zoom, then F fits the view.
+  await page.mouse.move(1150, 780);
+  await page.mouse.down();
+  await page.mouse.move(700, 400, { steps: 10 });
+  await page.mouse.up();
+  for (let k = 0; k < 12; k++) { await page.mouse.move(600, 400); await page.mouse.wheel(0, -400); await page.waitForTimeout(20); }
+  await page.waitForTimeout(200);
+  const lost = await page.evaluate(() => window.ves.drawnExtent());
+  await page.keyboard.press('f');
+  await page.waitForTimeout(200);
+  const fitted = await page.evaluate(() => window.ves.drawnExtent());
+
   // The mode browser: click mode 1 and check the page animates its shape.
+  await page.click('#modebox summary');
   await page.click('#modes button:first-child');
   await page.waitForFunction(() => window.ves.mode !== null, null, { timeout: 5000 });
   const mode = await page.evaluate(() => ({ mode: window.ves.mode.mode, frequency: window.ves.mode.frequency }));
 
-  console.log(JSON.stringify({ vertex, pixels, held, vonMisesLegend, second, released, framesBefore: before, after, mode, errors }));
+  console.log(JSON.stringify({ vertex, pixels, atRest, lost, fitted, viewport: [1200, 800], held, vonMisesLegend, second, released, framesBefore: before, after, mode, errors }));
 } finally {
   await browser.close();
 }

@@ -137,8 +137,17 @@ impl HandSlot {
 
     /// Lets go of the hand if `client` drives it (the client left).
     pub fn release(&self, client: u64) {
+        self.release_if(|owner| owner == client);
+    }
+
+    /// Lets go of the hand whoever drives it (a reset of the session).
+    pub fn release_any(&self) {
+        self.release_if(|_| true);
+    }
+
+    fn release_if(&self, whose: impl Fn(u64) -> bool) {
         let _w = self.writer.lock().unwrap_or_else(|p| p.into_inner());
-        if self.owner.load(Ordering::Acquire) == client {
+        if whose(self.owner.load(Ordering::Acquire)) {
             let mut v = [0.0; INPUT];
             self.input.read(&mut v);
             v[4] = 0.0;

@@ -102,6 +102,8 @@ struct Shared {
     client_slots: Arc<Semaphore>,
     max_clients: usize,
     refused: Arc<AtomicU64>,
+    /// Asks the haptic thread to bring the part back to rest.
+    reset: Arc<AtomicBool>,
 }
 
 /// Serves the viewer until the session ends (its duration, Ctrl-C, or `stop`). `ready` gets
@@ -155,6 +157,7 @@ pub fn serve(
         client_slots: Arc::new(Semaphore::new(cfg.limits.clients)),
         max_clients: cfg.limits.clients,
         refused: Arc::new(AtomicU64::new(0)),
+        reset: Arc::new(AtomicBool::new(false)),
     });
     let drawn = Arc::new(AtomicU32::new(0));
     let active_space = Arc::new(AtomicU32::new(0));
@@ -169,6 +172,7 @@ pub fn serve(
         .collect();
     let hooks = Hooks {
         stop: Some(stop.clone()),
+        reset: Some(shared.reset.clone()),
         frame: Some(frame_encoder(
             &bases,
             &shared.hands,
@@ -279,7 +283,6 @@ fn frame_encoder(bases: &[Arc<crate::Basis>], hands: &[Arc<HandSlot>; HANDS], ou
     let bases = bases.to_vec();
     let hands = hands.clone();
     let mut u: Vec<Vec<f32>> = bases.iter().map(|b| vec![0.0; 3 * b.vertex_count()]).collect();
-    let mut umag: Vec<Vec<f32>> = bases.iter().map(|b| vec![0.0; b.vertex_count()]).collect();
     let mut vm: Vec<Vec<f32>> = bases.iter().map(|b| vec![0.0; b.vertex_count()]).collect();
     let mut p1: Vec<Vec<f32>> = bases.iter().map(|b| vec![0.0; b.vertex_count()]).collect();
     let mut seq = 0u32;
@@ -289,9 +292,6 @@ fn frame_encoder(bases: &[Arc<crate::Basis>], hands: &[Arc<HandSlot>; HANDS], ou
         // claims to show a message it may not (it may show one more, by one haptic step).
         let hand_seq = [hands[0].seq_read(), hands[1].seq_read()];
         visual::displacements(&bases[i], f.modal, &mut u[i]);
-        for (m, d) in umag[i].iter_mut().zip(u[i].chunks_exact(3)) {
-            *m = (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt();
-        }
         seq = seq.wrapping_add(1);
         // The stress fields cost a 3×3 eigenvalue problem per vertex: only while a client
         // colours by stress, and sent apart (kind 3) to those clients only.
@@ -315,9 +315,10 @@ fn frame_encoder(bases: &[Arc<crate::Basis>], hands: &[Arc<HandSlot>; HANDS], ou
             hand_seq,
             time: f.time,
             pose,
+            von_mises_max: f.von_mises_max,
         };
-        let mut b = Vec::new();
-        protocol::frame(&mut b, &header, f.positions, &umag[i], f.stress.is_some());
+        let mut b = Vec::with_capacity(protocol::FRAME_HEADER + 4 * u[i].len());
+        protocol::frame(&mut b, &header, &u[i], f.stress.is_some());
         out.frames.send_replace(Bytes::from(b));
         out.drawn.store(seq, Ordering::Relaxed);
         out.active_space.store(i as u32, Ordering::Relaxed);
@@ -329,9 +330,12 @@ fn hello(bases: &[Arc<crate::Basis>], cfg: &ViewConfig) -> serde_json::Value {
     let spaces: Vec<_> = bases
         .iter()
         .map(|b| {
+            let (compliance, at) = b.largest_compliance();
             serde_json::json!({
                 "name": b.space,
                 "vertices": b.vertex_count(),
+                "largest_compliance": compliance,
+                "largest_compliance_vertex": at,
                 "triangles": b.triangles.len(),
                 "voi": b.voi,
                 "has_stress": b.stress.is_some(),
@@ -352,6 +356,7 @@ fn hello(bases: &[Arc<crate::Basis>], cfg: &ViewConfig) -> serde_json::Value {
         "min_safety_factor": s.strain.min_safety_factor,
         "strain_limit": s.strain.limit,
         "free_body": bases[0].rigid.is_some(),
+        "center": bases[0].rigid.map(|r| r.center),
         "gravity": s.free_body.map(|(g, _)| g),
         "spaces": spaces,
     })
@@ -514,6 +519,13 @@ fn handle(shared: &Shared, id: u64, text: &str) -> Reply {
             None => dropped(),
         },
         Ok(ClientMessage::Fields { stress }) => Reply::Stress(stress),
+        Ok(ClientMessage::Reset) => {
+            for h in &shared.hands {
+                h.release_any();
+            }
+            shared.reset.store(true, Ordering::Relaxed);
+            Reply::None
+        }
         Err(e) => {
             tracing_drop(id, &e);
             dropped()

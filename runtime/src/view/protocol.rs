@@ -1,10 +1,16 @@
 //! The viewer's messages, defined once here (the page's `web/src/protocol.js` decodes them).
 //!
 //! Server → page, binary, little-endian, every array 4-byte aligned:
-//! - kind 0, a space's surface: u32 kind, space, nv, nt; f32 rest[3nv]; u32 triangles[3nt].
+//! - kind 0, a space's surface: u32 kind, space, nv, nt; f32 rest[3nv]; u32 triangles[3nt];
+//!   u8 fixed[nv] (bit c: component c of that vertex is supported).
 //! - kind 1, a drawn frame: u32 kind, space, nv, flags (1: the space has stress, 2: the part's
-//!   safety factor is below the minimum), frame seq, last hand-message seq read per hand [2];
-//!   f32 time, pose[7]; f32 positions[3nv] (deformed and posed), |u|[nv] (elastic displacement).
+//!   safety factor is below the minimum), frame seq, last hand-message seq read per hand [2],
+//!   vertex of the part's largest von Mises stress (u32::MAX: none); f64 time, pose[7]
+//!   (position of the centre of mass, quaternion w x y z; all zero for a supported part), largest
+//!   von Mises stress (Pa, NaN: none); f32 u[3nv], the elastic displacement in the part frame.
+//!   The page draws rest + k·u (posed: x + R(rest + k·u − centre)) for its deformation scale k:
+//!   sending displacements, not positions, keeps sub-micrometre motion exact at any scale (an f32
+//!   position near 1 m is rounded by 6e-8 m, which a scale of 2000 would draw as 0.1 mm).
 //! - kind 3, the same frame's stress (only to clients that asked for it, see `fields`): u32 kind,
 //!   space, nv, frame seq; f32 von Mises[nv], largest principal stress[nv] (Pa).
 //! - kind 2, a mode shape: u32 kind, space, mode, nv; f32 frequency (Hz); f32 φ[3nv] scaled to
@@ -12,8 +18,9 @@
 //!
 //! Server → page, text: JSON objects `hello` (once) and `status` (≈ 20 Hz).
 //! Page → server, text only: `{"type":"hand","hand":0|1,"active":bool,"button":bool,
-//! "position":[x,y,z],"seq":n}`, `{"type":"mode","space":s,"index":j}` and
-//! `{"type":"fields","stress":bool}` (send the stress frames or not; off at first). Anything else —
+//! "position":[x,y,z],"seq":n}`, `{"type":"mode","space":s,"index":j}`,
+//! `{"type":"fields","stress":bool}` (send the stress frames or not; off at first) and
+//! `{"type":"reset"}` (the part back to rest, every hand let go). Anything else —
 //! binary, longer than [`MAX_MESSAGE`], not JSON, unknown fields, non-finite or far-away
 //! positions — is dropped and counted.
 
@@ -47,6 +54,7 @@ pub fn mesh(space: usize, basis: &Basis) -> Vec<u8> {
     for t in basis.triangles.iter().flatten() {
         put_u32(&mut b, *t);
     }
+    b.extend_from_slice(&basis.fixed);
     b
 }
 
@@ -62,23 +70,41 @@ pub struct FrameHeader {
     pub hand_seq: [u32; HANDS],
     /// Session time, s.
     pub time: f64,
-    /// Pose (position, quaternion w x y z).
+    /// Pose (position of the centre of mass, quaternion w x y z; zeros for a held part).
     pub pose: [f64; 7],
+    /// The part's largest von Mises stress, Pa, and its vertex.
+    pub von_mises_max: Option<(f64, usize)>,
 }
 
-/// Kind 1 into `b` (cleared first): `positions` 3n, `umag` n; `has_stress` sets flag 1.
-pub fn frame(b: &mut Vec<u8>, h: &FrameHeader, positions: &[f32], umag: &[f32], has_stress: bool) {
+/// Bytes before a frame's displacements.
+pub const FRAME_HEADER: usize = 8 * 4 + 9 * 8;
+
+/// Kind 1 into `b` (cleared first): the elastic displacement `u` (3 per vertex, part frame);
+/// `has_stress` sets flag 1.
+pub fn frame(b: &mut Vec<u8>, h: &FrameHeader, u: &[f32], has_stress: bool) {
     b.clear();
-    let nv = umag.len();
+    let nv = u.len() / 3;
     let flags = u32::from(has_stress) | (u32::from(h.alarm) << 1);
-    for v in [1, h.space as u32, nv as u32, flags, h.seq, h.hand_seq[0], h.hand_seq[1]] {
+    let (peak, at) = match h.von_mises_max {
+        Some((s, v)) => (s, v as u32),
+        None => (f64::NAN, u32::MAX),
+    };
+    for v in [
+        1,
+        h.space as u32,
+        nv as u32,
+        flags,
+        h.seq,
+        h.hand_seq[0],
+        h.hand_seq[1],
+        at,
+    ] {
         put_u32(b, v);
     }
-    put_f32(b, h.time as f32);
-    for p in h.pose {
-        put_f32(b, p as f32);
+    for v in std::iter::once(h.time).chain(h.pose).chain([peak]) {
+        b.extend_from_slice(&v.to_le_bytes());
     }
-    for v in positions.iter().chain(umag) {
+    for v in u {
         put_f32(b, *v);
     }
 }
@@ -135,6 +161,7 @@ enum Raw {
     Fields {
         stress: bool,
     },
+    Reset {},
 }
 
 /// A checked message from the page.
@@ -154,6 +181,8 @@ pub enum ClientMessage {
         /// Stress wanted.
         stress: bool,
     },
+    /// The part back to rest, every hand let go.
+    Reset,
 }
 
 /// Where the part is: positions further than `REACH` diagonals from its centre are refused.
@@ -213,6 +242,7 @@ pub fn parse(text: &str, spaces: usize, extent: &Extent) -> Result<ClientMessage
         Raw::Mode { space, index } if space < spaces => Ok(ClientMessage::Mode { space, index }),
         Raw::Mode { space, .. } => Err(format!("space {space} of {spaces}")),
         Raw::Fields { stress } => Ok(ClientMessage::Fields { stress }),
+        Raw::Reset {} => Ok(ClientMessage::Reset),
     }
 }
 
@@ -252,6 +282,7 @@ mod tests {
             parse(r#"{"type":"fields","stress":true}"#, 1, &E),
             Ok(ClientMessage::Fields { stress: true })
         );
+        assert_eq!(parse(r#"{"type":"reset"}"#, 1, &E), Ok(ClientMessage::Reset));
         let bad = [
             r#"{"type":"hand","hand":2,"active":true,"button":true,"position":[1,0,0]}"#,
             r#"{"type":"hand","hand":0,"active":true,"button":true,"position":[1e300,0,0]}"#,
@@ -259,6 +290,7 @@ mod tests {
             r#"{"type":"hand","hand":0,"active":true,"button":true,"position":[1,0,0],"x":1}"#,
             r#"{"type":"mode","space":1,"index":0}"#,
             r#"{"type":"quit"}"#,
+            r#"{"type":"reset","all":true}"#,
             "not json",
             "[]",
         ];

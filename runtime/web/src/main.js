@@ -1,9 +1,15 @@
 // The ves view page: draws what the server's runtime computes and is its device. The mouse ray
-// picks a surface vertex; its drag moves a hand; the server's haptic loop couples the hand to the
-// part and sends back drawn frames (binary, little-endian f32) and a status (JSON).
+// picks a surface vertex; its drag moves a hand in true units; the server's haptic loop couples
+// the hand to the part and sends back frames (the elastic displacement, f32, and the pose) and
+// a status (JSON). Only the drawing is magnified, by the deformation scale.
 import * as THREE from 'three';
 import { OrbitControls } from 'three/examples/jsm/controls/OrbitControls.js';
-import { decodeFrame, decodeMesh, decodeMode, decodeStress, colourMap, siLabel } from './protocol.js';
+import { decodeFrame, decodeMesh, decodeMode, decodeStress } from './protocol.js';
+import { fieldOf, REST_FORCE } from './field.js';
+import { gradient, sequential } from './colours.js';
+import { label, plain } from './units.js';
+import * as views from './camera.js';
+import * as capture from './capture.js';
 
 const $ = (id) => document.getElementById(id);
 const canvas = $('view');
@@ -15,27 +21,50 @@ const camera = new THREE.PerspectiveCamera(35, 1, 1e-4, 1e4);
 camera.up.set(0, 0, 1);
 scene.add(new THREE.HemisphereLight(0xffffff, 0x404850, 1.6));
 const sun = new THREE.DirectionalLight(0xffffff, 1.6);
-scene.add(sun);
+// Lit from over the viewer's shoulder whatever the view: the light rides with the camera.
+const sunTarget = new THREE.Object3D();
+sunTarget.position.set(0, 0, -1);
+sun.position.set(0.5, 1, 0.2);
+sun.target = sunTarget;
+camera.add(sun, sunTarget);
+scene.add(camera);
 const controls = new OrbitControls(camera, canvas);
 controls.enableDamping = false;
 
+/** The largest drawn displacement the automatic scale aims at under the device's force limit,
+ * as a fraction of the part's bounding-box diagonal; and the most it lets the drawing reach. */
+const AUTO_FRACTION = 0.08;
+const AUTO_LIMIT = 0.3;
+
 // Everything the page knows, open to tests and to the console.
 const state = {
-  ready: false, hello: null, spaces: [], active: 0, frames: 0, framesSkipped: 0, lastSeq: -1,
-  status: null, scale: 1, colour: 'displacement', mode: null, framesPerSecond: 0,
+  ready: false, connected: false, reconnects: 0, hello: null, spaces: [], active: 0, frames: 0,
+  framesSkipped: 0, lastSeq: -1, status: null, scale: 1, scaleAuto: true, autoScale: 1,
+  scaleLimited: false, colour: 'displacement', units: 'si', locked: null, mode: null,
+  framesPerSecond: 0, legend: null, probe: null,
   latency: [], // ms from a pointer event to the first frame computed after the server got it
 };
 window.ves = state;
 
 let ws;
-const pending = []; // [time sent, hand message sequence] awaiting a frame that reflects them
+let retry = 0;
+const pending = []; // [time sent, hand message sequence, hand] awaiting a frame that reflects them
 let handSeq = 0;
 
 function connect() {
   ws = new WebSocket(`ws://${location.host}/ws`);
   ws.binaryType = 'arraybuffer';
-  ws.onopen = () => { $('conn').textContent = 'connected'; };
-  ws.onclose = () => { $('conn').textContent = 'disconnected'; state.ready = false; state.meshesIn = false; };
+  ws.onopen = () => { state.connected = true; retry = 0; $('conn').textContent = 'connected'; };
+  ws.onclose = () => {
+    state.connected = false; state.ready = false; state.meshesIn = false;
+    for (const d of drags.values()) d.ended = true;
+    drags.clear();
+    controls.enabled = true;
+    // Back off to one try every 5 s: a restarted server is found again without a reload.
+    const wait = Math.min(5000, 250 * 2 ** retry++);
+    $('conn').textContent = `disconnected — trying again in ${(wait / 1000).toFixed(1)} s`;
+    setTimeout(connect, wait);
+  };
   ws.onmessage = (ev) => {
     if (typeof ev.data === 'string') onText(JSON.parse(ev.data));
     else onBinary(ev.data);
@@ -44,20 +73,31 @@ function connect() {
 
 function onText(msg) {
   if (msg.type === 'hello') {
+    const again = state.hello !== null;
+    const samePart = again && state.hello.name === msg.name;
+    if (again) { state.reconnects += 1; clearSpaces(); }
     state.hello = msg;
+    state.lastSeq = -1;
+    state.active = 0;
+    state.keepView = samePart;
+    state.framesAtHello = state.frames;
     $('title').textContent = `VES view — ${msg.name}`;
-    $('limit').textContent = `device force limit ${msg.max_force.toPrecision(3)} N · coupling ${siLabel(msg.stiffness, 'N/m')}`
-      + (msg.free_body ? ` · free body, gravity ${Math.hypot(...(msg.gravity || [0, 0, 0])).toPrecision(3)} m/s²` : '');
+    showLimit();
     buildModeList(msg.spaces[0]);
-    if (!msg.spaces.some((s) => s.has_stress)) {
-      for (const o of $('colour').options) if (o.value !== 'displacement') o.disabled = true;
-    }
+    for (const o of $('colour').options) o.disabled = o.value !== 'displacement' && !msg.spaces.some((s) => s.has_stress);
     if (msg.yield_strength == null) $('colour').querySelector('option[value=safety]').disabled = true;
+    if ($('colour').selectedOptions[0].disabled) { $('colour').value = 'displacement'; state.colour = 'displacement'; }
     askFields();
   } else if (msg.type === 'status') {
     state.status = msg;
     showStatus(msg);
   }
+}
+
+function showLimit() {
+  const h = state.hello;
+  $('limit').textContent = `device force limit ${plain(h.max_force)} N · coupling ${label(h.stiffness, 'stiffness', state.units)}`
+    + (h.free_body ? ` · free body, gravity ${plain(Math.hypot(...(h.gravity || [0, 0, 0])))} m/s²` : '');
 }
 
 function onBinary(buf) {
@@ -68,14 +108,21 @@ function onBinary(buf) {
   else if (kind === 3) onStress(decodeStress(buf));
 }
 
+function clearSpaces() {
+  for (const s of state.spaces) {
+    if (!s) continue;
+    for (const o of [s.mesh, s.box, s.supports]) if (o) { scene.remove(o); o.geometry && o.geometry.dispose(); }
+  }
+  state.spaces = [];
+  state.mode = null;
+}
+
 function addSpace(m) {
   const geom = new THREE.BufferGeometry();
-  const pos = new Float32Array(m.rest);
-  geom.setAttribute('position', new THREE.BufferAttribute(pos, 3).setUsage(THREE.DynamicDrawUsage));
+  geom.setAttribute('position', new THREE.BufferAttribute(new Float32Array(m.rest), 3).setUsage(THREE.DynamicDrawUsage));
   const col = new Float32Array(3 * m.vertices).fill(0.8);
   geom.setAttribute('color', new THREE.BufferAttribute(col, 3).setUsage(THREE.DynamicDrawUsage));
   geom.setIndex(new THREE.BufferAttribute(m.triangles, 1));
-  geom.computeVertexNormals();
   geom.computeBoundingBox();
   // Flat shading: an FE surface has sharp edges that averaged normals would smear.
   const mat = new THREE.MeshStandardMaterial({ vertexColors: true, roughness: 0.6, metalness: 0.1, side: THREE.DoubleSide, flatShading: true });
@@ -85,25 +132,55 @@ function addSpace(m) {
   const info = state.hello.spaces[m.space];
   let box = null;
   if (info.voi) {
-    box = new THREE.Box3Helper(new THREE.Box3(new THREE.Vector3(...info.voi[0]), new THREE.Vector3(...info.voi[1])), 0x66ccff);
+    box = new THREE.Box3Helper(new THREE.Box3(new THREE.Vector3(...info.voi[0]), new THREE.Vector3(...info.voi[1])), 0x5a7a8c);
     scene.add(box);
   }
-  state.spaces[m.space] = { ...m, geom, mesh, box, positions: new Float32Array(m.rest), umag: new Float32Array(m.vertices), vm: null };
-  if (m.space === 0) frameCamera(geom.boundingBox);
-  // Ready once every space is in and has been drawn with the framed camera (see loop).
+  // Supports: the vertices with a fixed component, as green points over the part.
+  const fixedIdx = [];
+  m.fixed.forEach((b, i) => { if (b) fixedIdx.push(i); });
+  let supports = null;
+  if (fixedIdx.length) {
+    const g = new THREE.BufferGeometry();
+    g.setAttribute('position', new THREE.BufferAttribute(new Float32Array(3 * fixedIdx.length), 3));
+    supports = new THREE.Points(g, new THREE.PointsMaterial({ color: 0x3ddc84, size: 4, sizeAttenuation: false, depthTest: true }));
+    supports.visible = mesh.visible && $('showsupports').checked;
+    scene.add(supports);
+  }
+  const size = geom.boundingBox.getSize(new THREE.Vector3()).length();
+  state.spaces[m.space] = {
+    ...m, geom, mesh, box, supports, fixedIdx, size,
+    u: new Float32Array(3 * m.vertices), umag: new Float32Array(m.vertices),
+    truePos: new Float32Array(m.rest), pose: null, vm: null, p1: null,
+  };
+  if (m.space === 0) {
+    state.diag = size;
+    state.autoScale = autoScale();
+    if (!state.keepView) homeView();
+  }
+  highlightBoxes();
+  // Ready once every space is in and a frame has been drawn (see loop).
   if (state.spaces.filter(Boolean).length === state.hello.spaces.length) state.meshesIn = true;
 }
 
-function frameCamera(box) {
-  const c = box.getCenter(new THREE.Vector3());
-  const d = box.getSize(new THREE.Vector3()).length();
-  state.diag = d;
-  controls.target.copy(c);
-  camera.position.set(c.x + 0.25 * d, c.y - 1.45 * d, c.z + 0.7 * d);
-  camera.near = d / 1000; camera.far = d * 100;
-  camera.updateProjectionMatrix();
-  sun.position.set(c.x + d, c.y - d, c.z + 2 * d);
-  controls.update();
+/** The automatic deformation scale: the device's full force at the part's most compliant
+ * surface point draws AUTO_FRACTION of the part's size; never below true size. Rounded to 1, 2
+ * or 5 times a power of ten so the number can be read. */
+function autoScale() {
+  const c = state.hello.spaces[0].largest_compliance;
+  const k = (AUTO_FRACTION * state.diag) / (state.hello.max_force * c);
+  if (!(k > 1) || !Number.isFinite(k)) return 1;
+  const p = 10 ** Math.floor(Math.log10(k));
+  return [5, 2, 1].map((m) => m * p).find((v) => v <= k);
+}
+
+function highlightBoxes() {
+  state.spaces.forEach((s, i) => {
+    if (!s || !s.box) return;
+    const on = i === state.active;
+    s.box.material.color.set(on ? 0xffd45e : 0x5a7a8c);
+    s.box.material.opacity = on ? 1 : 0.5;
+    s.box.material.transparent = !on;
+  });
 }
 
 function onFrame(f) {
@@ -113,16 +190,18 @@ function onFrame(f) {
   state.lastSeq = f.seq;
   state.frames += 1;
   if (f.space !== state.active) {
-    for (const t of state.spaces) if (t) t.mesh.visible = false;
+    for (const t of state.spaces) if (t) { t.mesh.visible = false; if (t.supports) t.supports.visible = false; }
     state.active = f.space;
     buildModeList(state.hello.spaces[f.space]);
+    highlightBoxes();
   }
   s.mesh.visible = true;
-  s.positions.set(f.positions);
-  s.umag.set(f.umag);
-
+  if (s.supports) s.supports.visible = $('showsupports').checked;
+  s.u.set(f.u);
+  for (let i = 0; i < s.vertices; i++) s.umag[i] = Math.hypot(f.u[3 * i], f.u[3 * i + 1], f.u[3 * i + 2]);
   s.pose = f.pose;
   s.alarm = f.alarm;
+  s.peak = { vertex: f.peakVertex, vonMises: f.peakVonMises };
   s.frameTime = f.time;
   state.dirty = true;
   // Latency: from a pointer event to the first frame drawn from a state in which the haptic
@@ -148,134 +227,194 @@ function askFields() {
   if (ws && ws.readyState === 1) ws.send(JSON.stringify({ type: 'fields', stress: STRESS_COLOURS.has(state.colour) }));
 }
 
-// The drawn positions: posed rest plus the deformation times the scale (1 = true size).
+function restLevel(s) {
+  const c = state.hello.spaces[state.active].largest_compliance;
+  return Math.max(c > 0 ? c * REST_FORCE : 0, 1e-12 * s.size);
+}
+
+// Positions: rest + k·u, posed for a free body (x + R(rest + k·u − c)). The drawn ones use the
+// deformation scale; the true ones (k = 1) are where the hands act.
+function place(s, k, out) {
+  const q = s.pose;
+  const u = s.u, r = s.rest;
+  if (!q) {
+    for (let i = 0; i < out.length; i++) out[i] = r[i] + k * u[i];
+    return;
+  }
+  const m = new THREE.Matrix4().makeRotationFromQuaternion(new THREE.Quaternion(q[4], q[5], q[6], q[3])).elements;
+  const c = state.hello.center || [0, 0, 0];
+  for (let i = 0; i < out.length; i += 3) {
+    const x = r[i] + k * u[i] - c[0], y = r[i + 1] + k * u[i + 1] - c[1], z = r[i + 2] + k * u[i + 2] - c[2];
+    out[i] = q[0] + m[0] * x + m[4] * y + m[8] * z;
+    out[i + 1] = q[1] + m[1] * x + m[5] * y + m[9] * z;
+    out[i + 2] = q[2] + m[2] * x + m[6] * y + m[10] * z;
+  }
+}
+
+function drawScale(s) {
+  let k = state.scaleAuto ? state.autoScale : state.scale;
+  state.scaleLimited = false;
+  if (state.scaleAuto) {
+    let umax = 0;
+    for (let i = 0; i < s.vertices; i++) umax = Math.max(umax, s.umag[i]);
+    if (k * umax > AUTO_LIMIT * s.size) { k = (AUTO_LIMIT * s.size) / umax; state.scaleLimited = true; }
+  }
+  state.drawnScale = k;
+  $('scaleshown').textContent = `×${plain(k)}${state.scaleAuto ? ', auto' : ''}${state.scaleLimited ? ' (held to 30 % of the size)' : ''}`;
+  return k;
+}
+
 function draw(s) {
-  const p = s.geom.attributes.position.array;
-  const k = state.scale;
-  const rest = posedRest(s);
-  for (let i = 0; i < p.length; i++) p[i] = rest[i] + k * (s.positions[i] - rest[i]);
+  const k = drawScale(s);
+  place(s, k, s.geom.attributes.position.array);
+  place(s, 1, s.truePos);
+  s.drawnPose = s.pose; // what the drawing used (a newer frame may have come since)
   s.geom.attributes.position.needsUpdate = true;
   s.geom.computeBoundingSphere();
+  if (s.supports) {
+    const p = s.supports.geometry.attributes.position.array, d = s.geom.attributes.position.array;
+    s.fixedIdx.forEach((v, j) => { p[3 * j] = d[3 * v]; p[3 * j + 1] = d[3 * v + 1]; p[3 * j + 2] = d[3 * v + 2]; });
+    s.supports.geometry.attributes.position.needsUpdate = true;
+    s.supports.geometry.computeBoundingSphere();
+  }
   colour(s);
 }
 
-function posedRest(s) {
-  const q = s.pose;
-  if (!q || (q[0] === 0 && q[1] === 0 && q[2] === 0 && q[3] === 1 && q[4] === 0 && q[5] === 0 && q[6] === 0)) return s.rest;
-  if (!s.posed) s.posed = new Float32Array(s.rest.length);
-  const rot = new THREE.Quaternion(q[4], q[5], q[6], q[3]);
-  const v = new THREE.Vector3();
-  for (let i = 0; i < s.vertices; i++) {
-    v.set(s.rest[3 * i], s.rest[3 * i + 1], s.rest[3 * i + 2]).applyQuaternion(rot);
-    s.posed[3 * i] = v.x + q[0]; s.posed[3 * i + 1] = v.y + q[1]; s.posed[3 * i + 2] = v.z + q[2];
-  }
-  return s.posed;
-}
-
 function colour(s) {
+  const locked = state.locked && state.locked.colour === state.colour ? state.locked : null;
+  const f = fieldOf(state.colour, s, { hello: state.hello, restLevel: restLevel(s), units: state.units, locked });
+  state.field = f;
   const c = s.geom.attributes.color.array;
-  const n = s.vertices;
-  const ys = state.hello.yield_strength;
-  let values = s.umag, unit = 'm', title = 'displacement magnitude';
-  if (state.colour === 'vonmises' && s.vm) { values = s.vm; unit = 'Pa'; title = 'von Mises stress'; }
-  let signed = false;
-  if (state.colour === 'principal' && s.p1) { values = s.p1; unit = 'Pa'; title = 'largest principal stress (tension > 0)'; signed = true; }
-  if (state.colour === 'safety' && s.vm && ys) {
-    title = 'safety factor (yield / von Mises), capped at 10';
-    values = new Float32Array(n);
-    for (let i = 0; i < n; i++) values[i] = Math.min(10, ys / Math.max(s.vm[i], 1e-30));
-    unit = '';
-  }
-  let hi = 0, lo = Infinity;
-  for (let i = 0; i < n; i++) { hi = Math.max(hi, values[i]); lo = Math.min(lo, values[i]); }
-  if (unit !== '' && !signed) lo = 0;
-  // A signed field is centred on zero: blue compression, red tension.
-  if (signed) { const m = Math.max(Math.abs(lo), Math.abs(hi)); lo = -m; hi = m; }
-  const span = hi - lo > 0 ? hi - lo : 1;
-  const reverse = unit === ''; // a low safety factor is the hot colour
-  for (let i = 0; i < n; i++) {
-    let t = (values[i] - lo) / span;
-    if (reverse) t = 1 - t;
-    const [r, g, b] = colourMap(t);
+  for (let i = 0; i < s.vertices; i++) {
+    const [r, g, b] = f.colourOf(i);
     c[3 * i] = r; c[3 * i + 1] = g; c[3 * i + 2] = b;
   }
   s.geom.attributes.color.needsUpdate = true;
-  $('legendtitle').textContent = title;
-  const fmt = (v) => (unit === '' ? v.toPrecision(3) : siLabel(v, unit));
-  const [a, b] = reverse ? [hi, lo] : [lo, hi];
-  $('lo').textContent = fmt(a); $('mid').textContent = fmt((a + b) / 2); $('hi').textContent = fmt(b);
+  const caption = `deformation drawn ${$('scaleshown').textContent}${f.summary ? ` · ${f.summary}` : ''}`;
+  state.legend = { title: f.title, scale: f.scale, ticks: f.ticks, caption, atRest: f.atRest, lo: f.lo, hi: f.hi };
+  $('legendtitle').textContent = f.title;
+  $('bar').style.background = gradient(f.scale);
+  [$('lo').textContent, $('mid').textContent, $('hi').textContent] = f.ticks;
+  $('legendnote').textContent = f.summary || '';
+  placeMarkers(s, f.markers);
+  if (state.probe) showProbe(state.probe.vertex, state.probe.x, state.probe.y);
+}
+
+// Markers at the field's extremes: a dot on the part and its value beside it.
+const markers = [];
+function placeMarkers(s, list) {
+  while (markers.length < list.length) {
+    const dot = new THREE.Mesh(new THREE.SphereGeometry(1, 12, 8), new THREE.MeshBasicMaterial({ color: 0xffffff, depthTest: false }));
+    dot.renderOrder = 2;
+    const tag = document.createElement('div');
+    tag.className = 'marker';
+    document.body.appendChild(tag);
+    scene.add(dot);
+    markers.push({ dot, tag });
+  }
+  markers.forEach((m, i) => {
+    const on = i < list.length && list[i].vertex >= 0 && $('showmarkers').checked;
+    m.dot.visible = on;
+    m.tag.style.display = on ? 'block' : 'none';
+    if (!on) return;
+    m.dot.position.fromBufferAttribute(s.geom.attributes.position, list[i].vertex);
+    m.dot.scale.setScalar(0.006 * state.diag);
+    m.vertex = list[i].vertex;
+    m.tag.textContent = list[i].text;
+  });
+}
+
+function placeTags() {
+  for (const m of markers) {
+    if (!m.dot.visible) continue;
+    const [x, y] = screenOfPoint(m.dot.position);
+    m.tag.style.left = `${x + 8}px`; m.tag.style.top = `${y - 8}px`;
+  }
+}
+
+function screenOfPoint(p) {
+  const v = p.clone().project(camera);
+  const r = canvas.getBoundingClientRect();
+  return [r.left + ((v.x + 1) / 2) * r.width, r.top + ((1 - v.y) / 2) * r.height];
 }
 
 function showStatus(m) {
   const sp = state.hello.spaces[m.space];
-  $('space').textContent = `space ${sp.name}${sp.voi ? ' (volume of interest)' : ''} · ${sp.vertices} vertices · ${m.clients} client(s)`;
+  $('space').textContent = `space ${sp.name}${sp.voi ? ' (volume of interest, yellow box)' : ''} · ${sp.vertices} vertices · ${m.clients} client(s)`;
   // Times the part was actually redrawn (the loop below), over the last 60.
   const t = state.drawTimes || [];
   const fps = t.length > 1 ? (1000 * (t.length - 1)) / (t.at(-1) - t[0]) : 0;
   state.framesPerSecond = fps;
   $('rates').textContent = `haptic ${m.haptic_hz.toFixed(0)} Hz · visual ${m.visual_hz.toFixed(0)} Hz · drawn here ${fps.toFixed(0)} fps`;
+  const u = state.units, min = state.hello.min_safety_factor, ys = state.hello.yield_strength;
   const lines = [];
   const warn = [];
   m.hands.forEach((h, i) => {
-    updateArrow(i, h);
+    updateHand(i, h);
     if (!h.active) return;
     const f = Math.hypot(...h.force);
-    lines.push(`hand ${i + 1}: ${f.toPrecision(3)} N${h.clamped ? ' (at the limit)' : ''}${h.button ? '' : ' pressing'}`
-      + (h.von_mises > 0 ? ` · σvM ${siLabel(h.von_mises, 'Pa')} · σ1 ${siLabel(h.principal_stress, 'Pa')} · ε1 ${h.principal_strain.toExponential(2)}` : '')
-      + (h.safety_factor != null && h.von_mises > 0 ? ` · safety ${h.safety_factor.toPrecision(3)}` : ''));
-    if (h.strain_exceeded) warn.push(`hand ${i + 1}: strain ${h.strain.toPrecision(2)} beyond the linear model's limit`);
-    if (h.stress_exceeded) warn.push(`hand ${i + 1}: safety factor ${h.safety_factor.toPrecision(2)} below the minimum`);
+    lines.push(`hand ${i + 1}: ${plain(f)} N on the part${h.clamped ? ' (device limit)' : ''}${h.button ? '' : ', pressing'}`
+      + (h.von_mises > 0 ? ` · σvM ${label(h.von_mises, 'stress', u)} · σ1 ${label(h.principal_stress, 'stress', u)} · ε1 ${h.principal_strain.toExponential(2)}` : '')
+      + (h.safety_factor != null && h.von_mises > 0 ? ` · safety ${plain(h.safety_factor)}` : ''));
+    if (h.strain_exceeded) {
+      warn.push(`hand ${i + 1}: surface strain ${(100 * h.strain).toPrecision(2)} % at the held point is past the linear model's limit of ${(100 * state.hello.strain_limit).toPrecision(2)} %: the result there is not valid`);
+    }
+    // The hand's own criterion; when only the whole part is below the minimum, the part's line says so.
+    if (h.stress_exceeded && h.safety_factor != null && h.safety_factor < min) {
+      warn.push(`hand ${i + 1}: at the held point von Mises ${label(h.von_mises, 'stress', u)}, safety factor ${plain(h.safety_factor)} below the minimum ${plain(min)} (yield ${label(ys, 'stress', u)})`);
+    }
   });
-  if (m.alarm) warn.push(`the part's safety factor is below ${state.hello.min_safety_factor}: it would yield`);
+  const s = state.spaces[m.space];
+  if (m.alarm && s && s.peak && s.peak.vertex >= 0) {
+    const p = Array.from(s.truePos.subarray(3 * s.peak.vertex, 3 * s.peak.vertex + 3)).map((v) => label(v, 'length', u)).join(', ');
+    warn.push(`part: von Mises ${label(s.peak.vonMises, 'stress', u)} at (${p}), safety factor ${plain(ys / s.peak.vonMises)} below the minimum ${plain(min)}: it would yield there`);
+  } else if (m.alarm) {
+    warn.push(`part: safety factor below the minimum ${plain(min)}: it would yield`);
+  }
   $('handinfo').textContent = lines.join(' · ');
   $('warn').textContent = warn.join(' · ');
 }
 
-// Force arrows at each hand's vertex, with the value in newtons.
-const arrows = [];
-function updateArrow(i, h) {
-  if (!arrows[i]) {
-    const a = new THREE.ArrowHelper(new THREE.Vector3(0, 0, 1), new THREE.Vector3(), 1, i ? 0x5ee0ff : 0xffd45e);
-    const label = document.createElement('div');
-    label.className = 'forcelabel';
-    document.body.appendChild(label);
-    scene.add(a);
-    arrows[i] = { a, label };
-  }
-  const { a, label } = arrows[i];
-  if (!arrows[i].spring) {
+// Each hand: a ball at its true position (the device, under the cursor), a dashed spring to the
+// held vertex as drawn, and an arrow of the force on the part at that vertex with its value.
+const hands = [];
+function updateHand(i, h) {
+  const colourOf = i ? 0x5ee0ff : 0xffd45e;
+  if (!hands[i]) {
+    const arrow = new THREE.ArrowHelper(new THREE.Vector3(0, 0, 1), new THREE.Vector3(), 1, colourOf);
+    const tag = document.createElement('div');
+    tag.className = 'forcelabel';
+    tag.style.color = `#${colourOf.toString(16)}`;
+    document.body.appendChild(tag);
     const g = new THREE.BufferGeometry().setFromPoints([new THREE.Vector3(), new THREE.Vector3()]);
-    arrows[i].spring = new THREE.Line(g, new THREE.LineDashedMaterial({ color: i ? 0x5ee0ff : 0xffd45e, dashSize: 0.004 * state.diag, gapSize: 0.003 * state.diag }));
-    arrows[i].handball = new THREE.Mesh(new THREE.SphereGeometry(0.006 * state.diag, 16, 12), new THREE.MeshBasicMaterial({ color: i ? 0x5ee0ff : 0xffd45e }));
-    scene.add(arrows[i].spring, arrows[i].handball);
+    const spring = new THREE.Line(g, new THREE.LineDashedMaterial({ color: colourOf, dashSize: 0.004 * state.diag, gapSize: 0.003 * state.diag }));
+    const ball = new THREE.Mesh(new THREE.SphereGeometry(0.006 * state.diag, 16, 12), new THREE.MeshBasicMaterial({ color: colourOf }));
+    scene.add(arrow, spring, ball);
+    hands[i] = { arrow, tag, spring, ball };
   }
-  const { spring, handball } = arrows[i];
-  // Anchored at the vertex as drawn (which the deformation scale moves); the spring's stretch
-  // (hand target − vertex) is the true one.
+  const { arrow, tag, spring, ball } = hands[i];
   const s = state.spaces[state.active];
   const drawnAt = s && h.vertex < s.vertices
     ? new THREE.Vector3().fromBufferAttribute(s.geom.attributes.position, h.vertex) : new THREE.Vector3(...h.vertex_position);
-  spring.visible = handball.visible = h.active;
+  spring.visible = ball.visible = h.active;
   if (h.active) {
-    const hand = drawnAt.clone().add(new THREE.Vector3(...h.target).sub(new THREE.Vector3(...h.vertex_position)));
-    handball.position.copy(hand);
-    spring.geometry.setFromPoints([drawnAt, hand]);
+    ball.position.set(...h.target);
+    spring.geometry.setFromPoints([drawnAt, ball.position]);
     spring.computeLineDistances();
   }
-  const f = new THREE.Vector3(...h.force);
+  const f = new THREE.Vector3(...h.force).negate(); // the device's force is the part's, reversed
   const mag = f.length();
-  a.visible = h.active && h.contact;
-  label.style.display = a.visible ? 'block' : 'none';
-  if (!a.visible || !state.diag) return;
-  const at = drawnAt;
+  arrow.visible = h.active && h.contact && mag > 0;
+  tag.style.display = arrow.visible ? 'block' : 'none';
+  if (!arrow.visible || !state.diag) return;
   const len = Math.max(0.02, Math.min(1, mag / state.hello.max_force)) * 0.25 * state.diag;
-  a.position.copy(at);
-  a.setDirection(mag > 0 ? f.clone().normalize() : new THREE.Vector3(0, 0, 1));
-  a.setLength(len, 0.25 * len, 0.12 * len);
-  const tip = at.clone().addScaledVector(a.getWorldDirection(new THREE.Vector3()), 0).project(camera);
-  label.style.left = `${((tip.x + 1) / 2) * canvas.clientWidth + 8}px`;
-  label.style.top = `${((1 - tip.y) / 2) * canvas.clientHeight - 8}px`;
-  label.textContent = `${mag.toPrecision(3)} N`;
+  arrow.position.copy(drawnAt);
+  arrow.setDirection(f.clone().normalize());
+  arrow.setLength(len, 0.25 * len, 0.12 * len);
+  const [x, y] = screenOfPoint(drawnAt.clone().addScaledVector(f.normalize(), len));
+  tag.style.left = `${x + 8}px`;
+  tag.style.top = `${y - 8}px`;
+  tag.textContent = `${plain(mag)} N on the part`;
 }
 
 // Mode browser: the frequencies of the active space; a click animates that mode's shape.
@@ -286,11 +425,17 @@ function buildModeList(space) {
     const b = document.createElement('button');
     b.textContent = `mode ${j + 1}: ${f.toPrecision(5)} Hz`;
     b.onclick = () => {
-      if (state.mode && state.mode.mode === j) { state.mode = null; state.dirty = true; b.classList.remove('on'); return; }
+      if (state.mode && state.mode.mode === j) { stopMode(); return; }
       ws.send(JSON.stringify({ type: 'mode', space: state.active, index: j }));
     };
     box.appendChild(b);
   });
+}
+
+function stopMode() {
+  state.mode = null;
+  state.dirty = true;
+  for (const b of $('modes').children) b.classList.remove('on');
 }
 
 function startMode(m) {
@@ -303,12 +448,13 @@ function startMode(m) {
 function animateMode() {
   const m = state.mode;
   const s = state.spaces[m.space];
+  if (!s) { state.mode = null; return; }
   const amp = 0.08 * state.diag * Math.sin((2 * Math.PI * (performance.now() - m.start)) / 1500);
   const p = s.geom.attributes.position.array;
   const c = s.geom.attributes.color.array;
   for (let i = 0; i < s.vertices; i++) {
     const mag = Math.hypot(m.phi[3 * i], m.phi[3 * i + 1], m.phi[3 * i + 2]);
-    const [r, g, b] = colourMap(mag);
+    const [r, g, b] = sequential(mag);
     for (let k = 0; k < 3; k++) p[3 * i + k] = s.rest[3 * i + k] + amp * m.phi[3 * i + k];
     c[3 * i] = r; c[3 * i + 1] = g; c[3 * i + 2] = b;
   }
@@ -316,13 +462,16 @@ function animateMode() {
   s.geom.attributes.color.needsUpdate = true;
   s.geom.computeBoundingSphere();
   $('legendtitle').textContent = `mode ${m.mode + 1}, ${m.frequency.toPrecision(5)} Hz: relative amplitude (shape only)`;
+  $('bar').style.background = gradient('magnitude');
   $('lo').textContent = '0'; $('mid').textContent = '0.5'; $('hi').textContent = '1';
 }
 
-// Hands: a pointer that goes down on the part drives a hand (left or touch: hand 1, right or a
-// second touch: hand 2); its drag moves the hand in the plane facing the camera through the
-// picked vertex, the wheel moves it along the view ray.
-const drags = new Map(); // pointerId -> {hand, start, depth, press, vertex}
+// Hands: a pointer that goes down on the part drives a hand (left or touch: hand 1; right, a
+// second touch, or the right button pressed while the left holds: hand 2). The drag moves the
+// hand in the plane facing the camera through the picked vertex, in true units whatever the
+// deformation scale; the wheel moves it along the view ray; with Shift the hand presses into
+// the part along the view ray, the further the harder.
+const drags = new Map(); // key (pointer id, or id:2 for a chorded right button) -> drag
 const raycaster = new THREE.Raycaster();
 
 function ndc(ev) {
@@ -337,64 +486,98 @@ function freeHand(preferred) {
   return -1;
 }
 
-canvas.addEventListener('pointerdown', (ev) => {
-  if (!state.ready || state.mode) return;
+/** The vertex under the pointer (the nearest corner of the hit triangle), or null. */
+function pick(ev) {
   const s = state.spaces[state.active];
+  if (!s) return null;
   camera.updateMatrixWorld();
   raycaster.setFromCamera(ndc(ev), camera);
   const hit = raycaster.intersectObject(s.mesh)[0];
-  if (!hit) return; // orbit
-  const hand = freeHand(ev.button === 2 || drags.size > 0 ? 1 : 0);
-  if (hand < 0) return;
-  ev.stopImmediatePropagation();
-  controls.enabled = false;
-  canvas.setPointerCapture(ev.pointerId);
-  const f = hit.face;
+  if (!hit) return null;
   const p = s.geom.attributes.position;
-  let vertex = f.a, best = Infinity;
-  for (const v of [f.a, f.b, f.c]) {
+  let vertex = hit.face.a, best = Infinity;
+  for (const v of [hit.face.a, hit.face.b, hit.face.c]) {
     const d = new THREE.Vector3().fromBufferAttribute(p, v).distanceToSquared(hit.point);
     if (d < best) { best = d; vertex = v; }
   }
-  const shown = new THREE.Vector3().fromBufferAttribute(p, vertex);
-  const truePos = new THREE.Vector3(s.positions[3 * vertex], s.positions[3 * vertex + 1], s.positions[3 * vertex + 2]);
+  return { s, vertex };
+}
+
+function startDrag(key, ev, hand, press) {
+  const got = pick(ev);
+  if (!got || hand < 0) return false;
+  const { s, vertex } = got;
+  const shown = new THREE.Vector3().fromBufferAttribute(s.geom.attributes.position, vertex);
+  const truePos = new THREE.Vector3(s.truePos[3 * vertex], s.truePos[3 * vertex + 1], s.truePos[3 * vertex + 2]);
   const normal = camera.getWorldDirection(new THREE.Vector3());
-  drags.set(ev.pointerId, { hand, vertex, shown, truePos, normal, depth: 0, press: ev.shiftKey, offset: new THREE.Vector3() });
-  sendHand(drags.get(ev.pointerId), true);
+  hideProbe();
+  // The cursor drives the newest hand; an older one stays where it was and keeps holding.
+  for (const d of drags.values()) d.frozen = true;
+  drags.set(key, { hand, vertex, shown, truePos, normal, depth: 0, press, offset: new THREE.Vector3(), frozen: false });
+  controls.enabled = false;
+  sendHand(drags.get(key), true);
+  return true;
+}
+
+function endDrag(key) {
+  const d = drags.get(key);
+  if (!d) return;
+  drags.delete(key);
+  sendHand(d, false);
+  const rest = [...drags.values()];
+  if (rest.length) rest.at(-1).frozen = false;
+  else controls.enabled = true;
+}
+
+canvas.addEventListener('pointerdown', (ev) => {
+  if (!state.ready || state.mode) return;
+  const hand = freeHand(ev.button === 2 || drags.size > 0 ? 1 : 0);
+  if (!startDrag(ev.pointerId, ev, hand, ev.shiftKey)) return; // off the part: orbit
+  ev.stopImmediatePropagation();
+  canvas.setPointerCapture(ev.pointerId);
 }, { capture: true });
 
 canvas.addEventListener('pointermove', (ev) => {
-  const d = drags.get(ev.pointerId);
-  if (!d) return;
-  raycaster.setFromCamera(ndc(ev), camera);
-  const plane = new THREE.Plane().setFromNormalAndCoplanarPoint(d.normal, d.shown);
-  const at = raycaster.ray.intersectPlane(plane, new THREE.Vector3());
-  if (!at) return;
-  d.offset.copy(at).sub(d.shown).divideScalar(state.scale > 0 ? state.scale : 1);
-  sendHand(d, true);
+  // A button pressed or released while another is held comes as a move (a chord).
+  if (ev.button === 2 && drags.has(ev.pointerId)) {
+    const key = `${ev.pointerId}:2`;
+    if (ev.buttons & 2) startDrag(key, ev, freeHand(1), ev.shiftKey);
+    else endDrag(key);
+    return;
+  }
+  if (!drags.size) { probe(ev); return; }
+  for (const [key, d] of drags) {
+    if (d.frozen || !ofPointer(key, ev)) continue;
+    raycaster.setFromCamera(ndc(ev), camera);
+    const plane = new THREE.Plane().setFromNormalAndCoplanarPoint(d.normal, d.shown);
+    const at = raycaster.ray.intersectPlane(plane, new THREE.Vector3());
+    if (!at) continue;
+    d.offset.copy(at).sub(d.shown);
+    sendHand(d, true);
+  }
 });
 
-function endDrag(ev) {
-  const d = drags.get(ev.pointerId);
-  if (!d) return;
-  drags.delete(ev.pointerId);
-  sendHand(d, false);
-  if (drags.size === 0) controls.enabled = true;
+const ofPointer = (key, ev) => key === ev.pointerId || key === `${ev.pointerId}:2`;
+function endPointer(ev) {
+  for (const key of [...drags.keys()]) if (ofPointer(key, ev)) endDrag(key);
 }
-canvas.addEventListener('pointerup', endDrag);
-canvas.addEventListener('pointercancel', endDrag);
+canvas.addEventListener('pointerup', endPointer);
+canvas.addEventListener('pointercancel', endPointer);
+canvas.addEventListener('pointerleave', () => { if (!drags.size) hideProbe(); });
 canvas.addEventListener('contextmenu', (ev) => ev.preventDefault());
 canvas.addEventListener('wheel', (ev) => {
   if (drags.size === 0) return;
   ev.preventDefault();
   ev.stopImmediatePropagation();
   for (const d of drags.values()) {
+    if (d.frozen) continue;
     d.depth += Math.sign(ev.deltaY) * 0.005 * state.diag;
     sendHand(d, true);
   }
 }, { capture: true, passive: false });
 
 function handTarget(d) {
+  if (d.press) return d.truePos.clone().addScaledVector(d.normal, d.depth + d.offset.length());
   return d.truePos.clone().add(d.offset).addScaledVector(d.normal, d.depth);
 }
 
@@ -418,22 +601,119 @@ function sendTarget(hand, position, button, active) {
 state.drive = (hand, position, button = true) => sendTarget(hand, position, button, true);
 state.release = (hand) => sendTarget(hand, state.lastTarget || [0, 0, 0], true, false);
 
+// The probe: the coloured value under the cursor.
+let probeQueued = null;
+function probe(ev) {
+  if (!state.ready || state.mode) return;
+  if (probeQueued) { probeQueued = ev; return; }
+  probeQueued = ev;
+  requestAnimationFrame(() => {
+    const e = probeQueued;
+    probeQueued = null;
+    const got = pick(e);
+    if (!got) { hideProbe(); return; }
+    state.probe = { vertex: got.vertex, x: e.clientX, y: e.clientY };
+    showProbe(got.vertex, e.clientX, e.clientY);
+  });
+}
+
+function showProbe(v, x, y) {
+  const f = state.field, s = state.spaces[state.active];
+  if (!f || !s || v >= s.vertices) return;
+  const value = f.valueAt(v);
+  const shown = f.quantity === 'ratio' ? (Number.isFinite(value) ? plain(value) : 'no stress') : label(value, f.quantity, state.units);
+  const at = Array.from(s.truePos.subarray(3 * v, 3 * v + 3)).map((c) => label(c, 'length', state.units)).join(', ');
+  const tip = $('probe');
+  tip.textContent = `${shown} · vertex ${v} at (${at})`;
+  tip.style.left = `${x + 14}px`; tip.style.top = `${y + 10}px`;
+  tip.style.display = 'block';
+  state.probe.text = tip.textContent;
+}
+
+function hideProbe() { state.probe = null; $('probe').style.display = 'none'; }
+
+// Views: home, fit, along the axes. The fit takes what is drawn now (deformed, posed).
+function homeView() { fitView(views.HOME); }
+function fitView(direction) {
+  const s = state.spaces[state.active];
+  if (!s) return;
+  s.geom.computeBoundingSphere();
+  const dir = direction || camera.getWorldDirection(new THREE.Vector3());
+  views.fit(camera, controls, s.geom.boundingSphere, dir);
+}
+function resetSimulation() {
+  for (const key of [...drags.keys()]) endDrag(key);
+  if (ws && ws.readyState === 1) ws.send(JSON.stringify({ type: 'reset' }));
+}
+state.fit = () => fitView();
+state.home = homeView;
+state.viewAlong = (axis, sign) => fitView(views.along(axis, sign));
+state.reset = resetSimulation;
+state.setScale = (k) => {
+  state.scaleAuto = k === 'auto';
+  if (!state.scaleAuto) state.scale = k;
+  $('scaleauto').checked = state.scaleAuto;
+  $('scale').value = String(state.scaleAuto ? state.autoScale : k);
+  state.dirty = true;
+};
+
+$('fit').onclick = () => fitView();
+$('home').onclick = homeView;
+$('resetsim').onclick = resetSimulation;
+for (const b of document.querySelectorAll('[data-axis]')) b.onclick = () => state.viewAlong(b.dataset.axis, Number(b.dataset.sign));
+$('shot').onclick = () => capture.screenshot(canvas, state.legend, state.hello ? state.hello.name : 'ves');
+$('record').onclick = () => {
+  try {
+    const on = capture.toggleRecording(canvas, state.legend, state.hello ? state.hello.name : 'ves');
+    $('record').textContent = on ? '■ stop' : '● record';
+  } catch (e) { $('warn').textContent = e.message; }
+};
+
+window.addEventListener('keydown', (ev) => {
+  if (ev.target instanceof HTMLInputElement || ev.target instanceof HTMLSelectElement || ev.ctrlKey || ev.metaKey || ev.altKey) return;
+  const k = ev.key;
+  if (k === 'f' || k === 'F') fitView();
+  else if (k === 'h' || k === 'Home') homeView();
+  else if ('xyzXYZ'.includes(k) && k.length === 1) state.viewAlong(k.toLowerCase(), k === k.toLowerCase() ? 1 : -1);
+  else if (k === 'r') resetSimulation();
+  else if (k === 'p') $('shot').click();
+  else return;
+  ev.preventDefault();
+});
+
 $('scale').addEventListener('change', (ev) => {
   const v = Number(ev.target.value);
-  if (Number.isFinite(v) && v >= 0) state.scale = v; else ev.target.value = String(state.scale);
+  if (Number.isFinite(v) && v >= 0) state.setScale(v); else ev.target.value = String(state.drawnScale);
+});
+$('scaleauto').addEventListener('change', (ev) => state.setScale(ev.target.checked ? 'auto' : state.drawnScale));
+$('colour').addEventListener('change', (ev) => { state.colour = ev.target.value; state.dirty = true; askFields(); });
+$('units').addEventListener('change', (ev) => { state.units = ev.target.value; state.dirty = true; if (state.hello) showLimit(); });
+$('lock').addEventListener('change', (ev) => {
+  const l = state.legend;
+  state.locked = ev.target.checked && l && !l.atRest && Number.isFinite(l.lo) ? { colour: state.colour, lo: l.lo, hi: l.hi } : null;
+  ev.target.checked = state.locked !== null;
   state.dirty = true;
 });
-$('colour').addEventListener('change', (ev) => { state.colour = ev.target.value; state.dirty = true; askFields(); });
+$('showsupports').addEventListener('change', () => { state.dirty = true; for (const s of state.spaces) if (s && s.supports) s.supports.visible = s.mesh.visible && $('showsupports').checked; });
+$('showmarkers').addEventListener('change', () => { state.dirty = true; });
 
-// Helpers for tests and the console: where a vertex is drawn on the screen (CSS pixels), and the
-// vertex nearest a point (m, part frame).
+// Panels fold to their title; on a small window they start folded so the part stays visible.
+for (const p of document.querySelectorAll('.panel[data-fold]')) {
+  const b = p.querySelector('.fold');
+  const set = (folded) => { p.classList.toggle('folded', folded); b.textContent = folded ? '+' : '−'; };
+  b.onclick = () => set(!p.classList.contains('folded'));
+  set(p.dataset.fold === 'always' || (window.innerWidth < 700 && p.dataset.fold === 'small'));
+}
+
+// Helpers for tests and the console: where a vertex is drawn on the screen (CSS pixels), its
+// true position, and the vertex nearest a point (m, part frame).
 state.screenOf = (space, vertex) => {
   const s = state.spaces[space];
   camera.updateMatrixWorld();
-  const v = new THREE.Vector3().fromBufferAttribute(s.geom.attributes.position, vertex).project(camera);
-  const r = canvas.getBoundingClientRect();
-  return [r.left + ((v.x + 1) / 2) * r.width, r.top + ((1 - v.y) / 2) * r.height];
+  return screenOfPoint(new THREE.Vector3().fromBufferAttribute(s.geom.attributes.position, vertex));
 };
+state.trueOf = (space, vertex) => Array.from(state.spaces[space].truePos.subarray(3 * vertex, 3 * vertex + 3));
+state.drawnOf = (space, vertex) => Array.from(state.spaces[space].geom.attributes.position.array.subarray(3 * vertex, 3 * vertex + 3));
 state.nearestVertex = (space, p) => {
   const s = state.spaces[space];
   let best = -1, bd = Infinity;
@@ -442,6 +722,19 @@ state.nearestVertex = (space, p) => {
     if (d < bd) { bd = d; best = i; }
   }
   return best;
+};
+/** Screen rectangle (CSS px) of every drawn vertex of the active space: [xmin, ymin, xmax, ymax]. */
+state.drawnExtent = () => {
+  const s = state.spaces[state.active];
+  camera.updateMatrixWorld();
+  const v = new THREE.Vector3(), r = canvas.getBoundingClientRect();
+  let box = [Infinity, Infinity, -Infinity, -Infinity];
+  for (let i = 0; i < s.vertices; i++) {
+    v.fromBufferAttribute(s.geom.attributes.position, i).project(camera);
+    const x = r.left + ((v.x + 1) / 2) * r.width, y = r.top + ((1 - v.y) / 2) * r.height;
+    box = [Math.min(box[0], x), Math.min(box[1], y), Math.max(box[2], x), Math.max(box[3], y)];
+  }
+  return box;
 };
 
 function resize() {
@@ -464,7 +757,9 @@ function loop() {
   }
   controls.update();
   renderer.render(scene, camera);
-  if (state.meshesIn && !state.ready && state.frames > 0) state.ready = true;
+  placeTags();
+  if (capture.recording() && state.legend) capture.draw(canvas, state.legend);
+  if (state.meshesIn && !state.ready && state.frames > state.framesAtHello && !state.dirty) state.ready = true;
   requestAnimationFrame(loop);
 }
 connect();

@@ -1,0 +1,87 @@
+// What the part is coloured by, read from the latest frame: the values, their range and the
+// legend. A range spreads only over what is above the field's round-off: a part at rest says so
+// instead of spreading the scale over noise.
+import { sequential, diverging, safetyRamp, DANGER, NEUTRAL } from './colours.js';
+import { label, plain } from './units.js';
+
+/** Safety factors from the minimum up to this many times it get the logarithmic ramp. */
+export const SAFETY_SPAN = 100;
+/** A displacement below what this force (N) gives at the part's most compliant point is rest. */
+export const REST_FORCE = 1e-3;
+
+function extremes(values) {
+  let hi = -Infinity, lo = Infinity, at = -1, lowAt = -1;
+  for (let i = 0; i < values.length; i++) {
+    const v = values[i];
+    if (v > hi) { hi = v; at = i; }
+    if (v < lo) { lo = v; lowAt = i; }
+  }
+  return { hi, lo, at, lowAt };
+}
+
+/**
+ * The field of space `s` for colouring `colour` ('displacement', 'vonmises', 'principal',
+ * 'safety'): `{ title, quantity, scale, values, lo, hi, atRest, markers, colourOf(i), ticks }`.
+ * `ctx`: `{ hello, restLevel, units, locked }` (`locked`: `{lo, hi}` to keep a range).
+ */
+export function fieldOf(colour, s, ctx) {
+  const { hello, units } = ctx;
+  const fmt = (q) => (v) => label(v, q, units);
+  const { hi: umax } = extremes(s.umag);
+  const atRest = !(umax > ctx.restLevel);
+  let f;
+  if (colour === 'vonmises' && s.vm) {
+    f = { title: 'von Mises stress', quantity: 'stress', scale: 'magnitude', values: s.vm };
+  } else if (colour === 'principal' && s.p1) {
+    f = { title: 'largest principal stress (tension > 0)', quantity: 'stress', scale: 'signed', values: s.p1 };
+  } else if (colour === 'safety' && s.vm && hello.yield_strength) {
+    f = { title: `safety factor (yield ${label(hello.yield_strength, 'stress', units)} / von Mises), log scale`, quantity: 'ratio', scale: 'safety', values: null };
+  } else {
+    f = { title: 'displacement magnitude (true, not scaled)', quantity: 'length', scale: 'magnitude', values: s.umag };
+  }
+  f.atRest = atRest;
+  f.markers = [];
+  if (atRest) {
+    f.title = `${f.title}: at rest`;
+    f.scale = 'neutral';
+    f.colourOf = () => NEUTRAL;
+    f.ticks = ['', 'no load on the part', ''];
+    f.valueAt = (i) => (f.values ? f.values[i] : Infinity);
+    return f;
+  }
+  if (f.scale === 'safety') return safety(f, s, ctx);
+  const e = extremes(f.values);
+  let [lo, hi] = f.scale === 'signed' ? [-Math.max(Math.abs(e.lo), Math.abs(e.hi)), Math.max(Math.abs(e.lo), Math.abs(e.hi))] : [0, e.hi];
+  if (ctx.locked) [lo, hi] = [ctx.locked.lo, ctx.locked.hi];
+  f.lo = lo; f.hi = hi;
+  const span = hi - lo > 0 ? hi - lo : 1;
+  const map = f.scale === 'signed' ? diverging : sequential;
+  f.colourOf = (i) => map((f.values[i] - lo) / span);
+  f.valueAt = (i) => f.values[i];
+  const w = fmt(f.quantity);
+  f.ticks = [w(lo), w((lo + hi) / 2), w(hi)];
+  f.markers.push({ vertex: e.at, text: `max ${w(e.hi)}` });
+  if (f.scale === 'signed') f.markers.push({ vertex: e.lowAt, text: `min ${w(e.lo)}` });
+  return f;
+}
+
+// Safety factor yield/σvM: red below the minimum, a logarithmic ramp from the minimum to
+// SAFETY_SPAN times it, and the ramp's end beyond (a part far from yielding is not "hot").
+function safety(f, s, ctx) {
+  const ys = ctx.hello.yield_strength;
+  const min = ctx.hello.min_safety_factor > 0 ? ctx.hello.min_safety_factor : 1;
+  const cap = min * SAFETY_SPAN;
+  const sf = (i) => ys / Math.max(s.vm[i], 1e-300);
+  f.valueAt = sf;
+  f.colourOf = (i) => {
+    const v = sf(i);
+    return v < min ? DANGER : safetyRamp(Math.log(v / min) / Math.log(SAFETY_SPAN));
+  };
+  const e = extremes(s.vm);
+  const lowest = sf(e.at);
+  f.lo = lowest; f.hi = cap;
+  f.ticks = [`< ${plain(min)} yields`, plain(min * Math.sqrt(SAFETY_SPAN)), `≥ ${plain(cap)}`];
+  f.markers.push({ vertex: e.at, text: `lowest safety ${plain(lowest)}` });
+  f.summary = lowest >= cap ? `every point ≥ ${plain(cap)}` : `lowest ${plain(lowest)}`;
+  return f;
+}
