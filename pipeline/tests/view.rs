@@ -179,6 +179,11 @@ fn the_mouse_pulls_the_tip_in_a_real_browser_and_the_page_shows_the_static_respo
         "scale {k}: drawn {drawn_u:?} vs {k} × true {true_u:?}"
     );
     assert!(held["scaleText"].as_str().is_some_and(|t| t.contains("auto")), "{held}");
+    eprintln!(
+        "drawn tip moved {moved:.1} px of the part's {length:.0} px ({:.1} %) at {}",
+        100.0 * moved / length,
+        held["scaleText"]
+    );
 
     // 1. The drawn tip moved by the static response to the force the hand feels: u = G·(−F)
     //    (the part gets the opposite of the device's force).
@@ -425,6 +430,11 @@ fn a_free_body_stays_put_at_any_scale_and_the_page_reconnects() {
     assert!(
         miss < 1e-3,
         "at scale {} the drawn centroid is {:.2} mm from where the rigid motion puts it: {body}",
+        body["scale"],
+        1e3 * miss
+    );
+    eprintln!(
+        "free body carried {moved:.3} m; drawn centroid at scale {} {:.4} mm from its rigid motion",
         body["scale"],
         1e3 * miss
     );

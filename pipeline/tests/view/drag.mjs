@@ -113,7 +113,7 @@ try {
   const after = await page.evaluate(() => ({ frames: window.ves.frames, dropped: window.ves.status.messages_dropped }));
 
   // Lost in space: a wild orbit (dragged off the part) and a deep zoom, then F fits the view.
-  await page.mouse.move(1150, 780);
+  await page.mouse.move(600, 730);
   await page.mouse.down();
   await page.mouse.move(700, 400, { steps: 10 });
   await page.mouse.up();
