@@ -10,6 +10,7 @@ pub mod protocol;
 pub mod server;
 #[cfg(test)]
 mod tests;
+pub mod workshop;
 
 use crate::device::Device;
 use crate::session::{self, Frame, FrameObserver, Hooks, SessionConfig, SessionStats};
@@ -25,10 +26,12 @@ use hands::{HandSlot, HandStatus, WebHand};
 use protocol::{ClientMessage, Extent, FrameHeader, HANDS};
 pub use server::Limits;
 use std::net::SocketAddr;
-use std::sync::Arc;
+use std::path::PathBuf;
 use std::sync::atomic::{AtomicBool, AtomicU32, AtomicU64, AtomicUsize, Ordering};
+use std::sync::{Arc, Mutex, RwLock};
 use std::time::{Duration, Instant};
 use tokio::sync::{Semaphore, watch};
+pub use workshop::{Computed, Progress, Workshop};
 
 const INDEX_HTML: &str = include_str!("../../web/index.html");
 const APP_JS: &str = include_str!(concat!(env!("OUT_DIR"), "/app.js"));
@@ -43,7 +46,8 @@ const SEND_TIMEOUT: Duration = Duration::from_secs(5);
 pub struct ViewConfig {
     /// Where to listen (loopback unless the user says otherwise).
     pub addr: SocketAddr,
-    /// The session (rate, coupling, watch; `duration_s` infinite to run until stopped).
+    /// The session (rate, coupling, watch; `duration_s` is how long the server runs, infinite
+    /// to run until stopped).
     pub session: SessionConfig,
     /// Shown in the page's title (the basis file's name).
     pub name: String,
@@ -54,7 +58,7 @@ pub struct ViewConfig {
 /// What a viewer run measured.
 #[derive(Clone, Debug, Default, serde::Serialize)]
 pub struct ViewStats {
-    /// The session's own statistics (as `ves session --json`).
+    /// The last session's own statistics (as `ves session --json`).
     pub session: SessionStats,
     /// Clients that connected.
     pub clients_total: u64,
@@ -67,11 +71,17 @@ pub struct ViewStats {
     pub frames_sent: u64,
     /// Frames a slow client skipped, summed over clients.
     pub frames_skipped: u64,
-    /// Frames the session drew.
+    /// Frames the sessions drew.
     pub frames_drawn: u64,
     /// Requests refused: a `Host` or `Origin` other than this server's, or a WebSocket client
     /// beyond the limit.
     pub requests_refused: u64,
+    /// Computes asked by the set-up panel, and those that failed or were cancelled.
+    pub computes: u64,
+    /// See `computes`.
+    pub computes_failed: u64,
+    /// Times the live session moved to a new basis.
+    pub swaps: u64,
 }
 
 /// The viewer could not start.
@@ -79,17 +89,41 @@ pub struct ViewStats {
 #[error("{0}")]
 pub struct ViewError(pub String);
 
-struct Shared {
-    hands: [Arc<HandSlot>; HANDS],
-    /// The hello message; each client's gets its own `client` id.
+/// One basis being served: what every page is sent when it connects, and what the hand
+/// messages are checked against. A compute makes a new one; pages get it at once.
+struct Generation {
     hello: serde_json::Value,
     meshes: Vec<Bytes>,
     bases: Vec<Arc<crate::Basis>>,
-    extent: Extent,
+    extent: Option<Extent>,
+    basis_path: Option<PathBuf>,
+}
+
+/// Where the drawing thread's hook publishes (shared by every session the server runs).
+#[derive(Clone)]
+struct Published {
+    frames: Arc<watch::Sender<Bytes>>,
+    stress: Arc<watch::Sender<Bytes>>,
+    stress_clients: Arc<AtomicUsize>,
+    drawn: Arc<AtomicU32>,
+    active_space: Arc<AtomicU32>,
+    alarm: Arc<AtomicBool>,
+}
+
+/// The live session, replaced when a compute brings a new basis.
+struct Live {
+    stop: Arc<AtomicBool>,
+    thread: std::thread::JoinHandle<Result<SessionStats, String>>,
+}
+
+struct Shared {
+    hands: [Arc<HandSlot>; HANDS],
+    generation: RwLock<Arc<Generation>>,
+    /// Bumped at each new generation: every client then sends its page the new hello and meshes.
+    generations: watch::Sender<u64>,
     frames: watch::Receiver<Bytes>,
     stress_frames: watch::Receiver<Bytes>,
-    /// Clients colouring by stress (the drawing thread computes stress fields only for them).
-    stress_clients: Arc<AtomicUsize>,
+    published: Published,
     status: watch::Receiver<String>,
     next_client: AtomicU64,
     clients: AtomicU64,
@@ -104,12 +138,35 @@ struct Shared {
     refused: Arc<AtomicU64>,
     /// Asks the haptic thread to bring the part back to rest.
     reset: Arc<AtomicBool>,
+    cfg: ViewConfig,
+    live: Mutex<Option<Live>>,
+    last_stats: Mutex<Option<SessionStats>>,
+    workshop: Option<Arc<dyn Workshop>>,
+    computing: AtomicBool,
+    cancel: AtomicBool,
+    /// Compute progress and results (JSON text), to every page.
+    notes: watch::Sender<String>,
+    computes: AtomicU64,
+    computes_failed: AtomicU64,
+    swaps: AtomicU64,
 }
 
-/// Serves the viewer until the session ends (its duration, Ctrl-C, or `stop`). `ready` gets
-/// the bound address before the first client can connect.
+/// Serves the viewer on `spaces` until the session ends (its duration, Ctrl-C, or `stop`).
+/// `ready` gets the bound address before the first client can connect.
 pub fn serve(
     spaces: Vec<SpaceInput>,
+    cfg: &ViewConfig,
+    stop: Arc<AtomicBool>,
+    ready: impl FnOnce(SocketAddr),
+) -> Result<ViewStats, ViewError> {
+    serve_with(Some(spaces), None, cfg, stop, ready)
+}
+
+/// [`serve`] with a set-up panel: `workshop` computes new bases from the page's scene, and the
+/// live session moves to each one. `spaces` may be `None` until the first compute.
+pub fn serve_with(
+    spaces: Option<Vec<SpaceInput>>,
+    workshop: Option<Arc<dyn Workshop>>,
     cfg: &ViewConfig,
     stop: Arc<AtomicBool>,
     ready: impl FnOnce(SocketAddr),
@@ -128,24 +185,33 @@ pub fn serve(
     })?;
     listener.set_nonblocking(true).map_err(|e| ViewError(e.to_string()))?;
     let addr = listener.local_addr().map_err(|e| ViewError(e.to_string()))?;
-    let bases: Vec<Arc<crate::Basis>> = spaces.iter().map(|s| s.basis.clone()).collect();
     let (frame_tx, frame_rx) = watch::channel(Bytes::new());
     let (stress_tx, stress_rx) = watch::channel(Bytes::new());
-    let stress_clients = Arc::new(AtomicUsize::new(0));
     let (status_tx, status_rx) = watch::channel(String::new());
+    let published = Published {
+        frames: Arc::new(frame_tx),
+        stress: Arc::new(stress_tx),
+        stress_clients: Arc::new(AtomicUsize::new(0)),
+        drawn: Arc::new(AtomicU32::new(0)),
+        active_space: Arc::new(AtomicU32::new(0)),
+        alarm: Arc::new(AtomicBool::new(false)),
+    };
+    let mut session_cfg = cfg.session;
+    // The server keeps time; each session runs until it is replaced or the server stops.
+    session_cfg.duration_s = f64::INFINITY;
     let shared = Arc::new(Shared {
         hands: std::array::from_fn(|_| Arc::new(HandSlot::default())),
-        hello: hello(&bases, cfg),
-        meshes: bases
-            .iter()
-            .enumerate()
-            .map(|(i, b)| Bytes::from(protocol::mesh(i, b)))
-            .collect(),
-        extent: Extent::of(&bases[0]),
-        bases: bases.clone(),
+        generation: RwLock::new(Arc::new(Generation {
+            hello: hello(&[], cfg, workshop.as_deref()),
+            meshes: Vec::new(),
+            bases: Vec::new(),
+            extent: None,
+            basis_path: None,
+        })),
+        generations: watch::channel(0).0,
         frames: frame_rx,
         stress_frames: stress_rx,
-        stress_clients: stress_clients.clone(),
+        published,
         status: status_rx,
         next_client: AtomicU64::new(0),
         clients: AtomicU64::new(0),
@@ -158,46 +224,31 @@ pub fn serve(
         max_clients: cfg.limits.clients,
         refused: Arc::new(AtomicU64::new(0)),
         reset: Arc::new(AtomicBool::new(false)),
+        cfg: ViewConfig {
+            session: session_cfg,
+            ..cfg.clone()
+        },
+        live: Mutex::new(None),
+        last_stats: Mutex::new(None),
+        workshop,
+        computing: AtomicBool::new(false),
+        cancel: AtomicBool::new(false),
+        notes: watch::channel(String::new()).0,
+        computes: AtomicU64::new(0),
+        computes_failed: AtomicU64::new(0),
+        swaps: AtomicU64::new(0),
     });
-    let drawn = Arc::new(AtomicU32::new(0));
-    let active_space = Arc::new(AtomicU32::new(0));
-    let alarm = Arc::new(AtomicBool::new(false));
-
-    // The session, in its own threads, exactly as `ves session` runs it.
-    let dt = 1.0 / cfg.session.rate_hz;
-    let devices: Vec<Box<dyn Device>> = shared
-        .hands
-        .iter()
-        .map(|h| Box::new(WebHand::new(h.clone(), dt)) as Box<dyn Device>)
-        .collect();
-    let hooks = Hooks {
-        stop: Some(stop.clone()),
-        reset: Some(shared.reset.clone()),
-        frame: Some(frame_encoder(
-            &bases,
-            &shared.hands,
-            Published {
-                frames: frame_tx,
-                stress: stress_tx,
-                stress_clients,
-                drawn: drawn.clone(),
-                active_space: active_space.clone(),
-                alarm: alarm.clone(),
-            },
-        )),
-    };
-    let session_cfg = cfg.session;
-    let session = std::thread::Builder::new()
-        .name("ves-session".into())
-        .spawn(move || session::run_spaces_with(spaces, devices, &session_cfg, hooks))
-        .map_err(|e| ViewError(format!("cannot start the session: {e}")))?;
+    if let Some(spaces) = spaces {
+        swap(&shared, spaces, None)?;
+    }
 
     let rt = tokio::runtime::Builder::new_multi_thread()
         .worker_threads(1)
         .enable_all()
         .build()
         .map_err(|e| ViewError(format!("cannot start the server: {e}")))?;
-    let served = rt.block_on(async {
+    let deadline = Instant::now().checked_add(Duration::try_from_secs_f64(cfg.session.duration_s).unwrap_or(Duration::MAX));
+    rt.block_on(async {
         let listener = tokio::net::TcpListener::from_std(listener).map_err(|e| ViewError(e.to_string()))?;
         let app = axum::Router::new()
             .route(
@@ -209,32 +260,11 @@ pub fn serve(
                 get(|| async { ([(header::CONTENT_TYPE, "text/javascript; charset=utf-8")], APP_JS) }),
             )
             .route("/favicon.ico", get(|| async { axum::http::StatusCode::NO_CONTENT }))
+            .route("/basis.h5", get(basis_file))
             .route("/ws", get(upgrade))
             .with_state(shared.clone());
         ready(addr);
-        let status = tokio::spawn(status_loop(
-            shared.clone(),
-            status_tx,
-            drawn.clone(),
-            active_space,
-            alarm,
-            stop.clone(),
-        ));
-        let ended = {
-            let stop = stop.clone();
-            async move {
-                loop {
-                    tokio::select! {
-                        _ = tokio::signal::ctrl_c() => { stop.store(true, Ordering::Relaxed); break; }
-                        _ = tokio::time::sleep(Duration::from_millis(100)) => {
-                            if stop.load(Ordering::Relaxed) || session.is_finished() { break; }
-                        }
-                    }
-                }
-                stop.store(true, Ordering::Relaxed);
-                session
-            }
-        };
+        let status = tokio::spawn(status_loop(shared.clone(), status_tx, stop.clone()));
         let (tx, rx) = watch::channel(false);
         let server = tokio::spawn(server::run(
             listener,
@@ -244,18 +274,26 @@ pub fn serve(
             shared.refused.clone(),
             rx,
         ));
-        let session = ended.await;
+        loop {
+            tokio::select! {
+                _ = tokio::signal::ctrl_c() => break,
+                _ = tokio::time::sleep(Duration::from_millis(100)) => {
+                    let ended = shared.live.lock().map(|l| l.as_ref().is_some_and(|l| l.thread.is_finished())).unwrap_or(true);
+                    if stop.load(Ordering::Relaxed) || deadline.is_some_and(|d| Instant::now() >= d) || ended { break; }
+                }
+            }
+        }
+        stop.store(true, Ordering::Relaxed);
+        shared.cancel.store(true, Ordering::Relaxed);
         let _ = tx.send(true);
         status.abort();
         // Open connections are dropped; the WebSockets end with the runtime below.
         let _ = tokio::time::timeout(Duration::from_secs(1), server).await;
-        Ok::<_, ViewError>(session)
+        Ok::<_, ViewError>(())
     })?;
     rt.shutdown_timeout(Duration::from_millis(200));
-    let stats = served
-        .join()
-        .map_err(|_| ViewError("the session thread panicked".into()))?
-        .map_err(ViewError)?;
+    end_session(&shared)?;
+    let stats = shared.last_stats.lock().ok().and_then(|s| s.clone()).unwrap_or_default();
     Ok(ViewStats {
         session: stats,
         clients_total: shared.clients_total.load(Ordering::Relaxed),
@@ -263,22 +301,154 @@ pub fn serve(
         messages_dropped: shared.dropped.load(Ordering::Relaxed),
         frames_sent: shared.frames_sent.load(Ordering::Relaxed),
         frames_skipped: shared.frames_skipped.load(Ordering::Relaxed),
-        frames_drawn: u64::from(drawn.load(Ordering::Relaxed)),
+        frames_drawn: u64::from(shared.published.drawn.load(Ordering::Relaxed)),
         requests_refused: shared.refused.load(Ordering::Relaxed),
+        computes: shared.computes.load(Ordering::Relaxed),
+        computes_failed: shared.computes_failed.load(Ordering::Relaxed),
+        swaps: shared.swaps.load(Ordering::Relaxed),
     })
 }
 
-/// The visualization thread's hook: encodes each drawn frame and publishes it as the latest.
-/// Where the drawing thread's hook publishes.
-struct Published {
-    frames: watch::Sender<Bytes>,
-    stress: watch::Sender<Bytes>,
-    stress_clients: Arc<AtomicUsize>,
-    drawn: Arc<AtomicU32>,
-    active_space: Arc<AtomicU32>,
-    alarm: Arc<AtomicBool>,
+/// Stops the live session, if any, and keeps its statistics.
+fn end_session(shared: &Shared) -> Result<(), ViewError> {
+    let live = shared.live.lock().map_err(|_| ViewError("the session lock is poisoned".into()))?.take();
+    if let Some(live) = live {
+        live.stop.store(true, Ordering::Relaxed);
+        let stats = live
+            .thread
+            .join()
+            .map_err(|_| ViewError("the session thread panicked".into()))?
+            .map_err(ViewError)?;
+        if let Ok(mut s) = shared.last_stats.lock() {
+            *s = Some(stats);
+        }
+    }
+    Ok(())
 }
 
+/// Serves `spaces` from now on: the live session (if any) ends, every hand is let go, pages get
+/// the new hello and meshes, and a new session starts on the new basis.
+fn swap(shared: &Arc<Shared>, spaces: Vec<SpaceInput>, basis_path: Option<PathBuf>) -> Result<(), ViewError> {
+    end_session(shared)?;
+    for h in &shared.hands {
+        h.release_any();
+    }
+    let bases: Vec<Arc<crate::Basis>> = spaces.iter().map(|s| s.basis.clone()).collect();
+    let generation = Generation {
+        hello: hello(&bases, &shared.cfg, shared.workshop.as_deref()),
+        meshes: bases
+            .iter()
+            .enumerate()
+            .map(|(i, b)| Bytes::from(protocol::mesh(i, b)))
+            .collect(),
+        extent: bases.first().map(|b| Extent::of(b)),
+        bases: bases.clone(),
+        basis_path,
+    };
+    // The session, in its own threads, exactly as `ves session` runs it.
+    let dt = 1.0 / shared.cfg.session.rate_hz;
+    let devices: Vec<Box<dyn Device>> = shared
+        .hands
+        .iter()
+        .map(|h| Box::new(WebHand::new(h.clone(), dt)) as Box<dyn Device>)
+        .collect();
+    let stop = Arc::new(AtomicBool::new(false));
+    let hooks = Hooks {
+        stop: Some(stop.clone()),
+        reset: Some(shared.reset.clone()),
+        frame: Some(frame_encoder(&bases, &shared.hands, shared.published.clone())),
+    };
+    let session_cfg = shared.cfg.session;
+    let thread = std::thread::Builder::new()
+        .name("ves-session".into())
+        .spawn(move || session::run_spaces_with(spaces, devices, &session_cfg, hooks))
+        .map_err(|e| ViewError(format!("cannot start the session: {e}")))?;
+    *shared.live.lock().map_err(|_| ViewError("the session lock is poisoned".into()))? = Some(Live { stop, thread });
+    if let Ok(mut g) = shared.generation.write() {
+        *g = Arc::new(generation);
+    }
+    shared.generations.send_modify(|n| *n += 1);
+    Ok(())
+}
+
+/// Runs one compute of the set-up panel in its own thread; its progress and its end go to every
+/// page; on success the session moves to the new basis.
+fn start_compute(shared: &Arc<Shared>, scene: String) -> Result<(), String> {
+    let Some(workshop) = shared.workshop.clone() else {
+        return Err("this viewer was opened on a basis: open a scene or a STEP file to set the part up".into());
+    };
+    if shared.computing.swap(true, Ordering::AcqRel) {
+        return Err("a compute is already running: wait for it or cancel it".into());
+    }
+    shared.cancel.store(false, Ordering::Relaxed);
+    shared.computes.fetch_add(1, Ordering::Relaxed);
+    let shared = shared.clone();
+    let spawned = std::thread::Builder::new().name("ves-compute".into()).spawn({
+        let shared = shared.clone();
+        move || {
+            let t0 = Instant::now();
+            let note = |v: serde_json::Value| {
+                shared.notes.send_replace(v.to_string());
+            };
+            let progress = |p: Progress| {
+                note(serde_json::json!({"type": "progress", "stage": p.stage, "fraction": p.fraction}));
+            };
+            progress(Progress {
+                stage: "starting".into(),
+                fraction: 0.0,
+            });
+            let done = workshop
+                .compute(&scene, &progress, &shared.cancel)
+                .and_then(|c| {
+                    progress(Progress {
+                        stage: "loading".into(),
+                        fraction: 0.98,
+                    });
+                    let spaces = crate::switching::load_spaces(&c.basis, None, true).map_err(|e| e.to_string())?;
+                    swap(&shared, spaces, Some(c.basis.clone())).map_err(|e| e.0)?;
+                    Ok(c)
+                });
+            match done {
+                Ok(c) => note(serde_json::json!({
+                    "type": "computed", "summary": c.summary, "scene": c.scene,
+                    "seconds": t0.elapsed().as_secs_f64(),
+                })),
+                Err(e) => {
+                    shared.computes_failed.fetch_add(1, Ordering::Relaxed);
+                    note(serde_json::json!({"type": "compute_error", "message": e}));
+                }
+            }
+            shared.computing.store(false, Ordering::Release);
+        }
+    });
+    if let Err(e) = spawned {
+        shared.computing.store(false, Ordering::Release);
+        return Err(format!("cannot start the compute: {e}"));
+    }
+    Ok(())
+}
+
+/// GET /basis.h5: the basis being served, for "save basis" (only the server's own page may ask:
+/// the same `Host` and `Origin` rules as every request).
+async fn basis_file(State(shared): State<Arc<Shared>>) -> Response {
+    let path = shared.generation.read().ok().and_then(|g| g.basis_path.clone());
+    let Some(path) = path else {
+        return (StatusCode::NOT_FOUND, "no basis computed here yet").into_response();
+    };
+    match tokio::task::spawn_blocking(move || std::fs::read(&path)).await.unwrap_or_else(|e| Err(std::io::Error::other(e))) {
+        Ok(bytes) => (
+            [
+                (header::CONTENT_TYPE, "application/x-hdf5"),
+                (header::CONTENT_DISPOSITION, "attachment; filename=\"basis.h5\""),
+            ],
+            bytes,
+        )
+            .into_response(),
+        Err(e) => (StatusCode::INTERNAL_SERVER_ERROR, format!("cannot read the basis: {e}")).into_response(),
+    }
+}
+
+/// The visualization thread's hook: encodes each drawn frame and publishes it as the latest.
 fn frame_encoder(bases: &[Arc<crate::Basis>], hands: &[Arc<HandSlot>; HANDS], out: Published) -> FrameObserver {
     let bases = bases.to_vec();
     let hands = hands.clone();
@@ -326,7 +496,7 @@ fn frame_encoder(bases: &[Arc<crate::Basis>], hands: &[Arc<HandSlot>; HANDS], ou
     })
 }
 
-fn hello(bases: &[Arc<crate::Basis>], cfg: &ViewConfig) -> serde_json::Value {
+fn hello(bases: &[Arc<crate::Basis>], cfg: &ViewConfig, workshop: Option<&dyn Workshop>) -> serde_json::Value {
     let spaces: Vec<_> = bases
         .iter()
         .map(|b| {
@@ -344,6 +514,7 @@ fn hello(bases: &[Arc<crate::Basis>], cfg: &ViewConfig) -> serde_json::Value {
         })
         .collect();
     let s = &cfg.session;
+    let first = bases.first();
     serde_json::json!({
         "type": "hello",
         "name": cfg.name,
@@ -352,26 +523,21 @@ fn hello(bases: &[Arc<crate::Basis>], cfg: &ViewConfig) -> serde_json::Value {
         "max_force": s.coupling.max_force,
         "stiffness": s.coupling.stiffness,
         "damping": s.coupling.damping,
-        "yield_strength": bases[0].yield_strength,
+        "yield_strength": first.and_then(|b| b.yield_strength),
         "min_safety_factor": s.strain.min_safety_factor,
         "strain_limit": s.strain.limit,
-        "free_body": bases[0].rigid.is_some(),
-        "center": bases[0].rigid.map(|r| r.center),
+        "free_body": first.is_some_and(|b| b.rigid.is_some()),
+        "center": first.and_then(|b| b.rigid.map(|r| r.center)),
         "gravity": s.free_body.map(|(g, _)| g),
         "spaces": spaces,
+        "setup": workshop.map(|w| w.setup()),
     })
 }
 
 /// Status at [`STATUS_PERIOD`]: rates, hands, clients.
-async fn status_loop(
-    shared: Arc<Shared>,
-    tx: watch::Sender<String>,
-    drawn: Arc<AtomicU32>,
-    active_space: Arc<AtomicU32>,
-    alarm: Arc<AtomicBool>,
-    stop: Arc<AtomicBool>,
-) {
+async fn status_loop(shared: Arc<Shared>, tx: watch::Sender<String>, stop: Arc<AtomicBool>) {
     let mut tick = tokio::time::interval(STATUS_PERIOD);
+    let drawn = &shared.published.drawn;
     let (mut t0, mut steps0, mut frames0) = (Instant::now(), shared.hands[0].steps(), drawn.load(Ordering::Relaxed));
     let (mut haptic_hz, mut visual_hz) = (0.0, 0.0);
     while !stop.load(Ordering::Relaxed) {
@@ -386,12 +552,13 @@ async fn status_loop(
         let hands: Vec<HandStatus> = shared.hands.iter().map(|h| h.status()).collect();
         let status = serde_json::json!({
             "type": "status",
-            "space": active_space.load(Ordering::Relaxed),
+            "space": shared.published.active_space.load(Ordering::Relaxed),
             "haptic_hz": haptic_hz,
             "visual_hz": visual_hz,
             "clients": shared.clients.load(Ordering::Relaxed),
             "messages_dropped": shared.dropped.load(Ordering::Relaxed),
-            "alarm": alarm.load(Ordering::Relaxed),
+            "alarm": shared.published.alarm.load(Ordering::Relaxed),
+            "computing": shared.computing.load(Ordering::Relaxed),
             "hands": hands,
         });
         tx.send_replace(status.to_string());
@@ -427,29 +594,44 @@ async fn client(mut socket: WebSocket, shared: Arc<Shared>) {
     let now = shared.clients.fetch_add(1, Ordering::Relaxed) + 1;
     shared.clients_total.fetch_add(1, Ordering::Relaxed);
     shared.clients_max.fetch_max(now, Ordering::Relaxed);
-    let mut hello = shared.hello.clone();
-    hello["client"] = id.into();
-    let mut ok = send(&mut socket, Message::Text(hello.to_string().into())).await;
-    for m in &shared.meshes {
-        ok = ok && send(&mut socket, Message::Binary(m.clone())).await;
-    }
+    let mut generations = shared.generations.subscribe();
+    generations.mark_changed();
     let (mut frames, mut status) = (shared.frames.clone(), shared.status.clone());
     let mut stress = shared.stress_frames.clone();
+    let mut notes = shared.notes.subscribe();
     let mut wants_stress = false;
     let mut last_seq: Option<u32> = None;
+    let mut ok = true;
     while ok {
         tokio::select! {
+            r = generations.changed() => {
+                if r.is_err() { break; }
+                generations.borrow_and_update();
+                // The basis being served (new at each compute): its hello, then its meshes.
+                let g = shared.generation.read().ok().map(|g| Arc::clone(&g));
+                let Some(g) = g else { break };
+                let mut hello = g.hello.clone();
+                hello["client"] = id.into();
+                ok = send(&mut socket, Message::Text(hello.to_string().into())).await;
+                for m in &g.meshes {
+                    ok = ok && send(&mut socket, Message::Binary(m.clone())).await;
+                }
+                // A frame of the session before is not for these meshes.
+                frames.borrow_and_update();
+                last_seq = None;
+            }
             m = socket.recv() => match m {
                 None | Some(Err(_)) | Some(Ok(Message::Close(_))) => break,
                 Some(Ok(Message::Text(t))) => match handle(&shared, id, t.as_str()) {
                     Reply::Send(reply) => ok = send(&mut socket, Message::Binary(reply)).await,
+                    Reply::Note(text) => ok = send(&mut socket, Message::Text(text.into())).await,
                     Reply::Stress(on) if on != wants_stress => {
                         wants_stress = on;
                         if on {
-                            shared.stress_clients.fetch_add(1, Ordering::Relaxed);
+                            shared.published.stress_clients.fetch_add(1, Ordering::Relaxed);
                             stress.mark_unchanged();
                         } else {
-                            shared.stress_clients.fetch_sub(1, Ordering::Relaxed);
+                            shared.published.stress_clients.fetch_sub(1, Ordering::Relaxed);
                         }
                     }
                     _ => {}
@@ -479,13 +661,18 @@ async fn client(mut socket: WebSocket, shared: Arc<Shared>) {
                 let s = status.borrow_and_update().clone();
                 ok = send(&mut socket, Message::Text(s.into())).await;
             }
+            r = notes.changed() => {
+                if r.is_err() { break; }
+                let n = notes.borrow_and_update().clone();
+                ok = send(&mut socket, Message::Text(n.into())).await;
+            }
         }
     }
     for h in &shared.hands {
         h.release(id);
     }
     if wants_stress {
-        shared.stress_clients.fetch_sub(1, Ordering::Relaxed);
+        shared.published.stress_clients.fetch_sub(1, Ordering::Relaxed);
     }
     shared.clients.fetch_sub(1, Ordering::Relaxed);
 }
@@ -496,17 +683,22 @@ enum Reply {
     None,
     /// Send these bytes (a mode shape).
     Send(Bytes),
+    /// Send this text to this page only (why its compute did not start).
+    Note(String),
     /// Send the stress frames, or stop.
     Stress(bool),
 }
 
 /// Applies one client message.
-fn handle(shared: &Shared, id: u64, text: &str) -> Reply {
+fn handle(shared: &Arc<Shared>, id: u64, text: &str) -> Reply {
     let dropped = || {
         shared.dropped.fetch_add(1, Ordering::Relaxed);
         Reply::None
     };
-    match protocol::parse(text, shared.bases.len(), &shared.extent) {
+    let Ok(g) = shared.generation.read().map(|g| g.clone()) else {
+        return dropped();
+    };
+    match protocol::parse(text, g.bases.len(), g.extent.as_ref()) {
         Ok(ClientMessage::Hand(h, c)) => {
             if shared.hands[h].command(id, &c) {
                 Reply::None
@@ -514,7 +706,7 @@ fn handle(shared: &Shared, id: u64, text: &str) -> Reply {
                 dropped()
             }
         }
-        Ok(ClientMessage::Mode { space, index }) => match protocol::mode(space, &shared.bases[space], index) {
+        Ok(ClientMessage::Mode { space, index }) => match protocol::mode(space, &g.bases[space], index) {
             Some(b) => Reply::Send(Bytes::from(b)),
             None => dropped(),
         },
@@ -524,6 +716,14 @@ fn handle(shared: &Shared, id: u64, text: &str) -> Reply {
                 h.release_any();
             }
             shared.reset.store(true, Ordering::Relaxed);
+            Reply::None
+        }
+        Ok(ClientMessage::Compute { scene }) => match start_compute(shared, scene) {
+            Ok(()) => Reply::None,
+            Err(message) => Reply::Note(serde_json::json!({"type": "compute_error", "message": message}).to_string()),
+        },
+        Ok(ClientMessage::Cancel) => {
+            shared.cancel.store(true, Ordering::Relaxed);
             Reply::None
         }
         Err(e) => {

@@ -20,15 +20,20 @@
 //! Page → server, text only: `{"type":"hand","hand":0|1,"active":bool,"button":bool,
 //! "position":[x,y,z],"seq":n}`, `{"type":"mode","space":s,"index":j}`,
 //! `{"type":"fields","stress":bool}` (send the stress frames or not; off at first) and
-//! `{"type":"reset"}` (the part back to rest, every hand let go). Anything else —
+//! `{"type":"reset"}` (the part back to rest, every hand let go), `{"type":"compute","scene":
+//! "<TOML>"}` and `{"type":"cancel"}` (the set-up panel, when the viewer has a workshop).
+//! Server → page, text, about a compute: `{"type":"progress","stage","fraction"}`,
+//! `{"type":"computed","summary","scene","seconds"}`, `{"type":"compute_error","message"}`; a
+//! new basis then comes as a new hello and its meshes. Anything else —
 //! binary, longer than [`MAX_MESSAGE`], not JSON, unknown fields, non-finite or far-away
 //! positions — is dropped and counted.
 
 use super::hands::HandCommand;
 use crate::basis::Basis;
 
-/// Longest client message accepted, bytes (a hand message is ≈ 120).
-pub const MAX_MESSAGE: usize = 1024;
+/// Longest client message accepted, bytes (a hand message is ≈ 120, a scene to compute a few
+/// kB).
+pub const MAX_MESSAGE: usize = 32 * 1024;
 
 /// Hands the viewer simulates.
 pub const HANDS: usize = 2;
@@ -162,6 +167,10 @@ enum Raw {
         stress: bool,
     },
     Reset {},
+    Compute {
+        scene: String,
+    },
+    Cancel {},
 }
 
 /// A checked message from the page.
@@ -183,6 +192,13 @@ pub enum ClientMessage {
     },
     /// The part back to rest, every hand let go.
     Reset,
+    /// Compute a basis from this scene (TOML text) and move the session to it.
+    Compute {
+        /// The scene.
+        scene: String,
+    },
+    /// Stop the running compute.
+    Cancel,
 }
 
 /// Where the part is: positions further than `REACH` diagonals from its centre are refused.
@@ -208,7 +224,7 @@ impl Extent {
 }
 
 /// Parses and checks a text message; `Err` says why it was dropped.
-pub fn parse(text: &str, spaces: usize, extent: &Extent) -> Result<ClientMessage, String> {
+pub fn parse(text: &str, spaces: usize, extent: Option<&Extent>) -> Result<ClientMessage, String> {
     if text.len() > MAX_MESSAGE {
         return Err(format!("{} bytes (at most {MAX_MESSAGE})", text.len()));
     }
@@ -224,6 +240,9 @@ pub fn parse(text: &str, spaces: usize, extent: &Extent) -> Result<ClientMessage
             if hand >= HANDS {
                 return Err(format!("hand {hand} (0 or 1)"));
             }
+            let Some(extent) = extent else {
+                return Err("no part to touch yet".into());
+            };
             let d2: f64 = (0..3).map(|k| (position[k] - extent.centre[k]).powi(2)).sum();
             // NaN is refused too.
             if d2.is_nan() || d2.sqrt() > REACH * extent.diagonal {
@@ -243,6 +262,8 @@ pub fn parse(text: &str, spaces: usize, extent: &Extent) -> Result<ClientMessage
         Raw::Mode { space, .. } => Err(format!("space {space} of {spaces}")),
         Raw::Fields { stress } => Ok(ClientMessage::Fields { stress }),
         Raw::Reset {} => Ok(ClientMessage::Reset),
+        Raw::Compute { scene } => Ok(ClientMessage::Compute { scene }),
+        Raw::Cancel {} => Ok(ClientMessage::Cancel),
     }
 }
 
@@ -260,7 +281,7 @@ mod tests {
         let ok = parse(
             r#"{"type":"hand","hand":1,"active":true,"button":false,"position":[1,0.05,0.05],"seq":7}"#,
             1,
-            &E,
+            Some(&E),
         );
         assert_eq!(
             ok,
@@ -275,14 +296,14 @@ mod tests {
             ))
         );
         assert_eq!(
-            parse(r#"{"type":"mode","space":0,"index":3}"#, 1, &E),
+            parse(r#"{"type":"mode","space":0,"index":3}"#, 1, Some(&E)),
             Ok(ClientMessage::Mode { space: 0, index: 3 })
         );
         assert_eq!(
-            parse(r#"{"type":"fields","stress":true}"#, 1, &E),
+            parse(r#"{"type":"fields","stress":true}"#, 1, Some(&E)),
             Ok(ClientMessage::Fields { stress: true })
         );
-        assert_eq!(parse(r#"{"type":"reset"}"#, 1, &E), Ok(ClientMessage::Reset));
+        assert_eq!(parse(r#"{"type":"reset"}"#, 1, Some(&E)), Ok(ClientMessage::Reset));
         let bad = [
             r#"{"type":"hand","hand":2,"active":true,"button":true,"position":[1,0,0]}"#,
             r#"{"type":"hand","hand":0,"active":true,"button":true,"position":[1e300,0,0]}"#,
@@ -295,16 +316,16 @@ mod tests {
             "[]",
         ];
         for b in bad {
-            assert!(parse(b, 1, &E).is_err(), "{b}");
+            assert!(parse(b, 1, Some(&E)).is_err(), "{b}");
         }
-        let long = format!(r#"{{"type":"mode","space":0,"index":0,"pad":"{}"}}"#, "x".repeat(2000));
-        assert!(parse(&long, 1, &E).unwrap_err().contains("bytes"));
+        let long = format!(r#"{{"type":"mode","space":0,"index":0,"pad":"{}"}}"#, "x".repeat(40_000));
+        assert!(parse(&long, 1, Some(&E)).unwrap_err().contains("bytes"));
         // JSON has no NaN; a string in its place is refused by the parser.
         assert!(
             parse(
                 r#"{"type":"hand","hand":0,"active":true,"button":true,"position":["NaN",0,0]}"#,
                 1,
-                &E
+                Some(&E)
             )
             .is_err()
         );

@@ -1,0 +1,43 @@
+//! The set-up panel's side of the server: a [`Workshop`] (given by whoever can mesh and solve —
+//! the pipeline; the runtime cannot) turns the page's scene into a basis, with progress and a
+//! way to cancel. One compute at a time; its progress goes to every page.
+
+use serde::Serialize;
+use std::path::PathBuf;
+use std::sync::atomic::AtomicBool;
+
+/// What a compute made.
+#[derive(Clone, Debug)]
+pub struct Computed {
+    /// The basis file (in the workshop's private directory).
+    pub basis: PathBuf,
+    /// The scene it was computed from, as saved (TOML), for "save scene".
+    pub scene: String,
+    /// One line for the page: sizes, frequencies, time.
+    pub summary: String,
+}
+
+/// Where a compute stands, for the page's progress bar.
+#[derive(Clone, Debug, Serialize)]
+pub struct Progress {
+    /// Stage: "meshing", "assembling", "eigen-solving", "estimating", "writing", "loading".
+    pub stage: String,
+    /// Of the whole compute, 0 to 1.
+    pub fraction: f64,
+}
+
+/// Makes bases from scenes for the viewer.
+pub trait Workshop: Send + Sync {
+    /// What the set-up panel starts from and offers (JSON: the scene as TOML text, the
+    /// materials, units, limits), sent to every page in the hello.
+    fn setup(&self) -> serde_json::Value;
+    /// Computes a basis from `scene` (TOML text written by the page: checked as any scene, its
+    /// geometry always the workshop's own file, never a path the page names). `progress` is
+    /// called at each stage; `cancel` set stops it at the next stage with an error.
+    fn compute(
+        &self,
+        scene: &str,
+        progress: &(dyn Fn(Progress) + Sync),
+        cancel: &AtomicBool,
+    ) -> Result<Computed, String>;
+}
