@@ -49,7 +49,7 @@ fn leaving_a_voi_while_pulling_a_rib_is_smooth() {
         solve_space(&scene, None, SolverChoice::Auto).expect("global"),
         solve_space(&scene, Some(&voi), SolverChoice::Auto).expect("rib3"),
     ];
-    add_transfers(&mut spaces);
+    add_transfers(&mut spaces).expect("every space has its K and M");
     // T is an M-orthogonal projection: rib 3's first mode, carried onto the global mesh, keeps
     // almost all of its unit M-norm in the global space's 30 modes, and never gains any.
     let t = &spaces[0].transfers[0].1;

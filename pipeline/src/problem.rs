@@ -29,6 +29,26 @@ pub struct Discretized {
     pub assemble_s: f64,
 }
 
+/// One space meshed and its supports selected, K and M not yet assembled: what SLEPc under MPI
+/// starts from (each rank assembles its own rows), and what [`Meshed::assemble`] makes a
+/// [`Discretized`] of.
+pub struct Meshed {
+    /// The mesh.
+    pub mesh: Mesh,
+    /// DOF numbering.
+    pub dofs: Dofs,
+    /// Rigid motions left by the supports.
+    pub rigid: usize,
+    /// Young's modulus, Poisson's ratio, density.
+    pub material: (f64, f64, f64),
+    /// Seconds spent meshing.
+    pub mesh_s: f64,
+    /// What making the mesh order 2 needed (repairs of curved tets).
+    pub meshing: mesh::Meshing,
+    /// Seconds spent selecting supports, and assembling wherever that was done so far.
+    pub assemble_s: f64,
+}
+
 /// Meshes and assembles one space.
 pub fn discretize(scene: &Scene, voi: Option<&Voi>) -> Result<Discretized> {
     discretize_with(scene, voi, None, false)
@@ -41,20 +61,19 @@ pub fn discretize_with(
     field: Option<&mesh::field::SizeField>,
     quiet: bool,
 ) -> Result<Discretized> {
-    let mut d = discretize_unassembled(scene, voi, field, quiet)?;
-    d.assemble_system()
-        .with_context(|| scene.geometry.display().to_string())?;
-    Ok(d)
+    mesh_with_supports(scene, voi, field, quiet)?
+        .assemble()
+        .with_context(|| scene.geometry.display().to_string())
 }
 
-/// Meshes one space and selects its supports, without assembling K and M (`system` is
-/// [`fem::Assembled::unassembled`]): for SLEPc under MPI, where each rank assembles its rows.
-pub fn discretize_unassembled(
+/// Meshes one space and selects its supports, without assembling K and M: for SLEPc under MPI,
+/// where each rank assembles its rows.
+pub fn mesh_with_supports(
     scene: &Scene,
     voi: Option<&Voi>,
     field: Option<&mesh::field::SizeField>,
     quiet: bool,
-) -> Result<Discretized> {
+) -> Result<Meshed> {
     let t = Instant::now();
     let (mesh, meshing) = mesh::generate_with(scene, voi, field, quiet)?;
     let mesh_s = t.elapsed().as_secs_f64();
@@ -87,10 +106,9 @@ pub fn discretize_unassembled(
     }
     let m = &scene.material;
     let rigid = free_rigid_count(&mesh.nodes, &dofs);
-    Ok(Discretized {
+    Ok(Meshed {
         mesh,
         dofs,
-        system: fem::Assembled::unassembled(),
         rigid,
         material: (m.young, m.poisson, m.density),
         mesh_s,
@@ -99,31 +117,41 @@ pub fn discretize_unassembled(
     })
 }
 
-impl Discretized {
-    /// Assembles `system` (K, M and the mass) on this process; its seconds join `assemble_s`.
-    pub fn assemble_system(&mut self) -> Result<(), fem::assembly::AssemblyError> {
+impl Meshed {
+    /// Assembles K, M and the mass on this process; its seconds join `assemble_s`.
+    pub fn assemble(self) -> Result<Discretized, fem::assembly::AssemblyError> {
         let t = Instant::now();
         let (young, poisson, density) = self.material;
-        self.system = fem::assemble(&self.mesh, young, poisson, density, &self.dofs)?;
-        self.assemble_s += t.elapsed().as_secs_f64();
-        Ok(())
+        let system = fem::assemble(&self.mesh, young, poisson, density, &self.dofs)?;
+        Ok(Discretized {
+            mesh: self.mesh,
+            dofs: self.dofs,
+            system,
+            rigid: self.rigid,
+            material: self.material,
+            mesh_s: self.mesh_s,
+            meshing: self.meshing,
+            assemble_s: self.assemble_s + t.elapsed().as_secs_f64(),
+        })
     }
+}
 
+impl Discretized {
     /// Assembles K and M on a given mesh and DOF numbering (E, ν, ρ); stage times left at zero.
     pub fn assemble(mesh: Mesh, dofs: Dofs, material: (f64, f64, f64)) -> Result<Discretized> {
-        let (young, poisson, density) = material;
-        let system = fem::assemble(&mesh, young, poisson, density, &dofs)?;
         let rigid = free_rigid_count(&mesh.nodes, &dofs);
-        Ok(Discretized {
+        let meshed = Meshed {
             mesh,
             dofs,
-            system,
             rigid,
             material,
             mesh_s: 0.0,
             meshing: mesh::Meshing::default(),
             assemble_s: 0.0,
-        })
+        };
+        let mut d = meshed.assemble()?;
+        d.assemble_s = 0.0;
+        Ok(d)
     }
 }
 

@@ -54,23 +54,6 @@ pub struct Assembled {
     pub mass: MassProperties,
 }
 
-impl Assembled {
-    /// No K and M (a problem whose matrices live on the MPI ranks that solve it): an empty
-    /// pattern, and no mass until it is set.
-    pub fn unassembled() -> Assembled {
-        Assembled {
-            pattern: SymbolicSparseColMat::new_checked(0, 0, vec![0], None, Vec::new()),
-            k: Vec::new(),
-            m: Vec::new(),
-            graph: NodeGraph {
-                col_ptr: vec![0],
-                rows: Vec::new(),
-            },
-            mass: MassProperties::default(),
-        }
-    }
-}
-
 /// An element with a non-positive Jacobian was met.
 #[derive(Debug, thiserror::Error)]
 #[error(

@@ -1,10 +1,14 @@
 //! `ves precompute`: scene → mesh → K, M → modes → HDF5, for the global space and each VOI.
 
+mod advice;
+mod stages;
+
+pub use stages::solve_space;
+
 use crate::fem::{self, MassProperties};
 use crate::mesh::Mesh;
 use crate::modes::{self, Modes, SolverChoice};
 use crate::output::Overwrite;
-use crate::problem::{Discretized, discretize};
 use crate::scene::{Scene, Voi};
 use crate::store;
 use crate::supports::Dofs;
@@ -71,8 +75,9 @@ pub struct SolvedSpace {
     pub compliance: Option<crate::compliance::Compliance>,
     /// Stage times.
     pub timings: Timings,
-    /// K and M (kept for the state transfer between spaces).
-    pub system: fem::Assembled,
+    /// K and M (kept for the state transfer between spaces); `None` when SLEPc left them on the
+    /// MPI ranks (no later stage needed them here).
+    pub system: Option<fem::Assembled>,
     /// Transfer matrices from the other spaces (name, row-major `r × r_from`).
     pub transfers: Vec<(String, Vec<f64>)>,
     /// Repairs of curved tets the order-2 mesh needed.
@@ -106,151 +111,6 @@ impl SolvedSpace {
     }
 }
 
-/// Meshes, assembles and solves one space (refining it first when the scene sets a target
-/// error), and estimates its discretization error.
-pub fn solve_space(scene: &Scene, voi: Option<&Voi>, choice: SolverChoice) -> Result<SolvedSpace> {
-    let name = voi.map_or("global".to_string(), |v| v.name.clone());
-    let t = Instant::now();
-    // Proof that no mode below the last one was skipped, made right after the solve (its
-    // factor's memory is free again, the error estimate's not yet taken). With SLEPc rank 0
-    // would factor the whole matrix again on its own (the memory MPI is there to share): left
-    // to SLEPc's checks.
-    let sturm_of = |d: &Discretized, modes: &modes::Modes| {
-        if choice.is_slepc() {
-            Ok(None)
-        } else {
-            modes::sturm_count(d, modes)
-        }
-    };
-    let (d, modes, ordering_s, error, refinement, estimate_s, sturm) = match scene.mesh.target_error {
-        Some(target) => {
-            let r = crate::accuracy::refine::refine(scene, voi, choice, target)?;
-            let s = r.last;
-            let sturm = sturm_of(&s.d, &s.modes)?;
-            (
-                s.d,
-                s.modes,
-                s.ordering_s,
-                r.estimate,
-                Some(r.steps),
-                r.overhead_s,
-                sturm,
-            )
-        }
-        None => {
-            // The coarser meshes are made beside the fine one (each gmsh in its own process,
-            // one core each), so the fine solve later has both cores to itself.
-            let prefetch = scene
-                .mesh
-                .error_estimate
-                .then(|| crate::accuracy::Prefetch::start(scene, voi, None));
-            let (d, modes, ordering_s) = if choice.is_slepc() {
-                // K and M are assembled on the ranks, each its rows, and stay there; rank 0
-                // assembles them whole only after the solve, and only for a stage that needs them.
-                let mut d = crate::problem::discretize_unassembled(scene, voi, None, false)?;
-                let s = modes::slepc::solve(&d.mesh, &d.dofs, d.material, d.rigid, scene.modes.count, choice)?;
-                d.system.mass = s.moments.properties();
-                d.assemble_s += s.assemble_s;
-                if needs_whole_system(scene) {
-                    crate::memory::release_free_memory();
-                    d.assemble_system()
-                        .with_context(|| scene.geometry.display().to_string())?;
-                }
-                (d, s.modes, 0.0)
-            } else {
-                let d = discretize(scene, voi)?;
-                let (modes, ordering_s) = modes::solve(&d, scene.modes.count, choice)?;
-                (d, modes, ordering_s)
-            };
-            crate::memory::release_free_memory();
-            let sturm = sturm_of(&d, &modes)?;
-            let solved_s = t.elapsed().as_secs_f64();
-            if let Some(p) = prefetch {
-                p.finish();
-            }
-            let error = if scene.mesh.error_estimate {
-                let view = crate::transfer::SpaceView::of(&d.mesh, &d.dofs, &d.system, &modes, usize::MAX);
-                crate::accuracy::estimate(scene, voi, None, &view, &modes.eigenvalues, choice)
-            } else {
-                None
-            };
-            crate::memory::release_free_memory();
-            (
-                d,
-                modes,
-                ordering_s,
-                error,
-                None,
-                t.elapsed().as_secs_f64() - solved_s,
-                sturm,
-            )
-        }
-    };
-    if scene.mesh.error_estimate {
-        warn_about_error(scene, &name, &d.mesh, d.meshing.size, error.as_ref());
-    }
-    let mut timings = Timings {
-        mesh: d.mesh_s,
-        assemble: d.assemble_s,
-        factorize: ordering_s + modes.factorize_s,
-        eigensolve: modes.eigensolve_s,
-        error_estimate: estimate_s,
-        ..Timings::default()
-    };
-    let t = Instant::now();
-    let compliance = match scene.static_correction {
-        Some(_) => Some(crate::compliance::surface_compliance(&d)?),
-        None => None,
-    };
-    timings.static_correction = t.elapsed().as_secs_f64();
-    let t = Instant::now();
-    let stress = scene.stress.then(|| {
-        let r = modes.eigenvalues.len();
-        let nf = d.dofs.free_count();
-        let u: Vec<f64> = (0..r)
-            .flat_map(|j| d.dofs.expand(&modes.vectors[j * nf..(j + 1) * nf]))
-            .collect();
-        let m = &scene.material;
-        let lame = crate::fem::element::Lame::new(m.young, m.poisson, m.density);
-        crate::fem::stress::vertex_stress(&d.mesh, &lame, &u, r)
-    });
-    timings.stress = t.elapsed().as_secs_f64();
-    if let Some(s) = &sturm {
-        timings.sturm = s.seconds;
-        if s.complete() {
-            tracing::info!(space = %name, sigma = s.sigma, below = s.below, "Sturm count: no mode skipped");
-        } else {
-            tracing::warn!(
-                "space {name:?}: {} eigenvalues lie below σ = {:.6e} (just above the last mode found) but {} modes were \
-                 found there: either the last mode has a partner within 1e-6 (a repeated frequency cut in two: set \
-                 modes.count = {}) or the eigen-solver skipped {} (check with --solver dense on a small mesh, and report it)",
-                s.below,
-                s.sigma,
-                s.found,
-                s.below - s.rigid,
-                s.below.saturating_sub(s.found)
-            );
-        }
-    }
-    Ok(SolvedSpace {
-        name,
-        voi: voi.cloned(),
-        mass: d.system.mass,
-        compliance,
-        mesh: d.mesh,
-        dofs: d.dofs,
-        modes,
-        timings,
-        system: d.system,
-        transfers: Vec::new(),
-        meshing: d.meshing,
-        error,
-        refinement,
-        stress,
-        sturm,
-    })
-}
-
 /// Whether a stage after the eigen-solve needs the whole K and M of a space on this process: the
 /// error estimate (it pairs modes in the M-inner product), static correction (it factors K) and
 /// the transfers between VOI spaces (M-projections). Without them SLEPc leaves K and M on the
@@ -258,49 +118,6 @@ pub fn solve_space(scene: &Scene, voi: Option<&Voi>, choice: SolverChoice) -> Re
 /// after the solve.
 pub fn needs_whole_system(scene: &Scene) -> bool {
     scene.mesh.error_estimate || scene.static_correction.is_some() || !scene.voi.is_empty()
-}
-
-/// One line when a space has no estimate or one above [`crate::accuracy::WARN_ABOVE`], and one
-/// when its walls are one element thick and the estimate does not vouch for them.
-fn warn_about_error(scene: &Scene, name: &str, mesh: &Mesh, size: f64, error: Option<&crate::accuracy::ErrorEstimate>) {
-    let worst = error.and_then(|e| crate::accuracy::worst(&e.relative()));
-    let walls = mesh.walls();
-    if walls.spanning_fraction > crate::mesh::walls::ONE_ELEMENT_THICK {
-        // Whatever the estimate says: coarser meshes are one element thick too, so it cannot
-        // see this (the cantilever at 50 mm: estimated 0.85 %, 3.1 % off the 25 mm mesh).
-        tracing::warn!(
-            "space {name:?}: {:.0} % of the volume is in walls one element thick (walls ≈ {:.2e} m): bending across \
-             them rests on one element and the error estimate cannot see that; check with mesh.size ≤ {:.2e} m (two \
-             through the wall)",
-            100.0 * walls.spanning_fraction,
-            walls.thickness,
-            walls.thickness / 2.0
-        );
-    }
-    match worst {
-        None => tracing::warn!(
-            space = name,
-            "no error estimate: no coarser mesh of this space could be solved (see VES_LOG=info)"
-        ),
-        Some((mode, worst)) if worst > crate::accuracy::WARN_ABOVE => {
-            let change = if scene.mesh.order == 1 {
-                "use mesh.order = 2 (4-node tets are far too stiff in bending)".to_string()
-            } else if scene.mesh.target_error.is_some() {
-                "raise mesh.max_dofs".to_string()
-            } else {
-                format!(
-                    "try mesh.size = {:.3e} m, or set [mesh] target_error = 0.01",
-                    size / 2.0
-                )
-            };
-            tracing::warn!(
-                "space {name:?}: mode {}'s frequency is estimated {:.1} % above the mesh-converged value; {change}",
-                mode + 1,
-                100.0 * worst
-            );
-        }
-        Some(_) => {}
-    }
 }
 
 /// The `--json` summary (README, `--json`).
@@ -439,7 +256,7 @@ fn pipeline(scene: &Scene, out: &Path, choice: SolverChoice, start: Instant) -> 
     }
     bar.finish_and_clear();
     let t = Instant::now();
-    add_transfers(&mut spaces);
+    add_transfers(&mut spaces)?;
     let transfer_s = t.elapsed().as_secs_f64();
     let t = Instant::now();
     let views: Vec<store::Space<'_>> = spaces.iter().map(SolvedSpace::view).collect();
@@ -484,15 +301,16 @@ fn pipeline(scene: &Scene, out: &Path, choice: SolverChoice, start: Instant) -> 
 }
 
 /// Fills each space's transfer matrices from every other space (VOI switching at run time).
-pub fn add_transfers(spaces: &mut [SolvedSpace]) {
+/// Every space needs its K and M here (SLEPc assembles them on rank 0 when a scene has VOIs).
+pub fn add_transfers(spaces: &mut [SolvedSpace]) -> Result<()> {
     if spaces.len() < 2 {
-        return;
+        return Ok(());
     }
     let mut all = Vec::with_capacity(spaces.len());
     for b in spaces.iter() {
         let mut list = Vec::new();
         for a in spaces.iter().filter(|a| a.name != b.name) {
-            let (t, outside) = crate::transfer::transfer_matrix(&space_view(a), &space_view(b));
+            let (t, outside) = crate::transfer::transfer_matrix(&space_view(a)?, &space_view(b)?);
             if outside > 1e-3 {
                 tracing::warn!(
                     from = a.name,
@@ -508,8 +326,21 @@ pub fn add_transfers(spaces: &mut [SolvedSpace]) {
     for (s, list) in spaces.iter_mut().zip(all) {
         s.transfers = list;
     }
+    Ok(())
 }
 
-fn space_view(s: &SolvedSpace) -> crate::transfer::SpaceView<'_> {
-    crate::transfer::SpaceView::of(&s.mesh, &s.dofs, &s.system, &s.modes, usize::MAX)
+fn space_view(s: &SolvedSpace) -> Result<crate::transfer::SpaceView<'_>> {
+    let system = s.system.as_ref().with_context(|| {
+        format!(
+            "space {:?}: the transfers between spaces need its K and M, which were left on the MPI ranks",
+            s.name
+        )
+    })?;
+    Ok(crate::transfer::SpaceView::of(
+        &s.mesh,
+        &s.dofs,
+        system,
+        &s.modes,
+        usize::MAX,
+    ))
 }

@@ -1,0 +1,323 @@
+//! One space, stage by stage: discretize → solve → Sturm check → error estimate → static
+//! correction → modal stress → what the file stores. Each stage is a function from what the
+//! previous ones made; a stage's temporaries (factors, coarse meshes) are dropped when it
+//! returns, and [`released`] gives their pages back before the next stage takes its own.
+
+use super::{SolvedSpace, Timings, advice, needs_whole_system};
+use crate::accuracy::{ErrorEstimate, Prefetch, refine};
+use crate::compliance::Compliance;
+use crate::fem::MassProperties;
+use crate::mesh::Mesh;
+use crate::modes::{self, Modes, SolverChoice, SturmCount};
+use crate::problem::{Discretized, Meshed};
+use crate::scene::{Scene, Voi};
+use crate::supports::Dofs;
+use anyhow::{Context, Result};
+use std::time::Instant;
+
+/// A space's discrete problem: K and M assembled on this process, or left to the MPI ranks
+/// that solve it (SLEPc), which assemble their own rows from the mesh.
+// One per space, moved a few times: the size difference of the variants costs nothing.
+#[allow(clippy::large_enum_variant)]
+pub(super) enum Problem {
+    /// K and M here: every stage can use them.
+    Here(Discretized),
+    /// K and M only on the ranks (this process has the mesh and the supports).
+    OnRanks(Meshed),
+}
+
+impl Problem {
+    fn mesh(&self) -> &Mesh {
+        match self {
+            Problem::Here(d) => &d.mesh,
+            Problem::OnRanks(m) => &m.mesh,
+        }
+    }
+
+    fn dofs(&self) -> &Dofs {
+        match self {
+            Problem::Here(d) => &d.dofs,
+            Problem::OnRanks(m) => &m.dofs,
+        }
+    }
+
+    fn meshing(&self) -> &crate::mesh::Meshing {
+        match self {
+            Problem::Here(d) => &d.meshing,
+            Problem::OnRanks(m) => &m.meshing,
+        }
+    }
+
+    /// K and M, when they are on this process.
+    fn here(&self) -> Option<&Discretized> {
+        match self {
+            Problem::Here(d) => Some(d),
+            Problem::OnRanks(_) => None,
+        }
+    }
+}
+
+/// The solve stage's output.
+pub(super) struct Solved {
+    /// The problem (K and M here whenever a later stage needs them: [`needs_whole_system`]).
+    pub problem: Problem,
+    /// The part's mass properties (assembled here, or summed over the ranks).
+    pub mass: MassProperties,
+    /// The elastic modes, checked.
+    pub modes: Modes,
+    /// Seconds of the fill-reducing ordering before the solve (counted with the factorisation).
+    pub ordering_s: f64,
+}
+
+/// The error-estimate stage's output.
+pub(super) struct Estimated {
+    /// Each mode's estimated discretization error, when the scene asks for it.
+    pub error: Option<ErrorEstimate>,
+    /// The meshes of a `target_error` refinement, coarsest first.
+    pub refinement: Option<Vec<refine::Step>>,
+    /// Seconds the estimate (and the refinement's coarser meshes) took.
+    pub seconds: f64,
+}
+
+/// Meshes, assembles and solves one space (refining it first when the scene sets a target
+/// error), and estimates its discretization error.
+pub fn solve_space(scene: &Scene, voi: Option<&Voi>, choice: SolverChoice) -> Result<SolvedSpace> {
+    let name = voi.map_or("global".to_string(), |v| v.name.clone());
+    let (solved, sturm, estimated) = match scene.mesh.target_error {
+        Some(target) => refined(scene, voi, choice, target)?,
+        None => {
+            // The coarser meshes are made beside the fine one (each gmsh in its own process,
+            // one core each), so the fine solve later has both cores to itself.
+            let prefetch = scene.mesh.error_estimate.then(|| Prefetch::start(scene, voi, None));
+            let problem = discretize(scene, voi, choice)?;
+            let solved = released(|| solve(scene, problem, choice))?;
+            let sturm = sturm_check(&solved, choice)?;
+            let estimated = released(|| estimate(scene, voi, &solved, choice, prefetch))?;
+            (solved, sturm, estimated)
+        }
+    };
+    if scene.mesh.error_estimate {
+        let size = solved.problem.meshing().size;
+        advice::warn_about_error(scene, &name, solved.problem.mesh(), size, estimated.error.as_ref());
+    }
+    let (compliance, static_correction_s) = timed(|| compliance(scene, &solved));
+    let compliance = compliance?;
+    let (stress, stress_s) = timed(|| stress(scene, &solved));
+    if let Some(s) = &sturm {
+        advice::report_sturm(&name, s);
+    }
+    let later = AfterSolve {
+        sturm,
+        estimated,
+        compliance,
+        stress,
+        static_correction_s,
+        stress_s,
+    };
+    Ok(store(name, voi, solved, later))
+}
+
+/// The `target_error` path: the refinement meshes, solves and estimates the space on finer
+/// meshes until the estimate meets the target; the Sturm check is made on its last mesh.
+fn refined(
+    scene: &Scene,
+    voi: Option<&Voi>,
+    choice: SolverChoice,
+    target: f64,
+) -> Result<(Solved, Option<SturmCount>, Estimated)> {
+    let r = refine::refine(scene, voi, choice, target)?;
+    let last = r.last;
+    let solved = Solved {
+        mass: last.d.system.mass,
+        problem: Problem::Here(last.d),
+        modes: last.modes,
+        ordering_s: last.ordering_s,
+    };
+    let sturm = sturm_check(&solved, choice)?;
+    let estimated = Estimated {
+        error: r.estimate,
+        refinement: Some(r.steps),
+        seconds: r.overhead_s,
+    };
+    Ok((solved, sturm, estimated))
+}
+
+/// Discretize: the mesh, the supports and (unless SLEPc's ranks assemble their own rows) K, M.
+fn discretize(scene: &Scene, voi: Option<&Voi>, choice: SolverChoice) -> Result<Problem> {
+    if choice.is_slepc() {
+        // K and M are assembled on the ranks, each its rows, and stay there.
+        Ok(Problem::OnRanks(crate::problem::mesh_with_supports(
+            scene, voi, None, false,
+        )?))
+    } else {
+        Ok(Problem::Here(crate::problem::discretize(scene, voi)?))
+    }
+}
+
+/// Solve: the lowest `modes.count` elastic modes. Under SLEPc, this process assembles K and M
+/// whole after the solve, and only for a stage that needs them ([`needs_whole_system`]).
+fn solve(scene: &Scene, problem: Problem, choice: SolverChoice) -> Result<Solved> {
+    let count = scene.modes.count;
+    match problem {
+        Problem::Here(d) => {
+            let (modes, ordering_s) = modes::solve(&d, count, choice)?;
+            Ok(Solved {
+                mass: d.system.mass,
+                problem: Problem::Here(d),
+                modes,
+                ordering_s,
+            })
+        }
+        Problem::OnRanks(mut m) => {
+            let s = released(|| modes::slepc::solve(&m.mesh, &m.dofs, m.material, m.rigid, count, choice))?;
+            m.assemble_s += s.assemble_s;
+            let (problem, mass) = if needs_whole_system(scene) {
+                let d = m.assemble().with_context(|| scene.geometry.display().to_string())?;
+                let mass = d.system.mass;
+                (Problem::Here(d), mass)
+            } else {
+                (Problem::OnRanks(m), s.moments.properties())
+            };
+            Ok(Solved {
+                problem,
+                mass,
+                modes: s.modes,
+                ordering_s: 0.0,
+            })
+        }
+    }
+}
+
+/// Sturm check: proof that no mode below the last one was skipped, made right after the solve
+/// (its factor's memory is free again, the error estimate's not yet taken). With SLEPc rank 0
+/// would factor the whole matrix again on its own (the memory MPI is there to share): left to
+/// SLEPc's checks.
+fn sturm_check(solved: &Solved, choice: SolverChoice) -> Result<Option<SturmCount>> {
+    match solved.problem.here() {
+        Some(d) if !choice.is_slepc() => Ok(modes::sturm_count(d, &solved.modes)?),
+        _ => Ok(None),
+    }
+}
+
+/// Estimate: each mode's discretization error from the coarser meshes (made beside the solve
+/// by `prefetch`), when the scene asks for it.
+fn estimate(
+    scene: &Scene,
+    voi: Option<&Voi>,
+    solved: &Solved,
+    choice: SolverChoice,
+    prefetch: Option<Prefetch>,
+) -> Result<Estimated> {
+    let t = Instant::now();
+    if let Some(p) = prefetch {
+        p.finish();
+    }
+    let error = match (scene.mesh.error_estimate, solved.problem.here()) {
+        (false, _) => None,
+        (true, Some(d)) => {
+            let view = crate::transfer::SpaceView::of(&d.mesh, &d.dofs, &d.system, &solved.modes, usize::MAX);
+            crate::accuracy::estimate(scene, voi, None, &view, &solved.modes.eigenvalues, choice)
+        }
+        (true, None) => anyhow::bail!("the error estimate needs K and M, which were left on the MPI ranks"),
+    };
+    Ok(Estimated {
+        error,
+        refinement: None,
+        seconds: t.elapsed().as_secs_f64(),
+    })
+}
+
+/// Compliance: the static correction's blocks, when the scene asks for them.
+fn compliance(scene: &Scene, solved: &Solved) -> Result<Option<Compliance>> {
+    if scene.static_correction.is_none() {
+        return Ok(None);
+    }
+    let d = solved
+        .problem
+        .here()
+        .context("the static correction needs K, which was left on the MPI ranks")?;
+    Ok(Some(crate::compliance::surface_compliance(d)?))
+}
+
+/// Stress: each mode's stress at the corner vertices (`[stress] enabled`).
+fn stress(scene: &Scene, solved: &Solved) -> Option<Vec<f64>> {
+    if !scene.stress {
+        return None;
+    }
+    let (dofs, modes) = (solved.problem.dofs(), &solved.modes);
+    let r = modes.eigenvalues.len();
+    let nf = dofs.free_count();
+    let u: Vec<f64> = (0..r)
+        .flat_map(|j| dofs.expand(&modes.vectors[j * nf..(j + 1) * nf]))
+        .collect();
+    let m = &scene.material;
+    let lame = crate::fem::element::Lame::new(m.young, m.poisson, m.density);
+    Some(crate::fem::stress::vertex_stress(solved.problem.mesh(), &lame, &u, r))
+}
+
+/// What the stages after the solve made.
+struct AfterSolve {
+    sturm: Option<SturmCount>,
+    estimated: Estimated,
+    compliance: Option<Compliance>,
+    stress: Option<Vec<f64>>,
+    static_correction_s: f64,
+    stress_s: f64,
+}
+
+/// Store: what the file writer and the summary need of the space.
+fn store(name: String, voi: Option<&Voi>, solved: Solved, later: AfterSolve) -> SolvedSpace {
+    let Solved {
+        problem,
+        mass,
+        modes,
+        ordering_s,
+    } = solved;
+    let (mesh, dofs, system, meshing, mesh_s, assemble_s) = match problem {
+        Problem::Here(d) => (d.mesh, d.dofs, Some(d.system), d.meshing, d.mesh_s, d.assemble_s),
+        Problem::OnRanks(m) => (m.mesh, m.dofs, None, m.meshing, m.mesh_s, m.assemble_s),
+    };
+    let timings = Timings {
+        mesh: mesh_s,
+        assemble: assemble_s,
+        factorize: ordering_s + modes.factorize_s,
+        eigensolve: modes.eigensolve_s,
+        error_estimate: later.estimated.seconds,
+        static_correction: later.static_correction_s,
+        stress: later.stress_s,
+        sturm: later.sturm.map_or(0.0, |s| s.seconds),
+        ..Timings::default()
+    };
+    SolvedSpace {
+        name,
+        voi: voi.cloned(),
+        mesh,
+        dofs,
+        modes,
+        mass,
+        compliance: later.compliance,
+        timings,
+        system,
+        transfers: Vec::new(),
+        meshing,
+        error: later.estimated.error,
+        refinement: later.estimated.refinement,
+        stress: later.stress,
+        sturm: later.sturm,
+    }
+}
+
+/// Runs a stage, then gives the pages its dropped temporaries held back to the system (glibc
+/// keeps them): the next stage's peak would otherwise add to this one's.
+fn released<T>(stage: impl FnOnce() -> T) -> T {
+    let out = stage();
+    crate::memory::release_free_memory();
+    out
+}
+
+/// A stage and its seconds.
+fn timed<T>(stage: impl FnOnce() -> T) -> (T, f64) {
+    let t = Instant::now();
+    let out = stage();
+    (out, t.elapsed().as_secs_f64())
+}
