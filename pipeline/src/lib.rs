@@ -27,6 +27,7 @@ pub mod store;
 pub mod supports;
 pub mod transfer;
 pub mod verify;
+pub mod workshop;
 
 /// Makes a FIFO at `path`: the tests' stand-in for an input that would block a reader.
 #[cfg(test)]

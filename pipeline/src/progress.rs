@@ -29,3 +29,56 @@ pub fn outer_bar(len: u64, unit: &str) -> ProgressBar {
     bar.enable_steady_tick(std::time::Duration::from_millis(120));
     bar
 }
+
+/// Who watches a long computation besides the terminal (the viewer's progress bar): told each
+/// stage, and asked whether to stop.
+pub trait Watcher: Send + Sync {
+    /// A stage began; `fraction` of the whole computation is done.
+    fn stage(&self, name: &str, fraction: f64);
+    /// The computation should stop at the next stage.
+    fn cancelled(&self) -> bool;
+}
+
+/// The watcher and the share of the whole that the current part (a space) covers.
+static WATCHER: std::sync::Mutex<Option<(std::sync::Arc<dyn Watcher>, f64, f64)>> = std::sync::Mutex::new(None);
+
+/// Watches what this process computes until the guard drops (one computation at a time).
+pub fn watch(w: std::sync::Arc<dyn Watcher>) -> WatchGuard {
+    if let Ok(mut g) = WATCHER.lock() {
+        *g = Some((w, 0.0, 1.0));
+    }
+    WatchGuard
+}
+
+/// Ends a [`watch`].
+pub struct WatchGuard;
+
+impl Drop for WatchGuard {
+    fn drop(&mut self) {
+        if let Ok(mut g) = WATCHER.lock() {
+            *g = None;
+        }
+    }
+}
+
+/// The stages that follow cover `lo..hi` of the whole (a space among several).
+pub fn span(lo: f64, hi: f64) {
+    if let Ok(mut g) = WATCHER.lock()
+        && let Some(w) = g.as_mut()
+    {
+        (w.1, w.2) = (lo, hi);
+    }
+}
+
+/// Stage `name` begins, `at` (0 to 1) of the way through the current span. Fails when the
+/// watcher asked to stop, so the computation ends there with nothing written.
+pub fn stage(name: &str, at: f64) -> anyhow::Result<()> {
+    let w = WATCHER.lock().ok().and_then(|g| g.clone());
+    if let Some((w, lo, hi)) = w {
+        if w.cancelled() {
+            anyhow::bail!("cancelled before {name}: nothing was written");
+        }
+        w.stage(name, lo + at.clamp(0.0, 1.0) * (hi - lo));
+    }
+    Ok(())
+}

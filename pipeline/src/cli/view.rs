@@ -1,4 +1,5 @@
-//! `ves view`: the part in a browser, with the mouse as a haptic hand.
+//! `ves view`: the part in a browser, with the mouse as a haptic hand. Given a scene or a
+//! geometry file, the page also sets the part up and computes its basis (the workshop).
 
 use super::session::Settings;
 use anyhow::{Context, Result};
@@ -7,13 +8,20 @@ use std::net::{IpAddr, Ipv4Addr, SocketAddr};
 use std::path::PathBuf;
 use std::sync::Arc;
 use std::sync::atomic::AtomicBool;
-use ves_runtime::view::{self, ViewConfig};
+use ves_pipeline::scene::{Scene, SceneOptions};
+use ves_pipeline::workshop::PartWorkshop;
+use ves_runtime::view::{self, ViewConfig, Workshop};
 
 /// Arguments.
 #[derive(clap::Args)]
 pub struct Args {
-    /// Basis file (HDF5).
+    /// A basis file (.h5), a scene (.toml: the page can change it and compute again) or a
+    /// geometry file (.step, .stp, .iges, .igs, .brep: the page sets the part up).
     basis: PathBuf,
+    /// Accept a scene whose geometry is a .geo file: a gmsh script, which can run shell
+    /// commands. Only for scenes you trust.
+    #[arg(long)]
+    allow_geo_scripts: bool,
     /// Port to serve on (0: any free port; the URL printed says which).
     #[arg(long, default_value_t = 8765)]
     port: u16,
@@ -44,7 +52,7 @@ impl Args {
         if let Some((g, _)) = cfg.free_body.as_mut() {
             *g = [0.0, 0.0, -self.gravity];
         }
-        let spaces = self.settings.spaces(&self.basis)?;
+        let (spaces, workshop) = self.open()?;
         if !self.host.is_loopback() {
             tracing::warn!(
                 "--host {}: the viewer is reachable from other machines, and anyone who opens it can drive the session",
@@ -62,7 +70,7 @@ impl Args {
             limits: view::Limits::default(),
         };
         let stop = Arc::new(AtomicBool::new(false));
-        let stats = view::serve(spaces, &cfg, stop, |addr| {
+        let stats = view::serve_with(spaces, workshop, &cfg, stop, |addr| {
             // The URL on stdout, flushed: scripts and tests wait for this line.
             let host = if addr.ip().is_unspecified() {
                 "127.0.0.1".to_string()
@@ -84,5 +92,30 @@ impl Args {
             println!("{}", serde_json::to_string(&stats)?);
         }
         Ok(())
+    }
+
+    /// What the file given is: a basis to serve, or a part to set up and compute.
+    fn open(&self) -> Result<(Option<Vec<ves_runtime::switching::SpaceInput>>, Option<Arc<dyn Workshop>>)> {
+        let p = &self.basis;
+        let ext = p.extension().map(|e| e.to_string_lossy().to_ascii_lowercase()).unwrap_or_default();
+        let solver = ves_pipeline::modes::SolverChoice::Auto;
+        match ext.as_str() {
+            "toml" => {
+                let options = SceneOptions {
+                    allow_geo_scripts: self.allow_geo_scripts,
+                };
+                let scene = Scene::load_with(p, options)?;
+                Ok((None, Some(Arc::new(PartWorkshop::for_scene(&scene, options, solver)?))))
+            }
+            "step" | "stp" | "iges" | "igs" | "brep" => {
+                ves_pipeline::input::open(p).map_err(anyhow::Error::msg)?;
+                Ok((None, Some(Arc::new(PartWorkshop::for_geometry(p, solver)?))))
+            }
+            "geo" => anyhow::bail!(
+                "{}: a .geo file is a gmsh script and can run shell commands; export the part as STEP, or name it in a scene and pass --allow-geo-scripts if you trust it",
+                p.display()
+            ),
+            _ => Ok((Some(self.settings.spaces(p)?), None)),
+        }
     }
 }

@@ -242,9 +242,12 @@ fn pipeline(scene: &Scene, out: &Path, choice: SolverChoice, start: Instant) -> 
     let mut spaces = Vec::with_capacity(1 + scene.voi.len());
     let targets: Vec<Option<&Voi>> = std::iter::once(None).chain(scene.voi.iter().map(Some)).collect();
     let bar = crate::progress::bar(targets.len() as u64, "spaces");
-    for voi in targets {
+    let n = targets.len() as f64;
+    for (i, voi) in targets.into_iter().enumerate() {
         let name = voi.map_or("global", |v| v.name.as_str());
         bar.set_message(format!("space {name}"));
+        // Each space a share of the whole; transfers and writing the last 5 %.
+        crate::progress::span(0.95 * i as f64 / n, 0.95 * (i + 1) as f64 / n);
         let s = solve_space(scene, voi, choice).with_context(|| format!("space {name:?}"))?;
         tracing::info!(
             space = name,
@@ -255,6 +258,8 @@ fn pipeline(scene: &Scene, out: &Path, choice: SolverChoice, start: Instant) -> 
         bar.inc(1);
     }
     bar.finish_and_clear();
+    crate::progress::span(0.0, 1.0);
+    crate::progress::stage("writing", 0.95)?;
     let t = Instant::now();
     add_transfers(&mut spaces)?;
     let transfer_s = t.elapsed().as_secs_f64();

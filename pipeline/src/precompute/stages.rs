@@ -3,6 +3,7 @@
 //! previous ones made; a stage's temporaries (factors, coarse meshes) are dropped when it
 //! returns, and [`released`] gives their pages back before the next stage takes its own.
 
+use crate::progress;
 use super::{SolvedSpace, Timings, advice, needs_whole_system};
 use crate::accuracy::{ErrorEstimate, Prefetch, refine};
 use crate::compliance::Compliance;
@@ -84,14 +85,20 @@ pub(super) struct Estimated {
 pub fn solve_space(scene: &Scene, voi: Option<&Voi>, choice: SolverChoice) -> Result<SolvedSpace> {
     let name = voi.map_or("global".to_string(), |v| v.name.clone());
     let (solved, sturm, estimated) = match scene.mesh.target_error {
-        Some(target) => refined(scene, voi, choice, target)?,
+        Some(target) => {
+            progress::stage("meshing and solving until the estimate meets target_error", 0.0)?;
+            refined(scene, voi, choice, target)?
+        }
         None => {
             // The coarser meshes are made beside the fine one (each gmsh in its own process,
             // one core each), so the fine solve later has both cores to itself.
             let prefetch = scene.mesh.error_estimate.then(|| Prefetch::start(scene, voi, None));
+            progress::stage("meshing and assembling", 0.0)?;
             let problem = discretize(scene, voi, choice)?;
+            progress::stage("eigen-solving", 0.3)?;
             let solved = released(|| solve(scene, problem, choice))?;
             let sturm = sturm_check(&solved, choice)?;
+            progress::stage("estimating the error", 0.6)?;
             let estimated = released(|| estimate(scene, voi, &solved, choice, prefetch))?;
             (solved, sturm, estimated)
         }
@@ -100,6 +107,7 @@ pub fn solve_space(scene: &Scene, voi: Option<&Voi>, choice: SolverChoice) -> Re
         let size = solved.problem.meshing().size;
         advice::warn_about_error(scene, &name, solved.problem.mesh(), size, estimated.error.as_ref());
     }
+    progress::stage("static correction and stress", 0.85)?;
     let (compliance, static_correction_s) = timed(|| compliance(scene, &solved));
     let compliance = compliance?;
     let (stress, stress_s) = timed(|| stress(scene, &solved));

@@ -143,7 +143,7 @@ struct Shared {
     last_stats: Mutex<Option<SessionStats>>,
     workshop: Option<Arc<dyn Workshop>>,
     computing: AtomicBool,
-    cancel: AtomicBool,
+    cancel: Arc<AtomicBool>,
     /// Compute progress and results (JSON text), to every page.
     notes: watch::Sender<String>,
     computes: AtomicU64,
@@ -232,14 +232,18 @@ pub fn serve_with(
         last_stats: Mutex::new(None),
         workshop,
         computing: AtomicBool::new(false),
-        cancel: AtomicBool::new(false),
+        cancel: Arc::new(AtomicBool::new(false)),
         notes: watch::channel(String::new()).0,
         computes: AtomicU64::new(0),
         computes_failed: AtomicU64::new(0),
         swaps: AtomicU64::new(0),
     });
-    if let Some(spaces) = spaces {
-        swap(&shared, spaces, None)?;
+    match (spaces, &shared.workshop) {
+        (Some(spaces), _) => swap(&shared, spaces, None)?,
+        // A part without a basis yet: its first compute starts at once, from the scene the
+        // workshop starts with, and the pages show its progress.
+        (None, Some(w)) => start_compute(&shared, w.setup()["scene"].clone()).map_err(ViewError)?,
+        (None, None) => return Err(ViewError("nothing to serve: give a basis, a scene or a geometry file".into())),
     }
 
     let rt = tokio::runtime::Builder::new_multi_thread()
@@ -373,7 +377,7 @@ fn swap(shared: &Arc<Shared>, spaces: Vec<SpaceInput>, basis_path: Option<PathBu
 
 /// Runs one compute of the set-up panel in its own thread; its progress and its end go to every
 /// page; on success the session moves to the new basis.
-fn start_compute(shared: &Arc<Shared>, scene: String) -> Result<(), String> {
+fn start_compute(shared: &Arc<Shared>, scene: serde_json::Value) -> Result<(), String> {
     let Some(workshop) = shared.workshop.clone() else {
         return Err("this viewer was opened on a basis: open a scene or a STEP file to set the part up".into());
     };
@@ -390,15 +394,19 @@ fn start_compute(shared: &Arc<Shared>, scene: String) -> Result<(), String> {
             let note = |v: serde_json::Value| {
                 shared.notes.send_replace(v.to_string());
             };
-            let progress = |p: Progress| {
-                note(serde_json::json!({"type": "progress", "stage": p.stage, "fraction": p.fraction}));
+            let progress: Arc<dyn Fn(Progress) + Send + Sync> = {
+                let shared = shared.clone();
+                Arc::new(move |p: Progress| {
+                    let v = serde_json::json!({"type": "progress", "stage": p.stage, "fraction": p.fraction});
+                    shared.notes.send_replace(v.to_string());
+                })
             };
             progress(Progress {
                 stage: "starting".into(),
                 fraction: 0.0,
             });
             let done = workshop
-                .compute(&scene, &progress, &shared.cancel)
+                .compute(&scene, progress.clone(), shared.cancel.clone())
                 .and_then(|c| {
                     progress(Progress {
                         stage: "loading".into(),
@@ -595,27 +603,20 @@ async fn client(mut socket: WebSocket, shared: Arc<Shared>) {
     shared.clients_total.fetch_add(1, Ordering::Relaxed);
     shared.clients_max.fetch_max(now, Ordering::Relaxed);
     let mut generations = shared.generations.subscribe();
-    generations.mark_changed();
     let (mut frames, mut status) = (shared.frames.clone(), shared.status.clone());
     let mut stress = shared.stress_frames.clone();
     let mut notes = shared.notes.subscribe();
     let mut wants_stress = false;
     let mut last_seq: Option<u32> = None;
-    let mut ok = true;
+    // The hello and meshes first: nothing else means anything to the page before them.
+    let mut ok = send_generation(&mut socket, &shared, id).await;
+    generations.borrow_and_update();
     while ok {
         tokio::select! {
             r = generations.changed() => {
                 if r.is_err() { break; }
                 generations.borrow_and_update();
-                // The basis being served (new at each compute): its hello, then its meshes.
-                let g = shared.generation.read().ok().map(|g| Arc::clone(&g));
-                let Some(g) = g else { break };
-                let mut hello = g.hello.clone();
-                hello["client"] = id.into();
-                ok = send(&mut socket, Message::Text(hello.to_string().into())).await;
-                for m in &g.meshes {
-                    ok = ok && send(&mut socket, Message::Binary(m.clone())).await;
-                }
+                ok = send_generation(&mut socket, &shared, id).await;
                 // A frame of the session before is not for these meshes.
                 frames.borrow_and_update();
                 last_seq = None;
@@ -675,6 +676,19 @@ async fn client(mut socket: WebSocket, shared: Arc<Shared>) {
         shared.published.stress_clients.fetch_sub(1, Ordering::Relaxed);
     }
     shared.clients.fetch_sub(1, Ordering::Relaxed);
+}
+
+/// Sends the basis being served (new at each compute): its hello, then its meshes.
+async fn send_generation(socket: &mut WebSocket, shared: &Shared, id: u64) -> bool {
+    let g = shared.generation.read().ok().map(|g| Arc::clone(&g));
+    let Some(g) = g else { return false };
+    let mut hello = g.hello.clone();
+    hello["client"] = id.into();
+    let mut ok = send(socket, Message::Text(hello.to_string().into())).await;
+    for m in &g.meshes {
+        ok = ok && send(socket, Message::Binary(m.clone())).await;
+    }
+    ok
 }
 
 /// What a client message asks of its connection.

@@ -21,7 +21,7 @@
 //! "position":[x,y,z],"seq":n}`, `{"type":"mode","space":s,"index":j}`,
 //! `{"type":"fields","stress":bool}` (send the stress frames or not; off at first) and
 //! `{"type":"reset"}` (the part back to rest, every hand let go), `{"type":"compute","scene":
-//! "<TOML>"}` and `{"type":"cancel"}` (the set-up panel, when the viewer has a workshop).
+//! {…the scene's TOML tables as JSON…}}` and `{"type":"cancel"}` (the set-up panel, when the viewer has a workshop).
 //! Server → page, text, about a compute: `{"type":"progress","stage","fraction"}`,
 //! `{"type":"computed","summary","scene","seconds"}`, `{"type":"compute_error","message"}`; a
 //! new basis then comes as a new hello and its meshes. Anything else —
@@ -168,7 +168,7 @@ enum Raw {
     },
     Reset {},
     Compute {
-        scene: String,
+        scene: serde_json::Value,
     },
     Cancel {},
 }
@@ -194,8 +194,8 @@ pub enum ClientMessage {
     Reset,
     /// Compute a basis from this scene (TOML text) and move the session to it.
     Compute {
-        /// The scene.
-        scene: String,
+        /// The scene: its TOML tables and keys as JSON.
+        scene: serde_json::Value,
     },
     /// Stop the running compute.
     Cancel,

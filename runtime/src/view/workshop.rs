@@ -4,6 +4,7 @@
 
 use serde::Serialize;
 use std::path::PathBuf;
+use std::sync::Arc;
 use std::sync::atomic::AtomicBool;
 
 /// What a compute made.
@@ -31,13 +32,13 @@ pub trait Workshop: Send + Sync {
     /// What the set-up panel starts from and offers (JSON: the scene as TOML text, the
     /// materials, units, limits), sent to every page in the hello.
     fn setup(&self) -> serde_json::Value;
-    /// Computes a basis from `scene` (TOML text written by the page: checked as any scene, its
-    /// geometry always the workshop's own file, never a path the page names). `progress` is
-    /// called at each stage; `cancel` set stops it at the next stage with an error.
+    /// Computes a basis from `scene` (the page's scene: TOML tables as JSON, checked as any
+    /// scene, its geometry always the workshop's own file, never a path the page names).
+    /// `progress` is called at each stage; `cancel` set stops it at the next stage with an error.
     fn compute(
         &self,
-        scene: &str,
-        progress: &(dyn Fn(Progress) + Sync),
-        cancel: &AtomicBool,
+        scene: &serde_json::Value,
+        progress: Arc<dyn Fn(Progress) + Send + Sync>,
+        cancel: Arc<AtomicBool>,
     ) -> Result<Computed, String>;
 }

@@ -4,12 +4,20 @@ import { gradient } from './colours.js';
 
 const composite = document.createElement('canvas');
 
-/** Draws the 3-D view and the legend (`legend`: {title, scale, ticks, caption}) into one canvas. */
-export function draw(view, legend) {
+/** Draws the 3-D view, the labels over it (`extra.labels`: {text, x, y, colour} in CSS px),
+ * the readout lines (`extra.lines`, top left) and the legend (`legend`: {title, scale, ticks,
+ * caption}) into one canvas. */
+export function draw(view, legend, extra = { labels: [], lines: [] }) {
   composite.width = view.width; composite.height = view.height;
   const g = composite.getContext('2d');
   g.drawImage(view, 0, 0);
   const k = view.width / Math.max(1, view.clientWidth);
+  g.font = `600 ${13 * k}px system-ui, sans-serif`;
+  g.shadowColor = '#000'; g.shadowBlur = 3 * k;
+  for (const l of extra.labels) { g.fillStyle = l.colour || '#fff'; g.fillText(l.text, l.x * k, (l.y + 12) * k); }
+  const lines = extra.lines.filter((t) => t);
+  lines.forEach((t, i) => { g.fillStyle = i === lines.length - 1 && extra.warn ? '#ff7b6b' : '#e8e8e8'; g.fillText(t, 12 * k, (22 + 17 * i) * k, view.width - 24 * k); });
+  g.shadowBlur = 0;
   const w = 300 * k, pad = 10 * k, x = pad, h = 78 * k, y = view.height - h - pad;
   g.fillStyle = 'rgba(20,24,28,0.85)';
   g.fillRect(x, y, w + 2 * pad, h);
@@ -54,16 +62,16 @@ function download(blob, name) {
 const stamp = () => new Date().toISOString().replace(/[:.]/g, '-').slice(0, 19);
 
 /** Saves the composite as a PNG named after the part. */
-export function screenshot(view, legend, name) {
-  draw(view, legend).toBlob((b) => b && download(b, `${name}-${stamp()}.png`), 'image/png');
+export function screenshot(view, legend, name, extra) {
+  draw(view, legend, extra).toBlob((b) => b && download(b, `${name}-${stamp()}.png`), 'image/png');
 }
 
 let recorder = null;
 /** Starts or stops a WebM recording of the composite; true while recording. */
-export function toggleRecording(view, legend, name) {
+export function toggleRecording(view, legend, name, extra) {
   if (recorder) { recorder.stop(); recorder = null; return false; }
   if (typeof MediaRecorder === 'undefined') throw new Error('this browser cannot record video (no MediaRecorder)');
-  draw(view, legend);
+  draw(view, legend, extra);
   const chunks = [];
   const type = ['video/webm;codecs=vp9', 'video/webm'].find((t) => MediaRecorder.isTypeSupported(t)) || '';
   recorder = new MediaRecorder(composite.captureStream(30), type ? { mimeType: type } : {});

@@ -52,7 +52,15 @@ export function fieldOf(colour, s, ctx) {
   if (f.scale === 'safety') return safety(f, s, ctx);
   const e = extremes(f.values);
   let [lo, hi] = f.scale === 'signed' ? [-Math.max(Math.abs(e.lo), Math.abs(e.hi)), Math.max(Math.abs(e.lo), Math.abs(e.hi))] : [0, e.hi];
-  if (ctx.locked) [lo, hi] = [ctx.locked.lo, ctx.locked.hi];
+  if (ctx.episode) {
+    // The range since the part was last at rest (kept while it rings down after a release).
+    ctx.episode.lo = Math.min(ctx.episode.lo, lo); ctx.episode.hi = Math.max(ctx.episode.hi, hi);
+    [lo, hi] = [ctx.episode.lo, ctx.episode.hi];
+  }
+  if (ctx.locked) {
+    [lo, hi] = [ctx.locked.lo, ctx.locked.hi];
+    if (e.hi > hi || e.lo < lo) f.summary = `locked range: values beyond it (${fmt(f.quantity)(e.lo < lo ? e.lo : e.hi)}) drawn in the end colour`;
+  }
   f.lo = lo; f.hi = hi;
   const span = hi - lo > 0 ? hi - lo : 1;
   const map = f.scale === 'signed' ? diverging : sequential;

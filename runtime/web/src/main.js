@@ -10,6 +10,7 @@ import { gradient, sequential } from './colours.js';
 import { label, plain } from './units.js';
 import * as views from './camera.js';
 import * as capture from './capture.js';
+import { setupPanel } from './setup.js';
 
 const $ = (id) => document.getElementById(id);
 const canvas = $('view');
@@ -31,17 +32,19 @@ scene.add(camera);
 const controls = new OrbitControls(camera, canvas);
 controls.enableDamping = false;
 
-/** The largest drawn displacement the automatic scale aims at under the device's force limit,
- * as a fraction of the part's bounding-box diagonal; and the most it lets the drawing reach. */
+/** The automatic scale draws the largest displacement since the part was last at rest at this
+ * fraction of the part's bounding-box diagonal, magnifying at most AUTO_CAP times what the
+ * device's full force at the most compliant point would need (numerical motion of a part at
+ * rest is never blown up). */
 const AUTO_FRACTION = 0.08;
-const AUTO_LIMIT = 0.3;
+const AUTO_CAP = 10;
 
 // Everything the page knows, open to tests and to the console.
 const state = {
   ready: false, connected: false, reconnects: 0, hello: null, spaces: [], active: 0, frames: 0,
   framesSkipped: 0, lastSeq: -1, status: null, scale: 1, scaleAuto: true, autoScale: 1,
   scaleLimited: false, colour: 'displacement', units: 'si', locked: null, mode: null,
-  framesPerSecond: 0, legend: null, probe: null,
+  framesPerSecond: 0, legend: null, probe: null, notes: [],
   latency: [], // ms from a pointer event to the first frame computed after the server got it
 };
 window.ves = state;
@@ -61,6 +64,9 @@ function connect() {
     drags.clear();
     controls.enabled = true;
     // Back off to one try every 5 s: a restarted server is found again without a reload.
+    document.body.classList.add('stale');
+    $('handinfo').textContent = '';
+    $('warn').textContent = 'the server is gone: what you see is no longer live';
     const wait = Math.min(5000, 250 * 2 ** retry++);
     $('conn').textContent = `disconnected — trying again in ${(wait / 1000).toFixed(1)} s`;
     setTimeout(connect, wait);
@@ -75,22 +81,30 @@ function onText(msg) {
   if (msg.type === 'hello') {
     const again = state.hello !== null;
     const samePart = again && state.hello.name === msg.name;
-    if (again) { state.reconnects += 1; clearSpaces(); }
+    if (again) { state.reconnects += 1; clearSpaces(); clearHands(); }
+    document.body.classList.remove('stale');
     state.hello = msg;
     state.lastSeq = -1;
     state.active = 0;
     state.keepView = samePart;
+    state.episodePeak = 0;
     state.framesAtHello = state.frames;
     $('title').textContent = `VES view — ${msg.name}`;
     showLimit();
-    buildModeList(msg.spaces[0]);
+    if (msg.spaces.length) buildModeList(msg.spaces[0]); else $('modes').textContent = '';
+    setup.hello(msg);
     for (const o of $('colour').options) o.disabled = o.value !== 'displacement' && !msg.spaces.some((s) => s.has_stress);
     if (msg.yield_strength == null) $('colour').querySelector('option[value=safety]').disabled = true;
     if ($('colour').selectedOptions[0].disabled) { $('colour').value = 'displacement'; state.colour = 'displacement'; }
     askFields();
   } else if (msg.type === 'status') {
     state.status = msg;
+    setup.computing(msg.computing);
     showStatus(msg);
+  } else if (msg.type === 'progress' || msg.type === 'computed' || msg.type === 'compute_error') {
+    state.notes.push(msg);
+    if (state.notes.length > 200) state.notes.shift();
+    setup.note(msg);
   }
 }
 
@@ -153,24 +167,29 @@ function addSpace(m) {
     truePos: new Float32Array(m.rest), pose: null, vm: null, p1: null,
   };
   if (m.space === 0) {
+    // The same part again (a reconnect): the user's view stays; another part is framed.
+    const same = state.keepView && state.diag && Math.abs(size - state.diag) <= 1e-6 * size;
     state.diag = size;
     state.autoScale = autoScale();
-    if (!state.keepView) homeView();
+    if (!same) homeView();
   }
   highlightBoxes();
   // Ready once every space is in and a frame has been drawn (see loop).
   if (state.spaces.filter(Boolean).length === state.hello.spaces.length) state.meshesIn = true;
 }
 
-/** The automatic deformation scale: the device's full force at the part's most compliant
- * surface point draws AUTO_FRACTION of the part's size; never below true size. Rounded to 1, 2
- * or 5 times a power of ten so the number can be read. */
-function autoScale() {
-  const c = state.hello.spaces[0].largest_compliance;
-  const k = (AUTO_FRACTION * state.diag) / (state.hello.max_force * c);
+/** Rounded down to 1, 2 or 5 times a power of ten, so the number can be read; never below 1. */
+function nice(k) {
   if (!(k > 1) || !Number.isFinite(k)) return 1;
   const p = 10 ** Math.floor(Math.log10(k));
   return [5, 2, 1].map((m) => m * p).find((v) => v <= k);
+}
+
+/** The automatic scale at rest: the device's full force at the most compliant surface point
+ * would draw AUTO_FRACTION of the part's size. */
+function autoScale() {
+  const c = state.hello.spaces[0].largest_compliance;
+  return nice((AUTO_FRACTION * state.diag) / (state.hello.max_force * c));
 }
 
 function highlightBoxes() {
@@ -251,16 +270,21 @@ function place(s, k, out) {
   }
 }
 
+// The automatic scale follows the largest displacement since the part was last at rest (a load
+// episode): it only comes down while the load grows, so a pull is drawn at a steady size and
+// the ringing after a release shrinks as it really does.
 function drawScale(s) {
-  let k = state.scaleAuto ? state.autoScale : state.scale;
-  state.scaleLimited = false;
+  let umax = 0;
+  for (let i = 0; i < s.vertices; i++) umax = Math.max(umax, s.umag[i]);
+  if (!(umax > restLevel(s))) state.episodePeak = 0;
+  else state.episodePeak = Math.max(state.episodePeak || 0, umax);
+  let k = state.scale;
   if (state.scaleAuto) {
-    let umax = 0;
-    for (let i = 0; i < s.vertices; i++) umax = Math.max(umax, s.umag[i]);
-    if (k * umax > AUTO_LIMIT * s.size) { k = (AUTO_LIMIT * s.size) / umax; state.scaleLimited = true; }
+    k = state.episodePeak > 0 ? Math.min(AUTO_CAP * state.autoScale, nice((AUTO_FRACTION * s.size) / state.episodePeak)) : state.autoScale;
+    $('scale').value = String(k);
   }
   state.drawnScale = k;
-  $('scaleshown').textContent = `×${plain(k)}${state.scaleAuto ? ', auto' : ''}${state.scaleLimited ? ' (held to 30 % of the size)' : ''}`;
+  $('scaleshown').textContent = `×${plain(k)}${state.scaleAuto ? ', auto' : ''}`;
   return k;
 }
 
@@ -282,7 +306,7 @@ function draw(s) {
 
 function colour(s) {
   const locked = state.locked && state.locked.colour === state.colour ? state.locked : null;
-  const f = fieldOf(state.colour, s, { hello: state.hello, restLevel: restLevel(s), units: state.units, locked });
+  const f = fieldOf(state.colour, s, { hello: state.hello, restLevel: restLevel(s), units: state.units, locked, episode: episodeRange(s) });
   state.field = f;
   const c = s.geom.attributes.color.array;
   for (let i = 0; i < s.vertices; i++) {
@@ -298,6 +322,14 @@ function colour(s) {
   $('legendnote').textContent = f.summary || '';
   placeMarkers(s, f.markers);
   if (state.probe) showProbe(state.probe.vertex, state.probe.x, state.probe.y);
+}
+
+// The colour range keeps the largest values since the part was last at rest (per colouring), so
+// a part ringing after a release does not look as loaded as it was.
+function episodeRange(s) {
+  if (!(state.episodePeak > 0)) { state.episodes = {}; return null; }
+  state.episodes = state.episodes || {};
+  return state.episodes[state.colour] || (state.episodes[state.colour] = { lo: 0, hi: 0 });
 }
 
 // Markers at the field's extremes: a dot on the part and its value beside it.
@@ -340,6 +372,7 @@ function screenOfPoint(p) {
 
 function showStatus(m) {
   const sp = state.hello.spaces[m.space];
+  if (!sp) { $('space').textContent = m.computing ? 'computing the basis…' : 'no basis yet: set the part up and compute'; return; }
   $('space').textContent = `space ${sp.name}${sp.voi ? ' (volume of interest, yellow box)' : ''} · ${sp.vertices} vertices · ${m.clients} client(s)`;
   // Times the part was actually redrawn (the loop below), over the last 60.
   const t = state.drawTimes || [];
@@ -353,7 +386,7 @@ function showStatus(m) {
     updateHand(i, h);
     if (!h.active) return;
     const f = Math.hypot(...h.force);
-    lines.push(`hand ${i + 1}: ${plain(f)} N on the part${h.clamped ? ' (device limit)' : ''}${h.button ? '' : ', pressing'}`
+    lines.push(`hand ${i + 1}: ${label(f, 'force', 'si')} on the part${h.clamped ? ' (device limit)' : ''}${h.button ? '' : ', pressing'}`
       + (h.von_mises > 0 ? ` · σvM ${label(h.von_mises, 'stress', u)} · σ1 ${label(h.principal_stress, 'stress', u)} · ε1 ${h.principal_strain.toExponential(2)}` : '')
       + (h.safety_factor != null && h.von_mises > 0 ? ` · safety ${plain(h.safety_factor)}` : ''));
     if (h.strain_exceeded) {
@@ -373,6 +406,15 @@ function showStatus(m) {
   }
   $('handinfo').textContent = lines.join(' · ');
   $('warn').textContent = warn.join(' · ');
+}
+
+function clearHands() {
+  for (const h of hands) {
+    if (!h) continue;
+    scene.remove(h.arrow, h.spring, h.ball);
+    h.tag.remove();
+  }
+  hands.length = 0;
 }
 
 // Each hand: a ball at its true position (the device, under the cursor), a dashed spring to the
@@ -414,7 +456,7 @@ function updateHand(i, h) {
   const [x, y] = screenOfPoint(drawnAt.clone().addScaledVector(f.normalize(), len));
   tag.style.left = `${x + 8}px`;
   tag.style.top = `${y - 8}px`;
-  tag.textContent = `${plain(mag)} N on the part`;
+  tag.textContent = `${label(mag, 'force', 'si')} on the part`;
 }
 
 // Mode browser: the frequencies of the active space; a click animates that mode's shape.
@@ -513,10 +555,20 @@ function startDrag(key, ev, hand, press) {
   hideProbe();
   // The cursor drives the newest hand; an older one stays where it was and keeps holding.
   for (const d of drags.values()) d.frozen = true;
-  drags.set(key, { hand, vertex, shown, truePos, normal, depth: 0, press, offset: new THREE.Vector3(), frozen: false });
+  drags.set(key, { hand, vertex, shown, truePos, normal, depth: 0, press, offset: new THREE.Vector3(), frozen: false, maxPress: press ? pressLimit(s, shown, normal) : Infinity });
   controls.enabled = false;
   sendHand(drags.get(key), true);
   return true;
+}
+
+// How deep a press may push: no deeper than 45 % of the wall it entered (measured along the view
+// ray: past half the wall the nearest surface is the far face, and the force would flip) and
+// than the coupling needs for the device's force limit.
+function pressLimit(s, from, dir) {
+  const r = new THREE.Raycaster(from.clone().addScaledVector(dir, 1e-6 * state.diag), dir);
+  const far = r.intersectObject(s.mesh).find((h) => h.distance > 1e-5 * state.diag);
+  const wall = far ? far.distance : Infinity;
+  return Math.min(0.45 * wall, 1.2 * state.hello.max_force / state.hello.stiffness);
 }
 
 function endDrag(key) {
@@ -529,7 +581,28 @@ function endDrag(key) {
   else controls.enabled = true;
 }
 
+// The set-up panel asks for one click on the part (a face to hold): that click is not a grab.
+let picking = null;
+const setup = setupPanel((m) => { if (ws && ws.readyState === 1) ws.send(JSON.stringify(m)); }, (done) => { picking = done; });
+state.setup = setup;
+
 canvas.addEventListener('pointerdown', (ev) => {
+  if (picking && state.ready) {
+    const s = state.spaces[state.active];
+    camera.updateMatrixWorld();
+    raycaster.setFromCamera(ndc(ev), camera);
+    const hit = raycaster.intersectObject(s.mesh)[0];
+    if (!hit) return;
+    ev.stopImmediatePropagation();
+    const done = picking;
+    picking = null;
+    // The part frame's point: the rest position of the hit triangle's nearest corner.
+    const p = s.geom.attributes.position;
+    const v = [hit.face.a, hit.face.b, hit.face.c].reduce((a, b) => (new THREE.Vector3().fromBufferAttribute(p, a).distanceToSquared(hit.point)
+      <= new THREE.Vector3().fromBufferAttribute(p, b).distanceToSquared(hit.point) ? a : b));
+    done({ point: new THREE.Vector3(s.rest[3 * v], s.rest[3 * v + 1], s.rest[3 * v + 2]), normal: hit.face.normal.clone() });
+    return;
+  }
   if (!state.ready || state.mode) return;
   const hand = freeHand(ev.button === 2 || drags.size > 0 ? 1 : 0);
   if (!startDrag(ev.pointerId, ev, hand, ev.shiftKey)) return; // off the part: orbit
@@ -543,6 +616,11 @@ canvas.addEventListener('pointermove', (ev) => {
     const key = `${ev.pointerId}:2`;
     if (ev.buttons & 2) startDrag(key, ev, freeHand(1), ev.shiftKey);
     else endDrag(key);
+    return;
+  }
+  // The left button let go while the right still holds: the left's hand lets go.
+  if (ev.button === 0 && !(ev.buttons & 1) && drags.has(ev.pointerId)) {
+    endDrag(ev.pointerId);
     return;
   }
   if (!drags.size) { probe(ev); return; }
@@ -577,7 +655,7 @@ canvas.addEventListener('wheel', (ev) => {
 }, { capture: true, passive: false });
 
 function handTarget(d) {
-  if (d.press) return d.truePos.clone().addScaledVector(d.normal, d.depth + d.offset.length());
+  if (d.press) return d.truePos.clone().addScaledVector(d.normal, Math.min(d.depth + d.offset.length(), d.maxPress));
   return d.truePos.clone().add(d.offset).addScaledVector(d.normal, d.depth);
 }
 
@@ -622,10 +700,12 @@ function showProbe(v, x, y) {
   if (!f || !s || v >= s.vertices) return;
   const value = f.valueAt(v);
   const shown = f.quantity === 'ratio' ? (Number.isFinite(value) ? plain(value) : 'no stress') : label(value, f.quantity, state.units);
-  const at = Array.from(s.truePos.subarray(3 * v, 3 * v + 3)).map((c) => label(c, 'length', state.units)).join(', ');
+  // Coordinates to 1e-5 of the part's size: f32 round-off is not a position.
+  const q = 1e-5 * state.diag;
+  const at = Array.from(s.truePos.subarray(3 * v, 3 * v + 3)).map((c) => label(Math.round(c / q) * q, 'length', state.units)).join(', ');
   const tip = $('probe');
   tip.textContent = `${shown} · vertex ${v} at (${at})`;
-  tip.style.left = `${x + 14}px`; tip.style.top = `${y + 10}px`;
+  tip.style.left = `${x + 14}px`; tip.style.top = `${y + 22}px`;
   tip.style.display = 'block';
   state.probe.text = tip.textContent;
 }
@@ -657,24 +737,35 @@ state.setScale = (k) => {
   state.dirty = true;
 };
 
-$('fit').onclick = () => fitView();
-$('home').onclick = homeView;
+$('fit').onclick = () => { if (!drags.size) fitView(); };
+$('home').onclick = () => { if (!drags.size) homeView(); };
 $('resetsim').onclick = resetSimulation;
 for (const b of document.querySelectorAll('[data-axis]')) b.onclick = () => state.viewAlong(b.dataset.axis, Number(b.dataset.sign));
-$('shot').onclick = () => capture.screenshot(canvas, state.legend, state.hello ? state.hello.name : 'ves');
+// What the pictures carry besides the view: the labels drawn over it and the readout.
+function overlay() {
+  const labels = [...document.querySelectorAll('.forcelabel, .marker')]
+    .filter((e) => e.style.display !== 'none' && e.textContent)
+    .map((e) => ({ text: e.textContent, x: parseFloat(e.style.left) || 0, y: parseFloat(e.style.top) || 0, colour: getComputedStyle(e).color }));
+  const warn = $('warn').textContent;
+  return { labels, lines: [$('title').textContent, $('handinfo').textContent, warn], warn: Boolean(warn) };
+}
+$('shot').onclick = () => capture.screenshot(canvas, state.legend, state.hello ? state.hello.name : 'ves', overlay());
 $('record').onclick = () => {
   try {
-    const on = capture.toggleRecording(canvas, state.legend, state.hello ? state.hello.name : 'ves');
+    const on = capture.toggleRecording(canvas, state.legend, state.hello ? state.hello.name : 'ves', overlay());
     $('record').textContent = on ? '■ stop' : '● record';
   } catch (e) { $('warn').textContent = e.message; }
 };
 
 window.addEventListener('keydown', (ev) => {
   if (ev.target instanceof HTMLInputElement || ev.target instanceof HTMLSelectElement || ev.ctrlKey || ev.metaKey || ev.altKey) return;
-  const k = ev.key;
-  if (k === 'f' || k === 'F') fitView();
+  const k = ev.key.length === 1 ? ev.key.toLowerCase() : ev.key;
+  // The view stays while a hand is dragged: the drag plane is the camera's.
+  const moving = ['f', 'h', 'Home', 'x', 'y', 'z'].includes(k);
+  if (moving && drags.size) return;
+  if (k === 'f') fitView();
   else if (k === 'h' || k === 'Home') homeView();
-  else if ('xyzXYZ'.includes(k) && k.length === 1) state.viewAlong(k.toLowerCase(), k === k.toLowerCase() ? 1 : -1);
+  else if (k === 'x' || k === 'y' || k === 'z') state.viewAlong(k, ev.shiftKey ? -1 : 1);
   else if (k === 'r') resetSimulation();
   else if (k === 'p') $('shot').click();
   else return;
@@ -691,6 +782,7 @@ $('units').addEventListener('change', (ev) => { state.units = ev.target.value; s
 $('lock').addEventListener('change', (ev) => {
   const l = state.legend;
   state.locked = ev.target.checked && l && !l.atRest && Number.isFinite(l.lo) ? { colour: state.colour, lo: l.lo, hi: l.hi } : null;
+  if (ev.target.checked && !state.locked) $('legendnote').textContent = 'nothing to lock: the part is at rest (lock while it is loaded, e.g. hold with the wheel)';
   ev.target.checked = state.locked !== null;
   state.dirty = true;
 });
@@ -702,7 +794,7 @@ for (const p of document.querySelectorAll('.panel[data-fold]')) {
   const b = p.querySelector('.fold');
   const set = (folded) => { p.classList.toggle('folded', folded); b.textContent = folded ? '+' : '−'; };
   b.onclick = () => set(!p.classList.contains('folded'));
-  set(p.dataset.fold === 'always' || (window.innerWidth < 700 && p.dataset.fold === 'small'));
+  set(p.dataset.fold === 'always' || (window.innerWidth < 1000 && p.dataset.fold === 'small'));
 }
 
 // Helpers for tests and the console: where a vertex is drawn on the screen (CSS pixels), its
@@ -758,7 +850,7 @@ function loop() {
   controls.update();
   renderer.render(scene, camera);
   placeTags();
-  if (capture.recording() && state.legend) capture.draw(canvas, state.legend);
+  if (capture.recording() && state.legend) capture.draw(canvas, state.legend, overlay());
   if (state.meshesIn && !state.ready && state.frames > state.framesAtHello && !state.dirty) state.ready = true;
   requestAnimationFrame(loop);
 }

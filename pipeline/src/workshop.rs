@@ -1,0 +1,191 @@
+//! The viewer's set-up panel, pipeline side: a scene edited in the page becomes a basis.
+//!
+//! The page sends the scene as JSON (the TOML's tables and keys); it is checked by the same
+//! parser as every scene file. The geometry is always the workshop's own file: whatever the
+//! page names as `geometry.step` is replaced, so a page cannot make the server read another
+//! file. Bases go to a private temporary directory, removed when the viewer ends.
+
+use crate::modes::SolverChoice;
+use crate::precompute;
+use crate::scene::{Scene, SceneOptions};
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
+use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
+use ves_runtime::view::{Computed, Progress, Workshop};
+
+/// A real material: name, Young's modulus (Pa), Poisson's ratio, density (kg/m³), yield
+/// strength (Pa; for brittle PMMA its tensile strength).
+pub struct MaterialPreset {
+    /// What the list shows.
+    pub name: &'static str,
+    /// Pa.
+    pub young: f64,
+    /// —.
+    pub poisson: f64,
+    /// kg/m³.
+    pub density: f64,
+    /// Pa.
+    pub yield_strength: f64,
+}
+
+/// The set-up panel's materials: room-temperature handbook values (steel S235/A36-class
+/// structural steel; 6061-T6; Ti-6Al-4V annealed; the polymers as moulded, dry).
+pub const MATERIALS: [MaterialPreset; 7] = [
+    MaterialPreset { name: "structural steel", young: 2.1e11, poisson: 0.3, density: 7850.0, yield_strength: 2.5e8 },
+    MaterialPreset { name: "stainless steel 304", young: 1.93e11, poisson: 0.29, density: 8000.0, yield_strength: 2.15e8 },
+    MaterialPreset { name: "aluminium 6061-T6", young: 6.89e10, poisson: 0.33, density: 2700.0, yield_strength: 2.76e8 },
+    MaterialPreset { name: "titanium Ti-6Al-4V", young: 1.138e11, poisson: 0.342, density: 4430.0, yield_strength: 8.8e8 },
+    MaterialPreset { name: "ABS", young: 2.3e9, poisson: 0.35, density: 1050.0, yield_strength: 4.0e7 },
+    MaterialPreset { name: "PA66 (dry)", young: 2.9e9, poisson: 0.39, density: 1140.0, yield_strength: 8.0e7 },
+    MaterialPreset { name: "PMMA", young: 3.0e9, poisson: 0.37, density: 1180.0, yield_strength: 7.0e7 },
+];
+
+/// Computes bases for one part in a private directory.
+pub struct PartWorkshop {
+    geometry: PathBuf,
+    start: serde_json::Value,
+    options: SceneOptions,
+    dir: tempfile::TempDir,
+    computed: AtomicU64,
+    solver: SolverChoice,
+}
+
+impl PartWorkshop {
+    /// A workshop for `scene` (its geometry is the part from now on).
+    pub fn for_scene(scene: &Scene, options: SceneOptions, solver: SolverChoice) -> anyhow::Result<PartWorkshop> {
+        let table: toml::Table = toml::from_str(&scene.toml)?;
+        let start = serde_json::to_value(&table)?;
+        Self::new(scene.geometry.clone(), start, options, solver)
+    }
+
+    /// A workshop for a geometry file, starting from a free part in structural steel with
+    /// 10-node tets, 12 modes and stress, meshed until the error estimate is 5 %.
+    pub fn for_geometry(geometry: &Path, solver: SolverChoice) -> anyhow::Result<PartWorkshop> {
+        let name = geometry.file_stem().map_or("part".into(), |s| s.to_string_lossy().into_owned());
+        let name: String = name
+            .chars()
+            .map(|c| if c.is_alphanumeric() || c == '-' || c == '_' { c } else { '_' })
+            .collect();
+        let steel = &MATERIALS[0];
+        let start = serde_json::json!({
+            "name": name,
+            "geometry": { "step": "", "unit": "mm" },
+            "material": { "young": steel.young, "poisson": steel.poisson, "density": steel.density,
+                          "yield_strength": steel.yield_strength },
+            "mesh": { "order": 2, "target_error": 0.05 },
+            "modes": { "count": 12 },
+            "stress": { "enabled": true },
+        });
+        let geometry = std::path::absolute(geometry)?;
+        Self::new(geometry, start, SceneOptions::default(), solver)
+    }
+
+    fn new(geometry: PathBuf, start: serde_json::Value, options: SceneOptions, solver: SolverChoice) -> anyhow::Result<PartWorkshop> {
+        let dir = tempfile::Builder::new().prefix("ves-view-").tempdir()?;
+        Ok(PartWorkshop {
+            geometry,
+            start,
+            options,
+            dir,
+            computed: AtomicU64::new(0),
+            solver,
+        })
+    }
+
+    /// The scene the page starts from (JSON of the TOML's tables).
+    pub fn start_scene(&self) -> &serde_json::Value {
+        &self.start
+    }
+
+    /// `scene` (JSON from the page) as scene text with this workshop's geometry: `absolute`
+    /// names the file by its full path (to compute), else by its name (to save beside it).
+    fn text(&self, scene: &serde_json::Value, absolute: bool) -> Result<String, String> {
+        let mut table: toml::Table =
+            serde_json::from_value(scene.clone()).map_err(|e| format!("the page's scene: {e}"))?;
+        let geometry = table
+            .entry("geometry")
+            .or_insert_with(|| toml::Value::Table(toml::Table::new()));
+        let toml::Value::Table(geometry) = geometry else {
+            return Err("the page's scene: geometry must be a table".into());
+        };
+        let file = if absolute {
+            self.geometry.display().to_string()
+        } else {
+            self.geometry.file_name().map_or(String::new(), |n| n.to_string_lossy().into_owned())
+        };
+        geometry.insert("step".into(), toml::Value::String(file));
+        toml::to_string(&table).map_err(|e| format!("the page's scene: {e}"))
+    }
+}
+
+/// Reports the pipeline's stages to the page and passes its Cancel on.
+struct PageWatch {
+    progress: Arc<dyn Fn(Progress) + Send + Sync>,
+    cancel: Arc<AtomicBool>,
+}
+
+impl crate::progress::Watcher for PageWatch {
+    fn stage(&self, name: &str, fraction: f64) {
+        (self.progress)(Progress {
+            stage: name.to_string(),
+            fraction,
+        });
+    }
+    fn cancelled(&self) -> bool {
+        self.cancel.load(Ordering::Relaxed)
+    }
+}
+
+impl Workshop for PartWorkshop {
+    fn setup(&self) -> serde_json::Value {
+        let materials: Vec<_> = MATERIALS
+            .iter()
+            .map(|m| {
+                serde_json::json!({"name": m.name, "young": m.young, "poisson": m.poisson,
+                                   "density": m.density, "yield_strength": m.yield_strength})
+            })
+            .collect();
+        serde_json::json!({
+            "scene": self.start,
+            "geometry": self.geometry.file_name().map(|n| n.to_string_lossy().into_owned()),
+            "materials": materials,
+        })
+    }
+
+    fn compute(
+        &self,
+        scene: &serde_json::Value,
+        progress: Arc<dyn Fn(Progress) + Send + Sync>,
+        cancel: Arc<AtomicBool>,
+    ) -> Result<Computed, String> {
+        let n = self.computed.fetch_add(1, Ordering::Relaxed) + 1;
+        let text = self.text(scene, true)?;
+        // Parsed as if it sat beside the geometry; its name in errors is the page's.
+        let path = self.dir.path().join("page.toml");
+        let parsed = Scene::parse(&path, &text).map_err(|e| e.to_string().replace(&path.display().to_string(), "scene"))?;
+        if parsed.is_script() && !self.options.allow_geo_scripts {
+            return Err("a .geo geometry is a gmsh script: open a STEP, IGES or BREP file".into());
+        }
+        let out = self.dir.path().join(format!("basis-{n}.h5"));
+        let summary = {
+            let _watch = crate::progress::watch(Arc::new(PageWatch { progress, cancel }));
+            precompute::run(&parsed, &out, self.solver).map_err(|e| format!("{e:#}").replace('\n', " "))?
+        };
+        let g = summary.spaces.first();
+        let line = match g {
+            Some(s) => format!(
+                "{} nodes, {} modes, first {:.4} Hz, in {:.1} s",
+                s.nodes,
+                s.frequencies_hz.len(),
+                s.frequencies_hz.first().copied().unwrap_or(0.0),
+                summary.timings_s.total
+            ),
+            None => String::new(),
+        };
+        Ok(Computed {
+            basis: out,
+            scene: self.text(scene, false)?,
+            summary: line,
+        })
+    }
+}

@@ -1,0 +1,160 @@
+// The set-up panel: the part's material, mesh, modes and supports. Compute sends the scene to the
+// server, which runs the pipeline (meshing in its own process) and reports its stages here; when
+// the basis is ready the live session moves to it and the page redraws the new mesh.
+import { plain } from './units.js';
+
+const $ = (id) => document.getElementById(id);
+const MM = 1e-3;
+
+/** Wires the panel to `send` (a JSON message to the server) and `pick` (asks for one click on
+ * the part: calls back with {point, normal}). Returns handlers for the server's messages. */
+export function setupPanel(send, pick) {
+  let scene = null; // the scene being edited: the TOML's tables as JSON
+  let geometry = null;
+  let materials = [];
+  let saved = null; // the TOML of the last basis computed
+  const panel = $('setup');
+
+  function fill() {
+    const m = scene.material || {};
+    const i = materials.findIndex((p) => p.young === m.young && p.poisson === m.poisson && p.density === m.density);
+    $('material').value = i >= 0 ? String(i) : 'custom';
+    $('young').value = plain((m.young || 0) / 1e9);
+    $('poisson').value = plain(m.poisson || 0);
+    $('density').value = plain(m.density || 0);
+    $('yield').value = m.yield_strength ? plain(m.yield_strength / 1e6) : '';
+    const mesh = scene.mesh || {};
+    $('order').value = String(mesh.order || 2);
+    const byError = mesh.target_error !== undefined;
+    $('byerror').checked = byError; $('bysize').checked = !byError;
+    $('target').value = byError ? plain(100 * mesh.target_error) : '5';
+    $('size').value = mesh.size ? plain(mesh.size / MM) : '';
+    $('modecount').value = String((scene.modes || {}).count || 12);
+    $('stressfield').checked = Boolean((scene.stress || {}).enabled);
+    drawSupports();
+  }
+
+  function drawSupports() {
+    const list = $('supportlist');
+    list.textContent = '';
+    const fixed = scene.fixed || [];
+    $('supportsnote').textContent = fixed.length ? '' : 'nothing: a free body';
+    fixed.forEach((f, i) => {
+      const row = document.createElement('div');
+      row.className = 'support';
+      if (f.plane) {
+        row.innerHTML = `plane <select>${['x', 'y', 'z'].map((a) => `<option${a === f.plane.axis ? ' selected' : ''}>${a}</option>`).join('')}</select>
+          = <input type="number" step="any" value="${plain(f.plane.value / MM)}"> mm`;
+        row.querySelector('select').onchange = (e) => { f.plane.axis = e.target.value; };
+        row.querySelector('input').onchange = (e) => { f.plane.value = Number(e.target.value) * MM; };
+      } else if (f.box) {
+        row.textContent = `box ${f.box.min.map((v) => plain(v / MM)).join(', ')} … ${f.box.max.map((v) => plain(v / MM)).join(', ')} mm`;
+      } else if (f.faces) {
+        row.textContent = `faces ${f.faces.join(', ')}`;
+      }
+      const held = document.createElement('select');
+      held.innerHTML = [['x,y,z', 'clamped'], ['x', 'x only'], ['y', 'y only'], ['z', 'z only']]
+        .map(([v, t]) => `<option value="${v}"${(f.components || ['x', 'y', 'z']).join(',') === v ? ' selected' : ''}>${t}</option>`).join('');
+      held.onchange = (e) => { if (e.target.value === 'x,y,z') delete f.components; else f.components = e.target.value.split(','); };
+      const del = document.createElement('button');
+      del.textContent = '×';
+      del.title = 'remove';
+      del.onclick = () => { fixed.splice(i, 1); drawSupports(); };
+      row.append(' ', held, ' ', del);
+      list.appendChild(row);
+    });
+  }
+
+  // The fields back into the scene, in SI.
+  function read() {
+    const num = (id, k = 1) => Number($(id).value) * k;
+    scene.material = { young: num('young', 1e9), poisson: num('poisson'), density: num('density') };
+    if ($('yield').value.trim() !== '') scene.material.yield_strength = num('yield', 1e6);
+    const mesh = { ...(scene.mesh || {}) };
+    mesh.order = Number($('order').value);
+    delete mesh.size; delete mesh.target_error;
+    if ($('byerror').checked) mesh.target_error = num('target', 0.01);
+    else mesh.size = num('size', MM);
+    scene.mesh = mesh;
+    scene.modes = { ...(scene.modes || {}), count: Math.round(num('modecount')) };
+    scene.stress = { enabled: $('stressfield').checked };
+    return scene;
+  }
+
+  $('material').onchange = (e) => {
+    const p = materials[Number(e.target.value)];
+    if (!p) return;
+    $('young').value = plain(p.young / 1e9); $('poisson').value = plain(p.poisson);
+    $('density').value = plain(p.density); $('yield').value = plain(p.yield_strength / 1e6);
+  };
+  for (const id of ['young', 'poisson', 'density', 'yield']) $(id).oninput = () => { $('material').value = 'custom'; };
+  $('addplane').onclick = () => { (scene.fixed ||= []).push({ plane: { axis: 'x', value: 0 } }); drawSupports(); };
+  $('pickplane').onclick = () => {
+    $('setuperror').textContent = 'click a flat face of the part: the plane through it is held';
+    pick(({ point, normal }) => {
+      // The axis the face faces most; the plane through the clicked point along it.
+      const n = [normal.x, normal.y, normal.z].map(Math.abs);
+      const k = n.indexOf(Math.max(...n));
+      const axis = 'xyz'[k];
+      (scene.fixed ||= []).push({ plane: { axis, value: [point.x, point.y, point.z][k] } });
+      $('setuperror').textContent = n[k] < 0.99 ? `that face is not square to ${axis}: the plane ${axis} = … through the point holds only what lies on it` : '';
+      drawSupports();
+    });
+  };
+  $('compute').onclick = () => {
+    $('setuperror').textContent = '';
+    send({ type: 'compute', scene: read() });
+  };
+  $('cancel').onclick = () => send({ type: 'cancel' });
+  $('savescene').onclick = () => {
+    if (!saved) return;
+    const a = document.createElement('a');
+    a.href = URL.createObjectURL(new Blob([saved], { type: 'application/toml' }));
+    a.download = `${scene.name || 'part'}.toml`;
+    a.click();
+    setTimeout(() => URL.revokeObjectURL(a.href), 10000);
+  };
+
+  return {
+    /** A hello: the panel shows when the server can compute; the fields are filled once per part. */
+    hello(msg) {
+      const s = msg.setup;
+      panel.hidden = !s;
+      if (!s) return;
+      materials = s.materials;
+      $('material').innerHTML = materials.map((m, i) => `<option value="${i}">${m.name}</option>`).join('') + '<option value="custom">custom</option>';
+      if (geometry !== s.geometry || !scene) {
+        geometry = s.geometry;
+        scene = JSON.parse(JSON.stringify(s.scene));
+        $('geomname').textContent = geometry || '';
+        fill();
+      }
+      $('savebasis').download = `${scene.name || 'part'}.h5`;
+      $('savebasis').hidden = msg.spaces.length === 0;
+    },
+    /** Compute progress, its end, or why it failed. */
+    note(msg) {
+      if (msg.type === 'progress') {
+        $('progressbar').style.width = `${(100 * msg.fraction).toFixed(0)}%`;
+        $('progresstext').textContent = `${msg.stage} — ${(100 * msg.fraction).toFixed(0)} %`;
+      } else if (msg.type === 'computed') {
+        $('progressbar').style.width = '100%';
+        $('progresstext').textContent = `computed: ${msg.summary}`;
+        saved = msg.scene;
+        $('savescene').disabled = false;
+      } else if (msg.type === 'compute_error') {
+        $('progresstext').textContent = '';
+        $('progressbar').style.width = '0';
+        $('setuperror').textContent = msg.message;
+      }
+    },
+    /** The status says whether a compute runs. */
+    computing(on) {
+      $('compute').disabled = on;
+      $('cancel').disabled = !on;
+    },
+    /** The scene being edited (tests and the console). */
+    scene: () => read(),
+    saved: () => saved,
+  };
+}
