@@ -39,8 +39,10 @@ pub trait Watcher: Send + Sync {
     fn cancelled(&self) -> bool;
 }
 
-/// The watcher and the share of the whole that the current part (a space) covers.
-static WATCHER: std::sync::Mutex<Option<(std::sync::Arc<dyn Watcher>, f64, f64)>> = std::sync::Mutex::new(None);
+/// A watcher and the share of the whole (from, to) that the current part (a space) covers.
+type Watched = (std::sync::Arc<dyn Watcher>, f64, f64);
+
+static WATCHER: std::sync::Mutex<Option<Watched>> = std::sync::Mutex::new(None);
 
 /// Watches what this process computes until the guard drops (one computation at a time).
 pub fn watch(w: std::sync::Arc<dyn Watcher>) -> WatchGuard {

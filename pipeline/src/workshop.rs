@@ -31,23 +31,121 @@ pub struct MaterialPreset {
 /// The set-up panel's materials: room-temperature handbook values (steel S235/A36-class
 /// structural steel; 6061-T6; Ti-6Al-4V annealed; the polymers as moulded, dry).
 pub const MATERIALS: [MaterialPreset; 7] = [
-    MaterialPreset { name: "structural steel", young: 2.1e11, poisson: 0.3, density: 7850.0, yield_strength: 2.5e8 },
-    MaterialPreset { name: "stainless steel 304", young: 1.93e11, poisson: 0.29, density: 8000.0, yield_strength: 2.15e8 },
-    MaterialPreset { name: "aluminium 6061-T6", young: 6.89e10, poisson: 0.33, density: 2700.0, yield_strength: 2.76e8 },
-    MaterialPreset { name: "titanium Ti-6Al-4V", young: 1.138e11, poisson: 0.342, density: 4430.0, yield_strength: 8.8e8 },
-    MaterialPreset { name: "ABS", young: 2.3e9, poisson: 0.35, density: 1050.0, yield_strength: 4.0e7 },
-    MaterialPreset { name: "PA66 (dry)", young: 2.9e9, poisson: 0.39, density: 1140.0, yield_strength: 8.0e7 },
-    MaterialPreset { name: "PMMA", young: 3.0e9, poisson: 0.37, density: 1180.0, yield_strength: 7.0e7 },
+    MaterialPreset {
+        name: "structural steel",
+        young: 2.1e11,
+        poisson: 0.3,
+        density: 7850.0,
+        yield_strength: 2.5e8,
+    },
+    MaterialPreset {
+        name: "stainless steel 304",
+        young: 1.93e11,
+        poisson: 0.29,
+        density: 8000.0,
+        yield_strength: 2.15e8,
+    },
+    MaterialPreset {
+        name: "aluminium 6061-T6",
+        young: 6.89e10,
+        poisson: 0.33,
+        density: 2700.0,
+        yield_strength: 2.76e8,
+    },
+    MaterialPreset {
+        name: "titanium Ti-6Al-4V",
+        young: 1.138e11,
+        poisson: 0.342,
+        density: 4430.0,
+        yield_strength: 8.8e8,
+    },
+    MaterialPreset {
+        name: "ABS",
+        young: 2.3e9,
+        poisson: 0.35,
+        density: 1050.0,
+        yield_strength: 4.0e7,
+    },
+    MaterialPreset {
+        name: "PA66 (dry)",
+        young: 2.9e9,
+        poisson: 0.39,
+        density: 1140.0,
+        yield_strength: 8.0e7,
+    },
+    MaterialPreset {
+        name: "PMMA",
+        young: 3.0e9,
+        poisson: 0.37,
+        density: 1180.0,
+        yield_strength: 7.0e7,
+    },
 ];
 
-/// Computes bases for one part in a private directory.
+/// Computes bases for one part (or the parts the page opens) in a private directory.
 pub struct PartWorkshop {
-    geometry: PathBuf,
-    start: serde_json::Value,
+    part: std::sync::Mutex<Part>,
     options: SceneOptions,
     dir: tempfile::TempDir,
     computed: AtomicU64,
     solver: SolverChoice,
+}
+
+/// The part being set up: its geometry file and the scene the page starts from.
+struct Part {
+    geometry: PathBuf,
+    start: serde_json::Value,
+}
+
+/// The scene a geometry file starts from: a free part in structural steel with 10-node tets,
+/// 12 modes and stress, meshed until the error estimate is 5 %, with stiffness-proportional
+/// damping β = 1e-5 s (as the cantilever case: without damping a part pulled at the device's
+/// force limit rings for ever, its clamped force adding none).
+fn starting_scene(geometry: &Path) -> serde_json::Value {
+    let name = geometry
+        .file_stem()
+        .map_or("part".into(), |s| s.to_string_lossy().into_owned());
+    let name: String = name
+        .chars()
+        .take(64)
+        .map(|c| {
+            if c.is_ascii_alphanumeric() || c == '-' || c == '_' {
+                c
+            } else {
+                '_'
+            }
+        })
+        .collect();
+    let steel = &MATERIALS[0];
+    serde_json::json!({
+        "name": name,
+        "geometry": { "step": "", "unit": "mm" },
+        "material": { "young": steel.young, "poisson": steel.poisson, "density": steel.density,
+                      "yield_strength": steel.yield_strength },
+        "mesh": { "order": 2, "target_error": 0.05 },
+        "modes": { "count": 12 },
+        "stress": { "enabled": true },
+        "damping": { "alpha": 0.0, "beta": 1.0e-5 },
+    })
+}
+
+/// What kind of geometry `bytes` hold, by content: a STEP, IGES or OpenCASCADE BREP file.
+fn geometry_kind(bytes: &[u8]) -> Option<&'static str> {
+    let head = String::from_utf8_lossy(&bytes[..bytes.len().min(4096)]);
+    let text = head.trim_start_matches('\u{feff}').trim_start();
+    if text.starts_with("ISO-10303-21") {
+        Some("step")
+    } else if text.starts_with("DBRep_DrawableShape") || text.starts_with("CASCADE Topology V") {
+        Some("brep")
+    } else if text
+        .lines()
+        .next()
+        .is_some_and(|l| l.len() >= 73 && l.as_bytes()[72] == b'S')
+    {
+        Some("iges")
+    } else {
+        None
+    }
 }
 
 impl PartWorkshop {
@@ -58,33 +156,22 @@ impl PartWorkshop {
         Self::new(scene.geometry.clone(), start, options, solver)
     }
 
-    /// A workshop for a geometry file, starting from a free part in structural steel with
-    /// 10-node tets, 12 modes and stress, meshed until the error estimate is 5 %.
+    /// A workshop for a geometry file, starting from [`starting_scene`].
     pub fn for_geometry(geometry: &Path, solver: SolverChoice) -> anyhow::Result<PartWorkshop> {
-        let name = geometry.file_stem().map_or("part".into(), |s| s.to_string_lossy().into_owned());
-        let name: String = name
-            .chars()
-            .map(|c| if c.is_alphanumeric() || c == '-' || c == '_' { c } else { '_' })
-            .collect();
-        let steel = &MATERIALS[0];
-        let start = serde_json::json!({
-            "name": name,
-            "geometry": { "step": "", "unit": "mm" },
-            "material": { "young": steel.young, "poisson": steel.poisson, "density": steel.density,
-                          "yield_strength": steel.yield_strength },
-            "mesh": { "order": 2, "target_error": 0.05 },
-            "modes": { "count": 12 },
-            "stress": { "enabled": true },
-        });
         let geometry = std::path::absolute(geometry)?;
+        let start = starting_scene(&geometry);
         Self::new(geometry, start, SceneOptions::default(), solver)
     }
 
-    fn new(geometry: PathBuf, start: serde_json::Value, options: SceneOptions, solver: SolverChoice) -> anyhow::Result<PartWorkshop> {
+    fn new(
+        geometry: PathBuf,
+        start: serde_json::Value,
+        options: SceneOptions,
+        solver: SolverChoice,
+    ) -> anyhow::Result<PartWorkshop> {
         let dir = tempfile::Builder::new().prefix("ves-view-").tempdir()?;
         Ok(PartWorkshop {
-            geometry,
-            start,
+            part: std::sync::Mutex::new(Part { geometry, start }),
             options,
             dir,
             computed: AtomicU64::new(0),
@@ -92,14 +179,13 @@ impl PartWorkshop {
         })
     }
 
-    /// The scene the page starts from (JSON of the TOML's tables).
-    pub fn start_scene(&self) -> &serde_json::Value {
-        &self.start
+    fn part(&self) -> std::sync::MutexGuard<'_, Part> {
+        self.part.lock().unwrap_or_else(|p| p.into_inner())
     }
 
-    /// `scene` (JSON from the page) as scene text with this workshop's geometry: `absolute`
-    /// names the file by its full path (to compute), else by its name (to save beside it).
-    fn text(&self, scene: &serde_json::Value, absolute: bool) -> Result<String, String> {
+    /// `scene` (JSON from the page) as scene text with `geometry`: `absolute` names the file by
+    /// its full path (to compute), else by its name (to save beside it).
+    fn text(file: &Path, scene: &serde_json::Value, absolute: bool) -> Result<String, String> {
         let mut table: toml::Table =
             serde_json::from_value(scene.clone()).map_err(|e| format!("the page's scene: {e}"))?;
         let geometry = table
@@ -109,9 +195,10 @@ impl PartWorkshop {
             return Err("the page's scene: geometry must be a table".into());
         };
         let file = if absolute {
-            self.geometry.display().to_string()
+            file.display().to_string()
         } else {
-            self.geometry.file_name().map_or(String::new(), |n| n.to_string_lossy().into_owned())
+            file.file_name()
+                .map_or(String::new(), |n| n.to_string_lossy().into_owned())
         };
         geometry.insert("step".into(), toml::Value::String(file));
         toml::to_string(&table).map_err(|e| format!("the page's scene: {e}"))
@@ -145,9 +232,10 @@ impl Workshop for PartWorkshop {
                                    "density": m.density, "yield_strength": m.yield_strength})
             })
             .collect();
+        let part = self.part();
         serde_json::json!({
-            "scene": self.start,
-            "geometry": self.geometry.file_name().map(|n| n.to_string_lossy().into_owned()),
+            "scene": part.start,
+            "geometry": part.geometry.file_name().map(|n| n.to_string_lossy().into_owned()),
             "materials": materials,
         })
     }
@@ -159,10 +247,12 @@ impl Workshop for PartWorkshop {
         cancel: Arc<AtomicBool>,
     ) -> Result<Computed, String> {
         let n = self.computed.fetch_add(1, Ordering::Relaxed) + 1;
-        let text = self.text(scene, true)?;
+        let geometry = self.part().geometry.clone();
+        let text = Self::text(&geometry, scene, true)?;
         // Parsed as if it sat beside the geometry; its name in errors is the page's.
         let path = self.dir.path().join("page.toml");
-        let parsed = Scene::parse(&path, &text).map_err(|e| e.to_string().replace(&path.display().to_string(), "scene"))?;
+        let parsed =
+            Scene::parse(&path, &text).map_err(|e| e.to_string().replace(&path.display().to_string(), "scene"))?;
         if parsed.is_script() && !self.options.allow_geo_scripts {
             return Err("a .geo geometry is a gmsh script: open a STEP, IGES or BREP file".into());
         }
@@ -184,8 +274,68 @@ impl Workshop for PartWorkshop {
         };
         Ok(Computed {
             basis: out,
-            scene: self.text(scene, false)?,
+            scene: Self::text(&geometry, scene, false)?,
             summary: line,
         })
+    }
+
+    fn open(&self, name: &str, bytes: &[u8]) -> Result<(), String> {
+        let file = Path::new(name)
+            .file_name()
+            .map(|n| n.to_string_lossy().into_owned())
+            .unwrap_or_default();
+        let ext = Path::new(&file)
+            .extension()
+            .map(|e| e.to_string_lossy().to_ascii_lowercase())
+            .unwrap_or_default();
+        let shown = ves_format::identifier::escape_for_terminal(&file);
+        if ext == "geo" {
+            return Err(format!(
+                "{shown}: a .geo file is a gmsh script and can run commands; export the part as STEP, IGES or BREP"
+            ));
+        }
+        if !["step", "stp", "iges", "igs", "brep"].contains(&ext.as_str()) {
+            return Err(format!(
+                "{shown}: open a STEP (.step, .stp), IGES (.iges, .igs) or BREP (.brep) file"
+            ));
+        }
+        if bytes.len() > ves_runtime::view::workshop::MAX_UPLOAD {
+            return Err(format!(
+                "{shown}: {} bytes, more than the {} MiB a page may send",
+                bytes.len(),
+                ves_runtime::view::workshop::MAX_UPLOAD >> 20
+            ));
+        }
+        let kind = geometry_kind(bytes).ok_or_else(|| {
+            format!("{shown}: not a STEP, IGES or BREP file (a STEP file starts with ISO-10303-21); export the part again from its CAD system")
+        })?;
+        let n = self.computed.fetch_add(1, Ordering::Relaxed) + 1;
+        // Its own directory: the part keeps the name the user knows (in the title and in the
+        // saved scene), and a later part of the same name cannot replace it.
+        let safe: String = Path::new(&file)
+            .file_stem()
+            .map(|s| {
+                s.to_string_lossy()
+                    .chars()
+                    .take(64)
+                    .map(|c| {
+                        if c.is_ascii_alphanumeric() || c == '-' || c == '_' {
+                            c
+                        } else {
+                            '_'
+                        }
+                    })
+                    .collect()
+            })
+            .unwrap_or_else(|| "part".into());
+        let dir = self.dir.path().join(format!("part-{n}"));
+        std::fs::create_dir(&dir).map_err(|e| format!("cannot keep the part: {e}"))?;
+        let path = dir.join(format!("{safe}.{}", if kind == "step" { ext.as_str() } else { kind }));
+        crate::output::write_atomically(&path, |tmp| std::fs::write(tmp, bytes).map_err(Into::into))
+            .map_err(|e| format!("cannot keep the part: {e:#}"))?;
+        let mut part = self.part();
+        part.start = starting_scene(&path);
+        part.geometry = path;
+        Ok(())
     }
 }

@@ -453,3 +453,184 @@ fn a_free_body_stays_put_at_any_scale_and_the_page_reconnects() {
         page["narrow"]
     );
 }
+
+/// `ves view PART.step` as a designer uses it (issue: from a STEP file to pulling the part in one
+/// page): the corpus block with two holes (not one of ours) opens as a free body; the page holds
+/// it by its two end faces, picks aluminium and computes; the mouse's hand pulls the top; the
+/// saved scene recomputed by `ves precompute` gives the page's frequencies and `ves session`
+/// the page's force. Holding it by one face and computing again moves the session to the new
+/// basis; a cancelled compute leaves the part shown; a garbage file and a .geo are one line each.
+#[test]
+fn a_step_part_is_set_up_computed_and_pulled_in_the_page() {
+    let dir = tempfile::tempdir().expect("a temporary directory");
+    let step = dir.path().join("pmi_block_2holes.step");
+    std::fs::copy(
+        Path::new(env!("CARGO_MANIFEST_DIR")).join("../cases/corpus/pmi_block_2holes.step"),
+        &step,
+    )
+    .expect("copy the corpus part");
+    let mut server = Command::new(env!("CARGO_BIN_EXE_ves"))
+        .args([
+            "view",
+            step.to_str().unwrap(),
+            "--port",
+            "0",
+            "--duration",
+            "600",
+            "--json",
+        ])
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .expect("ves view starts");
+    let mut out = BufReader::new(server.stdout.take().expect("stdout"));
+    let mut line = String::new();
+    out.read_line(&mut line).expect("the URL line");
+    let url = line
+        .split_whitespace()
+        .find(|w| w.starts_with("http://127.0.0.1:"))
+        .unwrap_or_else(|| panic!("no URL in {line:?}"))
+        .to_string();
+    let web = Path::new(env!("CARGO_MANIFEST_DIR")).join("../runtime/web");
+    let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/view/setup.mjs");
+    let browser = Command::new("node")
+        .arg(&script)
+        .arg(&url)
+        .arg(&web)
+        .arg(dir.path())
+        .output()
+        .expect("node runs");
+    let status = interrupt(&mut server);
+    let mut rest = String::new();
+    out.read_to_string(&mut rest).expect("server output");
+    let mut err = String::new();
+    server.stderr.take().map(|mut e| e.read_to_string(&mut err));
+    assert!(
+        browser.status.success(),
+        "browser script failed: {}\n{}\nserver: {err}",
+        String::from_utf8_lossy(&browser.stderr),
+        String::from_utf8_lossy(&browser.stdout)
+    );
+    assert!(status.success(), "ves view: {status:?}: {err}");
+    if let Ok(keep) = std::env::var("VES_VIEW_SCREENSHOTS") {
+        for f in ["setup_held.png", "setup_pulled.png"] {
+            std::fs::copy(dir.path().join(f), Path::new(&keep).join(f)).expect("copy a screenshot");
+        }
+    }
+    let page: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(dir.path().join("page.json")).expect("page.json"))
+            .expect("the page's JSON");
+    assert_eq!(page["errors"].as_array().map(Vec::len), Some(0), "page errors: {page}");
+    let freqs = |v: &serde_json::Value| -> Vec<f64> {
+        v.as_array()
+            .expect("frequencies")
+            .iter()
+            .map(|f| f.as_f64().unwrap())
+            .collect()
+    };
+
+    // Opened as a free body, then held by the two faces clicked.
+    assert_eq!(page["free"]["free"].as_bool(), Some(true), "{}", page["free"]);
+    let fixed = page["asked"]["fixed"].as_array().expect("supports");
+    assert_eq!(fixed.len(), 2, "two faces clicked: {fixed:?}");
+    let axes: Vec<&str> = fixed.iter().map(|f| f["plane"]["axis"].as_str().unwrap()).collect();
+    assert_eq!(axes, ["x", "x"], "{fixed:?}");
+    let held = freqs(&page["held"]["f"]);
+    assert_eq!(held.len(), 10, "{}", page["held"]);
+    let stages: Vec<&str> = page["held"]["stages"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .filter_map(|s| s.as_str())
+        .collect();
+    assert!(
+        stages.iter().any(|s| s.contains("mesh")) && stages.contains(&"writing"),
+        "{stages:?}"
+    );
+
+    // The saved scene reproduces the page's basis.
+    let saved = dir.path().join("saved.toml");
+    let text = std::fs::read_to_string(&saved).expect("saved scene");
+    assert!(text.contains("step = \"pmi_block_2holes.step\""), "{text}");
+    let basis = dir.path().join("again.h5");
+    let o = ves(&[
+        "precompute",
+        saved.to_str().unwrap(),
+        "-o",
+        basis.to_str().unwrap(),
+        "--json",
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let again = freqs(&last_json(&o)["spaces"][0]["frequencies_hz"]);
+    for (a, b) in held.iter().zip(&again) {
+        assert!(
+            (a / b - 1.0).abs() < 1e-9,
+            "page {held:?} Hz vs ves precompute {again:?} Hz"
+        );
+    }
+
+    // The pull: the page's force is `ves session`'s for the same hand path, its displacement
+    // the basis's static response G·F.
+    let hand = &page["pulled"]["hand"];
+    let force = vec3(&hand["force"]);
+    assert!(norm(force) > 0.1, "{hand}");
+    let (r, t) = (vec3(&page["grab"]["rest"]), vec3(&page["target"]));
+    let csv = format!(
+        "t,x,y,z,button\n0,{},{},{},1\n0.3,{},{},{},1\n0.35,{},{},{},1\n5,{},{},{},1\n",
+        r[0], r[1], r[2], r[0], r[1], r[2], t[0], t[1], t[2], t[0], t[1], t[2]
+    );
+    let csv_path = write_file(dir.path(), "pull.csv", &csv);
+    let device = format!("script:{}", csv_path.display());
+    let o = ves(&["session", basis.to_str().unwrap(), "--device", &device, "--json"]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let f_session = vec3(&last_json(&o)["final_forces_n"][0]);
+    let gap = norm(sub(force, f_session)) / norm(f_session);
+    assert!(gap < 0.01, "page {force:?} N vs ves session {f_session:?} N");
+    let b = ves_runtime::basis::load(
+        &basis,
+        &ves_runtime::LoadOptions {
+            surface_only: true,
+            ..Default::default()
+        },
+    )
+    .expect("basis loads");
+    let vertex = hand["vertex"].as_u64().unwrap() as usize;
+    let g = compliance(&b, vertex);
+    let expected: [f64; 3] = [0, 1, 2].map(|a| -(0..3).map(|c| g[a][c] * force[c]).sum::<f64>());
+    let u = vec3(&page["pulled"]["u"]);
+    let miss = norm(sub(u, expected)) / norm(expected);
+    assert!(miss < 0.03, "page u {u:?} vs G·F {expected:?}");
+    eprintln!(
+        "held by two faces: f1 {:.1} Hz (free: {:.1} Hz); pull {force:?} N, {:.4} % from ves session; u {:.3} % from G·F",
+        held[0],
+        freqs(&page["free"]["f"])[0],
+        100.0 * gap,
+        100.0 * miss
+    );
+
+    // One face: computed again and swapped (lower frequencies: less support).
+    let one = freqs(&page["one"]["f"]);
+    assert_eq!(page["one"]["fixed"].as_u64(), Some(1), "{}", page["one"]);
+    assert!(one[0] < held[0], "one face {one:?} vs two {held:?}");
+    // Cancelled: an error note that says so; the part shown is still the one-face basis.
+    let last = &page["cancelled"]["last"];
+    assert_eq!(last["type"].as_str(), Some("compute_error"), "{last}");
+    assert!(
+        last["message"].as_str().is_some_and(|m| m.contains("cancelled")),
+        "{last}"
+    );
+    assert_eq!(freqs(&page["cancelled"]["f"]), one);
+    // Garbage and a script: one line each, the server alive.
+    let junk = page["opened"]["junk.step"].as_str().unwrap();
+    assert!(junk.contains("not a STEP") && !junk.contains('\n'), "{junk}");
+    let geo = page["opened"]["box.geo"].as_str().unwrap();
+    assert!(geo.contains("gmsh script") && !geo.contains('\n'), "{geo}");
+    assert_eq!(page["alive"].as_bool(), Some(true));
+    let stats: serde_json::Value = serde_json::from_str(rest.lines().last().expect("stats")).expect("stats JSON");
+    assert!(
+        stats["computes"].as_u64() >= Some(4) && stats["computes_failed"].as_u64() >= Some(1),
+        "{stats}"
+    );
+    // Two swaps: to the two-face basis, then to the one-face basis (the first had none to replace).
+    assert_eq!(stats["swaps"].as_u64(), Some(2), "{stats}");
+}

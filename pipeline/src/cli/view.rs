@@ -12,6 +12,12 @@ use ves_pipeline::scene::{Scene, SceneOptions};
 use ves_pipeline::workshop::PartWorkshop;
 use ves_runtime::view::{self, ViewConfig, Workshop};
 
+/// What `ves view` was given: a basis to serve, or a part to set up (first basis to come).
+type Opened = (
+    Option<Vec<ves_runtime::switching::SpaceInput>>,
+    Option<Arc<dyn Workshop>>,
+);
+
 /// Arguments.
 #[derive(clap::Args)]
 pub struct Args {
@@ -95,9 +101,12 @@ impl Args {
     }
 
     /// What the file given is: a basis to serve, or a part to set up and compute.
-    fn open(&self) -> Result<(Option<Vec<ves_runtime::switching::SpaceInput>>, Option<Arc<dyn Workshop>>)> {
+    fn open(&self) -> Result<Opened> {
         let p = &self.basis;
-        let ext = p.extension().map(|e| e.to_string_lossy().to_ascii_lowercase()).unwrap_or_default();
+        let ext = p
+            .extension()
+            .map(|e| e.to_string_lossy().to_ascii_lowercase())
+            .unwrap_or_default();
         let solver = ves_pipeline::modes::SolverChoice::Auto;
         match ext.as_str() {
             "toml" => {

@@ -3,7 +3,6 @@
 //! previous ones made; a stage's temporaries (factors, coarse meshes) are dropped when it
 //! returns, and [`released`] gives their pages back before the next stage takes its own.
 
-use crate::progress;
 use super::{SolvedSpace, Timings, advice, needs_whole_system};
 use crate::accuracy::{ErrorEstimate, Prefetch, refine};
 use crate::compliance::Compliance;
@@ -11,6 +10,7 @@ use crate::fem::MassProperties;
 use crate::mesh::Mesh;
 use crate::modes::{self, Modes, SolverChoice, SturmCount};
 use crate::problem::{Discretized, Meshed};
+use crate::progress;
 use crate::scene::{Scene, Voi};
 use crate::supports::Dofs;
 use anyhow::{Context, Result};

@@ -80,7 +80,7 @@ pub struct ViewStats {
     pub computes: u64,
     /// See `computes`.
     pub computes_failed: u64,
-    /// Times the live session moved to a new basis.
+    /// Times a live session was replaced by one on a new basis.
     pub swaps: u64,
 }
 
@@ -243,7 +243,11 @@ pub fn serve_with(
         // A part without a basis yet: its first compute starts at once, from the scene the
         // workshop starts with, and the pages show its progress.
         (None, Some(w)) => start_compute(&shared, w.setup()["scene"].clone()).map_err(ViewError)?,
-        (None, None) => return Err(ViewError("nothing to serve: give a basis, a scene or a geometry file".into())),
+        (None, None) => {
+            return Err(ViewError(
+                "nothing to serve: give a basis, a scene or a geometry file".into(),
+            ));
+        }
     }
 
     let rt = tokio::runtime::Builder::new_multi_thread()
@@ -251,7 +255,8 @@ pub fn serve_with(
         .enable_all()
         .build()
         .map_err(|e| ViewError(format!("cannot start the server: {e}")))?;
-    let deadline = Instant::now().checked_add(Duration::try_from_secs_f64(cfg.session.duration_s).unwrap_or(Duration::MAX));
+    let deadline =
+        Instant::now().checked_add(Duration::try_from_secs_f64(cfg.session.duration_s).unwrap_or(Duration::MAX));
     rt.block_on(async {
         let listener = tokio::net::TcpListener::from_std(listener).map_err(|e| ViewError(e.to_string()))?;
         let app = axum::Router::new()
@@ -265,6 +270,10 @@ pub fn serve_with(
             )
             .route("/favicon.ico", get(|| async { axum::http::StatusCode::NO_CONTENT }))
             .route("/basis.h5", get(basis_file))
+            .route(
+                "/open",
+                axum::routing::post(open_part).layer(axum::extract::DefaultBodyLimit::max(workshop::MAX_UPLOAD)),
+            )
             .route("/ws", get(upgrade))
             .with_state(shared.clone());
         ready(addr);
@@ -297,7 +306,12 @@ pub fn serve_with(
     })?;
     rt.shutdown_timeout(Duration::from_millis(200));
     end_session(&shared)?;
-    let stats = shared.last_stats.lock().ok().and_then(|s| s.clone()).unwrap_or_default();
+    let stats = shared
+        .last_stats
+        .lock()
+        .ok()
+        .and_then(|s| s.clone())
+        .unwrap_or_default();
     Ok(ViewStats {
         session: stats,
         clients_total: shared.clients_total.load(Ordering::Relaxed),
@@ -315,7 +329,11 @@ pub fn serve_with(
 
 /// Stops the live session, if any, and keeps its statistics.
 fn end_session(shared: &Shared) -> Result<(), ViewError> {
-    let live = shared.live.lock().map_err(|_| ViewError("the session lock is poisoned".into()))?.take();
+    let live = shared
+        .live
+        .lock()
+        .map_err(|_| ViewError("the session lock is poisoned".into()))?
+        .take();
     if let Some(live) = live {
         live.stop.store(true, Ordering::Relaxed);
         let stats = live
@@ -333,6 +351,9 @@ fn end_session(shared: &Shared) -> Result<(), ViewError> {
 /// Serves `spaces` from now on: the live session (if any) ends, every hand is let go, pages get
 /// the new hello and meshes, and a new session starts on the new basis.
 fn swap(shared: &Arc<Shared>, spaces: Vec<SpaceInput>, basis_path: Option<PathBuf>) -> Result<(), ViewError> {
+    if shared.live.lock().is_ok_and(|l| l.is_some()) {
+        shared.swaps.fetch_add(1, Ordering::Relaxed);
+    }
     end_session(shared)?;
     for h in &shared.hands {
         h.release_any();
@@ -367,7 +388,10 @@ fn swap(shared: &Arc<Shared>, spaces: Vec<SpaceInput>, basis_path: Option<PathBu
         .name("ves-session".into())
         .spawn(move || session::run_spaces_with(spaces, devices, &session_cfg, hooks))
         .map_err(|e| ViewError(format!("cannot start the session: {e}")))?;
-    *shared.live.lock().map_err(|_| ViewError("the session lock is poisoned".into()))? = Some(Live { stop, thread });
+    *shared
+        .live
+        .lock()
+        .map_err(|_| ViewError("the session lock is poisoned".into()))? = Some(Live { stop, thread });
     if let Ok(mut g) = shared.generation.write() {
         *g = Arc::new(generation);
     }
@@ -436,6 +460,51 @@ fn start_compute(shared: &Arc<Shared>, scene: serde_json::Value) -> Result<(), S
     Ok(())
 }
 
+/// POST /open?name=FILE: the page opens a geometry file (the body) as the part; its first
+/// compute starts at once. The answer is JSON: `{"ok": true}` or `{"error": "one line"}`.
+async fn open_part(
+    State(shared): State<Arc<Shared>>,
+    axum::extract::Query(q): axum::extract::Query<std::collections::HashMap<String, String>>,
+    body: Bytes,
+) -> Response {
+    let answer = |status: StatusCode, v: serde_json::Value| {
+        (status, [(header::CONTENT_TYPE, "application/json")], v.to_string()).into_response()
+    };
+    let Some(workshop) = shared.workshop.clone() else {
+        return answer(
+            StatusCode::NOT_FOUND,
+            serde_json::json!({"error": "this viewer serves a basis file: start ves view on a STEP file or a scene to open parts"}),
+        );
+    };
+    if shared.computing.load(Ordering::Acquire) {
+        return answer(
+            StatusCode::CONFLICT,
+            serde_json::json!({"error": "a compute is running: cancel it or wait, then open the part"}),
+        );
+    }
+    let name = q.get("name").cloned().unwrap_or_default();
+    let opened = tokio::task::spawn_blocking({
+        let body = body.clone();
+        move || workshop.open(&name, &body)
+    })
+    .await
+    .unwrap_or_else(|e| Err(format!("opening failed: {e}")));
+    match opened {
+        Ok(()) => {
+            let scene = shared
+                .workshop
+                .as_ref()
+                .map(|w| w.setup()["scene"].clone())
+                .unwrap_or_default();
+            match start_compute(&shared, scene) {
+                Ok(()) => answer(StatusCode::OK, serde_json::json!({"ok": true})),
+                Err(e) => answer(StatusCode::CONFLICT, serde_json::json!({"error": e})),
+            }
+        }
+        Err(e) => answer(StatusCode::UNPROCESSABLE_ENTITY, serde_json::json!({"error": e})),
+    }
+}
+
 /// GET /basis.h5: the basis being served, for "save basis" (only the server's own page may ask:
 /// the same `Host` and `Origin` rules as every request).
 async fn basis_file(State(shared): State<Arc<Shared>>) -> Response {
@@ -443,7 +512,10 @@ async fn basis_file(State(shared): State<Arc<Shared>>) -> Response {
     let Some(path) = path else {
         return (StatusCode::NOT_FOUND, "no basis computed here yet").into_response();
     };
-    match tokio::task::spawn_blocking(move || std::fs::read(&path)).await.unwrap_or_else(|e| Err(std::io::Error::other(e))) {
+    match tokio::task::spawn_blocking(move || std::fs::read(&path))
+        .await
+        .unwrap_or_else(|e| Err(std::io::Error::other(e)))
+    {
         Ok(bytes) => (
             [
                 (header::CONTENT_TYPE, "application/x-hdf5"),

@@ -318,7 +318,10 @@ mod tests {
         for b in bad {
             assert!(parse(b, 1, Some(&E)).is_err(), "{b}");
         }
-        let long = format!(r#"{{"type":"mode","space":0,"index":0,"pad":"{}"}}"#, "x".repeat(40_000));
+        let long = format!(
+            r#"{{"type":"mode","space":0,"index":0,"pad":"{}"}}"#,
+            "x".repeat(40_000)
+        );
         assert!(parse(&long, 1, Some(&E)).unwrap_err().contains("bytes"));
         // JSON has no NaN; a string in its place is refused by the parser.
         assert!(

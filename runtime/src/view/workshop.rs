@@ -41,4 +41,11 @@ pub trait Workshop: Send + Sync {
         progress: Arc<dyn Fn(Progress) + Send + Sync>,
         cancel: Arc<AtomicBool>,
     ) -> Result<Computed, String>;
+    /// Makes the geometry file `name` (as the page's user picked it; only its file name
+    /// counts) with content `bytes` the part from now on, with a fresh starting scene. Only
+    /// STEP, IGES and BREP are taken, checked by content, never a `.geo` script.
+    fn open(&self, name: &str, bytes: &[u8]) -> Result<(), String>;
 }
+
+/// Largest geometry file the page may send, bytes.
+pub const MAX_UPLOAD: usize = 64 << 20;

@@ -5,6 +5,9 @@ import { plain } from './units.js';
 
 const $ = (id) => document.getElementById(id);
 const MM = 1e-3;
+// A preset is the material when its constants match to the fields' rounding.
+const close = (a, b) => Math.abs(a - b) <= 1e-6 * Math.abs(b);
+const isPreset = (p, m) => close(m.young, p.young) && close(m.poisson, p.poisson) && close(m.density, p.density);
 
 /** Wires the panel to `send` (a JSON message to the server) and `pick` (asks for one click on
  * the part: calls back with {point, normal}). Returns handlers for the server's messages. */
@@ -17,7 +20,7 @@ export function setupPanel(send, pick) {
 
   function fill() {
     const m = scene.material || {};
-    const i = materials.findIndex((p) => p.young === m.young && p.poisson === m.poisson && p.density === m.density);
+    const i = materials.findIndex((p) => isPreset(p, m));
     $('material').value = i >= 0 ? String(i) : 'custom';
     $('young').value = plain((m.young || 0) / 1e9);
     $('poisson').value = plain(m.poisson || 0);
@@ -106,6 +109,21 @@ export function setupPanel(send, pick) {
     send({ type: 'compute', scene: read() });
   };
   $('cancel').onclick = () => send({ type: 'cancel' });
+  $('openpart').onclick = () => $('partfile').click();
+  $('partfile').onchange = async (e) => {
+    const file = e.target.files[0];
+    e.target.value = '';
+    if (!file) return;
+    $('setuperror').textContent = '';
+    $('progresstext').textContent = `sending ${file.name}…`;
+    try {
+      const r = await fetch(`/open?name=${encodeURIComponent(file.name)}`, { method: 'POST', body: file });
+      const answer = await r.json().catch(() => ({ error: `the server answered ${r.status}` }));
+      if (answer.error) { $('setuperror').textContent = answer.error; $('progresstext').textContent = ''; }
+    } catch (err) {
+      $('setuperror').textContent = `could not send ${file.name}: ${err.message}`;
+    }
+  };
   $('savescene').onclick = () => {
     if (!saved) return;
     const a = document.createElement('a');
@@ -127,7 +145,14 @@ export function setupPanel(send, pick) {
         geometry = s.geometry;
         scene = JSON.parse(JSON.stringify(s.scene));
         $('geomname').textContent = geometry || '';
+        saved = null;
+        $('savescene').disabled = true;
         fill();
+      } else {
+        read();
+        const m = scene.material;
+        const i = materials.findIndex((p) => isPreset(p, m));
+        $('material').value = i >= 0 ? String(i) : 'custom';
       }
       $('savebasis').download = `${scene.name || 'part'}.h5`;
       $('savebasis').hidden = msg.spaces.length === 0;

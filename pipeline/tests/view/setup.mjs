@@ -1,0 +1,112 @@
+// The set-up page end to end in a real headless Chromium: `ves view PART.step` computes the part
+// as a free body; the page holds it by two faces (clicked in views along ±x), picks aluminium,
+// computes, and the mouse pulls a vertex; the scene is saved for the Rust test to recompute with
+// `ves precompute` and replay with `ves session`. Then one support is removed and the part
+// computed again (the session moves to the new basis), a compute is cancelled, and a garbage
+// file and a .geo are opened: one line each in the page, the server still serving.
+// Prints one JSON object.
+//
+// usage: node setup.mjs URL WEB_DIR OUT_DIR
+import { pathToFileURL } from 'node:url';
+import { writeFileSync } from 'node:fs';
+
+const [url, webDir, out] = process.argv.slice(2);
+const { chromium } = await import(pathToFileURL(`${webDir}/node_modules/playwright-core/index.mjs`).href);
+const browser = await chromium.launch({
+  executablePath: process.env.VES_CHROMIUM || '/usr/bin/chromium',
+  args: ['--no-sandbox', '--use-angle=swiftshader', '--enable-unsafe-swiftshader', '--disable-background-networking',
+    '--disable-component-update', '--disable-sync', '--no-first-run'],
+});
+const errors = [];
+const ends = (page) => page.evaluate(() => window.ves.notes.filter((n) => n.type === 'computed' || n.type === 'compute_error').length);
+const waitEnd = (page, n) => page.waitForFunction((n) => window.ves.notes.filter((x) => x.type === 'computed' || x.type === 'compute_error').length > n, n, { timeout: 180000 });
+try {
+  const page = await browser.newPage({ viewport: { width: 1280, height: 860 }, acceptDownloads: true });
+  page.on('pageerror', (e) => errors.push(e.message));
+  await page.goto(url);
+  await page.waitForFunction(() => window.ves && window.ves.ready, null, { timeout: 180000 });
+  const free = await page.evaluate(() => ({ free: window.ves.hello.free_body, f: window.ves.hello.spaces[0].frequencies_hz }));
+
+  // Two faces: the +x end seen from +x, the −x end seen from −x, each clicked in the middle.
+  const holdFace = async (key) => {
+    await page.keyboard.press(key);
+    await page.waitForTimeout(300);
+    await page.click('#pickplane');
+    const [x0, y0, x1, y1] = await page.evaluate(() => window.ves.drawnExtent());
+    await page.mouse.click((x0 + x1) / 2, (y0 + y1) / 2);
+    await page.waitForTimeout(200);
+  };
+  await holdFace('x');
+  await holdFace('Shift+X');
+  await page.selectOption('#material', { label: 'aluminium 6061-T6' });
+  await page.fill('#modecount', '10');
+  const asked = await page.evaluate(() => window.ves.setup.scene());
+  let n = await ends(page);
+  await page.click('#compute');
+  await waitEnd(page, n);
+  await page.waitForFunction(() => window.ves.ready && !window.ves.hello.free_body, null, { timeout: 60000 });
+  const held = await page.evaluate(() => ({ notes: window.ves.notes.filter((x) => x.type !== 'progress'), f: window.ves.hello.spaces[0].frequencies_hz,
+    stages: [...new Set(window.ves.notes.filter((x) => x.type === 'progress').map((x) => x.stage))] }));
+  await page.keyboard.press('h');
+  await page.waitForTimeout(300);
+  await page.screenshot({ path: `${out}/setup_held.png` });
+
+  // Pull the vertex nearest the middle of the top: by script, so the hand path is known exactly.
+  const grab = await page.evaluate(() => {
+    const s = window.ves.spaces[0];
+    let lo = [Infinity, Infinity, Infinity], hi = [-Infinity, -Infinity, -Infinity];
+    for (let i = 0; i < s.vertices; i++) for (let k = 0; k < 3; k++) { lo[k] = Math.min(lo[k], s.rest[3 * i + k]); hi[k] = Math.max(hi[k], s.rest[3 * i + k]); }
+    const v = window.ves.nearestVertex(0, [(lo[0] + hi[0]) / 2, (lo[1] + hi[1]) / 2, hi[2]]);
+    return { v, rest: Array.from(s.rest.subarray(3 * v, 3 * v + 3)), size: Math.hypot(hi[0] - lo[0], hi[1] - lo[1], hi[2] - lo[2]) };
+  });
+  const target = [grab.rest[0], grab.rest[1], grab.rest[2] + 0.05];
+  await page.evaluate((p) => window.ves.drive(0, p), grab.rest);
+  await page.waitForTimeout(300);
+  await page.evaluate((p) => window.ves.drive(0, p), target);
+  await page.waitForFunction((v) => {
+    const h = (window.__steady ||= []);
+    h.push(window.ves.spaces[0].umag[v]);
+    if (h.length > 20) h.shift();
+    const [lo, hi] = [Math.min(...h), Math.max(...h)];
+    return h.length === 20 && hi > 0 && hi - lo < 2e-3 * hi;
+  }, grab.v, { polling: 50, timeout: 60000 });
+  const pulled = await page.evaluate((v) => ({ hand: window.ves.status.hands[0], u: Array.from(window.ves.spaces[0].u.subarray(3 * v, 3 * v + 3)) }), grab.v);
+  await page.screenshot({ path: `${out}/setup_pulled.png` });
+  await page.evaluate(() => window.ves.release(0));
+
+  // Save the scene (the page's download) for the Rust side.
+  const [download] = await Promise.all([page.waitForEvent('download'), page.click('#savescene')]);
+  await download.saveAs(`${out}/saved.toml`);
+
+  // Hold it by one face only: compute again, the session moves to the new basis.
+  await page.click('#supportlist .support:first-child button');
+  n = await ends(page);
+  await page.click('#compute');
+  await waitEnd(page, n);
+  await page.waitForFunction(() => window.ves.ready, null, { timeout: 60000 });
+  const one = await page.evaluate(() => ({ f: window.ves.hello.spaces[0].frequencies_hz, fixed: window.ves.setup.scene().fixed.length, last: window.ves.notes.at(-1) }));
+
+  // Cancel: the compute stops at its next stage; the part shown stays.
+  await page.fill('#modecount', '14');
+  n = await ends(page);
+  await page.click('#compute');
+  await page.click('#cancel');
+  await waitEnd(page, n);
+  const cancelled = await page.evaluate(() => ({ last: window.ves.notes.at(-1), f: window.ves.hello.spaces[0].frequencies_hz, error: document.getElementById('setuperror').textContent }));
+
+  // Garbage and a .geo through "open a part…": one line in the page; the server goes on.
+  const opened = {};
+  for (const [name, body] of [['junk.step', 'this is not a STEP file\n'], ['box.geo', 'Box(1) = {0,0,0,1,1,1};\n']]) {
+    await page.setInputFiles('#partfile', { name, mimeType: 'application/octet-stream', buffer: Buffer.from(body) });
+    await page.waitForFunction(() => document.getElementById('setuperror').textContent !== '', null, { timeout: 10000 });
+    opened[name] = await page.evaluate(() => document.getElementById('setuperror').textContent);
+    await page.evaluate(() => { document.getElementById('setuperror').textContent = ''; });
+  }
+  const before = await page.evaluate(() => window.ves.frames);
+  await page.waitForTimeout(500);
+  const alive = await page.evaluate((b) => window.ves.frames > b && window.ves.connected, before);
+  writeFileSync(`${out}/page.json`, JSON.stringify({ free, asked, held, grab, target, pulled, one, cancelled, opened, alive, errors }));
+  console.log('done');
+} finally {
+  await browser.close();
+}
