@@ -409,8 +409,8 @@ mod tests {
         let dofs = crate::supports::Dofs::from_mask(&mask);
         let d = crate::problem::Discretized::assemble(mesh, dofs, (2e11, 0.3, 7800.0)).expect("assembles");
         let problem = crate::modes::EigenProblem::of(&d.system);
-        let dense = crate::modes::dense::Dense
-            .lowest(&problem, 9, 0.0)
+        let dense = crate::modes::dense::Dense(&problem)
+            .lowest(9, 0.0)
             .expect("dense")
             .values;
         let ordering = nested_dissection(&d.system.graph, &d.dofs);

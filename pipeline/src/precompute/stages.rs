@@ -169,7 +169,7 @@ fn solve(scene: &Scene, problem: Problem, choice: SolverChoice) -> Result<Solved
             })
         }
         Problem::OnRanks(mut m) => {
-            let s = released(|| modes::slepc::solve(&m.mesh, &m.dofs, m.material, m.rigid, count, choice))?;
+            let s = released(|| modes::solve_on_ranks(&m.mesh, &m.dofs, m.material, m.rigid, count, choice))?;
             m.assemble_s += s.assemble_s;
             let (problem, mass) = if needs_whole_system(scene) {
                 let d = m.assemble().with_context(|| scene.geometry.display().to_string())?;
