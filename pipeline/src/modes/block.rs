@@ -412,14 +412,14 @@ fn par() -> Par {
 mod tests {
     use super::*;
     use crate::linsolve::{nested_dissection, sym_matvec};
-    use crate::mesh::Mesh;
     use crate::modes::dense::Dense;
     use crate::problem::Discretized;
     use crate::supports::Dofs;
+    use crate::tet_mesh::Mesh;
     use faer::sparse::SymbolicSparseColMat;
 
     fn beam(clamped: bool) -> Discretized {
-        let mesh = Mesh::structured_box([16, 2, 2], 0.05, 1, |_, p| p);
+        let mesh = Mesh::structured_box([16, 2, 2], 0.05, crate::fem::element::Kind::Tet4, |_, p| p);
         let mask: Vec<bool> = mesh.nodes.iter().flat_map(|p| [clamped && p[0] < 1e-12; 3]).collect();
         Discretized::assemble(mesh, Dofs::from_mask(&mask), (2e11, 0.3, 7800.0)).expect("assembles")
     }

@@ -604,7 +604,7 @@ pub struct SolvedOnRanks {
 /// are in [`mpi_job::serve`]. The `count` lowest elastic modes come back checked, with the
 /// part's mass moments. An error in a ves built without the `slepc` feature.
 pub fn solve_on_ranks(
-    mesh: &crate::mesh::Mesh,
+    mesh: &crate::tet_mesh::Mesh,
     dofs: &Dofs,
     material: (f64, f64, f64),
     rigid: usize,
@@ -656,8 +656,8 @@ pub(crate) fn blame_petsc_options(e: ModesError, petsc_options: bool) -> ModesEr
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::mesh::Mesh;
     use crate::problem::Discretized;
+    use crate::tet_mesh::Mesh;
 
     #[test]
     fn a_failed_check_under_petsc_options_names_them() {
@@ -677,7 +677,7 @@ mod tests {
     /// of the middle of the spectrum (as a solver that skipped one would leave it).
     #[test]
     fn the_sturm_count_proves_completeness_and_catches_a_skipped_mode() {
-        let mesh = Mesh::structured_box([16, 2, 2], 0.05, 1, |_, p| p);
+        let mesh = Mesh::structured_box([16, 2, 2], 0.05, crate::fem::element::Kind::Tet4, |_, p| p);
         let mask: Vec<bool> = mesh.nodes.iter().flat_map(|p| [p[0] < 1e-12; 3]).collect();
         let d = Discretized::assemble(mesh, Dofs::from_mask(&mask), (2e11, 0.3, 7800.0)).expect("assembles");
         let (mut m, _) = solve(&d, 8, SolverChoice::Arpack).expect("solves");

@@ -16,8 +16,8 @@ use super::mpi_job::{HEADER, IN_SOLVE, header, message, with_token};
 use super::{EigenSolver, ModesError, Scales, SolvedOnRanks, SolverChoice, Spectrum};
 use crate::fem::Moments;
 use crate::fem::share::{Numbering, Share};
-use crate::mesh::Mesh;
 use crate::supports::Dofs;
+use crate::tet_mesh::Mesh;
 use std::sync::atomic::Ordering::SeqCst;
 use ves_ffi::slepc::{Method, Operators, Slepc};
 
@@ -200,7 +200,7 @@ fn send_share(
         s.tets.len() as u64,
         s.elements.len() as u64,
         s.owned as u64,
-        s.order as u64,
+        u64::from(s.kind.order()),
         s.vertex_count as u64,
         u64::from(frame),
     ];
@@ -219,9 +219,13 @@ pub(super) fn assemble_share(token: &Slepc, h: &[u64]) -> anyhow::Result<Operato
     let (n, lo, hi) = (h[1] as usize, h[2] as usize, h[3] as usize);
     let (nodes, tets, elements) = (h[4] as usize, h[5] as usize, h[6] as usize);
     let numbers: Vec<f64> = token.receive(0, 7)?;
+    let kind = u32::try_from(h[8])
+        .ok()
+        .and_then(crate::fem::element::Kind::of_order)
+        .ok_or_else(|| anyhow::anyhow!("rank 0 sent element order {}, which this ves does not know", h[8]))?;
     let share = Share {
         owned: h[7] as usize,
-        order: h[8] as u8,
+        kind,
         vertex_count: h[9] as usize,
         xyz: token.receive(0, 3 * nodes)?,
         free: token.receive(0, 3 * nodes)?,

@@ -6,12 +6,12 @@ mod stages;
 pub use stages::solve_space;
 
 use crate::fem::{self, MassProperties};
-use crate::mesh::Mesh;
 use crate::modes::{self, Modes, SolverChoice};
 use crate::output::Overwrite;
 use crate::scene::{Scene, Voi};
 use crate::store;
 use crate::supports::Dofs;
+use crate::tet_mesh::Mesh;
 use anyhow::{Context, Result};
 use serde::Serialize;
 use std::path::Path;
