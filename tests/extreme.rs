@@ -76,12 +76,17 @@ fn thin_plate_200_to_1_matches_kirchhoff() {
 /// A structured 10-node beam mesh (0.4 × 0.1 × 0.1 m, 8 × 2 × 2 cubes of 6 tets), clamped at
 /// x = 0, with interior node (x = 0.2, y = z = 0.05) moved by `shift` along y.
 fn raw_beam(shift: f64) -> (ves_pipeline::mesh::Mesh, ves_pipeline::supports::Dofs) {
-    let mesh = ves_pipeline::mesh::Mesh::structured_box([8, 2, 2], 0.05, 2, |ijk, mut p| {
-        if ijk == [4, 1, 1] {
-            p[1] += shift;
-        }
-        p
-    });
+    let mesh = ves_pipeline::mesh::Mesh::structured_box(
+        [8, 2, 2],
+        0.05,
+        ves_pipeline::fem::element::Kind::Tet10,
+        |ijk, mut p| {
+            if ijk == [4, 1, 1] {
+                p[1] += shift;
+            }
+            p
+        },
+    );
     let mask: Vec<bool> = mesh.nodes.iter().flat_map(|p| [p[0] < 1e-9; 3]).collect();
     let dofs = ves_pipeline::supports::Dofs::from_mask(&mask);
     (mesh, dofs)

@@ -29,7 +29,7 @@ fn tet10_mid_edge_nodes_follow_gmsh_edge_order() {
     // midpoint of the edge our shape functions assign to it.
     let scene = load_case("cantilever");
     let d = discretize(&scene, None).expect("cantilever discretizes");
-    assert_eq!(d.mesh.order, 2);
+    assert_eq!(d.mesh.kind, ves_pipeline::fem::element::Kind::Tet10);
     assert!(d.mesh.vertex_count < d.mesh.nodes.len());
     for e in 0..d.mesh.tet_count() {
         let t = d.mesh.tet(e);

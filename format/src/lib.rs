@@ -5,6 +5,7 @@
 //! Permissive (MIT OR Apache-2.0): the runtime reads with it, the pipeline writes with it.
 
 pub mod checks;
+pub mod element;
 pub mod identifier;
 pub mod names;
 #[cfg(feature = "hdf5")]
@@ -15,6 +16,7 @@ pub mod strings;
 pub mod write;
 pub mod xdmf;
 
+pub use element::ElementKind;
 pub use identifier::check_identifier;
 pub use names::{FORMAT, VERSION};
 #[cfg(feature = "hdf5")]

@@ -376,8 +376,8 @@ pub struct SpaceReader<'a> {
     group: hdf5::Group,
     /// Space name.
     pub name: String,
-    /// 1 or 2.
-    pub element_order: u8,
+    /// The element kind (the file's `element_order`: 1 or 2).
+    pub kind: crate::ElementKind,
     /// Rigid modes dropped.
     pub rigid_modes_dropped: u32,
     /// The VOI this space refines (min, max corners), if any.
@@ -406,8 +406,8 @@ impl<'a> SpaceReader<'a> {
             .map_err(|_| file.err(format!("no space {name:?} in the file")))?;
         file.check_object(&group, &path)?;
         let bad = |what: &str| file.err(format!("space {name:?}: {what}"));
-        let order: u32 = scalar_attr(&group, sp::ELEMENT_ORDER)
-            .filter(|o| *o == 1 || *o == 2)
+        let kind = scalar_attr::<u32>(&group, sp::ELEMENT_ORDER)
+            .and_then(crate::ElementKind::of_order)
             .ok_or_else(|| bad("element_order missing or not 1 or 2"))?;
         let rigid_modes_dropped: u32 = scalar_attr(&group, sp::RIGID_MODES_DROPPED)
             .filter(|r| *r <= 6)
@@ -435,7 +435,7 @@ impl<'a> SpaceReader<'a> {
             file,
             group,
             name: name.to_string(),
-            element_order: order as u8,
+            kind,
             rigid_modes_dropped,
             voi,
             vertex_count: nv as usize,
@@ -447,7 +447,7 @@ impl<'a> SpaceReader<'a> {
         };
         let nodes = s.shape::<f64>(sp::NODES, 2)?;
         let (n, r) = (nodes[0], s.shape::<f64>(sp::EIGENVALUES, 1)?[0]);
-        let per_tet = if order == 2 { 10 } else { 4 };
+        let per_tet = kind.nodes();
         let expect = |what: &str, got: Vec<usize>, want: &[Option<usize>]| {
             let ok = got.len() == want.len() && got.iter().zip(want).all(|(g, w)| w.is_none_or(|w| *g == w));
             if ok {
@@ -602,7 +602,7 @@ impl<'a> SpaceReader<'a> {
         self.guard(|| {
             let v = self.read_all::<u32>(sp::TETS, 2)?;
             let v = self.indices(sp::TETS, v, self.node_count)?;
-            let per = if self.element_order == 2 { 10 } else { 4 };
+            let per = self.kind.nodes();
             checks::tets(&v, per).map_err(|m| self.err(format!("{}: {m}; the file is damaged", sp::TETS)))?;
             Ok(v)
         })

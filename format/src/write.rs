@@ -34,8 +34,8 @@ pub struct FileData<'a> {
 pub struct SpaceData<'a> {
     /// "global" or the VOI's name.
     pub name: &'a str,
-    /// 1 or 2.
-    pub element_order: u8,
+    /// The element kind (stored as `element_order`).
+    pub kind: crate::ElementKind,
     /// Rigid modes dropped (free bodies: 6).
     pub rigid_modes_dropped: u32,
     /// The VOI this space refines (min, max corners).
@@ -46,10 +46,8 @@ pub struct SpaceData<'a> {
     pub meshing_strategy: Option<&'a str>,
     /// Node coordinates, m.
     pub nodes: &'a [[f64; 3]],
-    /// Connectivity, `nodes_per_tet` per tet (gmsh order).
+    /// Connectivity, `kind.nodes()` per tet (gmsh order).
     pub tets: &'a [u32],
-    /// 4 or 10.
-    pub nodes_per_tet: usize,
     /// Surface triangles on corner vertices, outward.
     pub surface_triangles: &'a [[u32; 3]],
     /// Supported DOFs 3i+c.
@@ -175,7 +173,7 @@ fn write_space(file: &hdf5::File, s: &SpaceData<'_>) -> Result<(), WriteError> {
     let g = file
         .create_group(&format!("{}/{}", names::SPACES, s.name))
         .ctx("group")?;
-    attr_u32(&g, sp::ELEMENT_ORDER, u32::from(s.element_order))?;
+    attr_u32(&g, sp::ELEMENT_ORDER, u32::from(s.kind.order()))?;
     attr_u32(&g, sp::RIGID_MODES_DROPPED, s.rigid_modes_dropped)?;
     if let Some([lo, hi]) = s.voi {
         attr_vec3(&g, sp::VOI_MIN, lo)?;
@@ -192,7 +190,7 @@ fn write_space(file: &hdf5::File, s: &SpaceData<'_>) -> Result<(), WriteError> {
         .with_data(&nodes)
         .create(sp::NODES)
         .ctx(sp::NODES)?;
-    let p = s.nodes_per_tet;
+    let p = s.kind.nodes();
     let tets = Array2::from_shape_vec((s.tets.len() / p.max(1), p), s.tets.to_vec()).ctx(sp::TETS)?;
     g.new_dataset_builder()
         .with_data(&tets)

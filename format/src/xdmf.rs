@@ -21,17 +21,15 @@ pub struct XdmfSpace<'a> {
     pub vertices: usize,
     /// Tets.
     pub tets: usize,
-    /// 1 or 2.
-    pub order: u8,
+    /// The element kind.
+    pub kind: crate::ElementKind,
     /// Mode frequencies, Hz (one per stored mode).
     pub frequencies_hz: &'a [f64],
     /// Whether `modes/stress` is stored.
     pub stress: bool,
 }
 
-/// gmsh → VTK order of a 10-node tet (gmsh numbers the last two mid-edge nodes (3,2), (3,1);
-/// VTK (1,3), (2,3)).
-pub const TET10_TO_VTK: [usize; 10] = [0, 1, 2, 3, 4, 5, 6, 7, 9, 8];
+pub use crate::element::TET10_TO_VTK;
 
 /// XDMF's Tensor6 order (xx xy xz yy yz zz) in terms of the file's (xx yy zz yz xz xy).
 const VOIGT_TO_TENSOR6: [usize; 6] = [0, 5, 4, 1, 3, 2];
@@ -60,29 +58,31 @@ pub fn sidecar(h5_name: &str, spaces: &[XdmfSpace<'_>]) -> String {
 fn space_grids(x: &mut String, h5: &str, s: &XdmfSpace<'_>) {
     let group = format!("/spaces/{}", s.name);
     let data = |path: &str| format!("{}:{group}/{path}", escape(h5));
-    let per_tet = if s.order == 2 { 10 } else { 4 };
+    let per_tet = s.kind.nodes();
     let r = s.frequencies_hz.len();
     let tets = hdf(s.tets, per_tet, r#"NumberType="UInt" Precision="4""#, &data(sp::TETS));
     let nodes = hdf(s.nodes, 3, F64, &data(sp::NODES));
     let _ = writeln!(x, r#"  <Grid Name="{}" GridType="Uniform">"#, escape(s.name));
-    if s.order == 2 {
-        let _ = writeln!(
-            x,
-            r#"   <Topology TopologyType="Tetrahedron_10" NumberOfElements="{}">"#,
-            s.tets
-        );
-        let columns: Vec<String> = TET10_TO_VTK
-            .iter()
-            .map(|&c| slab(s.tets, 1, (0, c), (1, 1), &tets))
-            .collect();
-        join(x, &format!("{} 10", s.tets), &columns);
-    } else {
-        let _ = writeln!(
-            x,
-            r#"   <Topology TopologyType="Tetrahedron" NumberOfElements="{}">"#,
-            s.tets
-        );
-        let _ = writeln!(x, "    {tets}");
+    let _ = writeln!(
+        x,
+        r#"   <Topology TopologyType="{}" NumberOfElements="{}">"#,
+        s.kind.xdmf_topology(),
+        s.tets
+    );
+    match s.kind {
+        crate::ElementKind::Tet4 => {
+            let _ = writeln!(x, "    {tets}");
+        }
+        // The columns read in VTK's node order.
+        crate::ElementKind::Tet10 => {
+            let columns: Vec<String> = s
+                .kind
+                .vtk_node_order()
+                .iter()
+                .map(|&c| slab(s.tets, 1, (0, c), (1, 1), &tets))
+                .collect();
+            join(x, &format!("{} {per_tet}", s.tets), &columns);
+        }
     }
     geometry(x, &nodes);
     let basis = hdf(3 * s.nodes, r, F64, &data(sp::BASIS));
@@ -202,7 +202,7 @@ mod tests {
                 nodes: 20,
                 vertices: 8,
                 tets: 3,
-                order: 2,
+                kind: crate::ElementKind::Tet10,
                 frequencies_hz: &f,
                 stress: true,
             }],

@@ -10,12 +10,11 @@ use std::path::{Path, PathBuf};
 
 use crate::output::Overwrite;
 
-use ves_format::xdmf::{TET10_TO_VTK, escape, mode_name};
+use crate::fem::element::Kind;
+use ves_format::xdmf::{escape, mode_name};
 
 /// VTK's symmetric-tensor order (xx yy zz xy yz xz) from the file's Voigt (xx yy zz yz xz xy).
 const VOIGT_TO_VTK: [usize; 6] = [0, 1, 2, 5, 3, 4];
-const VTK_TETRA: u8 = 10;
-const VTK_QUADRATIC_TETRA: u8 = 24;
 
 /// One array of an unstructured grid.
 enum Data<'a> {
@@ -84,8 +83,8 @@ pub fn export(basis: &Path, dir: &Path, overwrite: Overwrite) -> Result<Vec<Path
         let (n, nv, r) = (s.node_count, s.vertex_count, s.mode_count);
         let nodes: Vec<f64> = s.nodes(n)?.into_iter().flatten().collect();
         let tets = s.tets()?;
-        let per = if s.element_order == 2 { 10 } else { 4 };
-        let order: &[usize] = if per == 10 { &TET10_TO_VTK } else { &[0, 1, 2, 3] };
+        let per = s.kind.nodes();
+        let order = s.kind.vtk_node_order();
         let frequencies = s.frequencies_hz()?;
         let rows = s.basis_rows(0..3 * n, r)?;
         let shapes: Vec<(String, usize, Vec<f64>)> = (0..r)
@@ -98,8 +97,7 @@ pub fn export(basis: &Path, dir: &Path, overwrite: Overwrite) -> Result<Vec<Path
             .chunks_exact(per)
             .flat_map(|t| order.iter().map(move |&k| i64::from(t[k])))
             .collect();
-        let kind = if per == 10 { VTK_QUADRATIC_TETRA } else { VTK_TETRA };
-        write_grid(grid, &nodes, &cells, per, kind, &shapes)?;
+        write_grid(grid, &nodes, &cells, per, s.kind.vtk_cell_type(), &shapes)?;
         written.push(grid.clone());
         if let Some(path) = vertices
             && let Some(stress) = s.stress_rows(0..nv, r)?
@@ -116,7 +114,8 @@ pub fn export(basis: &Path, dir: &Path, overwrite: Overwrite) -> Result<Vec<Path
                 .chunks_exact(per)
                 .flat_map(|t| t[..4].iter().map(|&v| i64::from(v)))
                 .collect();
-            write_grid(path, &nodes[..3 * nv], &corners, 4, VTK_TETRA, &fields)?;
+            let (n, cell) = (Kind::Tet4.nodes(), Kind::Tet4.vtk_cell_type());
+            write_grid(path, &nodes[..3 * nv], &corners, n, cell, &fields)?;
             written.push(path.clone());
         }
     }

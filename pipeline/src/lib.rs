@@ -25,6 +25,7 @@ pub mod scene;
 pub mod step_units;
 pub mod store;
 pub mod supports;
+pub mod tet_mesh;
 pub mod transfer;
 pub mod verify;
 pub mod workshop;

@@ -380,7 +380,7 @@ mod tests {
     /// The grouped product equals one product per vector (7 vectors: a group of 4 and 3 left).
     #[test]
     fn grouped_products_equal_single_ones() {
-        let mesh = crate::mesh::Mesh::structured_box([3, 2, 2], 0.02, 1, |_, p| p);
+        let mesh = crate::tet_mesh::Mesh::structured_box([3, 2, 2], 0.02, crate::fem::element::Kind::Tet4, |_, p| p);
         let mask = vec![false; 3 * mesh.nodes.len()];
         let dofs = crate::supports::Dofs::from_mask(&mask);
         let d = crate::problem::Discretized::assemble(mesh, dofs, (2e11, 0.3, 7800.0)).expect("assembles");
@@ -403,14 +403,14 @@ mod tests {
     #[test]
     fn negative_pivots_count_the_eigenvalues_below_the_shift() {
         use crate::modes::EigenSolver;
-        let mesh = crate::mesh::Mesh::structured_box([4, 1, 1], 0.02, 1, |_, p| p);
+        let mesh = crate::tet_mesh::Mesh::structured_box([4, 1, 1], 0.02, crate::fem::element::Kind::Tet4, |_, p| p);
         // Clamped at x = 0.
         let mask: Vec<bool> = mesh.nodes.iter().flat_map(|p| [p[0] < 1e-9; 3]).collect();
         let dofs = crate::supports::Dofs::from_mask(&mask);
         let d = crate::problem::Discretized::assemble(mesh, dofs, (2e11, 0.3, 7800.0)).expect("assembles");
         let problem = crate::modes::EigenProblem::of(&d.system);
-        let dense = crate::modes::dense::Dense
-            .lowest(&problem, 9, 0.0)
+        let dense = crate::modes::dense::Dense(&problem)
+            .lowest(9, 0.0)
             .expect("dense")
             .values;
         let ordering = nested_dissection(&d.system.graph, &d.dofs);

@@ -91,9 +91,9 @@ pub fn free_rigid_count(nodes: &[[f64; 3]], dofs: &Dofs) -> usize {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::mesh::Mesh;
     use crate::scene::{Region, Support};
     use crate::supports::select;
+    use crate::tet_mesh::Mesh;
 
     fn cube() -> Mesh {
         // Unit cube split into 6 tets around the diagonal 0–6.
@@ -101,7 +101,7 @@ mod tests {
             .map(|i| [(i & 1) as f64, ((i >> 1) & 1) as f64, ((i >> 2) & 1) as f64])
             .collect();
         let tets = [0, 1, 3, 7, 0, 1, 5, 7, 0, 4, 5, 7, 0, 2, 3, 7, 0, 2, 6, 7, 0, 4, 6, 7];
-        Mesh::from_raw(&c, &tets, 1)
+        Mesh::from_raw(&c, &tets, ves_format::ElementKind::Tet4)
     }
 
     fn count(supports: &[Support]) -> usize {

@@ -125,6 +125,14 @@ pub struct Material {
     pub yield_strength: Option<f64>,
 }
 
+impl MeshSettings {
+    /// The element kind of `order` (the scene parser admits 1 and 2 only; anything else would be
+    /// 4-node tets).
+    pub fn kind(&self) -> ves_format::ElementKind {
+        ves_format::ElementKind::of_order(u32::from(self.order)).unwrap_or(ves_format::ElementKind::Tet4)
+    }
+}
+
 /// Meshing settings.
 #[derive(Clone, Copy, Debug, Deserialize, serde::Serialize)]
 #[serde(deny_unknown_fields)]

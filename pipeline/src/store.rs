@@ -2,10 +2,10 @@
 //! when complete, so a killed run never leaves a half-written basis under the final name.
 
 use crate::fem::MassProperties;
-use crate::mesh::Mesh;
 use crate::modes::Modes;
 use crate::scene::{Scene, Voi};
 use crate::supports::Dofs;
+use crate::tet_mesh::Mesh;
 use anyhow::{Context, Result};
 use std::path::Path;
 
@@ -43,14 +43,13 @@ impl Space<'_> {
     fn file_data<'b>(&'b self, basis: &'b [f64]) -> ves_format::SpaceData<'b> {
         ves_format::SpaceData {
             name: self.name,
-            element_order: self.mesh.order,
+            kind: self.mesh.kind,
             rigid_modes_dropped: self.modes.rigid_dropped as u32,
             voi: self.voi.map(|v| [v.bbox.min, v.bbox.max]),
             vertex_count: self.mesh.vertex_count,
             meshing_strategy: self.meshing_strategy,
             nodes: &self.mesh.nodes,
             tets: &self.mesh.tets,
-            nodes_per_tet: self.mesh.nodes_per_tet(),
             surface_triangles: &self.mesh.surface,
             fixed_dofs: &self.dofs.fixed,
             eigenvalues: &self.modes.eigenvalues,
@@ -163,7 +162,7 @@ fn sidecar_of(reader: &ves_format::BasisReader, out: &Path) -> Result<String> {
             s.node_count,
             s.vertex_count,
             s.tet_count,
-            s.element_order,
+            s.kind,
             frequencies,
             stress,
         ));
@@ -171,12 +170,12 @@ fn sidecar_of(reader: &ves_format::BasisReader, out: &Path) -> Result<String> {
     let views: Vec<ves_format::xdmf::XdmfSpace<'_>> = spaces
         .iter()
         .map(
-            |(name, nodes, vertices, tets, order, f, stress)| ves_format::xdmf::XdmfSpace {
+            |(name, nodes, vertices, tets, kind, f, stress)| ves_format::xdmf::XdmfSpace {
                 name,
                 nodes: *nodes,
                 vertices: *vertices,
                 tets: *tets,
-                order: *order,
+                kind: *kind,
                 frequencies_hz: f,
                 stress: *stress,
             },
@@ -271,7 +270,7 @@ pub fn info(path: &Path) -> Result<BasisInfo> {
             nodes: s.node_count,
             vertices: s.vertex_count,
             tets: s.tet_count,
-            element_order: u32::from(s.element_order),
+            element_order: u32::from(s.kind.order()),
             modes: s.mode_count,
             frequencies_hz: s.frequencies_hz()?,
             max_relative_residual: res.iter().fold(0.0, |a: f64, &b| a.max(b)),

@@ -1,7 +1,7 @@
 //! Supported degrees of freedom: which DOFs the scene's `[[fixed]]` regions remove.
 
-use crate::mesh::Mesh;
 use crate::scene::{Region, Support};
+use crate::tet_mesh::Mesh;
 
 /// Numbering of the free DOFs (full index `3·node + component`).
 #[derive(Clone, Debug)]

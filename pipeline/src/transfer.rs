@@ -6,8 +6,8 @@
 
 use crate::fem::element::{Shape, tet4::Tet4, tet10::Tet10};
 use crate::linsolve::sym_matmul;
-use crate::mesh::Mesh;
 use crate::supports::Dofs;
+use crate::tet_mesh::Mesh;
 use faer::sparse::SymbolicSparseColMat;
 use nalgebra::{Matrix3, Vector3};
 use rayon::prelude::*;
@@ -205,7 +205,7 @@ pub fn interpolate(source: &Mesh, interp: &Interpolation, values: &[f64], out: &
     let mut n = [0.0; 10];
     for (i, &(e, l)) in interp.at.iter().enumerate() {
         let t = source.tet(e);
-        let nodes = if source.order == 2 {
+        let nodes = if source.kind == crate::fem::element::Kind::Tet10 {
             Tet10::values(l, &mut n);
             10
         } else {
@@ -284,7 +284,7 @@ mod tests {
     /// shape functions were written into a 10-slot buffer).
     #[test]
     fn linear_field_interpolates_exactly_between_order_1_meshes() {
-        let cube = |n: usize| Mesh::structured_box([n; 3], 1.0 / n as f64, 1, |_, p| p);
+        let cube = |n: usize| Mesh::structured_box([n; 3], 1.0 / n as f64, crate::fem::element::Kind::Tet4, |_, p| p);
         let (a, b) = (cube(2), cube(3));
         let f = |p: [f64; 3]| [p[0] + 2.0 * p[1], 3.0 * p[2] - p[0], 1.0 - p[1]];
         let values: Vec<f64> = a.nodes.iter().flat_map(|&p| f(p)).collect();
@@ -300,7 +300,7 @@ mod tests {
     /// A quadratic field is reproduced exactly by 10-node interpolation between two meshes.
     #[test]
     fn quadratic_field_interpolates_exactly_between_meshes() {
-        let cube = |n: usize| Mesh::structured_box([n; 3], 1.0 / n as f64, 2, |_, p| p);
+        let cube = |n: usize| Mesh::structured_box([n; 3], 1.0 / n as f64, crate::fem::element::Kind::Tet10, |_, p| p);
         let (a, b) = (cube(2), cube(3));
         let f = |p: [f64; 3]| [p[0] * p[1], p[2] * p[2] - p[0], 1.0 + p[1] * p[2]];
         let values: Vec<f64> = a.nodes.iter().flat_map(|&p| f(p)).collect();

@@ -10,8 +10,8 @@
 
 use crate::fem::element::{Lame, Shape, tet4::Tet4, tet10::Tet10};
 use crate::fem::stress::{Corners, vertex_stress};
-use crate::mesh::Mesh;
 use crate::mesh::field::SizeField;
+use crate::tet_mesh::Mesh;
 use rayon::prelude::*;
 
 /// A step makes an element at most this many times smaller.
@@ -25,10 +25,9 @@ pub const EVEN_SHARE: f64 = 0.2;
 /// Per element `e` and field `j`, the share of field `j`'s indicated error in element `e`,
 /// row-major [tets, r] (each column sums to 1; an all-zero column when a field has no error).
 pub fn shares(mesh: &Mesh, mat: &Lame, u: &[f64], r: usize) -> Vec<f64> {
-    let mut eta = if mesh.order == 2 {
-        element_errors::<Tet10>(mesh, mat, u, r)
-    } else {
-        element_errors::<Tet4>(mesh, mat, u, r)
+    let mut eta = match mesh.kind {
+        crate::fem::element::Kind::Tet4 => element_errors::<Tet4>(mesh, mat, u, r),
+        crate::fem::element::Kind::Tet10 => element_errors::<Tet10>(mesh, mat, u, r),
     };
     for j in 0..r {
         let total: f64 = eta.iter().skip(j).step_by(r).sum();
@@ -183,7 +182,7 @@ mod tests {
     #[test]
     fn indicator_is_zero_for_a_representable_field_and_finds_the_gradient() {
         let mat = Lame::new(2.0e11, 0.3, 7800.0);
-        let mesh = Mesh::structured_box([4, 2, 2], 0.1, 2, |_, p| p);
+        let mesh = Mesh::structured_box([4, 2, 2], 0.1, crate::fem::element::Kind::Tet10, |_, p| p);
         // Quadratic displacement: linear strain, exact in 10-node tets.
         let u: Vec<f64> = mesh
             .nodes
@@ -195,7 +194,7 @@ mod tests {
         assert!(energy < 1e-20, "a representable field shows an error of {energy:e}");
 
         // u_x = x³ on 4-node tets: the strain 3x² changes fastest at large x.
-        let mesh = Mesh::structured_box([8, 1, 1], 0.1, 1, |_, p| p);
+        let mesh = Mesh::structured_box([8, 1, 1], 0.1, crate::fem::element::Kind::Tet4, |_, p| p);
         let u: Vec<f64> = mesh.nodes.iter().flat_map(|p| [p[0].powi(3), 0.0, 0.0]).collect();
         let s = shares(&mesh, &mat, &u, 1);
         assert!((s.iter().sum::<f64>() - 1.0).abs() < 1e-12);
@@ -214,7 +213,7 @@ mod tests {
     /// element to grow or to shrink by more than MAX_SHRINK.
     #[test]
     fn next_field_refines_where_the_error_is_and_meets_the_goal() {
-        let mesh = Mesh::structured_box([8, 1, 1], 0.1, 2, |_, p| p);
+        let mesh = Mesh::structured_box([8, 1, 1], 0.1, crate::fem::element::Kind::Tet10, |_, p| p);
         let tets = mesh.tet_count();
         // All of the indicated error in the tets beyond x = 0.6.
         let hot: Vec<bool> = (0..tets)

@@ -321,14 +321,14 @@ impl Solved {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::mesh::Mesh;
     use crate::problem::Discretized;
     use crate::supports::Dofs;
+    use crate::tet_mesh::Mesh;
 
     /// A square-section cantilever 0.8 × 0.1 × 0.1 m clamped at x = 0, 10-node tets of side `h`.
     fn beam(h: f64) -> (Discretized, modes::Modes) {
         let n = (0.1 / h).round() as usize;
-        let mesh = Mesh::structured_box([8 * n, n, n], h, 2, |_, p| p);
+        let mesh = Mesh::structured_box([8 * n, n, n], h, crate::fem::element::Kind::Tet10, |_, p| p);
         let mask: Vec<bool> = mesh.nodes.iter().flat_map(|p| [p[0] < 1e-12; 3]).collect();
         let d = Discretized::assemble(mesh, Dofs::from_mask(&mask), (2e11, 0.3, 7800.0)).expect("assembles");
         let (m, _) = modes::solve(&d, 8, SolverChoice::Arpack).expect("solves");

@@ -13,7 +13,6 @@ pub mod verify;
 pub mod view;
 
 use clap::{Parser, Subcommand};
-use std::sync::atomic::{AtomicUsize, Ordering};
 
 /// The command line.
 #[derive(Parser)]
@@ -136,16 +135,9 @@ impl std::fmt::Display for VerifyFailed {
 
 impl std::error::Error for VerifyFailed {}
 
-/// MPI rank of this process (0 unless `--solver slepc` under mpirun): only rank 0 reports.
-static RANK: AtomicUsize = AtomicUsize::new(0);
-
-/// This process's MPI rank as far as reporting goes.
+/// This process's MPI rank (0 unless `--solver slepc` under mpirun): only rank 0 reports.
 pub fn rank() -> usize {
-    RANK.load(Ordering::Relaxed)
-}
-
-fn set_rank(r: usize) {
-    RANK.store(r, Ordering::Relaxed);
+    ves_pipeline::modes::mpi_job::rank()
 }
 
 /// Prints `value` as one JSON line (the last line of stdout, README `--json`).

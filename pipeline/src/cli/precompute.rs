@@ -2,7 +2,7 @@
 
 use anyhow::Result;
 use std::path::PathBuf;
-use ves_pipeline::modes::{SolverChoice, slepc};
+use ves_pipeline::modes::{SolverChoice, mpi_job};
 use ves_pipeline::precompute;
 use ves_pipeline::scene::Scene;
 
@@ -35,9 +35,8 @@ impl Args {
         // SLEPc brings MPI up first: under mpirun every rank runs this command.
         let _slepc = match self.solver {
             SolverChoice::Slepc | SolverChoice::SlepcIterative => {
-                let s = slepc::SlepcGuard::init()?;
-                super::set_rank(slepc::rank());
-                if slepc::rank() != 0 {
+                let s = mpi_job::SlepcGuard::init()?;
+                if mpi_job::rank() != 0 {
                     ves_pipeline::progress::hide_inner(true);
                 }
                 Some(s)
@@ -45,13 +44,13 @@ impl Args {
             _ => None,
         };
         // Under MPI an error on one rank must end all of them (before the guard finalises MPI).
-        slepc::finish(self.solve())
+        mpi_job::finish(self.solve())
     }
 
     fn solve(self) -> Result<()> {
         // A scene one rank cannot read (an MPMD launch, a file system that differs between
         // nodes) stops every rank here, not in the eigen-solver's collective calls.
-        let mut scene = slepc::agree(Scene::load_with(&self.scene, self.write.scene()).map_err(Into::into))?;
+        let mut scene = mpi_job::agree(Scene::load_with(&self.scene, self.write.scene()).map_err(Into::into))?;
         if let Some(m) = self.modes {
             scene.modes.count = m;
         }
@@ -59,7 +58,7 @@ impl Args {
             .output
             .unwrap_or_else(|| scene.path.with_file_name(format!("{}.h5", scene.name)));
         let summary = precompute::run_with(&scene, &out, self.solver, self.write.overwrite())?;
-        if slepc::rank() != 0 {
+        if mpi_job::rank() != 0 {
             return Ok(());
         }
         if self.json {

@@ -4,9 +4,9 @@
 //! accumulates its share of the elements into its own block arrays, which are then summed and
 //! expanded to DOF level with the supported DOFs removed.
 
-use super::element::{self, BadJacobian, Lame, Shape, tet4::Tet4, tet10::Tet10};
-use crate::mesh::Mesh;
+use super::element::{self, BadJacobian, Kind, Lame, Shape, tet4::Tet4, tet10::Tet10};
 use crate::supports::Dofs;
+use crate::tet_mesh::Mesh;
 use faer::sparse::SymbolicSparseColMat;
 use rayon::prelude::*;
 
@@ -244,12 +244,9 @@ pub fn assemble_counting(
     let ranges: Vec<_> = (0..ne).step_by(step).map(|s| s..(s + step).min(ne)).collect();
     let partials: Vec<Partial> = ranges
         .into_par_iter()
-        .map(|r| {
-            if mesh.order == 2 {
-                accumulate::<Tet10>(mesh, &graph, &lame, r, counted)
-            } else {
-                accumulate::<Tet4>(mesh, &graph, &lame, r, counted)
-            }
+        .map(|r| match mesh.kind {
+            Kind::Tet4 => accumulate::<Tet4>(mesh, &graph, &lame, r, counted),
+            Kind::Tet10 => accumulate::<Tet10>(mesh, &graph, &lame, r, counted),
         })
         .collect::<Result<_, _>>()?;
     let mut partials = partials.into_iter();

@@ -5,8 +5,8 @@
 //! holds the whole K and M.
 
 use super::assembly::{AssemblyError, Moments, assemble_counting};
-use crate::mesh::Mesh;
 use crate::supports::Dofs;
+use crate::tet_mesh::Mesh;
 
 /// The free DOFs numbered rank by rank: rank r owns the rows `bounds[r]..bounds[r + 1]`, the
 /// free DOFs of its nodes (one compact region of the part), each node's DOFs together.
@@ -94,10 +94,10 @@ impl Numbering {
 }
 
 /// One rank's elements and their nodes, in a local numbering.
-#[derive(Clone, Debug, Default, PartialEq)]
+#[derive(Clone, Debug, PartialEq)]
 pub struct Share {
-    /// Element order (1 or 2).
-    pub order: u8,
+    /// The element kind.
+    pub kind: crate::fem::element::Kind,
     /// Node coordinates, 3 per local node (ascending global node number, so the mesh's corner
     /// vertices come first).
     pub xyz: Vec<f64>,
@@ -168,7 +168,7 @@ impl Share {
             local[g as usize] = i as u32;
         }
         Share {
-            order: mesh.order,
+            kind: mesh.kind,
             xyz: nodes.iter().flat_map(|&g| mesh.nodes[g as usize]).collect(),
             vertex_count: nodes.partition_point(|&g| (g as usize) < mesh.vertex_count),
             free: nodes
@@ -191,7 +191,7 @@ impl Share {
         let mesh = Mesh {
             nodes: self.xyz.chunks_exact(3).map(|p| [p[0], p[1], p[2]]).collect(),
             vertex_count: self.vertex_count,
-            order: self.order,
+            kind: self.kind,
             tets: self.tets.clone(),
             surface: Vec::new(),
         };
@@ -227,7 +227,7 @@ mod tests {
     /// whole mesh.
     #[test]
     fn shares_cover_each_rank_rows_and_count_each_element_once() {
-        let mesh = Mesh::structured_box([8, 3, 2], 0.1, 2, |_, p| p);
+        let mesh = Mesh::structured_box([8, 3, 2], 0.1, crate::fem::element::Kind::Tet10, |_, p| p);
         let mask: Vec<bool> = mesh.nodes.iter().flat_map(|p| [p[0] < 1e-12; 3]).collect();
         let dofs = Dofs::from_mask(&mask);
         let n = dofs.free_count();

@@ -4,8 +4,8 @@
 //! too, but it extrapolates from the integration points instead; the two agree where the field
 //! is smooth and differ at the vertices of a stress concentration.
 
-use super::element::{Lame, Shape, physical_gradients, tet4::Tet4, tet10::Tet10};
-use crate::mesh::Mesh;
+use super::element::{Kind, Lame, Shape, physical_gradients, tet4::Tet4, tet10::Tet10};
+use crate::tet_mesh::Mesh;
 use nalgebra::{Matrix3, Vector3};
 use rayon::prelude::*;
 
@@ -33,10 +33,9 @@ pub enum Averaging {
 
 /// [`vertex_stress`] with a choice of averaging.
 pub fn vertex_stress_averaged(mesh: &Mesh, mat: &Lame, u: &[f64], r: usize, how: Averaging) -> Vec<f64> {
-    if mesh.order == 2 {
-        accumulate::<Tet10>(mesh, mat, u, r, how)
-    } else {
-        accumulate::<Tet4>(mesh, mat, u, r, how)
+    match mesh.kind {
+        Kind::Tet4 => accumulate::<Tet4>(mesh, mat, u, r, how),
+        Kind::Tet10 => accumulate::<Tet10>(mesh, mat, u, r, how),
     }
 }
 
@@ -158,9 +157,9 @@ mod tests {
     #[test]
     fn stress_of_a_representable_field_is_exact_at_every_vertex() {
         let mat = Lame::new(2.0e11, 0.3, 7800.0);
-        for order in [1u8, 2] {
-            let mesh = Mesh::structured_box([3, 2, 2], 0.1, order, |_, p| p);
-            let (a, b) = (1e-3, if order == 2 { 2e-2 } else { 0.0 });
+        for kind in [Kind::Tet4, Kind::Tet10] {
+            let mesh = Mesh::structured_box([3, 2, 2], 0.1, kind, |_, p| p);
+            let (a, b) = (1e-3, if kind == Kind::Tet10 { 2e-2 } else { 0.0 });
             // u = (a x + b y², a z, b x z): ε = [[a, b y, b z / 2], [b y, 0, a / 2], [b z / 2, a / 2, b x]] (sym).
             let field = |p: [f64; 3]| [a * p[0] + b * p[1] * p[1], a * p[2], b * p[0] * p[2]];
             let u: Vec<f64> = mesh.nodes.iter().flat_map(|&p| field(p)).collect();
@@ -182,7 +181,7 @@ mod tests {
                 for k in 0..6 {
                     assert!(
                         (s[6 * i + k] - want[k]).abs() < 1e-6 * mat.mu * a,
-                        "order {order}, vertex {i}, component {k}: {} vs {}",
+                        "{kind:?}, vertex {i}, component {k}: {} vs {}",
                         s[6 * i + k],
                         want[k]
                     );

@@ -220,7 +220,7 @@ pub(super) fn store(key: &Path, mesh: &Mesh, meshing: &Meshing) {
     let entry = Entry {
         meshing: *meshing,
         vertex_count: mesh.vertex_count,
-        order: mesh.order,
+        order: mesh.kind.order(),
     };
     write_atomically(key, |w| {
         let text = serde_json::to_vec(&entry).map_err(std::io::Error::other)?;
@@ -323,8 +323,8 @@ mod tests {
     /// of the two meshes whole, never one's description with the other's nodes.
     #[test]
     fn concurrent_stores_of_one_key_are_read_whole() {
-        let a = Mesh::structured_box([3, 1, 1], 0.01, 2, |_, p| p);
-        let b = Mesh::structured_box([5, 2, 1], 0.01, 2, |_, p| p);
+        let a = Mesh::structured_box([3, 1, 1], 0.01, crate::fem::element::Kind::Tet10, |_, p| p);
+        let b = Mesh::structured_box([5, 2, 1], 0.01, crate::fem::element::Kind::Tet10, |_, p| p);
         let meshing = Meshing::default();
         let dir = tempfile::tempdir().unwrap();
         let key = dir.path().join("0123456789abcdef.mesh");
@@ -371,7 +371,7 @@ mod tests {
     }
 
     fn stored(dir: &Path) -> (PathBuf, Mesh) {
-        let m = Mesh::structured_box([3, 1, 1], 0.01, 2, |_, p| p);
+        let m = Mesh::structured_box([3, 1, 1], 0.01, crate::fem::element::Kind::Tet10, |_, p| p);
         let key = dir.join("0123456789abcdef.mesh");
         store(&key, &m, &Meshing::default());
         (key, m)
@@ -415,7 +415,7 @@ mod tests {
         let key = dir.path().join("0123456789abcdef.mesh");
         store(
             &key,
-            &Mesh::structured_box([3, 1, 1], 0.01, 1, |_, p| p),
+            &Mesh::structured_box([3, 1, 1], 0.01, crate::fem::element::Kind::Tet4, |_, p| p),
             &Meshing::default(),
         );
         let mut bytes = std::fs::read(&key).unwrap();
@@ -475,7 +475,7 @@ mod tests {
             std::os::unix::fs::symlink(&victim, key.with_extension(format!("tmp{pid}.{s}"))).unwrap();
         }
         std::os::unix::fs::symlink(&victim, key.with_extension(format!("tmp{pid}"))).unwrap();
-        let m = Mesh::structured_box([3, 1, 1], 0.01, 1, |_, p| p);
+        let m = Mesh::structured_box([3, 1, 1], 0.01, crate::fem::element::Kind::Tet4, |_, p| p);
         store(&key, &m, &Meshing::default());
         assert_eq!(std::fs::read(&victim).unwrap(), b"someone else's file");
         assert!(std::fs::symlink_metadata(&key).unwrap().file_type().is_file());

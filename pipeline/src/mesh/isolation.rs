@@ -247,7 +247,7 @@ pub fn serve(dir: &Path) -> Result<(), String> {
             Reply::Meshed {
                 meshing,
                 vertex_count: mesh.vertex_count,
-                order: mesh.order,
+                order: mesh.kind.order(),
             }
         }
         Err(Attempt::Retry(e, log)) => Reply::Retry { cause: e.cause(), log },
@@ -304,7 +304,9 @@ pub(super) fn read_mesh_from(r: &mut impl Read, size: u64, vertex_count: usize, 
     let expected = [(nodes, 24), (tets, 4), (faces, 12)]
         .iter()
         .try_fold(24u64, |sum, &(n, bytes)| n.checked_mul(bytes)?.checked_add(sum));
-    let per_tet: u64 = if order == 2 { 10 } else { 4 };
+    let kind = crate::fem::element::Kind::of_order(u32::from(order))
+        .ok_or_else(|| std::io::Error::other(format!("element order {order}, which is neither 1 nor 2")))?;
+    let per_tet = kind.nodes() as u64;
     let bad = || {
         std::io::Error::other(format!(
             "{size} bytes for {nodes} nodes, {tets} tet indices, {faces} faces"
@@ -346,7 +348,7 @@ pub(super) fn read_mesh_from(r: &mut impl Read, size: u64, vertex_count: usize, 
     Ok(Mesh {
         nodes: f64s,
         vertex_count,
-        order,
+        kind,
         tets: u32s,
         surface,
     })
@@ -372,17 +374,17 @@ mod tests {
 
     #[test]
     fn a_mesh_crosses_the_process_boundary_unchanged_and_a_short_file_is_refused() {
-        let m = Mesh::structured_box([4, 1, 2], 0.01, 2, |_, p| p);
+        let m = Mesh::structured_box([4, 1, 2], 0.01, crate::fem::element::Kind::Tet10, |_, p| p);
         let dir = tempfile::tempdir().unwrap();
         let p = dir.path().join("mesh.bin");
         write_mesh(&p, &m).unwrap();
-        let back = read_mesh(&p, m.vertex_count, m.order).unwrap();
+        let back = read_mesh(&p, m.vertex_count, m.kind.order()).unwrap();
         assert_eq!(back.nodes, m.nodes);
         assert_eq!(back.tets, m.tets);
         assert_eq!(back.surface, m.surface);
         assert_eq!(back.vertex_count, m.vertex_count);
         let bytes = std::fs::read(&p).unwrap();
         std::fs::write(&p, &bytes[..bytes.len() - 4]).unwrap();
-        assert!(read_mesh(&p, m.vertex_count, m.order).is_err());
+        assert!(read_mesh(&p, m.vertex_count, m.kind.order()).is_err());
     }
 }

@@ -1,35 +1,18 @@
 //! Meshing with gmsh: geometry file → tetrahedral mesh in metres, corner vertices numbered first.
 
 use crate::scene::{LengthUnit, Scene, Voi};
-use nalgebra::Vector3;
 
 mod cache;
 pub mod field;
 mod isolation;
 pub mod quality;
 pub mod walls;
+use crate::fem::element::Kind;
+pub(crate) use crate::tet_mesh::signed_volume;
+pub use crate::tet_mesh::{Mesh, TET10_EDGES};
 pub(crate) use cache::{ordering_key, ordering_lookup, ordering_store};
 pub use isolation::{isolate_with, serve as serve_rung};
-use std::collections::HashMap;
-use ves_ffi::gmsh::{self, element_type};
-
-/// Vertex pairs of the mid-edge nodes 4..9 of a 10-node tet, in gmsh's node order.
-pub const TET10_EDGES: [(usize, usize); 6] = [(0, 1), (1, 2), (2, 0), (3, 0), (3, 2), (3, 1)];
-
-/// A tetrahedral mesh in the layout of the basis file (docs/format.md).
-#[derive(Clone, Debug)]
-pub struct Mesh {
-    /// Node coordinates, metres: corner vertices first, then mid-edge nodes.
-    pub nodes: Vec<[f64; 3]>,
-    /// The first `vertex_count` nodes are corner vertices.
-    pub vertex_count: usize,
-    /// 1: 4-node tets; 2: 10-node tets.
-    pub order: u8,
-    /// Connectivity, `nodes_per_tet()` indices per tet, gmsh node order, positive orientation.
-    pub tets: Vec<u32>,
-    /// Boundary faces on corner vertices, counter-clockwise seen from outside.
-    pub surface: Vec<[u32; 3]>,
-}
+use ves_ffi::gmsh;
 
 /// Meshing failed.
 #[derive(Debug, thiserror::Error)]
@@ -60,213 +43,6 @@ impl MeshError {
             MeshError::Geometry { message, .. } => message.clone(),
         }
     }
-}
-
-impl Mesh {
-    /// Nodes per tet: 4 or 10.
-    pub fn nodes_per_tet(&self) -> usize {
-        if self.order == 2 { 10 } else { 4 }
-    }
-
-    /// Number of tets.
-    pub fn tet_count(&self) -> usize {
-        self.tets.len() / self.nodes_per_tet()
-    }
-
-    /// Node indices of tet `e`.
-    pub fn tet(&self, e: usize) -> &[u32] {
-        let p = self.nodes_per_tet();
-        &self.tets[e * p..(e + 1) * p]
-    }
-
-    /// Volume of the straight-sided tet on the corners of tet `e`, m³.
-    pub fn corner_volume(&self, e: usize) -> f64 {
-        signed_volume(&self.nodes, self.tet(e)).abs() / 6.0
-    }
-
-    /// Bounding box of the nodes.
-    pub fn bounding_box(&self) -> ([f64; 3], [f64; 3]) {
-        let mut lo = [f64::INFINITY; 3];
-        let mut hi = [f64::NEG_INFINITY; 3];
-        for p in &self.nodes {
-            for c in 0..3 {
-                lo[c] = lo[c].min(p[c]);
-                hi[c] = hi[c].max(p[c]);
-            }
-        }
-        (lo, hi)
-    }
-
-    /// Length of the bounding-box diagonal, metres.
-    pub fn diameter(&self) -> f64 {
-        let (lo, hi) = self.bounding_box();
-        (0..3).map(|c| (hi[c] - lo[c]).powi(2)).sum::<f64>().sqrt()
-    }
-
-    /// The worst tet by shape, q = 6√2·V / l_rms³ (1 for a regular tet, → 0 for slivers), and
-    /// its centroid.
-    pub fn worst_quality(&self) -> (f64, [f64; 3]) {
-        let mut worst = (f64::INFINITY, [0.0; 3]);
-        for e in 0..self.tet_count() {
-            let t = self.tet(e);
-            let x: [[f64; 3]; 4] = std::array::from_fn(|k| self.nodes[t[k] as usize]);
-            let vol = signed_volume(&self.nodes, t) / 6.0;
-            let mut l2 = 0.0;
-            for (a, b) in [(0, 1), (0, 2), (0, 3), (1, 2), (1, 3), (2, 3)] {
-                l2 += (0..3).map(|c| (x[a][c] - x[b][c]).powi(2)).sum::<f64>();
-            }
-            let lrms = (l2 / 6.0).sqrt();
-            let q = 6.0 * std::f64::consts::SQRT_2 * vol / lrms.powi(3);
-            if q < worst.0 {
-                worst = (q, std::array::from_fn(|c| x.iter().map(|p| p[c]).sum::<f64>() / 4.0));
-            }
-        }
-        worst
-    }
-
-    /// The worst tet when it has (numerically) no volume: gmsh's Delaunay can leave one flat tet
-    /// on a thin wall. Its shape quality and centre.
-    pub fn degenerate_tet(&self) -> Option<(f64, [f64; 3])> {
-        let (q, at) = self.worst_quality();
-        (q <= 1e-12 || q.is_nan()).then_some((q, at))
-    }
-
-    /// Corner vertices on the boundary, ascending, each once.
-    pub fn surface_vertices(&self) -> Vec<u32> {
-        let mut v: Vec<u32> = self.surface.iter().flatten().copied().collect();
-        v.sort_unstable();
-        v.dedup();
-        v
-    }
-
-    /// A structured box of `cells` cubes of side `h` (corner at the origin), each cube split into
-    /// six tets around its main diagonal (conforming between cubes), with mid-edge nodes when
-    /// `order == 2`. `displace` may move a grid vertex, given its grid index and position (mid-edge
-    /// nodes follow). For tests and synthetic cases.
-    pub fn structured_box(
-        cells: [usize; 3],
-        h: f64,
-        order: u8,
-        displace: impl Fn([usize; 3], [f64; 3]) -> [f64; 3],
-    ) -> Mesh {
-        let [nx, ny, nz] = cells;
-        let id = |i: usize, j: usize, k: usize| ((k * (ny + 1) + j) * (nx + 1) + i) as u32;
-        let mut pts = Vec::with_capacity((nx + 1) * (ny + 1) * (nz + 1));
-        for k in 0..=nz {
-            for j in 0..=ny {
-                for i in 0..=nx {
-                    pts.push(displace([i, j, k], [i as f64 * h, j as f64 * h, k as f64 * h]));
-                }
-            }
-        }
-        let mut tets = Vec::new();
-        let mut mid = HashMap::new();
-        for k in 0..nz {
-            for j in 0..ny {
-                for i in 0..nx {
-                    let c = [
-                        id(i, j, k),
-                        id(i + 1, j, k),
-                        id(i + 1, j + 1, k),
-                        id(i, j + 1, k),
-                        id(i, j, k + 1),
-                        id(i + 1, j, k + 1),
-                        id(i + 1, j + 1, k + 1),
-                        id(i, j + 1, k + 1),
-                    ];
-                    for t in [
-                        [0, 1, 2, 6],
-                        [0, 2, 3, 6],
-                        [0, 3, 7, 6],
-                        [0, 7, 4, 6],
-                        [0, 4, 5, 6],
-                        [0, 5, 1, 6],
-                    ] {
-                        let v = t.map(|q| c[q]);
-                        tets.extend(v);
-                        if order == 2 {
-                            for (a, b) in TET10_EDGES {
-                                let key = (v[a].min(v[b]), v[a].max(v[b]));
-                                let m = *mid.entry(key).or_insert_with(|| {
-                                    let (x, y) = (pts[key.0 as usize], pts[key.1 as usize]);
-                                    pts.push(std::array::from_fn(|q| (x[q] + y[q]) / 2.0));
-                                    (pts.len() - 1) as u32
-                                });
-                                tets.push(m);
-                            }
-                        }
-                    }
-                }
-            }
-        }
-        Mesh::from_raw(&pts, &tets, order)
-    }
-
-    /// Builds a mesh from raw connectivity: keeps only nodes used by tets, numbers corner
-    /// vertices first, orients every tet positively and extracts the boundary.
-    pub fn from_raw(coords: &[[f64; 3]], tets: &[u32], order: u8) -> Mesh {
-        let p = if order == 2 { 10 } else { 4 };
-        let mut new_index = vec![u32::MAX; coords.len()];
-        let mut nodes = Vec::new();
-        let mut vertex_count = 0;
-        // First pass numbers the corner vertices, second the mid-edge nodes.
-        for range in [0..4, 4..p] {
-            for tet in tets.chunks_exact(p) {
-                for &n in &tet[range.clone()] {
-                    if new_index[n as usize] == u32::MAX {
-                        new_index[n as usize] = nodes.len() as u32;
-                        nodes.push(coords[n as usize]);
-                    }
-                }
-            }
-            if vertex_count == 0 {
-                vertex_count = nodes.len();
-            }
-        }
-        let mut out: Vec<u32> = tets.iter().map(|&n| new_index[n as usize]).collect();
-        for tet in out.chunks_exact_mut(p) {
-            if signed_volume(&nodes, tet) < 0.0 {
-                // Swap vertices 1 and 2; mid-edge nodes follow: e01↔e02 (4↔6), e31↔e32 (9↔8).
-                tet.swap(1, 2);
-                if p == 10 {
-                    tet.swap(4, 6);
-                    tet.swap(8, 9);
-                }
-            }
-        }
-        let surface = boundary_faces(&out, p);
-        Mesh {
-            nodes,
-            vertex_count,
-            order,
-            tets: out,
-            surface,
-        }
-    }
-}
-
-/// Six times the signed volume of the corner tet.
-pub(crate) fn signed_volume(nodes: &[[f64; 3]], tet: &[u32]) -> f64 {
-    let x = |i: usize| Vector3::from(nodes[tet[i] as usize]);
-    (x(1) - x(0)).dot(&(x(2) - x(0)).cross(&(x(3) - x(0))))
-}
-
-/// Faces that belong to exactly one tet, oriented with the normal away from that tet.
-fn boundary_faces(tets: &[u32], p: usize) -> Vec<[u32; 3]> {
-    // Faces of a positively oriented tet (0,1,2,3), outward.
-    const FACES: [[usize; 3]; 4] = [[1, 2, 3], [0, 3, 2], [0, 1, 3], [0, 2, 1]];
-    let mut count: HashMap<[u32; 3], (u32, [u32; 3])> = HashMap::with_capacity(tets.len() / p * 2);
-    for tet in tets.chunks_exact(p) {
-        for f in FACES {
-            let face = [tet[f[0]], tet[f[1]], tet[f[2]]];
-            let mut key = face;
-            key.sort_unstable();
-            count.entry(key).and_modify(|e| e.0 += 1).or_insert((1, face));
-        }
-    }
-    let mut faces: Vec<[u32; 3]> = count.into_values().filter(|(n, _)| *n == 1).map(|(_, f)| f).collect();
-    faces.sort_unstable();
-    faces
 }
 
 /// Most tets a mesh may have: beyond it gmsh's memory (≈ 1 kB per tet while meshing) and the
@@ -1028,16 +804,16 @@ fn attempt_once(
             &session,
         ));
     }
-    let order = req.mesh.order;
+    let kind = req.mesh.kind();
     let mut meshing = Meshing {
         size,
         ..Meshing::default()
     };
-    if order == 2 {
+    if kind == Kind::Tet10 {
         phase("making the elements order 2");
         session.set_order(2).map_err(g)?;
     }
-    let mut mesh = extract(&session, order, scale, &path).map_err(fatal)?;
+    let mut mesh = extract(&session, kind, scale, &path).map_err(fatal)?;
     if let Some((q, at)) = mesh.degenerate_tet() {
         return Err(retry(
             MeshError::Geometry {
@@ -1050,7 +826,7 @@ fn attempt_once(
             &session,
         ));
     }
-    if order == 2 {
+    if kind == Kind::Tet10 {
         meshing.distorted = mesh.distorted_tets(quality::MIN_SCALED_JACOBIAN).len();
         if meshing.distorted > 0 {
             // gmsh's elastic smoother moves the curved nodes into the volume: seconds, bounded.
@@ -1058,7 +834,7 @@ fn attempt_once(
             phase("optimising the curved elements");
             session.set_number("Mesh.HighOrderNumLayers", 3.0).map_err(g)?;
             match session.optimize(HIGH_ORDER_METHOD, 1) {
-                Ok(()) => mesh = extract(&session, order, scale, &path).map_err(fatal)?,
+                Ok(()) => mesh = extract(&session, kind, scale, &path).map_err(fatal)?,
                 Err(e) => tracing::info!("gmsh {HIGH_ORDER_METHOD} failed ({e}); straightening instead"),
             }
             meshing.optimize_s = t.elapsed().as_secs_f64();
@@ -1142,18 +918,13 @@ pub struct Meshing {
 pub const AUTO_SIZE_FRACTION: f64 = 15.0;
 
 /// The current gmsh mesh as a [`Mesh`] in metres.
-fn extract(session: &gmsh::Gmsh, order: u8, scale: f64, path: &str) -> Result<Mesh, MeshError> {
+fn extract(session: &gmsh::Gmsh, kind: Kind, scale: f64, path: &str) -> Result<Mesh, MeshError> {
     let g = |cause| MeshError::Gmsh {
         path: path.to_string(),
         cause,
     };
     let (tags, coords) = session.nodes().map_err(g)?;
-    let ty = if order == 2 {
-        element_type::TET10
-    } else {
-        element_type::TET4
-    };
-    let (_, tet_tags) = session.elements_by_type(ty).map_err(g)?;
+    let (_, tet_tags) = session.elements_by_type(kind.gmsh_type()).map_err(g)?;
     if tet_tags.is_empty() {
         return Err(MeshError::Geometry {
             path: path.to_string(),
@@ -1182,7 +953,7 @@ fn extract(session: &gmsh::Gmsh, order: u8, scale: f64, path: &str) -> Result<Me
         }
         tets.push(s);
     }
-    Ok(Mesh::from_raw(&xyz, &tets, order))
+    Ok(Mesh::from_raw(&xyz, &tets, kind))
 }
 
 #[cfg(test)]
@@ -1218,10 +989,10 @@ mod tests {
     #[test]
     fn shape_quality_is_one_for_a_regular_tet_and_tiny_for_a_sliver() {
         let regular = [[1.0, 1.0, 1.0], [1.0, -1.0, -1.0], [-1.0, 1.0, -1.0], [-1.0, -1.0, 1.0]];
-        let m = Mesh::from_raw(&regular, &[0, 1, 2, 3], 1);
+        let m = Mesh::from_raw(&regular, &[0, 1, 2, 3], Kind::Tet4);
         assert!((m.worst_quality().0 - 1.0).abs() < 1e-12);
         let sliver = [[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [1.0, 1.0, 1e-4]];
-        let m = Mesh::from_raw(&sliver, &[0, 1, 2, 3], 1);
+        let m = Mesh::from_raw(&sliver, &[0, 1, 2, 3], Kind::Tet4);
         let (q, at) = m.worst_quality();
         assert!(q > 0.0 && q < 1e-3, "{q}");
         assert!((at[0] - 0.5).abs() < 1e-12 && (at[1] - 0.5).abs() < 1e-12);

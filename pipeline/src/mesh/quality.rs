@@ -47,18 +47,7 @@ fn det_j(x: &[[f64; 3]], l: [f64; 4]) -> f64 {
     j.determinant()
 }
 
-/// Whether a 10-node tet (gmsh order) has a mid-edge node off its edge's midpoint by more than
-/// 1e-9 of the tet's size: where gmsh followed a curved face.
-pub fn is_curved(x: &[[f64; 3]]) -> bool {
-    let size = (1..4)
-        .flat_map(|a| (0..3).map(move |c| (a, c)))
-        .map(|(a, c)| (x[a][c] - x[0][c]).abs())
-        .fold(0.0, f64::max);
-    TET10_EDGES
-        .iter()
-        .enumerate()
-        .any(|(e, &(a, b))| (0..3).any(|c| (x[4 + e][c] - (x[a][c] + x[b][c]) / 2.0).abs() > 1e-9 * size))
-}
+pub use crate::tet_mesh::is_curved;
 
 /// Smallest det J over the element relative to the straight tet's; 1 for a straight tet.
 pub fn min_scaled_jacobian(x: &[[f64; 3]]) -> f64 {
@@ -78,7 +67,7 @@ impl Mesh {
 
     /// The 10-node tets with a mid-edge node off its edge's midpoint (see [`is_curved`]).
     pub fn curved_tets(&self) -> Vec<usize> {
-        if self.order != 2 {
+        if self.kind != crate::fem::element::Kind::Tet10 {
             return Vec::new();
         }
         (0..self.tet_count())
@@ -88,7 +77,7 @@ impl Mesh {
 
     /// The curved tets whose scaled Jacobian is below `min` (none for 4-node meshes).
     pub fn distorted_tets(&self, min: f64) -> Vec<usize> {
-        if self.order != 2 {
+        if self.kind != crate::fem::element::Kind::Tet10 {
             return Vec::new();
         }
         (0..self.tet_count())
@@ -127,7 +116,7 @@ mod tests {
 
     #[test]
     fn straight_tets_score_one_and_a_folded_mid_edge_node_scores_below_zero() {
-        let mut m = Mesh::structured_box([1, 1, 1], 1.0, 2, |_, p| p);
+        let mut m = Mesh::structured_box([1, 1, 1], 1.0, crate::fem::element::Kind::Tet10, |_, p| p);
         assert!(m.distorted_tets(0.999).is_empty(), "straight tets score 1");
         // Push one mid-edge node far across its tet: the element folds over.
         let t = 0;
@@ -151,7 +140,7 @@ mod tests {
 
     #[test]
     fn a_gently_curved_edge_stays_valid() {
-        let mut m = Mesh::structured_box([1, 1, 1], 1.0, 2, |_, p| p);
+        let mut m = Mesh::structured_box([1, 1, 1], 1.0, crate::fem::element::Kind::Tet10, |_, p| p);
         let tet = m.tet(0).to_vec();
         let p = m.nodes[tet[4] as usize];
         m.nodes[tet[4] as usize] = [p[0] + 0.02, p[1] + 0.02, p[2] - 0.02];

@@ -7,6 +7,8 @@ use ves_ffi::arpack::{ShiftInvert, shift_invert};
 
 /// ARPACK with a METIS-ordered sparse Cholesky factorisation.
 pub struct Arpack<'g> {
+    /// K and M.
+    pub problem: &'g EigenProblem<'g>,
     /// Fill-reducing ordering of the free DOFs (new→old, old→new).
     pub ordering: &'g (Vec<usize>, Vec<usize>),
     /// ARPACK tolerance on the Ritz values.
@@ -14,7 +16,8 @@ pub struct Arpack<'g> {
 }
 
 impl EigenSolver for Arpack<'_> {
-    fn lowest(&self, problem: &EigenProblem<'_>, nev: usize, sigma: f64) -> Result<Spectrum, ModesError> {
+    fn lowest(&self, nev: usize, sigma: f64) -> Result<Spectrum, ModesError> {
+        let problem = self.problem;
         let t = Instant::now();
         let mut chol = super::factor_shifted(problem, self.ordering, sigma)?;
         let factorize_s = t.elapsed().as_secs_f64();

@@ -22,6 +22,8 @@ use std::time::Instant;
 
 /// Block Krylov–Schur with a METIS-ordered sparse Cholesky factor of K − σM.
 pub struct BlockKrylov<'g> {
+    /// K and M.
+    pub problem: &'g EigenProblem<'g>,
     /// Fill-reducing ordering of the free DOFs (new→old, old→new).
     pub ordering: &'g (Vec<usize>, Vec<usize>),
     /// Relative tolerance on the Ritz residuals (as ARPACK's `tol`; never below round-off).
@@ -55,7 +57,8 @@ const SVQB_ONCE: f64 = 1e2;
 const DEFLATION: f64 = 1e-24;
 
 impl EigenSolver for BlockKrylov<'_> {
-    fn lowest(&self, problem: &EigenProblem<'_>, nev: usize, sigma: f64) -> Result<Spectrum, ModesError> {
+    fn lowest(&self, nev: usize, sigma: f64) -> Result<Spectrum, ModesError> {
+        let problem = self.problem;
         let n = problem.size();
         let b = self.block.max(1);
         // Basis size: three times the wanted count and at least four blocks beyond it, in
@@ -65,10 +68,11 @@ impl EigenSolver for BlockKrylov<'_> {
         if m + 2 * b > n {
             // Too small to block: ARPACK does it as well.
             return super::arpack::Arpack {
+                problem,
                 ordering: self.ordering,
                 tol: self.tol,
             }
-            .lowest(problem, nev, sigma);
+            .lowest(nev, sigma);
         }
         let t = Instant::now();
         let chol = super::factor_shifted(problem, self.ordering, sigma)?;
@@ -408,14 +412,14 @@ fn par() -> Par {
 mod tests {
     use super::*;
     use crate::linsolve::{nested_dissection, sym_matvec};
-    use crate::mesh::Mesh;
     use crate::modes::dense::Dense;
     use crate::problem::Discretized;
     use crate::supports::Dofs;
+    use crate::tet_mesh::Mesh;
     use faer::sparse::SymbolicSparseColMat;
 
     fn beam(clamped: bool) -> Discretized {
-        let mesh = Mesh::structured_box([16, 2, 2], 0.05, 1, |_, p| p);
+        let mesh = Mesh::structured_box([16, 2, 2], 0.05, crate::fem::element::Kind::Tet4, |_, p| p);
         let mask: Vec<bool> = mesh.nodes.iter().flat_map(|p| [clamped && p[0] < 1e-12; 3]).collect();
         Discretized::assemble(mesh, Dofs::from_mask(&mask), (2e11, 0.3, 7800.0)).expect("assembles")
     }
@@ -446,21 +450,23 @@ mod tests {
     fn block_krylov_schur_equals_the_dense_solve_on_a_clamped_beam() {
         let d = beam(true);
         let p = EigenProblem::of(&d.system);
-        let dense = Dense.lowest(&p, 10, 0.0).expect("dense");
+        let dense = Dense(&p).lowest(10, 0.0).expect("dense");
         let ordering = nested_dissection(&d.system.graph, &d.dofs);
         let arpack = crate::modes::arpack::Arpack {
+            problem: &p,
             ordering: &ordering,
             tol: 1e-12,
         }
-        .lowest(&p, 8, 0.0)
+        .lowest(8, 0.0)
         .expect("ARPACK");
         for block in [8, 3] {
             let s = BlockKrylov {
+                problem: &p,
                 ordering: &ordering,
                 tol: 1e-12,
                 block,
             }
-            .lowest(&p, 8, 0.0)
+            .lowest(8, 0.0)
             .expect("block");
             // The dense solve is the less accurate of the two oracles (ε·λ_max: 1.6e-10 off
             // ARPACK on mode 2, where ARPACK and this solver agree to 2e-16).
@@ -484,12 +490,13 @@ mod tests {
         let p = EigenProblem::of(&d.system);
         let ordering = nested_dissection(&d.system.graph, &d.dofs);
         let block = BlockKrylov {
+            problem: &p,
             ordering: &ordering,
             tol: 1e-12,
             block: 8,
         };
         let found = crate::modes::compute(&p, &d.dofs, 6, 6, &block).expect("block");
-        let dense = crate::modes::compute(&p, &d.dofs, 6, 6, &Dense).expect("dense");
+        let dense = crate::modes::compute(&p, &d.dofs, 6, 6, &Dense(&p)).expect("dense");
         assert_eq!(found.rigid_dropped, 6);
         for (a, b) in found.eigenvalues.iter().zip(&dense.eigenvalues) {
             assert!((a - b).abs() <= 1e-9 * b, "{a} vs dense {b}");
@@ -514,11 +521,12 @@ mod tests {
         };
         let ordering = ((0..n).collect(), (0..n).collect());
         let s = BlockKrylov {
+            problem: &p,
             ordering: &ordering,
             tol: 1e-12,
             block: 8,
         }
-        .lowest(&p, 5, 0.0)
+        .lowest(5, 0.0)
         .expect("block");
         assert!(s.values.iter().all(|v| (v - 1.0).abs() < 1e-12), "{:?}", s.values);
         for a in 0..5 {

@@ -9,7 +9,7 @@ use faer::{Mat, MatRef, Par, Side, Spec};
 use std::time::Instant;
 
 /// Dense solver (use up to a few thousand unknowns).
-pub struct Dense;
+pub struct Dense<'p>(pub &'p EigenProblem<'p>);
 
 /// Full symmetric matrix from a lower-triangle sparse one.
 fn densify(problem: &EigenProblem<'_>, values: &[f64]) -> Mat<f64> {
@@ -54,8 +54,9 @@ pub fn self_adjoint_eigen_qr(a: MatRef<'_, f64>) -> Result<(Vec<f64>, Mat<f64>),
     Ok(((0..n).map(|i| s[i]).collect(), u))
 }
 
-impl EigenSolver for Dense {
-    fn lowest(&self, problem: &EigenProblem<'_>, nev: usize, _sigma: f64) -> Result<Spectrum, ModesError> {
+impl EigenSolver for Dense<'_> {
+    fn lowest(&self, nev: usize, _sigma: f64) -> Result<Spectrum, ModesError> {
+        let problem = self.0;
         let t = Instant::now();
         let n = problem.size();
         let m = densify(problem, problem.m);
@@ -121,7 +122,7 @@ mod oracle_tests {
             k: &k,
             m: &m,
         };
-        let s = Dense.lowest(&p, 5, 0.0).unwrap();
+        let s = Dense(&p).lowest(5, 0.0).unwrap();
         let (mut kv, mut mv) = (vec![0.0; n], vec![0.0; n]);
         for j in 0..5 {
             let v = &s.vectors[j * n..(j + 1) * n];

@@ -4,11 +4,18 @@
 //! Solvers behind one trait: [`block::BlockKrylov`] (block shift-invert Krylov–Schur on a sparse
 //! Cholesky factor, the default for real meshes), [`arpack::Arpack`] (single-vector shift-invert
 //! Lanczos on the same factor: the reference path and test oracle), [`dense::Dense`] (a full
-//! generalized eigen-solve, for tiny problems and as an oracle) and [`slepc`] (under MPI).
+//! generalized eigen-solve, for tiny problems and as an oracle) and `slepc::Distributed` (SLEPc
+//! over the MPI ranks, feature `slepc`; the MPI job around it in [`mpi_job`]).
 
 pub mod arpack;
 pub mod block;
 pub mod dense;
+#[cfg(feature = "slepc")]
+pub mod mpi_job;
+#[cfg(not(feature = "slepc"))]
+#[path = "mpi_job_off.rs"]
+pub mod mpi_job;
+#[cfg(feature = "slepc")]
 pub mod slepc;
 
 use crate::linsolve::{FactorError, nested_dissection, sym_matmul};
@@ -140,10 +147,10 @@ fn factor_shifted(
     Cholesky::factor(symbolic, problem.pattern, &shifted, sigma)
 }
 
-/// A generalized symmetric eigen-solver.
+/// A generalized symmetric eigen-solver on one problem (its K and M here, or on the MPI ranks).
 pub trait EigenSolver {
     /// The `nev` eigenpairs nearest `sigma` (below the spectrum, so the lowest).
-    fn lowest(&self, problem: &EigenProblem<'_>, nev: usize, sigma: f64) -> Result<Spectrum, ModesError>;
+    fn lowest(&self, nev: usize, sigma: f64) -> Result<Spectrum, ModesError>;
 }
 
 /// Why no basis could be computed.
@@ -272,13 +279,7 @@ pub fn compute(
     solver: &dyn EigenSolver,
 ) -> Result<Modes, ModesError> {
     debug_assert_eq!(problem.size(), dofs.free_count());
-    select(
-        &problem.scales(),
-        rigid,
-        count,
-        |nev, sigma| solver.lowest(problem, nev, sigma),
-        Some(problem),
-    )
+    select(&problem.scales(), rigid, count, solver, Some(problem))
 }
 
 /// The eigenpairs to ask a solver for `count` elastic modes with `rigid` rigid ones, if `n`
@@ -301,7 +302,7 @@ pub fn select(
     scales: &Scales,
     rigid: usize,
     count: usize,
-    mut lowest: impl FnMut(usize, f64) -> Result<Spectrum, ModesError>,
+    solver: &dyn EigenSolver,
     problem: Option<&EigenProblem<'_>>,
 ) -> Result<Modes, ModesError> {
     let n = scales.size;
@@ -311,14 +312,14 @@ pub fn select(
     // lands far below the first elastic eigenvalue λ₁ (thin or soft parts, where λ₁/λ_max can
     // be 1e-10 and the low modes crowd together as seen from σ), again at σ = −λ₁/100.
     let mut sigma = if rigid == 0 { 0.0 } else { -1e-6 * scales.stiffness() };
-    let mut spectrum = lowest(nev, sigma)?;
+    let mut spectrum = solver.lowest(nev, sigma)?;
     if let Some(&l1) = spectrum
         .values
         .get(rigid)
         .filter(|&&l1| rigid > 0 && l1 > 0.0 && -sigma > 0.01 * l1)
     {
         sigma = -0.01 * l1;
-        let again = lowest(nev, sigma)?;
+        let again = solver.lowest(nev, sigma)?;
         spectrum = Spectrum {
             factorize_s: spectrum.factorize_s + again.factorize_s,
             eigensolve_s: spectrum.eigensolve_s + again.eigensolve_s,
@@ -543,9 +544,7 @@ impl SolverChoice {
 pub fn solve(d: &crate::problem::Discretized, count: usize, choice: SolverChoice) -> Result<(Modes, f64), ModesError> {
     let t = Instant::now();
     if choice.is_slepc() {
-        // The ranks assemble their own rows from the mesh (rank 0's whole K and M are not sent).
-        let s = slepc::solve(&d.mesh, &d.dofs, d.material, d.rigid, count, choice)?;
-        return Ok((s.modes, s.assemble_s));
+        return on_ranks(d, count, choice);
     }
     let problem = EigenProblem::of(&d.system);
     let dense = match choice {
@@ -555,7 +554,7 @@ pub fn solve(d: &crate::problem::Discretized, count: usize, choice: SolverChoice
     };
     let ordering;
     let solver: Box<dyn EigenSolver> = if dense {
-        Box::new(dense::Dense)
+        Box::new(dense::Dense(&problem))
     } else if choice == SolverChoice::Block
         || (choice == SolverChoice::Auto
             && block::BlockKrylov::basis_bytes(problem.size(), count + d.rigid, BLOCK) <= AUTO_BLOCK_BYTES)
@@ -565,6 +564,7 @@ pub fn solve(d: &crate::problem::Discretized, count: usize, choice: SolverChoice
         // 1.7e-9 on a 323k-unknown mesh (ARPACK: 2e-12, 1.2e-11); 1e-14 gave 8.7e-12 on the
         // mould for 7 % more solves.
         Box::new(block::BlockKrylov {
+            problem: &problem,
             ordering: &ordering,
             tol: 1e-14,
             block: BLOCK,
@@ -572,6 +572,7 @@ pub fn solve(d: &crate::problem::Discretized, count: usize, choice: SolverChoice
     } else {
         ordering = nested_dissection(&d.system.graph, &d.dofs);
         Box::new(arpack::Arpack {
+            problem: &problem,
             ordering: &ordering,
             tol: 1e-12,
         })
@@ -579,6 +580,46 @@ pub fn solve(d: &crate::problem::Discretized, count: usize, choice: SolverChoice
     let ordering_s = t.elapsed().as_secs_f64();
     let modes = compute(&problem, &d.dofs, d.rigid, count, solver.as_ref())?;
     Ok((modes, ordering_s))
+}
+
+/// SLEPc over the MPI ranks, which assemble their own rows from the mesh (rank 0's whole K and M
+/// are not sent); also the seconds of that assembly.
+fn on_ranks(d: &crate::problem::Discretized, count: usize, choice: SolverChoice) -> Result<(Modes, f64), ModesError> {
+    let s = solve_on_ranks(&d.mesh, &d.dofs, d.material, d.rigid, count, choice)?;
+    Ok((s.modes, s.assemble_s))
+}
+
+/// The result of [`solve_on_ranks`].
+pub struct SolvedOnRanks {
+    /// The modes, checked.
+    pub modes: Modes,
+    /// Mass and moments of the whole part (each rank's elements, summed).
+    pub moments: crate::fem::Moments,
+    /// Seconds the ranks spent partitioning and assembling.
+    pub assemble_s: f64,
+}
+
+/// Solves K φ = λ M φ of `mesh` (E, ν, ρ; supports in `dofs`, `rigid` rigid motions left) with
+/// SLEPc over every MPI rank, each assembling its own rows: rank 0 calls this while the others
+/// are in [`mpi_job::serve`]. The `count` lowest elastic modes come back checked, with the
+/// part's mass moments. An error in a ves built without the `slepc` feature.
+pub fn solve_on_ranks(
+    mesh: &crate::tet_mesh::Mesh,
+    dofs: &Dofs,
+    material: (f64, f64, f64),
+    rigid: usize,
+    count: usize,
+    choice: SolverChoice,
+) -> Result<SolvedOnRanks, ModesError> {
+    #[cfg(feature = "slepc")]
+    {
+        slepc::solve(mesh, dofs, material, rigid, count, choice)
+    }
+    #[cfg(not(feature = "slepc"))]
+    {
+        let _ = (mesh, dofs, material, rigid, count, choice);
+        Err(mpi_job::not_built())
+    }
 }
 
 /// SLEPc's tolerance for a method, given the problem's mean(diag M).
@@ -615,8 +656,8 @@ pub(crate) fn blame_petsc_options(e: ModesError, petsc_options: bool) -> ModesEr
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::mesh::Mesh;
     use crate::problem::Discretized;
+    use crate::tet_mesh::Mesh;
 
     #[test]
     fn a_failed_check_under_petsc_options_names_them() {
@@ -636,7 +677,7 @@ mod tests {
     /// of the middle of the spectrum (as a solver that skipped one would leave it).
     #[test]
     fn the_sturm_count_proves_completeness_and_catches_a_skipped_mode() {
-        let mesh = Mesh::structured_box([16, 2, 2], 0.05, 1, |_, p| p);
+        let mesh = Mesh::structured_box([16, 2, 2], 0.05, crate::fem::element::Kind::Tet4, |_, p| p);
         let mask: Vec<bool> = mesh.nodes.iter().flat_map(|p| [p[0] < 1e-12; 3]).collect();
         let d = Discretized::assemble(mesh, Dofs::from_mask(&mask), (2e11, 0.3, 7800.0)).expect("assembles");
         let (mut m, _) = solve(&d, 8, SolverChoice::Arpack).expect("solves");

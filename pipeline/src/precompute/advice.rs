@@ -1,9 +1,9 @@
 //! What precompute tells the user about a solved space: the error estimate's verdict (and what
 //! to change), thin walls, and the Sturm count's.
 
-use crate::mesh::Mesh;
 use crate::modes::SturmCount;
 use crate::scene::Scene;
+use crate::tet_mesh::Mesh;
 
 /// One line when a space has no estimate or one above [`crate::accuracy::WARN_ABOVE`], and one
 /// when its walls are one element thick and the estimate does not vouch for them.
@@ -34,7 +34,7 @@ pub(super) fn warn_about_error(
             "no error estimate: no coarser mesh of this space could be solved (see VES_LOG=info)"
         ),
         Some((mode, worst)) if worst > crate::accuracy::WARN_ABOVE => {
-            let change = if scene.mesh.order == 1 {
+            let change = if scene.mesh.kind() == crate::fem::element::Kind::Tet4 {
                 "use mesh.order = 2 (4-node tets are far too stiff in bending)".to_string()
             } else if scene.mesh.target_error.is_some() {
                 "raise mesh.max_dofs".to_string()

@@ -6,12 +6,12 @@ mod stages;
 pub use stages::solve_space;
 
 use crate::fem::{self, MassProperties};
-use crate::mesh::Mesh;
 use crate::modes::{self, Modes, SolverChoice};
 use crate::output::Overwrite;
 use crate::scene::{Scene, Voi};
 use crate::store;
 use crate::supports::Dofs;
+use crate::tet_mesh::Mesh;
 use anyhow::{Context, Result};
 use serde::Serialize;
 use std::path::Path;
@@ -190,9 +190,9 @@ pub fn run_with(scene: &Scene, out: &Path, choice: SolverChoice, overwrite: Over
     // Under MPI rank 0 runs the pipeline and the other ranks serve its eigen-solves. Every rank
     // checks the output (the same answer on a shared file system) and they agree, so that a
     // refusal stops them all before any work.
-    let root = modes::slepc::rank() == 0;
-    let distributed = choice.is_slepc() && modes::slepc::ranks() > 1;
-    modes::slepc::agree((|| {
+    let root = modes::mpi_job::rank() == 0;
+    let distributed = choice.is_slepc() && modes::mpi_job::ranks() > 1;
+    modes::mpi_job::agree((|| {
         crate::output::check(out, &scene.inputs(), overwrite)?;
         if store::sidecar_path(out) == out {
             anyhow::bail!(
@@ -203,7 +203,7 @@ pub fn run_with(scene: &Scene, out: &Path, choice: SolverChoice, overwrite: Over
         crate::output::check(&store::sidecar_path(out), &scene.inputs(), overwrite)
     })())?;
     if distributed && !root {
-        modes::slepc::serve()?;
+        modes::mpi_job::serve()?;
         return Ok(Summary {
             output: out.display().to_string(),
             spaces: Vec::new(),
@@ -231,7 +231,7 @@ pub fn run_with(scene: &Scene, out: &Path, choice: SolverChoice, overwrite: Over
     }
     let result = pipeline(scene, out, choice, start);
     if distributed {
-        modes::slepc::release(result)
+        modes::mpi_job::release(result)
     } else {
         result
     }

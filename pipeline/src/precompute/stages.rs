@@ -7,12 +7,12 @@ use super::{SolvedSpace, Timings, advice, needs_whole_system};
 use crate::accuracy::{ErrorEstimate, Prefetch, refine};
 use crate::compliance::Compliance;
 use crate::fem::MassProperties;
-use crate::mesh::Mesh;
 use crate::modes::{self, Modes, SolverChoice, SturmCount};
 use crate::problem::{Discretized, Meshed};
 use crate::progress;
 use crate::scene::{Scene, Voi};
 use crate::supports::Dofs;
+use crate::tet_mesh::Mesh;
 use anyhow::{Context, Result};
 use std::time::Instant;
 
@@ -177,7 +177,7 @@ fn solve(scene: &Scene, problem: Problem, choice: SolverChoice) -> Result<Solved
             })
         }
         Problem::OnRanks(mut m) => {
-            let s = released(|| modes::slepc::solve(&m.mesh, &m.dofs, m.material, m.rigid, count, choice))?;
+            let s = released(|| modes::solve_on_ranks(&m.mesh, &m.dofs, m.material, m.rigid, count, choice))?;
             m.assemble_s += s.assemble_s;
             let (problem, mass) = if needs_whole_system(scene) {
                 let d = m.assemble().with_context(|| scene.geometry.display().to_string())?;

@@ -277,10 +277,10 @@ pub fn discretize_basis(path: &Path, modes: Option<usize>) -> Result<(Discretize
     // Every array below is checked as it is read; the modes not compared are checked too.
     g.check_unread_finite(3 * n, r)?;
     let fixed = g.fixed_dofs()?;
-    let mesh = crate::mesh::Mesh {
+    let mesh = crate::tet_mesh::Mesh {
         nodes: g.nodes(n)?,
         vertex_count: g.vertex_count,
-        order: g.element_order,
+        kind: g.kind,
         tets: g.tets()?,
         surface: g.surface_triangles()?,
     };
@@ -433,7 +433,7 @@ fn verify(
             Reference::All => unreachable!("expanded above"),
         }
         let curved = !d.mesh.curved_tets().is_empty();
-        let tol = Tolerances::resolve(r, d.mesh.order, curved, overrides);
+        let tol = Tolerances::resolve(r, d.mesh.kind.order(), curved, overrides);
         let lame = crate::fem::element::Lame::new(material.0, material.1, material.2);
         let stress_of = (stress && r == Reference::Calculix).then_some(&lame);
         let mut rep = compare(d, ours, &result, static_ours.as_deref(), load_node, &tol, stress_of)?;
@@ -448,7 +448,7 @@ fn verify(
         input: input.to_string(),
         nodes: n,
         tets: d.mesh.tet_count(),
-        element_order: d.mesh.order,
+        element_order: d.mesh.kind.order(),
         dofs: nf,
         load_node,
         load_direction: dir,
@@ -498,7 +498,7 @@ fn write_problem(
         f.new_attr::<f64>().create(k)?.write_scalar(&v)?;
     }
     for (k, v) in [
-        ("order", u64::from(d.mesh.order)),
+        ("order", u64::from(d.mesh.kind.order())),
         ("vertex_count", d.mesh.vertex_count as u64),
         ("modes", ours.eigenvalues.len() as u64),
         ("rigid", d.rigid as u64),
@@ -737,7 +737,7 @@ mod tests {
     /// The reference's output is another program's: `compare` indexed into it unchecked.
     #[test]
     fn a_reference_output_of_the_wrong_shape_is_refused() {
-        let mesh = crate::mesh::Mesh::structured_box([2, 1, 1], 0.1, 1, |_, p| p);
+        let mesh = crate::tet_mesh::Mesh::structured_box([2, 1, 1], 0.1, crate::fem::element::Kind::Tet4, |_, p| p);
         let n = mesh.nodes.len();
         let dofs = crate::supports::Dofs::from_mask(&vec![false; 3 * n]);
         let d = Discretized::assemble(mesh, dofs, (2e11, 0.3, 7800.0)).expect("assembles");

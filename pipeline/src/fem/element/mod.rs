@@ -4,6 +4,10 @@
 pub mod tet10;
 pub mod tet4;
 
+/// The element kinds (4- and 10-node tets): node count, file value, gmsh and VTK codes, defined
+/// once in the format crate (the runtime reads the same files).
+pub use ves_format::ElementKind as Kind;
+
 use super::quadrature::Point;
 use nalgebra::{Matrix3, Vector3};
 

@@ -5,7 +5,7 @@ use super::Shape;
 use crate::fem::quadrature::{self, Point};
 
 /// Vertex pairs of the mid-edge nodes 4..9 (the mesh's node order, gmsh's).
-pub use crate::mesh::TET10_EDGES as EDGES;
+pub use crate::tet_mesh::TET10_EDGES as EDGES;
 
 /// Quadratic tetrahedron.
 pub struct Tet10;
@@ -43,6 +43,6 @@ impl Shape for Tet10 {
     /// frequencies to within ~1e-7 of a converged integration (scikit-fem at order 8 on the
     /// corpus' PMI block), where degree 2 was 6e-5 low.
     fn curved_stiffness_rule(x: &[[f64; 3]]) -> Option<Vec<Point>> {
-        crate::mesh::quality::is_curved(x).then(quadrature::degree5)
+        crate::tet_mesh::is_curved(x).then(quadrature::degree5)
     }
 }
