@@ -2,7 +2,8 @@
 //!
 //! Server → page, binary, little-endian, every array 4-byte aligned:
 //! - kind 0, a space's surface: u32 kind, space, nv, nt; f32 rest[3nv]; u32 triangles[3nt];
-//!   u8 fixed[nv] (bit c: component c of that vertex is supported).
+//!   u8 fixed[nv] (bit c: component c of that vertex is supported); zero bytes to a multiple of
+//!   4; when the basis has them, u32 faces[nt] (each triangle's CAD face tag).
 //! - kind 1, a drawn frame: u32 kind, space, nv, flags (1: the space has stress, 2: the part's
 //!   safety factor is below the minimum), frame seq, last hand-message seq read per hand [2],
 //!   vertex of the part's largest von Mises stress (u32::MAX: none); f64 time, pose[7]
@@ -60,6 +61,12 @@ pub fn mesh(space: usize, basis: &Basis) -> Vec<u8> {
         put_u32(&mut b, *t);
     }
     b.extend_from_slice(&basis.fixed);
+    if let Some(faces) = &basis.surface_faces {
+        b.resize(b.len().next_multiple_of(4), 0);
+        for f in faces {
+            put_u32(&mut b, *f);
+        }
+    }
     b
 }
 

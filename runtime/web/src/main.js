@@ -123,6 +123,8 @@ function onBinary(buf) {
 }
 
 function clearSpaces() {
+  lightFaces('held', [], 0);
+  lightFaces('hover', [], 0);
   for (const s of state.spaces) {
     if (!s) continue;
     for (const o of [s.mesh, s.box, s.supports]) if (o) { scene.remove(o); o.geometry && o.geometry.dispose(); }
@@ -174,6 +176,7 @@ function addSpace(m) {
     if (!same) homeView();
   }
   highlightBoxes();
+  if (m.space === 0) lightFaces('held', setup.heldFaces(), 0x3ddc84);
   // Ready once every space is in and a frame has been drawn (see loop).
   if (state.spaces.filter(Boolean).length === state.hello.spaces.length) state.meshesIn = true;
 }
@@ -583,10 +586,55 @@ function endDrag(key) {
 
 // The set-up panel asks for one click on the part (a face to hold): that click is not a grab.
 let picking = null;
-const setup = setupPanel((m) => { if (ws && ws.readyState === 1) ws.send(JSON.stringify(m)); }, (done) => { picking = done; });
+const setup = setupPanel((m) => { if (ws && ws.readyState === 1) ws.send(JSON.stringify(m)); }, (done) => { picking = done; }, faceMode);
 state.setup = setup;
 
+// Faces: each CAD face's triangles, lit when the cursor is over it (yellow) or held (green).
+let facePick = null; // the set-up panel's callback while picking faces
+const faceLights = { hover: null, held: null };
+function faceOverlay(s, tags, colour) {
+  const want = new Set(tags);
+  const idx = [];
+  for (let t = 0; t < s.faces.length; t++) if (want.has(s.faces[t])) idx.push(s.triangles[3 * t], s.triangles[3 * t + 1], s.triangles[3 * t + 2]);
+  const g = new THREE.BufferGeometry();
+  g.setAttribute('position', s.geom.attributes.position);
+  g.setIndex(idx);
+  const m = new THREE.Mesh(g, new THREE.MeshBasicMaterial({ color: colour, transparent: true, opacity: 0.55, side: THREE.DoubleSide,
+    polygonOffset: true, polygonOffsetFactor: -2, polygonOffsetUnits: -2, depthWrite: false }));
+  m.renderOrder = 1;
+  return m;
+}
+function lightFaces(kind, tags, colour) {
+  const s = state.spaces[0];
+  if (faceLights[kind]) { scene.remove(faceLights[kind]); faceLights[kind].geometry.setIndex(null); faceLights[kind] = null; }
+  if (!s || !s.faces || !tags.length) return;
+  faceLights[kind] = faceOverlay(s, tags, colour);
+  scene.add(faceLights[kind]);
+}
+function faceMode(on, onClick, held) {
+  facePick = on ? onClick : null;
+  lightFaces('held', held || [], 0x3ddc84);
+  if (!on) { lightFaces('hover', [], 0); state.hoverFace = null; }
+}
+/** The CAD face under the pointer (space 0), or null. */
+function faceAt(ev) {
+  const s = state.spaces[0];
+  if (!s || !s.faces || state.active !== 0) return null;
+  camera.updateMatrixWorld();
+  raycaster.setFromCamera(ndc(ev), camera);
+  const hit = raycaster.intersectObject(s.mesh)[0];
+  return hit ? s.faces[hit.faceIndex] : null;
+}
+state.faceAt = (x, y) => faceAt({ clientX: x, clientY: y });
+
 canvas.addEventListener('pointerdown', (ev) => {
+  if (facePick && state.ready) {
+    const tag = faceAt(ev);
+    if (tag === null) return; // off the part: orbit
+    ev.stopImmediatePropagation();
+    facePick(tag);
+    return;
+  }
   if (picking && state.ready) {
     const s = state.spaces[state.active];
     camera.updateMatrixWorld();
@@ -621,6 +669,13 @@ canvas.addEventListener('pointermove', (ev) => {
   // The left button let go while the right still holds: the left's hand lets go.
   if (ev.button === 0 && !(ev.buttons & 1) && drags.has(ev.pointerId)) {
     endDrag(ev.pointerId);
+    return;
+  }
+  if (facePick) {
+    const tag = faceAt(ev);
+    if (tag !== state.hoverFace) { state.hoverFace = tag; lightFaces('hover', tag === null ? [] : [tag], 0xffd45e); }
+    $('probe').style.display = tag === null ? 'none' : 'block';
+    if (tag !== null) { $('probe').textContent = `face ${tag}`; $('probe').style.left = `${ev.clientX + 14}px`; $('probe').style.top = `${ev.clientY + 22}px`; }
     return;
   }
   if (!drags.size) { probe(ev); return; }

@@ -5,15 +5,18 @@ const MESH = 0, FRAME = 1, MODE = 2, STRESS = 3;
 export const KINDS = { MESH, FRAME, MODE, STRESS };
 
 /** Kind 0: one space's surface: u32 kind, space, nv, nt; f32 rest[3nv]; u32 triangles[3nt];
- * u8 fixed[nv] (bit c: component c supported). */
+ * u8 fixed[nv] (bit c: component c supported); zero bytes to a multiple of 4; when the basis
+ * has them, u32 faces[nt] (each triangle's CAD face tag). */
 export function decodeMesh(buf) {
   const [, space, nv, nt] = new Uint32Array(buf, 0, 4);
   const at = 16 + 12 * nv + 12 * nt;
+  const facesAt = Math.ceil((at + nv) / 4) * 4;
   return {
     space, vertices: nv,
     rest: new Float32Array(buf, 16, 3 * nv),
     triangles: new Uint32Array(buf, 16 + 12 * nv, 3 * nt),
     fixed: buf.byteLength >= at + nv ? new Uint8Array(buf, at, nv) : new Uint8Array(nv),
+    faces: buf.byteLength >= facesAt + 4 * nt && nt > 0 ? new Uint32Array(buf, facesAt, nt) : null,
   };
 }
 

@@ -11,7 +11,7 @@ const isPreset = (p, m) => close(m.young, p.young) && close(m.poisson, p.poisson
 
 /** Wires the panel to `send` (a JSON message to the server) and `pick` (asks for one click on
  * the part: calls back with {point, normal}). Returns handlers for the server's messages. */
-export function setupPanel(send, pick) {
+export function setupPanel(send, pick, faceMode) {
   let scene = null; // the scene being edited: the TOML's tables as JSON
   let geometry = null;
   let materials = [];
@@ -91,6 +91,26 @@ export function setupPanel(send, pick) {
     $('density').value = plain(p.density); $('yield').value = plain(p.yield_strength / 1e6);
   };
   for (const id of ['young', 'poisson', 'density', 'yield']) $(id).oninput = () => { $('material').value = 'custom'; };
+  // Faces: while on, the face under the cursor is lit and a click adds it to (or takes it from)
+  // the faces held; Done ends it.
+  let picking = false;
+  const heldFaces = () => (scene.fixed || []).filter((f) => f.faces).flatMap((f) => f.faces);
+  const toggleFace = (tag) => {
+    const fixed = (scene.fixed ||= []);
+    let entry = fixed.find((f) => f.faces);
+    if (!entry) { entry = { faces: [] }; fixed.push(entry); }
+    const i = entry.faces.indexOf(tag);
+    if (i >= 0) entry.faces.splice(i, 1); else entry.faces.push(tag);
+    if (!entry.faces.length) fixed.splice(fixed.indexOf(entry), 1);
+    drawSupports();
+    faceMode(true, toggleFace, heldFaces());
+  };
+  $('pickfaces').onclick = () => {
+    picking = !picking;
+    $('pickfaces').textContent = picking ? 'done' : '+ faces…';
+    $('setuperror').textContent = picking ? 'click the faces that are held (again to let one go), then done' : '';
+    faceMode(picking, toggleFace, heldFaces());
+  };
   $('addplane').onclick = () => { (scene.fixed ||= []).push({ plane: { axis: 'x', value: 0 } }); drawSupports(); };
   $('pickplane').onclick = () => {
     $('setuperror').textContent = 'click a flat face of the part: the plane through it is held';
@@ -178,6 +198,8 @@ export function setupPanel(send, pick) {
       $('compute').disabled = on;
       $('cancel').disabled = !on;
     },
+    /** The faces held (tags), for drawing them. */
+    heldFaces: () => (scene ? heldFaces() : []),
     /** The scene being edited (tests and the console). */
     scene: () => read(),
     saved: () => saved,
