@@ -52,6 +52,7 @@ impl Space<'_> {
             tets: &self.mesh.tets,
             nodes_per_tet: self.mesh.nodes_per_tet(),
             surface_triangles: &self.mesh.surface,
+            surface_faces: Some(&self.mesh.surface_faces),
             fixed_dofs: &self.dofs.fixed,
             eigenvalues: &self.modes.eigenvalues,
             relative_residuals: &self.modes.residuals,

@@ -29,6 +29,9 @@ pub struct Mesh {
     pub tets: Vec<u32>,
     /// Boundary faces on corner vertices, counter-clockwise seen from outside.
     pub surface: Vec<[u32; 3]>,
+    /// The CAD face (gmsh's surface tag as imported) each `surface` triangle lies on, one per
+    /// triangle; 0: unknown (a mesh not made by gmsh, or a face gmsh did not classify).
+    pub surface_faces: Vec<u32>,
 }
 
 /// Meshing failed.
@@ -205,6 +208,11 @@ impl Mesh {
     /// Builds a mesh from raw connectivity: keeps only nodes used by tets, numbers corner
     /// vertices first, orients every tet positively and extracts the boundary.
     pub fn from_raw(coords: &[[f64; 3]], tets: &[u32], order: u8) -> Mesh {
+        Mesh::from_raw_numbered(coords, tets, order).0
+    }
+
+    /// [`Mesh::from_raw`], and the new index of each raw node (`u32::MAX`: used by no tet).
+    fn from_raw_numbered(coords: &[[f64; 3]], tets: &[u32], order: u8) -> (Mesh, Vec<u32>) {
         let p = if order == 2 { 10 } else { 4 };
         let mut new_index = vec![u32::MAX; coords.len()];
         let mut nodes = Vec::new();
@@ -235,13 +243,15 @@ impl Mesh {
             }
         }
         let surface = boundary_faces(&out, p);
-        Mesh {
+        let mesh = Mesh {
             nodes,
             vertex_count,
             order,
             tets: out,
+            surface_faces: vec![0; surface.len()],
             surface,
-        }
+        };
+        (mesh, new_index)
     }
 }
 
@@ -1182,7 +1192,39 @@ fn extract(session: &gmsh::Gmsh, order: u8, scale: f64, path: &str) -> Result<Me
         }
         tets.push(s);
     }
-    Ok(Mesh::from_raw(&xyz, &tets, order))
+    let (mut mesh, new_index) = Mesh::from_raw_numbered(&xyz, &tets, order);
+    // Each boundary triangle's CAD face: gmsh's triangles of each surface entity, matched by
+    // their sorted corner nodes (a 6-node triangle's first three nodes are its corners).
+    let triangle = if order == 2 {
+        element_type::TRIANGLE6
+    } else {
+        element_type::TRIANGLE3
+    };
+    let per = if order == 2 { 6 } else { 3 };
+    let mut face_of: HashMap<[u32; 3], u32> = HashMap::with_capacity(mesh.surface.len());
+    for (_, tag) in session.entities(2).map_err(g)? {
+        let Ok(face) = u32::try_from(tag) else { continue };
+        let (_, nodes) = session.elements_by_type_on(triangle, tag).map_err(g)?;
+        for t in nodes.chunks_exact(per) {
+            let corner = |k: usize| {
+                slot.get(t[k])
+                    .and_then(|&s| new_index.get(s as usize))
+                    .copied()
+                    .unwrap_or(u32::MAX)
+            };
+            let mut key = [corner(0), corner(1), corner(2)];
+            key.sort_unstable();
+            if key[2] != u32::MAX {
+                face_of.insert(key, face);
+            }
+        }
+    }
+    for (f, tag) in mesh.surface.iter().zip(&mut mesh.surface_faces) {
+        let mut key = *f;
+        key.sort_unstable();
+        *tag = face_of.get(&key).copied().unwrap_or(0);
+    }
+    Ok(mesh)
 }
 
 #[cfg(test)]
