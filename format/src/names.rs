@@ -67,6 +67,9 @@ pub mod space {
     pub const TETS: &str = "mesh/tets";
     /// u32 [k, 3], outward, on corner vertices.
     pub const SURFACE_TRIANGLES: &str = "mesh/surface_triangles";
+    /// Optional u32 [k]: the CAD face (gmsh's surface tag of the geometry as imported) of each
+    /// surface triangle; 0 where unknown.
+    pub const SURFACE_FACES: &str = "mesh/surface_faces";
     /// u32 [c], supported DOFs 3i+c.
     pub const FIXED_DOFS: &str = "mesh/fixed_dofs";
     /// Modes group.

@@ -619,6 +619,26 @@ impl<'a> SpaceReader<'a> {
         })
     }
 
+    /// The CAD face of each surface triangle (0: unknown), one per triangle, when the file has
+    /// them (files written before them do not).
+    pub fn surface_faces(&self) -> Result<Option<Vec<u32>>, ReadError> {
+        self.guard(|| {
+            if self.group.dataset(sp::SURFACE_FACES).is_err() {
+                return Ok(None);
+            }
+            let v = self.read_all::<u32>(sp::SURFACE_FACES, 1)?;
+            if v.len() != self.triangle_count {
+                return Err(self.err(format!(
+                    "{} holds {} tags for {} surface triangles; the file is damaged",
+                    sp::SURFACE_FACES,
+                    v.len(),
+                    self.triangle_count
+                )));
+            }
+            Ok(Some(v))
+        })
+    }
+
     /// Supported DOFs (3i+c), below 3n.
     pub fn fixed_dofs(&self) -> Result<Vec<u32>, ReadError> {
         self.guard(|| {
@@ -905,6 +925,7 @@ impl<'a> SpaceReader<'a> {
         self.nodes(self.node_count)?;
         self.tets()?;
         self.surface_triangles()?;
+        self.surface_faces()?;
         self.fixed_dofs()?;
         let lam = self.eigenvalues()?;
         let m = self.file.material()?;

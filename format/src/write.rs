@@ -50,6 +50,8 @@ pub struct SpaceData<'a> {
     pub tets: &'a [u32],
     /// Surface triangles on corner vertices, outward.
     pub surface_triangles: &'a [[u32; 3]],
+    /// The CAD face of each surface triangle (optional dataset; 0: unknown).
+    pub surface_faces: Option<&'a [u32]>,
     /// Supported DOFs 3i+c.
     pub fixed_dofs: &'a [u32],
     /// λ, ascending.
@@ -204,6 +206,19 @@ fn write_space(file: &hdf5::File, s: &SpaceData<'_>) -> Result<(), WriteError> {
         .with_data(&tri)
         .create(sp::SURFACE_TRIANGLES)
         .ctx(sp::SURFACE_TRIANGLES)?;
+    if let Some(faces) = s.surface_faces {
+        if faces.len() != s.surface_triangles.len() {
+            return Err(WriteError {
+                what: sp::SURFACE_FACES.into(),
+                message: format!(
+                    "{} face tags for {} surface triangles",
+                    faces.len(),
+                    s.surface_triangles.len()
+                ),
+            });
+        }
+        vector(&g, sp::SURFACE_FACES, faces)?;
+    }
     vector(&g, sp::FIXED_DOFS, s.fixed_dofs)?;
     g.create_group(sp::MODES).ctx(sp::MODES)?;
     vector(&g, sp::EIGENVALUES, s.eigenvalues)?;
@@ -276,6 +291,97 @@ fn vector<T: hdf5::H5Type + Clone>(g: &hdf5::Group, name: &str, v: &[T]) -> Resu
 
 #[cfg(test)]
 mod tests {
+    use crate::{BasisReader, FileData, Material, SpaceData, names::space as sp};
+
+    /// One tet, its four faces tagged 3, 5, 5, 9, one mode.
+    fn write_tet(path: &std::path::Path, faces: Option<&[u32]>) -> Result<(), super::WriteError> {
+        let nodes = [[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]];
+        let surface = [[1, 2, 3], [0, 3, 2], [0, 1, 3], [0, 2, 1]];
+        let data = FileData {
+            generator: "test",
+            scene_toml: "",
+            source_hash: None,
+            material: Material {
+                young: 2e11,
+                poisson: 0.3,
+                density: 7800.0,
+                alpha: 0.0,
+                beta: 0.0,
+                yield_strength: None,
+            },
+            spaces: vec![SpaceData {
+                name: "global",
+                element_order: 1,
+                rigid_modes_dropped: 0,
+                voi: None,
+                vertex_count: 4,
+                meshing_strategy: None,
+                nodes: &nodes,
+                tets: &[0, 1, 2, 3],
+                nodes_per_tet: 4,
+                surface_triangles: &surface,
+                surface_faces: faces,
+                fixed_dofs: &[],
+                eigenvalues: &[1.0],
+                relative_residuals: &[0.0],
+                estimated_relative_error: None,
+                stress: None,
+                basis: &[0.1; 12],
+                compliance: None,
+                transfers: &[],
+                rigid: None,
+            }],
+        };
+        super::write_file(path, &data)
+    }
+
+    fn temp(name: &str) -> std::path::PathBuf {
+        std::env::temp_dir().join(format!("ves-format-{}-{name}.h5", std::process::id()))
+    }
+
+    /// `mesh/surface_faces` is written and read back as given; a file without it (older) reads
+    /// as none; a writer given the wrong count refuses, and a file holding the wrong count is
+    /// refused by the reader.
+    #[test]
+    fn surface_faces_are_written_read_back_and_checked() {
+        let path = temp("faces");
+        write_tet(&path, Some(&[3, 5, 5, 9])).unwrap();
+        let file = BasisReader::open(&path).unwrap();
+        let space = file.space("global").unwrap();
+        assert_eq!(space.surface_faces().unwrap(), Some(vec![3, 5, 5, 9]));
+        space.validate().unwrap();
+        drop(space);
+        drop(file);
+        let older = temp("older");
+        write_tet(&older, None).unwrap();
+        assert_eq!(
+            BasisReader::open(&older)
+                .unwrap()
+                .space("global")
+                .unwrap()
+                .surface_faces()
+                .unwrap(),
+            None
+        );
+        let e = write_tet(&temp("short"), Some(&[3, 5])).unwrap_err();
+        assert!(e.to_string().contains("2 face tags for 4 surface triangles"), "{e}");
+        // A file whose dataset holds three tags for four triangles.
+        {
+            let f = hdf5::File::open_rw(&older).unwrap();
+            let g = f.group("spaces/global").unwrap();
+            g.new_dataset_builder()
+                .with_data(&ndarray::Array1::from(vec![1u32, 2, 3]))
+                .create(sp::SURFACE_FACES)
+                .unwrap();
+        }
+        let file = BasisReader::open(&older).unwrap();
+        let e = file.space("global").unwrap().surface_faces().unwrap_err();
+        assert!(e.message.contains("3 tags for 4 surface triangles"), "{e}");
+        for p in [path, older, temp("short")] {
+            let _ = std::fs::remove_file(p);
+        }
+    }
+
     #[test]
     fn a_failed_system_write_is_told_in_a_few_words() {
         let hdf5 = "H5Fflush(): unable to flush file's cached information: file write failed: time = Wed Nov 25 19:31:56 2026\n, filename = '/tmp/b.h5', file descriptor = 4, errno = 28, error message = 'No space left on device', buf = 0x55bf, total write size = 1395";

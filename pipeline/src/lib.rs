@@ -17,6 +17,7 @@ pub mod mesh;
 pub mod modes;
 pub mod output;
 pub mod precompute;
+pub mod preview;
 pub mod problem;
 pub mod progress;
 pub mod report;

@@ -187,6 +187,7 @@ struct RawFixed {
     plane: Option<RawPlane>,
     #[serde(rename = "box")]
     bbox: Option<BoxRegion>,
+    faces: Option<Vec<u32>>,
     components: Option<Vec<String>>,
 }
 
@@ -216,7 +217,7 @@ impl BoxRegion {
 }
 
 /// Where a support acts.
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(Clone, Debug, PartialEq)]
 pub enum Region {
     /// Nodes with |x[axis] − value| ≤ tol; `tol = None` means 1e-6 × part size.
     Plane {
@@ -229,6 +230,9 @@ pub enum Region {
     },
     /// Nodes inside a box.
     Box(BoxRegion),
+    /// The nodes of the surface triangles on these CAD faces (gmsh's surface tags of the
+    /// geometry as imported), ascending, each once; mid-edge nodes of those triangles included.
+    Faces(Vec<u32>),
 }
 
 /// One supported region: the nodes it selects have `components` fixed to zero.
@@ -690,8 +694,8 @@ fn axis_index(key: &str, s: &str) -> Result<usize, String> {
 }
 
 fn support(i: usize, f: &RawFixed) -> Result<Support, String> {
-    let region = match (&f.plane, &f.bbox) {
-        (Some(p), None) => {
+    let region = match (&f.plane, &f.bbox, &f.faces) {
+        (Some(p), None, None) => {
             let axis = axis_index(&format!("fixed[{i}].plane.axis"), &p.axis)?;
             if !p.value.is_finite() {
                 return Err(format!("fixed[{i}].plane.value = {}: must be finite", p.value));
@@ -705,11 +709,27 @@ fn support(i: usize, f: &RawFixed) -> Result<Support, String> {
                 tol: p.tol,
             }
         }
-        (None, Some(b)) => {
+        (None, Some(b), None) => {
             check_box(&format!("fixed[{i}].box"), b)?;
             Region::Box(*b)
         }
-        _ => return Err(format!("fixed[{i}]: give exactly one of `plane` or `box`")),
+        (None, None, Some(list)) => {
+            if list.is_empty() {
+                return Err(format!(
+                    "fixed[{i}].faces: empty; list at least one CAD face tag (gmsh's surface tags of the geometry)"
+                ));
+            }
+            if list.contains(&0) {
+                return Err(format!(
+                    "fixed[{i}].faces = {list:?}: face tags start at 1 (gmsh numbers the faces of the geometry from 1)"
+                ));
+            }
+            let mut tags = list.clone();
+            tags.sort_unstable();
+            tags.dedup();
+            Region::Faces(tags)
+        }
+        _ => return Err(format!("fixed[{i}]: give exactly one of `plane`, `box` or `faces`")),
     };
     let mut components = [false; 3];
     match &f.components {

@@ -51,6 +51,7 @@ impl Space<'_> {
             nodes: &self.mesh.nodes,
             tets: &self.mesh.tets,
             surface_triangles: &self.mesh.surface,
+            surface_faces: Some(&self.mesh.surface_faces),
             fixed_dofs: &self.dofs.fixed,
             eigenvalues: &self.modes.eigenvalues,
             relative_residuals: &self.modes.residuals,

@@ -65,24 +65,44 @@ pub struct EmptySupport {
     pub hint: String,
 }
 
-/// Whether a support region holds point `p` (`default_tol`: 1e-6 × part size).
+/// A support the mesh cannot apply.
+#[derive(Debug, thiserror::Error)]
+pub enum SupportError {
+    /// The region selects no node.
+    #[error(transparent)]
+    Empty(#[from] EmptySupport),
+    /// `faces` names a tag the geometry does not have.
+    #[error("fixed[{index}].faces = {asked:?}: {message}")]
+    UnknownFaces {
+        /// Index of the `[[fixed]]` table.
+        index: usize,
+        /// The tags as given (sorted, each once).
+        asked: Vec<u32>,
+        /// Which are unknown, and the tags the geometry has.
+        message: String,
+    },
+}
+
+/// Whether a support region holds point `p` (`default_tol`: 1e-6 × part size); `Faces` selects
+/// by triangles, not by position (see [`face_nodes`]).
 fn selects(region: &Region, p: [f64; 3], default_tol: f64) -> bool {
-    match *region {
-        Region::Plane { axis, value, tol } => (p[axis] - value).abs() <= tol.unwrap_or(default_tol),
+    match region {
+        Region::Plane { axis, value, tol } => (p[*axis] - value).abs() <= tol.unwrap_or(default_tol),
         Region::Box(b) => b.contains(p, default_tol),
+        Region::Faces(_) => false,
     }
 }
 
 /// The region in words, and where the part lies so the user can fix the value.
 fn describe(region: &Region, lo: [f64; 3], hi: [f64; 3], default_tol: f64) -> (String, String) {
-    match *region {
+    match region {
         Region::Plane { axis, value, tol } => {
-            let name = ["x", "y", "z"][axis];
+            let name = ["x", "y", "z"][*axis];
             (
                 format!("plane {name} = {value} m, tol {:.3e} m", tol.unwrap_or(default_tol)),
                 format!(
                     "the part spans {name} from {:.6} to {:.6} m: change `value` (in metres) or raise `tol`",
-                    lo[axis], hi[axis]
+                    lo[*axis], hi[*axis]
                 ),
             )
         }
@@ -90,17 +110,116 @@ fn describe(region: &Region, lo: [f64; 3], hi: [f64; 3], default_tol: f64) -> (S
             format!("box {:?}..{:?} m", b.min, b.max),
             format!("the part spans {lo:.6?} to {hi:.6?} m: move or enlarge the box (in metres)"),
         ),
+        Region::Faces(tags) => (format!("faces {tags:?}"), "name faces the geometry has".to_string()),
     }
 }
 
+/// Sorted tags as ranges: `1..=6, 9, 11..=12`.
+pub fn tag_ranges(tags: &[u32]) -> String {
+    let mut parts = Vec::new();
+    let mut i = 0;
+    while i < tags.len() {
+        let mut j = i;
+        while j + 1 < tags.len() && tags[j + 1] == tags[j] + 1 {
+            j += 1;
+        }
+        parts.push(if j > i {
+            format!("{}..={}", tags[i], tags[j])
+        } else {
+            tags[i].to_string()
+        });
+        i = j + 1;
+    }
+    parts.join(", ")
+}
+
+/// The CAD faces the mesh's surface carries (tags of its triangles, 0 left out), ascending.
+pub fn mesh_faces(mesh: &Mesh) -> Vec<u32> {
+    let mut tags: Vec<u32> = mesh.surface_faces.iter().copied().filter(|&t| t != 0).collect();
+    tags.sort_unstable();
+    tags.dedup();
+    tags
+}
+
+/// The nodes on the surface triangles whose CAD face is in `tags` (sorted): their corners and,
+/// for 10-node tets, the mid-edge nodes of their edges. Sorted, each once.
+pub fn face_nodes(mesh: &Mesh, tags: &[u32]) -> Vec<u32> {
+    let on: Vec<&[u32; 3]> = mesh
+        .surface
+        .iter()
+        .zip(&mesh.surface_faces)
+        .filter(|(_, t)| tags.binary_search(t).is_ok())
+        .map(|(f, _)| f)
+        .collect();
+    let mut nodes: Vec<u32> = on.iter().flat_map(|f| f.iter().copied()).collect();
+    if mesh.kind == crate::fem::element::Kind::Tet10 {
+        // Mid-edge nodes from the tets: the node of each triangle edge.
+        let key = |a: u32, b: u32| (a.min(b), a.max(b));
+        let mut edges: std::collections::HashSet<(u32, u32)> = on
+            .iter()
+            .flat_map(|f| [key(f[0], f[1]), key(f[1], f[2]), key(f[2], f[0])])
+            .collect();
+        for e in 0..mesh.tet_count() {
+            let t = mesh.tet(e);
+            for (k, (a, b)) in crate::mesh::TET10_EDGES.iter().enumerate() {
+                if edges.remove(&key(t[*a], t[*b])) {
+                    nodes.push(t[4 + k]);
+                }
+            }
+            if edges.is_empty() {
+                break;
+            }
+        }
+    }
+    nodes.sort_unstable();
+    nodes.dedup();
+    nodes
+}
+
 /// Applies the supports to the mesh's nodes (corner and mid-edge alike).
-pub fn select(mesh: &Mesh, supports: &[Support]) -> Result<Dofs, EmptySupport> {
+pub fn select(mesh: &Mesh, supports: &[Support]) -> Result<Dofs, SupportError> {
     let n = mesh.nodes.len();
     let mut fixed_mask = vec![false; 3 * n];
     let (lo, hi) = mesh.bounding_box();
     let default_tol = 1e-6 * mesh.diameter();
     for (index, s) in supports.iter().enumerate() {
         let mut any = false;
+        if let Region::Faces(tags) = &s.region {
+            let known = mesh_faces(mesh);
+            let unknown: Vec<u32> = tags
+                .iter()
+                .copied()
+                .filter(|t| known.binary_search(t).is_err())
+                .collect();
+            if !unknown.is_empty() {
+                let which = match unknown.as_slice() {
+                    [t] => format!("the geometry has no face {t}"),
+                    ts => format!("the geometry has no faces {}", tag_ranges(ts)),
+                };
+                let message = if known.is_empty() {
+                    format!(
+                        "{which}: its mesh carries no CAD face tags (not made by gmsh from the geometry); hold it by \
+                         `plane` or `box`"
+                    )
+                } else {
+                    format!(
+                        "{which}; it has faces {} (gmsh's surface tags of the geometry as imported): use those",
+                        tag_ranges(&known)
+                    )
+                };
+                return Err(SupportError::UnknownFaces {
+                    index,
+                    asked: tags.clone(),
+                    message,
+                });
+            }
+            for i in face_nodes(mesh, tags) {
+                any = true;
+                for c in 0..3 {
+                    fixed_mask[3 * i as usize + c] |= s.components[c];
+                }
+            }
+        }
         for (i, p) in mesh.nodes.iter().enumerate() {
             if selects(&s.region, *p, default_tol) {
                 any = true;
@@ -111,7 +230,7 @@ pub fn select(mesh: &Mesh, supports: &[Support]) -> Result<Dofs, EmptySupport> {
         }
         if !any {
             let (what, hint) = describe(&s.region, lo, hi, default_tol);
-            return Err(EmptySupport { index, what, hint });
+            return Err(EmptySupport { index, what, hint }.into());
         }
     }
     Ok(Dofs::from_mask(&fixed_mask))

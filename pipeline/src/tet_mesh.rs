@@ -22,6 +22,9 @@ pub struct Mesh {
     pub tets: Vec<u32>,
     /// Boundary faces on corner vertices, counter-clockwise seen from outside.
     pub surface: Vec<[u32; 3]>,
+    /// The CAD face (gmsh's surface tag as imported) each `surface` triangle lies on, one per
+    /// triangle; 0: unknown (a mesh not made by gmsh, or a face gmsh did not classify).
+    pub surface_faces: Vec<u32>,
 }
 
 impl Mesh {
@@ -167,6 +170,11 @@ impl Mesh {
     /// Builds a mesh from raw connectivity: keeps only nodes used by tets, numbers corner
     /// vertices first, orients every tet positively and extracts the boundary.
     pub fn from_raw(coords: &[[f64; 3]], tets: &[u32], kind: Kind) -> Mesh {
+        Mesh::from_raw_numbered(coords, tets, kind).0
+    }
+
+    /// [`Mesh::from_raw`], and the new index of each raw node (`u32::MAX`: used by no tet).
+    pub(crate) fn from_raw_numbered(coords: &[[f64; 3]], tets: &[u32], kind: Kind) -> (Mesh, Vec<u32>) {
         let p = kind.nodes();
         let mut new_index = vec![u32::MAX; coords.len()];
         let mut nodes = Vec::new();
@@ -197,13 +205,15 @@ impl Mesh {
             }
         }
         let surface = boundary_faces(&out, p);
-        Mesh {
+        let mesh = Mesh {
             nodes,
             vertex_count,
             kind,
             tets: out,
+            surface_faces: vec![0; surface.len()],
             surface,
-        }
+        };
+        (mesh, new_index)
     }
 }
 

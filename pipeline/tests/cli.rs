@@ -1232,3 +1232,67 @@ fn a_second_scenario_of_the_same_part_reuses_its_meshes() {
     let (hits, _) = run(&path, &[("VES_MESH_CACHE", "off")]);
     assert_eq!((hits, entries()), (0, 0));
 }
+
+/// The tags survive the mesh cache: a mesh read back from a cache entry carries the tags of the
+/// mesh stored (the same `ves precompute` twice, the second a cache hit, writes the same
+/// `mesh/surface_faces`), and the runtime loads them (surface_only or not) one per triangle.
+#[test]
+fn a_cached_mesh_carries_the_tags_of_a_fresh_one_into_the_basis_and_the_runtime() {
+    let (dir, scene) = workdir(
+        "name = \"faces\"\n[geometry]\nstep = \"beam.step\"\nunit = \"mm\"\n[material]\nyoung = 2.1e11\n\
+         poisson = 0.3\ndensity = 7850.0\n[mesh]\nsize = 0.05\norder = 2\nerror_estimate = false\n[[fixed]]\n\
+         faces = [1]\n[modes]\ncount = 8\n",
+    );
+    let cache = dir.path().join("cache");
+    let run = |out: &str| {
+        let o = std::process::Command::new(env!("CARGO_BIN_EXE_ves"))
+            .args(["precompute", scene.to_str().unwrap(), "--force", "-o"])
+            .arg(dir.path().join(out))
+            .env("VES_CACHE_DIR", &cache)
+            .env("VES_LOG", "info")
+            .output()
+            .expect("ves runs");
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        String::from_utf8_lossy(&o.stderr).matches("mesh cache hit").count()
+    };
+    assert_eq!(run("fresh.h5"), 0);
+    assert_eq!(run("cached.h5"), 1);
+    let load = |f: &str, surface_only| {
+        ves_runtime::basis::load(
+            &dir.path().join(f),
+            &ves_runtime::basis::LoadOptions {
+                surface_only,
+                ..Default::default()
+            },
+        )
+        .unwrap_or_else(|e| panic!("{e}"))
+    };
+    let fresh = load("fresh.h5", false);
+    let cached = load("cached.h5", false);
+    let tags = fresh.surface_faces.clone().expect("the basis has surface_faces");
+    assert_eq!(tags.len(), fresh.triangles.len());
+    assert_eq!(cached.surface_faces.as_ref(), Some(&tags));
+    assert_eq!(cached.triangles, fresh.triangles);
+    let mut distinct = tags.clone();
+    distinct.sort_unstable();
+    distinct.dedup();
+    assert_eq!(distinct, (1..=6).collect::<Vec<u32>>());
+    let surface = load("cached.h5", true);
+    assert_eq!(
+        surface.surface_faces.as_ref(),
+        Some(&tags),
+        "surface_only keeps every triangle's tag"
+    );
+    // Face 1's vertices are held, and only vertices on face-1 triangles are.
+    let on1: std::collections::BTreeSet<u32> = surface
+        .triangles
+        .iter()
+        .zip(&tags)
+        .filter(|(_, t)| **t == 1)
+        .flat_map(|(f, _)| f.iter().copied())
+        .collect();
+    let held: std::collections::BTreeSet<u32> = (0..surface.fixed.len() as u32)
+        .filter(|&v| surface.fixed[v as usize] == 7)
+        .collect();
+    assert_eq!(held, on1);
+}

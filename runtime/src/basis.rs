@@ -36,6 +36,9 @@ pub struct Basis {
     pub node_index: Vec<u32>,
     /// Surface triangles over kept vertices, outward.
     pub triangles: Vec<[u32; 3]>,
+    /// The CAD face (gmsh's surface tag, what a scene's `[[fixed]] faces` names) of each of
+    /// `triangles`, 0 where unknown; when the file has them (older files do not).
+    pub surface_faces: Option<Vec<u32>>,
     /// Kept vertices on the surface (what the haptic point can touch).
     pub surface_vertices: Vec<u32>,
     /// Area-weighted outward unit normal per kept vertex (zero inside).
@@ -144,6 +147,7 @@ impl Basis {
             rest,
             node_index,
             triangles,
+            surface_faces: None,
             surface_vertices,
             normals,
             neighbour_ptr,
@@ -431,6 +435,12 @@ mod file {
             s.rigid()?,
         )?;
         basis.voi = s.voi;
+        // One per file triangle, in the file's order: `triangles` keeps them all and in order
+        // (surface_only renumbers their vertices only).
+        if let Some(faces) = s.surface_faces()? {
+            basis.bytes_loaded += faces.len() * 4;
+            basis.surface_faces = Some(faces);
+        }
         let mut slot = vec![u32::MAX; s.node_count];
         for (k, &v) in keep.iter().enumerate() {
             slot[v as usize] = k as u32;

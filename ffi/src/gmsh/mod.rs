@@ -64,6 +64,8 @@ pub fn on_gmsh_thread<R: Send + 'static>(f: impl FnOnce() -> R + Send + 'static)
 pub mod element_type {
     /// 3-node triangle.
     pub const TRIANGLE3: i32 = 2;
+    /// 6-node triangle (the faces of 10-node tets).
+    pub const TRIANGLE6: i32 = 9;
     /// 4-node tetrahedron.
     pub const TET4: i32 = 4;
     /// 10-node tetrahedron.
@@ -299,12 +301,18 @@ impl Gmsh {
     /// Elements of one gmsh type over the whole model: element tags and node tags (flat,
     /// `nodes_per_element` per element, gmsh node order).
     pub fn elements_by_type(&self, ty: i32) -> Result<(Vec<usize>, Vec<usize>)> {
+        self.elements_by_type_on(ty, -1)
+    }
+
+    /// [`Gmsh::elements_by_type`] of the elements classified on one entity: `tag` of the
+    /// dimension of type `ty` (a surface's tag for triangles); -1: the whole model.
+    pub fn elements_by_type_on(&self, ty: i32, tag: i32) -> Result<(Vec<usize>, Vec<usize>)> {
         let (mut et, mut net) = (ptr::null_mut(), 0usize);
         let (mut nt, mut nnt) = (ptr::null_mut(), 0usize);
         let mut ierr = 0;
         // SAFETY: out-pointers valid; arrays copied and freed.
         unsafe {
-            sys::gmshModelMeshGetElementsByType(ty, &mut et, &mut net, &mut nt, &mut nnt, -1, 0, 1, &mut ierr);
+            sys::gmshModelMeshGetElementsByType(ty, &mut et, &mut net, &mut nt, &mut nnt, tag, 0, 1, &mut ierr);
             let (e, n) = (take(et, net), take(nt, nnt));
             check("model/mesh/getElementsByType", ierr)?;
             Ok((e, n))

@@ -194,6 +194,7 @@ impl Share {
             kind: self.kind,
             tets: self.tets.clone(),
             surface: Vec::new(),
+            surface_faces: Vec::new(),
         };
         let mask: Vec<bool> = self.free.iter().map(|&f| f == u32::MAX).collect();
         let dofs = Dofs::from_mask(&mask);

@@ -30,8 +30,9 @@ const SOURCES: [&str; 4] = [
     include_str!("cache.rs"),
 ];
 
-/// First bytes of a mesh entry.
-const MAGIC: &[u8; 8] = b"VESMESH\x02";
+/// First bytes of a mesh entry. Version 3 added the surface triangles' CAD faces; an entry of
+/// an older version is a miss (meshed again and replaced), never read as this one.
+const MAGIC: &[u8; 8] = b"VESMESH\x03";
 
 /// What the description of an entry holds besides the mesh file.
 #[derive(serde::Serialize, serde::Deserialize)]
@@ -77,6 +78,9 @@ pub(super) fn key(req: &Request, geometry: &[u8]) -> Option<PathBuf> {
     h.field(shape.as_bytes()).field(ext.as_bytes()).field(geometry);
     Some(dir()?.join(format!("{:016x}.mesh", h.value())))
 }
+
+/// Why [`read_entry`] gave up on an entry of an older format (a miss, not damage).
+const OLDER: &str = "an entry of an older format";
 
 /// Longest description accepted when reading an entry (a damaged length is not allocated).
 const MAX_DESCRIPTION: u64 = 1 << 16;
@@ -167,6 +171,7 @@ pub(super) fn lookup(key: &Path) -> Found {
     };
     match read_entry(file, size) {
         Ok(found) => Found::Hit(found.0, found.1),
+        Err(why) if why == OLDER => Found::Absent,
         Err(why) => Found::Bad(why),
     }
 }
@@ -179,6 +184,13 @@ fn read_entry(file: File, size: u64) -> Result<(Mesh, Meshing), String> {
     };
     let mut word = [0u8; 8];
     r.read_exact(&mut word).map_err(short)?;
+    if word[..7] == MAGIC[..7] && word[7] < MAGIC[7] {
+        tracing::info!(
+            "mesh cache entry of an older format (version {}): meshed again",
+            word[7]
+        );
+        return Err(OLDER.into());
+    }
     if &word != MAGIC {
         return Err("not a mesh entry of this version (wrong first bytes)".into());
     }
@@ -480,6 +492,30 @@ mod tests {
         assert_eq!(std::fs::read(&victim).unwrap(), b"someone else's file");
         assert!(std::fs::symlink_metadata(&key).unwrap().file_type().is_file());
         assert!(matches!(lookup(&key), Found::Hit(..)));
+    }
+
+    /// The surface triangles' CAD faces are part of an entry; an entry of the previous format
+    /// (`VESMESH\x02`, no tags) is a miss, not a damaged entry and never a mesh without tags.
+    #[test]
+    fn tags_are_stored_and_an_entry_of_the_older_format_is_a_miss() {
+        let dir = tempfile::tempdir().unwrap();
+        let key = dir.path().join("0123456789abcdef.mesh");
+        let mut m = Mesh::structured_box([3, 1, 1], 0.01, 2, |_, p| p);
+        for (k, t) in m.surface_faces.iter_mut().enumerate() {
+            *t = 1 + (k % 6) as u32;
+        }
+        store(&key, &m, &Meshing::default());
+        let Found::Hit(back, _) = lookup(&key) else {
+            panic!("the entry is not read back")
+        };
+        assert_eq!(back.surface_faces, m.surface_faces);
+        let mut old = std::fs::read(&key).unwrap();
+        old[7] = 2;
+        std::fs::write(&key, &old).unwrap();
+        assert!(matches!(lookup(&key), Found::Absent), "an older entry is not a miss");
+        old[7] = 4;
+        std::fs::write(&key, &old).unwrap();
+        assert!(bad(lookup(&key)).contains("version"));
     }
 
     /// A stored ordering reads back; a file that is not a permutation of 0..n (a duplicate, a

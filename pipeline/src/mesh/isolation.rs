@@ -266,7 +266,8 @@ pub(super) fn write_mesh(path: &Path, mesh: &Mesh) -> std::io::Result<()> {
     w.flush()
 }
 
-/// The mesh as bytes: three counts, the node coordinates, the tet and surface indices.
+/// The mesh as bytes: three counts, the node coordinates, the tet and surface indices, the
+/// surface triangles' CAD faces.
 pub(super) fn write_mesh_to(w: &mut impl Write, mesh: &Mesh) -> std::io::Result<()> {
     for n in [mesh.nodes.len(), mesh.tets.len(), mesh.surface.len()] {
         w.write_all(&(n as u64).to_le_bytes())?;
@@ -275,6 +276,16 @@ pub(super) fn write_mesh_to(w: &mut impl Write, mesh: &Mesh) -> std::io::Result<
         w.write_all(&v.to_le_bytes())?;
     }
     for v in mesh.tets.iter().chain(mesh.surface.iter().flatten()) {
+        w.write_all(&v.to_le_bytes())?;
+    }
+    if mesh.surface_faces.len() != mesh.surface.len() {
+        return Err(std::io::Error::other(format!(
+            "{} face tags for {} surface triangles",
+            mesh.surface_faces.len(),
+            mesh.surface.len()
+        )));
+    }
+    for v in &mesh.surface_faces {
         w.write_all(&v.to_le_bytes())?;
     }
     Ok(())
@@ -301,7 +312,7 @@ pub(super) fn read_mesh_from(r: &mut impl Read, size: u64, vertex_count: usize, 
     let [nodes, tets, faces] = counts;
     // Every count is bounded by the size before anything is allocated for it (checked
     // arithmetic: a damaged count must not wrap around to a size that matches).
-    let expected = [(nodes, 24), (tets, 4), (faces, 12)]
+    let expected = [(nodes, 24), (tets, 4), (faces, 16)]
         .iter()
         .try_fold(24u64, |sum, &(n, bytes)| n.checked_mul(bytes)?.checked_add(sum));
     let kind = crate::fem::element::Kind::of_order(u32::from(order))
@@ -345,12 +356,20 @@ pub(super) fn read_mesh_from(r: &mut impl Read, size: u64, vertex_count: usize, 
     }
     let surface = u32s[tets..].chunks_exact(3).map(|f| [f[0], f[1], f[2]]).collect();
     u32s.truncate(tets);
+    // Any value is a tag (0: unknown).
+    let surface_faces = (0..faces)
+        .map(|_| {
+            r.read_exact(&mut four)?;
+            Ok(u32::from_le_bytes(four))
+        })
+        .collect::<std::io::Result<Vec<u32>>>()?;
     Ok(Mesh {
         nodes: f64s,
         vertex_count,
         kind,
         tets: u32s,
         surface,
+        surface_faces,
     })
 }
 
@@ -374,7 +393,11 @@ mod tests {
 
     #[test]
     fn a_mesh_crosses_the_process_boundary_unchanged_and_a_short_file_is_refused() {
-        let m = Mesh::structured_box([4, 1, 2], 0.01, crate::fem::element::Kind::Tet10, |_, p| p);
+        let mut m = Mesh::structured_box([4, 1, 2], 0.01, crate::fem::element::Kind::Tet10, |_, p| p);
+        // Distinct tags, so a shifted or dropped one shows.
+        for (k, t) in m.surface_faces.iter_mut().enumerate() {
+            *t = 7 + k as u32;
+        }
         let dir = tempfile::tempdir().unwrap();
         let p = dir.path().join("mesh.bin");
         write_mesh(&p, &m).unwrap();
@@ -382,6 +405,7 @@ mod tests {
         assert_eq!(back.nodes, m.nodes);
         assert_eq!(back.tets, m.tets);
         assert_eq!(back.surface, m.surface);
+        assert_eq!(back.surface_faces, m.surface_faces);
         assert_eq!(back.vertex_count, m.vertex_count);
         let bytes = std::fs::read(&p).unwrap();
         std::fs::write(&p, &bytes[..bytes.len() - 4]).unwrap();

@@ -12,7 +12,8 @@ pub(crate) use crate::tet_mesh::signed_volume;
 pub use crate::tet_mesh::{Mesh, TET10_EDGES};
 pub(crate) use cache::{ordering_key, ordering_lookup, ordering_store};
 pub use isolation::{isolate_with, serve as serve_rung};
-use ves_ffi::gmsh;
+use std::collections::HashMap;
+use ves_ffi::gmsh::{self, element_type};
 
 /// Meshing failed.
 #[derive(Debug, thiserror::Error)]
@@ -953,7 +954,37 @@ fn extract(session: &gmsh::Gmsh, kind: Kind, scale: f64, path: &str) -> Result<M
         }
         tets.push(s);
     }
-    Ok(Mesh::from_raw(&xyz, &tets, kind))
+    let (mut mesh, new_index) = Mesh::from_raw_numbered(&xyz, &tets, kind);
+    // Each boundary triangle's CAD face: gmsh's triangles of each surface entity, matched by
+    // their sorted corner nodes (a 6-node triangle's first three nodes are its corners).
+    let (triangle, per) = match kind {
+        Kind::Tet10 => (element_type::TRIANGLE6, 6),
+        Kind::Tet4 => (element_type::TRIANGLE3, 3),
+    };
+    let mut face_of: HashMap<[u32; 3], u32> = HashMap::with_capacity(mesh.surface.len());
+    for (_, tag) in session.entities(2).map_err(g)? {
+        let Ok(face) = u32::try_from(tag) else { continue };
+        let (_, nodes) = session.elements_by_type_on(triangle, tag).map_err(g)?;
+        for t in nodes.chunks_exact(per) {
+            let corner = |k: usize| {
+                slot.get(t[k])
+                    .and_then(|&s| new_index.get(s as usize))
+                    .copied()
+                    .unwrap_or(u32::MAX)
+            };
+            let mut key = [corner(0), corner(1), corner(2)];
+            key.sort_unstable();
+            if key[2] != u32::MAX {
+                face_of.insert(key, face);
+            }
+        }
+    }
+    for (f, tag) in mesh.surface.iter().zip(&mut mesh.surface_faces) {
+        let mut key = *f;
+        key.sort_unstable();
+        *tag = face_of.get(&key).copied().unwrap_or(0);
+    }
+    Ok(mesh)
 }
 
 #[cfg(test)]

@@ -277,12 +277,15 @@ pub fn discretize_basis(path: &Path, modes: Option<usize>) -> Result<(Discretize
     // Every array below is checked as it is read; the modes not compared are checked too.
     g.check_unread_finite(3 * n, r)?;
     let fixed = g.fixed_dofs()?;
+    let surface = g.surface_triangles()?;
+    let surface_faces = g.surface_faces()?.unwrap_or_else(|| vec![0; surface.len()]);
     let mesh = crate::tet_mesh::Mesh {
         nodes: g.nodes(n)?,
         vertex_count: g.vertex_count,
         kind: g.kind,
         tets: g.tets()?,
-        surface: g.surface_triangles()?,
+        surface,
+        surface_faces,
     };
     let mut mask = vec![false; 3 * n];
     for &f in &fixed {
