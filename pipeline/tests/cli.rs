@@ -674,26 +674,65 @@ fn batch_skips_up_to_date_survives_a_bad_scene_and_resumes() {
         (status(&v, "a.toml"), status(&v, "b.toml")),
         ("up-to-date".into(), "done".into())
     );
-    // Interrupted: kill a batch once its first output exists; the rerun only does the rest.
+    // Interrupted: kill a batch (one scene at a time, in name order) as soon as it reports a.toml
+    // done, while it works on b.toml, which is made heavy enough (~4 s here) that the kill lands
+    // mid-run; the rerun only does the rest.
     std::fs::remove_dir_all(&out).expect("clean");
     std::fs::remove_file(d.join("broken.toml")).expect("rm");
+    std::fs::write(
+        d.join("b.toml"),
+        GOOD.replace("name = \"beam\"", "name = \"beam2\"")
+            .replace("count = 4", "count = 20")
+            .replace("order = 1", "order = 2")
+            .replace("size = 0.05", "size = 0.02"),
+    )
+    .expect("b");
     let mut child = Command::new(env!("CARGO_BIN_EXE_ves"))
-        .args(["batch", d.to_str().unwrap(), "--out", out.to_str().unwrap()])
+        .args([
+            "batch",
+            d.to_str().unwrap(),
+            "--out",
+            out.to_str().unwrap(),
+            "--jobs",
+            "1",
+        ])
         .stdout(std::process::Stdio::null())
-        .stderr(std::process::Stdio::null())
+        .stderr(std::process::Stdio::piped())
         .spawn()
         .expect("spawn");
-    let t0 = std::time::Instant::now();
-    while !out.join("beam.h5").exists() && t0.elapsed().as_secs() < 120 {
-        std::thread::sleep(std::time::Duration::from_millis(5));
-    }
+    let stderr = child.stderr.take().expect("stderr piped");
+    let (tx, rx) = std::sync::mpsc::channel();
+    // Not joined: a meshing worker of the killed batch may hold the pipe open a little longer.
+    std::thread::spawn(move || {
+        for line in std::io::BufRead::lines(std::io::BufReader::new(stderr)).map_while(Result::ok) {
+            if line.starts_with("done:") && line.contains("a.toml") {
+                let _ = tx.send(());
+            }
+        }
+    });
+    let reported = rx.recv_timeout(std::time::Duration::from_secs(120));
     let _ = child.kill();
     let _ = child.wait();
+    assert!(reported.is_ok(), "the batch never reported a.toml done within 120 s");
+    assert!(
+        out.join("beam.h5").exists(),
+        "a.toml's output exists once reported done"
+    );
+    assert!(
+        !out.join("beam2.h5").exists(),
+        "the kill must land while b.toml runs (its output must not exist yet)"
+    );
+    let ta = mtime("beam.h5");
     // A temporary file of a dead run, as a kill mid-write leaves it.
     std::fs::write(out.join("beam2.h5.tmp-999999999"), b"half").expect("stale");
     let v = parse(&run());
     assert_eq!(status(&v, "a.toml"), "up-to-date", "finished work is not redone");
-    assert!(matches!(status(&v, "b.toml").as_str(), "done" | "up-to-date"));
+    assert_eq!(mtime("beam.h5"), ta, "finished output not rewritten");
+    assert_eq!(
+        status(&v, "b.toml"),
+        "done",
+        "the interrupted scene is done by the rerun"
+    );
     assert!(
         !out.join("beam2.h5.tmp-999999999").exists(),
         "stale temporary file removed"
