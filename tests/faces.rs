@@ -128,7 +128,7 @@ fn an_unknown_face_is_refused_naming_the_faces_there_are() {
         "fixed[1].faces = [2, 99]: the geometry has no face 99; it has faces 1..=6 (gmsh's surface tags of the \
          geometry as imported): use those"
     );
-    let plain = Mesh::structured_box([2, 1, 1], 0.01, 1, |_, p| p);
+    let plain = Mesh::structured_box([2, 1, 1], 0.01, ves_pipeline::fem::element::Kind::Tet4, |_, p| p);
     let e = supports::select(&plain, &s.fixed[1..]).unwrap_err().to_string();
     assert!(e.contains("carries no CAD face tags") && !e.contains('\n'), "{e}");
 }

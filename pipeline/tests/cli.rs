@@ -674,26 +674,65 @@ fn batch_skips_up_to_date_survives_a_bad_scene_and_resumes() {
         (status(&v, "a.toml"), status(&v, "b.toml")),
         ("up-to-date".into(), "done".into())
     );
-    // Interrupted: kill a batch once its first output exists; the rerun only does the rest.
+    // Interrupted: kill a batch (one scene at a time, in name order) as soon as it reports a.toml
+    // done, while it works on b.toml, which is made heavy enough (~4 s here) that the kill lands
+    // mid-run; the rerun only does the rest.
     std::fs::remove_dir_all(&out).expect("clean");
     std::fs::remove_file(d.join("broken.toml")).expect("rm");
+    std::fs::write(
+        d.join("b.toml"),
+        GOOD.replace("name = \"beam\"", "name = \"beam2\"")
+            .replace("count = 4", "count = 20")
+            .replace("order = 1", "order = 2")
+            .replace("size = 0.05", "size = 0.02"),
+    )
+    .expect("b");
     let mut child = Command::new(env!("CARGO_BIN_EXE_ves"))
-        .args(["batch", d.to_str().unwrap(), "--out", out.to_str().unwrap()])
+        .args([
+            "batch",
+            d.to_str().unwrap(),
+            "--out",
+            out.to_str().unwrap(),
+            "--jobs",
+            "1",
+        ])
         .stdout(std::process::Stdio::null())
-        .stderr(std::process::Stdio::null())
+        .stderr(std::process::Stdio::piped())
         .spawn()
         .expect("spawn");
-    let t0 = std::time::Instant::now();
-    while !out.join("beam.h5").exists() && t0.elapsed().as_secs() < 120 {
-        std::thread::sleep(std::time::Duration::from_millis(5));
-    }
+    let stderr = child.stderr.take().expect("stderr piped");
+    let (tx, rx) = std::sync::mpsc::channel();
+    // Not joined: a meshing worker of the killed batch may hold the pipe open a little longer.
+    std::thread::spawn(move || {
+        for line in std::io::BufRead::lines(std::io::BufReader::new(stderr)).map_while(Result::ok) {
+            if line.starts_with("done:") && line.contains("a.toml") {
+                let _ = tx.send(());
+            }
+        }
+    });
+    let reported = rx.recv_timeout(std::time::Duration::from_secs(120));
     let _ = child.kill();
     let _ = child.wait();
+    assert!(reported.is_ok(), "the batch never reported a.toml done within 120 s");
+    assert!(
+        out.join("beam.h5").exists(),
+        "a.toml's output exists once reported done"
+    );
+    assert!(
+        !out.join("beam2.h5").exists(),
+        "the kill must land while b.toml runs (its output must not exist yet)"
+    );
+    let ta = mtime("beam.h5");
     // A temporary file of a dead run, as a kill mid-write leaves it.
     std::fs::write(out.join("beam2.h5.tmp-999999999"), b"half").expect("stale");
     let v = parse(&run());
     assert_eq!(status(&v, "a.toml"), "up-to-date", "finished work is not redone");
-    assert!(matches!(status(&v, "b.toml").as_str(), "done" | "up-to-date"));
+    assert_eq!(mtime("beam.h5"), ta, "finished output not rewritten");
+    assert_eq!(
+        status(&v, "b.toml"),
+        "done",
+        "the interrupted scene is done by the rerun"
+    );
     assert!(
         !out.join("beam2.h5.tmp-999999999").exists(),
         "stale temporary file removed"
@@ -918,15 +957,20 @@ fn target_error_refines_the_cantilever_to_within_one_percent_of_converged() {
 
 /// `refinement = "local"`: the last mesh is graded (a gmsh background field from the element
 /// error indicator: smaller elements at the clamped end), every mode is within 1 % of converged,
-/// and the estimate does not fall below half the true error (measured 2.7–4.6× above it: the
-/// credited rate of 2 is pessimistic for the modes whose error dominates, docs/accuracy.md).
+/// and the estimate does not fall below half the true error nor exceed it 6× (measured
+/// 2.7–4.6×: the credited rate of 2 is pessimistic for the modes whose error dominates,
+/// docs/accuracy.md). The upper bound is a regression bound, not a theorem: a mode converging
+/// at the smooth rate 4 of 10-node tets between the fine mesh and the estimate's 1.5× coarser
+/// one would be overestimated (1.5⁴ − 1)/(1.5² − 1) = 3.25×; the measured 4.6× means faster,
+/// pre-asymptotic convergence there (rates of 3–10 are seen on those meshes), which theory
+/// does not bound. 6× is 1.3× the worst measured: more pessimism than that is a change.
 #[test]
 fn local_refinement_grades_the_cantilever_mesh_and_stays_within_one_percent() {
     let (s, f, estimate, converged) = refine_cantilever("refinement = \"local\"\n");
     let last = s["refinements"].as_array().unwrap().last().unwrap().clone();
     let (largest, smallest) = (last["size"].as_f64().unwrap(), last["smallest_size"].as_f64().unwrap());
     assert!(smallest < 0.9 * largest, "not graded: {last}");
-    assert_within_one_percent(&f, &estimate, &converged, 0.5..=f64::INFINITY);
+    assert_within_one_percent(&f, &estimate, &converged, 0.5..=6.0);
 }
 
 /// `[stress] enabled`: the cantilever (1 × 0.1 × 0.05 m, clamped at x = 0) under a 1 kN tip
@@ -1105,11 +1149,60 @@ fn session_reports_von_mises_and_the_safety_factor() {
     );
     assert!(part > 0.0 && hands > 0.0, "{v}");
     assert!((sf - 2.5e8 / part).abs() < 1e-9 * sf, "{v}");
-    // The clamped root of a 1 × 0.1 × 0.05 m beam pulled at its tip (measured: 0.89 of it).
-    let beam = num(&v, "peak_force_n") * 1.0 * 0.025 / (0.1 * 0.05f64.powi(3) / 12.0);
+    // Independently, from the basis file: the static field of the peak force (−z at the pulled
+    // tip vertex), q = Λ⁻¹ΦᵀF, its von Mises stress by the textbook formula at every vertex.
+    let force = num(&v, "peak_force_n");
+    let file = ves_format::BasisReader::open(&basis).expect("basis");
+    let s = file.space("global").expect("global");
+    let (nv, r) = (s.vertex_count, s.mode_count);
+    let vertices = s.nodes(nv).expect("nodes");
+    let lambda = s.eigenvalues().expect("eigenvalues");
+    let rows = s.stress_rows(0..nv, r).expect("stress").expect("modes/stress");
+    let d2 = |p: [f64; 3], q: [f64; 3]| (0..3).map(|c| (p[c] - q[c]).powi(2)).sum::<f64>();
+    let tip = (0..nv)
+        .min_by(|&a, &b| d2(vertices[a], [1.0, 0.05, 0.05]).total_cmp(&d2(vertices[b], [1.0, 0.05, 0.05])))
+        .expect("vertices");
+    let phi_tip = s.basis_rows(3 * tip..3 * tip + 3, r).expect("tip rows");
+    let q: Vec<f64> = (0..r).map(|j| phi_tip[2 * r + j] * -force / lambda[j]).collect();
+    let von_mises = |i: usize| {
+        let t: [f64; 6] = std::array::from_fn(|k| (0..r).map(|j| rows[(6 * i + k) * r + j] * q[j]).sum());
+        (0.5 * ((t[0] - t[1]).powi(2) + (t[1] - t[2]).powi(2) + (t[2] - t[0]).powi(2))
+            + 3.0 * (t[3].powi(2) + t[4].powi(2) + t[5].powi(2)))
+        .sqrt()
+    };
+    let field_max = (0..nv).map(von_mises).fold(0.0, f64::max);
+    // Beam theory σ = F (L − x) c / I on the top fibre, at the sections x ∈ [0.4, 0.6] m, away
+    // from the clamp's singular corners and the load's local field.
+    let inertia = 0.1 * 0.05f64.powi(3) / 12.0;
+    let ratios: Vec<f64> = (0..nv)
+        .filter(|&i| (vertices[i][2] - 0.05).abs() < 1e-9 && (vertices[i][0] - 0.5).abs() <= 0.1)
+        .map(|i| von_mises(i) / (force * (1.0 - vertices[i][0]) * 0.025 / inertia))
+        .collect();
+    let (lo, hi) = ratios
+        .iter()
+        .fold((f64::INFINITY, 0.0f64), |(a, b), &x| (a.min(x), b.max(x)));
+    println!(
+        "session von Mises max {part:.4e} Pa, static field at the peak force {field_max:.4e} Pa (ratio {:.4}); \
+         mid-span top fibre / beam theory {lo:.3}–{hi:.3} over {} vertices",
+        part / field_max,
+        ratios.len()
+    );
+    assert!(!ratios.is_empty(), "no top vertex near mid-span");
+    // 10-node tets give a linear stress inside each element: exact for the bending stress's
+    // variation over the depth, not for its variation along the ~50 mm elements (up to
+    // h / 2(L − x) ≈ 6 % at x = 0.6 m); the 4 modes' static field adds its truncation (measured
+    // 0.944–1.064 together): 10 %.
     assert!(
-        part > 0.5 * beam && part < 2.0 * beam,
-        "von Mises {part} Pa against beam theory {beam} Pa"
+        lo > 0.9 && hi < 1.1,
+        "mid-span top fibre von Mises / beam theory {lo:.3}–{hi:.3}"
+    );
+    // The session's maximum is that static field's at the peak force, plus what the 0.2 s ramp
+    // leaves ringing (no damping): a ramp of T leaves at most 2/(ωT) of the static response,
+    // 3.8 % for the 42 Hz first mode and 0.6 % for the 259 Hz second bending mode; the
+    // drawing thread samples frames, which can only lower it (measured 1.041).
+    assert!(
+        (0.95..=1.06).contains(&(part / field_max)),
+        "session von Mises max {part} Pa against the static field's {field_max} Pa"
     );
     // Bending: the largest principal stress is the top fibre's tension, near von Mises at the
     // root; the largest principal strain of that nearly uniaxial state is close to σ₁/E.

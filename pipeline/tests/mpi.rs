@@ -178,22 +178,41 @@ fn a_killed_rank_ends_the_job_and_leaves_no_process() {
     assert_ne!(scene, GOOD);
     let (dir, path) = workdir(&scene);
     let out = dir.path().join("out.h5");
-    let child = mpirun(&[app(2, &path, &out)]).spawn().expect("mpirun runs");
+    // Both ranks log when their operators are assembled: the solve (MUMPS, then the
+    // eigen-solver, ~10 s) starts then, and the kill is sent into it.
+    let mut job = mpirun(&[app(2, &path, &out)]);
+    job.env("VES_LOG", "ves_pipeline::modes::slepc=debug");
+    let mut child = job.spawn().expect("mpirun runs");
     let launcher = child.id();
-    // Wait for both ranks, then kill one.
-    let start = Instant::now();
-    let ranks = loop {
-        let ranks: Vec<u32> = children(launcher)
-            .into_iter()
-            .filter(|&p| std::fs::read_to_string(format!("/proc/{p}/comm")).is_ok_and(|c| c.trim() == "ves"))
-            .collect();
-        if ranks.len() == 2 {
-            break ranks;
+    let stderr = child.stderr.take().expect("stderr piped");
+    let (tx, rx) = std::sync::mpsc::channel();
+    // Reads to the end (the job must not block on a full pipe); `finish` then sees no stderr.
+    std::thread::spawn(move || {
+        for line in std::io::BufRead::lines(std::io::BufReader::new(stderr)).map_while(Result::ok) {
+            if line.contains("operators assembled") {
+                let _ = tx.send(line);
+            }
         }
-        assert!(start.elapsed() < DEADLINE, "two ranks never started");
-        std::thread::sleep(Duration::from_millis(100));
-    };
-    std::thread::sleep(Duration::from_secs(2));
+    });
+    let start = Instant::now();
+    for rank in 0..2 {
+        let left = DEADLINE.saturating_sub(start.elapsed());
+        if rx.recv_timeout(left).is_err() {
+            let _ = child.kill();
+            let _ = child.wait();
+            kill_children(launcher);
+            panic!("only {rank} of 2 ranks reported their operators assembled within {DEADLINE:?}");
+        }
+    }
+    let ranks: Vec<u32> = children(launcher)
+        .into_iter()
+        .filter(|&p| std::fs::read_to_string(format!("/proc/{p}/comm")).is_ok_and(|c| c.trim() == "ves"))
+        .collect();
+    assert_eq!(ranks.len(), 2, "two ranks under mpirun: {ranks:?}");
+    assert!(
+        child.try_wait().expect("wait").is_none() && !out.exists(),
+        "the job must still be solving when the rank is killed"
+    );
     let status = Command::new("kill")
         .args(["-9", &ranks[1].to_string()])
         .status()

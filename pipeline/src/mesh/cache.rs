@@ -500,7 +500,7 @@ mod tests {
     fn tags_are_stored_and_an_entry_of_the_older_format_is_a_miss() {
         let dir = tempfile::tempdir().unwrap();
         let key = dir.path().join("0123456789abcdef.mesh");
-        let mut m = Mesh::structured_box([3, 1, 1], 0.01, 2, |_, p| p);
+        let mut m = Mesh::structured_box([3, 1, 1], 0.01, crate::fem::element::Kind::Tet10, |_, p| p);
         for (k, t) in m.surface_faces.iter_mut().enumerate() {
             *t = 1 + (k % 6) as u32;
         }
