@@ -513,7 +513,7 @@ fn a_step_part_is_set_up_computed_and_pulled_in_the_page() {
     );
     assert!(status.success(), "ves view: {status:?}: {err}");
     if let Ok(keep) = std::env::var("VES_VIEW_SCREENSHOTS") {
-        for f in ["setup_held.png", "setup_pulled.png"] {
+        for f in ["setup_held.png", "setup_pulled.png", "setup_face_held.png"] {
             std::fs::copy(dir.path().join(f), Path::new(&keep).join(f)).expect("copy a screenshot");
         }
     }
@@ -608,9 +608,12 @@ fn a_step_part_is_set_up_computed_and_pulled_in_the_page() {
         100.0 * miss
     );
 
-    // One face: computed again and swapped (lower frequencies: less support).
+    // One CAD face, lit under the cursor and clicked: `faces = [tag]`; computed again and
+    // swapped (lower frequencies: less support).
     let one = freqs(&page["one"]["f"]);
     assert_eq!(page["one"]["fixed"].as_u64(), Some(1), "{}", page["one"]);
+    let tag = page["one"]["hovered"].as_u64().unwrap_or_else(|| panic!("no face lit: {}", page["one"]));
+    assert_eq!(page["one"]["faced"][0]["faces"], serde_json::json!([tag]), "{}", page["one"]);
     assert!(one[0] < held[0], "one face {one:?} vs two {held:?}");
     // Cancelled: an error note that says so; the part shown is still the one-face basis.
     let last = &page["cancelled"]["last"];

@@ -78,13 +78,27 @@ try {
   const [download] = await Promise.all([page.waitForEvent('download'), page.click('#savescene')]);
   await download.saveAs(`${out}/saved.toml`);
 
-  // Hold it by one face only: compute again, the session moves to the new basis.
-  await page.click('#supportlist .support:first-child button');
+  // Hold it by one CAD face only (+ faces…, the +x end face lit and clicked), the planes
+  // removed: compute again, the session moves to the new basis.
+  while (await page.locator('#supportlist .support').count()) await page.click('#supportlist .support:first-child button');
+  await page.keyboard.press('x');
+  await page.waitForTimeout(300);
+  await page.click('#pickfaces');
+  const [fx0, fy0, fx1, fy1] = await page.evaluate(() => window.ves.drawnExtent());
+  await page.mouse.move((fx0 + fx1) / 2, (fy0 + fy1) / 2);
+  await page.waitForTimeout(200);
+  const hovered = await page.evaluate(() => window.ves.hoverFace);
+  await page.mouse.click((fx0 + fx1) / 2, (fy0 + fy1) / 2);
+  await page.click('#pickfaces');
+  const faced = await page.evaluate(() => window.ves.setup.scene().fixed);
+  await page.keyboard.press('h');
   n = await ends(page);
   await page.click('#compute');
   await waitEnd(page, n);
   await page.waitForFunction(() => window.ves.ready, null, { timeout: 60000 });
   const one = await page.evaluate(() => ({ f: window.ves.hello.spaces[0].frequencies_hz, fixed: window.ves.setup.scene().fixed.length, last: window.ves.notes.at(-1) }));
+  one.hovered = hovered; one.faced = faced;
+  await page.screenshot({ path: `${out}/setup_face_held.png` });
 
   // Cancel: the compute stops at its next stage; the part shown stays.
   await page.fill('#modecount', '14');
