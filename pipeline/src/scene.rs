@@ -784,6 +784,35 @@ at = [0.1, 0.0, 0.05]
 force = [0.0, 1.0, 0.0]
 "#;
 
+    /// `faces` is a third region kind: sorted and each once; an empty list, tag 0, a negative
+    /// tag or `faces` beside `plane` are refused in one line naming the key.
+    #[test]
+    fn faces_are_a_region_of_their_own() {
+        let dir = std::env::temp_dir().join(format!("ves-scene-faces-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).expect("temp dir");
+        std::fs::write(dir.join("x.step"), "ISO-10303-21;").expect("geometry stub");
+        let path = dir.join("s.toml");
+        let with = |fixed: &str| {
+            let text = SCENE.replace("[modes]", &format!("[[fixed]]\n{fixed}\n[modes]"));
+            Scene::parse(&path, &text)
+        };
+        let s = with("faces = [17, 3, 17]\ncomponents = [\"z\"]").expect("a face support");
+        assert_eq!(s.fixed[2].region, Region::Faces(vec![3, 17]));
+        assert_eq!(s.fixed[2].components, [false, false, true]);
+        for (fixed, says) in [
+            ("faces = []", "fixed[2].faces: empty"),
+            ("faces = [0, 4]", "fixed[2].faces = [0, 4]: face tags start at 1"),
+            ("faces = [-2]", "line "),
+            (
+                "faces = [1]\nplane = { axis = \"x\", value = 0.0 }",
+                "exactly one of `plane`, `box` or `faces`",
+            ),
+        ] {
+            let e = with(fixed).expect_err(fixed).to_string();
+            assert!(e.contains(says) && !e.contains('\n'), "{fixed}: {e}");
+        }
+    }
+
     /// Deterministic mutations of a valid scene (byte flips, deletions, duplications, numeric
     /// swaps): parsing never panics, and every error is one line that names the file.
     #[test]
