@@ -612,8 +612,15 @@ fn a_step_part_is_set_up_computed_and_pulled_in_the_page() {
     // swapped (lower frequencies: less support).
     let one = freqs(&page["one"]["f"]);
     assert_eq!(page["one"]["fixed"].as_u64(), Some(1), "{}", page["one"]);
-    let tag = page["one"]["hovered"].as_u64().unwrap_or_else(|| panic!("no face lit: {}", page["one"]));
-    assert_eq!(page["one"]["faced"][0]["faces"], serde_json::json!([tag]), "{}", page["one"]);
+    let tag = page["one"]["hovered"]
+        .as_u64()
+        .unwrap_or_else(|| panic!("no face lit: {}", page["one"]));
+    assert_eq!(
+        page["one"]["faced"][0]["faces"],
+        serde_json::json!([tag]),
+        "{}",
+        page["one"]
+    );
     assert!(one[0] < held[0], "one face {one:?} vs two {held:?}");
     // Cancelled: an error note that says so; the part shown is still the one-face basis.
     let last = &page["cancelled"]["last"];
