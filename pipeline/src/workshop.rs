@@ -102,20 +102,7 @@ struct Part {
 /// damping β = 1e-5 s (as the cantilever case: without damping a part pulled at the device's
 /// force limit rings for ever, its clamped force adding none).
 fn starting_scene(geometry: &Path) -> serde_json::Value {
-    let name = geometry
-        .file_stem()
-        .map_or("part".into(), |s| s.to_string_lossy().into_owned());
-    let name: String = name
-        .chars()
-        .take(64)
-        .map(|c| {
-            if c.is_ascii_alphanumeric() || c == '-' || c == '_' {
-                c
-            } else {
-                '_'
-            }
-        })
-        .collect();
+    let name = safe_stem(geometry);
     let steel = &MATERIALS[0];
     serde_json::json!({
         "name": name,
@@ -127,6 +114,27 @@ fn starting_scene(geometry: &Path) -> serde_json::Value {
         "stress": { "enabled": true },
         "damping": { "alpha": 0.0, "beta": 1.0e-5 },
     })
+}
+
+/// A file's stem as a scene name and a file name: ASCII letters, digits, `-` and `_` (others
+/// become `_`), at most 64 characters; "part" for none.
+fn safe_stem(path: &Path) -> String {
+    let stem = path
+        .file_stem()
+        .map(|s| s.to_string_lossy().into_owned())
+        .unwrap_or_default();
+    let safe: String = stem
+        .chars()
+        .take(64)
+        .map(|c| {
+            if c.is_ascii_alphanumeric() || c == '-' || c == '_' {
+                c
+            } else {
+                '_'
+            }
+        })
+        .collect();
+    if safe.is_empty() { "part".into() } else { safe }
 }
 
 /// What kind of geometry `bytes` hold, by content: a STEP, IGES or OpenCASCADE BREP file.
@@ -312,22 +320,7 @@ impl Workshop for PartWorkshop {
         let n = self.computed.fetch_add(1, Ordering::Relaxed) + 1;
         // Its own directory: the part keeps the name the user knows (in the title and in the
         // saved scene), and a later part of the same name cannot replace it.
-        let safe: String = Path::new(&file)
-            .file_stem()
-            .map(|s| {
-                s.to_string_lossy()
-                    .chars()
-                    .take(64)
-                    .map(|c| {
-                        if c.is_ascii_alphanumeric() || c == '-' || c == '_' {
-                            c
-                        } else {
-                            '_'
-                        }
-                    })
-                    .collect()
-            })
-            .unwrap_or_else(|| "part".into());
+        let safe = safe_stem(Path::new(&file));
         let dir = self.dir.path().join(format!("part-{n}"));
         std::fs::create_dir(&dir).map_err(|e| format!("cannot keep the part: {e}"))?;
         let path = dir.join(format!("{safe}.{}", if kind == "step" { ext.as_str() } else { kind }));

@@ -55,17 +55,26 @@ fn compliance(basis: &ves_runtime::Basis, v: usize) -> [[f64; 3]; 3] {
 /// At the viewer's default settings (coupling 500 N/m, 10 N device limit, automatic deformation
 /// scale) the mouse pulls the steel cantilever's tip: the drawn tip moves visibly while the
 /// force and the true displacement are the session's.
-/// Starts `ves view BASIS --port PORT` for two minutes; returns it, its stdout after the URL
+/// Starts `ves view INPUT --port PORT` for two minutes; returns it, its stdout after the URL
 /// line, and the URL.
-fn serve(basis: &Path, port: &str) -> (std::process::Child, BufReader<std::process::ChildStdout>, String) {
+fn serve(input: &Path, port: &str) -> (std::process::Child, BufReader<std::process::ChildStdout>, String) {
+    serve_for(input, port, "120")
+}
+
+/// [`serve`] for `seconds`.
+fn serve_for(
+    input: &Path,
+    port: &str,
+    seconds: &str,
+) -> (std::process::Child, BufReader<std::process::ChildStdout>, String) {
     let mut server = Command::new(env!("CARGO_BIN_EXE_ves"))
         .args([
             "view",
-            basis.to_str().unwrap(),
+            input.to_str().unwrap(),
             "--port",
             port,
             "--duration",
-            "120",
+            seconds,
             "--json",
         ])
         .stdout(Stdio::piped())
@@ -469,28 +478,7 @@ fn a_step_part_is_set_up_computed_and_pulled_in_the_page() {
         &step,
     )
     .expect("copy the corpus part");
-    let mut server = Command::new(env!("CARGO_BIN_EXE_ves"))
-        .args([
-            "view",
-            step.to_str().unwrap(),
-            "--port",
-            "0",
-            "--duration",
-            "600",
-            "--json",
-        ])
-        .stdout(Stdio::piped())
-        .stderr(Stdio::piped())
-        .spawn()
-        .expect("ves view starts");
-    let mut out = BufReader::new(server.stdout.take().expect("stdout"));
-    let mut line = String::new();
-    out.read_line(&mut line).expect("the URL line");
-    let url = line
-        .split_whitespace()
-        .find(|w| w.starts_with("http://127.0.0.1:"))
-        .unwrap_or_else(|| panic!("no URL in {line:?}"))
-        .to_string();
+    let (mut server, mut out, url) = serve_for(&step, "0", "600");
     let web = Path::new(env!("CARGO_MANIFEST_DIR")).join("../runtime/web");
     let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/view/setup.mjs");
     let browser = Command::new("node")

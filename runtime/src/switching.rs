@@ -305,29 +305,7 @@ mod tests {
     /// second hand that way, and the first could never enter a VOI.)
     #[test]
     fn an_absent_hand_does_not_count() {
-        let global = Arc::new(crate::basis::stretch_grid(1.0, 100.0, 0.0));
-        let mut local = crate::basis::stretch_grid(1.0, 100.0, 0.0);
-        local.space = "voi".into();
-        local.voi = Some([[0.0, 0.0, -0.01], [0.01, 0.01, 0.01]]);
-        let spaces = vec![
-            SpaceInput {
-                basis: global,
-                transfers: vec![None, Some(vec![1.0])],
-            },
-            SpaceInput {
-                basis: Arc::new(local),
-                transfers: vec![Some(vec![1.0]), None],
-            },
-        ];
-        let sw = Switcher::new(
-            spaces,
-            Coupling::default(),
-            1e-3,
-            Scheme::Exact,
-            2,
-            SwitchConfig::default(),
-        )
-        .unwrap();
+        let sw = two_spaces(2);
         let at = |p: [f64; 3]| HandInput {
             position: p,
             ..Default::default()
@@ -339,7 +317,7 @@ mod tests {
         assert_eq!(sw.wanted(&[absent, absent]), 0, "none present: the active space stays");
     }
 
-    fn two_spaces() -> Switcher {
+    fn two_spaces(hands: usize) -> Switcher {
         let global = Arc::new(crate::basis::stretch_grid(1.0, 100.0, 0.0));
         let mut local = crate::basis::stretch_grid(1.0, 100.0, 0.0);
         local.space = "voi".into();
@@ -359,7 +337,7 @@ mod tests {
             Coupling::default(),
             1e-3,
             Scheme::Exact,
-            1,
+            hands,
             SwitchConfig::default(),
         )
         .unwrap()
@@ -370,7 +348,7 @@ mod tests {
     /// followed the hand: pulling a rib upward dropped the session to the coarse space mid-pull.
     #[test]
     fn a_held_grab_keeps_its_space_until_released() {
-        let mut sw = two_spaces();
+        let mut sw = two_spaces(1);
         let mut out = [HandOutput::default()];
         let hand = |p: [f64; 3], button| HandInput {
             position: p,
@@ -406,7 +384,7 @@ mod tests {
     /// active, whatever happened before.
     #[test]
     fn reset_returns_to_rest() {
-        let mut sw = two_spaces();
+        let mut sw = two_spaces(1);
         let mut out = [HandOutput::default()];
         let pull = HandInput {
             position: [0.03, 0.005, 0.0],

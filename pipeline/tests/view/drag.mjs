@@ -4,15 +4,10 @@
 // WebSocket and check that frames still arrive. Prints one JSON object; the Rust test asserts.
 //
 // usage: node drag.mjs URL WEB_DIR SCREENSHOT.png
-import { pathToFileURL } from 'node:url';
+import { launch } from './browser.mjs';
 
 const [url, webDir, shot] = process.argv.slice(2);
-const { chromium } = await import(pathToFileURL(`${webDir}/node_modules/playwright-core/index.mjs`).href);
-const browser = await chromium.launch({
-  executablePath: process.env.VES_CHROMIUM || '/usr/bin/chromium',
-  args: ['--no-sandbox', '--use-angle=swiftshader', '--enable-unsafe-swiftshader', '--disable-background-networking',
-    '--disable-component-update', '--disable-sync', '--no-first-run'],
-});
+const browser = await launch(webDir);
 const errors = [];
 try {
   const page = await browser.newPage({ viewport: { width: 1200, height: 800 } });

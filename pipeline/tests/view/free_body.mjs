@@ -5,15 +5,10 @@
 // 420 px wide window must leave the part visible. Prints one JSON object as its last line.
 //
 // usage: node free_body.mjs URL WEB_DIR SCREENSHOT_DIR
-import { pathToFileURL } from 'node:url';
+import { launch } from './browser.mjs';
 
 const [url, webDir, shots] = process.argv.slice(2);
-const { chromium } = await import(pathToFileURL(`${webDir}/node_modules/playwright-core/index.mjs`).href);
-const browser = await chromium.launch({
-  executablePath: process.env.VES_CHROMIUM || '/usr/bin/chromium',
-  args: ['--no-sandbox', '--use-angle=swiftshader', '--enable-unsafe-swiftshader', '--disable-background-networking',
-    '--disable-component-update', '--disable-sync', '--no-first-run'],
-});
+const browser = await launch(webDir);
 const errors = [];
 const ready = (p) => p.waitForFunction(() => window.ves && window.ves.ready, null, { timeout: 40000 });
 try {

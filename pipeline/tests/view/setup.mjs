@@ -7,16 +7,11 @@
 // Prints one JSON object.
 //
 // usage: node setup.mjs URL WEB_DIR OUT_DIR
-import { pathToFileURL } from 'node:url';
+import { launch } from './browser.mjs';
 import { writeFileSync } from 'node:fs';
 
 const [url, webDir, out] = process.argv.slice(2);
-const { chromium } = await import(pathToFileURL(`${webDir}/node_modules/playwright-core/index.mjs`).href);
-const browser = await chromium.launch({
-  executablePath: process.env.VES_CHROMIUM || '/usr/bin/chromium',
-  args: ['--no-sandbox', '--use-angle=swiftshader', '--enable-unsafe-swiftshader', '--disable-background-networking',
-    '--disable-component-update', '--disable-sync', '--no-first-run'],
-});
+const browser = await launch(webDir);
 const errors = [];
 const ends = (page) => page.evaluate(() => window.ves.notes.filter((n) => n.type === 'computed' || n.type === 'compute_error').length);
 const waitEnd = (page, n) => page.waitForFunction((n) => window.ves.notes.filter((x) => x.type === 'computed' || x.type === 'compute_error').length > n, n, { timeout: 180000 });
