@@ -248,6 +248,13 @@ struct Pulled {
 /// Rib 3 stands at x ∈ [0.015, 0.033]: grab its tip, hold, pull along +x out of the box
 /// (x > 0.033 + margin) at 12 mm/s, hold outside.
 fn pull_out_of_voi(path: &std::path::Path, tip: [f64; 3], cfg: SwitchConfig) -> Pulled {
+    // A held grab keeps its space by default; the switch under load that the blend smooths (a
+    // second hand leaving the box while the first still pulls) is made here by letting the
+    // grabbing hand count at its position.
+    let cfg = SwitchConfig {
+        hold_grabs: false,
+        ..cfg
+    };
     let coupling = Coupling {
         stiffness: 500.0,
         damping: 2.0 * (500.0f64 * 1e-3).sqrt(),

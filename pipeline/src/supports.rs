@@ -152,7 +152,7 @@ pub fn face_nodes(mesh: &Mesh, tags: &[u32]) -> Vec<u32> {
         .map(|(f, _)| f)
         .collect();
     let mut nodes: Vec<u32> = on.iter().flat_map(|f| f.iter().copied()).collect();
-    if mesh.kind == crate::fem::element::Kind::Tet10 {
+    if mesh.kind == ves_format::ElementKind::Tet10 {
         // Mid-edge nodes from the tets: the node of each triangle edge.
         let key = |a: u32, b: u32| (a.min(b), a.max(b));
         let mut edges: std::collections::HashSet<(u32, u32)> = on
@@ -161,7 +161,7 @@ pub fn face_nodes(mesh: &Mesh, tags: &[u32]) -> Vec<u32> {
             .collect();
         for e in 0..mesh.tet_count() {
             let t = mesh.tet(e);
-            for (k, (a, b)) in crate::mesh::TET10_EDGES.iter().enumerate() {
+            for (k, (a, b)) in crate::tet_mesh::TET10_EDGES.iter().enumerate() {
                 if edges.remove(&key(t[*a], t[*b])) {
                     nodes.push(t[4 + k]);
                 }

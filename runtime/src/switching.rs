@@ -21,6 +21,9 @@ pub struct SwitchConfig {
     pub margin: f64,
     /// Haptic steps over which the device force is blended from the old space to the new.
     pub blend_steps: usize,
+    /// A grabbing hand counts at the vertex it holds (so a pull out of the box keeps the space
+    /// that resolves the pulled point until the grab ends); off, it counts at its position.
+    pub hold_grabs: bool,
 }
 
 impl Default for SwitchConfig {
@@ -28,6 +31,7 @@ impl Default for SwitchConfig {
         SwitchConfig {
             margin: 2e-3,
             blend_steps: 100,
+            hold_grabs: true,
         }
     }
 }
@@ -178,7 +182,7 @@ impl Switcher {
                 .get(k)
                 .copied()
                 .flatten()
-                .filter(|_| h.button)
+                .filter(|_| h.button && self.cfg.hold_grabs)
                 .unwrap_or(h.position);
             p.iter().all(|v| v.is_finite()).then_some(p)
         };

@@ -82,6 +82,22 @@ pub struct ViewStats {
     pub computes_failed: u64,
     /// Times a live session was replaced by one on a new basis.
     pub swaps: u64,
+    /// Each session the server ran, in order (a compute ran beside the end of every one but the
+    /// last): its haptic loop's timing.
+    pub sessions: Vec<SessionTiming>,
+}
+
+/// How one session's haptic loop kept time.
+#[derive(Clone, Debug, Default, serde::Serialize)]
+pub struct SessionTiming {
+    /// Haptic steps.
+    pub steps: u64,
+    /// Steps that ended after their deadline.
+    pub missed_deadlines: u64,
+    /// 99.9th percentile of the period error, µs.
+    pub period_error_us_p999: f64,
+    /// Largest period error, µs.
+    pub period_error_us_max: f64,
 }
 
 /// The viewer could not start.
@@ -141,6 +157,7 @@ struct Shared {
     cfg: ViewConfig,
     live: Mutex<Option<Live>>,
     last_stats: Mutex<Option<SessionStats>>,
+    timings: Mutex<Vec<SessionTiming>>,
     workshop: Option<Arc<dyn Workshop>>,
     computing: AtomicBool,
     cancel: Arc<AtomicBool>,
@@ -230,6 +247,7 @@ pub fn serve_with(
         },
         live: Mutex::new(None),
         last_stats: Mutex::new(None),
+        timings: Mutex::new(Vec::new()),
         workshop,
         computing: AtomicBool::new(false),
         cancel: Arc::new(AtomicBool::new(false)),
@@ -324,6 +342,7 @@ pub fn serve_with(
         computes: shared.computes.load(Ordering::Relaxed),
         computes_failed: shared.computes_failed.load(Ordering::Relaxed),
         swaps: shared.swaps.load(Ordering::Relaxed),
+        sessions: shared.timings.lock().map(|t| t.clone()).unwrap_or_default(),
     })
 }
 
@@ -341,6 +360,14 @@ fn end_session(shared: &Shared) -> Result<(), ViewError> {
             .join()
             .map_err(|_| ViewError("the session thread panicked".into()))?
             .map_err(ViewError)?;
+        if let Ok(mut t) = shared.timings.lock() {
+            t.push(SessionTiming {
+                steps: stats.steps,
+                missed_deadlines: stats.missed_deadlines,
+                period_error_us_p999: stats.period_error_us_p999,
+                period_error_us_max: stats.period_error_us_max,
+            });
+        }
         if let Ok(mut s) = shared.last_stats.lock() {
             *s = Some(stats);
         }

@@ -26,6 +26,7 @@ export function setupPanel(send, pick, faceMode) {
     $('poisson').value = plain(m.poisson || 0);
     $('density').value = plain(m.density || 0);
     $('yield').value = m.yield_strength ? plain(m.yield_strength / 1e6) : '';
+    $('unit').value = (scene.geometry || {}).unit === 'm' ? 'm' : 'mm';
     const mesh = scene.mesh || {};
     $('order').value = String(mesh.order || 2);
     const byError = mesh.target_error !== undefined;
@@ -81,6 +82,7 @@ export function setupPanel(send, pick, faceMode) {
     scene.mesh = mesh;
     scene.modes = { ...(scene.modes || {}), count: Math.round(num('modecount')) };
     scene.stress = { enabled: $('stressfield').checked };
+    scene.geometry = { ...(scene.geometry || {}), unit: $('unit').value };
     return scene;
   }
 
