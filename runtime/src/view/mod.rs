@@ -653,7 +653,8 @@ async fn status_loop(shared: Arc<Shared>, tx: watch::Sender<String>, stop: Arc<A
         let dt = t.duration_since(t0).as_secs_f64();
         if dt >= 0.5 {
             haptic_hz = steps.wrapping_sub(steps0) as f64 / dt;
-            visual_hz = f64::from(frames.wrapping_sub(frames0)) / dt;
+            // A new session numbers its frames from 1 again: no rate for that interval, not a wrap.
+            visual_hz = f64::from(frames.saturating_sub(frames0)) / dt;
             (t0, steps0, frames0) = (t, steps, frames);
         }
         let hands: Vec<HandStatus> = shared.hands.iter().map(|h| h.status()).collect();
