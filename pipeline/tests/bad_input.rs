@@ -233,7 +233,13 @@ fn session_durations_that_are_not_a_positive_finite_time_are_refused() {
 fn damaged(basis: &Path, name: &str, edit: impl FnOnce(&hdf5::Group)) -> std::path::PathBuf {
     let copy = basis.with_file_name(name);
     std::fs::copy(basis, &copy).unwrap();
-    let f = hdf5::File::open_rw(&copy).unwrap();
+    // Closed strongly: with HDF5's default weak close the file (and its lock) can stay open after
+    // close() while an object is still referenced, and the `ves` run next fails to lock it
+    // (errno 11) — seen once in a full run.
+    let f = hdf5::File::with_options()
+        .with_fapl(|p| p.fclose_degree(hdf5::file::FileCloseDegree::Strong))
+        .open_rw(&copy)
+        .unwrap();
     edit(&f.group("spaces/global").unwrap());
     f.close().unwrap();
     copy
