@@ -43,7 +43,7 @@ const AUTO_CAP = 10;
 const state = {
   ready: false, connected: false, reconnects: 0, hello: null, spaces: [], active: 0, frames: 0,
   framesSkipped: 0, lastSeq: -1, status: null, scale: 1, scaleAuto: true, autoScale: 1,
-  scaleLimited: false, colour: 'displacement', units: 'si', locked: null, mode: null,
+  colour: 'displacement', units: 'si', locked: null, mode: null,
   framesPerSecond: 0, legend: null, probe: null, notes: [],
   latency: [], // ms from a pointer event to the first frame computed after the server got it
 };
