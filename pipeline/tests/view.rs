@@ -92,6 +92,28 @@ fn serve_for(
     (server, out, url)
 }
 
+/// After a browser script: ends the server with Ctrl-C, asserts that both ended well, and
+/// returns the server's stdout after the URL line (its `--json` statistics).
+fn finish(
+    mut server: std::process::Child,
+    mut out: BufReader<std::process::ChildStdout>,
+    browser: &std::process::Output,
+) -> String {
+    let status = interrupt(&mut server);
+    let mut rest = String::new();
+    out.read_to_string(&mut rest).expect("server output");
+    let mut err = String::new();
+    server.stderr.take().map(|mut e| e.read_to_string(&mut err));
+    assert!(
+        browser.status.success(),
+        "browser script failed: {}\n{}\nserver: {err}",
+        String::from_utf8_lossy(&browser.stderr),
+        String::from_utf8_lossy(&browser.stdout)
+    );
+    assert!(status.success(), "ves view after Ctrl-C: {status:?}: {err}");
+    rest
+}
+
 /// Ends a server with Ctrl-C (it prints its statistics and exits 0).
 fn interrupt(server: &mut std::process::Child) -> std::process::ExitStatus {
     let _ = Command::new("kill").args(["-INT", &server.id().to_string()]).status();
@@ -105,7 +127,7 @@ fn the_mouse_pulls_the_tip_in_a_real_browser_and_the_page_shows_the_static_respo
     let o = ves(&["precompute", scene.to_str().unwrap(), "-o", basis.to_str().unwrap()]);
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
 
-    let (mut server, mut out, url) = serve(&basis, "0");
+    let (server, out, url) = serve(&basis, "0");
 
     let web = Path::new(env!("CARGO_MANIFEST_DIR")).join("../runtime/web");
     let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/view/drag.mjs");
@@ -117,20 +139,7 @@ fn the_mouse_pulls_the_tip_in_a_real_browser_and_the_page_shows_the_static_respo
         .arg(&shot)
         .output()
         .expect("node runs (scripts/setup installs it)");
-    // Ctrl-C ends the server cleanly, with its statistics.
-    let _ = Command::new("kill").args(["-INT", &server.id().to_string()]).status();
-    let mut rest = String::new();
-    out.read_to_string(&mut rest).expect("server output");
-    let mut err = String::new();
-    server.stderr.take().map(|mut e| e.read_to_string(&mut err));
-    let status = server.wait().expect("server exits");
-    assert!(
-        browser.status.success(),
-        "browser script failed: {}\n{}\nserver: {err}",
-        String::from_utf8_lossy(&browser.stderr),
-        String::from_utf8_lossy(&browser.stdout)
-    );
-    assert!(status.success(), "ves view after Ctrl-C: {status:?}: {err}");
+    let rest = finish(server, out, &browser);
     if let Some(keep) = std::env::var_os("VES_VIEW_SCREENSHOT") {
         let keep = std::path::PathBuf::from(keep);
         std::fs::copy(&shot, &keep).expect("copy the screenshot");
@@ -478,7 +487,7 @@ fn a_step_part_is_set_up_computed_and_pulled_in_the_page() {
         &step,
     )
     .expect("copy the corpus part");
-    let (mut server, mut out, url) = serve_for(&step, "0", "600");
+    let (server, out, url) = serve_for(&step, "0", "600");
     let web = Path::new(env!("CARGO_MANIFEST_DIR")).join("../runtime/web");
     let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/view/setup.mjs");
     let browser = Command::new("node")
@@ -488,18 +497,7 @@ fn a_step_part_is_set_up_computed_and_pulled_in_the_page() {
         .arg(dir.path())
         .output()
         .expect("node runs");
-    let status = interrupt(&mut server);
-    let mut rest = String::new();
-    out.read_to_string(&mut rest).expect("server output");
-    let mut err = String::new();
-    server.stderr.take().map(|mut e| e.read_to_string(&mut err));
-    assert!(
-        browser.status.success(),
-        "browser script failed: {}\n{}\nserver: {err}",
-        String::from_utf8_lossy(&browser.stderr),
-        String::from_utf8_lossy(&browser.stdout)
-    );
-    assert!(status.success(), "ves view: {status:?}: {err}");
+    let rest = finish(server, out, &browser);
     if let Ok(keep) = std::env::var("VES_VIEW_SCREENSHOTS") {
         for f in ["setup_held.png", "setup_pulled.png", "setup_face_held.png"] {
             std::fs::copy(dir.path().join(f), Path::new(&keep).join(f)).expect("copy a screenshot");
