@@ -26,6 +26,7 @@ pub mod scene;
 pub mod step_units;
 pub mod store;
 pub mod supports;
+pub mod tall;
 pub mod tet_mesh;
 pub mod transfer;
 pub mod verify;

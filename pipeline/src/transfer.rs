@@ -260,15 +260,16 @@ pub fn projections(a: &SpaceView<'_>, b: &SpaceView<'_>) -> Projections {
         .map(|(x, y)| x.iter().zip(y).map(|(x, y)| x * y).sum())
         .collect();
     // T (b.r × a.r) stored row-major = Tᵀ column-major = (M_b I Φ_a)ᵀ Φ_b.
-    let mut t = vec![0.0; b.r * a.r];
-    faer::linalg::matmul::matmul(
-        faer::MatMut::from_column_major_slice_mut(&mut t, a.r, b.r),
-        faer::Accum::Replace,
-        faer::MatRef::from_column_major_slice(&mu, nfb, a.r).transpose(),
+    let product = crate::tall::t_times(
+        faer::MatRef::from_column_major_slice(&mu, nfb, a.r),
         faer::MatRef::from_column_major_slice(&b.modes[..nfb * b.r], nfb, b.r),
-        1.0,
-        faer::Par::rayon(0),
     );
+    let mut t = vec![0.0; b.r * a.r];
+    for j in 0..b.r {
+        for i in 0..a.r {
+            t[i + j * a.r] = product[(i, j)];
+        }
+    }
     Projections {
         t,
         norms,

@@ -16,8 +16,8 @@
 use super::dense::self_adjoint_eigen_qr;
 use super::{EigenProblem, EigenSolver, ModesError, Spectrum};
 use crate::linsolve::{Cholesky, sym_matmul};
-use faer::linalg::matmul::matmul;
-use faer::{Accum, Mat, MatMut, MatRef, Par};
+use crate::tall;
+use faer::{Accum, Mat, MatMut, MatRef};
 use std::time::Instant;
 
 /// Block Krylov–Schur with a METIS-ordered sparse Cholesky factor of K − σM.
@@ -123,14 +123,7 @@ impl EigenSolver for BlockKrylov<'_> {
         // λ = σ + 1/θ; θ descending is λ ascending.
         let values: Vec<f64> = theta[..nev].iter().map(|t| sigma + 1.0 / t).collect();
         let mut x = Mat::<f64>::zeros(n, nev);
-        matmul(
-            x.as_mut(),
-            Accum::Replace,
-            s.v_ref(0, s.k),
-            y.subcols(0, nev),
-            1.0,
-            par(),
-        );
+        tall::times(x.as_mut(), Accum::Replace, s.v_ref(0, s.k), y.subcols(0, nev), 1.0);
         let mut vectors = Vec::with_capacity(n * nev);
         for j in 0..nev {
             vectors.extend_from_slice(x.col_as_slice(j));
@@ -271,9 +264,8 @@ impl<'p> State<'p> {
                 let z = MatMut::from_column_major_slice_mut(&mut z[..width * n], n, width);
                 let wb = MatRef::from_column_major_slice(&self.w[lo * n..from * n], n, from - lo);
                 let vb = MatRef::from_column_major_slice(&basis[lo * n..], n, from - lo);
-                let mut d = Mat::<f64>::zeros(from - lo, width);
-                matmul(d.as_mut(), Accum::Replace, wb.transpose(), z.as_ref(), 1.0, par());
-                matmul(z, Accum::Add, vb, d.as_ref(), -1.0, par());
+                let d = tall::t_times(wb, z.as_ref());
+                tall::times(z, Accum::Add, vb, d.as_ref(), -1.0);
                 let mut part = c.subrows_mut(lo, from - lo);
                 part += &d;
             }
@@ -289,8 +281,7 @@ impl<'p> State<'p> {
         for pass in 0..2 {
             let z = MatRef::from_column_major_slice(&self.v[from * n..(from + width) * n], n, width);
             let mz = MatRef::from_column_major_slice(&self.w[from * n..(from + width) * n], n, width);
-            let mut g = Mat::<f64>::zeros(width, width);
-            matmul(g.as_mut(), Accum::Replace, z.transpose(), mz, 1.0, par());
+            let g = tall::t_times(z, mz);
             let g = Mat::from_fn(width, width, |i, j| 0.5 * (g[(i, j)] + g[(j, i)]));
             if pass == 0 {
                 before = (0..width)
@@ -384,7 +375,7 @@ impl<'p> State<'p> {
         for buf in [&mut self.v, &mut self.w] {
             let old = MatRef::from_column_major_slice(&buf[..k * n], n, k);
             let mut kept = Mat::<f64>::zeros(n, keep);
-            matmul(kept.as_mut(), Accum::Replace, old, yk, 1.0, par());
+            tall::times(kept.as_mut(), Accum::Replace, old, yk, 1.0);
             for j in 0..keep {
                 buf[j * n..(j + 1) * n].copy_from_slice(kept.col_as_slice(j));
             }
@@ -401,11 +392,6 @@ impl<'p> State<'p> {
         self.k = keep;
         self.restarted_at = keep;
     }
-}
-
-/// Dense products on all cores.
-fn par() -> Par {
-    Par::rayon(0)
 }
 
 #[cfg(test)]
