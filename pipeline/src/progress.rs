@@ -72,6 +72,15 @@ pub fn span(lo: f64, hi: f64) {
     }
 }
 
+/// Whether the watcher asked to stop (long stages look between their steps).
+pub fn cancelled() -> bool {
+    WATCHER
+        .lock()
+        .ok()
+        .and_then(|g| g.as_ref().map(|w| w.0.cancelled()))
+        .unwrap_or(false)
+}
+
 /// Stage `name` begins, `at` (0 to 1) of the way through the current span. Fails when the
 /// watcher asked to stop, so the computation ends there with nothing written.
 pub fn stage(name: &str, at: f64) -> anyhow::Result<()> {

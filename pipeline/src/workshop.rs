@@ -89,12 +89,39 @@ pub struct PartWorkshop {
     dir: tempfile::TempDir,
     computed: AtomicU64,
     solver: SolverChoice,
+    /// The compute's threads, below the session's in priority (see [`lower_priority`]).
+    pool: rayon::ThreadPool,
 }
 
 /// The part being set up: its geometry file and the scene the page starts from.
 struct Part {
     geometry: PathBuf,
     start: serde_json::Value,
+}
+
+/// One line for the page: the first space's size and frequencies, the time, and the largest
+/// estimated error when the estimate is in.
+fn summary_line(summary: &precompute::Summary) -> String {
+    let Some(g) = summary.spaces.first() else {
+        return String::new();
+    };
+    let mut line = format!(
+        "{} nodes, {} modes, first {:.4} Hz, in {:.1} s",
+        g.nodes,
+        g.frequencies_hz.len(),
+        g.frequencies_hz.first().copied().unwrap_or(0.0),
+        summary.timings_s.total
+    );
+    if let Some(e) = worst_estimate(summary) {
+        line.push_str(&format!("; estimated frequency error ≤ {:.2} %", 100.0 * e));
+    }
+    line
+}
+
+/// The largest estimated relative error of the first space's modes, when estimated.
+fn worst_estimate(summary: &precompute::Summary) -> Option<f64> {
+    let e = summary.spaces.first()?.estimated_relative_error.as_ref()?;
+    e.iter().copied().filter(|x| x.is_finite()).reduce(f64::max)
 }
 
 /// The scene a geometry file starts from: a free part in structural steel with 10-node tets,
@@ -156,6 +183,20 @@ fn geometry_kind(bytes: &[u8]) -> Option<&'static str> {
     }
 }
 
+/// Lowers the calling thread's priority (nice 10): a compute beside a live session must not take
+/// the cores from its drawing and network threads (the haptic thread, under SCHED_FIFO, is above
+/// every nice level anyway). Processes the thread starts (gmsh) inherit it. Best effort: a
+/// refusal leaves the priority as it was.
+fn lower_priority() {
+    // SAFETY: setpriority on this thread's own id (Linux: PRIO_PROCESS with a thread id sets
+    // that thread's nice value), no memory involved.
+    #[cfg(target_os = "linux")]
+    unsafe {
+        let tid = libc::gettid();
+        libc::setpriority(libc::PRIO_PROCESS, tid as libc::id_t, 10);
+    }
+}
+
 impl PartWorkshop {
     /// A workshop for `scene` (its geometry is the part from now on).
     pub fn for_scene(scene: &Scene, options: SceneOptions, solver: SolverChoice) -> anyhow::Result<PartWorkshop> {
@@ -178,7 +219,12 @@ impl PartWorkshop {
         solver: SolverChoice,
     ) -> anyhow::Result<PartWorkshop> {
         let dir = tempfile::Builder::new().prefix("ves-view-").tempdir()?;
+        let pool = rayon::ThreadPoolBuilder::new()
+            .thread_name(|i| format!("ves-compute-{i}"))
+            .start_handler(|_| lower_priority())
+            .build()?;
         Ok(PartWorkshop {
+            pool,
             part: std::sync::Mutex::new(Part { geometry, start }),
             options,
             dir,
@@ -253,6 +299,7 @@ impl Workshop for PartWorkshop {
         scene: &serde_json::Value,
         progress: Arc<dyn Fn(Progress) + Send + Sync>,
         cancel: Arc<AtomicBool>,
+        ready: &mut (dyn FnMut(&Computed) -> Result<(), String> + Send),
     ) -> Result<Computed, String> {
         let n = self.computed.fetch_add(1, Ordering::Relaxed) + 1;
         let geometry = self.part().geometry.clone();
@@ -265,26 +312,29 @@ impl Workshop for PartWorkshop {
             return Err("a .geo geometry is a gmsh script: open a STEP, IGES or BREP file".into());
         }
         let out = self.dir.path().join(format!("basis-{n}.h5"));
+        let saved = Self::text(&geometry, scene, false)?;
+        let computed = |summary: &precompute::Summary| Computed {
+            basis: out.clone(),
+            scene: saved.clone(),
+            summary: summary_line(summary),
+            estimated_error: worst_estimate(summary),
+        };
+        let mut told: Option<String> = None;
         let summary = {
             let _watch = crate::progress::watch(Arc::new(PageWatch { progress, cancel }));
-            precompute::run(&parsed, &out, self.solver).map_err(|e| format!("{e:#}").replace('\n', " "))?
+            lower_priority();
+            // In the workshop's pool: faer and rayon take their threads from it.
+            self.pool.install(|| {
+                precompute::run_then_check(&parsed, &out, self.solver, &mut |s| {
+                    ready(&computed(s)).map_err(|e| {
+                        told = Some(e.clone());
+                        anyhow::anyhow!(e)
+                    })
+                })
+            })
+            .map_err(|e| told.take().unwrap_or_else(|| format!("{e:#}").replace('\n', " ")))?
         };
-        let g = summary.spaces.first();
-        let line = match g {
-            Some(s) => format!(
-                "{} nodes, {} modes, first {:.4} Hz, in {:.1} s",
-                s.nodes,
-                s.frequencies_hz.len(),
-                s.frequencies_hz.first().copied().unwrap_or(0.0),
-                summary.timings_s.total
-            ),
-            None => String::new(),
-        };
-        Ok(Computed {
-            basis: out,
-            scene: Self::text(&geometry, scene, false)?,
-            summary: line,
-        })
+        Ok(computed(&summary))
     }
 
     fn open(&self, name: &str, bytes: &[u8]) -> Result<(), String> {

@@ -157,6 +157,9 @@ pub fn estimate(
 ) -> Option<ErrorEstimate> {
     let mut coarse = Vec::new();
     for k in 1..=LEVELS {
+        if crate::progress::cancelled() {
+            return None;
+        }
         let factor = COARSENING.powi(k as i32);
         match Solved::at(scene, voi, field, factor, fine.r, choice, true) {
             Ok(s) => coarse.push(s),

@@ -439,14 +439,9 @@ fn check(problem: &EigenProblem<'_>, vectors: &mut [f64], eigenvalues: &[f64]) -
         })
         .collect();
     drop(k_phi);
-    let mut gram = faer::Mat::<f64>::zeros(r, r);
-    faer::linalg::matmul::matmul(
-        gram.as_mut(),
-        faer::Accum::Replace,
-        faer::MatRef::from_column_major_slice(vectors, n, r).transpose(),
+    let gram = crate::tall::t_times(
+        faer::MatRef::from_column_major_slice(vectors, n, r),
         faer::MatRef::from_column_major_slice(&m_phi, n, r),
-        1.0,
-        faer::Par::rayon(0),
     );
     let mut orthonormality_error = 0.0f64;
     for a in 0..r {
@@ -488,22 +483,26 @@ pub const STURM_MARGIN: f64 = 1e-6;
 
 /// Counts the eigenvalues below the highest mode found (see [`SturmCount`]); `None` without
 /// modes. Proves that the solver skipped none below it.
-pub fn sturm_count(d: &crate::problem::Discretized, modes: &Modes) -> Result<Option<SturmCount>, ModesError> {
+pub fn sturm_count(
+    system: &crate::fem::Assembled,
+    dofs: &crate::supports::Dofs,
+    modes: &Modes,
+) -> Result<Option<SturmCount>, ModesError> {
     let Some(&top) = modes.eigenvalues.last() else {
         return Ok(None);
     };
     let t = Instant::now();
     let sigma = top * (1.0 + STURM_MARGIN);
-    let shifted: Vec<f64> = d.system.k.iter().zip(&d.system.m).map(|(k, m)| k - sigma * m).collect();
+    let shifted: Vec<f64> = system.k.iter().zip(&system.m).map(|(k, m)| k - sigma * m).collect();
     let analysed;
     let symbolic = match &modes.symbolic {
         Some(s) => s,
         None => {
-            analysed = crate::linsolve::analyse(&d.system, &d.dofs)?;
+            analysed = crate::linsolve::analyse(system, dofs)?;
             &analysed
         }
     };
-    let below = crate::linsolve::negative_pivots(symbolic, &d.system.pattern, &shifted)?;
+    let below = crate::linsolve::negative_pivots(symbolic, &system.pattern, &shifted)?;
     Ok(Some(SturmCount {
         sigma,
         below,
@@ -681,13 +680,13 @@ mod tests {
         let mask: Vec<bool> = mesh.nodes.iter().flat_map(|p| [p[0] < 1e-12; 3]).collect();
         let d = Discretized::assemble(mesh, Dofs::from_mask(&mask), (2e11, 0.3, 7800.0)).expect("assembles");
         let (mut m, _) = solve(&d, 8, SolverChoice::Arpack).expect("solves");
-        let s = sturm_count(&d, &m).unwrap().unwrap();
+        let s = sturm_count(&d.system, &d.dofs, &m).unwrap().unwrap();
         assert!(s.complete() && s.below == 8, "{s:?}");
         // Skip mode 4: the top is unchanged, so 8 eigenvalues still lie below σ, 7 were "found".
         let n = m.vectors.len() / 8;
         m.eigenvalues.remove(3);
         m.vectors.drain(3 * n..4 * n);
-        let s = sturm_count(&d, &m).unwrap().unwrap();
+        let s = sturm_count(&d.system, &d.dofs, &m).unwrap().unwrap();
         assert!(!s.complete() && s.below == 8 && s.found == 7, "{s:?}");
     }
 }

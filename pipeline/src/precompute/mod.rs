@@ -3,7 +3,7 @@
 mod advice;
 mod stages;
 
-pub use stages::solve_space;
+pub use stages::{Checks, solve_space};
 
 use crate::fem::{self, MassProperties};
 use crate::modes::{self, Modes, SolverChoice};
@@ -186,6 +186,30 @@ pub fn run(scene: &Scene, out: &Path, choice: SolverChoice) -> Result<Summary> {
 
 /// [`run`], saying what the output may replace.
 pub fn run_with(scene: &Scene, out: &Path, choice: SolverChoice, overwrite: Overwrite) -> Result<Summary> {
+    run_checked(scene, out, choice, overwrite, None)
+}
+
+/// [`run`] for someone waiting to use the basis (the viewer): when the scene's mesh size is fixed
+/// and the solve runs here, the basis is written first without its checks (Sturm count, error
+/// estimate), `first` is called with that summary, then the checks run and the file is written
+/// again with them: same modes, same frequencies, the estimate added. Otherwise the checks run
+/// with the solve and `first` gets the final summary. Returns the final summary.
+pub fn run_then_check(
+    scene: &Scene,
+    out: &Path,
+    choice: SolverChoice,
+    first: &mut dyn FnMut(&Summary) -> Result<()>,
+) -> Result<Summary> {
+    run_checked(scene, out, choice, Overwrite::default(), Some(first))
+}
+
+fn run_checked(
+    scene: &Scene,
+    out: &Path,
+    choice: SolverChoice,
+    overwrite: Overwrite,
+    first: Option<&mut dyn FnMut(&Summary) -> Result<()>>,
+) -> Result<Summary> {
     let start = Instant::now();
     // Under MPI rank 0 runs the pipeline and the other ranks serve its eigen-solves. Every rank
     // checks the output (the same answer on a shared file system) and they agree, so that a
@@ -229,7 +253,7 @@ pub fn run_with(scene: &Scene, out: &Path, choice: SolverChoice, overwrite: Over
             stages.join(", ")
         );
     }
-    let result = pipeline(scene, out, choice, start);
+    let result = pipeline(scene, out, choice, start, first);
     if distributed {
         modes::mpi_job::release(result)
     } else {
@@ -237,8 +261,46 @@ pub fn run_with(scene: &Scene, out: &Path, choice: SolverChoice, overwrite: Over
     }
 }
 
-/// Everything after the output check: each space solved, transfers, the basis written.
-fn pipeline(scene: &Scene, out: &Path, choice: SolverChoice, start: Instant) -> Result<Summary> {
+/// Everything after the output check: each space solved, transfers, the basis written (twice
+/// when the checks come after a first basis: [`run_then_check`]).
+fn pipeline(
+    scene: &Scene,
+    out: &Path,
+    choice: SolverChoice,
+    start: Instant,
+    mut first: Option<&mut dyn FnMut(&Summary) -> Result<()>>,
+) -> Result<Summary> {
+    let checks = if first.is_some() && scene.mesh.target_error.is_none() && !choice.is_slepc() {
+        Checks::Later
+    } else {
+        Checks::WithSolve
+    };
+    let mut spaces = solve_all(scene, choice, checks)?;
+    crate::progress::span(0.0, 1.0);
+    crate::progress::stage("writing", 0.95)?;
+    let t = Instant::now();
+    add_transfers(&mut spaces)?;
+    let transfer_s = t.elapsed().as_secs_f64();
+    let summary = write_all(scene, out, &spaces, transfer_s, start)?;
+    if let Some(first) = first.as_mut() {
+        first(&summary)?;
+    }
+    if checks == Checks::WithSolve {
+        return Ok(summary);
+    }
+    let n = spaces.len() as f64;
+    for (i, s) in spaces.iter_mut().enumerate() {
+        crate::progress::span(i as f64 / n, (i + 1) as f64 / n);
+        let name = s.name.clone();
+        stages::check_later(scene, s, choice).with_context(|| format!("space {name:?}"))?;
+    }
+    crate::progress::span(0.0, 1.0);
+    crate::progress::stage("writing the estimate", 0.99)?;
+    write_all(scene, out, &spaces, transfer_s, start)
+}
+
+/// Each space solved (its checks `checks`), global first.
+fn solve_all(scene: &Scene, choice: SolverChoice, checks: Checks) -> Result<Vec<SolvedSpace>> {
     let mut spaces = Vec::with_capacity(1 + scene.voi.len());
     let targets: Vec<Option<&Voi>> = std::iter::once(None).chain(scene.voi.iter().map(Some)).collect();
     let bar = crate::progress::bar(targets.len() as u64, "spaces");
@@ -248,7 +310,7 @@ fn pipeline(scene: &Scene, out: &Path, choice: SolverChoice, start: Instant) -> 
         bar.set_message(format!("space {name}"));
         // Each space a share of the whole; transfers and writing the last 5 %.
         crate::progress::span(0.95 * i as f64 / n, 0.95 * (i + 1) as f64 / n);
-        let s = solve_space(scene, voi, choice).with_context(|| format!("space {name:?}"))?;
+        let s = stages::solve_space_checked(scene, voi, choice, checks).with_context(|| format!("space {name:?}"))?;
         tracing::info!(
             space = name,
             f1_hz = s.modes.frequencies_hz().first().copied().unwrap_or(0.0),
@@ -258,16 +320,22 @@ fn pipeline(scene: &Scene, out: &Path, choice: SolverChoice, start: Instant) -> 
         bar.inc(1);
     }
     bar.finish_and_clear();
-    crate::progress::span(0.0, 1.0);
-    crate::progress::stage("writing", 0.95)?;
-    let t = Instant::now();
-    add_transfers(&mut spaces)?;
-    let transfer_s = t.elapsed().as_secs_f64();
+    Ok(spaces)
+}
+
+/// Writes the basis of solved spaces (transfers filled) and sums it up.
+fn write_all(
+    scene: &Scene,
+    out: &Path,
+    spaces: &[SolvedSpace],
+    transfer_s: f64,
+    start: Instant,
+) -> Result<Summary> {
     let t = Instant::now();
     let views: Vec<store::Space<'_>> = spaces.iter().map(SolvedSpace::view).collect();
     store::write(out, scene, &views)?;
     let mut timings = Timings::default();
-    for s in &spaces {
+    for s in spaces {
         timings.add(&s.timings);
     }
     timings.write = t.elapsed().as_secs_f64();

@@ -80,14 +80,47 @@ pub(super) struct Estimated {
     pub seconds: f64,
 }
 
+/// When the checks that leave the modes as they are (the Sturm count, the error estimate) run.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Checks {
+    /// With the solve, before the basis is written.
+    WithSolve,
+    /// After a first basis is written ([`check_later`]): the viewer pulls the part meanwhile.
+    /// Only for a fixed mesh size on this process (a `target_error` refinement needs the
+    /// estimate to choose its mesh; SLEPc checks its own).
+    Later,
+}
+
 /// Meshes, assembles and solves one space (refining it first when the scene sets a target
 /// error), and estimates its discretization error.
 pub fn solve_space(scene: &Scene, voi: Option<&Voi>, choice: SolverChoice) -> Result<SolvedSpace> {
+    solve_space_checked(scene, voi, choice, Checks::WithSolve)
+}
+
+/// [`solve_space`], with its checks now or later.
+pub(super) fn solve_space_checked(
+    scene: &Scene,
+    voi: Option<&Voi>,
+    choice: SolverChoice,
+    checks: Checks,
+) -> Result<SolvedSpace> {
     let name = voi.map_or("global".to_string(), |v| v.name.clone());
     let (solved, sturm, estimated) = match scene.mesh.target_error {
         Some(target) => {
             progress::stage("meshing and solving until the estimate meets target_error", 0.0)?;
             refined(scene, voi, choice, target)?
+        }
+        None if checks == Checks::Later => {
+            progress::stage("meshing and assembling", 0.0)?;
+            let problem = discretize(scene, voi, choice)?;
+            progress::stage("eigen-solving", 0.3)?;
+            let solved = released(|| solve(scene, problem, choice))?;
+            let none = Estimated {
+                error: None,
+                refinement: None,
+                seconds: 0.0,
+            };
+            (solved, None, none)
         }
         None => {
             // The coarser meshes are made beside the fine one (each gmsh in its own process,
@@ -103,7 +136,7 @@ pub fn solve_space(scene: &Scene, voi: Option<&Voi>, choice: SolverChoice) -> Re
             (solved, sturm, estimated)
         }
     };
-    if scene.mesh.error_estimate {
+    if scene.mesh.error_estimate && estimated.error.is_some() {
         let size = solved.problem.meshing().size;
         advice::warn_about_error(scene, &name, solved.problem.mesh(), size, estimated.error.as_ref());
     }
@@ -123,6 +156,35 @@ pub fn solve_space(scene: &Scene, voi: Option<&Voi>, choice: SolverChoice) -> Re
         stress_s,
     };
     Ok(store(name, voi, solved, later))
+}
+
+/// The checks [`Checks::Later`] left out, on a solved space (K and M kept): the Sturm count
+/// and, when the scene asks for it, the error estimate from coarser meshes.
+pub(super) fn check_later(scene: &Scene, s: &mut SolvedSpace, choice: SolverChoice) -> Result<()> {
+    let system = s
+        .system
+        .as_ref()
+        .context("the checks after the solve need K and M, which were left on the MPI ranks")?;
+    progress::stage("counting the eigenvalues below the last (Sturm)", 0.0)?;
+    let sturm = released(|| modes::sturm_count(system, &s.dofs, &s.modes))?;
+    if let Some(c) = &sturm {
+        advice::report_sturm(&s.name, c);
+    }
+    s.timings.sturm = sturm.map_or(0.0, |c| c.seconds);
+    s.sturm = sturm;
+    if scene.mesh.error_estimate {
+        progress::stage("estimating the error", 0.2)?;
+        let t = Instant::now();
+        let view = crate::transfer::SpaceView::of(&s.mesh, &s.dofs, system, &s.modes, usize::MAX);
+        s.error = released(|| {
+            crate::accuracy::estimate(scene, s.voi.as_ref(), None, &view, &s.modes.eigenvalues, choice)
+        });
+        s.timings.error_estimate = t.elapsed().as_secs_f64();
+        // A cancelled estimate is not reported.
+        progress::stage("estimated", 0.95)?;
+        advice::warn_about_error(scene, &s.name, &s.mesh, s.meshing.size, s.error.as_ref());
+    }
+    Ok(())
 }
 
 /// The `target_error` path: the refinement meshes, solves and estimates the space on finer
@@ -202,7 +264,7 @@ fn solve(scene: &Scene, problem: Problem, choice: SolverChoice) -> Result<Solved
 /// SLEPc's checks.
 fn sturm_check(solved: &Solved, choice: SolverChoice) -> Result<Option<SturmCount>> {
     match solved.problem.here() {
-        Some(d) if !choice.is_slepc() => Ok(modes::sturm_count(d, &solved.modes)?),
+        Some(d) if !choice.is_slepc() => Ok(modes::sturm_count(&d.system, &d.dofs, &solved.modes)?),
         _ => Ok(None),
     }
 }

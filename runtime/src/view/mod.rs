@@ -160,6 +160,11 @@ struct Shared {
     timings: Mutex<Vec<SessionTiming>>,
     workshop: Option<Arc<dyn Workshop>>,
     computing: AtomicBool,
+    /// The running compute's basis is in use and only its checks (the error estimate) remain:
+    /// a new Compute stops them and starts at once.
+    checking: AtomicBool,
+    /// A compute asked for while another's checks were stopping: started when that one ends.
+    queued: Mutex<Option<serde_json::Value>>,
     cancel: Arc<AtomicBool>,
     /// Compute progress and results (JSON text), to every page.
     notes: watch::Sender<String>,
@@ -250,6 +255,8 @@ pub fn serve_with(
         timings: Mutex::new(Vec::new()),
         workshop,
         computing: AtomicBool::new(false),
+        checking: AtomicBool::new(false),
+        queued: Mutex::new(None),
         cancel: Arc::new(AtomicBool::new(false)),
         notes: watch::channel(String::new()).0,
         computes: AtomicU64::new(0),
@@ -426,6 +433,15 @@ fn swap(shared: &Arc<Shared>, spaces: Vec<SpaceInput>, basis_path: Option<PathBu
     Ok(())
 }
 
+/// An unchanged frame is sent again after this long (the page's frame count shows it live).
+const KEEPALIVE: Duration = Duration::from_millis(200);
+
+/// Whether two encoded frames draw the same: equal but for the sequence number (bytes 16..20)
+/// and the time (32..40), see [`protocol::FrameHeader`].
+fn same_frame(a: &[u8], b: &[u8]) -> bool {
+    a.len() == b.len() && a.len() >= 40 && a[..16] == b[..16] && a[20..32] == b[20..32] && a[40..] == b[40..]
+}
+
 /// Runs one compute of the set-up panel in its own thread; its progress and its end go to every
 /// page; on success the session moves to the new basis.
 fn start_compute(shared: &Arc<Shared>, scene: serde_json::Value) -> Result<(), String> {
@@ -433,6 +449,14 @@ fn start_compute(shared: &Arc<Shared>, scene: serde_json::Value) -> Result<(), S
         return Err("this viewer was opened on a basis: open a scene or a STEP file to set the part up".into());
     };
     if shared.computing.swap(true, Ordering::AcqRel) {
+        if shared.checking.load(Ordering::Acquire) {
+            // The part in use is already the last compute's: its estimate gives way.
+            if let Ok(mut q) = shared.queued.lock() {
+                *q = Some(scene);
+            }
+            shared.cancel.store(true, Ordering::Relaxed);
+            return Ok(());
+        }
         return Err("a compute is already running: wait for it or cancel it".into());
     }
     shared.cancel.store(false, Ordering::Relaxed);
@@ -456,28 +480,51 @@ fn start_compute(shared: &Arc<Shared>, scene: serde_json::Value) -> Result<(), S
                 stage: "starting".into(),
                 fraction: 0.0,
             });
-            let done = workshop
-                .compute(&scene, progress.clone(), shared.cancel.clone())
-                .and_then(|c| {
-                    progress(Progress {
-                        stage: "loading".into(),
-                        fraction: 0.98,
-                    });
-                    let spaces = crate::switching::load_spaces(&c.basis, None, true).map_err(|e| e.to_string())?;
-                    swap(&shared, spaces, Some(c.basis.clone())).map_err(|e| e.0)?;
-                    Ok(c)
+            // The session moves to the first basis as soon as it is written; the estimate that
+            // may follow rewrites the file and is reported when it comes.
+            let mut swapped = false;
+            let mut ready = |c: &Computed| -> Result<(), String> {
+                progress(Progress {
+                    stage: "loading".into(),
+                    fraction: 0.98,
                 });
-            match done {
-                Ok(c) => note(serde_json::json!({
+                let spaces = crate::switching::load_spaces(&c.basis, None, true).map_err(|e| e.to_string())?;
+                swap(&shared, spaces, Some(c.basis.clone())).map_err(|e| e.0)?;
+                swapped = true;
+                shared.checking.store(true, Ordering::Release);
+                note(serde_json::json!({
                     "type": "computed", "summary": c.summary, "scene": c.scene,
                     "seconds": t0.elapsed().as_secs_f64(),
+                    "estimated_error": c.estimated_error,
+                }));
+                Ok(())
+            };
+            let done = workshop.compute(&scene, progress.clone(), shared.cancel.clone(), &mut ready);
+            match done {
+                Ok(c) if swapped => note(serde_json::json!({
+                    "type": "checked", "summary": c.summary,
+                    "seconds": t0.elapsed().as_secs_f64(),
+                    "estimated_error": c.estimated_error,
                 })),
+                Ok(_) => {
+                    shared.computes_failed.fetch_add(1, Ordering::Relaxed);
+                    note(serde_json::json!({"type": "compute_error", "message": "the compute made no basis"}));
+                }
+                // The part is in use; only its checks did not finish.
+                Err(e) if swapped => note(serde_json::json!({"type": "checked", "error": e})),
                 Err(e) => {
                     shared.computes_failed.fetch_add(1, Ordering::Relaxed);
                     note(serde_json::json!({"type": "compute_error", "message": e}));
                 }
             }
+            shared.checking.store(false, Ordering::Release);
             shared.computing.store(false, Ordering::Release);
+            let next = shared.queued.lock().ok().and_then(|mut q| q.take());
+            if let Some(scene) = next
+                && let Err(e) = start_compute(&shared, scene)
+            {
+                note(serde_json::json!({"type": "compute_error", "message": e}));
+            }
         }
     });
     if let Err(e) = spawned {
@@ -667,6 +714,7 @@ async fn status_loop(shared: Arc<Shared>, tx: watch::Sender<String>, stop: Arc<A
             "messages_dropped": shared.dropped.load(Ordering::Relaxed),
             "alarm": shared.published.alarm.load(Ordering::Relaxed),
             "computing": shared.computing.load(Ordering::Relaxed),
+            "checking": shared.checking.load(Ordering::Relaxed),
             "hands": hands,
         });
         tx.send_replace(status.to_string());
@@ -708,6 +756,7 @@ async fn client(mut socket: WebSocket, shared: Arc<Shared>) {
     let mut notes = shared.notes.subscribe();
     let mut wants_stress = false;
     let mut last_seq: Option<u32> = None;
+    let mut last_sent: Option<(Bytes, Instant)> = None;
     // The hello and meshes first: nothing else means anything to the page before them.
     let mut ok = send_generation(&mut socket, &shared, id).await;
     generations.borrow_and_update();
@@ -749,6 +798,13 @@ async fn client(mut socket: WebSocket, shared: Arc<Shared>) {
                     shared.frames_skipped.fetch_add(u64::from(seq.wrapping_sub(l).saturating_sub(1)), Ordering::Relaxed);
                 }
                 last_seq = Some(seq);
+                // A part at rest is not sent again at the visual rate (on the mould 250 kB at
+                // 60 Hz kept the browser busy on two cores): a frame that differs from the last
+                // one sent only in its number and time waits, up to KEEPALIVE.
+                if last_sent.as_ref().is_some_and(|(l, at): &(Bytes, Instant)| same_frame(l, &f) && at.elapsed() < KEEPALIVE) {
+                    continue;
+                }
+                last_sent = Some((f.clone(), Instant::now()));
                 ok = send(&mut socket, Message::Binary(f)).await;
                 shared.frames_sent.fetch_add(u64::from(ok), Ordering::Relaxed);
             }

@@ -14,8 +14,10 @@ pub struct Computed {
     pub basis: PathBuf,
     /// The scene it was computed from, as saved (TOML), for "save scene".
     pub scene: String,
-    /// One line for the page: sizes, frequencies, time.
+    /// One line for the page: sizes, frequencies, time, and the estimated error once known.
     pub summary: String,
+    /// The largest estimated relative frequency error of the first space's modes, once known.
+    pub estimated_error: Option<f64>,
 }
 
 /// Where a compute stands, for the page's progress bar.
@@ -35,11 +37,15 @@ pub trait Workshop: Send + Sync {
     /// Computes a basis from `scene` (the page's scene: TOML tables as JSON, checked as any
     /// scene, its geometry always the workshop's own file, never a path the page names).
     /// `progress` is called at each stage; `cancel` set stops it at the next stage with an error.
+    /// `ready` is called once, as soon as a basis the session can use is written; checks that
+    /// leave its modes as they are (the error estimate) may follow and rewrite the same file.
+    /// An error from `ready` ends the compute with it. Returns what the compute finally made.
     fn compute(
         &self,
         scene: &serde_json::Value,
         progress: Arc<dyn Fn(Progress) + Send + Sync>,
         cancel: Arc<AtomicBool>,
+        ready: &mut (dyn FnMut(&Computed) -> Result<(), String> + Send),
     ) -> Result<Computed, String>;
     /// Makes the geometry file `name` (as the page's user picked it; only its file name
     /// counts) with content `bytes` the part from now on, with a fresh starting scene. Only

@@ -16,6 +16,7 @@ export function setupPanel(send, pick, faceMode) {
   let geometry = null;
   let materials = [];
   let saved = null; // the TOML of the last basis computed
+  let ready = null; // the summary of the basis in use while its checks run
   const panel = $('setup');
 
   function fill() {
@@ -182,22 +183,30 @@ export function setupPanel(send, pick, faceMode) {
     /** Compute progress, its end, or why it failed. */
     note(msg) {
       if (msg.type === 'progress') {
+        if (msg.stage === 'starting') ready = null;
         $('progressbar').style.width = `${(100 * msg.fraction).toFixed(0)}%`;
-        $('progresstext').textContent = `${msg.stage} — ${(100 * msg.fraction).toFixed(0)} %`;
+        // After the swap the part is in use while its error estimate is made.
+        $('progresstext').textContent = (ready ? `ready: ${ready} · ` : '') + `${msg.stage} — ${(100 * msg.fraction).toFixed(0)} %`;
       } else if (msg.type === 'computed') {
+        ready = msg.summary;
         $('progressbar').style.width = '100%';
         $('progresstext').textContent = `computed: ${msg.summary}`;
         saved = msg.scene;
         $('savescene').disabled = false;
+      } else if (msg.type === 'checked') {
+        ready = null;
+        $('progressbar').style.width = '100%';
+        $('progresstext').textContent = msg.error ? `computed; its checks did not finish: ${msg.error}` : `computed: ${msg.summary}`;
       } else if (msg.type === 'compute_error') {
         $('progresstext').textContent = '';
         $('progressbar').style.width = '0';
         $('setuperror').textContent = msg.message;
       }
     },
-    /** The status says whether a compute runs. */
-    computing(on) {
-      $('compute').disabled = on;
+    /** The status says whether a compute runs, and whether only its checks remain (the part is
+     * in use: Compute stops them and starts again). */
+    computing(on, checking) {
+      $('compute').disabled = on && !checking;
       $('cancel').disabled = !on;
     },
     /** The faces held (tags), for drawing them. */
