@@ -99,9 +99,9 @@ function onText(msg) {
     askFields();
   } else if (msg.type === 'status') {
     state.status = msg;
-    setup.computing(msg.computing);
+    setup.computing(msg.computing, msg.checking);
     showStatus(msg);
-  } else if (msg.type === 'progress' || msg.type === 'computed' || msg.type === 'compute_error') {
+  } else if (msg.type === 'progress' || msg.type === 'computed' || msg.type === 'checked' || msg.type === 'compute_error') {
     state.notes.push(msg);
     if (state.notes.length > 200) state.notes.shift();
     setup.note(msg);
@@ -211,6 +211,14 @@ function onFrame(f) {
   if (state.lastSeq >= 0 && f.seq > state.lastSeq + 1) state.framesSkipped += f.seq - state.lastSeq - 1;
   state.lastSeq = f.seq;
   state.frames += 1;
+  // Frames keep coming at rest: one that moves no drawn point by a millionth of the part (nor
+  // the pose, the alarm or the peak) is not redrawn, so a part at rest costs the page nothing.
+  const switched = f.space !== state.active;
+  let change = 0;
+  for (let i = 0; i < f.u.length; i++) change = Math.max(change, Math.abs(f.u[i] - s.u[i]));
+  const still = !switched && change * (state.drawnScale || 0) <= 1e-6 * (state.diag || 0)
+    && (!s.pose || !f.pose || f.pose.every((x, i) => x === s.pose[i]))
+    && s.alarm === f.alarm && s.peak && s.peak.vertex === f.peakVertex && s.peak.vonMises === f.peakVonMises;
   if (f.space !== state.active) {
     for (const t of state.spaces) if (t) { t.mesh.visible = false; if (t.supports) t.supports.visible = false; }
     state.active = f.space;
@@ -225,7 +233,7 @@ function onFrame(f) {
   s.alarm = f.alarm;
   s.peak = { vertex: f.peakVertex, vonMises: f.peakVonMises };
   s.frameTime = f.time;
-  state.dirty = true;
+  if (!still) state.dirty = true;
   // Latency: from a pointer event to the first frame drawn from a state in which the haptic
   // loop had read that event's hand message (the frame says which message each hand read last).
   while (pending.length && f.handSeq[pending[0][2]] >= pending[0][1]) {
@@ -893,18 +901,39 @@ function resize() {
 window.addEventListener('resize', resize);
 resize();
 
+// The scene is rendered when something may have changed on screen: the part redrawn, a mode
+// animated, the user's input in the last second (camera, picks, hover, panels), a recording; and
+// at least every RENDER_IDLE_MS whatever happens. A part at rest then costs the browser (and,
+// without a GPU, the cores a compute beside it needs) almost nothing.
+const RENDER_IDLE_MS = 1000;
+let lastInput = 0, lastRender = 0;
+const woken = () => { lastInput = performance.now(); };
+for (const ev of ['pointermove', 'pointerdown', 'pointerup', 'wheel', 'keydown', 'keyup', 'resize', 'change', 'input', 'click']) {
+  window.addEventListener(ev, woken, { passive: true, capture: true });
+}
+controls.addEventListener('change', woken);
+
 function loop() {
   // The part is redrawn when something changed (a frame, its stress, the scale, the colouring),
   // not at every animation frame: 19.5k vertices' positions and colours cost the page's time.
-  if (state.mode) animateMode();
-  else if (state.dirty && state.spaces[state.active]) {
+  let drew = false;
+  if (state.mode) {
+    animateMode();
+    drew = true;
+  } else if (state.dirty && state.spaces[state.active]) {
     draw(state.spaces[state.active]);
     state.dirty = false;
+    drew = true;
     state.drawTimes = (state.drawTimes || []).concat(performance.now()).slice(-60);
   }
   controls.update();
-  renderer.render(scene, camera);
-  placeTags();
+  const now = performance.now();
+  if (drew || now - lastInput < 1000 || now - lastRender >= RENDER_IDLE_MS || capture.recording()) {
+    renderer.render(scene, camera);
+    placeTags();
+    lastRender = now;
+    state.renders = (state.renders || 0) + 1;
+  }
   if (capture.recording() && state.legend) capture.draw(canvas, state.legend, overlay());
   if (state.meshesIn && !state.ready && state.frames > state.framesAtHello && !state.dirty) state.ready = true;
   requestAnimationFrame(loop);
