@@ -13,7 +13,9 @@ port=$(python3 -c 'import socket; s=socket.socket(); s.bind(("127.0.0.1", 0)); p
 XDG_CACHE_HOME=$cache target/release/ves view "$scene" --port "$port" --duration 900 --json > "$cache/server.out" &
 server=$!
 sleep 1
-node bench/setup.mjs "http://127.0.0.1:$port/" runtime/web
+status=0
+node bench/setup.mjs "http://127.0.0.1:$port/" runtime/web || status=$?
 kill -INT "$server"
-wait "$server"
+wait "$server" || true
+[ "$status" -eq 0 ] || { echo "the page's run failed (status $status)" >&2; exit "$status"; }
 tail -1 "$cache/server.out"
