@@ -1,0 +1,351 @@
+//! `ves.Haptics`: the runtime's haptic simulation (the code the C ABI's `ves_haptics_*` wraps)
+//! driven from Python, numpy arrays in and out.
+
+use crate::basis::Basis;
+use numpy::ndarray::Array2;
+use numpy::{AllowTypeChange, IntoPyArray, PyArray1, PyArray2, PyArrayLike2, PyArrayMethods};
+use pyo3::exceptions::PyValueError;
+use pyo3::prelude::*;
+use pyo3::types::PyDict;
+use std::sync::Arc;
+use ves_runtime::haptic::{Coupling, HandInput, HandOutput, StrainPolicy, StrainWatch};
+use ves_runtime::integrator::Scheme;
+
+/// Largest |coordinate| of a device position accepted, m (as the C ABI).
+const MAX_POSITION_M: f64 = 1e6;
+/// Most hands one simulation serves (as the C ABI).
+const MAX_HANDS: usize = 16;
+
+/// A haptic simulation of one space of a basis: hands (haptic interaction points) pull or press
+/// the part through a virtual spring-damper; each `step` advances the modes by `dt` exactly and
+/// returns the force on each device.
+#[pyclass(module = "ves")]
+pub struct Haptics {
+    sim: ves_runtime::haptic::Haptics,
+    basis: Arc<ves_runtime::Basis>,
+    inputs: Vec<HandInput>,
+    outputs: Vec<HandOutput>,
+    /// Simulated time, s.
+    #[pyo3(get)]
+    time: f64,
+    /// Steps taken.
+    #[pyo3(get)]
+    steps: u64,
+}
+
+fn finite(name: &str, v: f64, ok: bool, requirement: &str) -> PyResult<f64> {
+    if v.is_finite() && ok {
+        Ok(v)
+    } else {
+        Err(PyValueError::new_err(format!("{name} = {v}: must be finite and {requirement}")))
+    }
+}
+
+/// Reads a (n, 3) array of finite values within `limit`, or raises naming `what`.
+fn rows3(a: &numpy::ndarray::ArrayView2<'_, f64>, what: &str, limit: f64, hands: usize) -> PyResult<()> {
+    let (n, c) = a.dim();
+    if c != 3 || n == 0 || n > hands {
+        return Err(PyValueError::new_err(format!(
+            "{what}: shape ({n}, {c}); give shape (n, 3) with 1 ≤ n ≤ {hands} (the hands this simulation was made for)"
+        )));
+    }
+    if let Some(((i, j), x)) = a.indexed_iter().find(|(_, x)| !x.is_finite() || x.abs() > limit) {
+        return Err(PyValueError::new_err(format!(
+            "{what}[{i}, {j}] = {x}: give finite values within {limit:e}"
+        )));
+    }
+    Ok(())
+}
+
+#[pymethods]
+impl Haptics {
+    /// A simulation at rest on `basis` (its default space, or `space`), keeping its first
+    /// `modes` modes (default all). `stiffness` (N/m) and `damping` (N·s/m; default: critical
+    /// against a 1 g handle) make the virtual coupling, `max_force` (N) limits the force sent
+    /// back; `dt` (s) is the time step, `hands` the most hands per step. `free_body` makes the
+    /// part move rigidly under the hands and gravity (a free part's basis only).
+    /// `static_correction` adds the stored exact compliance the truncated modes miss.
+    #[new]
+    #[pyo3(signature = (basis, stiffness=500.0, damping=None, *, max_force=10.0, dt=1e-3, hands=1, space=None, modes=None, free_body=false, static_correction=true))]
+    #[allow(clippy::too_many_arguments)]
+    fn new(
+        py: Python<'_>,
+        basis: &Basis,
+        stiffness: f64,
+        damping: Option<f64>,
+        max_force: f64,
+        dt: f64,
+        hands: usize,
+        space: Option<&str>,
+        modes: Option<usize>,
+        free_body: bool,
+        static_correction: bool,
+    ) -> PyResult<Haptics> {
+        let mut coupling = Coupling::critically_damped(stiffness, max_force);
+        if let Some(c) = damping {
+            coupling.damping = c;
+        }
+        let invalid = |e: ves_runtime::haptic::InvalidSetting| PyValueError::new_err(e.to_string());
+        ves_runtime::haptic::InvalidSetting::check("stiffness", stiffness, "N/m", "> 0", stiffness > 0.0)
+            .map_err(invalid)?;
+        coupling.validate().map_err(invalid)?;
+        finite("dt", dt, dt > 0.0 && dt <= 1.0, "in (0, 1] s")?;
+        if !(1..=MAX_HANDS).contains(&hands) {
+            return Err(PyValueError::new_err(format!("hands = {hands}: must be 1 to {MAX_HANDS}")));
+        }
+        let space = basis.space_ref(py, space)?.get();
+        let mut rt = space.runtime.clone();
+        if let Some(r) = modes {
+            if r == 0 || r > rt.mode_count() {
+                return Err(PyValueError::new_err(format!(
+                    "modes = {r}: the space has {} modes; give 1 to {}",
+                    rt.mode_count(),
+                    rt.mode_count()
+                )));
+            }
+            if r < rt.mode_count() {
+                rt = Arc::new(truncated(&rt, r));
+            }
+        }
+        let mut sim = ves_runtime::haptic::Haptics::new(rt.clone(), coupling, dt, Scheme::Exact, hands);
+        sim.set_static_correction(static_correction);
+        if free_body {
+            sim.set_free_body([0.0, 0.0, -9.81], 1.0)
+                .map_err(|e| PyValueError::new_err(format!("free_body: {e}")))?;
+        }
+        Ok(Haptics {
+            sim,
+            basis: rt,
+            inputs: vec![HandInput::default(); hands],
+            outputs: vec![HandOutput::default(); hands],
+            time: 0.0,
+            steps: 0,
+        })
+    }
+
+    /// One haptic step. `hand_positions` (n, 3), m, one row per hand (n ≤ hands);
+    /// `velocities` (n, 3), m/s (default zero); `buttons`: one bool for every hand or one per
+    /// hand (held: grab the vertex picked when pressed; released: press on the surface).
+    /// Returns the force on each device, N, shape (n, 3).
+    #[pyo3(signature = (hand_positions, velocities=None, buttons=None))]
+    fn step<'py>(
+        &mut self,
+        py: Python<'py>,
+        hand_positions: PyArrayLike2<'py, f64, AllowTypeChange>,
+        velocities: Option<PyArrayLike2<'py, f64, AllowTypeChange>>,
+        buttons: Option<&Bound<'py, PyAny>>,
+    ) -> PyResult<Bound<'py, PyArray2<f64>>> {
+        let hands = self.inputs.len();
+        let x = hand_positions.as_array();
+        rows3(&x, "hand_positions", MAX_POSITION_M, hands)?;
+        let n = x.nrows();
+        let v = velocities.as_ref().map(|v| v.as_array());
+        if let Some(v) = &v {
+            rows3(v, "velocities", f64::MAX, hands)?;
+            if v.nrows() != n {
+                return Err(PyValueError::new_err(format!(
+                    "velocities: {} rows for {n} hand positions",
+                    v.nrows()
+                )));
+            }
+        }
+        let pressed: Vec<bool> = match buttons {
+            None => vec![false; n],
+            Some(b) => match b.extract::<bool>() {
+                Ok(all) => vec![all; n],
+                Err(_) => {
+                    let each: Vec<bool> = b.extract().map_err(|_| {
+                        PyValueError::new_err("buttons: give a bool, or a sequence of one bool per hand")
+                    })?;
+                    if each.len() != n {
+                        return Err(PyValueError::new_err(format!(
+                            "buttons: {} values for {n} hand positions",
+                            each.len()
+                        )));
+                    }
+                    each
+                }
+            },
+        };
+        for k in 0..n {
+            self.inputs[k] = HandInput {
+                position: [x[[k, 0]], x[[k, 1]], x[[k, 2]]],
+                velocity: v.as_ref().map_or([0.0; 3], |v| [v[[k, 0]], v[[k, 1]], v[[k, 2]]]),
+                button: pressed[k],
+            };
+        }
+        self.sim.step(&self.inputs[..n], &mut self.outputs[..n]);
+        self.time += self.sim.state().dt();
+        self.steps += 1;
+        let forces = PyArray2::<f64>::zeros(py, [n, 3], false);
+        {
+            let mut f = forces.readwrite();
+            let mut f = f.as_array_mut();
+            for (k, o) in self.outputs[..n].iter().enumerate() {
+                for c in 0..3 {
+                    f[[k, c]] = o.force[c];
+                }
+            }
+        }
+        Ok(forces)
+    }
+
+    /// What each hand got in the last step: a list of dicts with force (N), vertex (index
+    /// among `vertex_nodes`), vertex_position (m), contact, clamped, strain, strain_exceeded,
+    /// von_mises (Pa), safety_factor, stress_exceeded, principal_stress (Pa), principal_strain.
+    fn hand_outputs<'py>(&self, py: Python<'py>) -> PyResult<Vec<Bound<'py, PyDict>>> {
+        self.outputs
+            .iter()
+            .map(|o| {
+                let d = PyDict::new(py);
+                d.set_item("force", o.force)?;
+                d.set_item("vertex", o.vertex)?;
+                d.set_item("vertex_position", o.vertex_position)?;
+                d.set_item("contact", o.contact)?;
+                d.set_item("clamped", o.clamped)?;
+                d.set_item("strain", o.strain)?;
+                d.set_item("strain_exceeded", o.strain_exceeded)?;
+                d.set_item("von_mises", o.von_mises)?;
+                d.set_item("safety_factor", o.safety_factor)?;
+                d.set_item("stress_exceeded", o.stress_exceeded)?;
+                d.set_item("principal_stress", o.principal_stress)?;
+                d.set_item("principal_strain", o.principal_strain)?;
+                Ok(d)
+            })
+            .collect()
+    }
+
+    /// Modal coordinates q, shape (r,) (a copy).
+    #[getter]
+    fn q<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray1<f64>> {
+        PyArray1::from_slice(py, &self.sim.state().q)
+    }
+
+    /// Modal velocities, shape (r,) (a copy).
+    #[getter]
+    fn qdot<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray1<f64>> {
+        PyArray1::from_slice(py, &self.sim.state().v)
+    }
+
+    /// Index in the file's nodes of each vertex the simulation keeps (the surface vertices),
+    /// shape (nv,): row i of `displacements()` is node `vertex_nodes[i]`.
+    #[getter]
+    fn vertex_nodes<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray1<u32>> {
+        PyArray1::from_slice(py, &self.basis.node_index)
+    }
+
+    /// Rest positions of the kept vertices, m, shape (nv, 3).
+    #[getter]
+    fn rest_positions<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyArray2<f64>>> {
+        let flat: Vec<f64> = self.basis.rest.iter().flatten().copied().collect();
+        let a = Array2::from_shape_vec((self.basis.rest.len(), 3), flat)
+            .map_err(|e| PyValueError::new_err(e.to_string()))?;
+        Ok(a.into_pyarray(py))
+    }
+
+    /// Displacement u = Φ q of every kept vertex now, m, shape (nv, 3), float32 (the drawing
+    /// thread's full-field update).
+    fn displacements<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyArray2<f32>>> {
+        let nv = self.basis.vertex_count();
+        let mut u = vec![0.0f32; 3 * nv];
+        ves_runtime::visual::displacements(&self.basis, &self.sim.state().q, &mut u);
+        let a = Array2::from_shape_vec((nv, 3), u).map_err(|e| PyValueError::new_err(e.to_string()))?;
+        Ok(a.into_pyarray(py))
+    }
+
+    /// Von Mises stress of every kept vertex now, Pa, shape (nv,), float32; None when the basis
+    /// holds no modal stress.
+    fn von_mises<'py>(&self, py: Python<'py>) -> Option<Bound<'py, PyArray1<f32>>> {
+        let nv = self.basis.vertex_count();
+        let mut sigma = vec![0.0f32; 6 * nv];
+        if !ves_runtime::visual::stresses(&self.basis, &self.sim.state().q, &mut sigma) {
+            return None;
+        }
+        let vm: Vec<f32> = sigma
+            .chunks_exact(6)
+            .map(|s| ves_runtime::visual::von_mises(std::array::from_fn(|k| f64::from(s[k]))) as f32)
+            .collect();
+        Some(PyArray1::from_vec(py, vm))
+    }
+
+    /// A free body's pose: centre of mass (m) then the unit quaternion (w, x, y, z) body →
+    /// world, shape (7,); None for a supported part.
+    #[getter]
+    fn pose<'py>(&self, py: Python<'py>) -> Option<Bound<'py, PyArray1<f64>>> {
+        self.sim.rigid_body().map(|_| PyArray1::from_slice(py, &self.sim.pose()))
+    }
+
+    /// Steps whose result was non-finite and rolled back.
+    #[getter]
+    fn quarantined(&self) -> u64 {
+        self.sim.quarantined
+    }
+
+    /// Number of modes simulated.
+    #[getter]
+    fn mode_count(&self) -> usize {
+        self.basis.mode_count()
+    }
+
+    /// The validity watch of the linear model: past `limit` (normal strain along the surface
+    /// edges at a hand's vertex) the step reports it and reacts: "flag", "stiffen" or "release".
+    #[pyo3(signature = (limit, policy="flag"))]
+    fn set_strain_watch(&mut self, limit: f64, policy: &str) -> PyResult<()> {
+        finite("limit", limit, limit > 0.0, "> 0")?;
+        let policy = match policy {
+            "flag" => StrainPolicy::Flag,
+            "stiffen" => StrainPolicy::Stiffen,
+            "release" => StrainPolicy::Release,
+            _ => {
+                return Err(PyValueError::new_err(format!(
+                    "policy = {policy:?}: give \"flag\", \"stiffen\" or \"release\""
+                )));
+            }
+        };
+        let watch = self.sim.strain_watch();
+        self.sim.set_strain_watch(StrainWatch { limit, policy, ..watch });
+        Ok(())
+    }
+
+    /// Back to rest, every hand let go, time zero.
+    fn reset(&mut self) {
+        self.sim.reset();
+        self.time = 0.0;
+        self.steps = 0;
+    }
+
+    fn __repr__(&self) -> String {
+        format!(
+            "<ves.Haptics {:?}: {} modes, {} hands, t = {} s>",
+            self.basis.space,
+            self.basis.mode_count(),
+            self.inputs.len(),
+            self.time
+        )
+    }
+}
+
+/// The first `r` modes of a runtime basis.
+fn truncated(b: &ves_runtime::Basis, r: usize) -> ves_runtime::Basis {
+    let mut t = b.clone();
+    let n3 = 3 * b.vertex_count();
+    t.eigenvalues.truncate(r);
+    t.phi.truncate(r * n3);
+    if let Some(s) = &mut t.stress {
+        s.truncate(r * 6 * b.vertex_count());
+    }
+    t
+}
+
+/// Median time of one haptic step in Rust alone (the loop of `ves bench`: one hand grabbing a
+/// surface vertex and moving ±0.5 mm), ns, on the default space's first `modes` modes.
+#[pyfunction]
+#[pyo3(signature = (basis, modes=None, batches=200, per_batch=1000))]
+pub fn _rust_step_ns(py: Python<'_>, basis: &Basis, modes: Option<usize>, batches: usize, per_batch: usize) -> PyResult<f64> {
+    let rt = basis.space_ref(py, None)?.get().runtime.clone();
+    let rt = match modes {
+        Some(r) if r >= 1 && r < rt.mode_count() => Arc::new(truncated(&rt, r)),
+        _ => rt,
+    };
+    Ok(py.detach(|| ves_runtime::bench::haptic_step_ns(rt, batches.max(1), per_batch.max(1))))
+}
