@@ -2,15 +2,18 @@
 //! handed to numpy without a copy (the vectors read become the arrays' memory) and read-only.
 
 use crate::errors;
-use numpy::{PyArray1, PyArray2, PyArray3};
-use numpy::ndarray::{Array1, Array2, Array3};
 use numpy::IntoPyArray;
+use numpy::ndarray::{Array1, Array2, Array3};
+use numpy::{PyArray1, PyArray2, PyArray3};
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 use ves_format::{BasisReader, ReadError};
 use ves_runtime::basis::{LoadError, LoadOptions};
+
+/// Static compliance as numpy arrays: node indices (p,), blocks (p, 3, 3).
+type ComplianceArrays = (Py<PyArray1<u32>>, Py<PyArray3<f64>>);
 
 /// One space as read from the file, before it becomes numpy arrays.
 struct SpaceData {
@@ -33,7 +36,7 @@ struct SpaceData {
     mode_count: usize,
     stress: Option<Vec<f64>>,
     estimated_error: Option<Vec<f64>>,
-    compliance: Option<(Vec<u32>, Vec<[[f64; 3]; 3]>)>,
+    compliance: Option<ves_format::Compliance>,
     rigid: Option<ves_format::RigidProperties>,
     runtime: Arc<ves_runtime::Basis>,
 }
@@ -123,6 +126,23 @@ fn read_file(path: &Path) -> Result<FileData, ReadError> {
     })
 }
 
+/// What changes when a file is written or replaced: device, inode, size, modification and
+/// change times (ns). HDF5 reads past the end of a file as zeros, so a file truncated and
+/// rewritten in place (as `cp` does) while it is read would give zeros where data was.
+fn identity(path: &Path) -> Option<(u64, u64, u64, i64, i64, i64, i64)> {
+    use std::os::unix::fs::MetadataExt;
+    let m = std::fs::metadata(path).ok()?;
+    Some((
+        m.dev(),
+        m.ino(),
+        m.size(),
+        m.mtime(),
+        m.mtime_nsec(),
+        m.ctime(),
+        m.ctime_nsec(),
+    ))
+}
+
 /// Marks an array read-only: the arrays are shared by every access to the property.
 fn frozen<T>(a: Bound<'_, T>) -> PyResult<Py<T>> {
     a.as_any().getattr("flags")?.setattr("writeable", false)?;
@@ -171,7 +191,7 @@ pub struct Space {
     modes: Py<PyArray2<f64>>,
     stress: Option<Py<PyArray2<f64>>>,
     estimated_relative_error: Option<Py<PyArray1<f64>>>,
-    compliance: Option<(Py<PyArray1<u32>>, Py<PyArray3<f64>>)>,
+    compliance: Option<ComplianceArrays>,
     rigid: Option<ves_format::RigidProperties>,
     pub(crate) runtime: Arc<ves_runtime::Basis>,
 }
@@ -199,7 +219,12 @@ impl Space {
             vertex_count: d.vertex_count,
             meshing_strategy: d.meshing_strategy,
             nodes: matrix(py, d.nodes, n, 3)?,
-            tets: matrix(py, d.tets.clone(), d.tets.len() / d.nodes_per_tet.max(1), d.nodes_per_tet)?,
+            tets: matrix(
+                py,
+                d.tets.clone(),
+                d.tets.len() / d.nodes_per_tet.max(1),
+                d.nodes_per_tet,
+            )?,
             surface_triangles: matrix(py, d.triangles, k, 3)?,
             surface_faces: d.faces.map(|f| vector(py, f)).transpose()?,
             fixed_dofs: vector(py, d.fixed_dofs)?,
@@ -288,8 +313,10 @@ impl Space {
 
     /// Exact static compliance: (node indices (p,), blocks (p, 3, 3) m/N); None when not stored.
     #[getter]
-    fn compliance(&self, py: Python<'_>) -> Option<(Py<PyArray1<u32>>, Py<PyArray3<f64>>)> {
-        self.compliance.as_ref().map(|(n, b)| (n.clone_ref(py), b.clone_ref(py)))
+    fn compliance(&self, py: Python<'_>) -> Option<ComplianceArrays> {
+        self.compliance
+            .as_ref()
+            .map(|(n, b)| (n.clone_ref(py), b.clone_ref(py)))
     }
 
     /// A free body's mass properties: dict with mass (kg), center_of_mass (m) and inertia
@@ -352,7 +379,19 @@ impl Basis {
     pub(crate) fn read(py: Python<'_>, path: PathBuf, summary: Option<Py<PyAny>>) -> PyResult<Basis> {
         let p = path.clone();
         let data = py
-            .detach(move || ves_format::guarded(&p, || read_file(&p)))
+            .detach(move || {
+                let before = identity(&p);
+                let data = ves_format::guarded(&p, || read_file(&p))?;
+                if before.is_none() || identity(&p) != before {
+                    return Err(ReadError {
+                        path: p.display().to_string(),
+                        message: "the file changed while it was read (another process is writing it); open it again \
+                                  once the writer is done"
+                            .into(),
+                    });
+                }
+                Ok(data)
+            })
             .map_err(errors::basis)?;
         let default_space = data.default_space.clone();
         let spaces = data
@@ -500,7 +539,7 @@ impl Basis {
 
     /// Static compliance of the default space (nodes, blocks), or None.
     #[getter]
-    fn compliance(&self, py: Python<'_>) -> PyResult<Option<(Py<PyArray1<u32>>, Py<PyArray3<f64>>)>> {
+    fn compliance(&self, py: Python<'_>) -> PyResult<Option<ComplianceArrays>> {
         Ok(self.default(py)?.compliance(py))
     }
 

@@ -5,13 +5,38 @@ use pyo3::PyErr;
 use pyo3::create_exception;
 use pyo3::exceptions::PyException;
 
-create_exception!(ves, Error, PyException, "Base of every VES error; the message is the CLI's one line.");
-create_exception!(ves, SceneError, Error, "The scene is malformed or asks for something invalid.");
+create_exception!(
+    ves,
+    Error,
+    PyException,
+    "Base of every VES error; the message is the CLI's one line."
+);
+create_exception!(
+    ves,
+    SceneError,
+    Error,
+    "The scene is malformed or asks for something invalid."
+);
 create_exception!(ves, MeshError, Error, "The geometry could not be read or meshed.");
-create_exception!(ves, SupportError, Error, "A `[[fixed]]` region cannot be applied to the mesh.");
-create_exception!(ves, AssemblyError, Error, "An element of the mesh is degenerate or inverted.");
+create_exception!(
+    ves,
+    SupportError,
+    Error,
+    "A `[[fixed]]` region cannot be applied to the mesh."
+);
+create_exception!(
+    ves,
+    AssemblyError,
+    Error,
+    "An element of the mesh is degenerate or inverted."
+);
 create_exception!(ves, SolverError, Error, "The factorisation or the eigen-solve failed.");
-create_exception!(ves, BasisError, Error, "A basis file is missing, foreign, damaged or inconsistent.");
+create_exception!(
+    ves,
+    BasisError,
+    Error,
+    "A basis file is missing, foreign, damaged or inconsistent."
+);
 
 /// The Python exception for a pipeline error: its kind from the first typed error in the cause
 /// chain, its message the chain on one line, as the CLI prints it.

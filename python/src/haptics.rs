@@ -37,7 +37,9 @@ fn finite(name: &str, v: f64, ok: bool, requirement: &str) -> PyResult<f64> {
     if v.is_finite() && ok {
         Ok(v)
     } else {
-        Err(PyValueError::new_err(format!("{name} = {v}: must be finite and {requirement}")))
+        Err(PyValueError::new_err(format!(
+            "{name} = {v}: must be finite and {requirement}"
+        )))
     }
 }
 
@@ -91,7 +93,9 @@ impl Haptics {
         coupling.validate().map_err(invalid)?;
         finite("dt", dt, dt > 0.0 && dt <= 1.0, "in (0, 1] s")?;
         if !(1..=MAX_HANDS).contains(&hands) {
-            return Err(PyValueError::new_err(format!("hands = {hands}: must be 1 to {MAX_HANDS}")));
+            return Err(PyValueError::new_err(format!(
+                "hands = {hands}: must be 1 to {MAX_HANDS}"
+            )));
         }
         let space = basis.space_ref(py, space)?.get();
         let mut rt = space.runtime.clone();
@@ -272,7 +276,9 @@ impl Haptics {
     /// world, shape (7,); None for a supported part.
     #[getter]
     fn pose<'py>(&self, py: Python<'py>) -> Option<Bound<'py, PyArray1<f64>>> {
-        self.sim.rigid_body().map(|_| PyArray1::from_slice(py, &self.sim.pose()))
+        self.sim
+            .rigid_body()
+            .map(|_| PyArray1::from_slice(py, &self.sim.pose()))
     }
 
     /// Steps whose result was non-finite and rolled back.
@@ -341,7 +347,13 @@ fn truncated(b: &ves_runtime::Basis, r: usize) -> ves_runtime::Basis {
 /// surface vertex and moving ±0.5 mm), ns, on the default space's first `modes` modes.
 #[pyfunction]
 #[pyo3(signature = (basis, modes=None, batches=200, per_batch=1000))]
-pub fn _rust_step_ns(py: Python<'_>, basis: &Basis, modes: Option<usize>, batches: usize, per_batch: usize) -> PyResult<f64> {
+pub fn _rust_step_ns(
+    py: Python<'_>,
+    basis: &Basis,
+    modes: Option<usize>,
+    batches: usize,
+    per_batch: usize,
+) -> PyResult<f64> {
     let rt = basis.space_ref(py, None)?.get().runtime.clone();
     let rt = match modes {
         Some(r) if r >= 1 && r < rt.mode_count() => Arc::new(truncated(&rt, r)),

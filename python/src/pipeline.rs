@@ -132,7 +132,7 @@ fn to_toml(v: &Bound<'_, PyAny>, key: &str) -> PyResult<toml::Value> {
         return Ok(toml::Value::Float(v.extract()?));
     }
     if let Ok(s) = v.cast::<PyString>() {
-        return Ok(toml::Value::String(s.to_str()?.to_string()));
+        return Ok(toml::Value::String(s.extract::<String>()?));
     }
     if let Ok(d) = v.cast::<PyDict>() {
         let mut t = toml::map::Map::new();
@@ -140,7 +140,11 @@ fn to_toml(v: &Bound<'_, PyAny>, key: &str) -> PyResult<toml::Value> {
             let name: String = k
                 .extract()
                 .map_err(|_| PyTypeError::new_err(format!("scene key {key}: table keys must be strings")))?;
-            let path = if key.is_empty() { name.clone() } else { format!("{key}.{name}") };
+            let path = if key.is_empty() {
+                name.clone()
+            } else {
+                format!("{key}.{name}")
+            };
             t.insert(name, to_toml(&item, &path)?);
         }
         return Ok(toml::Value::Table(t));
@@ -179,7 +183,7 @@ pub(crate) fn scene_from(scene: &Bound<'_, PyAny>, allow_geo_scripts: bool) -> P
         let name = value
             .get("name")
             .and_then(|n| n.as_str())
-            .filter(|n| ves_format::check_identifier(n).is_ok())
+            .filter(|n| ves_format::check_identifier("name", n).is_ok())
             .unwrap_or("scene")
             .to_string();
         let cwd = std::env::current_dir()

@@ -11,13 +11,15 @@ E, NU = 2.1e11, 0.3
 L, B, T = 1.0, 0.1, 0.05  # length (x), width (y), thickness (z), m
 
 
-def timoshenko_tip_compliance_z() -> float:
-    """Tip deflection per newton of a cantilever loaded at its free end along z: bending
-    L³/(3EI) plus shear L/(κGA), with Cowper's κ for a rectangle."""
+def timoshenko_tip_compliance_z(offset_y: float) -> float:
+    """Deflection per newton at the free end of a cantilever loaded there along z, `offset_y`
+    off the centre line: bending L³/(3EI), shear L/(κGA) with Cowper's κ for a rectangle, and
+    the twist of the offset load, e²L/(GJ) (Saint-Venant J of a rectangle, Roark's series)."""
     i = B * T**3 / 12
     g = E / (2 * (1 + NU))
     kappa = 10 * (1 + NU) / (12 + 11 * NU)
-    return L**3 / (3 * E * i) + L / (kappa * g * B * T)
+    j = B * T**3 * (1 / 3 - 0.21 * (T / B) * (1 - T**4 / (12 * B**4)))
+    return L**3 / (3 * E * i) + L / (kappa * g * B * T) + offset_y**2 * L / (g * j)
 
 
 def settle(sim, hip, steps):
@@ -26,12 +28,15 @@ def settle(sim, hip, steps):
 
 
 def test_grabbed_tip_deflection_matches_beam_theory(cantilever):
-    # The centre of the free end face: on the neutral axis, so the pull twists nothing.
+    # The vertex of the free end face nearest its centre: near the neutral axis, so the pull
+    # hardly twists the beam (the twist is in the reference).
     centre = np.array([L, B / 2, T / 2])
     sim = ves.Haptics(cantilever, stiffness=2e4, damping=500.0, max_force=1e3)
     rest = sim.rest_positions
-    tip = int(np.argmin(np.linalg.norm(rest - centre, axis=1)))
-    assert np.linalg.norm(rest[tip] - centre) < 1e-9, "the mesh has a node at the end face's centre"
+    distance = np.linalg.norm(rest - centre, axis=1)
+    distance[np.abs(rest[:, 0] - L) > 1e-9] = np.inf
+    tip = int(np.argmin(distance))
+    assert distance[tip] < 0.25 * B
     pull = rest[tip] + [0.0, 0.0, 0.5e-3]
     sim.step(rest[tip][None, :], buttons=True)  # grab
     forces = settle(sim, pull[None, :], 3000)
@@ -44,13 +49,22 @@ def test_grabbed_tip_deflection_matches_beam_theory(cantilever):
     np.testing.assert_allclose(u, sim.displacements()[tip], rtol=1e-5, atol=1e-12)
     # Coupling equilibrium: F = k (hip − vertex).
     np.testing.assert_allclose(f, 2e4 * (pull - np.array(out["vertex_position"])), rtol=1e-9, atol=1e-9)
+    # The runtime's static response is the basis's modal one, Σ φᵢφᵢᵀ F / λᵢ (the runtime
+    # holds Φ in single precision).
+    node = int(sim.vertex_nodes[tip])
+    rows = cantilever.modes[3 * node : 3 * node + 3, :]
+    modal = rows @ ((rows.T @ f) / cantilever.eigenvalues)
+    np.testing.assert_allclose(u, modal, rtol=1e-5, atol=1e-6 * abs(modal[2]))
     compliance = u[2] / f[2]
-    beam = timoshenko_tip_compliance_z()
+    beam = timoshenko_tip_compliance_z(rest[tip][1] - B / 2)
     # Allowed: the basis's own estimate of its error (a stiffness error is twice a frequency
-    # error, λ = ω²) plus 0.5 % for what beam theory leaves out (the 3D clamp's warping
-    # restraint at the root; tests/cantilever.rs finds it below 1 % for the frequencies).
+    # error, λ = ω²) plus the 1 % that tests/cantilever.rs allows between the 3D model and
+    # Timoshenko's beam (the 3D clamp also holds the root's cross-section flat and keeps it from
+    # contracting, which beam theory does not). Both make the 3D part the stiffer one.
     err = cantilever.estimated_relative_error
-    allowed = 2 * float(err[0]) + 0.005 if err is not None else 0.01
+    assert err is not None
+    allowed = 2 * float(err[0]) + 0.01
+    assert compliance < beam
     assert abs(compliance - beam) <= allowed * beam, (compliance, beam, allowed)
 
 

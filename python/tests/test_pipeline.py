@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import _thread
+import re
 import shutil
 import subprocess
 import threading
@@ -59,7 +60,9 @@ def test_malformed_step_is_a_mesh_error(cli, tmp_path):
     expected = cli_error(cli, scene, tmp_path / "cli.h5")
     with pytest.raises(ves.MeshError) as e:
         ves.precompute(scene, tmp_path / "py.h5", progress=False)
-    assert str(e.value) == expected
+    # gmsh reads a copy in a private directory named after the meshing process.
+    private = re.compile(r"ves-mesh-pid[0-9]+-[A-Za-z0-9]+")
+    assert private.sub("PRIVATE", str(e.value)) == private.sub("PRIVATE", expected)
 
 
 def test_a_scene_dict_is_the_scene_file(tmp_path, monkeypatch):
@@ -132,7 +135,8 @@ def test_a_file_rewritten_in_place_is_read_whole_or_refused(cantilever, tmp_path
             "    with open(sys.argv[2], 'r+b') as f:\n"
             "        f.truncate(0)\n"
             "        for i in range(0, len(data), 65536):\n"
-            "            f.write(data[i:i + 65536]); f.flush()\n",
+            "            f.write(data[i:i + 65536]); f.flush()\n"
+            "    time.sleep(0.01)\n",
             str(cantilever.path),
             str(target),
         ]
@@ -148,4 +152,5 @@ def test_a_file_rewritten_in_place_is_read_whole_or_refused(cantilever, tmp_path
         np.testing.assert_array_equal(b.modes, cantilever.modes)
         whole += 1
     assert writer.returncode == 0
+    print(f"opened whole {whole}, refused {refused}")
     assert whole + refused > 10, (whole, refused)
