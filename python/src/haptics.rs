@@ -3,7 +3,7 @@
 
 use crate::basis::Basis;
 use numpy::ndarray::Array2;
-use numpy::{AllowTypeChange, IntoPyArray, PyArray1, PyArray2, PyArrayLike2, PyArrayMethods};
+use numpy::{AllowTypeChange, IntoPyArray, PyArray1, PyArray2, PyArrayLike2, PyArrayMethods, PyUntypedArrayMethods};
 use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
@@ -43,20 +43,47 @@ fn finite(name: &str, v: f64, ok: bool, requirement: &str) -> PyResult<f64> {
     }
 }
 
-/// Reads a (n, 3) array of finite values within `limit`, or raises naming `what`.
-fn rows3(a: &numpy::ndarray::ArrayView2<'_, f64>, what: &str, limit: f64, hands: usize) -> PyResult<()> {
-    let (n, c) = a.dim();
-    if c != 3 || n == 0 || n > hands {
-        return Err(PyValueError::new_err(format!(
-            "{what}: shape ({n}, {c}); give shape (n, 3) with 1 ≤ n ≤ {hands} (the hands this simulation was made for)"
-        )));
+/// Copies a (n, 3) array of finite values within `limit` into `dst`, or raises naming `what`;
+/// returns n. A C-contiguous float64 numpy array is read in place; anything else numpy can
+/// turn into one (lists, other dtypes) is converted first.
+fn read_rows(
+    obj: &Bound<'_, PyAny>,
+    what: &str,
+    limit: f64,
+    hands: usize,
+    dst: &mut [[f64; 3]; MAX_HANDS],
+) -> PyResult<usize> {
+    let copy = |a: numpy::ndarray::ArrayView2<'_, f64>, dst: &mut [[f64; 3]; MAX_HANDS]| -> PyResult<usize> {
+        let (n, c) = a.dim();
+        if c != 3 || n == 0 || n > hands {
+            return Err(PyValueError::new_err(format!(
+                "{what}: shape ({n}, {c}); give shape (n, 3) with 1 ≤ n ≤ {hands} (the hands this simulation was made for)"
+            )));
+        }
+        for (k, row) in a.outer_iter().enumerate() {
+            for (j, &x) in row.iter().enumerate() {
+                if !x.is_finite() || x.abs() > limit {
+                    return Err(PyValueError::new_err(format!(
+                        "{what}[{k}, {j}] = {x}: give finite values within {limit:e}"
+                    )));
+                }
+                dst[k][j] = x;
+            }
+        }
+        Ok(n)
+    };
+    if let Ok(a) = obj.cast::<PyArray2<f64>>() {
+        // SAFETY: the GIL is held and no Rust code holds a mutable view of this array (this
+        // crate makes none of caller-owned arrays); the values are copied before any Python
+        // code can run. (The checked borrow costs more than the haptic step itself.)
+        return copy(unsafe { a.as_array() }, dst);
     }
-    if let Some(((i, j), x)) = a.indexed_iter().find(|(_, x)| !x.is_finite() || x.abs() > limit) {
-        return Err(PyValueError::new_err(format!(
-            "{what}[{i}, {j}] = {x}: give finite values within {limit:e}"
-        )));
-    }
-    Ok(())
+    let a: PyArrayLike2<'_, f64, AllowTypeChange> = obj.extract().map_err(|_| {
+        PyValueError::new_err(format!(
+            "{what}: give an array of shape (n, 3) (numpy array or nested lists of numbers)"
+        ))
+    })?;
+    copy(a.as_array(), dst)
 }
 
 #[pymethods]
@@ -130,65 +157,77 @@ impl Haptics {
     /// One haptic step. `hand_positions` (n, 3), m, one row per hand (n ≤ hands);
     /// `velocities` (n, 3), m/s (default zero); `buttons`: one bool for every hand or one per
     /// hand (held: grab the vertex picked when pressed; released: press on the surface).
-    /// Returns the force on each device, N, shape (n, 3).
-    #[pyo3(signature = (hand_positions, velocities=None, buttons=None))]
+    /// Returns the force on each device, N, shape (n, 3): a new array, or `out` (a writable
+    /// float64 (n, 3) array) filled in place.
+    #[pyo3(signature = (hand_positions, velocities=None, buttons=None, out=None))]
     fn step<'py>(
         &mut self,
         py: Python<'py>,
-        hand_positions: PyArrayLike2<'py, f64, AllowTypeChange>,
-        velocities: Option<PyArrayLike2<'py, f64, AllowTypeChange>>,
+        hand_positions: &Bound<'py, PyAny>,
+        velocities: Option<&Bound<'py, PyAny>>,
         buttons: Option<&Bound<'py, PyAny>>,
+        out: Option<Bound<'py, PyArray2<f64>>>,
     ) -> PyResult<Bound<'py, PyArray2<f64>>> {
         let hands = self.inputs.len();
-        let x = hand_positions.as_array();
-        rows3(&x, "hand_positions", MAX_POSITION_M, hands)?;
-        let n = x.nrows();
-        let v = velocities.as_ref().map(|v| v.as_array());
-        if let Some(v) = &v {
-            rows3(v, "velocities", f64::MAX, hands)?;
-            if v.nrows() != n {
+        let mut x = [[0.0; 3]; MAX_HANDS];
+        let n = read_rows(hand_positions, "hand_positions", MAX_POSITION_M, hands, &mut x)?;
+        let mut v = [[0.0; 3]; MAX_HANDS];
+        if let Some(vel) = velocities {
+            let m = read_rows(vel, "velocities", f64::MAX, hands, &mut v)?;
+            if m != n {
                 return Err(PyValueError::new_err(format!(
-                    "velocities: {} rows for {n} hand positions",
-                    v.nrows()
+                    "velocities: {m} rows for {n} hand positions"
                 )));
             }
         }
-        let pressed: Vec<bool> = match buttons {
-            None => vec![false; n],
-            Some(b) => match b.extract::<bool>() {
-                Ok(all) => vec![all; n],
-                Err(_) => {
-                    let each: Vec<bool> = b.extract().map_err(|_| {
-                        PyValueError::new_err("buttons: give a bool, or a sequence of one bool per hand")
-                    })?;
-                    if each.len() != n {
-                        return Err(PyValueError::new_err(format!(
-                            "buttons: {} values for {n} hand positions",
-                            each.len()
-                        )));
-                    }
-                    each
+        let mut pressed = [false; MAX_HANDS];
+        if let Some(b) = buttons {
+            if let Ok(all) = b.extract::<bool>() {
+                pressed[..n].fill(all);
+            } else {
+                let each: Vec<bool> = b
+                    .extract()
+                    .map_err(|_| PyValueError::new_err("buttons: give a bool, or a sequence of one bool per hand"))?;
+                if each.len() != n {
+                    return Err(PyValueError::new_err(format!(
+                        "buttons: {} values for {n} hand positions",
+                        each.len()
+                    )));
                 }
-            },
+                pressed[..n].copy_from_slice(&each);
+            }
+        }
+        let forces = match out {
+            Some(o) => {
+                // SAFETY: a live array object (the GIL is held).
+                let writeable = unsafe { (*o.as_array_ptr()).fields.flags } & numpy::npyffi::NPY_ARRAY_WRITEABLE != 0;
+                if o.shape() != [n, 3] || !writeable {
+                    return Err(PyValueError::new_err(format!(
+                        "out: shape {:?}{}; give a writable float64 array of shape ({n}, 3)",
+                        o.shape(),
+                        if writeable { "" } else { ", read-only" }
+                    )));
+                }
+                o
+            }
+            None => PyArray2::<f64>::zeros(py, [n, 3], false),
         };
         for k in 0..n {
             self.inputs[k] = HandInput {
-                position: [x[[k, 0]], x[[k, 1]], x[[k, 2]]],
-                velocity: v.as_ref().map_or([0.0; 3], |v| [v[[k, 0]], v[[k, 1]], v[[k, 2]]]),
+                position: x[k],
+                velocity: v[k],
                 button: pressed[k],
             };
         }
         self.sim.step(&self.inputs[..n], &mut self.outputs[..n]);
         self.time += self.sim.state().dt();
         self.steps += 1;
-        let forces = PyArray2::<f64>::zeros(py, [n, 3], false);
-        {
-            let mut f = forces.readwrite();
-            let mut f = f.as_array_mut();
-            for (k, o) in self.outputs[..n].iter().enumerate() {
-                for c in 0..3 {
-                    f[[k, c]] = o.force[c];
-                }
+        // SAFETY: a writable (n, 3) float64 array (new, or checked above); the GIL is held and
+        // no other Rust view of it exists while these n × 3 values are written.
+        let mut f = unsafe { forces.as_array_mut() };
+        for (k, o) in self.outputs[..n].iter().enumerate() {
+            for c in 0..3 {
+                f[[k, c]] = o.force[c];
             }
         }
         Ok(forces)

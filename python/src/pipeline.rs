@@ -50,7 +50,7 @@ fn progress_bar<'py>(py: Python<'py>, wanted: bool, what: &str) -> Option<Bound<
     kwargs.set_item("desc", what).ok()?;
     kwargs.set_item("unit", "%").ok()?;
     kwargs
-        .set_item("bar_format", "{desc}: {percentage:3.0f}%|{bar}| [{elapsed}]")
+        .set_item("bar_format", "{desc}: {percentage:3.0f}%|{bar}| [{elapsed}] {postfix}")
         .ok()?;
     tqdm.getattr("tqdm").ok()?.call((), Some(&kwargs)).ok()
 }

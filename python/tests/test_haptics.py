@@ -131,6 +131,23 @@ def test_bad_settings_are_value_errors(cantilever, kwargs):
         ves.Haptics(cantilever, **kwargs)
 
 
+def test_out_is_filled_in_place(cantilever):
+    sim = ves.Haptics(cantilever, stiffness=2e4)
+    corner = sim.rest_positions[np.argmax(sim.rest_positions[:, 0] + sim.rest_positions[:, 2])]
+    sim.step(corner[None, :], buttons=True)
+    out = np.full((1, 3), np.nan)
+    got = sim.step((corner + [0, 0, 1e-3])[None, :], buttons=True, out=out)
+    assert got is out and np.all(np.isfinite(out)) and out[0, 2] < 0
+    with pytest.raises(ValueError):
+        sim.step(corner[None, :], out=np.zeros((2, 3)))
+    frozen = np.zeros((1, 3))
+    frozen.flags.writeable = False
+    with pytest.raises(ValueError, match="read-only"):
+        sim.step(corner[None, :], out=frozen)
+    with pytest.raises(TypeError):
+        sim.step(corner[None, :], out=np.zeros((1, 3), dtype=np.float32))
+
+
 def test_step_rejects_wrong_types(cantilever):
     sim = ves.Haptics(cantilever)
     with pytest.raises((TypeError, ValueError)):
