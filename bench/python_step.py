@@ -55,7 +55,7 @@ def main() -> None:
 
     def out_step(k: int) -> None:
         hip[0, 2] = p[2] + 1e-3 * ((k % 1000) / 1000.0 - 0.5)
-        sim.step(hip, buttons=True, out=forces)
+        sim.step(hip, None, True, forces)  # positional: no keyword dict to build
 
     def call_only(k: int) -> None:
         sim.time  # one attribute read: the floor of any call into the extension
@@ -69,8 +69,8 @@ def main() -> None:
     print("| step | median ns | over Rust |")
     print("|---|---:|---:|")
     print(f"| Rust (`Haptics::step`, as `ves bench`) | {rust:.0f} | — |")
-    print(f"| Python, numpy (1, 3) array in, forces out | {py_numpy:.0f} | +{py_numpy - rust:.0f} |")
-    print(f"| Python, numpy array in, `out=` forces array reused | {py_out:.0f} | +{py_out - rust:.0f} |")
+    print(f"| Python, numpy (1, 3) array in, new forces array out (`buttons=True`) | {py_numpy:.0f} | +{py_numpy - rust:.0f} |")
+    print(f"| Python, numpy array in, forces into one reused array (`out`), positional arguments | {py_out:.0f} | +{py_out - rust:.0f} |")
     print(f"| Python, nested list in | {py_list:.0f} | +{py_list - rust:.0f} |")
     print(f"| Python, read `sim.time` only (no step) | {floor:.0f} | — |")
 
