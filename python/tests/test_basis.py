@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import json
 import subprocess
+import sys
 
 import numpy as np
 import pytest
@@ -83,3 +84,36 @@ def test_missing_foreign_and_truncated_files_are_basis_errors(tmp_path, cantilev
     with pytest.raises(KeyError, match="no space"):
         cantilever.space("rib1")
     assert isinstance(ves.BasisError("x"), ves.Error)
+
+
+def test_damaged_copies_are_errors_not_crashes(cantilever, tmp_path):
+    """Bytes flipped at random in copies of a basis: each open raises BasisError or reads a
+    basis whose checks passed. Run in a child interpreter, so that a crash fails the test
+    instead of ending the run."""
+    script = (
+        "import random, sys\n"
+        "import ves\n"
+        "data = open(sys.argv[1], 'rb').read()\n"
+        "rng = random.Random(32)\n"
+        "refused = opened = 0\n"
+        "for k in range(100):\n"
+        "    b = bytearray(data)\n"
+        "    for _ in range(rng.randint(1, 8)):\n"
+        "        i = rng.randrange(len(b))\n"
+        "        b[i] ^= 1 << rng.randrange(8)\n"
+        "    path = f'{sys.argv[2]}/flip{k}.h5'\n"
+        "    open(path, 'wb').write(b)\n"
+        "    try:\n"
+        "        basis = ves.Basis.open(path)\n"
+        "        assert basis.modes.shape[1] == len(basis.frequencies_hz)\n"
+        "        opened += 1\n"
+        "    except ves.BasisError:\n"
+        "        refused += 1\n"
+        "print(refused, opened)\n"
+    )
+    run = subprocess.run(
+        [sys.executable, "-c", script, str(cantilever.path), str(tmp_path)], capture_output=True, text=True
+    )
+    assert run.returncode == 0, run.stderr[-2000:]
+    refused, opened = map(int, run.stdout.split())
+    assert refused + opened == 100 and refused > 0
