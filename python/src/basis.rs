@@ -337,6 +337,14 @@ impl Space {
         self.runtime.mode_count()
     }
 
+    /// The space as a `meshio.Mesh` (needs meshio): tets in VTK node order, each mode shape as
+    /// point data `mode_1`, `mode_2`, … (the first `modes`, default all).
+    #[pyo3(signature = (modes=None))]
+    fn to_meshio<'py>(slf: &Bound<'py, Self>, modes: Option<usize>) -> PyResult<Bound<'py, PyAny>> {
+        let py = slf.py();
+        py.import("ves._meshio")?.call_method1("to_meshio", (slf, modes))
+    }
+
     fn __repr__(&self, py: Python<'_>) -> String {
         format!(
             "<ves.Space {:?}: {} nodes, {} vertices, {} modes>",
@@ -547,6 +555,18 @@ impl Basis {
     #[getter]
     fn rigid<'py>(&self, py: Python<'py>) -> PyResult<Option<Bound<'py, PyDict>>> {
         self.default(py)?.rigid(py)
+    }
+
+    /// The default space (or `space`) as a `meshio.Mesh`: see `Space.to_meshio`.
+    #[pyo3(signature = (modes=None, space=None))]
+    fn to_meshio<'py>(
+        &self,
+        py: Python<'py>,
+        modes: Option<usize>,
+        space: Option<&str>,
+    ) -> PyResult<Bound<'py, PyAny>> {
+        let s = self.space_ref(py, space)?.bind(py);
+        py.import("ves._meshio")?.call_method1("to_meshio", (s, modes))
     }
 
     fn __repr__(&self) -> String {

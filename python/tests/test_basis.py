@@ -117,3 +117,19 @@ def test_damaged_copies_are_errors_not_crashes(cantilever, tmp_path):
     assert run.returncode == 0, run.stderr[-2000:]
     refused, opened = map(int, run.stdout.split())
     assert refused + opened == 100 and refused > 0
+
+
+def test_to_meshio_round_trips_through_a_vtu_file(cantilever, tmp_path):
+    meshio = pytest.importorskip("meshio")
+    mesh = cantilever.to_meshio(modes=3)
+    path = tmp_path / "cantilever.vtu"
+    mesh.write(path)
+    back = meshio.read(path)
+    np.testing.assert_array_equal(back.points, cantilever.nodes)
+    tets = back.cells_dict["tetra10"]
+    assert tets.shape == cantilever.tets.shape
+    # VTK's node order differs from gmsh's in the last two mid-edge nodes only.
+    np.testing.assert_array_equal(tets[:, :8], cantilever.tets[:, :8])
+    np.testing.assert_array_equal(tets[:, 8], cantilever.tets[:, 9])
+    np.testing.assert_array_equal(back.point_data["mode_1"], cantilever.modes[:, 0].reshape(-1, 3))
+    assert sorted(back.point_data) == ["mode_1", "mode_2", "mode_3"]

@@ -82,6 +82,8 @@ class Space:
     @property
     def rigid(self) -> Optional[dict]:
         """A free body's mass, center_of_mass and inertia; None for a supported part."""
+    def to_meshio(self, modes: Optional[int] = None) -> Any:
+        """The space as a meshio.Mesh: tets in VTK order, mode shapes as point data mode_1, …"""
 
 class Basis:
     """A modal-basis file (HDF5, format v1), read whole and checked when opened."""
@@ -132,6 +134,8 @@ class Basis:
     def compliance(self) -> Optional[Tuple[npt.NDArray[np.uint32], npt.NDArray[np.float64]]]: ...
     @property
     def rigid(self) -> Optional[dict]: ...
+    def to_meshio(self, modes: Optional[int] = None, space: Optional[str] = None) -> Any:
+        """The default space (or ``space``) as a meshio.Mesh."""
 
 class Haptics:
     """A haptic simulation of one space: hands pull or press the part through a virtual spring-damper."""
