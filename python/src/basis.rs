@@ -432,6 +432,11 @@ impl Basis {
         })
     }
 
+    /// The file it was read from.
+    pub(crate) fn path(&self) -> &Path {
+        &self.path
+    }
+
     fn default(&self, py: Python<'_>) -> PyResult<&Space> {
         Ok(self.space_ref(py, None)?.get())
     }

@@ -303,6 +303,75 @@ pub fn _matrices<'py>(
     Ok(out)
 }
 
+/// Cross-checks a scene (meshed and solved here) or a basis file (or an open `Basis`) against
+/// independent solvers on the same mesh, as `ves verify --json`; returns its report as a dict
+/// (`report["pass"]` says whether every tolerance held). `against`: "scikit-fem", "calculix",
+/// "fenicsx" or "all" (those installed).
+#[pyfunction]
+#[pyo3(signature = (input, against="all", *, modes=None, tol_freq=None, min_mac=None, max_angle=None, tol_static=None, stress=false, tol_stress=None, progress=true))]
+#[allow(clippy::too_many_arguments)]
+pub fn verify<'py>(
+    py: Python<'py>,
+    input: &Bound<'py, PyAny>,
+    against: &str,
+    modes: Option<usize>,
+    tol_freq: Option<f64>,
+    min_mac: Option<f64>,
+    max_angle: Option<f64>,
+    tol_static: Option<f64>,
+    stress: bool,
+    tol_stress: Option<f64>,
+    progress: bool,
+) -> PyResult<Bound<'py, PyAny>> {
+    use ves_pipeline::verify::{Reference, ToleranceOverrides};
+    let refs = match against.to_ascii_lowercase().as_str() {
+        "scikit-fem" | "skfem" => Reference::ScikitFem,
+        "calculix" => Reference::Calculix,
+        "fenicsx" => Reference::Fenicsx,
+        "all" => Reference::All,
+        _ => {
+            return Err(PyValueError::new_err(format!(
+                "against={against:?}: give \"scikit-fem\", \"calculix\", \"fenicsx\" or \"all\""
+            )));
+        }
+    };
+    if modes == Some(0) {
+        return Err(PyValueError::new_err("modes=0: compare at least one mode"));
+    }
+    for (name, value) in [
+        ("tol_freq", tol_freq),
+        ("min_mac", min_mac),
+        ("max_angle", max_angle),
+        ("tol_static", tol_static),
+        ("tol_stress", tol_stress),
+    ] {
+        if let Some(v) = value
+            && !(v.is_finite() && v > 0.0)
+        {
+            return Err(PyValueError::new_err(format!("{name}={v}: must be finite and > 0")));
+        }
+    }
+    let path: PathBuf = match input.cast::<Basis>() {
+        Ok(b) => b.get().path().to_path_buf(),
+        Err(_) => input.extract().map_err(|_| {
+            PyTypeError::new_err("input: give the path of a scene (.toml) or basis (.h5) file, or a ves.Basis")
+        })?,
+    };
+    let tol = ToleranceOverrides {
+        freq: tol_freq,
+        mac: min_mac,
+        angle: max_angle,
+        static_rel: tol_static,
+        stress: tol_stress,
+    };
+    let what = format!("verify {}", path.display());
+    let report = run_long(py, progress, &what, move || {
+        let report = ves_pipeline::verify::verify_input(&path, refs, modes, &tol, stress)?;
+        Ok(serde_json::to_string(&report)?)
+    })?;
+    py.import("json")?.call_method1("loads", (report,))
+}
+
 /// Makes meshing run in child processes started from `worker` (`worker mesh-worker DIR`), so
 /// that nothing gmsh does can end the interpreter.
 #[pyfunction]

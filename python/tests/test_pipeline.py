@@ -154,3 +154,17 @@ def test_a_file_rewritten_in_place_is_read_whole_or_refused(cantilever, tmp_path
     assert writer.returncode == 0
     print(f"opened whole {whole}, refused {refused}")
     assert whole + refused > 10, (whole, refused)
+
+
+def test_verify_against_scikit_fem_passes_on_the_package_basis(cantilever):
+    report = ves.verify(cantilever, "scikit-fem", modes=6, progress=False)
+    assert report["pass"] is True
+    (ref,) = report["references"]
+    assert ref["solver"].startswith("scikit-fem")
+    ours = [m["ours_hz"] for m in ref["modes"]]
+    np.testing.assert_allclose(ours, cantilever.frequencies_hz[:6], rtol=1e-15)
+    assert max(m["rel_diff"] for m in ref["modes"]) < 1e-6
+    with pytest.raises(ValueError):
+        ves.verify(cantilever, "abaqus")
+    with pytest.raises(ves.BasisError):
+        ves.verify("/nonexistent/basis.h5", "scikit-fem", progress=False)

@@ -31,6 +31,7 @@ from ._native import (
     Space,
     SupportError,
     precompute,
+    verify,
 )
 
 __version__ = _native.__version__
@@ -48,6 +49,7 @@ __all__ = [
     "SupportError",
     "matrices",
     "precompute",
+    "verify",
 ]
 
 

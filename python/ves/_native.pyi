@@ -206,6 +206,21 @@ def precompute(
 ) -> Basis:
     """Meshes the scene, computes its lowest modes, writes the basis (default beside the scene, <name>.h5) and opens it."""
 
+def verify(
+    input: Union[str, os.PathLike, Basis],
+    against: str = "all",
+    *,
+    modes: Optional[int] = None,
+    tol_freq: Optional[float] = None,
+    min_mac: Optional[float] = None,
+    max_angle: Optional[float] = None,
+    tol_static: Optional[float] = None,
+    stress: bool = False,
+    tol_stress: Optional[float] = None,
+    progress: bool = True,
+) -> dict:
+    """``ves verify --json`` as a call: the report as a dict; ``report["pass"]`` says whether every tolerance held."""
+
 def _matrices(scene: SceneLike, *, progress: bool = True, allow_geo_scripts: bool = False) -> dict: ...
 def _isolate_meshing(worker: Union[str, os.PathLike]) -> None: ...
 def _serve_mesh_rung(dir: Union[str, os.PathLike]) -> None: ...
