@@ -9,6 +9,7 @@ mod basis;
 mod errors;
 mod haptics;
 mod pipeline;
+mod session;
 
 use pyo3::prelude::*;
 
@@ -29,6 +30,7 @@ fn _native(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(pipeline::precompute, m)?)?;
     m.add_function(wrap_pyfunction!(pipeline::_matrices, m)?)?;
     m.add_function(wrap_pyfunction!(pipeline::verify, m)?)?;
+    m.add_function(wrap_pyfunction!(session::session, m)?)?;
     m.add_function(wrap_pyfunction!(pipeline::_isolate_meshing, m)?)?;
     m.add_function(wrap_pyfunction!(pipeline::_serve_mesh_rung, m)?)?;
     m.add_function(wrap_pyfunction!(haptics::_rust_step_ns, m)?)?;

@@ -63,11 +63,13 @@ fn show(bar: &Bound<'_, PyAny>, stage: &str, fraction: f64) -> PyResult<()> {
 }
 
 /// Runs `work` on a thread of its own, the GIL released; Ctrl-C (a pending KeyboardInterrupt)
-/// asks the pipeline to stop at its next stage and is raised once it has stopped.
-fn run_long<T: Send + 'static>(
+/// asks the pipeline to stop at its next stage (and sets `stop`, for work that watches a flag
+/// of its own) and is raised once it has stopped.
+pub(crate) fn run_long<T: Send + 'static>(
     py: Python<'_>,
     progress: bool,
     what: &str,
+    stop: Option<Arc<AtomicBool>>,
     work: impl FnOnce() -> anyhow::Result<T> + Send + 'static,
 ) -> PyResult<T> {
     let watch = Arc::new(Watch::default());
@@ -90,6 +92,9 @@ fn run_long<T: Send + 'static>(
             && let Err(e) = py.check_signals()
         {
             watch.cancel.store(true, Ordering::Relaxed);
+            if let Some(stop) = &stop {
+                stop.store(true, Ordering::Relaxed);
+            }
             interrupt = Some(e);
         }
         if let Some(bar) = &bar {
@@ -253,7 +258,7 @@ pub fn precompute(
     let out = out.unwrap_or_else(|| scene.path.with_file_name(format!("{}.h5", scene.name)));
     let target = out.clone();
     let what = format!("precompute {}", scene.name);
-    let summary = run_long(py, progress, &what, move || {
+    let summary = run_long(py, progress, &what, None, move || {
         let overwrite = ves_pipeline::output::Overwrite { force };
         let summary = ves_pipeline::precompute::run_with(&scene, &target, choice, overwrite)?;
         Ok(serde_json::to_string(&summary)?)
@@ -274,7 +279,7 @@ pub fn _matrices<'py>(
 ) -> PyResult<Bound<'py, PyDict>> {
     let scene = scene_from(scene, allow_geo_scripts)?;
     let what = format!("matrices {}", scene.name);
-    let (col_ptr, row_idx, k, m, free, nodes, rigid) = run_long(py, progress, &what, move || {
+    let (col_ptr, row_idx, k, m, free, nodes, rigid) = run_long(py, progress, &what, None, move || {
         let d = ves_pipeline::problem::discretize(&scene, None)?;
         let p = &d.system.pattern;
         let as_i64 = |v: &[usize]| v.iter().map(|&x| x as i64).collect::<Vec<i64>>();
@@ -365,7 +370,7 @@ pub fn verify<'py>(
         stress: tol_stress,
     };
     let what = format!("verify {}", path.display());
-    let report = run_long(py, progress, &what, move || {
+    let report = run_long(py, progress, &what, None, move || {
         let report = ves_pipeline::verify::verify_input(&path, refs, modes, &tol, stress)?;
         Ok(serde_json::to_string(&report)?)
     })?;

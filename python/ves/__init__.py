@@ -31,6 +31,7 @@ from ._native import (
     Space,
     SupportError,
     precompute,
+    session,
     verify,
 )
 
@@ -49,6 +50,7 @@ __all__ = [
     "SupportError",
     "matrices",
     "precompute",
+    "session",
     "verify",
 ]
 

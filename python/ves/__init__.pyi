@@ -19,6 +19,7 @@ from ._native import (
     Space as Space,
     SupportError as SupportError,
     precompute as precompute,
+    session as session,
     verify as verify,
 )
 

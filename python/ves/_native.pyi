@@ -221,6 +221,25 @@ def verify(
 ) -> dict:
     """``ves verify --json`` as a call: the report as a dict; ``report["pass"]`` says whether every tolerance held."""
 
+def session(
+    basis: Union[str, os.PathLike, Basis],
+    devices: Sequence[Union[str, os.PathLike]],
+    *,
+    rate: float = 1000.0,
+    duration: Optional[float] = None,
+    stiffness: float = 500.0,
+    damping: Optional[float] = None,
+    max_force: float = 10.0,
+    strain_limit: float = 0.02,
+    strain_policy: str = "flag",
+    min_safety_factor: float = 1.0,
+    spin: bool = False,
+    realtime: bool = False,
+    modes: Optional[int] = None,
+    space: Optional[str] = None,
+) -> dict:
+    """``ves session --json`` as a call: replays device scripts (CSV t, x, y, z[, button]) in real time; the stats as a dict."""
+
 def _matrices(scene: SceneLike, *, progress: bool = True, allow_geo_scripts: bool = False) -> dict: ...
 def _isolate_meshing(worker: Union[str, os.PathLike]) -> None: ...
 def _serve_mesh_rung(dir: Union[str, os.PathLike]) -> None: ...
