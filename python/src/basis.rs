@@ -143,6 +143,17 @@ fn identity(path: &Path) -> Option<(u64, u64, u64, i64, i64, i64, i64)> {
     ))
 }
 
+/// The path of a file named by a str or os.PathLike, or of an open `Basis`; TypeError `what`
+/// otherwise.
+pub(crate) fn path_of(obj: &Bound<'_, PyAny>, what: &str) -> PyResult<PathBuf> {
+    match obj.cast::<Basis>() {
+        Ok(b) => Ok(b.get().path.clone()),
+        Err(_) => obj
+            .extract()
+            .map_err(|_| pyo3::exceptions::PyTypeError::new_err(what.to_string())),
+    }
+}
+
 /// Marks an array read-only: the arrays are shared by every access to the property.
 fn frozen<T>(a: Bound<'_, T>) -> PyResult<Py<T>> {
     a.as_any().getattr("flags")?.setattr("writeable", false)?;
@@ -430,11 +441,6 @@ impl Basis {
                 self.path.display()
             ))
         })
-    }
-
-    /// The file it was read from.
-    pub(crate) fn path(&self) -> &Path {
-        &self.path
     }
 
     fn default(&self, py: Python<'_>) -> PyResult<&Space> {

@@ -86,6 +86,18 @@ fn read_rows(
     copy(a.as_array(), dst)
 }
 
+/// The strain watch's reaction named `name` (argument `arg`).
+pub(crate) fn strain_policy(arg: &str, name: &str) -> PyResult<StrainPolicy> {
+    match name {
+        "flag" => Ok(StrainPolicy::Flag),
+        "stiffen" => Ok(StrainPolicy::Stiffen),
+        "release" => Ok(StrainPolicy::Release),
+        _ => Err(PyValueError::new_err(format!(
+            "{arg}={name:?}: give \"flag\", \"stiffen\" or \"release\""
+        ))),
+    }
+}
+
 #[pymethods]
 impl Haptics {
     /// A simulation at rest on `basis` (its default space, or `space`), keeping its first
@@ -337,16 +349,7 @@ impl Haptics {
     #[pyo3(signature = (limit, policy="flag"))]
     fn set_strain_watch(&mut self, limit: f64, policy: &str) -> PyResult<()> {
         finite("limit", limit, limit > 0.0, "> 0")?;
-        let policy = match policy {
-            "flag" => StrainPolicy::Flag,
-            "stiffen" => StrainPolicy::Stiffen,
-            "release" => StrainPolicy::Release,
-            _ => {
-                return Err(PyValueError::new_err(format!(
-                    "policy = {policy:?}: give \"flag\", \"stiffen\" or \"release\""
-                )));
-            }
-        };
+        let policy = strain_policy("policy", policy)?;
         let watch = self.sim.strain_watch();
         self.sim.set_strain_watch(StrainWatch { limit, policy, ..watch });
         Ok(())

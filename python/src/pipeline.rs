@@ -356,12 +356,10 @@ pub fn verify<'py>(
             return Err(PyValueError::new_err(format!("{name}={v}: must be finite and > 0")));
         }
     }
-    let path: PathBuf = match input.cast::<Basis>() {
-        Ok(b) => b.get().path().to_path_buf(),
-        Err(_) => input.extract().map_err(|_| {
-            PyTypeError::new_err("input: give the path of a scene (.toml) or basis (.h5) file, or a ves.Basis")
-        })?,
-    };
+    let path = crate::basis::path_of(
+        input,
+        "input: give the path of a scene (.toml) or basis (.h5) file, or a ves.Basis",
+    )?;
     let tol = ToleranceOverrides {
         freq: tol_freq,
         mac: min_mac,

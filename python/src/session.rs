@@ -1,15 +1,14 @@
 //! `ves.session`: a real-time haptic session replaying device scripts, as `ves session` does.
 
-use crate::basis::Basis;
 use crate::pipeline::run_long;
-use pyo3::exceptions::{PyTypeError, PyValueError};
+use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 use std::sync::atomic::AtomicBool;
 use ves_runtime::basis::LoadOptions;
 use ves_runtime::device::{Device, ScriptedDevice};
-use ves_runtime::haptic::{Coupling, StrainPolicy, StrainWatch};
+use ves_runtime::haptic::{Coupling, StrainWatch};
 use ves_runtime::session::{Hooks, SessionConfig};
 use ves_runtime::switching::SpaceInput;
 
@@ -39,49 +38,12 @@ pub fn session<'py>(
     modes: Option<usize>,
     space: Option<String>,
 ) -> PyResult<Bound<'py, PyAny>> {
-    let path: PathBuf = match basis.cast::<Basis>() {
-        Ok(b) => b.get().path().to_path_buf(),
-        Err(_) => basis
-            .extract()
-            .map_err(|_| PyTypeError::new_err("basis: give the path of a basis file or a ves.Basis"))?,
-    };
-    if devices.is_empty() || devices.len() > 16 {
-        return Err(PyValueError::new_err(format!(
-            "devices: give 1 to 16 device scripts (got {})",
-            devices.len()
-        )));
-    }
-    let policy = match strain_policy {
-        "flag" => StrainPolicy::Flag,
-        "stiffen" => StrainPolicy::Stiffen,
-        "release" => StrainPolicy::Release,
-        _ => {
-            return Err(PyValueError::new_err(format!(
-                "strain_policy={strain_policy:?}: give \"flag\", \"stiffen\" or \"release\""
-            )));
-        }
-    };
+    let path = crate::basis::path_of(basis, "basis: give the path of a basis file or a ves.Basis")?;
+    let policy = crate::haptics::strain_policy("strain_policy", strain_policy)?;
     if modes == Some(0) {
         return Err(PyValueError::new_err("modes=0: simulate at least one mode"));
     }
-    let scripts = py
-        .detach(|| {
-            devices
-                .iter()
-                .map(|d| ScriptedDevice::load(d).map_err(|e| e.to_string()))
-                .collect::<Result<Vec<_>, String>>()
-        })
-        .map_err(PyValueError::new_err)?;
-    if !(rate.is_finite() && rate > 0.0) {
-        return Err(PyValueError::new_err(format!("rate={rate}: must be finite and > 0 (Hz)")));
-    }
-    let longest = scripts.iter().map(|s| s.duration()).fold(0.0f64, f64::max);
-    let duration = duration.unwrap_or(longest.max(1.0 / rate));
-    if !duration.is_finite() {
-        return Err(PyValueError::new_err(format!(
-            "duration={duration}: must be finite and > 0 (s)"
-        )));
-    }
+    let (scripts, duration) = load_scripts(py, &devices, rate, duration)?;
     let mut coupling = Coupling::critically_damped(stiffness, max_force);
     if let Some(c) = damping {
         coupling.damping = c;
@@ -117,6 +79,43 @@ pub fn session<'py>(
         Ok(v.to_string())
     })?;
     py.import("json")?.call_method1("loads", (stats,))
+}
+
+/// The device scripts, and the session's length: `duration`, or the longest script's (at
+/// least one step at `rate`).
+fn load_scripts(
+    py: Python<'_>,
+    devices: &[PathBuf],
+    rate: f64,
+    duration: Option<f64>,
+) -> PyResult<(Vec<ScriptedDevice>, f64)> {
+    if devices.is_empty() || devices.len() > 16 {
+        return Err(PyValueError::new_err(format!(
+            "devices: give 1 to 16 device scripts (got {})",
+            devices.len()
+        )));
+    }
+    if !(rate.is_finite() && rate > 0.0) {
+        return Err(PyValueError::new_err(format!(
+            "rate={rate}: must be finite and > 0 (Hz)"
+        )));
+    }
+    let scripts = py
+        .detach(|| {
+            devices
+                .iter()
+                .map(|d| ScriptedDevice::load(d).map_err(|e| e.to_string()))
+                .collect::<Result<Vec<_>, String>>()
+        })
+        .map_err(PyValueError::new_err)?;
+    let longest = scripts.iter().map(|s| s.duration()).fold(0.0f64, f64::max);
+    let duration = duration.unwrap_or(longest.max(1.0 / rate));
+    if !duration.is_finite() {
+        return Err(PyValueError::new_err(format!(
+            "duration={duration}: must be finite and > 0 (s)"
+        )));
+    }
+    Ok((scripts, duration))
 }
 
 /// The spaces a session simulates (surface vertices only): one when named, else all.
