@@ -66,7 +66,7 @@ def test_malformed_step_is_a_mesh_error(cli, tmp_path):
 
 
 def test_a_scene_dict_is_the_scene_file(tmp_path, monkeypatch):
-    import tomllib
+    tomllib = pytest.importorskip("tomllib")
 
     scene = tomllib.loads(GOOD)
     scene["geometry"]["step"] = str(CANTILEVER.parent / "cantilever.step")
