@@ -49,7 +49,13 @@ struct FileData {
     material: ves_format::Material,
     bytes: u64,
     spaces: Vec<SpaceData>,
+    /// `transfers[to][from]`: the VOI state transfer, row-major r_to × r_from (None on the
+    /// diagonal, or where the file has none).
+    transfers: Transfers,
 }
+
+/// `transfers[to][from]`, as the runtime's `SpaceInput` holds them.
+pub(crate) type Transfers = Vec<Vec<Option<Vec<f64>>>>;
 
 fn load_error(e: LoadError) -> ReadError {
     ReadError {
@@ -116,6 +122,19 @@ fn read_file(path: &Path) -> Result<FileData, ReadError> {
             runtime: Arc::new(runtime),
         });
     }
+    let mut transfers = Vec::with_capacity(spaces.len());
+    for to in &spaces {
+        let reader = file.space(&to.name)?;
+        let mut row = Vec::with_capacity(spaces.len());
+        for from in &spaces {
+            row.push(if from.name == to.name {
+                None
+            } else {
+                reader.transfer(&from.name, to.mode_count, from.mode_count)?
+            });
+        }
+        transfers.push(row);
+    }
     Ok(FileData {
         generator: file.string(ves_format::names::root::GENERATOR).unwrap_or_default(),
         scene_toml: file.string(ves_format::names::root::SCENE_TOML).unwrap_or_default(),
@@ -123,6 +142,7 @@ fn read_file(path: &Path) -> Result<FileData, ReadError> {
         material,
         bytes: file.file_bytes(),
         spaces,
+        transfers,
     })
 }
 
@@ -388,6 +408,7 @@ pub struct Basis {
     file_bytes: u64,
     material: ves_format::Material,
     spaces: Vec<Py<Space>>,
+    transfers: Transfers,
     /// What `ves.precompute` reported (its `--json` summary), None for an opened file.
     #[pyo3(get)]
     summary: Option<Py<PyAny>>,
@@ -426,8 +447,26 @@ impl Basis {
             file_bytes: data.bytes,
             material: data.material,
             spaces,
+            transfers: data.transfers,
             summary,
         })
+    }
+
+    /// The file it was read from.
+    pub(crate) fn path_ref(&self) -> &Path {
+        &self.path
+    }
+
+    /// Every space's runtime basis with its transfers from the others, global first.
+    pub(crate) fn all_spaces(&self) -> Vec<ves_runtime::switching::SpaceInput> {
+        self.spaces
+            .iter()
+            .zip(&self.transfers)
+            .map(|(s, t)| ves_runtime::switching::SpaceInput {
+                basis: s.get().runtime.clone(),
+                transfers: t.clone(),
+            })
+            .collect()
     }
 
     /// The space named `name`, or the default one.

@@ -10,19 +10,23 @@ use pyo3::types::PyDict;
 use std::sync::Arc;
 use ves_runtime::haptic::{Coupling, HandInput, HandOutput, StrainPolicy, StrainWatch};
 use ves_runtime::integrator::Scheme;
+use ves_runtime::switching::{SpaceInput, SwitchConfig, Switcher};
 
 /// Largest |coordinate| of a device position accepted, m (as the C ABI).
 const MAX_POSITION_M: f64 = 1e6;
 /// Most hands one simulation serves (as the C ABI).
 const MAX_HANDS: usize = 16;
 
-/// A haptic simulation of one space of a basis: hands (haptic interaction points) pull or press
-/// the part through a virtual spring-damper; each `step` advances the modes by `dt` exactly and
-/// returns the force on each device.
+/// A haptic simulation of a basis: hands (haptic interaction points) pull or press the part
+/// through a virtual spring-damper; each `step` advances the modes by `dt` exactly and returns
+/// the force on each device. A basis with volumes of interest is simulated in every space, the
+/// active one the VOI that holds the hands (as `ves session` does).
 #[pyclass(module = "ves")]
 pub struct Haptics {
-    sim: ves_runtime::haptic::Haptics,
-    basis: Arc<ves_runtime::Basis>,
+    sw: Switcher,
+    /// The spaces simulated, global first.
+    #[pyo3(get)]
+    spaces: Vec<String>,
     inputs: Vec<HandInput>,
     outputs: Vec<HandOutput>,
     /// Simulated time, s.
@@ -136,29 +140,20 @@ impl Haptics {
                 "hands = {hands}: must be 1 to {MAX_HANDS}"
             )));
         }
-        let space = basis.space_ref(py, space)?.get();
-        let mut rt = space.runtime.clone();
-        if let Some(r) = modes {
-            if r == 0 || r > rt.mode_count() {
-                return Err(PyValueError::new_err(format!(
-                    "modes = {r}: the space has {} modes; give 1 to {}",
-                    rt.mode_count(),
-                    rt.mode_count()
-                )));
+        let spaces = spaces_for(py, basis, space, modes)?;
+        let names = spaces.iter().map(|s| s.basis.space.clone()).collect();
+        let mut sw = Switcher::new(spaces, coupling, dt, Scheme::Exact, hands, SwitchConfig::default())
+            .map_err(|e| crate::errors::BasisError::new_err(format!("{}: {e}", basis.path_ref().display())))?;
+        for sim in sw.sims_mut() {
+            sim.set_static_correction(static_correction);
+            if free_body {
+                sim.set_free_body([0.0, 0.0, -9.81], 1.0)
+                    .map_err(|e| PyValueError::new_err(format!("free_body: {e}")))?;
             }
-            if r < rt.mode_count() {
-                rt = Arc::new(truncated(&rt, r));
-            }
-        }
-        let mut sim = ves_runtime::haptic::Haptics::new(rt.clone(), coupling, dt, Scheme::Exact, hands);
-        sim.set_static_correction(static_correction);
-        if free_body {
-            sim.set_free_body([0.0, 0.0, -9.81], 1.0)
-                .map_err(|e| PyValueError::new_err(format!("free_body: {e}")))?;
         }
         Ok(Haptics {
-            sim,
-            basis: rt,
+            sw,
+            spaces: names,
             inputs: vec![HandInput::default(); hands],
             outputs: vec![HandOutput::default(); hands],
             time: 0.0,
@@ -231,8 +226,8 @@ impl Haptics {
                 button: pressed[k],
             };
         }
-        self.sim.step(&self.inputs[..n], &mut self.outputs[..n]);
-        self.time += self.sim.state().dt();
+        self.sw.step(&self.inputs[..n], &mut self.outputs[..n]);
+        self.time += self.sim().state().dt();
         self.steps += 1;
         // SAFETY: a writable (n, 3) float64 array (new, or checked above); the GIL is held and
         // no other Rust view of it exists while these n × 3 values are written.
@@ -273,37 +268,37 @@ impl Haptics {
     /// Modal coordinates q, shape (r,) (a copy).
     #[getter]
     fn q<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray1<f64>> {
-        PyArray1::from_slice(py, &self.sim.state().q)
+        PyArray1::from_slice(py, &self.sim().state().q)
     }
 
     /// Modal velocities, shape (r,) (a copy).
     #[getter]
     fn qdot<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray1<f64>> {
-        PyArray1::from_slice(py, &self.sim.state().v)
+        PyArray1::from_slice(py, &self.sim().state().v)
     }
 
     /// Index in the file's nodes of each vertex the simulation keeps (the surface vertices),
     /// shape (nv,): row i of `displacements()` is node `vertex_nodes[i]`.
     #[getter]
     fn vertex_nodes<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray1<u32>> {
-        PyArray1::from_slice(py, &self.basis.node_index)
+        PyArray1::from_slice(py, &self.basis().node_index)
     }
 
     /// Rest positions of the kept vertices, m, shape (nv, 3).
     #[getter]
     fn rest_positions<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyArray2<f64>>> {
-        let flat: Vec<f64> = self.basis.rest.iter().flatten().copied().collect();
-        let a = Array2::from_shape_vec((self.basis.rest.len(), 3), flat)
-            .map_err(|e| PyValueError::new_err(e.to_string()))?;
+        let rest = &self.basis().rest;
+        let flat: Vec<f64> = rest.iter().flatten().copied().collect();
+        let a = Array2::from_shape_vec((rest.len(), 3), flat).map_err(|e| PyValueError::new_err(e.to_string()))?;
         Ok(a.into_pyarray(py))
     }
 
     /// Displacement u = Φ q of every kept vertex now, m, shape (nv, 3), float32 (the drawing
     /// thread's full-field update).
     fn displacements<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyArray2<f32>>> {
-        let nv = self.basis.vertex_count();
+        let nv = self.basis().vertex_count();
         let mut u = vec![0.0f32; 3 * nv];
-        ves_runtime::visual::displacements(&self.basis, &self.sim.state().q, &mut u);
+        ves_runtime::visual::displacements(self.basis(), &self.sim().state().q, &mut u);
         let a = Array2::from_shape_vec((nv, 3), u).map_err(|e| PyValueError::new_err(e.to_string()))?;
         Ok(a.into_pyarray(py))
     }
@@ -311,9 +306,9 @@ impl Haptics {
     /// Von Mises stress of every kept vertex now, Pa, shape (nv,), float32; None when the basis
     /// holds no modal stress.
     fn von_mises<'py>(&self, py: Python<'py>) -> Option<Bound<'py, PyArray1<f32>>> {
-        let nv = self.basis.vertex_count();
+        let nv = self.basis().vertex_count();
         let mut sigma = vec![0.0f32; 6 * nv];
-        if !ves_runtime::visual::stresses(&self.basis, &self.sim.state().q, &mut sigma) {
+        if !ves_runtime::visual::stresses(self.basis(), &self.sim().state().q, &mut sigma) {
             return None;
         }
         let vm: Vec<f32> = sigma
@@ -327,21 +322,32 @@ impl Haptics {
     /// world, shape (7,); None for a supported part.
     #[getter]
     fn pose<'py>(&self, py: Python<'py>) -> Option<Bound<'py, PyArray1<f64>>> {
-        self.sim
-            .rigid_body()
-            .map(|_| PyArray1::from_slice(py, &self.sim.pose()))
+        let sim = self.sim();
+        sim.rigid_body().map(|_| PyArray1::from_slice(py, &sim.pose()))
     }
 
     /// Steps whose result was non-finite and rolled back.
     #[getter]
     fn quarantined(&self) -> u64 {
-        self.sim.quarantined
+        (0..self.spaces.len()).map(|i| self.sw.sim(i).quarantined).sum()
     }
 
     /// Number of modes simulated.
     #[getter]
     fn mode_count(&self) -> usize {
-        self.basis.mode_count()
+        self.basis().mode_count()
+    }
+
+    /// Name of the space simulated now ("global", or the VOI that holds the hands).
+    #[getter]
+    fn active_space(&self) -> String {
+        self.basis().space.clone()
+    }
+
+    /// Switches between spaces so far.
+    #[getter]
+    fn switches(&self) -> u64 {
+        self.sw.switches
     }
 
     /// The validity watch of the linear model: past `limit` (normal strain along the surface
@@ -350,14 +356,16 @@ impl Haptics {
     fn set_strain_watch(&mut self, limit: f64, policy: &str) -> PyResult<()> {
         finite("limit", limit, limit > 0.0, "> 0")?;
         let policy = strain_policy("policy", policy)?;
-        let watch = self.sim.strain_watch();
-        self.sim.set_strain_watch(StrainWatch { limit, policy, ..watch });
+        for sim in self.sw.sims_mut() {
+            let watch = sim.strain_watch();
+            sim.set_strain_watch(StrainWatch { limit, policy, ..watch });
+        }
         Ok(())
     }
 
     /// Back to rest, every hand let go, time zero.
     fn reset(&mut self) {
-        self.sim.reset();
+        self.sw.reset();
         self.time = 0.0;
         self.steps = 0;
     }
@@ -365,12 +373,71 @@ impl Haptics {
     fn __repr__(&self) -> String {
         format!(
             "<ves.Haptics {:?}: {} modes, {} hands, t = {} s>",
-            self.basis.space,
-            self.basis.mode_count(),
+            self.basis().space,
+            self.basis().mode_count(),
             self.inputs.len(),
             self.time
         )
     }
+}
+
+impl Haptics {
+    /// The active space's simulation.
+    fn sim(&self) -> &ves_runtime::haptic::Haptics {
+        self.sw.sim(self.sw.active())
+    }
+
+    /// The active space's basis.
+    fn basis(&self) -> &ves_runtime::Basis {
+        self.sim().basis()
+    }
+}
+
+/// The spaces to simulate: `space` alone, or every space of the basis with its transfers; the
+/// first `modes` modes of each (default all).
+fn spaces_for(py: Python<'_>, basis: &Basis, space: Option<&str>, modes: Option<usize>) -> PyResult<Vec<SpaceInput>> {
+    let all = match space {
+        Some(name) => vec![SpaceInput {
+            basis: basis.space_ref(py, Some(name))?.get().runtime.clone(),
+            transfers: vec![None],
+        }],
+        None => basis.all_spaces(),
+    };
+    let counts: Vec<usize> = all.iter().map(|s| s.basis.mode_count()).collect();
+    let fewest = counts.iter().copied().min().unwrap_or(0);
+    let r = modes.unwrap_or(usize::MAX);
+    if r == 0 || (modes.is_some() && r > fewest) {
+        return Err(PyValueError::new_err(format!(
+            "modes = {r}: the space{} {fewest} modes; give 1 to {fewest}",
+            if all.len() > 1 { "s have at least" } else { " has" }
+        )));
+    }
+    Ok(all
+        .into_iter()
+        .map(|SpaceInput { basis: b, transfers }| {
+            let r_to = b.mode_count().min(r);
+            let transfers = transfers
+                .into_iter()
+                .zip(&counts)
+                .map(|(t, &r_from_all)| t.map(|t| truncated_transfer(&t, r_from_all, r_to, r_from_all.min(r))))
+                .collect();
+            let basis = if r_to < b.mode_count() {
+                Arc::new(truncated(&b, r_to))
+            } else {
+                b
+            };
+            SpaceInput { basis, transfers }
+        })
+        .collect())
+}
+
+/// The first `rows` × `cols` block of a row-major matrix with `width` columns.
+fn truncated_transfer(t: &[f64], width: usize, rows: usize, cols: usize) -> Vec<f64> {
+    t.chunks_exact(width.max(1))
+        .take(rows)
+        .flat_map(|row| &row[..cols])
+        .copied()
+        .collect()
 }
 
 /// The first `r` modes of a runtime basis.

@@ -175,3 +175,45 @@ def test_a_free_bracket_held_by_one_corner_hangs_below_the_hand(work):
     np.testing.assert_allclose(pose[:2], hand[0, :2], atol=1e-5)
     assert pose[2] < hand[0, 2]
     assert abs(np.linalg.norm(pose[3:]) - 1.0) < 1e-12
+
+
+def test_a_volume_of_interest_takes_over_where_the_hand_pulls(work):
+    """The cantilever with a finer volume of interest at its free end (a scene given as a dict):
+    a hand pulling the tip switches to the VOI space, whose static response agrees with the
+    global space's within their estimated errors, without a jump in the force; released and
+    moved away, the hand brings the global space back."""
+    from conftest import CANTILEVER
+
+    tomllib = pytest.importorskip("tomllib")
+    scene = tomllib.loads(CANTILEVER.read_text())
+    scene["geometry"]["step"] = str(CANTILEVER.parent / "cantilever.step")
+    scene["name"] = "tip_voi"
+    scene["voi"] = [{"name": "tip", "box": {"min": [0.8, -0.01, -0.01], "max": [1.01, 0.11, 0.06]}, "size": 0.0125}]
+    basis = ves.precompute(scene, work / "tip_voi.h5", progress=False)
+    assert basis.spaces == ["global", "tip"]
+    assert basis.space("tip").nodes.shape[0] > basis.space("global").nodes.shape[0]
+
+    def pull(space):
+        sim = ves.Haptics(basis, stiffness=2e4, damping=50.0, max_force=100.0, space=space)
+        rest = sim.rest_positions
+        tip = rest[np.argmax(rest[:, 0] + rest[:, 2])]
+        sim.step(tip[None, :], buttons=True)
+        forces = np.array([sim.step((tip + [0, 0, 1e-3])[None, :], buttons=True)[0] for _ in range(3000)])
+        return sim, np.array(sim.hand_outputs()[0]["vertex_position"]) - tip, forces
+
+    both, u, f = pull(None)
+    alone, u_global, f_global = pull("global")
+    assert both.spaces == ["global", "tip"] and alone.spaces == ["global"]
+    assert both.active_space == "tip" and both.switches == 1
+    assert alone.active_space == "global" and alone.switches == 0
+    errors = [float(basis.space(n).estimated_relative_error[0]) for n in basis.spaces]
+    assert abs(u[2] - u_global[2]) <= 2 * sum(errors) * abs(u_global[2])
+    # No burst at the switch: the largest change of force between two steps is the global
+    # space's own, to 1 %.
+    jump, jump_global = np.abs(np.diff(f[:, 2])).max(), np.abs(np.diff(f_global[:, 2])).max()
+    assert jump <= 1.01 * jump_global
+    for _ in range(500):  # let go, move far from the box
+        both.step([[0.5, 0.05, 0.2]], buttons=False)
+    assert both.active_space == "global" and both.switches == 2
+    # Fewer modes in every space, transfers cut to match.
+    assert ves.Haptics(basis, modes=5).mode_count == 5

@@ -138,10 +138,18 @@ class Basis:
         """The default space (or ``space``) as a meshio.Mesh."""
 
 class Haptics:
-    """A haptic simulation of one space: hands pull or press the part through a virtual spring-damper."""
+    """A haptic simulation: hands pull or press the part through a virtual spring-damper; with
+    volumes of interest, every space is simulated and the one holding the hands is active."""
 
     time: float
     steps: int
+    spaces: list[str]
+    @property
+    def active_space(self) -> str:
+        """The space simulated now ("global", or the VOI that holds the hands)."""
+    @property
+    def switches(self) -> int:
+        """Switches between spaces so far."""
     def __init__(
         self,
         basis: Basis,
@@ -161,8 +169,9 @@ class Haptics:
         hand_positions: npt.ArrayLike,
         velocities: Optional[npt.ArrayLike] = None,
         buttons: Union[bool, Sequence[bool], None] = None,
+        out: Optional[npt.NDArray[np.float64]] = None,
     ) -> npt.NDArray[np.float64]:
-        """One step: hand positions (n, 3) m → device forces (n, 3) N."""
+        """One step: hand positions (n, 3) m → device forces (n, 3) N (into ``out`` when given)."""
     def hand_outputs(self) -> list[dict]:
         """Each hand's output of the last step (force, vertex, vertex_position, contact, clamped, strain, …)."""
     @property
