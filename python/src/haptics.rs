@@ -23,7 +23,7 @@ const MAX_HANDS: usize = 16;
 /// active one the VOI that holds the hands (as `ves session` does).
 #[pyclass(module = "ves")]
 pub struct Haptics {
-    sw: Switcher,
+    sw: Sim,
     /// The spaces simulated, global first.
     #[pyo3(get)]
     spaces: Vec<String>,
@@ -142,8 +142,21 @@ impl Haptics {
         }
         let spaces = spaces_for(py, basis, space, modes)?;
         let names = spaces.iter().map(|s| s.basis.space.clone()).collect();
-        let mut sw = Switcher::new(spaces, coupling, dt, Scheme::Exact, hands, SwitchConfig::default())
-            .map_err(|e| crate::errors::BasisError::new_err(format!("{}: {e}", basis.path_ref().display())))?;
+        let mut sw = if spaces.len() == 1 {
+            let basis = spaces[0].basis.clone();
+            Sim::One(ves_runtime::haptic::Haptics::new(
+                basis,
+                coupling,
+                dt,
+                Scheme::Exact,
+                hands,
+            ))
+        } else {
+            Sim::Many(
+                Switcher::new(spaces, coupling, dt, Scheme::Exact, hands, SwitchConfig::default())
+                    .map_err(|e| crate::errors::BasisError::new_err(format!("{}: {e}", basis.path_ref().display())))?,
+            )
+        };
         for sim in sw.sims_mut() {
             sim.set_static_correction(static_correction);
             if free_body {
@@ -347,7 +360,7 @@ impl Haptics {
     /// Switches between spaces so far.
     #[getter]
     fn switches(&self) -> u64 {
-        self.sw.switches
+        self.sw.switches()
     }
 
     /// The validity watch of the linear model: past `limit` (normal strain along the surface
@@ -378,6 +391,59 @@ impl Haptics {
             self.inputs.len(),
             self.time
         )
+    }
+}
+
+/// One space's simulation (the C ABI's), or every space's with VOI switching.
+// One per Python object, on the heap already: the size difference costs nothing, a box would
+// cost the step a pointer chase.
+#[allow(clippy::large_enum_variant)]
+enum Sim {
+    One(ves_runtime::haptic::Haptics),
+    Many(Switcher),
+}
+
+impl Sim {
+    fn step(&mut self, inputs: &[HandInput], outputs: &mut [HandOutput]) {
+        match self {
+            Sim::One(h) => h.step(inputs, outputs),
+            Sim::Many(s) => s.step(inputs, outputs),
+        }
+    }
+
+    fn active(&self) -> usize {
+        match self {
+            Sim::One(_) => 0,
+            Sim::Many(s) => s.active(),
+        }
+    }
+
+    fn sim(&self, i: usize) -> &ves_runtime::haptic::Haptics {
+        match self {
+            Sim::One(h) => h,
+            Sim::Many(s) => s.sim(i),
+        }
+    }
+
+    fn sims_mut(&mut self) -> &mut [ves_runtime::haptic::Haptics] {
+        match self {
+            Sim::One(h) => std::slice::from_mut(h),
+            Sim::Many(s) => s.sims_mut(),
+        }
+    }
+
+    fn switches(&self) -> u64 {
+        match self {
+            Sim::One(_) => 0,
+            Sim::Many(s) => s.switches,
+        }
+    }
+
+    fn reset(&mut self) {
+        match self {
+            Sim::One(h) => h.reset(),
+            Sim::Many(s) => s.reset(),
+        }
     }
 }
 
