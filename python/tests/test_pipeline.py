@@ -1,0 +1,170 @@
+"""Pipeline errors as Python exceptions carrying the CLI's line; scenes as dicts; Ctrl-C."""
+
+from __future__ import annotations
+
+import _thread
+import re
+import shutil
+import subprocess
+import threading
+import time
+
+import numpy as np
+import pytest
+
+import ves
+from conftest import CANTILEVER
+
+GOOD = CANTILEVER.read_text()
+
+
+def cli_error(cli, scene, out):
+    """The line `ves precompute` prints for a failing scene (without `error: `)."""
+    run = subprocess.run([str(cli), "precompute", str(scene), "-o", str(out)], capture_output=True, text=True)
+    assert run.returncode == 1, run.stderr
+    line = [x for x in run.stderr.splitlines() if x.startswith("error: ")][-1]
+    return line[len("error: ") :]
+
+
+def scene_copy(tmp_path, text):
+    """A scene file beside a copy of the cantilever's geometry."""
+    shutil.copy(CANTILEVER.parent / "cantilever.step", tmp_path / "cantilever.step")
+    path = tmp_path / "scene.toml"
+    path.write_text(text)
+    return path
+
+
+@pytest.mark.parametrize(
+    "edit, kind",
+    [
+        (lambda s: s.replace("poisson = 0.3", "poisson = 0.5"), ves.SceneError),
+        (lambda s: s.replace("[modes]", "[modes]\ncolour = 3"), ves.SceneError),
+        (lambda s: s.replace("young = 2.1e11", "young = -1.0"), ves.SceneError),
+        (lambda s: s.replace('value = 0.0 }', 'value = 5.0 }'), ves.SupportError),
+        (lambda s: s.replace('step = "cantilever.step"', 'step = "missing.step"'), ves.SceneError),
+    ],
+)
+def test_bad_scenes_raise_the_cli_line(cli, tmp_path, edit, kind):
+    scene = scene_copy(tmp_path, edit(GOOD))
+    expected = cli_error(cli, scene, tmp_path / "cli.h5")
+    with pytest.raises(kind) as e:
+        ves.precompute(scene, tmp_path / "py.h5", progress=False)
+    assert str(e.value) == expected
+    assert isinstance(e.value, ves.Error)
+    assert not (tmp_path / "py.h5").exists() and not (tmp_path / "cli.h5").exists()
+
+
+def test_malformed_step_is_a_mesh_error(cli, tmp_path):
+    scene = scene_copy(tmp_path, GOOD)
+    (tmp_path / "cantilever.step").write_text("ISO-10303-21;\nHEADER;\nthis is not a part\n")
+    expected = cli_error(cli, scene, tmp_path / "cli.h5")
+    with pytest.raises(ves.MeshError) as e:
+        ves.precompute(scene, tmp_path / "py.h5", progress=False)
+    # gmsh reads a copy in a private directory named after the meshing process.
+    private = re.compile(r"ves-mesh-pid[0-9]+-[A-Za-z0-9]+")
+    assert private.sub("PRIVATE", str(e.value)) == private.sub("PRIVATE", expected)
+
+
+def test_a_scene_dict_is_the_scene_file(tmp_path, monkeypatch):
+    tomllib = pytest.importorskip("tomllib")
+
+    scene = tomllib.loads(GOOD)
+    scene["geometry"]["step"] = str(CANTILEVER.parent / "cantilever.step")
+    monkeypatch.chdir(tmp_path)
+    K1, M1, free1 = ves.matrices(scene, progress=False)
+    K2, M2, free2 = ves.matrices(CANTILEVER, progress=False)
+    np.testing.assert_array_equal(free1, free2)
+    assert abs(K1 - K2).max() == 0.0 and abs(M1 - M2).max() == 0.0
+    scene["material"]["colour"] = "red"
+    with pytest.raises(ves.SceneError, match="colour"):
+        ves.matrices(scene, progress=False)
+
+
+@pytest.mark.parametrize(
+    "call, kind",
+    [
+        (lambda: ves.precompute(42), TypeError),
+        (lambda: ves.precompute({"name": None}), TypeError),
+        (lambda: ves.precompute({"geometry": {"step": object()}}), TypeError),
+        (lambda: ves.precompute({"geometry": 3}), ves.SceneError),
+        (lambda: ves.precompute(CANTILEVER, solver="slepc"), ValueError),
+        (lambda: ves.precompute(CANTILEVER, solver="magic"), ValueError),
+        (lambda: ves.precompute(CANTILEVER, modes=0), ValueError),
+        (lambda: ves.matrices("/nonexistent/scene.toml"), ves.SceneError),
+    ],
+)
+def test_bad_arguments_are_exceptions(call, kind):
+    with pytest.raises(kind):
+        call()
+
+
+def test_output_over_an_input_is_refused(tmp_path):
+    scene = scene_copy(tmp_path, GOOD)
+    with pytest.raises(ves.Error, match="scene.toml"):
+        ves.precompute(scene, scene, progress=False)
+    assert scene.read_text() == GOOD
+
+
+def test_ctrl_c_stops_precompute_and_writes_nothing(tmp_path):
+    scene = scene_copy(tmp_path, GOOD)
+    out = tmp_path / "stopped.h5"
+    timer = threading.Timer(0.3, _thread.interrupt_main)
+    timer.start()
+    t = time.monotonic()
+    with pytest.raises(KeyboardInterrupt):
+        ves.precompute(scene, out, progress=False)
+    timer.cancel()
+    assert not out.exists()
+    assert time.monotonic() - t < 30
+
+
+def test_a_file_rewritten_in_place_is_read_whole_or_refused(cantilever, tmp_path):
+    """Another process copies a basis over the file being opened (not atomically, as `cp`
+    does): every open either reads the whole basis or raises BasisError."""
+    data = cantilever.path.read_bytes()
+    target = tmp_path / "moving.h5"
+    target.write_bytes(data)
+    writer = subprocess.Popen(
+        [
+            "python3",
+            "-c",
+            "import sys, time\n"
+            "data = open(sys.argv[1], 'rb').read()\n"
+            "end = time.monotonic() + 3\n"
+            "while time.monotonic() < end:\n"
+            "    with open(sys.argv[2], 'r+b') as f:\n"
+            "        f.truncate(0)\n"
+            "        for i in range(0, len(data), 65536):\n"
+            "            f.write(data[i:i + 65536]); f.flush()\n"
+            "    time.sleep(0.01)\n",
+            str(cantilever.path),
+            str(target),
+        ]
+    )
+    whole = refused = 0
+    while writer.poll() is None:
+        try:
+            b = ves.Basis.open(target)
+        except ves.BasisError:
+            refused += 1
+            continue
+        np.testing.assert_array_equal(b.frequencies_hz, cantilever.frequencies_hz)
+        np.testing.assert_array_equal(b.modes, cantilever.modes)
+        whole += 1
+    assert writer.returncode == 0
+    print(f"opened whole {whole}, refused {refused}")
+    assert whole + refused > 10, (whole, refused)
+
+
+def test_verify_against_scikit_fem_passes_on_the_package_basis(cantilever):
+    report = ves.verify(cantilever, "scikit-fem", modes=6, progress=False)
+    assert report["pass"] is True
+    (ref,) = report["references"]
+    assert ref["solver"].startswith("scikit-fem")
+    ours = [m["ours_hz"] for m in ref["modes"]]
+    np.testing.assert_allclose(ours, cantilever.frequencies_hz[:6], rtol=1e-15)
+    assert max(m["rel_diff"] for m in ref["modes"]) < 1e-6
+    with pytest.raises(ValueError):
+        ves.verify(cantilever, "abaqus")
+    with pytest.raises(ves.BasisError):
+        ves.verify("/nonexistent/basis.h5", "scikit-fem", progress=False)
