@@ -34,34 +34,45 @@ fn the_viewer_s_basis_comes_first_and_its_estimate_after_with_the_same_modes() {
     let _one = serial();
     let dir = tempfile::tempdir().unwrap();
     let s = scene(dir.path());
-    let whole = precompute::run(&s, &dir.path().join("whole.h5"), SolverChoice::Auto).unwrap_or_else(|e| panic!("{e:#}"));
+    let whole =
+        precompute::run(&s, &dir.path().join("whole.h5"), SolverChoice::Auto).unwrap_or_else(|e| panic!("{e:#}"));
 
     let later = dir.path().join("later.h5");
-    let mut firsts: Vec<(Vec<f64>, Option<Vec<f64>>, bool)> = Vec::new();
-    let last = precompute::run_then_check(&s, &later, SolverChoice::Auto, &mut |first: &Summary| {
-        // What the session loads at this moment: the file as written, without the estimate.
-        let (f, e) = frequencies_in(&later);
-        assert_eq!(first.spaces[0].frequencies_hz, f, "the summary is the file's");
-        firsts.push((f, e, first.spaces[0].sturm_count.is_some()));
-        Ok(())
-    })
-    .unwrap_or_else(|e| panic!("{e:#}"));
-    assert_eq!(firsts.len(), 1, "the basis is handed over once");
-    let (first_f, first_e, first_sturm) = &firsts[0];
-    assert!(first_e.is_none() && !first_sturm, "the first basis comes before its checks");
-
+    let first = precompute::run_first(&s, &later, SolverChoice::Auto).unwrap_or_else(|e| panic!("{e:#}"));
+    assert!(first.checks_pending(), "a fixed mesh size: the checks come after");
+    // What the session loads at this moment: the file as written, without the estimate.
+    let (first_f, first_e) = frequencies_in(&later);
+    assert_eq!(
+        first.summary.spaces[0].frequencies_hz, first_f,
+        "the summary is the file's"
+    );
+    assert!(
+        first_e.is_none() && first.summary.spaces[0].sturm_count.is_none(),
+        "the first basis comes before its checks"
+    );
+    let last: Summary = first.check().unwrap_or_else(|e| panic!("{e:#}"));
+    let first_f = &first_f;
     let want = &whole.spaces[0];
     let got = &last.spaces[0];
     for (a, b) in want.frequencies_hz.iter().zip(first_f) {
-        assert!((a - b).abs() <= 1e-9 * a, "first basis: {b} Hz where ves precompute gives {a} Hz");
+        assert!(
+            (a - b).abs() <= 1e-9 * a,
+            "first basis: {b} Hz where ves precompute gives {a} Hz"
+        );
     }
     assert_eq!(got.frequencies_hz, *first_f, "the checks leave the modes as they are");
     let (file_f, file_e) = frequencies_in(&later);
     assert_eq!(file_f, *first_f);
-    let (want_e, file_e) = (want.estimated_relative_error.as_ref().expect("estimate"), file_e.expect("estimate in the file"));
+    let (want_e, file_e) = (
+        want.estimated_relative_error.as_ref().expect("estimate"),
+        file_e.expect("estimate in the file"),
+    );
     assert_eq!(want_e.len(), file_e.len());
     for (a, b) in want_e.iter().zip(&file_e) {
-        assert!((a - b).abs() <= 1e-6 * a.abs().max(1e-12), "estimate {b} where ves precompute gives {a}");
+        assert!(
+            (a - b).abs() <= 1e-6 * a.abs().max(1e-12),
+            "estimate {b} where ves precompute gives {a}"
+        );
     }
     let sturm = got.sturm_count.expect("Sturm count after the checks");
     assert_eq!(sturm.below, sturm.found, "{sturm:?}");

@@ -299,7 +299,7 @@ impl Workshop for PartWorkshop {
         scene: &serde_json::Value,
         progress: Arc<dyn Fn(Progress) + Send + Sync>,
         cancel: Arc<AtomicBool>,
-        ready: &mut (dyn FnMut(&Computed) -> Result<(), String> + Send),
+        ready: &mut dyn FnMut(&Computed) -> Result<(), String>,
     ) -> Result<Computed, String> {
         let n = self.computed.fetch_add(1, Ordering::Relaxed) + 1;
         let geometry = self.part().geometry.clone();
@@ -319,21 +319,16 @@ impl Workshop for PartWorkshop {
             summary: summary_line(summary),
             estimated_error: worst_estimate(summary),
         };
-        let mut told: Option<String> = None;
-        let summary = {
-            let _watch = crate::progress::watch(Arc::new(PageWatch { progress, cancel }));
-            lower_priority();
-            // In the workshop's pool: faer and rayon take their threads from it.
-            self.pool.install(|| {
-                precompute::run_then_check(&parsed, &out, self.solver, &mut |s| {
-                    ready(&computed(s)).map_err(|e| {
-                        told = Some(e.clone());
-                        anyhow::anyhow!(e)
-                    })
-                })
-            })
-            .map_err(|e| told.take().unwrap_or_else(|| format!("{e:#}").replace('\n', " ")))?
-        };
+        let message = |e: anyhow::Error| format!("{e:#}").replace('\n', " ");
+        let _watch = crate::progress::watch(Arc::new(PageWatch { progress, cancel }));
+        // In the workshop's pool: faer and rayon take their threads from it. `ready` runs here,
+        // outside the pool: the session it starts must not inherit the pool's lower priority.
+        let first = self
+            .pool
+            .install(|| precompute::run_first(&parsed, &out, self.solver))
+            .map_err(message)?;
+        ready(&computed(&first.summary))?;
+        let summary = self.pool.install(|| first.check()).map_err(message)?;
         Ok(computed(&summary))
     }
 

@@ -186,30 +186,71 @@ pub fn run(scene: &Scene, out: &Path, choice: SolverChoice) -> Result<Summary> {
 
 /// [`run`], saying what the output may replace.
 pub fn run_with(scene: &Scene, out: &Path, choice: SolverChoice, overwrite: Overwrite) -> Result<Summary> {
-    run_checked(scene, out, choice, overwrite, None)
+    Ok(run_checked(scene, out, choice, overwrite, Checks::WithSolve)?.summary)
 }
 
 /// [`run`] for someone waiting to use the basis (the viewer): when the scene's mesh size is fixed
-/// and the solve runs here, the basis is written first without its checks (Sturm count, error
-/// estimate), `first` is called with that summary, then the checks run and the file is written
-/// again with them: same modes, same frequencies, the estimate added. Otherwise the checks run
-/// with the solve and `first` gets the final summary. Returns the final summary.
-pub fn run_then_check(
-    scene: &Scene,
-    out: &Path,
-    choice: SolverChoice,
-    first: &mut dyn FnMut(&Summary) -> Result<()>,
-) -> Result<Summary> {
-    run_checked(scene, out, choice, Overwrite::default(), Some(first))
+/// and the solve runs here, the basis is written without its checks (Sturm count, error
+/// estimate), which [`Written::check`] then makes, writing the file again with them: same modes,
+/// same frequencies, the estimate added. Otherwise the checks are made with the solve and
+/// [`Written::check`] has nothing left to do.
+pub fn run_first<'s>(scene: &'s Scene, out: &Path, choice: SolverChoice) -> Result<Written<'s>> {
+    let checks = if scene.mesh.target_error.is_none() && !choice.is_slepc() {
+        Checks::Later
+    } else {
+        Checks::WithSolve
+    };
+    run_checked(scene, out, choice, Overwrite::default(), checks)
 }
 
-fn run_checked(
-    scene: &Scene,
+/// A basis written, its checks made or still to come ([`run_first`]).
+pub struct Written<'s> {
+    /// What the file holds now.
+    pub summary: Summary,
+    later: Option<Later<'s>>,
+}
+
+/// What the checks after a first basis need: the solved spaces, K and M kept.
+struct Later<'s> {
+    scene: &'s Scene,
+    out: std::path::PathBuf,
+    choice: SolverChoice,
+    spaces: Vec<SolvedSpace>,
+    transfer_s: f64,
+    start: Instant,
+}
+
+impl Written<'_> {
+    /// Whether checks are still to come.
+    pub fn checks_pending(&self) -> bool {
+        self.later.is_some()
+    }
+
+    /// Makes the checks still to come and writes the basis again with them; returns the final
+    /// summary.
+    pub fn check(self) -> Result<Summary> {
+        let Some(mut l) = self.later else {
+            return Ok(self.summary);
+        };
+        let n = l.spaces.len() as f64;
+        for (i, s) in l.spaces.iter_mut().enumerate() {
+            crate::progress::span(i as f64 / n, (i + 1) as f64 / n);
+            let name = s.name.clone();
+            stages::check_later(l.scene, s, l.choice).with_context(|| format!("space {name:?}"))?;
+        }
+        crate::progress::span(0.0, 1.0);
+        crate::progress::stage("writing the estimate", 0.99)?;
+        write_all(l.scene, &l.out, &l.spaces, l.transfer_s, l.start)
+    }
+}
+
+fn run_checked<'s>(
+    scene: &'s Scene,
     out: &Path,
     choice: SolverChoice,
     overwrite: Overwrite,
-    first: Option<&mut dyn FnMut(&Summary) -> Result<()>>,
-) -> Result<Summary> {
+    checks: Checks,
+) -> Result<Written<'s>> {
     let start = Instant::now();
     // Under MPI rank 0 runs the pipeline and the other ranks serve its eigen-solves. Every rank
     // checks the output (the same answer on a shared file system) and they agree, so that a
@@ -228,11 +269,14 @@ fn run_checked(
     })())?;
     if distributed && !root {
         modes::mpi_job::serve()?;
-        return Ok(Summary {
-            output: out.display().to_string(),
-            spaces: Vec::new(),
-            timings_s: Timings::default(),
-            peak_rss_bytes: crate::memory::peak_rss_bytes(),
+        return Ok(Written {
+            summary: Summary {
+                output: out.display().to_string(),
+                spaces: Vec::new(),
+                timings_s: Timings::default(),
+                peak_rss_bytes: crate::memory::peak_rss_bytes(),
+            },
+            later: None,
         });
     }
     if distributed && needs_whole_system(scene) {
@@ -253,7 +297,7 @@ fn run_checked(
             stages.join(", ")
         );
     }
-    let result = pipeline(scene, out, choice, start, first);
+    let result = pipeline(scene, out, choice, start, checks);
     if distributed {
         modes::mpi_job::release(result)
     } else {
@@ -261,20 +305,15 @@ fn run_checked(
     }
 }
 
-/// Everything after the output check: each space solved, transfers, the basis written (twice
-/// when the checks come after a first basis: [`run_then_check`]).
-fn pipeline(
-    scene: &Scene,
+/// Everything after the output check: each space solved, transfers, the basis written (its
+/// checks made, or kept for [`Written::check`]).
+fn pipeline<'s>(
+    scene: &'s Scene,
     out: &Path,
     choice: SolverChoice,
     start: Instant,
-    mut first: Option<&mut dyn FnMut(&Summary) -> Result<()>>,
-) -> Result<Summary> {
-    let checks = if first.is_some() && scene.mesh.target_error.is_none() && !choice.is_slepc() {
-        Checks::Later
-    } else {
-        Checks::WithSolve
-    };
+    checks: Checks,
+) -> Result<Written<'s>> {
     let mut spaces = solve_all(scene, choice, checks)?;
     crate::progress::span(0.0, 1.0);
     crate::progress::stage("writing", 0.95)?;
@@ -282,21 +321,15 @@ fn pipeline(
     add_transfers(&mut spaces)?;
     let transfer_s = t.elapsed().as_secs_f64();
     let summary = write_all(scene, out, &spaces, transfer_s, start)?;
-    if let Some(first) = first.as_mut() {
-        first(&summary)?;
-    }
-    if checks == Checks::WithSolve {
-        return Ok(summary);
-    }
-    let n = spaces.len() as f64;
-    for (i, s) in spaces.iter_mut().enumerate() {
-        crate::progress::span(i as f64 / n, (i + 1) as f64 / n);
-        let name = s.name.clone();
-        stages::check_later(scene, s, choice).with_context(|| format!("space {name:?}"))?;
-    }
-    crate::progress::span(0.0, 1.0);
-    crate::progress::stage("writing the estimate", 0.99)?;
-    write_all(scene, out, &spaces, transfer_s, start)
+    let later = (checks == Checks::Later).then(|| Later {
+        scene,
+        out: out.to_path_buf(),
+        choice,
+        spaces,
+        transfer_s,
+        start,
+    });
+    Ok(Written { summary, later })
 }
 
 /// Each space solved (its checks `checks`), global first.
@@ -324,13 +357,7 @@ fn solve_all(scene: &Scene, choice: SolverChoice, checks: Checks) -> Result<Vec<
 }
 
 /// Writes the basis of solved spaces (transfers filled) and sums it up.
-fn write_all(
-    scene: &Scene,
-    out: &Path,
-    spaces: &[SolvedSpace],
-    transfer_s: f64,
-    start: Instant,
-) -> Result<Summary> {
+fn write_all(scene: &Scene, out: &Path, spaces: &[SolvedSpace], transfer_s: f64, start: Instant) -> Result<Summary> {
     let t = Instant::now();
     let views: Vec<store::Space<'_>> = spaces.iter().map(SolvedSpace::view).collect();
     store::write(out, scene, &views)?;

@@ -176,9 +176,8 @@ pub(super) fn check_later(scene: &Scene, s: &mut SolvedSpace, choice: SolverChoi
         progress::stage("estimating the error", 0.2)?;
         let t = Instant::now();
         let view = crate::transfer::SpaceView::of(&s.mesh, &s.dofs, system, &s.modes, usize::MAX);
-        s.error = released(|| {
-            crate::accuracy::estimate(scene, s.voi.as_ref(), None, &view, &s.modes.eigenvalues, choice)
-        });
+        s.error =
+            released(|| crate::accuracy::estimate(scene, s.voi.as_ref(), None, &view, &s.modes.eigenvalues, choice));
         s.timings.error_estimate = t.elapsed().as_secs_f64();
         // A cancelled estimate is not reported.
         progress::stage("estimated", 0.95)?;

@@ -30,7 +30,7 @@ use std::path::PathBuf;
 use std::sync::atomic::{AtomicBool, AtomicU32, AtomicU64, AtomicUsize, Ordering};
 use std::sync::{Arc, Mutex, RwLock};
 use std::time::{Duration, Instant};
-use tokio::sync::{Semaphore, watch};
+use tokio::sync::{Semaphore, broadcast, watch};
 pub use workshop::{Computed, Progress, Workshop};
 
 const INDEX_HTML: &str = include_str!("../../web/index.html");
@@ -167,7 +167,10 @@ struct Shared {
     queued: Mutex<Option<serde_json::Value>>,
     cancel: Arc<AtomicBool>,
     /// Compute progress and results (JSON text), to every page.
-    notes: watch::Sender<String>,
+    /// Compute progress and outcomes, to every page. A channel that keeps each message (not a
+    /// watch, which keeps the last): "computed" is followed at once by the progress of its
+    /// checks, and a page that saw only the latter would never learn the basis was ready.
+    notes: broadcast::Sender<String>,
     computes: AtomicU64,
     computes_failed: AtomicU64,
     swaps: AtomicU64,
@@ -258,7 +261,7 @@ pub fn serve_with(
         checking: AtomicBool::new(false),
         queued: Mutex::new(None),
         cancel: Arc::new(AtomicBool::new(false)),
-        notes: watch::channel(String::new()).0,
+        notes: broadcast::channel(256).0,
         computes: AtomicU64::new(0),
         computes_failed: AtomicU64::new(0),
         swaps: AtomicU64::new(0),
@@ -467,13 +470,13 @@ fn start_compute(shared: &Arc<Shared>, scene: serde_json::Value) -> Result<(), S
         move || {
             let t0 = Instant::now();
             let note = |v: serde_json::Value| {
-                shared.notes.send_replace(v.to_string());
+                let _ = shared.notes.send(v.to_string());
             };
             let progress: Arc<dyn Fn(Progress) + Send + Sync> = {
                 let shared = shared.clone();
                 Arc::new(move |p: Progress| {
                     let v = serde_json::json!({"type": "progress", "stage": p.stage, "fraction": p.fraction});
-                    shared.notes.send_replace(v.to_string());
+                    let _ = shared.notes.send(v.to_string());
                 })
             };
             progress(Progress {
@@ -818,11 +821,13 @@ async fn client(mut socket: WebSocket, shared: Arc<Shared>) {
                 let s = status.borrow_and_update().clone();
                 ok = send(&mut socket, Message::Text(s.into())).await;
             }
-            r = notes.changed() => {
-                if r.is_err() { break; }
-                let n = notes.borrow_and_update().clone();
-                ok = send(&mut socket, Message::Text(n.into())).await;
-            }
+            r = notes.recv() => match r {
+                Ok(n) => ok = send(&mut socket, Message::Text(n.into())).await,
+                // Progress lost to a slow page is no loss; the channel is large enough that the
+                // outcomes, few and far apart, are not.
+                Err(broadcast::error::RecvError::Lagged(_)) => {}
+                Err(broadcast::error::RecvError::Closed) => break,
+            },
         }
     }
     for h in &shared.hands {

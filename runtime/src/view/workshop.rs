@@ -45,7 +45,7 @@ pub trait Workshop: Send + Sync {
         scene: &serde_json::Value,
         progress: Arc<dyn Fn(Progress) + Send + Sync>,
         cancel: Arc<AtomicBool>,
-        ready: &mut (dyn FnMut(&Computed) -> Result<(), String> + Send),
+        ready: &mut dyn FnMut(&Computed) -> Result<(), String>,
     ) -> Result<Computed, String>;
     /// Makes the geometry file `name` (as the page's user picked it; only its file name
     /// counts) with content `bytes` the part from now on, with a fresh starting scene. Only
