@@ -1,46 +1,68 @@
-// From "Compute" to a pullable part in the set-up page, and the haptic loop beside a compute.
-// Run by bench/setup.sh (which starts `ves view SCENE.toml` with an empty mesh cache): the
-// page waits for the first compute (cold: nothing cached), then changes only the supports
-// (the mesh is cached) and clicks Compute; each time from the click (or the first compute's
-// start) to the page drawing the new part. Prints one JSON object.
+// From "Compute" to a pullable part in `ves view SCENE.toml`, and the haptic loop beside a
+// compute. Run by bench/setup.sh (which starts the server with an empty mesh cache). A client
+// speaks the page's protocol over the WebSocket — what the page sends on Compute, what it needs
+// before the part can be pulled (the new hello and its meshes) — without a browser: this VM has
+// no GPU, and headless Chromium's software GPU process (at nice −8 when run as root) keeps ~90 %
+// of a core busy, which would measure the browser, not the server.
 //
-// usage: node bench/setup.mjs URL WEB_DIR
-import { launch } from '../pipeline/tests/view/browser.mjs';
+// It waits for the first compute (cold: nothing cached) and its error estimate, then changes only
+// how the supports hold (every support along z only, then clamped again, three times) and asks
+// for a compute; each time from the request to the new hello and meshes (pullable), and to the
+// estimate. Prints one JSON object.
+//
+// usage: node --experimental-websocket bench/setup.mjs URL
+const [url] = process.argv.slice(2);
+const origin = new URL(url).origin;
+const ws = new WebSocket(`${origin.replace('http', 'ws')}/ws`, { headers: { Origin: origin } });
+ws.binaryType = 'arraybuffer';
 
-const [url, webDir] = process.argv.slice(2);
-const browser = await launch(webDir);
-const ends = (page) => page.evaluate(() => window.ves.notes.filter((n) => n.type === 'computed' || n.type === 'compute_error').length);
+const notes = [];
+let hello = null, meshes = 0, waiters = [];
+const settle = () => { waiters = waiters.filter(([test, done]) => !(test() && (done(), true))); };
+const until = (test, what, seconds = 900) => new Promise((done, fail) => {
+  if (test()) return done();
+  const timer = setTimeout(() => fail(new Error(`no ${what} within ${seconds} s`)), seconds * 1000);
+  waiters.push([test, () => { clearTimeout(timer); done(); }]);
+});
+ws.onmessage = (e) => {
+  if (typeof e.data === 'string') {
+    const m = JSON.parse(e.data);
+    if (m.type === 'hello') { hello = m; meshes = 0; }
+    else if (['progress', 'computed', 'checked', 'compute_error'].includes(m.type)) notes.push({ ...m, at: Date.now() });
+  } else if (new Uint32Array(e.data, 0, 1)[0] === 0) meshes += 1;
+  settle();
+};
+const count = (type) => notes.filter((n) => n.type === type).length;
+const pullable = () => hello && hello.spaces.length > 0 && meshes >= hello.spaces.length;
+
 try {
-  // A small window: without a GPU the browser rasterises on the cores the compute needs.
-  const page = await browser.newPage({ viewport: { width: 800, height: 540 } });
-  await page.goto(url);
-  await page.waitForFunction(() => window.ves && window.ves.ready, null, { timeout: 600000 });
-  // The error estimate follows the swap (a fixed mesh size): each run waits for it too.
-  const checked = (n) => page.waitForFunction((n) => window.ves.notes.filter((x) => x.type === 'checked').length > n, n, { timeout: 600000 });
-  const nChecked = () => page.evaluate(() => window.ves.notes.filter((x) => x.type === 'checked').length);
-  await checked(0);
-  const cold = await page.evaluate(() => ({ ...window.ves.notes.find((n) => n.type === 'computed'), checked: window.ves.notes.find((n) => n.type === 'checked') }));
+  await until(() => ws.readyState === 1, 'connection', 30);
+  await until(() => count('checked') > 0 || count('compute_error') > 0, 'first compute and estimate');
+  if (count('compute_error')) throw new Error(notes.find((n) => n.type === 'compute_error').message);
+  const first = notes.find((n) => n.type === 'computed');
+  const firstChecked = notes.find((n) => n.type === 'checked');
+  const scene = JSON.parse(JSON.stringify(hello.setup.scene));
   const runs = [];
   for (let k = 0; k < 3; k++) {
-    // Supports only: every support held along z only, then clamped again, alternately.
-    await page.evaluate((k) => {
-      for (const s of document.querySelectorAll('#supportlist .support select:last-of-type')) s.value = k % 2 ? 'x,y,z' : 'z';
-      for (const s of document.querySelectorAll('#supportlist .support select:last-of-type')) s.dispatchEvent(new Event('change'));
-    }, k);
-    const n = await ends(page);
-    const c = await nChecked();
+    for (const f of scene.fixed || []) {
+      if (k % 2) delete f.components; else f.components = ['z'];
+    }
+    const [c0, k0] = [count('computed') + count('compute_error'), count('checked')];
+    hello = null;
     const t0 = Date.now();
-    await page.click('#compute');
-    await page.waitForFunction((n) => window.ves.notes.filter((x) => x.type === 'computed' || x.type === 'compute_error').length > n, n, { timeout: 600000 });
-    await page.waitForFunction(() => window.ves.ready, null, { timeout: 60000 });
-    const pullable = (Date.now() - t0) / 1000;
-    const last = await page.evaluate(() => window.ves.notes.filter((x) => x.type === 'computed' || x.type === 'compute_error').at(-1));
-    await checked(c);
-    const est = await page.evaluate(() => window.ves.notes.filter((x) => x.type === 'checked').at(-1));
-    runs.push({ click_to_pullable_s: pullable, server_s: last.seconds, summary: last.summary || last.message,
-      click_to_estimate_s: (Date.now() - t0) / 1000, estimate: est.summary || est.error });
+    ws.send(JSON.stringify({ type: 'compute', scene }));
+    await until(() => count('computed') + count('compute_error') > c0, 'compute');
+    const done = notes.filter((n) => n.type === 'computed' || n.type === 'compute_error').at(-1);
+    if (done.type === 'compute_error') throw new Error(done.message);
+    await until(pullable, 'new hello and meshes', 60);
+    const ready = (Date.now() - t0) / 1000;
+    await until(() => count('checked') > k0, 'estimate');
+    const est = notes.filter((n) => n.type === 'checked').at(-1);
+    runs.push({ held: k % 2 ? 'clamped' : 'z only', request_to_pullable_s: ready, server_s: done.seconds, summary: done.summary,
+      request_to_estimate_s: (est.at - t0) / 1000, estimate: est.summary || est.error });
   }
-  console.log(JSON.stringify({ cold: { server_s: cold.seconds, summary: cold.summary, estimate_s: cold.checked.seconds, estimate: cold.checked.summary || cold.checked.error }, supports_changed: runs }));
+  console.log(JSON.stringify({ cold: { server_s: first.seconds, summary: first.summary, estimate_s: firstChecked.seconds,
+    estimate: firstChecked.summary || firstChecked.error }, supports_changed: runs }));
 } finally {
-  await browser.close();
+  ws.close();
 }

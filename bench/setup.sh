@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# From "Compute" to a pullable part in `ves view SCENE.toml` (default: the mould), cold (an empty
+# From a compute request to a pullable part in `ves view SCENE.toml` (default: the mould), cold (an empty
 # mesh cache) and with only the supports changed (mesh cached), and the haptic loop's missed
 # deadlines in each session that ran beside a compute. Prints the page's JSON, then the
 # server's statistics (`sessions`: one entry per session, the compute that replaced it ran
@@ -14,7 +14,7 @@ XDG_CACHE_HOME=$cache target/release/ves view "$scene" --port "$port" --duration
 server=$!
 sleep 1
 status=0
-node bench/setup.mjs "http://127.0.0.1:$port/" runtime/web || status=$?
+NODE_NO_WARNINGS=1 node --experimental-websocket bench/setup.mjs "http://127.0.0.1:$port/" || status=$?
 kill -INT "$server"
 wait "$server" || true
 [ "$status" -eq 0 ] || { echo "the page's run failed (status $status)" >&2; exit "$status"; }
