@@ -289,6 +289,10 @@ impl Solved {
         choice: SolverChoice,
         quiet: bool,
     ) -> Result<Solved> {
+        // A refinement or an estimate is many meshes: a cancel is seen before each.
+        if crate::progress::cancelled() {
+            anyhow::bail!("cancelled: nothing was written");
+        }
         let t = Instant::now();
         let (at, voi, field) = coarser(scene, voi, field, factor);
         let d = discretize_with(&at, voi.as_ref(), field.as_ref(), quiet)?;
