@@ -63,6 +63,20 @@ pub struct BasisReader {
     fileno: u64,
     /// Stored bytes read so far (see [`READ_PASSES`]).
     charged: Cell<u128>,
+    /// The file as opened, and its size and times then: HDF5 reads past the end of a file as
+    /// zeros, so a file truncated and rewritten in place (as `cp` does) while it is read would
+    /// give zeros where data was. Each read is checked against them (a file replaced by a
+    /// rename, as VES writes, leaves the opened one as it was).
+    opened: Option<(std::fs::File, Stamp)>,
+}
+
+/// What writing a file changes: its size and modification time (not its change time, which a
+/// rename over the file's name changes too: the file opened is then intact).
+type Stamp = (u64, i64, i64);
+
+fn stamp(m: &std::fs::Metadata) -> Stamp {
+    use std::os::unix::fs::MetadataExt;
+    (m.size(), m.mtime(), m.mtime_nsec())
 }
 
 impl BasisReader {
@@ -86,6 +100,9 @@ impl BasisReader {
         if !meta.is_file() {
             return Err(err("not a regular file; give the .h5 file written by `ves precompute`"));
         }
+        let opened = std::fs::File::open(path)
+            .ok()
+            .and_then(|f| f.metadata().ok().map(|m| (f, stamp(&m))));
         guarded(path, || {
             let file = hdf5::File::open(path).map_err(|e| {
                 err(&format!(
@@ -103,6 +120,7 @@ impl BasisReader {
                 file_bytes: u128::from(meta.len()),
                 fileno,
                 charged: Cell::new(0),
+                opened,
             };
             let format = reader.string(root::FORMAT).ok_or_else(|| {
                 err("not a VES modal basis (no `format` attribute); produce one with `ves precompute`")
@@ -143,7 +161,20 @@ impl BasisReader {
     }
 
     fn guard<T>(&self, f: impl FnOnce() -> Result<T, ReadError>) -> Result<T, ReadError> {
-        guarded(&self.path, f)
+        let out = guarded(&self.path, f)?;
+        self.unchanged()?;
+        Ok(out)
+    }
+
+    /// Fails when the file opened has been written since (see `opened`).
+    pub fn unchanged(&self) -> Result<(), ReadError> {
+        match &self.opened {
+            Some((f, then)) if f.metadata().map(|m| stamp(&m)).ok().as_ref() != Some(then) => Err(self.err(
+                "the file changed while it was read (another process is writing it in place); read it again once \
+                 the writer is done, and write bases with `ves precompute`, which replaces a file whole",
+            )),
+            _ => Ok(()),
+        }
     }
 
     /// A root string attribute (fixed- or variable-length), `None` when missing or not a string.

@@ -389,6 +389,33 @@ mod tests {
         }
     }
 
+    /// A file written over in place while a reader has it open (as `cp` does: same inode,
+    /// truncated, new bytes) is refused at the next read, never read as zeros; a file replaced
+    /// by a rename (as VES writes) leaves the open reader on the file it opened.
+    #[test]
+    fn a_file_written_over_while_read_is_refused() {
+        let (path, other) = (temp("inplace"), temp("other"));
+        write_tet(&path, Some(&[3, 5, 5, 9])).unwrap();
+        write_tet(&other, None).unwrap();
+        let file = BasisReader::open(&path).unwrap();
+        assert_eq!(file.space("global").unwrap().frequencies_hz().unwrap().len(), 1);
+        std::fs::write(&path, std::fs::read(&other).unwrap()).unwrap();
+        let e = file.space("global").and_then(|s| s.frequencies_hz()).unwrap_err();
+        assert!(e.message.contains("changed while it was read"), "{e}");
+        drop(file);
+
+        write_tet(&path, Some(&[3, 5, 5, 9])).unwrap();
+        let file = BasisReader::open(&path).unwrap();
+        std::fs::rename(&other, &path).unwrap();
+        let space = file.space("global").unwrap();
+        assert_eq!(
+            space.surface_faces().unwrap(),
+            Some(vec![3, 5, 5, 9]),
+            "the file opened"
+        );
+        let _ = std::fs::remove_file(path);
+    }
+
     #[test]
     fn a_failed_system_write_is_told_in_a_few_words() {
         let hdf5 = "H5Fflush(): unable to flush file's cached information: file write failed: time = Wed Nov 25 19:31:56 2026\n, filename = '/tmp/b.h5', file descriptor = 4, errno = 28, error message = 'No space left on device', buf = 0x55bf, total write size = 1395";
