@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # From a compute request to a pullable part in `ves view SCENE.toml` (default: the mould), cold (an empty
 # mesh cache) and with only the supports changed (mesh cached), and the haptic loop's missed
-# deadlines in each session that ran beside a compute. Prints the page's JSON, then the
+# deadlines in each session that ran beside a compute. Prints the client's JSON, then the
 # server's statistics (`sessions`: one entry per session, the compute that replaced it ran
 # during its last seconds).
 set -euo pipefail
@@ -17,5 +17,5 @@ status=0
 NODE_NO_WARNINGS=1 node --experimental-websocket bench/setup.mjs "http://127.0.0.1:$port/" || status=$?
 kill -INT "$server"
 wait "$server" || true
-[ "$status" -eq 0 ] || { echo "the page's run failed (status $status)" >&2; exit "$status"; }
+[ "$status" -eq 0 ] || { echo "the client's run failed (status $status)" >&2; exit "$status"; }
 tail -1 "$cache/server.out"
