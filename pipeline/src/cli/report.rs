@@ -33,6 +33,15 @@ pub struct Args {
 impl Args {
     pub fn run(self) -> Result<()> {
         let scene = Scene::load(&self.scene)?;
+        // The default sizes scale the scene's own; a scene meshed to target_error has none.
+        if self.sizes.is_none() && scene.mesh.size <= 0.0 {
+            anyhow::bail!(
+                "{}: the scene sets mesh.target_error, not mesh.size, so there is no size to sweep around; \
+                 give --sizes in metres (e.g. --sizes 0.02,0.015,0.01; `ves precompute --json` lists the sizes its \
+                 refinement used)",
+                scene.path.display()
+            );
+        }
         let mut opts = ReportOptions::defaults(&scene);
         opts.modes = self.modes.unwrap_or(opts.modes);
         opts.sizes = self.sizes.unwrap_or(opts.sizes);
