@@ -330,6 +330,11 @@ fn verify(
             let mut all = vec![Reference::ScikitFem, Reference::Calculix];
             if fenicsx_python().is_some() {
                 all.push(Reference::Fenicsx);
+            } else {
+                tracing::warn!(
+                    "--against all: FEniCSx is not installed, so it is left out; to include it: \
+                     apt-get install python3-dolfinx python3-slepc4py (Debian 12)"
+                );
             }
             all
         }
