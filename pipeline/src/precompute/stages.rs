@@ -70,7 +70,8 @@ pub(super) struct Solved {
     pub ordering_s: f64,
 }
 
-/// The error-estimate stage's output.
+/// The error-estimate stage's output (`Default`: none made).
+#[derive(Default)]
 pub(super) struct Estimated {
     /// Each mode's estimated discretization error, when the scene asks for it.
     pub error: Option<ErrorEstimate>,
@@ -105,38 +106,33 @@ pub(super) fn solve_space_checked(
     checks: Checks,
 ) -> Result<SolvedSpace> {
     let name = voi.map_or("global".to_string(), |v| v.name.clone());
+    // `run_first` asks for them later only on a fixed mesh size (a refinement needs them).
+    let later = checks == Checks::Later;
+    debug_assert!(!later || scene.mesh.target_error.is_none());
     let (solved, sturm, estimated) = match scene.mesh.target_error {
         Some(target) => {
             progress::stage("meshing and solving until the estimate meets target_error", 0.0)?;
             refined(scene, voi, choice, target)?
         }
-        None if checks == Checks::Later => {
-            progress::stage("meshing and assembling", 0.0)?;
-            let problem = discretize(scene, voi, choice)?;
-            progress::stage("eigen-solving", 0.3)?;
-            let solved = released(|| solve(scene, problem, choice))?;
-            let none = Estimated {
-                error: None,
-                refinement: None,
-                seconds: 0.0,
-            };
-            (solved, None, none)
-        }
         None => {
             // The coarser meshes are made beside the fine one (each gmsh in its own process,
             // one core each), so the fine solve later has both cores to itself.
-            let prefetch = scene.mesh.error_estimate.then(|| Prefetch::start(scene, voi, None));
+            let prefetch = (scene.mesh.error_estimate && !later).then(|| Prefetch::start(scene, voi, None));
             progress::stage("meshing and assembling", 0.0)?;
             let problem = discretize(scene, voi, choice)?;
             progress::stage("eigen-solving", 0.3)?;
             let solved = released(|| solve(scene, problem, choice))?;
-            let sturm = sturm_check(&solved, choice)?;
-            progress::stage("estimating the error", 0.6)?;
-            let estimated = released(|| estimate(scene, voi, &solved, choice, prefetch))?;
-            (solved, sturm, estimated)
+            if later {
+                (solved, None, Estimated::default())
+            } else {
+                let sturm = sturm_check(&solved, choice)?;
+                progress::stage("estimating the error", 0.6)?;
+                let estimated = released(|| estimate(scene, voi, &solved, choice, prefetch))?;
+                (solved, sturm, estimated)
+            }
         }
     };
-    if scene.mesh.error_estimate && estimated.error.is_some() {
+    if scene.mesh.error_estimate && !later {
         let size = solved.problem.meshing().size;
         advice::warn_about_error(scene, &name, solved.problem.mesh(), size, estimated.error.as_ref());
     }
