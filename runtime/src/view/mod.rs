@@ -452,11 +452,12 @@ fn start_compute(shared: &Arc<Shared>, scene: serde_json::Value) -> Result<(), S
         return Err("this viewer was opened on a basis: open a scene or a STEP file to set the part up".into());
     };
     if shared.computing.swap(true, Ordering::AcqRel) {
+        // Under the lock the compute's end takes `queued` with: a request is either queued
+        // before that end or finds the checks over, never queued after it and lost.
+        let mut queued = shared.queued.lock().unwrap_or_else(|p| p.into_inner());
         if shared.checking.load(Ordering::Acquire) {
             // The part in use is already the last compute's: its estimate gives way.
-            if let Ok(mut q) = shared.queued.lock() {
-                *q = Some(scene);
-            }
+            *queued = Some(scene);
             shared.cancel.store(true, Ordering::Relaxed);
             return Ok(());
         }
@@ -520,9 +521,12 @@ fn start_compute(shared: &Arc<Shared>, scene: serde_json::Value) -> Result<(), S
                     note(serde_json::json!({"type": "compute_error", "message": e}));
                 }
             }
-            shared.checking.store(false, Ordering::Release);
-            shared.computing.store(false, Ordering::Release);
-            let next = shared.queued.lock().ok().and_then(|mut q| q.take());
+            let next = {
+                let mut queued = shared.queued.lock().unwrap_or_else(|p| p.into_inner());
+                shared.checking.store(false, Ordering::Release);
+                shared.computing.store(false, Ordering::Release);
+                queued.take()
+            };
             if let Some(scene) = next
                 && let Err(e) = start_compute(&shared, scene)
             {
