@@ -146,23 +146,6 @@ fn read_file(path: &Path) -> Result<FileData, ReadError> {
     })
 }
 
-/// What changes when a file is written or replaced: device, inode, size, modification and
-/// change times (ns). HDF5 reads past the end of a file as zeros, so a file truncated and
-/// rewritten in place (as `cp` does) while it is read would give zeros where data was.
-fn identity(path: &Path) -> Option<(u64, u64, u64, i64, i64, i64, i64)> {
-    use std::os::unix::fs::MetadataExt;
-    let m = std::fs::metadata(path).ok()?;
-    Some((
-        m.dev(),
-        m.ino(),
-        m.size(),
-        m.mtime(),
-        m.mtime_nsec(),
-        m.ctime(),
-        m.ctime_nsec(),
-    ))
-}
-
 /// The path of a file named by a str or os.PathLike, or of an open `Basis`; TypeError `what`
 /// otherwise.
 pub(crate) fn path_of(obj: &Bound<'_, PyAny>, what: &str) -> PyResult<PathBuf> {
@@ -419,19 +402,8 @@ impl Basis {
     pub(crate) fn read(py: Python<'_>, path: PathBuf, summary: Option<Py<PyAny>>) -> PyResult<Basis> {
         let p = path.clone();
         let data = py
-            .detach(move || {
-                let before = identity(&p);
-                let data = ves_format::guarded(&p, || read_file(&p))?;
-                if before.is_none() || identity(&p) != before {
-                    return Err(ReadError {
-                        path: p.display().to_string(),
-                        message: "the file changed while it was read (another process is writing it); open it again \
-                                  once the writer is done"
-                            .into(),
-                    });
-                }
-                Ok(data)
-            })
+            // The reader refuses a file written over while it reads it (see BasisReader).
+            .detach(move || ves_format::guarded(&p, || read_file(&p)))
             .map_err(errors::basis)?;
         let default_space = data.default_space.clone();
         let spaces = data
