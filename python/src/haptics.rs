@@ -8,7 +8,7 @@ use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 use std::sync::Arc;
-use ves_runtime::haptic::{Coupling, HandInput, HandOutput, StrainPolicy, StrainWatch};
+use ves_runtime::haptic::{Coupling, HandInput, HandOutput, StrainPolicy, ValidityWatch};
 use ves_runtime::integrator::Scheme;
 use ves_runtime::switching::{SpaceInput, SwitchConfig, Switcher};
 
@@ -370,8 +370,8 @@ impl Haptics {
         finite("limit", limit, limit > 0.0, "> 0")?;
         let policy = strain_policy("policy", policy)?;
         for sim in self.sw.sims_mut() {
-            let watch = sim.strain_watch();
-            sim.set_strain_watch(StrainWatch { limit, policy, ..watch });
+            let watch = sim.validity_watch();
+            sim.set_validity_watch(ValidityWatch { limit, policy, ..watch });
         }
         Ok(())
     }

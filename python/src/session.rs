@@ -8,7 +8,7 @@ use std::sync::Arc;
 use std::sync::atomic::AtomicBool;
 use ves_runtime::basis::LoadOptions;
 use ves_runtime::device::{Device, ScriptedDevice};
-use ves_runtime::haptic::{Coupling, StrainWatch};
+use ves_runtime::haptic::{Coupling, ValidityWatch};
 use ves_runtime::session::{Hooks, SessionConfig};
 use ves_runtime::switching::SpaceInput;
 
@@ -54,7 +54,7 @@ pub fn session<'py>(
         coupling,
         sleep: !spin,
         realtime,
-        strain: StrainWatch {
+        watch: ValidityWatch {
             limit: strain_limit,
             policy,
             min_safety_factor,

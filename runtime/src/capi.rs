@@ -7,7 +7,7 @@
 use crate::basis::{self, Basis, LoadOptions};
 use crate::haptic::{Coupling, HandInput, HandOutput, Haptics};
 use crate::integrator::Scheme;
-use crate::snapshot::Snapshot;
+use crate::snapshot::{Published, Snapshot};
 use crate::visual;
 use std::cell::RefCell;
 use std::ffi::{CStr, CString, c_char};
@@ -37,7 +37,7 @@ pub struct VesBasis(Arc<Basis>);
 pub struct VesHaptics {
     sim: Haptics,
     snapshot: Arc<Snapshot>,
-    published: Vec<f64>,
+    published: Published,
     time: f64,
     /// Hands it was made for.
     hands: u32,
@@ -54,7 +54,7 @@ const MAX_POSITION_M: f64 = 1e6;
 pub struct VesView {
     basis: Arc<Basis>,
     snapshot: Arc<Snapshot>,
-    q: Vec<f64>,
+    state: Published,
     /// Stress per vertex (6 each) when the basis has modal stress.
     sigma: Vec<f32>,
 }
@@ -258,8 +258,8 @@ pub unsafe extern "C" fn ves_haptics_new(
             let free = sim.set_free_body([0.0, 0.0, -9.81], 1.0);
             free.map_err(|e| (VesStatus::InvalidArgument, format!("ves_haptics_new: {e}")))?;
         }
-        let published = vec![0.0; sim.published_len()];
-        let snapshot = Arc::new(Snapshot::new(published.len()));
+        let published = Published::new(sim.basis().mode_count());
+        let snapshot = Arc::new(Snapshot::for_state(&published));
         let handle = VesHaptics {
             sim,
             snapshot,
@@ -307,8 +307,8 @@ pub unsafe extern "C" fn ves_haptics_set_strain_watch(h: *mut VesHaptics, limit:
                 format!("ves_haptics_set_strain_watch: limit {limit} must be finite and > 0"),
             ));
         }
-        let min_safety_factor = h.sim.strain_watch().min_safety_factor;
-        h.sim.set_strain_watch(crate::haptic::StrainWatch {
+        let min_safety_factor = h.sim.validity_watch().min_safety_factor;
+        h.sim.set_validity_watch(crate::haptic::ValidityWatch {
             limit,
             policy,
             min_safety_factor,
@@ -337,8 +337,8 @@ pub unsafe extern "C" fn ves_haptics_set_min_safety_factor(h: *mut VesHaptics, m
                 format!("ves_haptics_set_min_safety_factor: {min} must be finite and > 0 (e.g. 1.5)"),
             ));
         }
-        let watch = h.sim.strain_watch();
-        h.sim.set_strain_watch(crate::haptic::StrainWatch {
+        let watch = h.sim.validity_watch();
+        h.sim.set_validity_watch(crate::haptic::ValidityWatch {
             min_safety_factor: min,
             ..watch
         });
@@ -466,8 +466,8 @@ fn step(
         };
     }
     h.time += h.sim.state().dt();
-    h.sim.write_published(&mut h.published);
-    h.snapshot.publish(&h.published, h.time);
+    h.sim.publish_into(0, &mut h.published);
+    h.snapshot.publish_state(&h.published, h.time);
     Ok(())
 }
 
@@ -484,7 +484,7 @@ pub unsafe extern "C" fn ves_view_new(h: *const VesHaptics, out: *mut *mut VesVi
             return Err((VesStatus::NullArgument, "ves_view_new: null out".into()));
         }
         let basis = h.sim.basis_arc();
-        let q = vec![0.0; h.published.len()];
+        let state = h.published.clone();
         let sigma = vec![
             0.0f32;
             if basis.stress.is_some() {
@@ -498,7 +498,7 @@ pub unsafe extern "C" fn ves_view_new(h: *const VesHaptics, out: *mut *mut VesVi
             *out = Box::into_raw(Box::new(VesView {
                 basis,
                 snapshot: h.snapshot.clone(),
-                q,
+                state,
                 sigma,
             }))
         };
@@ -535,8 +535,8 @@ pub unsafe extern "C" fn ves_view_positions(v: *mut VesView, positions: *mut f32
         }
         // SAFETY: the caller provides len ≥ need floats; only the first need are written.
         let out = unsafe { std::slice::from_raw_parts_mut(positions, need) };
-        v.snapshot.read(&mut v.q);
-        visual::posed_positions(&v.basis, &v.q, out);
+        v.snapshot.read_state(&mut v.state);
+        visual::posed_positions(&v.basis, &v.state, out);
         Ok(())
     })
 }
@@ -561,9 +561,9 @@ pub unsafe extern "C" fn ves_view_von_mises(v: *mut VesView, von_mises: *mut f32
         }
         // SAFETY: the caller provides len ≥ need floats; only the first need are written.
         let out = unsafe { std::slice::from_raw_parts_mut(von_mises, need) };
-        v.snapshot.read(&mut v.q);
+        v.snapshot.read_state(&mut v.state);
         let r = v.basis.mode_count();
-        if !visual::stresses(&v.basis, &v.q[..r], &mut v.sigma) {
+        if !visual::stresses(&v.basis, v.state.modal(r), &mut v.sigma) {
             return Err((
                 VesStatus::InvalidArgument,
                 "ves_view_von_mises: the basis has no modal stress; precompute it with [stress] enabled = true".into(),
@@ -594,10 +594,10 @@ mod tests {
                 b = b.with_stress(&rows).unwrap();
             }
             let sim = Haptics::new(Arc::new(b), Coupling::default(), 1e-3, Scheme::Exact, 1);
-            let mut published = vec![0.0; sim.published_len()];
-            published[0] = 0.25; // q of the one mode
-            let snapshot = Arc::new(Snapshot::new(published.len()));
-            snapshot.publish(&published, 0.0);
+            let mut published = Published::new(1);
+            published.set_modal(0, 0.25); // q of the one mode
+            let snapshot = Arc::new(Snapshot::for_state(&published));
+            snapshot.publish_state(&published, 0.0);
             let h = VesHaptics {
                 snapshot,
                 sim,
@@ -639,9 +639,9 @@ mod tests {
     /// A one-hand simulation handle on `b`, as `ves_haptics_new` makes it.
     fn handle(b: crate::Basis) -> Box<VesHaptics> {
         let sim = Haptics::new(Arc::new(b), Coupling::default(), 1e-3, Scheme::Exact, 1);
-        let published = vec![0.0; sim.published_len()];
+        let published = Published::new(sim.basis().mode_count());
         Box::new(VesHaptics {
-            snapshot: Arc::new(Snapshot::new(published.len())),
+            snapshot: Arc::new(Snapshot::for_state(&published)),
             sim,
             published,
             time: 0.0,

@@ -104,9 +104,10 @@ pub enum StrainPolicy {
     Release,
 }
 
-/// Validity watch of the linear (small-strain) model at each hand's vertex.
+/// Validity watch of the linear (small-strain) model at each hand's vertex: the strain along
+/// the surface edges there, and with modal stress the safety factor there and of the whole part.
 #[derive(Clone, Copy, Debug)]
-pub struct StrainWatch {
+pub struct ValidityWatch {
     /// Largest normal strain along the surface edges at the active vertex (e.g. 0.02 = 2 %).
     pub limit: f64,
     /// Reaction past the limit.
@@ -116,9 +117,9 @@ pub struct StrainWatch {
     pub min_safety_factor: f64,
 }
 
-impl Default for StrainWatch {
+impl Default for ValidityWatch {
     fn default() -> Self {
-        StrainWatch {
+        ValidityWatch {
             limit: 0.02,
             policy: StrainPolicy::Flag,
             min_safety_factor: 1.0,
@@ -219,7 +220,7 @@ pub struct Haptics {
     /// The free body as it started (what [`Haptics::reset`] returns to).
     initial_rigid: Option<RigidBody>,
     static_correction: bool,
-    strain_watch: StrainWatch,
+    watch: ValidityWatch,
     /// Steps whose result was non-finite and was rolled back.
     pub quarantined: u64,
     /// The whole part's safety factor is below the watch's minimum (set by whoever computes the
@@ -309,7 +310,7 @@ impl Haptics {
             saved_rigid: None,
             initial_rigid: None,
             static_correction: true,
-            strain_watch: StrainWatch::default(),
+            watch: ValidityWatch::default(),
             quarantined: 0,
             part_alarm: false,
         }
@@ -344,13 +345,13 @@ impl Haptics {
     }
 
     /// Sets the validity watch (default: flag past 2 % strain, or a safety factor below 1).
-    pub fn set_strain_watch(&mut self, watch: StrainWatch) {
-        self.strain_watch = watch;
+    pub fn set_validity_watch(&mut self, watch: ValidityWatch) {
+        self.watch = watch;
     }
 
     /// The validity watch in force.
-    pub fn strain_watch(&self) -> StrainWatch {
-        self.strain_watch
+    pub fn validity_watch(&self) -> ValidityWatch {
+        self.watch
     }
 
     /// Says whether the whole part's safety factor is below the watch's minimum (a stress peak
@@ -637,7 +638,7 @@ impl Haptics {
     /// the force the part gets and the one the hand feels.
     fn watch_strain(&mut self, k: usize, force: V3, out: &mut HandOutput) -> (V3, V3) {
         let strain = self.edge_strain(k);
-        let watch = self.strain_watch;
+        let watch = self.watch;
         out.strain = strain;
         out.strain_exceeded = strain > watch.limit;
         // The stress criterion: yield / von Mises below the minimum safety factor.
@@ -791,18 +792,9 @@ impl Haptics {
         }
     }
 
-    /// Length of the vector [`Haptics::write_published`] fills: r modal coordinates + 7 pose values.
-    pub fn published_len(&self) -> usize {
-        self.state.q.len() + 7
-    }
-
-    /// Writes what a drawing thread needs: q, then the pose (centre of mass in the world, unit
-    /// quaternion body → world). A part that is not moving as a free body writes a zero
-    /// quaternion: no pose, drawn where it was meshed.
-    pub fn write_published(&self, out: &mut [f64]) {
-        let r = self.state.q.len();
-        out[..r].copy_from_slice(&self.state.q);
-        out[r..r + 7].copy_from_slice(&self.pose());
+    /// Writes what a drawing thread needs into `out` as space `space`: the pose and q.
+    pub fn publish_into(&self, space: usize, out: &mut crate::snapshot::Published) {
+        out.set(space, self.pose(), &self.state.q);
     }
 
     /// The pose a drawing thread needs: centre of mass in the world, then the unit quaternion
@@ -844,10 +836,10 @@ mod strain_tests {
 
     fn grab_centre(policy: StrainPolicy, pull: f64, steps: usize) -> (Haptics, HandOutput) {
         let mut h = Haptics::new(stretch_basis(), Coupling::default(), 1e-3, Scheme::Exact, 1);
-        h.set_strain_watch(StrainWatch {
+        h.set_validity_watch(ValidityWatch {
             limit: 0.02,
             policy,
-            ..StrainWatch::default()
+            ..ValidityWatch::default()
         });
         let mut out = [HandOutput::default()];
         let centre = [0.01, 0.01, 0.0];

@@ -1,5 +1,6 @@
 //! Lock-free hand-over of the modal state from the haptic thread to the visualization thread:
 //! a sequence lock. The writer never waits; a reader retries if a write overlapped its read.
+//! What is handed over has one layout, [`Published`], for the session and the C ABI alike.
 
 use std::sync::atomic::{AtomicU64, Ordering, fence};
 
@@ -52,6 +53,72 @@ impl Snapshot {
     }
 }
 
+/// The state a haptic thread publishes for drawing: the active space, the part's pose and that
+/// space's modal coordinates, laid out once as `[space, pose (7), q (r)]`.
+#[derive(Clone, Debug)]
+pub struct Published {
+    values: Vec<f64>,
+}
+
+/// Where the pose starts and the modal coordinates start in [`Published`]'s values.
+const POSE: usize = 1;
+const MODAL: usize = POSE + 7;
+
+impl Published {
+    /// Room for up to `modes` modal coordinates; space 0, no pose, q = 0.
+    pub fn new(modes: usize) -> Published {
+        Published {
+            values: vec![0.0; MODAL + modes],
+        }
+    }
+
+    /// Sets the whole state (`q` may be shorter than the room: the rest is left as it was).
+    pub fn set(&mut self, space: usize, pose: [f64; 7], q: &[f64]) {
+        self.values[0] = space as f64;
+        self.values[POSE..MODAL].copy_from_slice(&pose);
+        self.values[MODAL..MODAL + q.len()].copy_from_slice(q);
+    }
+
+    /// The active space's index.
+    pub fn space(&self) -> usize {
+        self.values[0] as usize
+    }
+
+    /// The pose: centre of mass in the world, then the unit quaternion body → world (w, x, y, z);
+    /// all zero for a part that is not a free body (drawn where it was meshed).
+    pub fn pose(&self) -> &[f64] {
+        &self.values[POSE..MODAL]
+    }
+
+    /// The first `r` modal coordinates (at most the room).
+    pub fn modal(&self, r: usize) -> &[f64] {
+        &self.values[MODAL..(MODAL + r).min(self.values.len())]
+    }
+
+    /// Sets one modal coordinate (tests and examples).
+    pub fn set_modal(&mut self, j: usize, q: f64) {
+        self.values[MODAL + j] = q;
+    }
+}
+
+impl Snapshot {
+    /// A snapshot with room for `state`.
+    pub fn for_state(state: &Published) -> Snapshot {
+        Snapshot::new(state.values.len())
+    }
+
+    /// Publishes `state` at time `t` (single writer). Wait-free, no allocation.
+    pub fn publish_state(&self, state: &Published, t: f64) {
+        self.publish(&state.values, t);
+    }
+
+    /// Copies the latest consistent state into `out` (made for this snapshot) and returns its
+    /// time and sequence number.
+    pub fn read_state(&self, out: &mut Published) -> (f64, u64) {
+        self.read(&mut out.values)
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -79,5 +146,21 @@ mod tests {
             last = t;
         }
         writer.join().expect("writer");
+    }
+
+    #[test]
+    fn a_published_state_reads_back_as_written() {
+        let mut state = Published::new(3);
+        let pose = [1.0, 2.0, 3.0, 1.0, 0.0, 0.0, 0.0];
+        state.set(2, pose, &[0.5, -0.25, 4.0]);
+        let snap = Snapshot::for_state(&state);
+        snap.publish_state(&state, 0.75);
+        let mut out = Published::new(3);
+        assert_eq!(snap.read_state(&mut out).0, 0.75);
+        assert_eq!(
+            (out.space(), out.pose(), out.modal(3)),
+            (2, &pose[..], &[0.5, -0.25, 4.0][..])
+        );
+        assert_eq!(out.modal(2), &[0.5, -0.25]);
     }
 }

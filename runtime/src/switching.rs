@@ -159,6 +159,11 @@ impl Switcher {
         &self.sims[i]
     }
 
+    /// Every space's simulation, global first.
+    pub fn sims(&self) -> &[Haptics] {
+        &self.sims
+    }
+
     /// Mutable access to every simulation (e.g. to make the part a free body in each).
     pub fn sims_mut(&mut self) -> &mut [Haptics] {
         &mut self.sims

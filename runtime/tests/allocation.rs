@@ -7,7 +7,7 @@ use std::cell::Cell;
 use std::sync::Arc;
 use ves_runtime::Basis;
 use ves_runtime::basis::RigidProperties;
-use ves_runtime::haptic::{Coupling, HandInput, HandOutput, Haptics, StrainPolicy, StrainWatch};
+use ves_runtime::haptic::{Coupling, HandInput, HandOutput, Haptics, StrainPolicy, ValidityWatch};
 use ves_runtime::integrator::Scheme;
 
 struct Counting;
@@ -104,10 +104,10 @@ fn haptic_steps_allocate_nothing() {
         if free {
             h.set_free_body([0.0, 0.0, -9.81], 1.0).expect("free body");
         }
-        h.set_strain_watch(StrainWatch {
+        h.set_validity_watch(ValidityWatch {
             limit: 1e-3,
             policy,
-            ..StrainWatch::default()
+            ..ValidityWatch::default()
         });
         let mut out = [HandOutput::default(); 2];
         let input = |t: f64, button: bool, x: f64| HandInput {

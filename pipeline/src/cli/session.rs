@@ -5,7 +5,7 @@ use std::path::{Path, PathBuf};
 use std::sync::Arc;
 use ves_runtime::LoadOptions;
 use ves_runtime::device::{Device, ScriptedDevice};
-use ves_runtime::haptic::{Coupling, StrainPolicy, StrainWatch};
+use ves_runtime::haptic::{Coupling, StrainPolicy, ValidityWatch};
 use ves_runtime::session::{self, SessionConfig};
 use ves_runtime::switching::{self, SpaceInput};
 
@@ -94,7 +94,7 @@ impl Settings {
             coupling,
             sleep: !self.spin,
             realtime: !self.no_realtime,
-            strain: StrainWatch {
+            watch: ValidityWatch {
                 limit: self.strain_limit,
                 policy: match self.strain_policy {
                     StrainReaction::Flag => StrainPolicy::Flag,

@@ -129,7 +129,7 @@ struct Published {
 /// The live session, replaced when a compute brings a new basis.
 struct Live {
     stop: Arc<AtomicBool>,
-    thread: std::thread::JoinHandle<Result<SessionStats, String>>,
+    thread: std::thread::JoinHandle<Result<SessionStats, session::SessionError>>,
 }
 
 struct Shared {
@@ -369,7 +369,7 @@ fn end_session(shared: &Shared) -> Result<(), ViewError> {
             .thread
             .join()
             .map_err(|_| ViewError("the session thread panicked".into()))?
-            .map_err(ViewError)?;
+            .map_err(|e| ViewError(e.to_string()))?;
         if let Ok(mut t) = shared.timings.lock() {
             t.push(SessionTiming {
                 steps: stats.steps,
@@ -613,7 +613,6 @@ async fn basis_file(State(shared): State<Arc<Shared>>) -> Response {
 fn frame_encoder(bases: &[Arc<crate::Basis>], hands: &[Arc<HandSlot>; HANDS], out: Published) -> FrameObserver {
     let bases = bases.to_vec();
     let hands = hands.clone();
-    let mut u: Vec<Vec<f32>> = bases.iter().map(|b| vec![0.0; 3 * b.vertex_count()]).collect();
     let mut vm: Vec<Vec<f32>> = bases.iter().map(|b| vec![0.0; b.vertex_count()]).collect();
     let mut p1: Vec<Vec<f32>> = bases.iter().map(|b| vec![0.0; b.vertex_count()]).collect();
     let mut seq = 0u32;
@@ -622,7 +621,6 @@ fn frame_encoder(bases: &[Arc<crate::Basis>], hands: &[Arc<HandSlot>; HANDS], ou
         // Which hand message each hand had read is taken before the drawn state: a frame never
         // claims to show a message it may not (it may show one more, by one haptic step).
         let hand_seq = [hands[0].seq_read(), hands[1].seq_read()];
-        visual::displacements(&bases[i], f.modal, &mut u[i]);
         seq = seq.wrapping_add(1);
         // The stress fields cost a 3×3 eigenvalue problem per vertex: only while a client
         // colours by stress, and sent apart (kind 3) to those clients only.
@@ -648,8 +646,8 @@ fn frame_encoder(bases: &[Arc<crate::Basis>], hands: &[Arc<HandSlot>; HANDS], ou
             pose,
             von_mises_max: f.von_mises_max,
         };
-        let mut b = Vec::with_capacity(protocol::FRAME_HEADER + 4 * u[i].len());
-        protocol::frame(&mut b, &header, &u[i], f.stress.is_some());
+        let mut b = Vec::with_capacity(protocol::FRAME_HEADER + 4 * f.displacements.len());
+        protocol::frame(&mut b, &header, f.displacements, f.stress.is_some());
         out.frames.send_replace(Bytes::from(b));
         out.drawn.store(seq, Ordering::Relaxed);
         out.active_space.store(i as u32, Ordering::Relaxed);
@@ -685,8 +683,8 @@ fn hello(bases: &[Arc<crate::Basis>], cfg: &ViewConfig, workshop: Option<&dyn Wo
         "stiffness": s.coupling.stiffness,
         "damping": s.coupling.damping,
         "yield_strength": first.and_then(|b| b.yield_strength),
-        "min_safety_factor": s.strain.min_safety_factor,
-        "strain_limit": s.strain.limit,
+        "min_safety_factor": s.watch.min_safety_factor,
+        "strain_limit": s.watch.limit,
         "free_body": first.is_some_and(|b| b.rigid.is_some()),
         "center": first.and_then(|b| b.rigid.map(|r| r.center)),
         "gravity": s.free_body.map(|(g, _)| g),
