@@ -79,7 +79,7 @@ fn space(name: &str) -> Space {
         mask[f as usize] = true;
     }
     let dofs = ves_pipeline::supports::Dofs::from_mask(&mask);
-    let d = Discretized::assemble(mesh, dofs, (m.young, m.poisson, m.density)).expect("assemble");
+    let d = Discretized::assemble(mesh, dofs, (&m).into()).expect("assemble");
     // Full K from its stored lower triangle, then a general sparse LU (not the Cholesky the
     // pipeline factors K with to make the blocks).
     let a = &d.system;

@@ -100,7 +100,12 @@ fn sliver_tets_are_located_and_the_modes_stay_right() {
     let solve = |shift: f64| {
         let (mesh, dofs) = raw_beam(shift);
         let (q, at) = mesh.worst_quality();
-        let d = ves_pipeline::problem::Discretized::assemble(mesh, dofs, (2.1e11, 0.3, 7850.0)).expect("assemble");
+        let d = ves_pipeline::problem::Discretized::assemble(
+            mesh,
+            dofs,
+            ves_pipeline::material::Material::elastic(2.1e11, 0.3, 7850.0),
+        )
+        .expect("assemble");
         let (modes, _) = ves_pipeline::modes::solve(&d, 6, SolverChoice::Arpack).expect("modes");
         (q, at, modes)
     };

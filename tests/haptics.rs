@@ -253,7 +253,7 @@ fn static_correction_makes_the_felt_stiffness_exact_with_few_modes() {
     let basis = Arc::new(ves_runtime::basis::load(&path, &LoadOptions::default()).expect("loads"));
     assert!(basis.compliance.is_some(), "blocks stored and loaded");
     // Full static solve on the basis file's own mesh for the settled force at the tip vertex.
-    let (d, _, _) = ves_pipeline::verify::discretize_basis(&path, None).expect("the basis's mesh");
+    let (d, _) = ves_pipeline::verify::discretize_basis(&path, None).expect("the basis's mesh");
     let tip = nearest(&basis, [1.0, 0.1, 0.05]);
     let node = basis.node_index[tip] as usize;
     let chol = factor_stiffness(&d.system, &d.dofs).expect("factor");

@@ -2,6 +2,7 @@
 //! type every later stage (modes, static correction, transfer, store, checks) starts from.
 
 use crate::fem;
+use crate::material::Material;
 use crate::mesh::{self, Mesh};
 use crate::rigid_motions::free_rigid_count;
 use crate::scene::{Scene, Voi};
@@ -19,8 +20,8 @@ pub struct Discretized {
     pub system: fem::Assembled,
     /// Rigid motions left by the supports.
     pub rigid: usize,
-    /// Young's modulus, Poisson's ratio, density.
-    pub material: (f64, f64, f64),
+    /// The material.
+    pub material: Material,
     /// Seconds spent meshing.
     pub mesh_s: f64,
     /// What making the mesh order 2 needed (repairs of curved tets).
@@ -39,8 +40,8 @@ pub struct Meshed {
     pub dofs: Dofs,
     /// Rigid motions left by the supports.
     pub rigid: usize,
-    /// Young's modulus, Poisson's ratio, density.
-    pub material: (f64, f64, f64),
+    /// The material.
+    pub material: Material,
     /// Seconds spent meshing.
     pub mesh_s: f64,
     /// What making the mesh order 2 needed (repairs of curved tets).
@@ -104,13 +105,12 @@ pub fn mesh_with_supports(
     if !dofs.fixed.is_empty() {
         unheld_body(&mesh, &dofs).map_err(|m| anyhow::anyhow!("{}: {m}", scene.path.display()))?;
     }
-    let m = &scene.material;
     let rigid = free_rigid_count(&mesh.nodes, &dofs);
     Ok(Meshed {
         mesh,
         dofs,
         rigid,
-        material: (m.young, m.poisson, m.density),
+        material: scene.material,
         mesh_s,
         meshing,
         assemble_s: t.elapsed().as_secs_f64(),
@@ -121,8 +121,7 @@ impl Meshed {
     /// Assembles K, M and the mass on this process; its seconds join `assemble_s`.
     pub fn assemble(self) -> Result<Discretized, fem::assembly::AssemblyError> {
         let t = Instant::now();
-        let (young, poisson, density) = self.material;
-        let system = fem::assemble(&self.mesh, young, poisson, density, &self.dofs)?;
+        let system = fem::assemble(&self.mesh, &self.material, &self.dofs)?;
         Ok(Discretized {
             mesh: self.mesh,
             dofs: self.dofs,
@@ -137,8 +136,8 @@ impl Meshed {
 }
 
 impl Discretized {
-    /// Assembles K and M on a given mesh and DOF numbering (E, ν, ρ); stage times left at zero.
-    pub fn assemble(mesh: Mesh, dofs: Dofs, material: (f64, f64, f64)) -> Result<Discretized> {
+    /// Assembles K and M on a given mesh and DOF numbering; stage times left at zero.
+    pub fn assemble(mesh: Mesh, dofs: Dofs, material: Material) -> Result<Discretized> {
         let rigid = free_rigid_count(&mesh.nodes, &dofs);
         let meshed = Meshed {
             mesh,

@@ -110,20 +110,7 @@ impl LengthUnit {
     }
 }
 
-/// Isotropic linear-elastic material (SI units).
-#[derive(Clone, Copy, Debug, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct Material {
-    /// Young's modulus, Pa.
-    pub young: f64,
-    /// Poisson's ratio.
-    pub poisson: f64,
-    /// Density, kg/m³.
-    pub density: f64,
-    /// Yield strength, Pa (optional): the runtime's safety-factor watch.
-    #[serde(default)]
-    pub yield_strength: Option<f64>,
-}
+pub use crate::material::Material;
 
 impl MeshSettings {
     /// The element kind of `order` (the scene parser admits 1 and 2 only; anything else would be

@@ -337,7 +337,12 @@ mod tests {
         let n = (0.1 / h).round() as usize;
         let mesh = Mesh::structured_box([8 * n, n, n], h, crate::fem::element::Kind::Tet10, |_, p| p);
         let mask: Vec<bool> = mesh.nodes.iter().flat_map(|p| [p[0] < 1e-12; 3]).collect();
-        let d = Discretized::assemble(mesh, Dofs::from_mask(&mask), (2e11, 0.3, 7800.0)).expect("assembles");
+        let d = Discretized::assemble(
+            mesh,
+            Dofs::from_mask(&mask),
+            crate::material::Material::elastic(2e11, 0.3, 7800.0),
+        )
+        .expect("assembles");
         let (m, _) = modes::solve(&d, 8, SolverChoice::Arpack).expect("solves");
         (d, m)
     }

@@ -169,8 +169,7 @@ fn local_field(
     let u: Vec<f64> = (0..r)
         .flat_map(|j| d.dofs.expand(&current.modes.vectors[j * nf..(j + 1) * nf]))
         .collect();
-    let m = &scene.material;
-    let lame = crate::fem::element::Lame::new(m.young, m.poisson, m.density);
+    let lame = crate::fem::element::Lame::of(&scene.material);
     let shares = super::indicator::shares(&d.mesh, &lame, &u, r);
     let errors: Vec<f64> = estimate.modes[..r].iter().map(|m| m.relative).collect();
     let rates: Vec<f64> = estimate.modes[..r].iter().map(|m| m.rate).collect();

@@ -5,6 +5,7 @@
 //! expanded to DOF level with the supported DOFs removed.
 
 use super::element::{self, BadJacobian, Kind, Lame, Shape, tet4::Tet4, tet10::Tet10};
+use crate::material::Material;
 use crate::supports::Dofs;
 use crate::tet_mesh::Mesh;
 use faer::sparse::SymbolicSparseColMat;
@@ -218,8 +219,8 @@ fn accumulate<S: Shape>(
 }
 
 /// Assembles K and M of the mesh for the material, on the free DOFs of `dofs`.
-pub fn assemble(mesh: &Mesh, young: f64, poisson: f64, density: f64, dofs: &Dofs) -> Result<Assembled, AssemblyError> {
-    assemble_counting(mesh, young, poisson, density, dofs, mesh.tet_count()).map(|(a, _)| a)
+pub fn assemble(mesh: &Mesh, material: &Material, dofs: &Dofs) -> Result<Assembled, AssemblyError> {
+    assemble_counting(mesh, material, dofs, mesh.tet_count()).map(|(a, _)| a)
 }
 
 /// [`assemble`], and the moments of the first `counted` elements only (a rank's share of a
@@ -227,13 +228,11 @@ pub fn assemble(mesh: &Mesh, young: f64, poisson: f64, density: f64, dofs: &Dofs
 /// mass is counted once over all ranks). `Assembled::mass` is that of the counted ones.
 pub fn assemble_counting(
     mesh: &Mesh,
-    young: f64,
-    poisson: f64,
-    density: f64,
+    material: &Material,
     dofs: &Dofs,
     counted: usize,
 ) -> Result<(Assembled, Moments), AssemblyError> {
-    let lame = Lame::new(young, poisson, density);
+    let lame = Lame::of(material);
     let graph = node_graph(mesh);
     let ne = mesh.tet_count();
     // One partial per thread, then summed into the first in a fixed order (the same sums on

@@ -5,6 +5,7 @@
 //! holds the whole K and M.
 
 use super::assembly::{AssemblyError, Moments, assemble_counting};
+use crate::material::Material;
 use crate::supports::Dofs;
 use crate::tet_mesh::Mesh;
 
@@ -202,15 +203,15 @@ impl Share {
         (mesh, dofs, global)
     }
 
-    /// Assembles the share (E, ν, ρ): its lower-triangular K and M in the local numbering, the
+    /// Assembles the share: its lower-triangular K and M in the local numbering, the
     /// global free DOF of each local one, and the moments of the elements it owns. An element
     /// that fails is named by its global number.
     pub fn assemble(
         &self,
-        (young, poisson, density): (f64, f64, f64),
+        material: &Material,
     ) -> Result<(super::Assembled, Vec<u32>, Moments, Mesh, Dofs), AssemblyError> {
         let (mesh, dofs, global) = self.local();
-        let (a, moments) = assemble_counting(&mesh, young, poisson, density, &dofs, self.owned).map_err(|mut e| {
+        let (a, moments) = assemble_counting(&mesh, material, &dofs, self.owned).map_err(|mut e| {
             e.element = self.elements.get(e.element).map_or(e.element, |&g| g as usize);
             e
         })?;
@@ -232,9 +233,8 @@ mod tests {
         let mask: Vec<bool> = mesh.nodes.iter().flat_map(|p| [p[0] < 1e-12; 3]).collect();
         let dofs = Dofs::from_mask(&mask);
         let n = dofs.free_count();
-        let material = (2e11, 0.3, 7800.0);
-        let (whole, whole_moments) =
-            assemble_counting(&mesh, material.0, material.1, material.2, &dofs, mesh.tet_count()).unwrap();
+        let material = Material::elastic(2e11, 0.3, 7800.0);
+        let (whole, whole_moments) = assemble_counting(&mesh, &material, &dofs, mesh.tet_count()).unwrap();
         for ranks in [1usize, 2, 3, 4] {
             // Slabs along x: compact regions, as METIS would give.
             let part: Vec<u32> = mesh
@@ -266,7 +266,7 @@ mod tests {
                 }
                 let (lo, hi) = (numbering.bounds[r], numbering.bounds[r + 1]);
                 let share = Share::of(&mesh, &numbering, elements, count);
-                let (a, global, moments, _, _) = share.assemble(material).unwrap();
+                let (a, global, moments, _, _) = share.assemble(&material).unwrap();
                 total.add(&moments);
                 let (cp, ri) = (a.pattern.col_ptr(), a.pattern.row_idx());
                 let (wcp, wri) = (whole.pattern.col_ptr(), whole.pattern.row_idx());

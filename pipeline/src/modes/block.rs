@@ -407,7 +407,12 @@ mod tests {
     fn beam(clamped: bool) -> Discretized {
         let mesh = Mesh::structured_box([16, 2, 2], 0.05, crate::fem::element::Kind::Tet4, |_, p| p);
         let mask: Vec<bool> = mesh.nodes.iter().flat_map(|p| [clamped && p[0] < 1e-12; 3]).collect();
-        Discretized::assemble(mesh, Dofs::from_mask(&mask), (2e11, 0.3, 7800.0)).expect("assembles")
+        Discretized::assemble(
+            mesh,
+            Dofs::from_mask(&mask),
+            crate::material::Material::elastic(2e11, 0.3, 7800.0),
+        )
+        .expect("assembles")
     }
 
     /// ‖Φ_refᵀ M φ‖ for each found φ: 1 when φ lies in the reference subspace (which also holds

@@ -297,7 +297,8 @@ fn eigenpairs_wanted(n: usize, count: usize, rigid: usize) -> Result<usize, Mode
 
 /// The lowest `count` elastic modes from a solver (`lowest(nev, sigma)`), the `rigid` rigid ones
 /// dropped, each checked: by the solver itself ([`Spectrum::checked`]) or here against the
-/// whole `problem`.
+/// whole `problem`. Steps: [`shifted_spectrum`] → [`drop_rigid`] → [`checked_residuals`] →
+/// [`accept_residuals`].
 pub fn select(
     scales: &Scales,
     rigid: usize,
@@ -305,12 +306,37 @@ pub fn select(
     solver: &dyn EigenSolver,
     problem: Option<&EigenProblem<'_>>,
 ) -> Result<Modes, ModesError> {
-    let n = scales.size;
-    let nev = eigenpairs_wanted(n, count, rigid)?;
-    // The shift. A supported part: σ = 0 (K is SPD; shift-invert on K⁻¹M). With rigid modes
-    // K is singular, so σ < 0: first relative to the mesh's stiffness scale, then, if that
-    // lands far below the first elastic eigenvalue λ₁ (thin or soft parts, where λ₁/λ_max can
-    // be 1e-10 and the low modes crowd together as seen from σ), again at σ = −λ₁/100.
+    let nev = eigenpairs_wanted(scales.size, count, rigid)?;
+    let (mut spectrum, sigma) = shifted_spectrum(scales, rigid, nev, solver)?;
+    let t = Instant::now();
+    let (eigenvalues, mut vectors) = drop_rigid(&mut spectrum, rigid, scales.size)?;
+    let (residuals, orthonormality_error) =
+        checked_residuals(&mut spectrum, rigid, problem, &mut vectors, &eigenvalues)?;
+    accept_residuals(&residuals, &eigenvalues, scales.lambda_max_estimate())?;
+    Ok(Modes {
+        eigenvalues,
+        vectors,
+        rigid_dropped: rigid,
+        residuals,
+        orthonormality_error,
+        sigma,
+        factorize_s: spectrum.factorize_s,
+        eigensolve_s: spectrum.eigensolve_s + t.elapsed().as_secs_f64(),
+        symbolic: spectrum.symbolic,
+    })
+}
+
+/// The `nev` lowest eigenpairs from the solver, and the shift they were found with. A
+/// supported part: σ = 0 (K is SPD; shift-invert on K⁻¹M). With rigid modes K is singular, so
+/// σ < 0: first relative to the mesh's stiffness scale, then, if that lands far below the first
+/// elastic eigenvalue λ₁ (thin or soft parts, where λ₁/λ_max can be 1e-10 and the low modes
+/// crowd together as seen from σ), again at σ = −λ₁/100.
+fn shifted_spectrum(
+    scales: &Scales,
+    rigid: usize,
+    nev: usize,
+    solver: &dyn EigenSolver,
+) -> Result<(Spectrum, f64), ModesError> {
     let mut sigma = if rigid == 0 { 0.0 } else { -1e-6 * scales.stiffness() };
     let mut spectrum = solver.lowest(nev, sigma)?;
     if let Some(&l1) = spectrum
@@ -326,7 +352,13 @@ pub fn select(
             ..again
         };
     }
-    let t = Instant::now();
+    Ok((spectrum, sigma))
+}
+
+/// The elastic eigenvalues and vectors (the rigid modes' vectors dropped in place: no second
+/// copy of the basis), once the rigid ones are clearly apart from the first elastic one and
+/// every elastic pair is finite and positive.
+fn drop_rigid(spectrum: &mut Spectrum, rigid: usize, n: usize) -> Result<(Vec<f64>, Vec<f64>), ModesError> {
     let vals = &spectrum.values;
     if rigid > 0 {
         let rigid_max = vals[..rigid].iter().fold(0.0f64, |a, v| a.max(v.abs()));
@@ -339,8 +371,6 @@ pub fn select(
         }
     }
     let eigenvalues: Vec<f64> = vals[rigid..].to_vec();
-    let r = eigenvalues.len();
-    // The rigid modes' vectors dropped in place (no second copy of the basis).
     let mut vectors = std::mem::take(&mut spectrum.vectors);
     vectors.drain(..rigid * n);
     for (j, &lam) in eigenvalues.iter().enumerate() {
@@ -351,7 +381,21 @@ pub fn select(
             });
         }
     }
-    let (residuals, orthonormality_error) = match spectrum.checked.take() {
+    Ok((eigenvalues, vectors))
+}
+
+/// Each elastic mode's relative residual and the largest |ΦᵀMΦ − I|: the solver's own checks
+/// when it made them (where the vectors live, for distributed solvers), or made here against
+/// the whole problem (which also M-normalises the vectors).
+fn checked_residuals(
+    spectrum: &mut Spectrum,
+    rigid: usize,
+    problem: Option<&EigenProblem<'_>>,
+    vectors: &mut [f64],
+    eigenvalues: &[f64],
+) -> Result<(Vec<f64>, f64), ModesError> {
+    let r = eigenvalues.len();
+    match spectrum.checked.take() {
         Some(c) => {
             let nev = c.residuals.len();
             let mut worst = 0.0f64;
@@ -361,21 +405,24 @@ pub fn select(
                     worst = worst.max((c.gram[(rigid + a) * nev + rigid + b] - target).abs());
                 }
             }
-            (c.residuals[rigid..].to_vec(), worst)
+            Ok((c.residuals[rigid..].to_vec(), worst))
         }
         None => {
             let problem = problem.ok_or_else(|| ModesError::Check {
                 mode: 0,
                 what: "the solver made no checks and K, M are not at hand".into(),
             })?;
-            check(problem, &mut vectors, &eigenvalues)
+            Ok(check(problem, vectors, eigenvalues))
         }
-    };
-    let lambda_max = scales.lambda_max_estimate();
-    for (j, (&rel, &lam)) in residuals.iter().zip(&eigenvalues).enumerate() {
-        // Double precision cannot promise better than about ε·λ_max/λ relative to ‖Kφ‖ (the
-        // backward error of the solves): on meshes of flat elements (thin plates) that bound
-        // exceeds 1e-6 for the lowest modes. Reject what is above both.
+    }
+}
+
+/// Refuses a mode whose residual is above both 1e-6 and the round-off floor. Double precision
+/// cannot promise better than about ε·λ_max/λ relative to ‖Kφ‖ (the backward error of the
+/// solves): on meshes of flat elements (thin plates) that bound exceeds 1e-6 for the lowest
+/// modes, which is then said.
+fn accept_residuals(residuals: &[f64], eigenvalues: &[f64], lambda_max: f64) -> Result<(), ModesError> {
+    for (j, (&rel, &lam)) in residuals.iter().zip(eigenvalues).enumerate() {
         let floor = f64::EPSILON * lambda_max / lam;
         let limit = MAX_RESIDUAL.max(floor);
         if rel.is_nan() || rel > limit {
@@ -394,17 +441,7 @@ pub fn select(
             );
         }
     }
-    Ok(Modes {
-        eigenvalues,
-        vectors,
-        rigid_dropped: rigid,
-        residuals,
-        orthonormality_error,
-        sigma,
-        factorize_s: spectrum.factorize_s,
-        eigensolve_s: spectrum.eigensolve_s + t.elapsed().as_secs_f64(),
-        symbolic: spectrum.symbolic,
-    })
+    Ok(())
 }
 
 /// M-normalises the modes (column-major, n × r) and checks them against the whole problem:
@@ -605,7 +642,7 @@ pub struct SolvedOnRanks {
 pub fn solve_on_ranks(
     mesh: &crate::tet_mesh::Mesh,
     dofs: &Dofs,
-    material: (f64, f64, f64),
+    material: crate::material::Material,
     rigid: usize,
     count: usize,
     choice: SolverChoice,
@@ -678,7 +715,12 @@ mod tests {
     fn the_sturm_count_proves_completeness_and_catches_a_skipped_mode() {
         let mesh = Mesh::structured_box([16, 2, 2], 0.05, crate::fem::element::Kind::Tet4, |_, p| p);
         let mask: Vec<bool> = mesh.nodes.iter().flat_map(|p| [p[0] < 1e-12; 3]).collect();
-        let d = Discretized::assemble(mesh, Dofs::from_mask(&mask), (2e11, 0.3, 7800.0)).expect("assembles");
+        let d = Discretized::assemble(
+            mesh,
+            Dofs::from_mask(&mask),
+            crate::material::Material::elastic(2e11, 0.3, 7800.0),
+        )
+        .expect("assembles");
         let (mut m, _) = solve(&d, 8, SolverChoice::Arpack).expect("solves");
         let s = sturm_count(&d.system, &d.dofs, &m).unwrap().unwrap();
         assert!(s.complete() && s.below == 8, "{s:?}");

@@ -16,19 +16,20 @@ use super::mpi_job::{HEADER, IN_SOLVE, header, message, with_token};
 use super::{EigenSolver, ModesError, Scales, SolvedOnRanks, SolverChoice, Spectrum};
 use crate::fem::Moments;
 use crate::fem::share::{Numbering, Share};
+use crate::material::Material;
 use crate::supports::Dofs;
 use crate::tet_mesh::Mesh;
 use std::sync::atomic::Ordering::SeqCst;
 use ves_ffi::slepc::{Method, Operators, Slepc};
 
-/// [`super::solve_on_ranks`]: solves K φ = λ M φ of `mesh` (E, ν, ρ; supports in `dofs`, `rigid` rigid motions left) with
+/// [`super::solve_on_ranks`]: solves K φ = λ M φ of `mesh` (its material; supports in `dofs`, `rigid` rigid motions left) with
 /// SLEPc over every MPI rank: rank 0 calls this while the others are in
 /// [`super::mpi_job::serve`]. The `count` lowest elastic modes come back checked (by the ranks,
 /// where the vectors live), with the part's mass moments.
 pub fn solve(
     mesh: &Mesh,
     dofs: &Dofs,
-    material: (f64, f64, f64),
+    material: Material,
     rigid: usize,
     count: usize,
     choice: SolverChoice,
@@ -123,7 +124,7 @@ impl<'t> Distributed<'t> {
         token: &'t Slepc,
         mesh: &Mesh,
         dofs: &Dofs,
-        material: (f64, f64, f64),
+        material: Material,
         choice: SolverChoice,
     ) -> Result<(Self, Scales, Moments), ModesError> {
         let method = if choice == SolverChoice::SlepcIterative {
@@ -142,7 +143,7 @@ impl<'t> Distributed<'t> {
         let mut parts = crate::fem::share::partition(mesh, &numbering);
         let frame = (method == Method::Iterative).then(|| crate::rigid_motions::frame(&mesh.nodes));
         let (c, l) = frame.unwrap_or(([0.0; 3], 0.0));
-        let numbers = [material.0, material.1, material.2, c[0], c[1], c[2], l];
+        let numbers = [material.young, material.poisson, material.density, c[0], c[1], c[2], l];
         let range = |r: usize| (numbering.bounds[r], numbering.bounds[r + 1]);
         for (r, part) in parts.iter_mut().enumerate().skip(1) {
             let (elements, owned) = std::mem::take(part);
@@ -232,7 +233,7 @@ pub(super) fn assemble_share(token: &Slepc, h: &[u64]) -> anyhow::Result<Operato
         tets: token.receive(0, tets)?,
         elements: token.receive(0, elements)?,
     };
-    let material = (numbers[0], numbers[1], numbers[2]);
+    let material = Material::elastic(numbers[0], numbers[1], numbers[2]);
     let frame = (h[10] == 1).then(|| ([numbers[3], numbers[4], numbers[5]], numbers[6]));
     Ok(build(token, n, (lo, hi), &share, material, frame)?.0)
 }
@@ -248,7 +249,7 @@ fn build(
     n: usize,
     (lo, hi): (usize, usize),
     share: &crate::fem::share::Share,
-    material: (f64, f64, f64),
+    material: Material,
     frame: Option<([f64; 3], f64)>,
 ) -> anyhow::Result<(Operators, Scales, Moments)> {
     let (rows, moments) = super::mpi_job::agree(rows_of(share, material, frame, lo, hi))?;
@@ -292,12 +293,12 @@ fn build(
 /// This rank's rows `lo..hi` of K and M from its share, and the moments of the elements it owns.
 fn rows_of(
     share: &crate::fem::share::Share,
-    material: (f64, f64, f64),
+    material: Material,
     frame: Option<([f64; 3], f64)>,
     lo: usize,
     hi: usize,
 ) -> anyhow::Result<(ves_ffi::slepc::LocalRows, Moments)> {
-    let (a, global, moments, mesh, dofs) = share.assemble(material)?;
+    let (a, global, moments, mesh, dofs) = share.assemble(&material)?;
     let pair = ves_ffi::slepc::SymmetricPair {
         n: global.len(),
         col_ptr: a.pattern.col_ptr(),

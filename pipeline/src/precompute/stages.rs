@@ -315,8 +315,7 @@ fn stress(scene: &Scene, solved: &Solved) -> Option<Vec<f64>> {
     let u: Vec<f64> = (0..r)
         .flat_map(|j| dofs.expand(&modes.vectors[j * nf..(j + 1) * nf]))
         .collect();
-    let m = &scene.material;
-    let lame = crate::fem::element::Lame::new(m.young, m.poisson, m.density);
+    let lame = crate::fem::element::Lame::of(&scene.material);
     Some(crate::fem::stress::vertex_stress(solved.problem.mesh(), &lame, &u, r))
 }
 

@@ -224,9 +224,6 @@ fn python_has(module: &str) -> bool {
         .is_ok_and(|o| o.status.success())
 }
 
-/// Material constants (E, ν, ρ).
-pub type MaterialConstants = (f64, f64, f64);
-
 /// Runs the comparison (`All`: scikit-fem, CalculiX, and FEniCSx when installed) for a scene (meshed and solved here) or a basis file (its mesh, supports,
 /// material and stored modes).
 pub fn verify_input(
@@ -237,36 +234,26 @@ pub fn verify_input(
     stress: bool,
 ) -> Result<VerifyReport> {
     let is_scene = input.extension().is_some_and(|e| e.eq_ignore_ascii_case("toml"));
-    let (d, ours, material) = if is_scene {
+    let (d, ours) = if is_scene {
         let scene = Scene::load(input)?;
         let d = discretize(&scene, None)?;
         let (ours, _) = solve(&d, modes.unwrap_or(scene.modes.count), SolverChoice::Arpack)?;
-        let m = scene.material;
-        (d, ours, (m.young, m.poisson, m.density))
+        (d, ours)
     } else {
         discretize_basis(input, modes)?
     };
     if stress && !matches!(refs, Reference::Calculix | Reference::All) {
         bail!("--stress compares nodal stresses with CalculiX: use it with --against calculix (or all)");
     }
-    verify(
-        &input.display().to_string(),
-        &d,
-        &ours,
-        material,
-        refs,
-        overrides,
-        stress,
-    )
+    verify(&input.display().to_string(), &d, &ours, refs, overrides, stress)
 }
 
 /// Rebuilds the discrete problem of a basis file's global space (its own mesh, supports and
 /// material) and takes its stored modes. The whole file is checked first by the one reader, so a
 /// damaged or crafted basis ends in its one-line message naming the file, not in a solver's failure.
-pub fn discretize_basis(path: &Path, modes: Option<usize>) -> Result<(Discretized, Modes, MaterialConstants)> {
+pub fn discretize_basis(path: &Path, modes: Option<usize>) -> Result<(Discretized, Modes)> {
     let file = ves_format::BasisReader::open(path)?;
-    let m = file.material()?;
-    let material = (m.young, m.poisson, m.density);
+    let material = crate::material::Material::from(&file.material()?);
     file.space_names()?;
     let g = file.space(ves_format::names::GLOBAL_SPACE)?;
     g.validate()?;
@@ -312,7 +299,7 @@ pub fn discretize_basis(path: &Path, modes: Option<usize>) -> Result<(Discretize
         eigensolve_s: 0.0,
         symbolic: None,
     };
-    Ok((d, ours, material))
+    Ok((d, ours))
 }
 
 /// Compares a discrete problem and our modes with the references.
@@ -320,7 +307,6 @@ fn verify(
     input: &str,
     d: &Discretized,
     ours: &Modes,
-    material: MaterialConstants,
     refs: Reference,
     overrides: &ToleranceOverrides,
     stress: bool,
@@ -371,7 +357,7 @@ fn verify(
         .context("cannot create a temporary directory for the reference solvers")?;
     let dir_tmp = tmp.path().to_path_buf();
 
-    write_problem(&dir_tmp.join("problem.h5"), d, material, ours, &load, load_node)?;
+    write_problem(&dir_tmp.join("problem.h5"), d, ours, &load, load_node)?;
 
     let mut reports = Vec::new();
     for r in list {
@@ -442,7 +428,7 @@ fn verify(
         }
         let curved = !d.mesh.curved_tets().is_empty();
         let tol = Tolerances::resolve(r, d.mesh.kind.order(), curved, overrides);
-        let lame = crate::fem::element::Lame::new(material.0, material.1, material.2);
+        let lame = crate::fem::element::Lame::of(&d.material);
         let stress_of = (stress && r == Reference::Calculix).then_some(&lame);
         let mut rep = compare(d, ours, &result, static_ours.as_deref(), load_node, &tol, stress_of)?;
         rep.seconds = t.elapsed().as_secs_f64();
@@ -473,14 +459,7 @@ fn static_solve(d: &Discretized, load: &[f64]) -> Result<Vec<f64>> {
     Ok(d.dofs.expand(&f))
 }
 
-fn write_problem(
-    path: &Path,
-    d: &Discretized,
-    material: MaterialConstants,
-    ours: &Modes,
-    load: &[f64],
-    load_node: usize,
-) -> Result<()> {
+fn write_problem(path: &Path, d: &Discretized, ours: &Modes, load: &[f64], load_node: usize) -> Result<()> {
     let f = hdf5::File::create(path).with_context(|| format!("cannot create {}", path.display()))?;
     let n = d.mesh.nodes.len();
     f.new_dataset_builder()
@@ -496,11 +475,11 @@ fn write_problem(
     f.new_dataset_builder()
         .with_data(&Array1::from(load.to_vec()))
         .create("load")?;
-    let (young, poisson, density) = material;
+    let m = &d.material;
     for (k, v) in [
-        ("young", young),
-        ("poisson", poisson),
-        ("density", density),
+        ("young", m.young),
+        ("poisson", m.poisson),
+        ("density", m.density),
         ("sigma", ours.sigma),
     ] {
         f.new_attr::<f64>().create(k)?.write_scalar(&v)?;
@@ -748,7 +727,8 @@ mod tests {
         let mesh = crate::tet_mesh::Mesh::structured_box([2, 1, 1], 0.1, crate::fem::element::Kind::Tet4, |_, p| p);
         let n = mesh.nodes.len();
         let dofs = crate::supports::Dofs::from_mask(&vec![false; 3 * n]);
-        let d = Discretized::assemble(mesh, dofs, (2e11, 0.3, 7800.0)).expect("assembles");
+        let d = Discretized::assemble(mesh, dofs, crate::material::Material::elastic(2e11, 0.3, 7800.0))
+            .expect("assembles");
         let nf = d.dofs.free_count();
         let ours = Modes {
             eigenvalues: vec![1e6],

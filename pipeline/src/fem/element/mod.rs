@@ -50,6 +50,11 @@ impl Lame {
             density,
         }
     }
+
+    /// Of a material.
+    pub fn of(m: &crate::material::Material) -> Lame {
+        Lame::new(m.young, m.poisson, m.density)
+    }
 }
 
 /// The integrals one element contributes.
