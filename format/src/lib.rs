@@ -24,6 +24,18 @@ pub use read::{BasisReader, ReadError, SpaceReader, guarded};
 #[cfg(feature = "hdf5")]
 pub use write::{FileData, SpaceData, WriteError, write_file};
 
+/// An input that cannot be used: the file (or other input) it came from and what is wrong and
+/// what to change, shown as `path: message`. The one error of the readers of files (a basis, a
+/// device script) in the format crate and the runtime.
+#[derive(Debug, Clone, thiserror::Error)]
+#[error("{path}: {message}")]
+pub struct InputError {
+    /// The input.
+    pub path: String,
+    /// What is wrong and what to do.
+    pub message: String,
+}
+
 /// Material constants and Rayleigh damping (`/material`).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Material {

@@ -23,14 +23,7 @@ use std::ops::Range;
 use std::path::Path;
 
 /// Reading failed; the message names the file and what is wrong.
-#[derive(Debug, Clone, thiserror::Error)]
-#[error("{path}: {message}")]
-pub struct ReadError {
-    /// The input.
-    pub path: String,
-    /// What is wrong and what to do.
-    pub message: String,
-}
+pub type ReadError = crate::InputError;
 
 /// Runs `f`, turning a panic inside the HDF5 layer into an error: hdf5-metno 0.15 builds strings
 /// from file bytes unchecked, and a corrupted name made it panic while formatting one (found by

@@ -2,14 +2,7 @@
 //! first r modes in f32, mode-major so the full-field update is a sequence of axpys.
 
 /// Loading failed; the message names the file and what is wrong.
-#[derive(Debug, thiserror::Error)]
-#[error("{path}: {message}")]
-pub struct LoadError {
-    /// The input.
-    pub path: String,
-    /// What is wrong and what to do.
-    pub message: String,
-}
+pub type LoadError = ves_format::InputError;
 
 /// Mass properties of a free body (defined with the file format).
 pub use ves_format::RigidProperties;
@@ -361,16 +354,7 @@ fn vertex_normals(rest: &[[f64; 3]], triangles: &[[u32; 3]]) -> (Vec<[f64; 3]>, 
 mod file {
     use super::*;
     use std::path::Path;
-    use ves_format::{BasisReader, ReadError};
-
-    impl From<ReadError> for LoadError {
-        fn from(e: ReadError) -> LoadError {
-            LoadError {
-                path: e.path,
-                message: e.message,
-            }
-        }
-    }
+    use ves_format::BasisReader;
 
     /// Loads what `opts` asks for from a v1 basis file: only corner-vertex rows of the first r
     /// modes are kept in memory. Every value the file holds is checked (the rest of the basis is

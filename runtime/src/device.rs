@@ -45,14 +45,7 @@ pub struct ScriptedDevice {
 pub const MAX_SCRIPT_BYTES: u64 = 64 << 20;
 
 /// The script could not be used; the message names the file and line.
-#[derive(Debug, thiserror::Error)]
-#[error("{path}: {message}")]
-pub struct ScriptError {
-    /// The script.
-    pub path: String,
-    /// What is wrong.
-    pub message: String,
-}
+pub type ScriptError = ves_format::InputError;
 
 impl ScriptedDevice {
     /// Parses a trajectory; `path` names it in errors.
