@@ -154,6 +154,8 @@ struct Shared {
     refused: Arc<AtomicU64>,
     /// Asks the haptic thread to bring the part back to rest.
     reset: Arc<AtomicBool>,
+    /// How long the server runs, s (the sessions themselves run until replaced).
+    duration_s: f64,
     cfg: ViewConfig,
     live: Mutex<Option<Live>>,
     last_stats: Mutex<Option<SessionStats>>,
@@ -166,7 +168,6 @@ struct Shared {
     /// A compute asked for while another's checks were stopping: started when that one ends.
     queued: Mutex<Option<serde_json::Value>>,
     cancel: Arc<AtomicBool>,
-    /// Compute progress and results (JSON text), to every page.
     /// Compute progress and outcomes, to every page. A channel that keeps each message (not a
     /// watch, which keeps the last): "computed" is followed at once by the progress of its
     /// checks, and a page that saw only the latter would never learn the basis was ready.
@@ -197,75 +198,10 @@ pub fn serve_with(
     ready: impl FnOnce(SocketAddr),
 ) -> Result<ViewStats, ViewError> {
     cfg.session.validate().map_err(|e| ViewError(e.to_string()))?;
-    let listener = std::net::TcpListener::bind(cfg.addr).map_err(|e| {
-        ViewError(if e.kind() == std::io::ErrorKind::AddrInUse {
-            format!(
-                "port {} on {} is in use: pick another with --port (0 picks a free one)",
-                cfg.addr.port(),
-                cfg.addr.ip()
-            )
-        } else {
-            format!("cannot listen on {}: {e}; check --host and --port", cfg.addr)
-        })
-    })?;
-    listener.set_nonblocking(true).map_err(|e| ViewError(e.to_string()))?;
+    let listener = listen(cfg.addr)?;
     let addr = listener.local_addr().map_err(|e| ViewError(e.to_string()))?;
-    let (frame_tx, frame_rx) = watch::channel(Bytes::new());
-    let (stress_tx, stress_rx) = watch::channel(Bytes::new());
     let (status_tx, status_rx) = watch::channel(String::new());
-    let published = Published {
-        frames: Arc::new(frame_tx),
-        stress: Arc::new(stress_tx),
-        stress_clients: Arc::new(AtomicUsize::new(0)),
-        drawn: Arc::new(AtomicU32::new(0)),
-        active_space: Arc::new(AtomicU32::new(0)),
-        alarm: Arc::new(AtomicBool::new(false)),
-    };
-    let mut session_cfg = cfg.session;
-    // The server keeps time; each session runs until it is replaced or the server stops.
-    session_cfg.duration_s = f64::INFINITY;
-    let shared = Arc::new(Shared {
-        hands: std::array::from_fn(|_| Arc::new(HandSlot::default())),
-        generation: RwLock::new(Arc::new(Generation {
-            hello: hello(&[], cfg, workshop.as_deref()),
-            meshes: Vec::new(),
-            bases: Vec::new(),
-            extent: None,
-            basis_path: None,
-        })),
-        generations: watch::channel(0).0,
-        frames: frame_rx,
-        stress_frames: stress_rx,
-        published,
-        status: status_rx,
-        next_client: AtomicU64::new(0),
-        clients: AtomicU64::new(0),
-        clients_total: AtomicU64::new(0),
-        clients_max: AtomicU64::new(0),
-        dropped: AtomicU64::new(0),
-        frames_sent: AtomicU64::new(0),
-        frames_skipped: AtomicU64::new(0),
-        client_slots: Arc::new(Semaphore::new(cfg.limits.clients)),
-        max_clients: cfg.limits.clients,
-        refused: Arc::new(AtomicU64::new(0)),
-        reset: Arc::new(AtomicBool::new(false)),
-        cfg: ViewConfig {
-            session: session_cfg,
-            ..cfg.clone()
-        },
-        live: Mutex::new(None),
-        last_stats: Mutex::new(None),
-        timings: Mutex::new(Vec::new()),
-        workshop,
-        computing: AtomicBool::new(false),
-        checking: AtomicBool::new(false),
-        queued: Mutex::new(None),
-        cancel: Arc::new(AtomicBool::new(false)),
-        notes: broadcast::channel(256).0,
-        computes: AtomicU64::new(0),
-        computes_failed: AtomicU64::new(0),
-        swaps: AtomicU64::new(0),
-    });
+    let shared = Arc::new(Shared::new(cfg, workshop, status_rx));
     match (spaces, &shared.workshop) {
         (Some(spaces), _) => swap(&shared, spaces, None)?,
         // A part without a basis yet: its first compute starts at once, from the scene the
@@ -277,83 +213,174 @@ pub fn serve_with(
             ));
         }
     }
-
     let rt = tokio::runtime::Builder::new_multi_thread()
         .worker_threads(1)
         .enable_all()
         .build()
         .map_err(|e| ViewError(format!("cannot start the server: {e}")))?;
-    let deadline =
-        Instant::now().checked_add(Duration::try_from_secs_f64(cfg.session.duration_s).unwrap_or(Duration::MAX));
-    rt.block_on(async {
-        let listener = tokio::net::TcpListener::from_std(listener).map_err(|e| ViewError(e.to_string()))?;
-        let app = axum::Router::new()
-            .route(
-                "/",
-                get(|| async { ([(header::CONTENT_TYPE, "text/html; charset=utf-8")], INDEX_HTML) }),
-            )
-            .route(
-                "/app.js",
-                get(|| async { ([(header::CONTENT_TYPE, "text/javascript; charset=utf-8")], APP_JS) }),
-            )
-            .route("/favicon.ico", get(|| async { axum::http::StatusCode::NO_CONTENT }))
-            .route("/basis.h5", get(basis_file))
-            .route(
-                "/open",
-                axum::routing::post(open_part).layer(axum::extract::DefaultBodyLimit::max(workshop::MAX_UPLOAD)),
-            )
-            .route("/ws", get(upgrade))
-            .with_state(shared.clone());
-        ready(addr);
-        let status = tokio::spawn(status_loop(shared.clone(), status_tx, stop.clone()));
-        let (tx, rx) = watch::channel(false);
-        let server = tokio::spawn(server::run(
-            listener,
-            app,
-            Arc::new(server::Guard::new(addr)),
-            cfg.limits,
-            shared.refused.clone(),
-            rx,
-        ));
-        loop {
-            tokio::select! {
-                _ = tokio::signal::ctrl_c() => break,
-                _ = tokio::time::sleep(Duration::from_millis(100)) => {
-                    let ended = shared.live.lock().map(|l| l.as_ref().is_some_and(|l| l.thread.is_finished())).unwrap_or(true);
-                    if stop.load(Ordering::Relaxed) || deadline.is_some_and(|d| Instant::now() >= d) || ended { break; }
-                }
-            }
-        }
-        stop.store(true, Ordering::Relaxed);
-        shared.cancel.store(true, Ordering::Relaxed);
-        let _ = tx.send(true);
-        status.abort();
-        // Open connections are dropped; the WebSockets end with the runtime below.
-        let _ = tokio::time::timeout(Duration::from_secs(1), server).await;
-        Ok::<_, ViewError>(())
-    })?;
+    rt.block_on(run_server(&shared, listener, addr, status_tx, &stop, ready))?;
     rt.shutdown_timeout(Duration::from_millis(200));
     end_session(&shared)?;
-    let stats = shared
-        .last_stats
-        .lock()
-        .ok()
-        .and_then(|s| s.clone())
-        .unwrap_or_default();
-    Ok(ViewStats {
-        session: stats,
-        clients_total: shared.clients_total.load(Ordering::Relaxed),
-        clients_max: shared.clients_max.load(Ordering::Relaxed),
-        messages_dropped: shared.dropped.load(Ordering::Relaxed),
-        frames_sent: shared.frames_sent.load(Ordering::Relaxed),
-        frames_skipped: shared.frames_skipped.load(Ordering::Relaxed),
-        frames_drawn: u64::from(shared.published.drawn.load(Ordering::Relaxed)),
-        requests_refused: shared.refused.load(Ordering::Relaxed),
-        computes: shared.computes.load(Ordering::Relaxed),
-        computes_failed: shared.computes_failed.load(Ordering::Relaxed),
-        swaps: shared.swaps.load(Ordering::Relaxed),
-        sessions: shared.timings.lock().map(|t| t.clone()).unwrap_or_default(),
-    })
+    Ok(shared.view_stats())
+}
+
+/// The listening socket on `addr`; a port in use says how to pick another.
+fn listen(addr: SocketAddr) -> Result<std::net::TcpListener, ViewError> {
+    let listener = std::net::TcpListener::bind(addr).map_err(|e| {
+        ViewError(if e.kind() == std::io::ErrorKind::AddrInUse {
+            format!(
+                "port {} on {} is in use: pick another with --port (0 picks a free one)",
+                addr.port(),
+                addr.ip()
+            )
+        } else {
+            format!("cannot listen on {addr}: {e}; check --host and --port")
+        })
+    })?;
+    listener.set_nonblocking(true).map_err(|e| ViewError(e.to_string()))?;
+    Ok(listener)
+}
+
+/// The page, its script, the basis download, the part upload and the WebSocket.
+fn router(shared: Arc<Shared>) -> axum::Router {
+    axum::Router::new()
+        .route(
+            "/",
+            get(|| async { ([(header::CONTENT_TYPE, "text/html; charset=utf-8")], INDEX_HTML) }),
+        )
+        .route(
+            "/app.js",
+            get(|| async { ([(header::CONTENT_TYPE, "text/javascript; charset=utf-8")], APP_JS) }),
+        )
+        .route("/favicon.ico", get(|| async { axum::http::StatusCode::NO_CONTENT }))
+        .route("/basis.h5", get(basis_file))
+        .route(
+            "/open",
+            axum::routing::post(open_part).layer(axum::extract::DefaultBodyLimit::max(workshop::MAX_UPLOAD)),
+        )
+        .route("/ws", get(upgrade))
+        .with_state(shared)
+}
+
+/// Serves until Ctrl-C, `stop`, the configured duration or the end of the live session.
+async fn run_server(
+    shared: &Arc<Shared>,
+    listener: std::net::TcpListener,
+    addr: SocketAddr,
+    status_tx: watch::Sender<String>,
+    stop: &Arc<AtomicBool>,
+    ready: impl FnOnce(SocketAddr),
+) -> Result<(), ViewError> {
+    let deadline = Instant::now().checked_add(Duration::try_from_secs_f64(shared.duration_s).unwrap_or(Duration::MAX));
+    let listener = tokio::net::TcpListener::from_std(listener).map_err(|e| ViewError(e.to_string()))?;
+    ready(addr);
+    let status = tokio::spawn(status_loop(shared.clone(), status_tx, stop.clone()));
+    let (tx, rx) = watch::channel(false);
+    let server = tokio::spawn(server::run(
+        listener,
+        router(shared.clone()),
+        Arc::new(server::Guard::new(addr)),
+        shared.cfg.limits,
+        shared.refused.clone(),
+        rx,
+    ));
+    loop {
+        tokio::select! {
+            _ = tokio::signal::ctrl_c() => break,
+            _ = tokio::time::sleep(Duration::from_millis(100)) => {
+                let ended = shared.live.lock().map(|l| l.as_ref().is_some_and(|l| l.thread.is_finished())).unwrap_or(true);
+                if stop.load(Ordering::Relaxed) || deadline.is_some_and(|d| Instant::now() >= d) || ended { break; }
+            }
+        }
+    }
+    stop.store(true, Ordering::Relaxed);
+    shared.cancel.store(true, Ordering::Relaxed);
+    let _ = tx.send(true);
+    status.abort();
+    // Open connections are dropped; the WebSockets end with the runtime.
+    let _ = tokio::time::timeout(Duration::from_secs(1), server).await;
+    Ok(())
+}
+
+impl Shared {
+    /// The server's state before any session: no basis, no client.
+    fn new(cfg: &ViewConfig, workshop: Option<Arc<dyn Workshop>>, status: watch::Receiver<String>) -> Shared {
+        let (frame_tx, frames) = watch::channel(Bytes::new());
+        let (stress_tx, stress_frames) = watch::channel(Bytes::new());
+        let published = Published {
+            frames: Arc::new(frame_tx),
+            stress: Arc::new(stress_tx),
+            stress_clients: Arc::new(AtomicUsize::new(0)),
+            drawn: Arc::new(AtomicU32::new(0)),
+            active_space: Arc::new(AtomicU32::new(0)),
+            alarm: Arc::new(AtomicBool::new(false)),
+        };
+        let mut session_cfg = cfg.session;
+        // The server keeps time; each session runs until it is replaced or the server stops.
+        session_cfg.duration_s = f64::INFINITY;
+        Shared {
+            hands: std::array::from_fn(|_| Arc::new(HandSlot::default())),
+            generation: RwLock::new(Arc::new(Generation {
+                hello: hello(&[], cfg, workshop.as_deref()),
+                meshes: Vec::new(),
+                bases: Vec::new(),
+                extent: None,
+                basis_path: None,
+            })),
+            generations: watch::channel(0).0,
+            frames,
+            stress_frames,
+            published,
+            status,
+            next_client: AtomicU64::new(0),
+            clients: AtomicU64::new(0),
+            clients_total: AtomicU64::new(0),
+            clients_max: AtomicU64::new(0),
+            dropped: AtomicU64::new(0),
+            frames_sent: AtomicU64::new(0),
+            frames_skipped: AtomicU64::new(0),
+            client_slots: Arc::new(Semaphore::new(cfg.limits.clients)),
+            max_clients: cfg.limits.clients,
+            refused: Arc::new(AtomicU64::new(0)),
+            reset: Arc::new(AtomicBool::new(false)),
+            duration_s: cfg.session.duration_s,
+            cfg: ViewConfig {
+                session: session_cfg,
+                ..cfg.clone()
+            },
+            live: Mutex::new(None),
+            last_stats: Mutex::new(None),
+            timings: Mutex::new(Vec::new()),
+            workshop,
+            computing: AtomicBool::new(false),
+            checking: AtomicBool::new(false),
+            queued: Mutex::new(None),
+            cancel: Arc::new(AtomicBool::new(false)),
+            notes: broadcast::channel(256).0,
+            computes: AtomicU64::new(0),
+            computes_failed: AtomicU64::new(0),
+            swaps: AtomicU64::new(0),
+        }
+    }
+
+    /// What the server counted, with the last session's statistics.
+    fn view_stats(&self) -> ViewStats {
+        let n = |a: &AtomicU64| a.load(Ordering::Relaxed);
+        ViewStats {
+            session: self.last_stats.lock().ok().and_then(|s| s.clone()).unwrap_or_default(),
+            clients_total: n(&self.clients_total),
+            clients_max: n(&self.clients_max),
+            messages_dropped: n(&self.dropped),
+            frames_sent: n(&self.frames_sent),
+            frames_skipped: n(&self.frames_skipped),
+            frames_drawn: u64::from(self.published.drawn.load(Ordering::Relaxed)),
+            requests_refused: n(&self.refused),
+            computes: n(&self.computes),
+            computes_failed: n(&self.computes_failed),
+            swaps: n(&self.swaps),
+            sessions: self.timings.lock().map(|t| t.clone()).unwrap_or_default(),
+        }
+    }
 }
 
 /// Stops the live session, if any, and keeps its statistics.
