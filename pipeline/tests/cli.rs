@@ -260,6 +260,52 @@ fn session_and_bench_report_json() {
     assert!(String::from_utf8_lossy(&bad.stderr).contains("/nonexistent.csv"));
 }
 
+/// A hand that grabs 0.46 mm from the beam's tip corner and moves 1 mm further along the
+/// beam's axis (where the beam barely gives: 4 bending modes, L/EA ~ 1e-9 m/N) feels
+/// k · 1 mm = 0.5 N on the 500 N/m coupling, not k · 1.46 mm = 0.73 N; the JSON names the vertex,
+/// the gap and how the vertex moved, and `--trace` has one row per step with the same numbers.
+#[test]
+fn a_session_says_what_each_hand_held_and_traces_it() {
+    let (dir, basis) = good_basis();
+    let script = dir.path().join("hand.csv");
+    let (x0, y, z) = (1.0 + 0.46e-3, 0.1, 0.05);
+    std::fs::write(
+        &script,
+        format!(
+            "t,x,y,z,button\n0,{x0},{y},{z},1\n0.1,{},{y},{z},1\n0.4,{},{y},{z},1\n",
+            x0 + 1e-3,
+            x0 + 1e-3
+        ),
+    )
+    .unwrap();
+    let trace = dir.path().join("trace.csv");
+    let v = session_json_with(&basis, &script, &["--trace", trace.to_str().unwrap(), "--no-realtime"]);
+    let hand = &v["hands"][0];
+    assert!((hand["grip_gap_m"].as_f64().unwrap() - 0.46e-3).abs() < 1e-9, "{hand}");
+    let p = hand["first_vertex_position"].as_array().expect("position");
+    assert!((p[0].as_f64().unwrap() - 1.0).abs() < 1e-9, "the tip corner: {hand}");
+    let f = v["final_forces_n"][0].as_array().expect("force");
+    let magnitude = f.iter().map(|c| c.as_f64().unwrap().powi(2)).sum::<f64>().sqrt();
+    assert!(
+        (magnitude - 0.5).abs() < 0.005,
+        "{magnitude} N: the initial gap is pulled?"
+    );
+    let text = std::fs::read_to_string(&trace).expect("the trace");
+    let rows: Vec<Vec<f64>> = text
+        .lines()
+        .skip(1)
+        .map(|l| l.split(',').map(|c| c.parse().expect("a number")).collect())
+        .collect();
+    assert!(text.starts_with("t_s,hand,x_m,"), "{}", &text[..80]);
+    assert_eq!(rows.len() as u64, v["steps"].as_u64().unwrap());
+    let last = rows.last().unwrap();
+    assert_eq!(last[6], hand["last_vertex"].as_f64().unwrap());
+    for c in 0..3 {
+        assert_eq!(last[7 + c], hand["last_displacement_m"][c].as_f64().unwrap());
+        assert_eq!(last[10 + c], f[c].as_f64().unwrap());
+    }
+}
+
 #[test]
 fn verify_against_scikit_fem_and_calculix_passes_and_tolerances_bite() {
     // 10-node tets so both references run their quadratic elements; small mesh.

@@ -154,6 +154,11 @@ pub struct HandOutput {
     pub clamped: bool,
     /// Deformed position of the active vertex, m.
     pub vertex_position: [f64; 3],
+    /// Elastic displacement of the active vertex (part frame, static correction included), m.
+    pub displacement: [f64; 3],
+    /// While grabbing: how far the hand was from the vertex when the grab began, m. The grab
+    /// holds the part where it was grabbed, so this gap is carried, not pulled.
+    pub grip_gap: f64,
     /// Largest normal strain along the surface edges at the active vertex, from the modal
     /// displacement at the start of the step.
     pub strain: f64,
@@ -178,6 +183,9 @@ struct Hand {
     /// instead of searching the tree (even on a tie between two vertices).
     near: Option<Neighbourhood>,
     grabbed: bool,
+    /// While grabbing: the hand's offset from the vertex when the grab began (part frame); the
+    /// spring pulls the vertex toward hand − grip. Set at the grab's first step.
+    grip: Option<V3>,
     rows: Vec<f64>,
     /// How far the vertex moves per newton of its own force over one step: the modes, and for a
     /// free body the rigid motion (both fixed for a vertex, so computed when it is picked).
@@ -284,6 +292,7 @@ impl Haptics {
                 vertex: None,
                 near: None,
                 grabbed: false,
+                grip: None,
                 rows: vec![0.0; 3 * r],
                 g: M3::zeros(),
                 residual: M3::zeros(),
@@ -499,6 +508,7 @@ impl Haptics {
             h.vertex = None;
             h.near = None;
             h.grabbed = false;
+            h.grip = None;
             h.last_force = V3::zeros();
             h.capped = false;
             h.alarm_force = None;
@@ -530,6 +540,9 @@ impl Haptics {
             let input = to_part_frame(world, predicted.as_ref());
             let Some(vertex) = self.pick(k, &input) else { continue };
             let prediction = self.predict(k, vertex);
+            if self.hands[k].grabbed && self.hands[k].grip.is_none() {
+                self.hands[k].grip = Some(input.position - prediction.now);
+            }
             let Some((force, magnitude)) = self.coupling_force(k, vertex, &input, &prediction, out) else {
                 continue;
             };
@@ -564,6 +577,9 @@ impl Haptics {
             self.hands[k].grabbed = input.button;
         } else if !input.button {
             self.hands[k].grabbed = false;
+        }
+        if !self.hands[k].grabbed {
+            self.hands[k].grip = None;
         }
         self.hands[k].vertex
     }
@@ -610,6 +626,7 @@ impl Haptics {
         let kb = c.stiffness + c.damping / dt;
         let mean_velocity = (p.free_end - p.now) / dt;
         let force = if self.hands[k].grabbed {
+            let x = x - self.hands[k].grip.unwrap_or_else(V3::zeros);
             let m = p.compliance * kb + M3::identity();
             let rhs = (x - p.free_end) * c.stiffness + (xd - mean_velocity) * c.damping;
             m.lu().solve(&rhs)
@@ -736,6 +753,8 @@ impl Haptics {
         out.vertex = vertex;
         out.contact = hd.grabbed || magnitude > 0.0;
         out.vertex_position = p_w.into();
+        out.displacement = (p.now - V3::from(self.basis.rest[vertex as usize])).into();
+        out.grip_gap = hd.grip.map_or(0.0, |g| g.norm());
         self.hands[k].last_force = force;
     }
 
@@ -788,6 +807,10 @@ impl Haptics {
                 self.select(k, nv);
                 self.hands[k].grabbed = oh.grabbed;
                 self.hands[k].last_force = oh.last_force;
+                // The hand keeps holding the same point of the part: the grip follows the
+                // vertex's move from the old mesh's vertex to the new one's.
+                let moved = V3::from(other.basis.rest[v as usize]) - V3::from(self.basis.rest[nv as usize]);
+                self.hands[k].grip = oh.grip.map(|g| g + moved);
             }
         }
     }
@@ -853,6 +876,34 @@ mod strain_tests {
             h.step(&[input], &mut out);
         }
         (h, out[0])
+    }
+
+    /// A grab holds the part where it was grabbed: a hand that starts 0.46 mm from the vertex
+    /// and moves 1 mm along a direction no mode moves (y on the stretch grid: no compliance)
+    /// feels k · 1 mm = 0.5 N on a 500 N/m coupling, not k · 1.46 mm = 0.73 N, and the gap is
+    /// reported. Let go and grabbed again from elsewhere, the new gap is taken.
+    #[test]
+    fn a_grab_carries_the_initial_gap_instead_of_pulling_it() {
+        let mut h = Haptics::new(stretch_basis(), Coupling::default(), 1e-3, Scheme::Exact, 1);
+        assert_eq!(h.coupling.stiffness, 500.0);
+        let mut out = [HandOutput::default()];
+        let at = |y: f64, button: bool| HandInput {
+            position: [0.01, 0.01 + y, 0.0],
+            velocity: [0.0; 3],
+            button,
+        };
+        for k in 0..300 {
+            h.step(&[at(if k == 0 { 0.46e-3 } else { 1.46e-3 }, true)], &mut out);
+        }
+        assert_eq!(out[0].vertex, 4, "the centre vertex");
+        assert!((out[0].grip_gap - 0.46e-3).abs() < 1e-12, "{}", out[0].grip_gap);
+        assert!((-out[0].force[1] - 0.5).abs() < 1e-9, "{:?}", out[0].force);
+        h.step(&[at(2e-3, false)], &mut out);
+        for k in 0..300 {
+            h.step(&[at(if k == 0 { 2e-3 } else { 2.5e-3 }, true)], &mut out);
+        }
+        assert!((out[0].grip_gap - 2e-3).abs() < 1e-12, "{}", out[0].grip_gap);
+        assert!((-out[0].force[1] - 0.25).abs() < 1e-9, "{:?}", out[0].force);
     }
 
     /// A pressing hand skips most nearest-vertex searches (its nearest vertex is proven to be

@@ -9,6 +9,7 @@ pub mod matrices;
 pub mod precompute;
 pub mod report;
 pub mod session;
+mod trace;
 pub mod verify;
 pub mod view;
 

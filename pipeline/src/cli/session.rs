@@ -36,6 +36,10 @@ pub struct Args {
     /// Print the statistics as JSON.
     #[arg(long)]
     json: bool,
+    /// Write every haptic step of every hand to this CSV file (time, hand position, contact,
+    /// vertex, its elastic displacement, force, grip gap, strain, von Mises).
+    #[arg(long, value_name = "FILE.csv")]
+    trace: Option<PathBuf>,
 }
 
 /// What a session is made of besides its devices: shared by `ves session` and `ves view`.
@@ -166,12 +170,36 @@ impl Args {
             anyhow::bail!("--duration {duration}: must be finite and > 0 (s); see ves session --help");
         }
         let cfg = self.settings.config(duration, "session")?;
+        let trace = match &self.trace {
+            Some(path) => {
+                let mut inputs = vec![self.basis.as_path()];
+                inputs.extend(
+                    self.devices
+                        .iter()
+                        .filter_map(|d| d.strip_prefix("script:"))
+                        .map(Path::new),
+                );
+                ves_pipeline::output::check(path, &inputs, ves_pipeline::output::Overwrite { force: false })?;
+                let steps = (duration * cfg.rate_hz).round() as usize + 1;
+                let trace = super::trace::Trace::with_room(steps, devices.len());
+                devices = devices
+                    .into_iter()
+                    .enumerate()
+                    .map(|(k, d)| trace.record(k, d))
+                    .collect();
+                Some((trace, path))
+            }
+            None => None,
+        };
         let spaces = self.settings.spaces(&self.basis)?;
         let bytes: usize = spaces.iter().map(|s| s.basis.bytes_loaded).sum();
         let stats = session::run_spaces(spaces, devices, &cfg)
             .map_err(|e| anyhow::anyhow!(e))
             .with_context(|| self.basis.display().to_string())?;
         warn_refused(&stats);
+        if let Some((trace, path)) = trace {
+            super::trace::write(&trace, path)?;
+        }
         if self.json {
             let mut v = serde_json::to_value(&stats)?;
             v["bytes_loaded"] = bytes.into();

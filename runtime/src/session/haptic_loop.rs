@@ -92,7 +92,10 @@ impl HapticLoop<'_> {
     ) -> Result<Ran, super::SessionError> {
         let dt = 1.0 / cfg.rate_hz;
         let mut timings = LoopTimings::new()?;
-        let mut tally = HandTally::default();
+        let mut tally = HandTally {
+            hands: vec![Default::default(); hands],
+            ..Default::default()
+        };
         let mut inputs = vec![HandInput::default(); hands];
         let mut outputs = vec![HandOutput::default(); hands];
         let r_max = self
@@ -133,10 +136,10 @@ impl HapticLoop<'_> {
             let c0 = Instant::now();
             self.haptics.step(&inputs, &mut outputs);
             timings.compute_ns.record(c0.elapsed().as_nanos() as u64);
-            for (out, dev) in outputs.iter().zip(self.devices.iter_mut()) {
+            for (k, (out, dev)) in outputs.iter().zip(self.devices.iter_mut()).enumerate() {
                 dev.write(out.force);
                 dev.observe(out);
-                tally.add(out);
+                tally.add(k, out);
             }
             let active = self.haptics.sim(self.haptics.active());
             active.publish_into(self.haptics.active(), &mut published);

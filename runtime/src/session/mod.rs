@@ -6,7 +6,7 @@ mod drawing;
 mod haptic_loop;
 mod stats;
 
-pub use stats::SessionStats;
+pub use stats::{HandReport, SessionStats};
 
 use crate::basis::Basis;
 use crate::device::Device;

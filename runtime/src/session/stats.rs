@@ -71,8 +71,53 @@ pub struct SessionStats {
     pub principal_strain_max: Option<f64>,
     /// The force on each device at the last step, N.
     pub final_forces_n: Vec<[f64; 3]>,
+    /// Per hand: the vertex it touched, where, from how far, and how that vertex moved.
+    pub hands: Vec<HandReport>,
     /// What real-time hygiene the session got (null when not asked for).
     pub realtime: Option<crate::realtime::Realtime>,
+}
+
+/// What one hand did over a session.
+#[derive(Clone, Debug, Default, serde::Serialize)]
+pub struct HandReport {
+    /// The vertex the hand first grabbed or pressed (index among the basis's kept vertices;
+    /// null: never in contact).
+    pub first_vertex: Option<u32>,
+    /// That vertex's deformed position when the contact began, m.
+    pub first_vertex_position: Option<[f64; 3]>,
+    /// How far the hand was from the vertex when its first grab began, m (null: no grab). The
+    /// grab holds the part where it was grabbed: this gap is carried, not pulled.
+    pub grip_gap_m: Option<f64>,
+    /// Steps in contact (grabbing or pressing).
+    pub contact_steps: u64,
+    /// Largest elastic displacement of the hand's vertex while in contact, m.
+    pub max_displacement_m: f64,
+    /// The hand's vertex at the last step in contact (null: never in contact).
+    pub last_vertex: Option<u32>,
+    /// Its elastic displacement then (part frame), m.
+    pub last_displacement_m: [f64; 3],
+}
+
+impl HandReport {
+    fn add(&mut self, out: &HandOutput) {
+        if !out.contact {
+            return;
+        }
+        if self.first_vertex.is_none() {
+            self.first_vertex = Some(out.vertex);
+            self.first_vertex_position = Some(out.vertex_position);
+        }
+        if self.grip_gap_m.is_none() && out.grip_gap > 0.0 {
+            self.grip_gap_m = Some(out.grip_gap);
+        }
+        self.contact_steps += 1;
+        let u = out.displacement;
+        self.max_displacement_m = self
+            .max_displacement_m
+            .max((u[0] * u[0] + u[1] * u[1] + u[2] * u[2]).sqrt());
+        self.last_vertex = Some(out.vertex);
+        self.last_displacement_m = u;
+    }
 }
 
 /// Nanosecond timings streamed into a histogram (3 significant digits, 1 ns to 1 h): memory is
@@ -142,6 +187,8 @@ pub(super) struct PartRecord {
 /// The haptic thread's own tallies over the hands and the steps.
 #[derive(Default)]
 pub(super) struct HandTally {
+    /// Per hand (made before the loop).
+    pub hands: Vec<HandReport>,
     pub peak_force: f64,
     pub clamped: u64,
     pub strain_max: f64,
@@ -152,8 +199,11 @@ pub(super) struct HandTally {
 }
 
 impl HandTally {
-    /// Counts one hand's output of one step.
-    pub(super) fn add(&mut self, out: &HandOutput) {
+    /// Counts hand `k`'s output of one step.
+    pub(super) fn add(&mut self, k: usize, out: &HandOutput) {
+        if let Some(h) = self.hands.get_mut(k) {
+            h.add(out);
+        }
         let f = out.force;
         self.peak_force = self.peak_force.max((f[0] * f[0] + f[1] * f[1] + f[2] * f[2]).sqrt());
         self.clamped += u64::from(out.clamped);
@@ -249,6 +299,7 @@ impl SessionStats {
             principal_stress_max: stress(d.part.principal_stress.get()),
             principal_strain_max: (d.has_stress && d.elastic).then(|| d.part.principal_strain.get()),
             final_forces_n: h.final_forces,
+            hands: h.tally.hands.clone(),
             realtime: h.realtime,
         }
     }

@@ -12,8 +12,8 @@ use std::sync::atomic::{AtomicU64, Ordering};
 const INPUT: usize = 6;
 /// Output layout: force (3), vertex, contact, clamped, vertex position (3), strain, strain
 /// exceeded, von Mises, safety factor, stress exceeded, message sequence read, principal
-/// stress, principal strain.
-const OUTPUT: usize = 17;
+/// stress, principal strain, displacement (3), grip gap.
+const OUTPUT: usize = 21;
 
 /// One hand shared between the web clients and the haptic thread.
 pub struct HandSlot {
@@ -79,6 +79,10 @@ fn encode(out: &HandOutput, seq: u32) -> [f64; OUTPUT] {
         f64::from(seq),
         out.principal_stress,
         out.principal_strain,
+        out.displacement[0],
+        out.displacement[1],
+        out.displacement[2],
+        out.grip_gap,
     ]
 }
 
@@ -96,6 +100,8 @@ fn decode(o: &[f64; OUTPUT]) -> (HandOutput, u32) {
         stress_exceeded: o[13] != 0.0,
         principal_stress: o[15],
         principal_strain: o[16],
+        displacement: [o[17], o[18], o[19]],
+        grip_gap: o[20],
     };
     (out, o[14] as u32)
 }
@@ -280,6 +286,8 @@ mod tests {
             stress_exceeded: false,
             principal_stress: 11.0,
             principal_strain: 12.0,
+            displacement: [14.0, 15.0, 16.0],
+            grip_gap: 17.0,
         };
         let (back, seq) = decode(&encode(&out, 13));
         assert_eq!(seq, 13);
