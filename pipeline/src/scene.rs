@@ -329,6 +329,9 @@ impl Scene {
             )));
         }
         scene.notice_unit_override();
+        if let Some(slip) = scene.material.unit_slip() {
+            tracing::warn!("{}: {slip}", path.display());
+        }
         Ok(scene)
     }
 

@@ -367,6 +367,17 @@ impl Request {
 }
 
 /// A warning, or an info line for a quiet request.
+/// How to get a closer curved surface, in terms of the settings the scene has.
+fn closer_surface_advice(req: &Request) -> String {
+    match (req.mesh.target_error, req.mesh.size) {
+        (Some(t), _) => {
+            format!("a smaller [mesh] target_error than {t} refines further, or give a mesh.size for a closer surface")
+        }
+        (None, size) if size > 0.0 => format!("a mesh.size below {size:e} m gives a closer surface"),
+        _ => "give a mesh.size for a closer surface".into(),
+    }
+}
+
 fn notice(req: &Request, message: String) {
     if req.quiet {
         tracing::info!("{message}");
@@ -847,11 +858,12 @@ fn attempt_once(
                     req,
                     format!(
                         "{path}: {} of {} curved tets were invalid after order 2; gmsh repaired {}, {} were made \
-                         straight-sided (their faces are flat there: refine mesh.size for a closer surface)",
+                         straight-sided (their faces are flat there: {})",
                         meshing.distorted,
                         mesh.tet_count(),
                         meshing.repaired_by_gmsh,
-                        meshing.straightened
+                        meshing.straightened,
+                        closer_surface_advice(req)
                     ),
                 );
             }
