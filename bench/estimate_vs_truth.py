@@ -69,6 +69,16 @@ def main():
     for above in (5e-3, 1e-3):
         for name, pairs in (("estimate", kept), ("Richardson", rich), ("recovery", rec)):
             print(summary(name, pairs, above))
+    if a.basis:
+        print("\nPer class, true error > 0.1 % (estimate / Richardson / recovery over true):")
+        for c in sorted(set(classes)):
+            idx = [i for i in range(len(kept)) if classes[i] == c and abs(kept[i][1]) > 1e-3]
+            if not idx:
+                continue
+            span = lambda pairs: "–".join(f"{x:.2f}" for x in (
+                min(pairs[i][0] / abs(pairs[i][1]) for i in idx),
+                max(pairs[i][0] / abs(pairs[i][1]) for i in idx))) if all(pairs[i][0] == pairs[i][0] for i in idx) else "—"
+            print(f"- {c} ({len(idx)} modes): {span(kept)} / {span(rich)} / {span(rec)}")
 
 
 if __name__ == "__main__":

@@ -323,9 +323,11 @@ fn from_coarser<'a>(
 }
 
 /// How far the two estimates may differ before a mode is flagged: where the Richardson
-/// estimate is asymptotic and more than this many times the recovery estimate, the recovery
-/// missed part of the error (docs/accuracy.md).
-pub const DISAGREE: f64 = 2.0;
+/// estimate is asymptotic and more than this many times the recovery estimate, the larger is
+/// taken but not vouched for. On the 29k-unknown cantilever the Richardson estimate was taken at
+/// 2.05–2.4× the recovery one for six modes, all within 0.94–1.95× of the truth; at 4.8× for
+/// one, 2.4× the truth (docs/accuracy.md).
+pub const DISAGREE: f64 = 3.0;
 
 /// A recovery estimate above this says the mesh is far from asymptotic: the number is a rough
 /// guide (on the 4-node bracket, 12–36 %).
@@ -581,8 +583,8 @@ mod tests {
         assert_eq!((e.relative, e.rule, e.reliable), (1e-3, Rule::Recovery, true));
         let e = choose(rich(1.5e-3, true), Some(1e-3), TET10);
         assert_eq!((e.relative, e.rule, e.reliable), (1.5e-3, Rule::LargerRichardson, true));
-        let e = choose(rich(3e-3, true), Some(1e-3), TET10);
-        assert_eq!((e.relative, e.reliable), (3e-3, false));
+        let e = choose(rich(4e-3, true), Some(1e-3), TET10);
+        assert_eq!((e.relative, e.reliable), (4e-3, false));
         let e = choose(rich(0.5e-3, true), Some(1e-3), TET10);
         assert_eq!((e.relative, e.rule, e.reliable), (1e-3, Rule::Recovery, true));
         // Walls one element thick: the coarser meshes cannot see it, the recovery is taken.
