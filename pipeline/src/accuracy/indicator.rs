@@ -25,16 +25,21 @@ pub const EVEN_SHARE: f64 = 0.2;
 /// Per element `e` and field `j`, the share of field `j`'s indicated error in element `e`,
 /// row-major [tets, r] (each column sums to 1; an all-zero column when a field has no error).
 pub fn shares(mesh: &Mesh, mat: &Lame, u: &[f64], r: usize) -> Vec<f64> {
-    let mut eta = match mesh.kind {
-        crate::fem::element::Kind::Tet4 => element_errors::<Tet4>(mesh, mat, u, r),
-        crate::fem::element::Kind::Tet10 => element_errors::<Tet10>(mesh, mat, u, r),
-    };
+    let mut eta = element_energies(mesh, mat, u, r);
     for j in 0..r {
         let total: f64 = eta.iter().skip(j).step_by(r).sum();
         let inv = if total > 0.0 { 1.0 / total } else { 0.0 };
         eta.iter_mut().skip(j).step_by(r).for_each(|x| *x *= inv);
     }
     eta
+}
+
+/// Per element `e` and field `j`, η²_ej (below), row-major [tets, r].
+pub fn element_energies(mesh: &Mesh, mat: &Lame, u: &[f64], r: usize) -> Vec<f64> {
+    match mesh.kind {
+        crate::fem::element::Kind::Tet4 => element_errors::<Tet4>(mesh, mat, u, r),
+        crate::fem::element::Kind::Tet10 => element_errors::<Tet10>(mesh, mat, u, r),
+    }
 }
 
 /// η²_ej = ∫_e (σ* − σ_h) : C⁻¹ : (σ* − σ_h) dV, the difference taken at the corners and
