@@ -492,73 +492,11 @@ fn start_compute(shared: &Arc<Shared>, scene: serde_json::Value) -> Result<(), S
     }
     shared.cancel.store(false, Ordering::Relaxed);
     shared.computes.fetch_add(1, Ordering::Relaxed);
-    let shared = shared.clone();
     let spawned = std::thread::Builder::new().name("ves-compute".into()).spawn({
         let shared = shared.clone();
         move || {
-            let t0 = Instant::now();
-            let note = |v: serde_json::Value| {
-                let _ = shared.notes.send(v.to_string());
-            };
-            let progress: Arc<dyn Fn(Progress) + Send + Sync> = {
-                let shared = shared.clone();
-                Arc::new(move |p: Progress| {
-                    let v = serde_json::json!({"type": "progress", "stage": p.stage, "fraction": p.fraction});
-                    let _ = shared.notes.send(v.to_string());
-                })
-            };
-            progress(Progress {
-                stage: "starting".into(),
-                fraction: 0.0,
-            });
-            // The session moves to the first basis as soon as it is written; the estimate that
-            // may follow rewrites the file and is reported when it comes.
-            let mut swapped = false;
-            let mut ready = |c: &Computed| -> Result<(), String> {
-                progress(Progress {
-                    stage: "loading".into(),
-                    fraction: 0.98,
-                });
-                let spaces = crate::switching::load_spaces(&c.basis, None, true).map_err(|e| e.to_string())?;
-                swap(&shared, spaces, Some(c.basis.clone())).map_err(|e| e.0)?;
-                swapped = true;
-                shared.checking.store(true, Ordering::Release);
-                note(serde_json::json!({
-                    "type": "computed", "summary": c.summary, "scene": c.scene,
-                    "seconds": t0.elapsed().as_secs_f64(),
-                    "estimated_error": c.estimated_error,
-                }));
-                Ok(())
-            };
-            let done = workshop.compute(&scene, progress.clone(), shared.cancel.clone(), &mut ready);
-            match done {
-                Ok(c) if swapped => note(serde_json::json!({
-                    "type": "checked", "summary": c.summary,
-                    "seconds": t0.elapsed().as_secs_f64(),
-                    "estimated_error": c.estimated_error,
-                })),
-                Ok(_) => {
-                    shared.computes_failed.fetch_add(1, Ordering::Relaxed);
-                    note(serde_json::json!({"type": "compute_error", "message": "the compute made no basis"}));
-                }
-                // The part is in use; only its checks did not finish.
-                Err(e) if swapped => note(serde_json::json!({"type": "checked", "error": e})),
-                Err(e) => {
-                    shared.computes_failed.fetch_add(1, Ordering::Relaxed);
-                    note(serde_json::json!({"type": "compute_error", "message": e}));
-                }
-            }
-            let next = {
-                let mut queued = shared.queued.lock().unwrap_or_else(|p| p.into_inner());
-                shared.checking.store(false, Ordering::Release);
-                shared.computing.store(false, Ordering::Release);
-                queued.take()
-            };
-            if let Some(scene) = next
-                && let Err(e) = start_compute(&shared, scene)
-            {
-                note(serde_json::json!({"type": "compute_error", "message": e}));
-            }
+            run_compute(&shared, workshop.as_ref(), &scene);
+            start_queued(&shared);
         }
     });
     if let Err(e) = spawned {
@@ -566,6 +504,86 @@ fn start_compute(shared: &Arc<Shared>, scene: serde_json::Value) -> Result<(), S
         return Err(format!("cannot start the compute: {e}"));
     }
     Ok(())
+}
+
+/// Sends a compute note to every page.
+fn note(shared: &Shared, v: serde_json::Value) {
+    let _ = shared.notes.send(v.to_string());
+}
+
+/// One compute, in the compute thread: progress to every page, the session moved to the basis
+/// as soon as it is written (the checks that may follow rewrite the file and are reported when
+/// they end), and the outcome.
+fn run_compute(shared: &Arc<Shared>, workshop: &dyn Workshop, scene: &serde_json::Value) {
+    let t0 = Instant::now();
+    let progress: Arc<dyn Fn(Progress) + Send + Sync> = {
+        let shared = shared.clone();
+        Arc::new(move |p: Progress| {
+            note(
+                &shared,
+                serde_json::json!({"type": "progress", "stage": p.stage, "fraction": p.fraction}),
+            );
+        })
+    };
+    progress(Progress {
+        stage: "starting".into(),
+        fraction: 0.0,
+    });
+    let mut swapped = false;
+    let mut ready = |c: &Computed| -> Result<(), String> {
+        progress(Progress {
+            stage: "loading".into(),
+            fraction: 0.98,
+        });
+        let spaces = crate::switching::load_spaces(&c.basis, None, true).map_err(|e| e.to_string())?;
+        swap(shared, spaces, Some(c.basis.clone())).map_err(|e| e.0)?;
+        swapped = true;
+        shared.checking.store(true, Ordering::Release);
+        note(
+            shared,
+            serde_json::json!({
+                "type": "computed", "summary": c.summary, "scene": c.scene,
+                "seconds": t0.elapsed().as_secs_f64(),
+                "estimated_error": c.estimated_error,
+            }),
+        );
+        Ok(())
+    };
+    let done = workshop.compute(scene, progress.clone(), shared.cancel.clone(), &mut ready);
+    let failed = |message: serde_json::Value| {
+        shared.computes_failed.fetch_add(1, Ordering::Relaxed);
+        note(shared, serde_json::json!({"type": "compute_error", "message": message}));
+    };
+    match done {
+        Ok(c) if swapped => note(
+            shared,
+            serde_json::json!({
+                "type": "checked", "summary": c.summary,
+                "seconds": t0.elapsed().as_secs_f64(),
+                "estimated_error": c.estimated_error,
+            }),
+        ),
+        Ok(_) => failed("the compute made no basis".into()),
+        // The part is in use; only its checks did not finish.
+        Err(e) if swapped => note(shared, serde_json::json!({"type": "checked", "error": e})),
+        Err(e) => failed(e.into()),
+    }
+}
+
+/// At a compute's end: the compute asked for during its checks, if any, starts now. Decided
+/// under the lock a request is queued with, so none is queued after this and lost.
+fn start_queued(shared: &Arc<Shared>) {
+    let next = {
+        let mut queued = shared.queued.lock().unwrap_or_else(|p| p.into_inner());
+        shared.checking.store(false, Ordering::Release);
+        shared.computing.store(false, Ordering::Release);
+        queued.take()
+    };
+    if let Some(scene) = next
+        && let Err(e) = start_compute(shared, scene)
+    {
+        note(shared, serde_json::json!({"type": "compute_error", "message": e}));
+    }
 }
 
 /// POST /open?name=FILE: the page opens a geometry file (the body) as the part; its first
@@ -787,8 +805,7 @@ async fn client(mut socket: WebSocket, shared: Arc<Shared>) {
     let mut stress = shared.stress_frames.clone();
     let mut notes = shared.notes.subscribe();
     let mut wants_stress = false;
-    let mut last_seq: Option<u32> = None;
-    let mut last_sent: Option<(Bytes, Instant)> = None;
+    let mut gate = FrameGate::default();
     // The hello and meshes first: nothing else means anything to the page before them.
     let mut ok = send_generation(&mut socket, &shared, id).await;
     generations.borrow_and_update();
@@ -800,7 +817,7 @@ async fn client(mut socket: WebSocket, shared: Arc<Shared>) {
                 ok = send_generation(&mut socket, &shared, id).await;
                 // A frame of the session before is not for these meshes.
                 frames.borrow_and_update();
-                last_seq = None;
+                gate.last_seq = None;
             }
             m = socket.recv() => match m {
                 None | Some(Err(_)) | Some(Ok(Message::Close(_))) => break,
@@ -809,11 +826,9 @@ async fn client(mut socket: WebSocket, shared: Arc<Shared>) {
                     Reply::Note(text) => ok = send(&mut socket, Message::Text(text.into())).await,
                     Reply::Stress(on) if on != wants_stress => {
                         wants_stress = on;
+                        want_stress(&shared, on);
                         if on {
-                            shared.published.stress_clients.fetch_add(1, Ordering::Relaxed);
                             stress.mark_unchanged();
-                        } else {
-                            shared.published.stress_clients.fetch_sub(1, Ordering::Relaxed);
                         }
                     }
                     _ => {}
@@ -824,19 +839,7 @@ async fn client(mut socket: WebSocket, shared: Arc<Shared>) {
             r = frames.changed() => {
                 if r.is_err() { break; }
                 let f = frames.borrow_and_update().clone();
-                if f.len() < 20 { continue; }
-                let seq = u32::from_le_bytes([f[16], f[17], f[18], f[19]]);
-                if let Some(l) = last_seq {
-                    shared.frames_skipped.fetch_add(u64::from(seq.wrapping_sub(l).saturating_sub(1)), Ordering::Relaxed);
-                }
-                last_seq = Some(seq);
-                // A part at rest is not sent again at the visual rate (on the mould 250 kB at
-                // 60 Hz kept the browser busy on two cores): a frame that differs from the last
-                // one sent only in its number and time waits, up to KEEPALIVE.
-                if last_sent.as_ref().is_some_and(|(l, at): &(Bytes, Instant)| same_frame(l, &f) && at.elapsed() < KEEPALIVE) {
-                    continue;
-                }
-                last_sent = Some((f.clone(), Instant::now()));
+                let Some(f) = gate.pass(&shared, f) else { continue };
                 ok = send(&mut socket, Message::Binary(f)).await;
                 shared.frames_sent.fetch_add(u64::from(ok), Ordering::Relaxed);
             }
@@ -863,9 +866,55 @@ async fn client(mut socket: WebSocket, shared: Arc<Shared>) {
         h.release(id);
     }
     if wants_stress {
-        shared.published.stress_clients.fetch_sub(1, Ordering::Relaxed);
+        want_stress(&shared, false);
     }
     shared.clients.fetch_sub(1, Ordering::Relaxed);
+}
+
+/// Counts a client that starts (or stops) colouring by stress: the drawing thread makes the
+/// stress fields only while some client wants them.
+fn want_stress(shared: &Shared, on: bool) {
+    if on {
+        shared.published.stress_clients.fetch_add(1, Ordering::Relaxed);
+    } else {
+        shared.published.stress_clients.fetch_sub(1, Ordering::Relaxed);
+    }
+}
+
+/// Which drawn frames one client is sent.
+#[derive(Default)]
+struct FrameGate {
+    /// The number of the last frame seen (frames between two seen ones were skipped).
+    last_seq: Option<u32>,
+    /// The last frame sent and when.
+    last_sent: Option<(Bytes, Instant)>,
+}
+
+impl FrameGate {
+    /// The frame to send, if any. A part at rest is not sent again at the visual rate (on the
+    /// mould 250 kB at 60 Hz kept the browser busy on two cores): a frame that differs from
+    /// the last one sent only in its number and time waits, up to KEEPALIVE.
+    fn pass(&mut self, shared: &Shared, f: Bytes) -> Option<Bytes> {
+        if f.len() < 20 {
+            return None;
+        }
+        let seq = u32::from_le_bytes([f[16], f[17], f[18], f[19]]);
+        if let Some(l) = self.last_seq {
+            shared
+                .frames_skipped
+                .fetch_add(u64::from(seq.wrapping_sub(l).saturating_sub(1)), Ordering::Relaxed);
+        }
+        self.last_seq = Some(seq);
+        if self
+            .last_sent
+            .as_ref()
+            .is_some_and(|(l, at)| same_frame(l, &f) && at.elapsed() < KEEPALIVE)
+        {
+            return None;
+        }
+        self.last_sent = Some((f.clone(), Instant::now()));
+        Some(f)
+    }
 }
 
 /// Sends the basis being served (new at each compute): its hello, then its meshes.
