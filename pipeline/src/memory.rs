@@ -11,9 +11,20 @@ pub fn rss_bytes() -> u64 {
     status_kb("VmRSS:") * 1024
 }
 
+/// Memory the system can still give without swapping (Linux `/proc/meminfo`, `MemAvailable`),
+/// bytes; `None` where it cannot be read.
+pub fn available_bytes() -> Option<u64> {
+    Some(kb_field("/proc/meminfo", "MemAvailable:") * 1024).filter(|&b| b > 0)
+}
+
 /// A kB field of /proc/self/status.
 fn status_kb(field: &str) -> u64 {
-    std::fs::read_to_string("/proc/self/status")
+    kb_field("/proc/self/status", field)
+}
+
+/// A kB field of a /proc file (0 when missing).
+fn kb_field(file: &str, field: &str) -> u64 {
+    std::fs::read_to_string(file)
         .ok()
         .and_then(|s| {
             s.lines()

@@ -1,7 +1,13 @@
 //! Progress display on stderr (hidden when stderr is not a terminal).
 
-use indicatif::{ProgressBar, ProgressStyle};
+use indicatif::{MultiProgress, ProgressBar, ProgressStyle};
 use std::sync::atomic::{AtomicBool, Ordering};
+
+/// Every bar of this process, drawn together (two bars drawn apart overwrite each other).
+fn bars() -> &'static MultiProgress {
+    static BARS: std::sync::OnceLock<MultiProgress> = std::sync::OnceLock::new();
+    BARS.get_or_init(MultiProgress::new)
+}
 
 static INNER_HIDDEN: AtomicBool = AtomicBool::new(false);
 
@@ -20,7 +26,7 @@ pub fn bar(len: u64, unit: &str) -> ProgressBar {
 
 /// A bar that shows even inside a batch (the batch's own).
 pub fn outer_bar(len: u64, unit: &str) -> ProgressBar {
-    let bar = ProgressBar::new(len);
+    let bar = bars().add(ProgressBar::new(len));
     let style = ProgressStyle::with_template(&format!(
         "{{spinner}} [{{elapsed_precise}}] {{bar:30}} {{pos}}/{{len}} {unit} {{msg}}"
     ))
@@ -92,4 +98,59 @@ pub fn stage(name: &str, at: f64) -> anyhow::Result<()> {
         w.stage(name, lo + at.clamp(0.0, 1.0) * (hi - lo));
     }
     Ok(())
+}
+
+/// The stages of a long computation on the terminal: a line per stage with the seconds since
+/// the start (printed above a spinner that shows the current one), on stderr, and nothing when
+/// stderr is not a terminal or a batch shows its own bar.
+pub struct Terminal {
+    bar: ProgressBar,
+    start: std::time::Instant,
+}
+
+impl Terminal {
+    /// Shown when `visible` and stderr is a terminal.
+    pub fn new(visible: bool) -> Terminal {
+        let bar = if visible && !INNER_HIDDEN.load(Ordering::Relaxed) {
+            let bar = bars().add(ProgressBar::new_spinner());
+            let style = ProgressStyle::with_template("{spinner} [{elapsed_precise}] {msg}")
+                .unwrap_or_else(|_| ProgressStyle::default_spinner());
+            bar.set_style(style);
+            bar.enable_steady_tick(std::time::Duration::from_millis(120));
+            bar
+        } else {
+            ProgressBar::hidden()
+        };
+        Terminal {
+            bar,
+            start: std::time::Instant::now(),
+        }
+    }
+}
+
+impl Watcher for Terminal {
+    fn stage(&self, name: &str, fraction: f64) {
+        let t = self.start.elapsed().as_secs_f64();
+        self.bar.println(format!("{t:7.1} s  {name}"));
+        self.bar.set_message(format!("{name} ({:.0} %)", 100.0 * fraction));
+    }
+
+    fn cancelled(&self) -> bool {
+        false
+    }
+}
+
+impl Drop for Terminal {
+    fn drop(&mut self) {
+        self.bar.finish_and_clear();
+    }
+}
+
+/// Says `what` on the terminal's stage log, if one is watching (a line that is not a stage: the
+/// fraction stays where it is).
+pub fn say(what: &str) {
+    let w = WATCHER.lock().ok().and_then(|g| g.clone());
+    if let Some((w, lo, _)) = w {
+        w.stage(what, lo);
+    }
 }

@@ -118,6 +118,17 @@ pub fn refine(scene: &Scene, voi: Option<&Voi>, choice: SolverChoice, target: f6
         let next_size = current.size * factor;
         let growth = local.as_ref().map_or(factor.powi(-3), |n| n.growth);
         let predicted = current.d.dofs.free_count() as f64 * growth;
+        let cost = NextCost::of(&steps, growth);
+        if let Some(short) = cost.beyond_memory() {
+            tracing::warn!(
+                "mesh.target_error = {target}: stopped at an estimated error of {:.2} % ({} unknowns): the next mesh \
+                 (about {predicted:.2e} unknowns) would need about {short}: run where more memory is free, or \
+                 accept this error",
+                100.0 * worst,
+                current.d.dofs.free_count(),
+            );
+            return Ok(finish(current, estimate, steps, false, start));
+        }
         if predicted > scene.mesh.max_dofs as f64 || steps.len() >= MAX_STEPS {
             tracing::warn!(
                 "mesh.target_error = {target}: stopped at an estimated error of {:.2} % ({} unknowns): the next mesh \
@@ -134,6 +145,18 @@ pub fn refine(scene: &Scene, voi: Option<&Voi>, choice: SolverChoice, target: f6
             );
             return Ok(finish(current, estimate, steps, false, start));
         }
+        crate::progress::say(&format!(
+            "mesh {}: estimated error {:.2} % > {:.2} %: next {}, about {predicted:.0} unknowns ({growth:.1}× these), {}",
+            steps.len() + 1,
+            100.0 * worst,
+            100.0 * target,
+            if local.is_some() {
+                "a graded mesh".to_string()
+            } else {
+                format!("mesh.size {next_size:.3e} m")
+            },
+            cost.text()
+        ));
         match local {
             Some(next) => field = Some(next.field),
             None => {
@@ -151,6 +174,42 @@ pub fn refine(scene: &Scene, voi: Option<&Voi>, choice: SolverChoice, target: f6
             false,
         )?;
         estimate = estimate_of(&scene, field.as_ref(), &current);
+    }
+}
+
+/// What the next mesh of a refinement should cost, from the meshes made so far.
+struct NextCost {
+    /// Seconds, from the last mesh's at the measured growth of time with unknowns.
+    seconds: f64,
+    /// Peak memory, bytes: this process's peak so far times the growth in unknowns.
+    bytes: f64,
+}
+
+impl NextCost {
+    /// Time grows as unknowns^a with a measured from the last two meshes (between 1 and 2),
+    /// or 1.3 with one mesh; memory as the unknowns.
+    fn of(steps: &[Step], growth: f64) -> NextCost {
+        let last_s = steps.last().map_or(0.0, |s| s.seconds);
+        let a = match steps {
+            [.., p, l] if p.dofs > 0 && l.dofs > p.dofs && p.seconds > 0.0 && l.seconds > 0.0 => {
+                ((l.seconds / p.seconds).ln() / (l.dofs as f64 / p.dofs as f64).ln()).clamp(1.0, 2.0)
+            }
+            _ => 1.3,
+        };
+        NextCost {
+            seconds: last_s * growth.powf(a),
+            bytes: crate::memory::peak_rss_bytes() as f64 * growth,
+        }
+    }
+
+    fn text(&self) -> String {
+        format!("about {:.0} s and {:.1} GB", self.seconds, self.bytes / 1e9)
+    }
+
+    /// What the next mesh would need beyond the memory available, if it would.
+    fn beyond_memory(&self) -> Option<String> {
+        let free = crate::memory::available_bytes()? as f64 + crate::memory::rss_bytes() as f64;
+        (self.bytes > free).then(|| format!("{:.1} GB, {:.1} GB available", self.bytes / 1e9, free / 1e9))
     }
 }
 

@@ -23,6 +23,9 @@ pub struct Args {
     /// Elastic modes to keep (overrides the scene's modes.count).
     #[arg(long)]
     modes: Option<usize>,
+    /// No progress lines on stderr (they are shown only on a terminal anyway).
+    #[arg(long, short)]
+    quiet: bool,
     #[command(flatten)]
     write: super::WriteFlags,
 }
@@ -57,7 +60,12 @@ impl Args {
         let out = self
             .output
             .unwrap_or_else(|| scene.path.with_file_name(format!("{}.h5", scene.name)));
-        let summary = precompute::run_with(&scene, &out, self.solver, self.write.overwrite())?;
+        let summary = {
+            let visible = !self.quiet && mpi_job::rank() == 0 && std::io::IsTerminal::is_terminal(&std::io::stderr());
+            let _watching =
+                ves_pipeline::progress::watch(std::sync::Arc::new(ves_pipeline::progress::Terminal::new(visible)));
+            precompute::run_with(&scene, &out, self.solver, self.write.overwrite())?
+        };
         if mpi_job::rank() != 0 {
             return Ok(());
         }
