@@ -98,67 +98,15 @@ pub fn refine(scene: &Scene, voi: Option<&Voi>, choice: SolverChoice, target: f6
         if worst <= target {
             return Ok(finish(current, estimate, steps, true, start));
         }
-        let local = match (scene.mesh.refinement, estimate.as_ref()) {
-            (Refinement::Local, Some(e)) if worst.is_finite() => local_field(&scene, &current, e, kept, target),
-            _ => None,
-        };
-        // Each mode asks for the size that would bring it to 70 % of the target at its rate.
-        // Without an estimate (a mesh so coarse that gmsh's coarser ones are no coarser), a
-        // fixed step.
-        let factor = match estimate.as_ref() {
-            Some(e) if worst.is_finite() => e
-                .modes
-                .iter()
-                .filter(|m| m.relative.is_finite() && m.relative > 0.0)
-                .map(|m| (0.7 * target / m.relative).powf(1.0 / m.rate))
-                .fold(1.0, f64::min)
-                .clamp(1.0 / 2.0, 1.0 / 1.2),
-            _ => 1.0 / super::COARSENING,
-        };
-        let next_size = current.size * factor;
-        let growth = local.as_ref().map_or(factor.powi(-3), |n| n.growth);
-        let predicted = current.d.dofs.free_count() as f64 * growth;
-        let cost = NextCost::of(&steps, growth);
-        if let Some(short) = cost.beyond_memory() {
-            tracing::warn!(
-                "mesh.target_error = {target}: stopped at an estimated error of {:.2} % ({} unknowns): the next mesh \
-                 (about {predicted:.2e} unknowns) would need about {short}: run where more memory is free, or \
-                 accept this error",
-                100.0 * worst,
-                current.d.dofs.free_count(),
-            );
+        let next = Next::plan(&scene, &current, estimate.as_ref(), (worst, target), kept, &steps);
+        if let Some(why) = next.refused(&scene, &steps, (worst, target)) {
+            tracing::warn!("{why}");
             return Ok(finish(current, estimate, steps, false, start));
         }
-        if predicted > scene.mesh.max_dofs as f64 || steps.len() >= MAX_STEPS {
-            tracing::warn!(
-                "mesh.target_error = {target}: stopped at an estimated error of {:.2} % ({} unknowns): the next mesh \
-                 would have about {:.2e} unknowns, above mesh.max_dofs = {}{}; raise mesh.max_dofs or accept this error",
-                100.0 * worst,
-                current.d.dofs.free_count(),
-                predicted,
-                scene.mesh.max_dofs,
-                if steps.len() >= MAX_STEPS {
-                    format!(" or the limit of {MAX_STEPS} meshes was reached")
-                } else {
-                    String::new()
-                }
-            );
-            return Ok(finish(current, estimate, steps, false, start));
-        }
-        crate::progress::say(&format!(
-            "mesh {}: estimated error {:.2} % > {:.2} %: next {}, about {predicted:.0} unknowns ({growth:.1}× these), {}",
-            steps.len() + 1,
-            100.0 * worst,
-            100.0 * target,
-            if local.is_some() {
-                "a graded mesh".to_string()
-            } else {
-                format!("mesh.size {next_size:.3e} m")
-            },
-            cost.text()
-        ));
-        match local {
-            Some(next) => field = Some(next.field),
+        crate::progress::say(&next.announce(&steps, (worst, target)));
+        let next_size = next.size;
+        match next.local {
+            Some(local) => field = Some(local.field),
             None => {
                 field = None;
                 scene.mesh.size = next_size;
@@ -174,6 +122,105 @@ pub fn refine(scene: &Scene, voi: Option<&Voi>, choice: SolverChoice, target: f6
             false,
         )?;
         estimate = estimate_of(&scene, field.as_ref(), &current);
+    }
+}
+
+/// The next mesh of a refinement, before it is made.
+struct Next {
+    /// A graded mesh's size field, with local refinement.
+    local: Option<super::indicator::NextField>,
+    /// The uniform size, m.
+    size: f64,
+    /// Unknowns of the next mesh over this one's.
+    growth: f64,
+    /// Unknowns expected.
+    unknowns: f64,
+    cost: NextCost,
+}
+
+impl Next {
+    /// Each mode asks for the size that would bring it to 70 % of the target at its rate (at
+    /// most halving the size, at least 1.2× finer). Without an estimate (a mesh so coarse that
+    /// gmsh's coarser ones are no coarser), a fixed step.
+    fn plan(
+        scene: &Scene,
+        current: &Solved,
+        estimate: Option<&ErrorEstimate>,
+        (worst, target): (f64, f64),
+        kept: usize,
+        steps: &[Step],
+    ) -> Next {
+        let local = match (scene.mesh.refinement, estimate) {
+            (Refinement::Local, Some(e)) if worst.is_finite() => local_field(scene, current, e, kept, target),
+            _ => None,
+        };
+        let factor = match estimate {
+            Some(e) if worst.is_finite() => e
+                .modes
+                .iter()
+                .filter(|m| m.relative.is_finite() && m.relative > 0.0)
+                .map(|m| (0.7 * target / m.relative).powf(1.0 / m.rate))
+                .fold(1.0, f64::min)
+                .clamp(1.0 / 2.0, 1.0 / 1.2),
+            _ => 1.0 / super::COARSENING,
+        };
+        let growth = local.as_ref().map_or(factor.powi(-3), |n| n.growth);
+        Next {
+            local,
+            size: current.size * factor,
+            growth,
+            unknowns: current.d.dofs.free_count() as f64 * growth,
+            cost: NextCost::of(steps, growth),
+        }
+    }
+
+    /// Why the refinement stops here instead, if it does: the memory the next mesh needs is not
+    /// there, its unknowns are above `mesh.max_dofs`, or the meshes are many enough.
+    fn refused(&self, scene: &Scene, steps: &[Step], (worst, target): (f64, f64)) -> Option<String> {
+        let now = steps.last().map_or(0, |s| s.dofs);
+        let stopped = format!(
+            "mesh.target_error = {target}: stopped at an estimated error of {:.2} % ({now} unknowns)",
+            100.0 * worst
+        );
+        if let Some(short) = self.cost.beyond_memory() {
+            return Some(format!(
+                "{stopped}: the next mesh (about {:.2e} unknowns) would need about {short}: run where more memory \
+                 is free, or accept this error",
+                self.unknowns
+            ));
+        }
+        let too_many = steps.len() >= MAX_STEPS;
+        (self.unknowns > scene.mesh.max_dofs as f64 || too_many).then(|| {
+            format!(
+                "{stopped}: the next mesh would have about {:.2e} unknowns, above mesh.max_dofs = {}{}; raise \
+                 mesh.max_dofs or accept this error",
+                self.unknowns,
+                scene.mesh.max_dofs,
+                if too_many {
+                    format!(" or the limit of {MAX_STEPS} meshes was reached")
+                } else {
+                    String::new()
+                }
+            )
+        })
+    }
+
+    /// The line that announces it.
+    fn announce(&self, steps: &[Step], (worst, target): (f64, f64)) -> String {
+        format!(
+            "mesh {}: estimated error {:.2} % > {:.2} %: next {}, about {:.0} unknowns ({:.1}× these), {}",
+            steps.len() + 1,
+            100.0 * worst,
+            100.0 * target,
+            if self.local.is_some() {
+                "a graded mesh".to_string()
+            } else {
+                format!("mesh.size {:.3e} m", self.size)
+            },
+            self.unknowns,
+            self.growth,
+            self.cost.text()
+        )
     }
 }
 
