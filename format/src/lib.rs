@@ -22,7 +22,7 @@ pub use names::{FORMAT, VERSION};
 #[cfg(feature = "hdf5")]
 pub use read::{BasisReader, ReadError, SpaceReader, guarded};
 #[cfg(feature = "hdf5")]
-pub use write::{FileData, SpaceData, WriteError, write_file};
+pub use write::{FileData, LoadData, SpaceData, WriteError, write_file};
 
 /// Material constants and Rayleigh damping (`/material`).
 #[derive(Clone, Copy, Debug, PartialEq)]

@@ -6,6 +6,9 @@ use crate::{Material, RigidProperties};
 use ndarray::{Array1, Array2, Array3};
 use std::path::Path;
 
+mod loads;
+pub use loads::LoadData;
+
 /// Writing failed: what was being written and HDF5's message.
 #[derive(Debug, thiserror::Error)]
 #[error("writing {what}: {message}")]
@@ -68,6 +71,8 @@ pub struct SpaceData<'a> {
     pub compliance: Option<(&'a [u32], &'a [crate::Block3])>,
     /// Transfer matrices from other spaces, row-major [r, r_from].
     pub transfers: &'a [(String, Vec<f64>)],
+    /// Static load cases (`loads/<name>/`); empty: none.
+    pub loads: &'a [LoadData<'a>],
     /// Mass properties of a free body.
     pub rigid: Option<RigidProperties>,
 }
@@ -228,6 +233,8 @@ fn write_space(file: &hdf5::File, s: &SpaceData<'_>) -> Result<(), WriteError> {
             .ctx(sp::SURFACE_FACES)?;
     }
     vector(&g, sp::FIXED_DOFS, s.fixed_dofs)?;
+    loads::write_fixed_mask(&g, n, s.fixed_dofs)?;
+    loads::write_loads(&g, n, s.vertex_count, s.loads)?;
     g.create_group(sp::MODES).ctx(sp::MODES)?;
     vector(&g, sp::EIGENVALUES, s.eigenvalues)?;
     let freqs: Vec<f64> = s
@@ -336,6 +343,7 @@ mod tests {
                 basis: &[0.1; 12],
                 compliance: None,
                 transfers: &[],
+                loads: &[],
                 rigid: None,
             }],
         };

@@ -38,6 +38,8 @@ pub struct Timings {
     pub stress: f64,
     /// Sturm count of each space's spectrum (one LDLᵀ of K − σM).
     pub sturm: f64,
+    /// The static load cases (when the scene has any).
+    pub loads: f64,
     /// Writing the file.
     pub write: f64,
     /// Everything.
@@ -54,6 +56,7 @@ impl Timings {
         self.error_estimate += o.error_estimate;
         self.stress += o.stress;
         self.sturm += o.sturm;
+        self.loads += o.loads;
     }
 }
 
@@ -90,6 +93,8 @@ pub struct SolvedSpace {
     pub stress: Option<Vec<f64>>,
     /// The Sturm count at the top of the spectrum (not under MPI).
     pub sturm: Option<modes::SturmCount>,
+    /// The scene's static load cases solved on this space (none: empty).
+    pub loads: Vec<crate::loads::LoadResult>,
 }
 
 impl SolvedSpace {
@@ -107,6 +112,7 @@ impl SolvedSpace {
             transfers: &self.transfers,
             estimated_relative_error: self.error.as_ref().map(|e| e.relative()),
             stress: self.stress.as_deref(),
+            loads: &self.loads,
         }
     }
 }
@@ -117,7 +123,7 @@ impl SolvedSpace {
 /// ranks that assembled them, and rank 0 never holds them whole; with them rank 0 assembles them
 /// after the solve.
 pub fn needs_whole_system(scene: &Scene) -> bool {
-    scene.mesh.error_estimate || scene.static_correction.is_some() || !scene.voi.is_empty()
+    scene.mesh.error_estimate || scene.static_correction.is_some() || !scene.voi.is_empty() || !scene.loads.is_empty()
 }
 
 /// The `--json` summary (README, `--json`).
@@ -177,6 +183,8 @@ pub struct SpaceSummary {
     /// (equal: none skipped). Absent under MPI.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub sturm_count: Option<modes::SturmCount>,
+    /// The scene's static load cases on this space (empty without `[[load]]` or `[gravity]`).
+    pub loads: Vec<crate::loads::LoadSummary>,
 }
 
 /// Runs the whole pipeline for a scene and writes `out` (which may not be a symlink).
@@ -388,6 +396,11 @@ fn write_all(scene: &Scene, out: &Path, spaces: &[SolvedSpace], transfer_s: f64,
                 error_estimate: s.error.clone(),
                 refinements: s.refinement.clone(),
                 sturm_count: s.sturm,
+                loads: s
+                    .loads
+                    .iter()
+                    .map(|l| l.summary(scene.material.yield_strength))
+                    .collect(),
                 seconds: s.timings.mesh
                     + s.timings.assemble
                     + s.timings.factorize

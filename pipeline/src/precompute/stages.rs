@@ -140,6 +140,9 @@ pub(super) fn solve_space_checked(
     let (compliance, static_correction_s) = timed(|| compliance(scene, &solved));
     let compliance = compliance?;
     let (stress, stress_s) = timed(|| stress(scene, &solved));
+    progress::stage("service loads", 0.9)?;
+    let (loads, loads_s) = timed(|| released(|| loads(scene, &solved)));
+    let loads = loads?;
     if let Some(s) = &sturm {
         advice::report_sturm(&name, s);
     }
@@ -150,6 +153,8 @@ pub(super) fn solve_space_checked(
         stress,
         static_correction_s,
         stress_s,
+        loads,
+        loads_s,
     };
     Ok(store(name, voi, solved, later))
 }
@@ -320,6 +325,18 @@ fn stress(scene: &Scene, solved: &Solved) -> Option<Vec<f64>> {
     Some(crate::fem::stress::vertex_stress(solved.problem.mesh(), &lame, &u, r))
 }
 
+/// Loads: every static load case of the scene, solved on the full model (K factored once).
+fn loads(scene: &Scene, solved: &Solved) -> Result<Vec<crate::loads::LoadResult>> {
+    if scene.loads.is_empty() {
+        return Ok(Vec::new());
+    }
+    let d = solved
+        .problem
+        .here()
+        .context("the load cases need K, which was left on the MPI ranks")?;
+    crate::loads::solve_loads(scene, d)
+}
+
 /// What the stages after the solve made.
 struct AfterSolve {
     sturm: Option<SturmCount>,
@@ -328,6 +345,8 @@ struct AfterSolve {
     stress: Option<Vec<f64>>,
     static_correction_s: f64,
     stress_s: f64,
+    loads: Vec<crate::loads::LoadResult>,
+    loads_s: f64,
 }
 
 /// Store: what the file writer and the summary need of the space.
@@ -351,6 +370,7 @@ fn store(name: String, voi: Option<&Voi>, solved: Solved, later: AfterSolve) -> 
         static_correction: later.static_correction_s,
         stress: later.stress_s,
         sturm: later.sturm.map_or(0.0, |s| s.seconds),
+        loads: later.loads_s,
         ..Timings::default()
     };
     SolvedSpace {
@@ -369,6 +389,7 @@ fn store(name: String, voi: Option<&Voi>, solved: Solved, later: AfterSolve) -> 
         refinement: later.estimated.refinement,
         stress: later.stress,
         sturm: later.sturm,
+        loads: later.loads,
     }
 }
 
