@@ -86,13 +86,34 @@ pub fn von_mises(s: &[f64]) -> f64 {
 /// Refuses loads on a part its supports do not hold: K is singular, and inertia relief (the
 /// rigid motions projected out of a self-equilibrated load) is not implemented.
 fn require_supported(scene: &Scene, d: &Discretized) -> Result<()> {
-    if d.rigid > 0 {
+    require_held(scene, d.rigid)
+}
+
+/// The checks of the scene's loads a meshed part allows, made before the eigen-solve: every
+/// surface region selects triangles of `mesh`, and the supports leave no rigid motion (`rigid`)
+/// free.
+pub fn check_before_solve(scene: &Scene, mesh: &crate::tet_mesh::Mesh, rigid: usize) -> Result<()> {
+    if scene.loads.is_empty() {
+        return Ok(());
+    }
+    require_held(scene, rigid)?;
+    for (i, case) in scene.loads.iter().enumerate() {
+        if let Some(region) = case.applied.region() {
+            crate::supports::region_triangles(mesh, &format!("load[{i}]"), region)
+                .map_err(|e| anyhow::anyhow!("{}: {e}", scene.path.display()))?;
+        }
+    }
+    Ok(())
+}
+
+fn require_held(scene: &Scene, rigid: usize) -> Result<()> {
+    if rigid > 0 {
         bail!(
             "{}: load cases need a supported part: the supports leave {} rigid motions free (a free body's static \
              displacement under a load is not defined); add [[fixed]] regions, or remove the [[load]] and [gravity] \
              entries",
             scene.path.display(),
-            d.rigid
+            rigid
         );
     }
     Ok(())

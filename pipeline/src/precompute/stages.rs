@@ -214,14 +214,20 @@ fn refined(
 
 /// Discretize: the mesh, the supports and (unless SLEPc's ranks assemble their own rows) K, M.
 fn discretize(scene: &Scene, voi: Option<&Voi>, choice: SolverChoice) -> Result<Problem> {
-    if choice.is_slepc() {
+    let problem = if choice.is_slepc() {
         // K and M are assembled on the ranks, each its rows, and stay there.
-        Ok(Problem::OnRanks(crate::problem::mesh_with_supports(
-            scene, voi, None, false,
-        )?))
+        Problem::OnRanks(crate::problem::mesh_with_supports(scene, voi, None, false)?)
     } else {
-        Ok(Problem::Here(crate::problem::discretize(scene, voi)?))
-    }
+        Problem::Here(crate::problem::discretize(scene, voi)?)
+    };
+    // A load region that selects nothing, or supports that leave the part free to move, are
+    // refused now, before the eigen-solve.
+    let rigid = match &problem {
+        Problem::Here(d) => d.rigid,
+        Problem::OnRanks(m) => m.rigid,
+    };
+    crate::loads::check_before_solve(scene, problem.mesh(), rigid)?;
+    Ok(problem)
 }
 
 /// Solve: the lowest `modes.count` elastic modes. Under SLEPc, this process assembles K and M
