@@ -964,6 +964,12 @@ region = "surface"
 [[probe]]
 at = [0.1, 0.0, 0.05]
 force = [0.0, 1.0, 0.0]
+[[load]]
+name = "tip"
+box = { min = [0.9, 0.0, 0.0], max = [1.0, 1.0, 1.0] }
+force = [0.0, 0.0, -100.0]
+[gravity]
+acceleration = [0.0, 0.0, -9.81]
 "#;
 
     /// `faces` is a third region kind: sorted and each once; an empty list, tag 0, a negative
@@ -993,6 +999,55 @@ force = [0.0, 1.0, 0.0]
             let e = with(fixed).expect_err(fixed).to_string();
             assert!(e.contains(says) && !e.contains('\n'), "{fixed}: {e}");
         }
+    }
+
+    /// A load's region is parsed by the function that parses a support's (the same keys give
+    /// the same region, the same refusals under its own key); names are plain identifiers;
+    /// `[gravity]` is the case `gravity`, after the `[[load]]` entries.
+    #[test]
+    fn load_regions_are_parsed_as_support_regions() {
+        let dir = std::env::temp_dir().join(format!("ves-scene-loads-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).expect("temp dir");
+        std::fs::write(dir.join("x.step"), "ISO-10303-21;").expect("geometry stub");
+        let path = dir.join("s.toml");
+        let s = Scene::parse(&path, SCENE).expect("the base scene");
+        assert_eq!(s.loads.len(), 2);
+        assert_eq!(s.loads[1].name, "gravity");
+        assert_eq!(s.loads[1].applied.kind(), "gravity");
+        let with = |load: &str| {
+            let text = SCENE.replace("[gravity]", &format!("[[load]]\n{load}\n[gravity]"));
+            Scene::parse(&path, &text)
+        };
+        let same =
+            with("name = \"q\"\nbox = { min = [0.0, 0.0, 0.0], max = [1.0, 1.0, 1.0] }\nforce = [1.0, 0.0, 0.0]");
+        let same = same.expect("a box load");
+        assert_eq!(same.loads[1].applied.region(), Some(&same.fixed[1].region));
+        let s = with("name = \"p\"\nfaces = [4, 2, 4]\npressure = 1e5").expect("a face pressure");
+        assert_eq!(
+            s.loads[1].applied,
+            Applied::Pressure {
+                region: Region::Faces(vec![2, 4]),
+                pascal: 1e5
+            }
+        );
+        for (load, says) in [
+            (
+                "name = \"p\"\nfaces = [0]\npressure = 1e5",
+                "load[1].faces = [0]: face tags start at 1",
+            ),
+            (
+                "name = \"p\"\nplane = { axis = \"w\", value = 0.0 }\npressure = 1e5",
+                "load[1].plane.axis",
+            ),
+            ("name = \"a b\"\nfaces = [1]\npressure = 1e5", "load[1].name"),
+            ("name = \"C:x\"\nfaces = [1]\npressure = 1e5", "plain identifier"),
+            ("name = \"tip\"\nfaces = [1]\npressure = 1e5", "another load case"),
+            ("name = \"p\"\nfaces = [1]\npressure = nan", "load[1].pressure"),
+        ] {
+            let e = with(load).expect_err(load).to_string();
+            assert!(e.contains(says) && !e.contains('\n'), "{load}: {e}");
+        }
+        let _ = std::fs::remove_dir_all(&dir);
     }
 
     /// Deterministic mutations of a valid scene (byte flips, deletions, duplications, numeric
