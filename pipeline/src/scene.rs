@@ -40,7 +40,7 @@ struct RawScene {
 }
 
 /// Optional `[[load]]` entries (a compatible v1 extension): a service load on a surface region
-/// selected as `[[fixed]]` selects its own, solved statically (`crate::loads`).
+/// selected as `[[fixed]]` selects its own, solved statically (the `loads` stage).
 #[derive(Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
 struct RawLoad {

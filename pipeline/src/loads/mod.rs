@@ -123,16 +123,15 @@ fn require_held(scene: &Scene, rigid: usize) -> Result<()> {
 pub fn load_vectors(scene: &Scene, d: &Discretized) -> Result<Vec<Vec<f64>>> {
     let m = &scene.material;
     let lame = Lame::new(m.young, m.poisson, m.density);
-    let mut raw_index = 0;
+    // The [[load]] entries come first, in the scene's order, then [gravity].
     scene
         .loads
         .iter()
-        .map(|case| {
-            let key = if case.applied.region().is_some() {
-                raw_index += 1;
-                format!("load[{}]", raw_index - 1)
-            } else {
-                "gravity".to_string()
+        .enumerate()
+        .map(|(i, case)| {
+            let key = match case.applied.region() {
+                Some(_) => format!("load[{i}]"),
+                None => "gravity".to_string(),
             };
             vector::nodal_loads(&d.mesh, &lame, case, &key)
                 .map_err(|e| anyhow::anyhow!("{}: {e}", scene.path.display()))
@@ -152,9 +151,8 @@ pub fn solve_static(d: &Discretized, loads: &[Vec<f64>]) -> Result<Vec<Vec<f64>>
         }
     }
     chol.solve_many_in_place(&mut x, loads.len());
-    Ok(x.chunks(nf.max(1))
-        .take(loads.len())
-        .map(|u| d.dofs.expand(u))
+    Ok((0..loads.len())
+        .map(|j| d.dofs.expand(&x[j * nf..(j + 1) * nf]))
         .collect())
 }
 

@@ -118,8 +118,8 @@ impl SolvedSpace {
 }
 
 /// Whether a stage after the eigen-solve needs the whole K and M of a space on this process: the
-/// error estimate (it pairs modes in the M-inner product), static correction (it factors K) and
-/// the transfers between VOI spaces (M-projections). Without them SLEPc leaves K and M on the
+/// error estimate (it pairs modes in the M-inner product), static correction and load cases (they
+/// factor K) and the transfers between VOI spaces (M-projections). Without them SLEPc leaves K and M on the
 /// ranks that assembled them, and rank 0 never holds them whole; with them rank 0 assembles them
 /// after the solve.
 pub fn needs_whole_system(scene: &Scene) -> bool {
@@ -297,6 +297,9 @@ fn run_checked<'s>(
         }
         if !scene.voi.is_empty() {
             stages.push("the VOI transfers (remove the [[voi]] spaces)");
+        }
+        if !scene.loads.is_empty() {
+            stages.push("the load cases (they factor K on rank 0; remove [[load]] and [gravity])");
         }
         tracing::warn!(
             "{}: under MPI rank 0 assembles each space's whole K and M for {}: its memory then grows with the part \
