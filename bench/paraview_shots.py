@@ -5,6 +5,7 @@ from the stored tensor) — the pictures in docs/paraview/.
     pvpython --force-offscreen-rendering bench/paraview_shots.py BASIS.xdmf OUTDIR [MODE]
 """
 import os
+import re
 import sys
 
 from paraview.simple import (ColorBy, GetActiveViewOrCreate, GetColorTransferFunction,
@@ -30,17 +31,18 @@ def grid(name):
     return MergeBlocks(Input=r), grids
 
 
-def array_named(src, prefix):
+def array_named(src, mode, what):
+    """The array `mode_07_<what>` (zero-padded to two digits, or to the width of the mode count)."""
     names = src.PointData.keys()
-    hit = [n for n in names if n.startswith(prefix)]
+    hit = [n for n in names if re.fullmatch(r"mode_0*%d_%s" % (mode, what), n)]
     if not hit:
-        sys.exit("no point array starting with %r in %s: %s" % (prefix, xdmf, names))
+        sys.exit("no point array mode_%02d_%s in %s: %s" % (mode, what, xdmf, names))
     return hit[0]
 
 
 # 1. The mode's shape, warped so the largest displacement is 8 % of the part's size.
 shape, _ = grid("global")
-name = array_named(shape, "mode %02d shape" % mode)
+name = array_named(shape, mode, "displacement")
 lo, hi = shape.GetDataInformation().GetBounds()[0::2], shape.GetDataInformation().GetBounds()[1::2]
 size = max(h - l for l, h in zip(lo, hi))
 peak = shape.PointData[name].GetRange(-1)[1]
@@ -60,9 +62,8 @@ Hide(shape, view)
 
 # 2. The same mode's stress: von Mises from the Tensor6 (xx yy zz xy yz xz in ParaView's order).
 stress, _ = grid("global vertices")
-sname = array_named(stress, "mode %02d stress" % mode)
-# ParaView's Calculator cannot parse names with parentheses: numpy through PythonCalculator,
-# which hands a Tensor6 array over as n 3×3 symmetric matrices.
+sname = array_named(stress, mode, "stress")
+# numpy through PythonCalculator, which hands a Tensor6 array over as n 3×3 symmetric matrices.
 t = "inputs[0].PointData[%r]" % sname
 vm = PythonCalculator(Input=stress, ArrayName="von Mises (Pa per unit q)", Expression=(
     "sqrt(0.5*((%(t)s[:,0,0]-%(t)s[:,1,1])**2+(%(t)s[:,1,1]-%(t)s[:,2,2])**2+(%(t)s[:,2,2]-%(t)s[:,0,0])**2)"

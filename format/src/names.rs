@@ -108,6 +108,37 @@ pub mod space {
     pub const COMPLIANCE_BLOCKS: &str = "compliance/blocks";
     /// Optional group: `transfer/<from>` f64 [r_to, r_from].
     pub const TRANSFER: &str = "transfer";
+    /// Optional u32 [n]: 1 where a support holds the node (any component), 0 elsewhere (what
+    /// ParaView shows as the `fixed` point array).
+    pub const FIXED_MASK: &str = "mesh/fixed_mask";
+    /// Optional group: one group `loads/<name>` per static load case.
+    pub const LOADS: &str = "loads";
+}
+
+/// Names inside `/spaces/<space>/loads/<name>/` (one static load case).
+pub mod load {
+    /// f64 [n, 3]: static displacement of each node, m.
+    pub const DISPLACEMENT: &str = "displacement";
+    /// f64 [n]: von Mises stress of each node, Pa.
+    pub const VON_MISES: &str = "von_mises";
+    /// f64 [nv, 6]: stress at the corner vertices, Voigt order xx yy zz yz xz xy, Pa.
+    pub const STRESS: &str = "stress";
+    /// String attribute: `force`, `pressure` or `gravity`.
+    pub const KIND: &str = "kind";
+    /// f64[3] attribute: sum of the applied nodal loads, N.
+    pub const TOTAL_FORCE: &str = "total_force";
+    /// f64[3] attribute: total force the supports exert, N.
+    pub const REACTION: &str = "reaction";
+    /// f64 attribute: |reaction + total_force| over the sum of the nodal loads' magnitudes.
+    pub const BALANCE_RESIDUAL: &str = "balance_residual";
+    /// f64 attribute: largest nodal displacement magnitude, m.
+    pub const MAX_DISPLACEMENT: &str = "max_displacement";
+    /// f64 attribute: largest von Mises stress at a corner vertex, Pa.
+    pub const MAX_VON_MISES: &str = "max_von_mises";
+    /// The values of [`KIND`].
+    pub const KINDS: [&str; 3] = ["force", "pressure", "gravity"];
+    /// Most load cases a space may hold (counted before any is read).
+    pub const MAX_LOADS: usize = 64;
 }
 
 /// Most spaces a file may hold: "global" and one per volume of interest. A file listing more is

@@ -22,6 +22,9 @@ use std::cell::Cell;
 use std::ops::Range;
 use std::path::Path;
 
+mod loads;
+pub use loads::LoadCase;
+
 /// Reading failed; the message names the file and what is wrong.
 pub type ReadError = crate::InputError;
 
@@ -960,6 +963,8 @@ impl<'a> SpaceReader<'a> {
         self.rigid()?;
         self.estimated_relative_error()?;
         self.stress_rows(0..self.vertex_count, self.mode_count)?;
+        self.fixed_mask()?;
+        self.loads()?;
         Ok(())
     }
 }

@@ -6,6 +6,9 @@ use crate::{Material, RigidProperties};
 use ndarray::{Array1, Array2, Array3};
 use std::path::Path;
 
+mod loads;
+pub use loads::LoadData;
+
 /// Writing failed: what was being written and HDF5's message.
 #[derive(Debug, thiserror::Error)]
 #[error("writing {what}: {message}")]
@@ -68,6 +71,8 @@ pub struct SpaceData<'a> {
     pub compliance: Option<(&'a [u32], &'a [crate::Block3])>,
     /// Transfer matrices from other spaces, row-major [r, r_from].
     pub transfers: &'a [(String, Vec<f64>)],
+    /// Static load cases (`loads/<name>/`); empty: none.
+    pub loads: &'a [LoadData<'a>],
     /// Mass properties of a free body.
     pub rigid: Option<RigidProperties>,
 }
@@ -228,6 +233,8 @@ fn write_space(file: &hdf5::File, s: &SpaceData<'_>) -> Result<(), WriteError> {
             .ctx(sp::SURFACE_FACES)?;
     }
     vector(&g, sp::FIXED_DOFS, s.fixed_dofs)?;
+    loads::write_fixed_mask(&g, n, s.fixed_dofs)?;
+    loads::write_loads(&g, n, s.vertex_count, s.loads)?;
     g.create_group(sp::MODES).ctx(sp::MODES)?;
     vector(&g, sp::EIGENVALUES, s.eigenvalues)?;
     let freqs: Vec<f64> = s
@@ -303,6 +310,15 @@ mod tests {
 
     /// One tet, its four faces tagged 3, 5, 5, 9, one mode.
     fn write_tet(path: &std::path::Path, faces: Option<&[u32]>) -> Result<(), super::WriteError> {
+        write_tet_with(path, faces, &[])
+    }
+
+    /// [`write_tet`] with its first node held and load cases.
+    fn write_tet_with(
+        path: &std::path::Path,
+        faces: Option<&[u32]>,
+        loads: &[super::LoadData<'_>],
+    ) -> Result<(), super::WriteError> {
         let nodes = [[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]];
         let surface = [[1, 2, 3], [0, 3, 2], [0, 1, 3], [0, 2, 1]];
         let data = FileData {
@@ -328,7 +344,7 @@ mod tests {
                 tets: &[0, 1, 2, 3],
                 surface_triangles: &surface,
                 surface_faces: faces,
-                fixed_dofs: &[],
+                fixed_dofs: if loads.is_empty() { &[] } else { &[0, 1, 2] },
                 eigenvalues: &[1.0],
                 relative_residuals: &[0.0],
                 estimated_relative_error: None,
@@ -336,6 +352,7 @@ mod tests {
                 basis: &[0.1; 12],
                 compliance: None,
                 transfers: &[],
+                loads,
                 rigid: None,
             }],
         };
@@ -385,6 +402,94 @@ mod tests {
         let e = file.space("global").unwrap().surface_faces().unwrap_err();
         assert!(e.message.contains("3 tags for 4 surface triangles"), "{e}");
         for p in [path, older, temp("short")] {
+            let _ = std::fs::remove_file(p);
+        }
+    }
+
+    /// Load cases and the `fixed` mask are written and read back as given; a file without them
+    /// reads as none; a load case of the wrong shape, a non-finite value or an unknown kind is
+    /// refused by the reader (and by `validate`).
+    #[test]
+    fn load_cases_are_written_read_back_and_checked() {
+        let u: Vec<f64> = (0..12).map(|i| 1e-6 * f64::from(i)).collect();
+        let (vm, stress) = ([1.0, 2.0, 3.0, 4.0], [5.0; 24]);
+        let load = super::LoadData {
+            name: "tip",
+            kind: "force",
+            total_force: [0.0, 0.0, -10.0],
+            reaction: [0.0, 0.0, 10.0],
+            balance_residual: 1e-12,
+            max_displacement: 1.9e-5,
+            max_von_mises: 4.0,
+            displacement: &u,
+            von_mises: &vm,
+            stress: &stress,
+        };
+        let path = temp("loads");
+        write_tet_with(&path, None, std::slice::from_ref(&load)).unwrap();
+        let file = BasisReader::open(&path).unwrap();
+        let space = file.space("global").unwrap();
+        space.validate().unwrap();
+        assert_eq!(space.fixed_mask().unwrap(), Some(vec![1, 0, 0, 0]));
+        let read = space.loads().unwrap();
+        assert_eq!(read.len(), 1);
+        let l = &read[0];
+        assert_eq!((l.name.as_str(), l.kind.as_str()), ("tip", "force"));
+        assert_eq!((l.displacement.clone(), l.von_mises.clone()), (u.clone(), vm.to_vec()));
+        assert_eq!(
+            (l.reaction, l.total_force, l.stress.len()),
+            ([0.0, 0.0, 10.0], [0.0, 0.0, -10.0], 24)
+        );
+        drop(space);
+        drop(file);
+        // Older files, and scenes without loads: none.
+        let older = temp("noloads");
+        write_tet(&older, None).unwrap();
+        assert!(
+            BasisReader::open(&older)
+                .unwrap()
+                .space("global")
+                .unwrap()
+                .loads()
+                .unwrap()
+                .is_empty()
+        );
+        // Damage: a NaN, a wrong shape, an unknown kind.
+        for (what, says) in [
+            ("nan", "non-finite value"),
+            ("shape", "expected [4]"),
+            ("kind", "kind missing or not one of"),
+        ] {
+            write_tet_with(&path, None, std::slice::from_ref(&load)).unwrap();
+            {
+                let f = hdf5::File::open_rw(&path).unwrap();
+                let c = f.group("spaces/global/loads/tip").unwrap();
+                match what {
+                    "nan" => {
+                        c.dataset("von_mises")
+                            .unwrap()
+                            .write(&ndarray::arr1(&[1.0, f64::NAN, 3.0, 4.0]))
+                            .unwrap();
+                    }
+                    "shape" => {
+                        c.unlink("von_mises").unwrap();
+                        c.new_dataset_builder()
+                            .with_data(&ndarray::arr1(&[1.0, 2.0]))
+                            .create("von_mises")
+                            .unwrap();
+                    }
+                    _ => {
+                        c.delete_attr("kind").unwrap();
+                        crate::strings::write(&c, "kind", "wind").unwrap();
+                    }
+                }
+            }
+            let file = BasisReader::open(&path).unwrap();
+            let space = file.space("global").unwrap();
+            let e = space.validate().unwrap_err();
+            assert!(e.message.contains(says), "{what}: {e}");
+        }
+        for p in [path, older] {
             let _ = std::fs::remove_file(p);
         }
     }

@@ -7,6 +7,10 @@
 //! The XDMF 2 reader takes them, and its `JOIN` interleaves columns, which maps gmsh's 10-node
 //! order to VTK's (the last two mid-edge nodes swap) and the stress components to XDMF's
 //! `Tensor6` order (xx xy xz yy yz zz) without a copy either.
+//!
+//! Array names are plain, for scripts: `mode_01_displacement`, `mode_01_stress`,
+//! `load_<name>_displacement`, `load_<name>_von_mises`, `fixed` (1 where a support holds the
+//! node), and the frequencies as the grid's field data `frequencies_hz`.
 
 use crate::names::space as sp;
 use std::fmt::Write;
@@ -27,6 +31,10 @@ pub struct XdmfSpace<'a> {
     pub frequencies_hz: &'a [f64],
     /// Whether `modes/stress` is stored.
     pub stress: bool,
+    /// Whether `mesh/fixed_mask` is stored.
+    pub fixed: bool,
+    /// The load cases stored (`loads/<name>`).
+    pub loads: &'a [String],
 }
 
 pub use crate::element::TET10_TO_VTK;
@@ -41,8 +49,10 @@ pub fn sidecar(h5_name: &str, spaces: &[XdmfSpace<'_>]) -> String {
     let _ = writeln!(
         x,
         "<!-- VES modal basis {}: open with ParaView's \"XDMF Reader\". Each space is a grid with every \
-         mode shape (m per unit modal coordinate); with modal stress, a second grid on its corner vertices \
-         holds each mode's stress tensor (Pa per unit modal coordinate). -->",
+         mode shape (mode_01_displacement, m per unit modal coordinate), fixed (1 where a support holds the \
+         node), each load case's load_NAME_displacement (m) and load_NAME_von_mises (Pa), and the frequencies \
+         as field data (frequencies_hz); with modal stress, a second grid on its corner vertices holds each \
+         mode's stress tensor (mode_01_stress, Pa per unit modal coordinate). -->",
         escape(h5_name)
     );
     let _ = writeln!(x, r#"<Xdmf Version="2.0">"#);
@@ -85,12 +95,13 @@ fn space_grids(x: &mut String, h5: &str, s: &XdmfSpace<'_>) {
         }
     }
     geometry(x, &nodes);
+    frequencies(x, r, &data(sp::FREQUENCIES_HZ));
     let basis = hdf(3 * s.nodes, r, F64, &data(sp::BASIS));
-    for (j, f) in s.frequencies_hz.iter().enumerate() {
+    for j in 0..r {
         let _ = writeln!(
             x,
             r#"   <Attribute Name="{}" AttributeType="Vector" Center="Node">"#,
-            mode_name(j, r, *f, "shape")
+            mode_array(j, r, "displacement")
         );
         // Column j of [3n, r], read as n × 3.
         let _ = writeln!(
@@ -100,6 +111,7 @@ fn space_grids(x: &mut String, h5: &str, s: &XdmfSpace<'_>) {
         );
         let _ = writeln!(x, "   </Attribute>");
     }
+    point_fields(x, s, &data);
     let _ = writeln!(x, "  </Grid>");
     if !s.stress {
         return;
@@ -113,12 +125,13 @@ fn space_grids(x: &mut String, h5: &str, s: &XdmfSpace<'_>) {
     );
     let _ = writeln!(x, "    {}", slab(s.tets, 4, (0, 0), (1, 1), &tets));
     geometry(x, &slab(s.vertices, 3, (0, 0), (1, 1), &nodes));
+    frequencies(x, r, &data(sp::FREQUENCIES_HZ));
     let stress = hdf(6 * s.vertices, r, F64, &data(sp::STRESS));
-    for (j, f) in s.frequencies_hz.iter().enumerate() {
+    for j in 0..r {
         let _ = writeln!(
             x,
             r#"   <Attribute Name="{}" AttributeType="Tensor6" Center="Node">"#,
-            mode_name(j, r, *f, "stress")
+            mode_array(j, r, "stress")
         );
         // Component k of every vertex: rows k, k + 6, … of column j.
         let components: Vec<String> = VOIGT_TO_TENSOR6
@@ -146,10 +159,75 @@ fn geometry(x: &mut String, nodes: &str) {
     let _ = writeln!(x, "   </Geometry>");
 }
 
-/// "mode 07 shape (1234.5678 Hz)": zero-padded so that ParaView lists them in order.
-pub fn mode_name(j: usize, r: usize, f: f64, what: &str) -> String {
-    let width = r.to_string().len();
-    format!("mode {:0width$} {what} ({f:.4} Hz)", j + 1)
+/// `mode_07_displacement`: mode j + 1, zero-padded to at least two digits (to the width of r
+/// beyond 99 modes) so that ParaView lists them in order.
+pub fn mode_array(j: usize, r: usize, what: &str) -> String {
+    let width = r.to_string().len().max(2);
+    format!("mode_{:0width$}_{what}", j + 1)
+}
+
+/// `load_<name>_<what>`: a load case's array.
+pub fn load_array(name: &str, what: &str) -> String {
+    format!("load_{name}_{what}")
+}
+
+/// The frequencies (`r` values) as the grid's field data `frequencies_hz`.
+fn frequencies(x: &mut String, r: usize, path: &str) {
+    let _ = writeln!(
+        x,
+        r#"   <Attribute Name="frequencies_hz" AttributeType="Scalar" Center="Grid">"#
+    );
+    let _ = writeln!(
+        x,
+        r#"    <DataItem Dimensions="{r}" {F64} Format="HDF">{path}</DataItem>"#
+    );
+    let _ = writeln!(x, "   </Attribute>");
+}
+
+/// The whole grid's point arrays beside the modes: `fixed` and each load case's displacement
+/// and von Mises stress.
+fn point_fields(x: &mut String, s: &XdmfSpace<'_>, data: &dyn Fn(&str) -> String) {
+    let n = s.nodes;
+    let scalar = |x: &mut String, name: &str, item: String| {
+        let _ = writeln!(
+            x,
+            r#"   <Attribute Name="{}" AttributeType="Scalar" Center="Node">"#,
+            escape(name)
+        );
+        let _ = writeln!(x, "    {item}");
+        let _ = writeln!(x, "   </Attribute>");
+    };
+    if s.fixed {
+        let mask = format!(
+            r#"<DataItem Dimensions="{n}" NumberType="UInt" Precision="4" Format="HDF">{}</DataItem>"#,
+            data(sp::FIXED_MASK)
+        );
+        scalar(x, "fixed", mask);
+    }
+    for name in s.loads {
+        let group = format!("{}/{name}", sp::LOADS);
+        let _ = writeln!(
+            x,
+            r#"   <Attribute Name="{}" AttributeType="Vector" Center="Node">"#,
+            escape(&load_array(name, "displacement"))
+        );
+        let _ = writeln!(
+            x,
+            "    {}",
+            hdf(
+                n,
+                3,
+                F64,
+                &data(&format!("{group}/{}", crate::names::load::DISPLACEMENT))
+            )
+        );
+        let _ = writeln!(x, "   </Attribute>");
+        let vm = format!(
+            r#"<DataItem Dimensions="{n}" {F64} Format="HDF">{}</DataItem>"#,
+            data(&format!("{group}/{}", crate::names::load::VON_MISES))
+        );
+        scalar(x, &load_array(name, "von_mises"), vm);
+    }
 }
 
 /// A hyperslab of `rows × cols` values of the 2-D dataset `item`, starting at `start` with
@@ -205,10 +283,15 @@ mod tests {
                 kind: crate::ElementKind::Tet10,
                 frequencies_hz: &f,
                 stress: true,
+                fixed: true,
+                loads: &["tip".to_string()],
             }],
         );
         assert!(x.contains("a&amp;b.h5:/spaces/global/mesh/nodes"));
-        assert!(x.contains("mode 1 shape (10.0000 Hz)") && x.contains("mode 2 stress (20.5000 Hz)"));
+        assert!(x.contains(r#"Name="mode_01_displacement""#) && x.contains(r#"Name="mode_02_stress""#));
+        assert!(x.contains(r#"Name="fixed""#) && x.contains("/spaces/global/mesh/fixed_mask"));
+        assert!(x.contains(r#"Name="load_tip_displacement""#) && x.contains("/spaces/global/loads/tip/von_mises"));
+        assert!(x.contains(r#"Name="frequencies_hz" AttributeType="Scalar" Center="Grid""#));
         // The tenth VTK node is gmsh's ninth column.
         let topology = &x[x.find("Tetrahedron_10").unwrap()..x.find("</Topology>").unwrap()];
         let starts: Vec<&str> = topology

@@ -2,7 +2,10 @@
 //! but not the XDMF sidecar (meshio, VTK scripts). Per space `<space>.vtu`: its 4- or 10-node
 //! tets (VTK node order) with every mode shape as a point vector; with modal stress also
 //! `<space>_vertices.vtu` on the corner vertices with each mode's stress as a symmetric tensor
-//! (VTK's order xx yy zz xy yz xz). Binary data appended raw (little-endian, 64-bit headers).
+//! (VTK's order xx yy zz xy yz xz). Array names as in the XDMF sidecar: `mode_01_displacement`,
+//! `mode_01_stress`, `fixed`, `load_<name>_displacement`, `load_<name>_von_mises`, and the
+//! frequencies as field data `frequencies_hz`. Binary data appended raw (little-endian, 64-bit
+//! headers).
 
 use anyhow::{Context, Result, bail};
 use std::io::Write;
@@ -11,7 +14,7 @@ use std::path::{Path, PathBuf};
 use crate::output::Overwrite;
 
 use crate::fem::element::Kind;
-use ves_format::xdmf::{escape, mode_name};
+use ves_format::xdmf::{escape, load_array, mode_array};
 
 /// VTK's symmetric-tensor order (xx yy zz xy yz xz) from the file's Voigt (xx yy zz yz xz xy).
 const VOIGT_TO_VTK: [usize; 6] = [0, 1, 2, 5, 3, 4];
@@ -87,17 +90,19 @@ pub fn export(basis: &Path, dir: &Path, overwrite: Overwrite) -> Result<Vec<Path
         let order = s.kind.vtk_node_order();
         let frequencies = s.frequencies_hz()?;
         let rows = s.basis_rows(0..3 * n, r)?;
-        let shapes: Vec<(String, usize, Vec<f64>)> = (0..r)
+        let mut shapes: Vec<(String, usize, Vec<f64>)> = (0..r)
             .map(|j| {
                 let v = (0..3 * n).map(|i| rows[i * r + j]).collect();
-                (mode_name(j, r, frequencies[j], "shape"), 3, v)
+                (mode_array(j, r, "displacement"), 3, v)
             })
             .collect();
+        shapes.extend(point_fields(&s)?);
         let cells: Vec<i64> = tets
             .chunks_exact(per)
             .flat_map(|t| order.iter().map(move |&k| i64::from(t[k])))
             .collect();
-        write_grid(grid, &nodes, &cells, per, s.kind.vtk_cell_type(), &shapes)?;
+        let field = [("frequencies_hz".to_string(), frequencies.clone())];
+        write_grid(grid, &nodes, &cells, per, s.kind.vtk_cell_type(), &shapes, &field)?;
         written.push(grid.clone());
         if let Some(path) = vertices
             && let Some(stress) = s.stress_rows(0..nv, r)?
@@ -107,7 +112,7 @@ pub fn export(basis: &Path, dir: &Path, overwrite: Overwrite) -> Result<Vec<Path
                     let v = (0..nv)
                         .flat_map(|i| VOIGT_TO_VTK.map(|k| stress[(6 * i + k) * r + j]))
                         .collect();
-                    (mode_name(j, r, frequencies[j], "stress"), 6, v)
+                    (mode_array(j, r, "stress"), 6, v)
                 })
                 .collect();
             let corners: Vec<i64> = tets
@@ -115,13 +120,31 @@ pub fn export(basis: &Path, dir: &Path, overwrite: Overwrite) -> Result<Vec<Path
                 .flat_map(|t| t[..4].iter().map(|&v| i64::from(v)))
                 .collect();
             let (n, cell) = (Kind::Tet4.nodes(), Kind::Tet4.vtk_cell_type());
-            write_grid(path, &nodes[..3 * nv], &corners, n, cell, &fields)?;
+            let field = [("frequencies_hz".to_string(), frequencies.clone())];
+            write_grid(path, &nodes[..3 * nv], &corners, n, cell, &fields, &field)?;
             written.push(path.clone());
         }
     }
     Ok(written)
 }
 
+/// The whole grid's point arrays beside the modes: `fixed` (1 where a support holds the node,
+/// from `mesh/fixed_dofs`) and each load case's displacement and von Mises stress.
+fn point_fields(s: &ves_format::SpaceReader<'_>) -> Result<Vec<(String, usize, Vec<f64>)>> {
+    let mut fixed = vec![0.0; s.node_count];
+    for d in s.fixed_dofs()? {
+        fixed[d as usize / 3] = 1.0;
+    }
+    let mut out = vec![("fixed".to_string(), 1, fixed)];
+    for l in s.loads()? {
+        out.push((load_array(&l.name, "displacement"), 3, l.displacement));
+        out.push((load_array(&l.name, "von_mises"), 1, l.von_mises));
+    }
+    Ok(out)
+}
+
+// The grid's parts, as VTK's XML format lists them.
+#[allow(clippy::too_many_arguments)]
 fn write_grid(
     path: &Path,
     points: &[f64],
@@ -129,6 +152,7 @@ fn write_grid(
     per_cell: usize,
     kind: u8,
     fields: &[(String, usize, Vec<f64>)],
+    field_data: &[(String, Vec<f64>)],
 ) -> Result<()> {
     let m = cells.len() / per_cell;
     let offsets: Vec<i64> = (1..=m).map(|e| (e * per_cell) as i64).collect();
@@ -139,6 +163,8 @@ fn write_grid(
     arrays.push(("connectivity", 1, Data::I64(cells)));
     arrays.push(("offsets", 1, Data::I64(&offsets)));
     arrays.push(("types", 1, Data::U8(&types)));
+    let field_start = arrays.len();
+    arrays.extend(field_data.iter().map(|(name, v)| (name.as_str(), 1, Data::F64(v))));
     let mut xml = String::new();
     let mut offset = 0usize;
     let mut blobs = Vec::new();
@@ -157,8 +183,19 @@ fn write_grid(
     xml.push_str(r#"<?xml version="1.0"?>"#);
     xml.push('\n');
     xml.push_str(r#"<VTKFile type="UnstructuredGrid" version="1.0" byte_order="LittleEndian" header_type="UInt64">"#);
+    xml.push_str("\n<UnstructuredGrid>\n<FieldData>");
+    for a in &arrays[field_start..] {
+        // Field data names its tuple count.
+        let tag = item(a);
+        let tuples = match &a.2 {
+            Data::F64(v) => v.len(),
+            _ => 0,
+        };
+        xml.push_str(&tag.replace("/>", &format!(r#" NumberOfTuples="{tuples}"/>"#)));
+    }
+    xml.push_str("</FieldData>");
     xml.push_str(&format!(
-        "\n<UnstructuredGrid>\n<Piece NumberOfPoints=\"{}\" NumberOfCells=\"{m}\">\n<Points>{}</Points>\n<PointData>",
+        "\n<Piece NumberOfPoints=\"{}\" NumberOfCells=\"{m}\">\n<Points>{}</Points>\n<PointData>",
         points.len() / 3,
         item(&arrays[0])
     ));
@@ -166,7 +203,7 @@ fn write_grid(
         xml.push_str(&item(a));
     }
     xml.push_str("</PointData>\n<Cells>");
-    for a in &arrays[1 + fields.len()..] {
+    for a in &arrays[1 + fields.len()..field_start] {
         xml.push_str(&item(a));
     }
     xml.push_str("</Cells>\n</Piece>\n</UnstructuredGrid>\n<AppendedData encoding=\"raw\">_");

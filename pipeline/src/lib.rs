@@ -11,6 +11,7 @@ pub mod fem;
 pub mod fingerprint;
 pub mod input;
 pub mod linsolve;
+pub mod loads;
 pub mod material;
 pub mod matrices;
 pub mod memory;

@@ -34,6 +34,30 @@ struct RawScene {
     #[serde(default)]
     probe: Vec<Probe>,
     stress: Option<StressSettings>,
+    #[serde(default)]
+    load: Vec<RawLoad>,
+    gravity: Option<RawGravity>,
+}
+
+/// Optional `[[load]]` entries (a compatible v1 extension): a service load on a surface region
+/// selected as `[[fixed]]` selects its own, solved statically (the `loads` stage).
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawLoad {
+    name: String,
+    plane: Option<RawPlane>,
+    #[serde(rename = "box")]
+    bbox: Option<BoxRegion>,
+    faces: Option<Vec<u32>>,
+    force: Option<[f64; 3]>,
+    pressure: Option<f64>,
+}
+
+/// Optional `[gravity]` table (a compatible v1 extension): the load case `gravity`, M·g.
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawGravity {
+    acceleration: [f64; 3],
 }
 
 /// Optional `[stress]` table (a compatible v1 extension): store each mode's stress at the
@@ -295,6 +319,60 @@ pub struct Scene {
     pub stress: bool,
     /// Probe points for `ves report`.
     pub probes: Vec<Probe>,
+    /// Service load cases (`[[load]]`, then `[gravity]`), each solved statically.
+    pub loads: Vec<LoadCase>,
+}
+
+/// One static load case of the scene.
+#[derive(Clone, Debug, PartialEq)]
+pub struct LoadCase {
+    /// Its name (an identifier; `gravity` for `[gravity]`).
+    pub name: String,
+    /// What acts.
+    pub applied: Applied,
+}
+
+/// What a load case applies.
+#[derive(Clone, Debug, PartialEq)]
+pub enum Applied {
+    /// A total force, N, spread over the region's surface in proportion to area.
+    Force {
+        /// The surface region (selected as a support's is).
+        region: Region,
+        /// Total force, N.
+        total: [f64; 3],
+    },
+    /// A pressure, Pa, along the inward normal of each surface triangle of the region.
+    Pressure {
+        /// The surface region.
+        region: Region,
+        /// Pressure, Pa (positive pushes into the part).
+        pascal: f64,
+    },
+    /// A uniform acceleration field on the whole part, m/s²: loads M·g.
+    Gravity {
+        /// Acceleration, m/s².
+        acceleration: [f64; 3],
+    },
+}
+
+impl Applied {
+    /// `force`, `pressure` or `gravity`, as the basis file's `kind` attribute says.
+    pub fn kind(&self) -> &'static str {
+        match self {
+            Applied::Force { .. } => "force",
+            Applied::Pressure { .. } => "pressure",
+            Applied::Gravity { .. } => "gravity",
+        }
+    }
+
+    /// The surface region, for the surface loads.
+    pub fn region(&self) -> Option<&Region> {
+        match self {
+            Applied::Force { region, .. } | Applied::Pressure { region, .. } => Some(region),
+            Applied::Gravity { .. } => None,
+        }
+    }
 }
 
 const GEOMETRY_EXTENSIONS: [&str; 6] = ["step", "stp", "brep", "geo", "iges", "igs"];
@@ -542,6 +620,7 @@ impl Scene {
                 stem
             }
         };
+        let fixed_empty = fixed.is_empty();
         Ok(Scene {
             name,
             path: path.to_path_buf(),
@@ -557,6 +636,7 @@ impl Scene {
             static_correction: raw.static_correction,
             stress: raw.stress.is_some_and(|s| s.enabled),
             probes: raw.probe,
+            loads: load_cases(&raw.load, raw.gravity.as_ref(), !fixed_empty).map_err(err)?,
         })
     }
 }
@@ -684,43 +764,12 @@ fn axis_index(key: &str, s: &str) -> Result<usize, String> {
 }
 
 fn support(i: usize, f: &RawFixed) -> Result<Support, String> {
-    let region = match (&f.plane, &f.bbox, &f.faces) {
-        (Some(p), None, None) => {
-            let axis = axis_index(&format!("fixed[{i}].plane.axis"), &p.axis)?;
-            if !p.value.is_finite() {
-                return Err(format!("fixed[{i}].plane.value = {}: must be finite", p.value));
-            }
-            if let Some(t) = p.tol {
-                finite_positive(&format!("fixed[{i}].plane.tol"), t, "m")?;
-            }
-            Region::Plane {
-                axis,
-                value: p.value,
-                tol: p.tol,
-            }
-        }
-        (None, Some(b), None) => {
-            check_box(&format!("fixed[{i}].box"), b)?;
-            Region::Box(*b)
-        }
-        (None, None, Some(list)) => {
-            if list.is_empty() {
-                return Err(format!(
-                    "fixed[{i}].faces: empty; list at least one CAD face tag (gmsh's surface tags of the geometry)"
-                ));
-            }
-            if list.contains(&0) {
-                return Err(format!(
-                    "fixed[{i}].faces = {list:?}: face tags start at 1 (gmsh numbers the faces of the geometry from 1)"
-                ));
-            }
-            let mut tags = list.clone();
-            tags.sort_unstable();
-            tags.dedup();
-            Region::Faces(tags)
-        }
-        _ => return Err(format!("fixed[{i}]: give exactly one of `plane`, `box` or `faces`")),
-    };
+    let region = region(
+        &format!("fixed[{i}]"),
+        f.plane.as_ref(),
+        f.bbox.as_ref(),
+        f.faces.as_ref(),
+    )?;
     let mut components = [false; 3];
     match &f.components {
         None => components = [true; 3],
@@ -736,6 +785,139 @@ fn support(i: usize, f: &RawFixed) -> Result<Support, String> {
         }
     }
     Ok(Support { region, components })
+}
+
+/// The region of a `[[fixed]]` or `[[load]]` entry (`key`: `fixed[0]`, `load[2]`): exactly one
+/// of `plane`, `box` and `faces`.
+fn region(
+    key: &str,
+    plane: Option<&RawPlane>,
+    bbox: Option<&BoxRegion>,
+    faces: Option<&Vec<u32>>,
+) -> Result<Region, String> {
+    Ok(match (plane, bbox, faces) {
+        (Some(p), None, None) => {
+            let axis = axis_index(&format!("{key}.plane.axis"), &p.axis)?;
+            if !p.value.is_finite() {
+                return Err(format!("{key}.plane.value = {}: must be finite", p.value));
+            }
+            if let Some(t) = p.tol {
+                finite_positive(&format!("{key}.plane.tol"), t, "m")?;
+            }
+            Region::Plane {
+                axis,
+                value: p.value,
+                tol: p.tol,
+            }
+        }
+        (None, Some(b), None) => {
+            check_box(&format!("{key}.box"), b)?;
+            Region::Box(*b)
+        }
+        (None, None, Some(list)) => {
+            if list.is_empty() {
+                return Err(format!(
+                    "{key}.faces: empty; list at least one CAD face tag (gmsh's surface tags of the geometry)"
+                ));
+            }
+            if list.contains(&0) {
+                return Err(format!(
+                    "{key}.faces = {list:?}: face tags start at 1 (gmsh numbers the faces of the geometry from 1)"
+                ));
+            }
+            let mut tags = list.clone();
+            tags.sort_unstable();
+            tags.dedup();
+            Region::Faces(tags)
+        }
+        _ => return Err(format!("{key}: give exactly one of `plane`, `box` or `faces`")),
+    })
+}
+
+/// Most load cases a scene may have (each is a static solve and a field in the basis).
+pub const MAX_LOAD_CASES: usize = 64;
+
+/// The `[[load]]` entries, then `[gravity]` as the case named `gravity`, checked.
+fn load_cases(raw: &[RawLoad], gravity: Option<&RawGravity>, held: bool) -> Result<Vec<LoadCase>, String> {
+    if !held && (!raw.is_empty() || gravity.is_some()) {
+        let what = if raw.is_empty() { "[gravity]" } else { "[[load]]" };
+        return Err(format!(
+            "{what}: a load case needs supports, and the part has no [[fixed]] region (a free body's static \
+             displacement is not defined: inertia relief is not implemented); add a [[fixed]] region"
+        ));
+    }
+    if raw.len() + usize::from(gravity.is_some()) > MAX_LOAD_CASES {
+        return Err(format!(
+            "{} load cases: at most {MAX_LOAD_CASES} (each is a static solve and a field in the basis)",
+            raw.len() + usize::from(gravity.is_some())
+        ));
+    }
+    let mut cases: Vec<LoadCase> = Vec::with_capacity(raw.len() + 1);
+    for (i, l) in raw.iter().enumerate() {
+        let key = format!("load[{i}]");
+        load_name(&key, &l.name)?;
+        if cases.iter().any(|c| c.name == l.name) || (gravity.is_some() && l.name == "gravity") {
+            return Err(format!(
+                "{key}.name = {:?}: another load case has that name (`gravity` is [gravity]'s); rename this one",
+                l.name
+            ));
+        }
+        let region = region(&key, l.plane.as_ref(), l.bbox.as_ref(), l.faces.as_ref())?;
+        let applied = match (l.force, l.pressure) {
+            (Some(f), None) => {
+                if f.iter().any(|v| !v.is_finite()) || f.iter().all(|&v| v == 0.0) {
+                    return Err(format!(
+                        "{key}.force = {f:?}: the total force in N, finite and not all zero"
+                    ));
+                }
+                Applied::Force { region, total: f }
+            }
+            (None, Some(p)) => {
+                if !p.is_finite() || p == 0.0 {
+                    return Err(format!(
+                        "{key}.pressure = {p}: a pressure in Pa, finite and not zero (positive pushes into the part)"
+                    ));
+                }
+                Applied::Pressure { region, pascal: p }
+            }
+            _ => return Err(format!("{key}: give exactly one of `force` (N) or `pressure` (Pa)")),
+        };
+        cases.push(LoadCase {
+            name: l.name.clone(),
+            applied,
+        });
+    }
+    if let Some(g) = gravity {
+        let a = g.acceleration;
+        if a.iter().any(|v| !v.is_finite()) || a.iter().all(|&v| v == 0.0) {
+            return Err(format!(
+                "gravity.acceleration = {a:?}: an acceleration in m/s², finite and not all zero (e.g. [0.0, 0.0, -9.81])"
+            ));
+        }
+        cases.push(LoadCase {
+            name: "gravity".into(),
+            applied: Applied::Gravity { acceleration: a },
+        });
+    }
+    Ok(cases)
+}
+
+/// A load case's name: a plain identifier (letters, digits, `_`, `-`, not starting with a digit
+/// or `-`), as it becomes an HDF5 group and part of ParaView array names. Never a path.
+fn load_name(key: &str, name: &str) -> Result<(), String> {
+    let mut chars = name.chars();
+    let plain = name.len() <= 64
+        && chars.next().is_some_and(|c| c.is_ascii_alphabetic() || c == '_')
+        && chars.all(|c| c.is_ascii_alphanumeric() || c == '_' || c == '-');
+    if plain {
+        Ok(())
+    } else {
+        Err(format!(
+            "{key}.name = \"{}\": a load name is a plain identifier (ASCII letters, digits, `_` and `-`, starting \
+             with a letter or `_`, at most 64 bytes), e.g. \"tip\" or \"bolt_preload\"",
+            ves_format::names::escape_for_terminal(name)
+        ))
+    }
 }
 
 #[cfg(test)]
@@ -772,6 +954,12 @@ region = "surface"
 [[probe]]
 at = [0.1, 0.0, 0.05]
 force = [0.0, 1.0, 0.0]
+[[load]]
+name = "tip"
+box = { min = [0.9, 0.0, 0.0], max = [1.0, 1.0, 1.0] }
+force = [0.0, 0.0, -100.0]
+[gravity]
+acceleration = [0.0, 0.0, -9.81]
 "#;
 
     /// `faces` is a third region kind: sorted and each once; an empty list, tag 0, a negative
@@ -801,6 +989,55 @@ force = [0.0, 1.0, 0.0]
             let e = with(fixed).expect_err(fixed).to_string();
             assert!(e.contains(says) && !e.contains('\n'), "{fixed}: {e}");
         }
+    }
+
+    /// A load's region is parsed by the function that parses a support's (the same keys give
+    /// the same region, the same refusals under its own key); names are plain identifiers;
+    /// `[gravity]` is the case `gravity`, after the `[[load]]` entries.
+    #[test]
+    fn load_regions_are_parsed_as_support_regions() {
+        let dir = std::env::temp_dir().join(format!("ves-scene-loads-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).expect("temp dir");
+        std::fs::write(dir.join("x.step"), "ISO-10303-21;").expect("geometry stub");
+        let path = dir.join("s.toml");
+        let s = Scene::parse(&path, SCENE).expect("the base scene");
+        assert_eq!(s.loads.len(), 2);
+        assert_eq!(s.loads[1].name, "gravity");
+        assert_eq!(s.loads[1].applied.kind(), "gravity");
+        let with = |load: &str| {
+            let text = SCENE.replace("[gravity]", &format!("[[load]]\n{load}\n[gravity]"));
+            Scene::parse(&path, &text)
+        };
+        let same =
+            with("name = \"q\"\nbox = { min = [0.0, 0.0, 0.0], max = [1.0, 1.0, 1.0] }\nforce = [1.0, 0.0, 0.0]");
+        let same = same.expect("a box load");
+        assert_eq!(same.loads[1].applied.region(), Some(&same.fixed[1].region));
+        let s = with("name = \"p\"\nfaces = [4, 2, 4]\npressure = 1e5").expect("a face pressure");
+        assert_eq!(
+            s.loads[1].applied,
+            Applied::Pressure {
+                region: Region::Faces(vec![2, 4]),
+                pascal: 1e5
+            }
+        );
+        for (load, says) in [
+            (
+                "name = \"p\"\nfaces = [0]\npressure = 1e5",
+                "load[1].faces = [0]: face tags start at 1",
+            ),
+            (
+                "name = \"p\"\nplane = { axis = \"w\", value = 0.0 }\npressure = 1e5",
+                "load[1].plane.axis",
+            ),
+            ("name = \"a b\"\nfaces = [1]\npressure = 1e5", "load[1].name"),
+            ("name = \"C:x\"\nfaces = [1]\npressure = 1e5", "plain identifier"),
+            ("name = \"tip\"\nfaces = [1]\npressure = 1e5", "another load case"),
+            ("name = \"p\"\nfaces = [1]\npressure = nan", "load[1].pressure"),
+        ] {
+            let e = with(load).expect_err(load).to_string();
+            assert!(e.contains(says) && !e.contains('\n'), "{load}: {e}");
+        }
+        let _ = std::fs::remove_dir_all(&dir);
     }
 
     /// Deterministic mutations of a valid scene (byte flips, deletions, duplications, numeric

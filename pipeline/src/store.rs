@@ -36,11 +36,13 @@ pub struct Space<'a> {
     pub estimated_relative_error: Option<Vec<f64>>,
     /// Modal stress at the corner vertices, row-major [6·nv, r], if computed.
     pub stress: Option<&'a [f64]>,
+    /// The static load cases solved (none: empty).
+    pub loads: &'a [crate::loads::LoadResult],
 }
 
 impl Space<'_> {
     /// The file writer's view: plain slices, the basis scattered to all 3n rows.
-    fn file_data<'b>(&'b self, basis: &'b [f64]) -> ves_format::SpaceData<'b> {
+    fn file_data<'b>(&'b self, basis: &'b [f64], loads: &'b [ves_format::LoadData<'b>]) -> ves_format::SpaceData<'b> {
         ves_format::SpaceData {
             name: self.name,
             kind: self.mesh.kind,
@@ -60,12 +62,32 @@ impl Space<'_> {
             basis,
             compliance: self.compliance.map(|c| (c.nodes.as_slice(), c.blocks.as_slice())),
             transfers: self.transfers,
+            loads,
             rigid: (self.modes.rigid_dropped > 0).then_some(ves_format::RigidProperties {
                 mass: self.mass.mass,
                 center: self.mass.center,
                 inertia: self.mass.inertia,
             }),
         }
+    }
+
+    /// The load cases as the file writer takes them.
+    fn load_data(&self) -> Vec<ves_format::LoadData<'_>> {
+        self.loads
+            .iter()
+            .map(|l| ves_format::LoadData {
+                name: &l.name,
+                kind: l.kind,
+                total_force: l.total_force,
+                reaction: l.reaction,
+                balance_residual: l.balance_residual,
+                max_displacement: l.max_displacement,
+                max_von_mises: l.max_von_mises,
+                displacement: &l.displacement,
+                von_mises: &l.von_mises,
+                stress: &l.stress,
+            })
+            .collect()
     }
 
     /// Mode shapes over all 3n DOFs, row-major [3n, r] (zero at supported DOFs).
@@ -92,6 +114,7 @@ impl Space<'_> {
 /// first ([`crate::output::check`]).
 pub fn write(out: &Path, scene: &Scene, spaces: &[Space<'_>]) -> Result<()> {
     let bases: Vec<Vec<f64>> = spaces.iter().map(Space::full_basis).collect();
+    let loads: Vec<Vec<ves_format::LoadData<'_>>> = spaces.iter().map(Space::load_data).collect();
     let generator = format!("ves {}", env!("CARGO_PKG_VERSION"));
     // What this file was made from (`ves batch` skips scenes whose output is up to date).
     let hash = source_hash(scene)?;
@@ -107,7 +130,12 @@ pub fn write(out: &Path, scene: &Scene, spaces: &[Space<'_>]) -> Result<()> {
             beta: scene.damping.beta,
             yield_strength: scene.material.yield_strength,
         },
-        spaces: spaces.iter().zip(&bases).map(|(s, b)| s.file_data(b)).collect(),
+        spaces: spaces
+            .iter()
+            .zip(&bases)
+            .zip(&loads)
+            .map(|((s, b), l)| s.file_data(b, l))
+            .collect(),
     };
     let mut staging = crate::output::Staging::default();
     let mut sidecar_text = String::new();
@@ -153,34 +181,46 @@ pub fn repair_sidecar(out: &Path) -> Result<bool> {
 /// The XDMF sidecar's text for the basis `reader` reads, which will be found at `out` (the
 /// sidecar points into it by file name).
 fn sidecar_of(reader: &ves_format::BasisReader, out: &Path) -> Result<String> {
+    /// What the sidecar shows of one space, read from the file.
+    struct Grid {
+        name: String,
+        nodes: usize,
+        vertices: usize,
+        tets: usize,
+        kind: ves_format::ElementKind,
+        frequencies: Vec<f64>,
+        stress: bool,
+        fixed: bool,
+        loads: Vec<String>,
+    }
     let mut spaces = Vec::new();
     for name in reader.space_names()? {
         let s = reader.space(&name)?;
-        let frequencies = s.frequencies_hz()?;
-        let stress = s.stress_rows(0..0, 0)?.is_some();
-        spaces.push((
+        spaces.push(Grid {
+            frequencies: s.frequencies_hz()?,
+            stress: s.stress_rows(0..0, 0)?.is_some(),
+            fixed: s.fixed_mask()?.is_some(),
+            loads: s.load_names()?,
+            nodes: s.node_count,
+            vertices: s.vertex_count,
+            tets: s.tet_count,
+            kind: s.kind,
             name,
-            s.node_count,
-            s.vertex_count,
-            s.tet_count,
-            s.kind,
-            frequencies,
-            stress,
-        ));
+        });
     }
     let views: Vec<ves_format::xdmf::XdmfSpace<'_>> = spaces
         .iter()
-        .map(
-            |(name, nodes, vertices, tets, kind, f, stress)| ves_format::xdmf::XdmfSpace {
-                name,
-                nodes: *nodes,
-                vertices: *vertices,
-                tets: *tets,
-                kind: *kind,
-                frequencies_hz: f,
-                stress: *stress,
-            },
-        )
+        .map(|g| ves_format::xdmf::XdmfSpace {
+            name: &g.name,
+            nodes: g.nodes,
+            vertices: g.vertices,
+            tets: g.tets,
+            kind: g.kind,
+            frequencies_hz: &g.frequencies,
+            stress: g.stress,
+            fixed: g.fixed,
+            loads: &g.loads,
+        })
         .collect();
     Ok(ves_format::xdmf::sidecar(&file_name(out), &views))
 }
@@ -239,6 +279,27 @@ pub struct SpaceInfo {
     /// Each mode's estimated relative discretization error, when the file has it.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub estimated_relative_error: Option<Vec<f64>>,
+    /// The static load cases stored (empty: none).
+    pub loads: Vec<LoadInfo>,
+}
+
+/// What `ves info` shows of one load case.
+#[derive(Debug, serde::Serialize)]
+pub struct LoadInfo {
+    /// Its name.
+    pub name: String,
+    /// `force`, `pressure` or `gravity`.
+    pub kind: String,
+    /// Sum of the applied nodal loads, N.
+    pub total_force_n: [f64; 3],
+    /// Largest nodal displacement magnitude, m.
+    pub max_displacement_m: f64,
+    /// Largest corner-vertex von Mises stress, Pa.
+    pub max_von_mises_pa: f64,
+    /// Total support reaction, N.
+    pub reaction_n: [f64; 3],
+    /// |reaction + applied| over the sum of the nodal loads' magnitudes.
+    pub balance_residual: f64,
 }
 
 /// What `ves info` shows of a basis file.
@@ -279,6 +340,19 @@ pub fn info(path: &Path) -> Result<BasisInfo> {
             static_correction_vertices: s.compliance()?.map_or(0, |(n, _)| n.len()),
             meshing_strategy: s.meshing_strategy.clone(),
             estimated_relative_error: s.estimated_relative_error()?,
+            loads: s
+                .loads()?
+                .into_iter()
+                .map(|l| LoadInfo {
+                    name: l.name,
+                    kind: l.kind,
+                    total_force_n: l.total_force,
+                    max_displacement_m: l.max_displacement,
+                    max_von_mises_pa: l.max_von_mises,
+                    reaction_n: l.reaction,
+                    balance_residual: l.balance_residual,
+                })
+                .collect(),
         });
     }
     Ok(BasisInfo {

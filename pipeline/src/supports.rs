@@ -176,6 +176,66 @@ pub fn face_nodes(mesh: &Mesh, tags: &[u32]) -> Vec<u32> {
     nodes
 }
 
+/// Which of `tags` the mesh's surface does not carry, in words with the tags it has; `None` when
+/// it carries them all.
+fn unknown_faces(mesh: &Mesh, tags: &[u32]) -> Option<String> {
+    let known = mesh_faces(mesh);
+    let unknown: Vec<u32> = tags
+        .iter()
+        .copied()
+        .filter(|t| known.binary_search(t).is_err())
+        .collect();
+    if unknown.is_empty() {
+        return None;
+    }
+    let which = match unknown.as_slice() {
+        [t] => format!("the geometry has no face {t}"),
+        ts => format!("the geometry has no faces {}", tag_ranges(ts)),
+    };
+    Some(if known.is_empty() {
+        format!("{which}: its mesh carries no CAD face tags (not made by gmsh from the geometry); use `plane` or `box`")
+    } else {
+        format!(
+            "{which}; it has faces {} (gmsh's surface tags of the geometry as imported): use those",
+            tag_ranges(&known)
+        )
+    })
+}
+
+/// The surface triangles (indices into `mesh.surface`) a load's region selects, by the same
+/// rules a support's region selects nodes: `faces`, the triangles on those CAD faces; `plane` or
+/// `box`, the triangles whose three corners it selects (so a region a support would hold is the
+/// surface a load acts on). `key` names the scene entry (`load[0]`) in the one-line error for a
+/// region that selects no triangle or names a face the geometry does not have.
+pub fn region_triangles(mesh: &Mesh, key: &str, region: &Region) -> Result<Vec<usize>, String> {
+    let default_tol = 1e-6 * mesh.diameter();
+    let picked: Vec<usize> = match region {
+        Region::Faces(tags) => {
+            if let Some(message) = unknown_faces(mesh, tags) {
+                return Err(format!("{key}.faces = {tags:?}: {message}"));
+            }
+            (0..mesh.surface.len())
+                .filter(|&t| tags.binary_search(&mesh.surface_faces[t]).is_ok())
+                .collect()
+        }
+        _ => (0..mesh.surface.len())
+            .filter(|&t| {
+                mesh.surface[t]
+                    .iter()
+                    .all(|&v| selects(region, mesh.nodes[v as usize], default_tol))
+            })
+            .collect(),
+    };
+    if picked.is_empty() {
+        let (lo, hi) = mesh.bounding_box();
+        let (what, hint) = describe(region, lo, hi, default_tol);
+        return Err(format!(
+            "{key} ({what}) selects no surface triangle of the mesh (a load acts on the surface); {hint}"
+        ));
+    }
+    Ok(picked)
+}
+
 /// Applies the supports to the mesh's nodes (corner and mid-edge alike).
 pub fn select(mesh: &Mesh, supports: &[Support]) -> Result<Dofs, SupportError> {
     let n = mesh.nodes.len();
@@ -185,28 +245,7 @@ pub fn select(mesh: &Mesh, supports: &[Support]) -> Result<Dofs, SupportError> {
     for (index, s) in supports.iter().enumerate() {
         let mut any = false;
         if let Region::Faces(tags) = &s.region {
-            let known = mesh_faces(mesh);
-            let unknown: Vec<u32> = tags
-                .iter()
-                .copied()
-                .filter(|t| known.binary_search(t).is_err())
-                .collect();
-            if !unknown.is_empty() {
-                let which = match unknown.as_slice() {
-                    [t] => format!("the geometry has no face {t}"),
-                    ts => format!("the geometry has no faces {}", tag_ranges(ts)),
-                };
-                let message = if known.is_empty() {
-                    format!(
-                        "{which}: its mesh carries no CAD face tags (not made by gmsh from the geometry); hold it by \
-                         `plane` or `box`"
-                    )
-                } else {
-                    format!(
-                        "{which}; it has faces {} (gmsh's surface tags of the geometry as imported): use those",
-                        tag_ranges(&known)
-                    )
-                };
+            if let Some(message) = unknown_faces(mesh, tags) {
                 return Err(SupportError::UnknownFaces {
                     index,
                     asked: tags.clone(),

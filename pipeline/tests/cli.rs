@@ -1200,9 +1200,25 @@ fn xdmf_sidecar_shows_the_basis_to_paraview() {
         let got: Vec<u64> = ids.as_array().unwrap().iter().map(|v| v.as_u64().unwrap()).collect();
         assert_eq!(got, want, "cell {e}");
     }
-    let arrays = g["arrays"].as_array().unwrap();
+    // The modes by their plain names, in order; beside them `fixed`, 1 where a support holds.
+    let named = |grid: &serde_json::Value, prefix: &str| -> Vec<serde_json::Value> {
+        let all = grid["arrays"].as_array().unwrap().iter();
+        all.filter(|a| a["name"].as_str().unwrap().starts_with(prefix))
+            .cloned()
+            .collect()
+    };
+    let arrays = named(g, "mode_");
     assert_eq!(arrays.len(), r);
+    let fixed = s.fixed_dofs().unwrap();
+    let held = named(g, "fixed");
+    assert_eq!(held.len(), 1, "one `fixed` array");
+    for (i, t) in held[0]["tuples"].as_object().unwrap() {
+        let i: usize = i.parse().unwrap();
+        let want = f64::from(u8::from(fixed.iter().any(|&d| d as usize / 3 == i)));
+        assert_eq!(num(&t[0]), want, "fixed at node {i}");
+    }
     for (j, a) in arrays.iter().enumerate() {
+        assert_eq!(a["name"], format!("mode_{:02}_displacement", j + 1));
         for (i, t) in a["tuples"].as_object().unwrap() {
             let i: usize = i.parse().unwrap();
             for c in 0..3 {
@@ -1212,9 +1228,10 @@ fn xdmf_sidecar_shows_the_basis_to_paraview() {
     }
     let v = &seen["global vertices"];
     assert_eq!(v["points"].as_array().unwrap().len(), nv);
-    let arrays = v["arrays"].as_array().unwrap();
+    let arrays = named(v, "mode_");
     assert_eq!(arrays.len(), r);
     for (j, a) in arrays.iter().enumerate() {
+        assert_eq!(a["name"], format!("mode_{:02}_stress", j + 1));
         assert_eq!(a["components"], 9);
         for (i, t) in a["tuples"].as_object().unwrap() {
             let i: usize = i.parse().unwrap();

@@ -366,6 +366,7 @@ pub fn verify<'py>(
         angle: max_angle,
         static_rel: tol_static,
         stress: tol_stress,
+        load: None,
     };
     let what = format!("verify {}", path.display());
     let report = run_long(py, progress, &what, None, move || {

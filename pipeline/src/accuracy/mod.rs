@@ -396,7 +396,7 @@ pub fn choose(rich: Option<ModeError>, rec: Option<f64>, trust: Trust) -> ModeEs
 /// The recovery estimate of each of `fine`'s modes.
 fn recovered(scene: &Scene, fine: &SpaceView<'_>, fine_lambda: &[f64]) -> Vec<f64> {
     let m = &scene.material;
-    let lame = crate::fem::element::Lame::new(m.young, m.poisson, m.density);
+    let lame = crate::fem::element::Lame::of(m);
     let r = fine.r.min(fine_lambda.len());
     recovery::estimate(fine.mesh, fine.dofs, &lame, fine.modes, &fine_lambda[..r])
 }

@@ -43,6 +43,20 @@ impl Args {
                 s.max_relative_residual,
                 s.rigid_modes_dropped,
             );
+            for l in &s.loads {
+                let f = l.total_force_n;
+                println!(
+                    "    load {} ({}): total force [{:.4e}, {:.4e}, {:.4e}] N, max displacement {:.4e} m, max von Mises {:.4e} Pa, reaction balance {:.1e}",
+                    esc(&l.name),
+                    esc(&l.kind),
+                    f[0],
+                    f[1],
+                    f[2],
+                    l.max_displacement_m,
+                    l.max_von_mises_pa,
+                    l.balance_residual
+                );
+            }
         }
         Ok(())
     }

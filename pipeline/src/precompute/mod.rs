@@ -38,6 +38,8 @@ pub struct Timings {
     pub stress: f64,
     /// Sturm count of each space's spectrum (one LDLᵀ of K − σM).
     pub sturm: f64,
+    /// The static load cases (when the scene has any).
+    pub loads: f64,
     /// Writing the file.
     pub write: f64,
     /// Everything.
@@ -54,6 +56,7 @@ impl Timings {
         self.error_estimate += o.error_estimate;
         self.stress += o.stress;
         self.sturm += o.sturm;
+        self.loads += o.loads;
     }
 }
 
@@ -90,6 +93,8 @@ pub struct SolvedSpace {
     pub stress: Option<Vec<f64>>,
     /// The Sturm count at the top of the spectrum (not under MPI).
     pub sturm: Option<modes::SturmCount>,
+    /// The scene's static load cases solved on this space (none: empty).
+    pub loads: Vec<crate::loads::LoadResult>,
 }
 
 impl SolvedSpace {
@@ -107,17 +112,18 @@ impl SolvedSpace {
             transfers: &self.transfers,
             estimated_relative_error: self.error.as_ref().map(|e| e.relative()),
             stress: self.stress.as_deref(),
+            loads: &self.loads,
         }
     }
 }
 
 /// Whether a stage after the eigen-solve needs the whole K and M of a space on this process: the
-/// error estimate (it pairs modes in the M-inner product), static correction (it factors K) and
-/// the transfers between VOI spaces (M-projections). Without them SLEPc leaves K and M on the
+/// error estimate (it pairs modes in the M-inner product), static correction and load cases (they
+/// factor K) and the transfers between VOI spaces (M-projections). Without them SLEPc leaves K and M on the
 /// ranks that assembled them, and rank 0 never holds them whole; with them rank 0 assembles them
 /// after the solve.
 pub fn needs_whole_system(scene: &Scene) -> bool {
-    scene.mesh.error_estimate || scene.static_correction.is_some() || !scene.voi.is_empty()
+    scene.mesh.error_estimate || scene.static_correction.is_some() || !scene.voi.is_empty() || !scene.loads.is_empty()
 }
 
 /// The `--json` summary (README, `--json`).
@@ -177,6 +183,8 @@ pub struct SpaceSummary {
     /// (equal: none skipped). Absent under MPI.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub sturm_count: Option<modes::SturmCount>,
+    /// The scene's static load cases on this space (empty without `[[load]]` or `[gravity]`).
+    pub loads: Vec<crate::loads::LoadSummary>,
 }
 
 /// Runs the whole pipeline for a scene and writes `out` (which may not be a symlink).
@@ -290,6 +298,9 @@ fn run_checked<'s>(
         if !scene.voi.is_empty() {
             stages.push("the VOI transfers (remove the [[voi]] spaces)");
         }
+        if !scene.loads.is_empty() {
+            stages.push("the load cases (they factor K on rank 0; remove [[load]] and [gravity])");
+        }
         tracing::warn!(
             "{}: under MPI rank 0 assembles each space's whole K and M for {}: its memory then grows with the part \
              as on one machine; turn them off for parts that need the ranks' memory",
@@ -388,6 +399,11 @@ fn write_all(scene: &Scene, out: &Path, spaces: &[SolvedSpace], transfer_s: f64,
                 error_estimate: s.error.clone(),
                 refinements: s.refinement.clone(),
                 sturm_count: s.sturm,
+                loads: s
+                    .loads
+                    .iter()
+                    .map(|l| l.summary(scene.material.yield_strength))
+                    .collect(),
                 seconds: s.timings.mesh
                     + s.timings.assemble
                     + s.timings.factorize

@@ -140,6 +140,9 @@ pub(super) fn solve_space_checked(
     let (compliance, static_correction_s) = timed(|| compliance(scene, &solved));
     let compliance = compliance?;
     let (stress, stress_s) = timed(|| stress(scene, &solved));
+    progress::stage("service loads", 0.9)?;
+    let (loads, loads_s) = timed(|| released(|| loads(scene, &solved)));
+    let loads = loads?;
     if let Some(s) = &sturm {
         advice::report_sturm(&name, s);
     }
@@ -150,6 +153,8 @@ pub(super) fn solve_space_checked(
         stress,
         static_correction_s,
         stress_s,
+        loads,
+        loads_s,
     };
     Ok(store(name, voi, solved, later))
 }
@@ -209,14 +214,20 @@ fn refined(
 
 /// Discretize: the mesh, the supports and (unless SLEPc's ranks assemble their own rows) K, M.
 fn discretize(scene: &Scene, voi: Option<&Voi>, choice: SolverChoice) -> Result<Problem> {
-    if choice.is_slepc() {
+    let problem = if choice.is_slepc() {
         // K and M are assembled on the ranks, each its rows, and stay there.
-        Ok(Problem::OnRanks(crate::problem::mesh_with_supports(
-            scene, voi, None, false,
-        )?))
+        Problem::OnRanks(crate::problem::mesh_with_supports(scene, voi, None, false)?)
     } else {
-        Ok(Problem::Here(crate::problem::discretize(scene, voi)?))
-    }
+        Problem::Here(crate::problem::discretize(scene, voi)?)
+    };
+    // A load region that selects nothing, or supports that leave the part free to move, are
+    // refused now, before the eigen-solve.
+    let rigid = match &problem {
+        Problem::Here(d) => d.rigid,
+        Problem::OnRanks(m) => m.rigid,
+    };
+    crate::loads::check_before_solve(scene, problem.mesh(), rigid)?;
+    Ok(problem)
 }
 
 /// Solve: the lowest `modes.count` elastic modes. Under SLEPc, this process assembles K and M
@@ -319,6 +330,18 @@ fn stress(scene: &Scene, solved: &Solved) -> Option<Vec<f64>> {
     Some(crate::fem::stress::vertex_stress(solved.problem.mesh(), &lame, &u, r))
 }
 
+/// Loads: every static load case of the scene, solved on the full model (K factored once).
+fn loads(scene: &Scene, solved: &Solved) -> Result<Vec<crate::loads::LoadResult>> {
+    if scene.loads.is_empty() {
+        return Ok(Vec::new());
+    }
+    let d = solved
+        .problem
+        .here()
+        .context("the load cases need K, which was left on the MPI ranks")?;
+    crate::loads::solve_loads(scene, d)
+}
+
 /// What the stages after the solve made.
 struct AfterSolve {
     sturm: Option<SturmCount>,
@@ -327,6 +350,8 @@ struct AfterSolve {
     stress: Option<Vec<f64>>,
     static_correction_s: f64,
     stress_s: f64,
+    loads: Vec<crate::loads::LoadResult>,
+    loads_s: f64,
 }
 
 /// Store: what the file writer and the summary need of the space.
@@ -350,6 +375,7 @@ fn store(name: String, voi: Option<&Voi>, solved: Solved, later: AfterSolve) -> 
         static_correction: later.static_correction_s,
         stress: later.stress_s,
         sturm: later.sturm.map_or(0.0, |s| s.seconds),
+        loads: later.loads_s,
         ..Timings::default()
     };
     SolvedSpace {
@@ -368,6 +394,7 @@ fn store(name: String, voi: Option<&Voi>, solved: Solved, later: AfterSolve) -> 
         refinement: later.estimated.refinement,
         stress: later.stress,
         sturm: later.sturm,
+        loads: later.loads,
     }
 }
 

@@ -500,6 +500,7 @@ impl Sweep<'_> {
                 transfers: &[],
                 estimated_relative_error: None,
                 stress: None,
+                loads: &[],
             }],
         )?;
         let file_bytes = std::fs::metadata(self.tmp).map(|m| m.len()).unwrap_or(0);

@@ -15,6 +15,8 @@ use serde::Serialize;
 use std::path::Path;
 use std::process::Command;
 
+pub mod loads;
+
 /// An independent solver to compare against.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
 pub enum Reference {
@@ -41,6 +43,8 @@ pub struct ToleranceOverrides {
     pub static_rel: Option<f64>,
     /// Largest relative difference of a mode's nodal stress (`--stress`).
     pub stress: Option<f64>,
+    /// Largest relative max-norm difference of a load case's displacement with CalculiX.
+    pub load: Option<f64>,
 }
 
 /// Pass/fail thresholds.
@@ -178,6 +182,10 @@ pub struct VerifyReport {
     pub references: Vec<ReferenceReport>,
     /// Every reference within tolerances.
     pub pass: bool,
+    /// A scene's static load cases against CalculiX `*STATIC` (absent without loads or when
+    /// CalculiX is not among the references).
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub loads: Vec<loads::LoadComparison>,
 }
 
 const SKFEM: &str = include_str!("skfem_ref.py");
@@ -234,10 +242,12 @@ pub fn verify_input(
     stress: bool,
 ) -> Result<VerifyReport> {
     let is_scene = input.extension().is_some_and(|e| e.eq_ignore_ascii_case("toml"));
+    let mut scene = None;
     let (d, ours) = if is_scene {
-        let scene = Scene::load(input)?;
-        let d = discretize(&scene, None)?;
-        let (ours, _) = solve(&d, modes.unwrap_or(scene.modes.count), SolverChoice::Arpack)?;
+        let sc = Scene::load(input)?;
+        let d = discretize(&sc, None)?;
+        let (ours, _) = solve(&d, modes.unwrap_or(sc.modes.count), SolverChoice::Arpack)?;
+        scene = Some(sc);
         (d, ours)
     } else {
         discretize_basis(input, modes)?
@@ -245,7 +255,13 @@ pub fn verify_input(
     if stress && !matches!(refs, Reference::Calculix | Reference::All) {
         bail!("--stress compares nodal stresses with CalculiX: use it with --against calculix (or all)");
     }
-    verify(&input.display().to_string(), &d, &ours, refs, overrides, stress)
+    let name = input.display().to_string();
+    let mut report = verify(&name, &d, &ours, refs, overrides, stress)?;
+    if let Some(sc) = scene.filter(|_| matches!(refs, Reference::Calculix | Reference::All)) {
+        report.loads = loads::compare_loads(&name, &sc, &d, overrides.load)?;
+        report.pass &= report.loads.iter().all(|l| l.pass);
+    }
+    Ok(report)
 }
 
 /// Rebuilds the discrete problem of a basis file's global space (its own mesh, supports and
@@ -448,6 +464,7 @@ fn verify(
         load_direction: dir,
         references: reports,
         pass,
+        loads: Vec::new(),
     })
 }
 

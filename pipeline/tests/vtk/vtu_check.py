@@ -18,16 +18,24 @@ with h5py.File(h5, "r") as f:
         assert np.array_equal(m.points, nodes), name
         order = [0, 1, 2, 3, 4, 5, 6, 7, 9, 8] if tets.shape[1] == 10 else [0, 1, 2, 3]
         assert len(m.cells) == 1 and np.array_equal(m.cells[0].data, tets[:, order]), name
-        shapes = sorted(m.point_data)
+        shapes = sorted(k for k in m.point_data if k.startswith("mode_"))
         assert len(shapes) == basis.shape[1], (name, shapes)
         for j, k in enumerate(shapes):
+            assert k == "mode_%0*d_displacement" % (max(2, len(str(basis.shape[1]))), j + 1), k
             assert np.array_equal(m.point_data[k], basis[:, j].reshape(-1, 3)), (name, k)
+        assert np.array_equal(m.field_data["frequencies_hz"].ravel(), g["modes/frequencies_hz"][:]), name
+        held = np.zeros(len(nodes))
+        held[g["mesh/fixed_dofs"][:] // 3] = 1
+        assert np.array_equal(m.point_data["fixed"].ravel(), held), name
+        for load, c in g.get("loads", {}).items():
+            assert np.array_equal(m.point_data["load_%s_displacement" % load], c["displacement"][:]), load
+            assert np.array_equal(m.point_data["load_%s_von_mises" % load].ravel(), c["von_mises"][:]), load
         if "stress" in g["modes"]:
             nv = g["mesh"].attrs["vertex_count"]
             v = meshio.read(f"{out}/{name}_vertices.vtu")
             assert np.array_equal(v.points, nodes[:nv]) and np.array_equal(v.cells[0].data, tets[:, :4])
             stress = g["modes/stress"][:]
-            for j, k in enumerate(sorted(v.point_data)):
+            for j, k in enumerate(sorted(k for k in v.point_data if k.startswith("mode_"))):
                 want = stress[:, j].reshape(nv, 6)[:, [0, 1, 2, 5, 3, 4]]
                 assert np.array_equal(v.point_data[k], want), (name, k)
 print("ok")

@@ -1,0 +1,264 @@
+//! Service loads (`[[load]]`, `[gravity]`, docs/scene.md): each load case solved statically on
+//! the full model, K u = f, with the factorisation the static correction uses; its displacement,
+//! nodal stress and von Mises stress, and the supports' reaction checked against the applied
+//! total.
+
+pub mod vector;
+
+use crate::fem::element::Lame;
+use crate::linsolve::factor_stiffness;
+use crate::problem::Discretized;
+use crate::scene::Scene;
+use anyhow::{Result, bail};
+
+/// One load case solved.
+#[derive(Clone, Debug)]
+pub struct LoadResult {
+    /// The case's name.
+    pub name: String,
+    /// `force`, `pressure` or `gravity`.
+    pub kind: &'static str,
+    /// Sum of the applied nodal loads, N.
+    pub total_force: [f64; 3],
+    /// Displacement of every node, 3n (row 3i+c), m.
+    pub displacement: Vec<f64>,
+    /// Stress at the corner vertices, [nv, 6] row-major, Voigt order xx yy zz yz xz xy, Pa.
+    pub stress: Vec<f64>,
+    /// Von Mises stress of every node, Pa: at corner vertices from `stress`, at mid-edge nodes
+    /// from the mean of their edge's two corner tensors.
+    pub von_mises: Vec<f64>,
+    /// Total force the supports exert, N.
+    pub reaction: [f64; 3],
+    /// |reaction + applied| over the sum of the nodal loads' magnitudes: 0 in exact arithmetic.
+    pub balance_residual: f64,
+    /// Largest nodal displacement magnitude, m.
+    pub max_displacement: f64,
+    /// Largest von Mises stress over the corner vertices, Pa.
+    pub max_von_mises: f64,
+}
+
+/// One load case in the `--json` summary of `ves precompute` (docs/scene.md).
+#[derive(Clone, Debug, serde::Serialize)]
+pub struct LoadSummary {
+    /// The case's name.
+    pub name: String,
+    /// `force`, `pressure` or `gravity`.
+    pub kind: &'static str,
+    /// Largest nodal displacement magnitude, m.
+    pub max_displacement_m: f64,
+    /// Largest von Mises stress at a corner vertex, Pa.
+    pub max_von_mises_pa: f64,
+    /// Yield strength over the largest von Mises stress, when the scene gives a yield strength
+    /// (`null` without one, or when the load leaves the part unstressed).
+    pub safety_factor: Option<f64>,
+    /// Sum of the applied nodal loads, N.
+    pub total_force_n: [f64; 3],
+    /// Total force the supports exert, N: −`total_force_n` at equilibrium.
+    pub reaction_n: [f64; 3],
+    /// |reaction + applied| over the sum of the nodal loads' magnitudes.
+    pub balance_residual: f64,
+}
+
+impl LoadResult {
+    /// Its summary, with the safety factor against `yield_strength` (Pa) when there is one.
+    pub fn summary(&self, yield_strength: Option<f64>) -> LoadSummary {
+        LoadSummary {
+            name: self.name.clone(),
+            kind: self.kind,
+            max_displacement_m: self.max_displacement,
+            max_von_mises_pa: self.max_von_mises,
+            safety_factor: yield_strength
+                .filter(|_| self.max_von_mises > 0.0)
+                .map(|y| y / self.max_von_mises),
+            total_force_n: self.total_force,
+            reaction_n: self.reaction,
+            balance_residual: self.balance_residual,
+        }
+    }
+}
+
+/// Von Mises stress of a Voigt tensor (xx yy zz yz xz xy).
+pub fn von_mises(s: &[f64]) -> f64 {
+    let d = (s[0] - s[1]).powi(2) + (s[1] - s[2]).powi(2) + (s[2] - s[0]).powi(2);
+    (0.5 * d + 3.0 * (s[3] * s[3] + s[4] * s[4] + s[5] * s[5])).sqrt()
+}
+
+/// Refuses loads on a part its supports do not hold: K is singular, and inertia relief (the
+/// rigid motions projected out of a self-equilibrated load) is not implemented.
+fn require_supported(scene: &Scene, d: &Discretized) -> Result<()> {
+    require_held(scene, d.rigid)
+}
+
+/// The checks of the scene's loads a meshed part allows, made before the eigen-solve: every
+/// surface region selects triangles of `mesh`, and the supports leave no rigid motion (`rigid`)
+/// free.
+pub fn check_before_solve(scene: &Scene, mesh: &crate::tet_mesh::Mesh, rigid: usize) -> Result<()> {
+    if scene.loads.is_empty() {
+        return Ok(());
+    }
+    require_held(scene, rigid)?;
+    for (i, case) in scene.loads.iter().enumerate() {
+        if let Some(region) = case.applied.region() {
+            crate::supports::region_triangles(mesh, &format!("load[{i}]"), region)
+                .map_err(|e| anyhow::anyhow!("{}: {e}", scene.path.display()))?;
+        }
+    }
+    Ok(())
+}
+
+fn require_held(scene: &Scene, rigid: usize) -> Result<()> {
+    if rigid > 0 {
+        bail!(
+            "{}: load cases need a supported part: the supports leave {} rigid motions free (a free body's static \
+             displacement under a load is not defined); add [[fixed]] regions, or remove the [[load]] and [gravity] \
+             entries",
+            scene.path.display(),
+            rigid
+        );
+    }
+    Ok(())
+}
+
+/// The nodal load vectors (3n each) of the scene's load cases on `d`'s mesh.
+pub fn load_vectors(scene: &Scene, d: &Discretized) -> Result<Vec<Vec<f64>>> {
+    let m = &scene.material;
+    let lame = Lame::of(m);
+    // The [[load]] entries come first, in the scene's order, then [gravity].
+    scene
+        .loads
+        .iter()
+        .enumerate()
+        .map(|(i, case)| {
+            let key = match case.applied.region() {
+                Some(_) => format!("load[{i}]"),
+                None => "gravity".to_string(),
+            };
+            vector::nodal_loads(&d.mesh, &lame, case, &key)
+                .map_err(|e| anyhow::anyhow!("{}: {e}", scene.path.display()))
+        })
+        .collect()
+}
+
+/// Solves K u = f for every load vector (3n each) on `d`, supported DOFs held at zero: one
+/// factorisation, all right-hand sides at once. Returns the displacements (3n each).
+pub fn solve_static(d: &Discretized, loads: &[Vec<f64>]) -> Result<Vec<Vec<f64>>> {
+    let chol = factor_stiffness(&d.system, &d.dofs)?;
+    let nf = d.dofs.free_count();
+    let mut x = vec![0.0; nf * loads.len()];
+    for (j, f) in loads.iter().enumerate() {
+        for (k, &g) in d.dofs.free.iter().enumerate() {
+            x[j * nf + k] = f[g as usize];
+        }
+    }
+    chol.solve_many_in_place(&mut x, loads.len());
+    Ok((0..loads.len())
+        .map(|j| d.dofs.expand(&x[j * nf..(j + 1) * nf]))
+        .collect())
+}
+
+/// The load stage: every load case of the scene solved on `d` (none: an empty list).
+pub fn solve_loads(scene: &Scene, d: &Discretized) -> Result<Vec<LoadResult>> {
+    if scene.loads.is_empty() {
+        return Ok(Vec::new());
+    }
+    require_supported(scene, d)?;
+    let f = load_vectors(scene, d)?;
+    let u = solve_static(d, &f)?;
+    let m = &scene.material;
+    let lame = Lame::of(m);
+    let r = f.len();
+    // Stress of all cases at once: fields side by side, as the modal stress is recovered.
+    let fields: Vec<f64> = u.iter().flatten().copied().collect();
+    let stress = crate::fem::stress::vertex_stress(&d.mesh, &lame, &fields, r);
+    scene
+        .loads
+        .iter()
+        .enumerate()
+        .map(|(j, case)| {
+            let nv = d.mesh.vertex_count;
+            let s: Vec<f64> = (0..6 * nv).map(|row| stress[row * r + j]).collect();
+            finish(d, &lame, case, &f[j], u[j].clone(), s)
+        })
+        .collect()
+}
+
+/// One case's summary: reaction and balance, von Mises at every node, the largest values.
+fn finish(
+    d: &Discretized,
+    lame: &Lame,
+    case: &crate::scene::LoadCase,
+    f: &[f64],
+    u: Vec<f64>,
+    stress: Vec<f64>,
+) -> Result<LoadResult> {
+    let k_u = vector::internal_forces(&d.mesh, lame, &u)
+        .map_err(|e| anyhow::anyhow!("an element is degenerate (det J = {:.3e})", e.det))?;
+    let mut reaction = [0.0; 3];
+    for &g in &d.dofs.fixed {
+        reaction[g as usize % 3] += k_u[g as usize] - f[g as usize];
+    }
+    let mut total = [0.0; 3];
+    let mut magnitude = 0.0;
+    for node in f.chunks_exact(3) {
+        for c in 0..3 {
+            total[c] += node[c];
+        }
+        magnitude += (node[0] * node[0] + node[1] * node[1] + node[2] * node[2]).sqrt();
+    }
+    let gap = (0..3).map(|c| (reaction[c] + total[c]).powi(2)).sum::<f64>().sqrt();
+    let von_mises = nodal_von_mises(&d.mesh, &stress);
+    let max_displacement = u
+        .chunks_exact(3)
+        .map(|v| (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt())
+        .fold(0.0, f64::max);
+    let max_von_mises = von_mises[..d.mesh.vertex_count].iter().copied().fold(0.0, f64::max);
+    Ok(LoadResult {
+        name: case.name.clone(),
+        kind: case.applied.kind(),
+        total_force: total,
+        displacement: u,
+        stress,
+        von_mises,
+        reaction,
+        balance_residual: gap / magnitude.max(f64::MIN_POSITIVE),
+        max_displacement,
+        max_von_mises,
+    })
+}
+
+/// Von Mises at every node from the corner vertices' tensors ([nv, 6]): a mid-edge node takes
+/// the mean of its edge's two corner tensors (the field ParaView draws on the corners, linear
+/// along the edge).
+fn nodal_von_mises(mesh: &crate::tet_mesh::Mesh, stress: &[f64]) -> Vec<f64> {
+    let nv = mesh.vertex_count;
+    let mut out = vec![0.0; mesh.nodes.len()];
+    for (v, s) in stress.chunks_exact(6).enumerate() {
+        out[v] = von_mises(s);
+    }
+    if mesh.kind == crate::fem::element::Kind::Tet10 {
+        for e in 0..mesh.tet_count() {
+            let t = mesh.tet(e);
+            for (k, (a, b)) in crate::tet_mesh::TET10_EDGES.iter().enumerate() {
+                let (a, b) = (t[*a] as usize, t[*b] as usize);
+                let mean: Vec<f64> = (0..6).map(|c| 0.5 * (stress[6 * a + c] + stress[6 * b + c])).collect();
+                let m = t[4 + k] as usize;
+                if m >= nv {
+                    out[m] = von_mises(&mean);
+                }
+            }
+        }
+    }
+    out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn von_mises_of_uniaxial_and_pure_shear() {
+        assert!((von_mises(&[100.0, 0.0, 0.0, 0.0, 0.0, 0.0]) - 100.0).abs() < 1e-12);
+        assert!((von_mises(&[0.0, 0.0, 0.0, 0.0, 0.0, 10.0]) - 10.0 * 3f64.sqrt()).abs() < 1e-12);
+        assert!(von_mises(&[5.0, 5.0, 5.0, 0.0, 0.0, 0.0]).abs() < 1e-12);
+    }
+}

@@ -1,0 +1,84 @@
+"""Reference static load cases with CalculiX (ccx *STATIC) on the exact mesh and nodal loads VES used.
+
+Usage: python3 ccx_static.py PROBLEM.h5 RESULT.h5 WORKDIR (called by `ves verify`).
+PROBLEM.h5 holds nodes, tets (gmsh order), fixed_dofs, loads [cases, 3n] (N per DOF) and the
+material; one deck per case (*CLOAD at every loaded DOF), displacements of every node and the
+supports' total reaction read from the .dat file (*NODE PRINT: 7 significant digits, where the
+.frd file has 6). RESULT.h5: displacement [cases, 3n], reaction [cases, 3].
+"""
+import os
+import re
+import subprocess
+import sys
+
+import h5py
+import numpy as np
+
+# CalculiX reads at most 20 characters per number: %.13g keeps every value within that.
+# gmsh 10-node order: edges 01 12 20 30 32 31; CalculiX C3D10: 12 23 31 14 24 34.
+CCX_FROM_GMSH = [0, 1, 2, 3, 4, 5, 6, 7, 9, 8]
+
+
+def deck(nodes, tets, fixed, young, poisson, load):
+    n = len(nodes)
+    lines = ["*NODE"]
+    lines += ["%d, %.13g, %.13g, %.13g" % (i + 1, *p) for i, p in enumerate(nodes)]
+    typ = "C3D10" if tets.shape[1] == 10 else "C3D4"
+    lines.append("*ELEMENT, TYPE=%s, ELSET=EALL" % typ)
+    perm = CCX_FROM_GMSH if typ == "C3D10" else [0, 1, 2, 3]
+    for e, t in enumerate(tets):
+        ids = [str(t[j] + 1) for j in perm]
+        lines.append("%d, %s" % (e + 1, ", ".join(ids[:8])) + ("," if len(ids) > 8 else ""))
+        if len(ids) > 8:
+            lines.append(", ".join(ids[8:]))
+    lines += ["*NSET, NSET=NALL, GENERATE", "1, %d, 1" % n, "*NSET, NSET=NFIX"]
+    held = sorted({int(d) // 3 + 1 for d in fixed})
+    lines += [", ".join(str(i) for i in held[k:k + 8]) for k in range(0, len(held), 8)]
+    lines.append("*BOUNDARY")
+    lines += ["%d, %d, %d, 0." % (d // 3 + 1, d % 3 + 1, d % 3 + 1) for d in fixed]
+    lines += ["*MATERIAL, NAME=MAT", "*ELASTIC", "%.13g, %.13g" % (young, poisson),
+              "*SOLID SECTION, ELSET=EALL, MATERIAL=MAT", "*STEP", "*STATIC", "*CLOAD"]
+    lines += ["%d, %d, %.13g" % (d // 3 + 1, d % 3 + 1, load[d]) for d in np.flatnonzero(load)]
+    lines += ["*NODE PRINT, NSET=NALL", "U", "*NODE PRINT, NSET=NFIX, TOTALS=ONLY", "RF", "*END STEP"]
+    return "\n".join(lines) + "\n"
+
+
+NUMBER = r"[-+]?\d\.\d+E[-+]\d+"
+
+
+def read_dat(path, n):
+    """Displacements (n, 3) and the total reaction (3) of a .dat file."""
+    with open(path) as f:
+        text = f.read()
+    disp_part, total_part = text.split(" total force")
+    u = np.zeros((n, 3))
+    for m in re.finditer(r"^\s+(\d+)\s+(%s)\s+(%s)\s+(%s)\s*$" % (NUMBER, NUMBER, NUMBER), disp_part, re.M):
+        u[int(m.group(1)) - 1] = [float(m.group(k)) for k in (2, 3, 4)]
+    totals = re.findall(NUMBER, total_part.split("\n", 1)[1])
+    return u.reshape(-1), np.array([float(v) for v in totals[:3]])
+
+
+def main(inp, out, workdir):
+    with h5py.File(inp, "r") as f:
+        nodes, tets = f["nodes"][:], f["tets"][:].astype(np.int64)
+        fixed, loads = f["fixed_dofs"][:].astype(np.int64), f["loads"][:]
+        young, poisson = float(f.attrs["young"]), float(f.attrs["poisson"])
+    disp, reaction = [], []
+    for k, load in enumerate(loads):
+        name = "static%d" % k
+        with open(os.path.join(workdir, name + ".inp"), "w") as f:
+            f.write(deck(nodes, tets, fixed, young, poisson, load))
+        r = subprocess.run(["ccx", "-i", name], cwd=workdir, capture_output=True, text=True)
+        if r.returncode != 0 or "*ERROR" in r.stdout:
+            sys.exit("ccx failed:\n" + r.stdout[-2000:])
+        u, rf = read_dat(os.path.join(workdir, name + ".dat"), len(nodes))
+        disp.append(u)
+        reaction.append(rf)
+    with h5py.File(out, "w") as f:
+        f["displacement"] = np.array(disp)
+        f["reaction"] = np.array(reaction)
+        f.attrs["solver"] = "CalculiX ccx *STATIC (%s)" % ("C3D10" if tets.shape[1] == 10 else "C3D4")
+
+
+if __name__ == "__main__":
+    main(sys.argv[1], sys.argv[2], sys.argv[3])
