@@ -256,7 +256,7 @@ impl Haptics {
     /// What each hand got in the last step: a list of dicts with force (N), vertex (index
     /// among `vertex_nodes`), vertex_position (m), displacement (the vertex's elastic
     /// displacement, m), grip_gap (m, while grabbing: the hand's distance from the vertex when
-    /// the grab began, carried rather than pulled), contact, clamped, strain, strain_exceeded,
+    /// the grab began, carried rather than pulled), grabbing, contact, clamped, strain, strain_exceeded,
     /// von_mises (Pa), safety_factor, stress_exceeded, principal_stress (Pa), principal_strain.
     fn hand_outputs<'py>(&self, py: Python<'py>) -> PyResult<Vec<Bound<'py, PyDict>>> {
         self.outputs
@@ -268,6 +268,7 @@ impl Haptics {
                 d.set_item("vertex_position", o.vertex_position)?;
                 d.set_item("displacement", o.displacement)?;
                 d.set_item("grip_gap", o.grip_gap)?;
+                d.set_item("grabbing", o.grabbing)?;
                 d.set_item("contact", o.contact)?;
                 d.set_item("clamped", o.clamped)?;
                 d.set_item("strain", o.strain)?;

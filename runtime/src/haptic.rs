@@ -150,6 +150,8 @@ pub struct HandOutput {
     pub vertex: u32,
     /// Grabbing, or pressing into the surface.
     pub contact: bool,
+    /// Grabbing (the button held on a picked vertex).
+    pub grabbing: bool,
     /// The force limit cut the force this step.
     pub clamped: bool,
     /// Deformed position of the active vertex, m.
@@ -755,6 +757,7 @@ impl Haptics {
         out.vertex_position = p_w.into();
         out.displacement = (p.now - V3::from(self.basis.rest[vertex as usize])).into();
         out.grip_gap = hd.grip.map_or(0.0, |g| g.norm());
+        out.grabbing = hd.grabbed;
         self.hands[k].last_force = force;
     }
 

@@ -107,7 +107,7 @@ impl HandReport {
             self.first_vertex = Some(out.vertex);
             self.first_vertex_position = Some(out.vertex_position);
         }
-        if self.grip_gap_m.is_none() && out.grip_gap > 0.0 {
+        if self.grip_gap_m.is_none() && out.grabbing {
             self.grip_gap_m = Some(out.grip_gap);
         }
         self.contact_steps += 1;

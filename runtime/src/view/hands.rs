@@ -12,8 +12,8 @@ use std::sync::atomic::{AtomicU64, Ordering};
 const INPUT: usize = 6;
 /// Output layout: force (3), vertex, contact, clamped, vertex position (3), strain, strain
 /// exceeded, von Mises, safety factor, stress exceeded, message sequence read, principal
-/// stress, principal strain, displacement (3), grip gap.
-const OUTPUT: usize = 21;
+/// stress, principal strain, displacement (3), grip gap, grabbing.
+const OUTPUT: usize = 22;
 
 /// One hand shared between the web clients and the haptic thread.
 pub struct HandSlot {
@@ -83,6 +83,7 @@ fn encode(out: &HandOutput, seq: u32) -> [f64; OUTPUT] {
         out.displacement[1],
         out.displacement[2],
         out.grip_gap,
+        b(out.grabbing),
     ]
 }
 
@@ -102,6 +103,7 @@ fn decode(o: &[f64; OUTPUT]) -> (HandOutput, u32) {
         principal_strain: o[16],
         displacement: [o[17], o[18], o[19]],
         grip_gap: o[20],
+        grabbing: o[21] != 0.0,
     };
     (out, o[14] as u32)
 }
@@ -288,6 +290,7 @@ mod tests {
             principal_strain: 12.0,
             displacement: [14.0, 15.0, 16.0],
             grip_gap: 17.0,
+            grabbing: true,
         };
         let (back, seq) = decode(&encode(&out, 13));
         assert_eq!(seq, 13);
