@@ -41,6 +41,7 @@ fn grabbed_tip_settles_on_the_modal_static_response() {
         button: true,
     }];
     let mut out = [HandOutput::default()];
+    grab_at(&mut h, target, &mut out);
     for _ in 0..20_000 {
         h.step(&input, &mut out);
     }
@@ -82,6 +83,7 @@ fn released_part_loses_energy_and_forces_respect_the_limit() {
     };
     let mut h = Haptics::new(basis.clone(), coupling, 1e-3, Scheme::Exact, 1);
     let mut out = [HandOutput::default()];
+    grab_at(&mut h, p, &mut out);
     // A HIP 1 m below the tip: the spring wants 1e5 N, the device must never see more than 5 N.
     let pull = [HandInput {
         position: [p[0], p[1], p[2] - 1.0],
@@ -281,6 +283,7 @@ fn static_correction_makes_the_felt_stiffness_exact_with_few_modes() {
             button: true,
         }];
         let mut out = [HandOutput::default()];
+        grab_at(&mut h, p, &mut out);
         for _ in 0..20_000 {
             h.step(&input, &mut out);
         }
@@ -354,4 +357,15 @@ fn corrupted_basis_files_are_errors_or_checked_bases() {
     }
     println!("byte flips: {ok} loaded (flips in unused bytes or plausible data), {err} refused");
     assert!(err > 10);
+}
+
+/// One step of a hand grabbing at `at` (a vertex's rest position): a grab holds the part where
+/// it was grabbed, so a pull is the hand's motion from there.
+fn grab_at(h: &mut Haptics, at: [f64; 3], out: &mut [HandOutput; 1]) {
+    let grab = [HandInput {
+        position: at,
+        velocity: [0.0; 3],
+        button: true,
+    }];
+    h.step(&grab, out);
 }
