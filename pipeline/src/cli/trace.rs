@@ -1,68 +1,76 @@
 //! `ves session --trace FILE.csv`: every haptic step of every hand, written after the session.
-//! A device wrapper records into rows made before the session starts, so the haptic thread
-//! neither allocates nor waits (one uncontended lock per hand-step).
+//! Each hand's recording device fills rows made before the session starts and hands them over
+//! when the session drops it, so the haptic thread neither allocates nor locks.
 
 use anyhow::Result;
-use std::sync::{Arc, Mutex};
+use std::sync::mpsc;
 use ves_runtime::device::{Device, DeviceState};
 use ves_runtime::haptic::HandOutput;
 
-/// One hand-step: time, hand position, the vertex, its elastic displacement, the force.
+/// One hand-step: time, hand position, and what the step gave the hand.
 #[derive(Clone, Copy, Default)]
 struct Row {
     t: f64,
-    hand: usize,
     position: [f64; 3],
     out: HandOutput,
 }
 
-/// The rows of every hand, shared with the recording devices.
-#[derive(Clone)]
-pub struct Trace(Arc<Mutex<Vec<Row>>>);
+/// The recorded hands: their rows arrive when the session ends.
+pub struct Trace {
+    steps: usize,
+    tx: mpsc::Sender<(usize, Vec<Row>)>,
+    rx: mpsc::Receiver<(usize, Vec<Row>)>,
+}
 
 impl Trace {
-    /// Room for `steps` steps of `hands` hands (recording stops when it is full).
-    pub fn with_room(steps: usize, hands: usize) -> Trace {
-        Trace(Arc::new(Mutex::new(Vec::with_capacity(steps.saturating_mul(hands)))))
+    /// Room for `steps` steps per hand (recording stops when it is full).
+    pub fn with_room(steps: usize) -> Trace {
+        let (tx, rx) = mpsc::channel();
+        Trace { steps, tx, rx }
     }
 
-    /// `device` as hand `hand`, recorded here.
+    /// `device` as hand `hand`, recorded.
     pub fn record(&self, hand: usize, device: Box<dyn Device>) -> Box<dyn Device> {
         Box::new(Recording {
             inner: device,
-            trace: self.clone(),
-            row: Row { hand, ..Row::default() },
+            hand,
+            rows: Vec::with_capacity(self.steps),
+            row: Row::default(),
+            tx: self.tx.clone(),
         })
     }
 
-    /// The rows as CSV, a header line first.
+    /// The rows as CSV, a header line first, step by step and hand by hand within a step.
     pub fn csv(&self) -> String {
-        let rows = self.0.lock().map(|r| r.clone()).unwrap_or_default();
+        let mut hands: Vec<(usize, Vec<Row>)> = self.rx.try_iter().collect();
+        hands.sort_by_key(|(hand, _)| *hand);
         let mut s = String::from(
             "t_s,hand,x_m,y_m,z_m,contact,vertex,ux_m,uy_m,uz_m,fx_n,fy_n,fz_n,grip_gap_m,strain,von_mises_pa\n",
         );
-        for r in rows {
-            let (p, o) = (r.position, r.out);
-            let (u, f) = (o.displacement, o.force);
-            s += &format!(
-                "{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{}\n",
-                r.t,
-                r.hand,
-                p[0],
-                p[1],
-                p[2],
-                u8::from(o.contact),
-                o.vertex,
-                u[0],
-                u[1],
-                u[2],
-                f[0],
-                f[1],
-                f[2],
-                o.grip_gap,
-                o.strain,
-                o.von_mises
-            );
+        let steps = hands.iter().map(|(_, rows)| rows.len()).max().unwrap_or(0);
+        for i in 0..steps {
+            for (hand, r) in hands.iter().filter_map(|(hand, rows)| rows.get(i).map(|r| (hand, r))) {
+                let (p, o) = (r.position, r.out);
+                let (u, f) = (o.displacement, o.force);
+                s += &format!(
+                    "{},{hand},{},{},{},{},{},{},{},{},{},{},{},{},{},{}\n",
+                    r.t,
+                    p[0],
+                    p[1],
+                    p[2],
+                    u8::from(o.contact),
+                    o.vertex,
+                    u[0],
+                    u[1],
+                    u[2],
+                    f[0],
+                    f[1],
+                    f[2],
+                    o.grip_gap,
+                    o.strain,
+                    o.von_mises
+                );
+            }
         }
         s
     }
@@ -70,9 +78,12 @@ impl Trace {
 
 struct Recording {
     inner: Box<dyn Device>,
-    trace: Trace,
+    hand: usize,
+    /// Made with room for every step: pushing never allocates.
+    rows: Vec<Row>,
     /// This step's row so far (time and position from `read`).
     row: Row,
+    tx: mpsc::Sender<(usize, Vec<Row>)>,
 }
 
 impl Device for Recording {
@@ -90,11 +101,16 @@ impl Device for Recording {
     fn observe(&mut self, out: &HandOutput) {
         self.inner.observe(out);
         self.row.out = *out;
-        if let Ok(mut rows) = self.trace.0.lock()
-            && rows.len() < rows.capacity()
-        {
-            rows.push(self.row);
+        if self.rows.len() < self.rows.capacity() {
+            self.rows.push(self.row);
         }
+    }
+}
+
+impl Drop for Recording {
+    /// The session is over (it drops its devices): the rows go to the trace.
+    fn drop(&mut self) {
+        let _ = self.tx.send((self.hand, std::mem::take(&mut self.rows)));
     }
 }
 
