@@ -190,8 +190,25 @@ pub fn gravity_loads(mesh: &Mesh, lame: &Lame, g: [f64; 3]) -> Result<Vec<f64>, 
 }
 
 fn gravity_with<S: Shape>(mesh: &Mesh, lame: &Lame, g: [f64; 3]) -> Result<Vec<f64>, element::BadJacobian> {
-    let n3 = 3 * mesh.nodes.len();
     let p = S::NODES;
+    sum_over_elements::<S>(mesh, lame, |t, em, f| {
+        for a in 0..p {
+            let row: f64 = em.m[a * p..(a + 1) * p].iter().sum();
+            for c in 0..3 {
+                f[3 * t[a] as usize + c] += row * g[c];
+            }
+        }
+    })
+}
+
+/// Σₑ of what `add` makes of each element's matrices, into a vector over every DOF (one
+/// partial per rayon task, then summed).
+fn sum_over_elements<S: Shape>(
+    mesh: &Mesh,
+    lame: &Lame,
+    add: impl Fn(&[u32], &element::ElementMatrices, &mut [f64]) + Sync,
+) -> Result<Vec<f64>, element::BadJacobian> {
+    let n3 = 3 * mesh.nodes.len();
     (0..mesh.tet_count())
         .into_par_iter()
         .try_fold(
@@ -199,13 +216,7 @@ fn gravity_with<S: Shape>(mesh: &Mesh, lame: &Lame, g: [f64; 3]) -> Result<Vec<f
             |mut f, e| {
                 let t = mesh.tet(e);
                 let x: Vec<[f64; 3]> = t.iter().map(|&v| mesh.nodes[v as usize]).collect();
-                let em = element::element_matrices::<S>(&x, lame)?;
-                for a in 0..p {
-                    let row: f64 = em.m[a * p..(a + 1) * p].iter().sum();
-                    for c in 0..3 {
-                        f[3 * t[a] as usize + c] += row * g[c];
-                    }
-                }
+                add(t, &element::element_matrices::<S>(&x, lame)?, &mut f);
                 Ok(f)
             },
         )
@@ -228,31 +239,14 @@ pub fn internal_forces(mesh: &Mesh, lame: &Lame, u: &[f64]) -> Result<Vec<f64>, 
 }
 
 fn internal_with<S: Shape>(mesh: &Mesh, lame: &Lame, u: &[f64]) -> Result<Vec<f64>, element::BadJacobian> {
-    let n3 = 3 * mesh.nodes.len();
     let p3 = 3 * S::NODES;
-    (0..mesh.tet_count())
-        .into_par_iter()
-        .try_fold(
-            || vec![0.0; n3],
-            |mut f, e| {
-                let t = mesh.tet(e);
-                let x: Vec<[f64; 3]> = t.iter().map(|&v| mesh.nodes[v as usize]).collect();
-                let em = element::element_matrices::<S>(&x, lame)?;
-                let ue: Vec<f64> = (0..p3).map(|i| u[3 * t[i / 3] as usize + i % 3]).collect();
-                for i in 0..p3 {
-                    let row = &em.k[i * p3..(i + 1) * p3];
-                    f[3 * t[i / 3] as usize + i % 3] += row.iter().zip(&ue).map(|(k, v)| k * v).sum::<f64>();
-                }
-                Ok(f)
-            },
-        )
-        .try_reduce(
-            || vec![0.0; n3],
-            |mut a, b| {
-                a.iter_mut().zip(&b).for_each(|(x, y)| *x += y);
-                Ok(a)
-            },
-        )
+    sum_over_elements::<S>(mesh, lame, |t, em, f| {
+        let ue: Vec<f64> = (0..p3).map(|i| u[3 * t[i / 3] as usize + i % 3]).collect();
+        for i in 0..p3 {
+            let row = &em.k[i * p3..(i + 1) * p3];
+            f[3 * t[i / 3] as usize + i % 3] += row.iter().zip(&ue).map(|(k, v)| k * v).sum::<f64>();
+        }
+    })
 }
 
 /// The nodal loads of a load case (3n, N); `key` names its scene entry in errors.

@@ -7,7 +7,7 @@ use crate::loads::{load_vectors, solve_static};
 use crate::problem::Discretized;
 use crate::scene::Scene;
 use anyhow::{Context, Result};
-use ndarray::{Array1, Array2};
+use ndarray::Array2;
 use serde::Serialize;
 use std::path::Path;
 use std::process::Command;
@@ -147,17 +147,8 @@ fn displacement_gap(gap: f64, scale: f64) -> f64 {
 
 fn write_problem(path: &Path, d: &Discretized, scene: &Scene, loads: &[Vec<f64>]) -> Result<()> {
     let f = hdf5::File::create(path).with_context(|| format!("cannot create {}", path.display()))?;
+    super::write_mesh(&f, d)?;
     let n = d.mesh.nodes.len();
-    f.new_dataset_builder()
-        .with_data(&Array2::from_shape_fn((n, 3), |(i, c)| d.mesh.nodes[i][c]))
-        .create("nodes")?;
-    let p = d.mesh.nodes_per_tet();
-    f.new_dataset_builder()
-        .with_data(&Array2::from_shape_vec((d.mesh.tet_count(), p), d.mesh.tets.clone())?)
-        .create("tets")?;
-    f.new_dataset_builder()
-        .with_data(&Array1::from(d.dofs.fixed.clone()))
-        .create("fixed_dofs")?;
     f.new_dataset_builder()
         .with_data(&Array2::from_shape_fn((loads.len(), 3 * n), |(j, i)| loads[j][i]))
         .create("loads")?;

@@ -476,8 +476,8 @@ fn static_solve(d: &Discretized, load: &[f64]) -> Result<Vec<f64>> {
     Ok(d.dofs.expand(&f))
 }
 
-fn write_problem(path: &Path, d: &Discretized, ours: &Modes, load: &[f64], load_node: usize) -> Result<()> {
-    let f = hdf5::File::create(path).with_context(|| format!("cannot create {}", path.display()))?;
+/// The problem's nodes, tets and fixed DOFs, as the reference scripts read them.
+pub(super) fn write_mesh(f: &hdf5::File, d: &Discretized) -> Result<()> {
     let n = d.mesh.nodes.len();
     f.new_dataset_builder()
         .with_data(&Array2::from_shape_fn((n, 3), |(i, c)| d.mesh.nodes[i][c]))
@@ -489,6 +489,12 @@ fn write_problem(path: &Path, d: &Discretized, ours: &Modes, load: &[f64], load_
     f.new_dataset_builder()
         .with_data(&Array1::from(d.dofs.fixed.clone()))
         .create("fixed_dofs")?;
+    Ok(())
+}
+
+fn write_problem(path: &Path, d: &Discretized, ours: &Modes, load: &[f64], load_node: usize) -> Result<()> {
+    let f = hdf5::File::create(path).with_context(|| format!("cannot create {}", path.display()))?;
+    write_mesh(&f, d)?;
     f.new_dataset_builder()
         .with_data(&Array1::from(load.to_vec()))
         .create("load")?;
