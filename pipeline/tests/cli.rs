@@ -937,24 +937,26 @@ fn session_switches_between_voi_spaces() {
 /// The cantilever with `[mesh] target_error = 0.01`, no size and `extra` mesh lines, refined:
 /// the run's JSON, its space, and the mesh-converged frequencies (cases/cantilever/
 /// converged.json: Richardson over 66k–440k-unknown meshes, bench/converged.py).
-fn refine_cantilever(extra: &str) -> (serde_json::Value, Vec<f64>, Vec<f64>, Vec<f64>) {
+/// `ves precompute --json` of the cantilever case with its scene edited by `edit`.
+/// Also the directory holding its basis `b.h5`.
+fn cantilever_case_json(edit: impl FnOnce(String) -> String) -> (tempfile::TempDir, serde_json::Value) {
     let dir = tempfile::tempdir().unwrap();
-    let case = Path::new(env!("CARGO_MANIFEST_DIR")).join("../cases/cantilever");
+    let case = cantilever_dir();
     std::fs::copy(case.join("cantilever.step"), dir.path().join("cantilever.step")).unwrap();
-    let scene = std::fs::read_to_string(case.join("scene.toml"))
-        .unwrap()
-        .replace("size = 0.025", &format!("target_error = 0.01\n{extra}"));
+    let scene = edit(std::fs::read_to_string(case.join("scene.toml")).unwrap());
     let path = write_file(dir.path(), "scene.toml", &scene);
-    let out = dir.path().join("b.h5");
-    let o = ves(&[
-        "precompute",
-        path.to_str().unwrap(),
-        "-o",
-        out.to_str().unwrap(),
-        "--json",
-    ]);
-    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-    let v = last_json(&o);
+    let v = precompute_json(&path, &dir.path().join("b.h5"));
+    (dir, v)
+}
+
+fn cantilever_dir() -> std::path::PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("../cases/cantilever")
+}
+
+fn refine_cantilever(extra: &str) -> (serde_json::Value, Vec<f64>, Vec<f64>, Vec<f64>) {
+    let (dir, v) =
+        cantilever_case_json(|scene| scene.replace("size = 0.025", &format!("target_error = 0.01\n{extra}")));
+    let (case, out) = (cantilever_dir(), dir.path().join("b.h5"));
     let s = v["spaces"][0].clone();
     let steps = s["refinements"].as_array().expect("refinement steps");
     assert!(steps.len() >= 2, "{steps:?}");
@@ -1017,21 +1019,8 @@ fn target_error_refines_the_cantilever_to_within_one_percent_of_converged() {
 /// (measured none), and the JSON says per mode which rule chose.
 #[test]
 fn error_estimate_of_the_cantilever_tracks_its_true_error() {
-    let dir = tempfile::tempdir().unwrap();
-    let case = Path::new(env!("CARGO_MANIFEST_DIR")).join("../cases/cantilever");
-    std::fs::copy(case.join("cantilever.step"), dir.path().join("cantilever.step")).unwrap();
-    let scene = std::fs::read_to_string(case.join("scene.toml")).unwrap();
-    let path = write_file(dir.path(), "scene.toml", &scene);
-    let out = dir.path().join("b.h5");
-    let o = ves(&[
-        "precompute",
-        path.to_str().unwrap(),
-        "-o",
-        out.to_str().unwrap(),
-        "--json",
-    ]);
-    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-    let s = last_json(&o)["spaces"][0].clone();
+    let case = cantilever_dir();
+    let s = cantilever_case_json(|scene| scene).1["spaces"][0].clone();
     let reference: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(case.join("converged.json")).unwrap()).unwrap();
     let modes = s["error_estimate"]["modes"].as_array().expect("modes").clone();

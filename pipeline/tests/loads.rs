@@ -84,15 +84,7 @@ fn bad_loads_are_refused_in_one_line_naming_the_key() {
 fn cantilever_tip_force_agrees_with_beam_theory() {
     let (dir, path) = workdir(&beam(0.025, &(TIP.to_string() + GRAVITY)));
     let out = dir.path().join("beam.h5");
-    let o = ves(&[
-        "precompute",
-        path.to_str().unwrap(),
-        "-o",
-        out.to_str().unwrap(),
-        "--json",
-    ]);
-    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-    let summary = last_json(&o);
+    let summary = precompute_json(&path, &out);
     let file = ves_format::BasisReader::open(&out).unwrap();
     let s = file.space("global").unwrap();
     // In the scene's order: the [[load]] entries, then [gravity].

@@ -36,6 +36,19 @@ pub fn last_json(o: &Output) -> serde_json::Value {
     serde_json::from_str(stdout.lines().last().expect("a JSON line")).expect("the last line is JSON")
 }
 
+/// `ves precompute SCENE -o OUT --json`, which must succeed; its JSON.
+pub fn precompute_json(scene: &Path, out: &Path) -> serde_json::Value {
+    let o = ves(&[
+        "precompute",
+        scene.to_str().unwrap(),
+        "-o",
+        out.to_str().unwrap(),
+        "--json",
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    last_json(&o)
+}
+
 /// `ves session BASIS --device script:SCRIPT --json`, which must succeed; its JSON.
 pub fn session_json(basis: &Path, script: &Path) -> serde_json::Value {
     session_json_with(basis, script, &[])
