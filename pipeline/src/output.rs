@@ -34,10 +34,16 @@ fn same_file(a: &Path, b: &Path) -> bool {
 /// missing or read-only, it is a directory, a device or other special file, a symlink (unless
 /// `force`), or one of `inputs`. Removes temporaries that killed runs left beside it.
 pub fn check(out: &Path, inputs: &[&Path], policy: Overwrite) -> Result<()> {
+    check_as(out, inputs, policy, "-o")
+}
+
+/// [`check`] of the output given by command-line option `flag` (`-o`, `--trace`): the advice
+/// names it, and offers `--force` only with `-o` (the commands that take it).
+pub fn check_as(out: &Path, inputs: &[&Path], policy: Overwrite, flag: &str) -> Result<()> {
     let dir = directory_of(out);
     if !dir.is_dir() {
         bail!(
-            "{}: the output directory does not exist; create it or choose another -o",
+            "{}: the output directory does not exist; create it or choose another {flag}",
             out.display()
         );
     }
@@ -51,13 +57,15 @@ pub fn check(out: &Path, inputs: &[&Path], policy: Overwrite) -> Result<()> {
     if let Ok(meta) = std::fs::symlink_metadata(out) {
         let ty = meta.file_type();
         if ty.is_symlink() && !policy.force {
-            bail!(
-                "{}: is a symbolic link; choose another output path, or pass --force to replace the link (its target is left alone)",
-                out.display()
-            );
+            let force = if flag == "-o" {
+                ", or pass --force to replace the link (its target is left alone)"
+            } else {
+                ""
+            };
+            bail!("{}: is a symbolic link; choose another {flag}{force}", out.display());
         }
         if ty.is_dir() {
-            bail!("{}: is a directory; give a file name with -o", out.display());
+            bail!("{}: is a directory; give a file name with {flag}", out.display());
         }
         if !ty.is_file() && !ty.is_symlink() {
             bail!(
@@ -69,7 +77,7 @@ pub fn check(out: &Path, inputs: &[&Path], policy: Overwrite) -> Result<()> {
     // A read-only directory is found now, not after the whole computation.
     temporary_beside(out).with_context(|| {
         format!(
-            "{}: cannot write in {}; choose another -o",
+            "{}: cannot write in {}; choose another {flag}",
             out.display(),
             dir.display()
         )

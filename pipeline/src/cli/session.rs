@@ -179,9 +179,14 @@ impl Args {
                         .filter_map(|d| d.strip_prefix("script:"))
                         .map(Path::new),
                 );
-                ves_pipeline::output::check(path, &inputs, ves_pipeline::output::Overwrite { force: false })?;
+                ves_pipeline::output::check_as(
+                    path,
+                    &inputs,
+                    ves_pipeline::output::Overwrite { force: false },
+                    "--trace",
+                )?;
                 let steps = (duration * cfg.rate_hz).round() as usize + 1;
-                let trace = super::trace::Trace::with_room(steps, devices.len());
+                let trace = super::trace::Trace::with_room(steps);
                 devices = devices
                     .into_iter()
                     .enumerate()
