@@ -1,8 +1,9 @@
 //! Static correction on the ribplate through the runtime: a hand grabs each rib tip (the
 //! scene's probes) and pulls sideways until the part settles; the displacement the haptic step
-//! reports for the held vertex (30 modes + the static correction Gᵢᵢ − ΦᵢΛ⁻¹Φᵢᵀ from the stored
-//! compliance block) must equal the full static solve K u = F of the same mesh for the force the
-//! runtime applied. The full solve is independent of the factor that made the stored blocks:
+//! reports for the held vertex's contact patch (30 modes + the static correction Gᵢ − Φ̄ᵢΛ⁻¹Φ̄ᵢᵀ
+//! from the stored compliance block) must equal the full static solve K u = Wᵀ F of the same mesh
+//! for the force the runtime applied, spread over the patch with the file's weights W and read
+//! back with them (Σ wₐ uₐ). The full solve is independent of the factor that made the stored blocks:
 //! K is assembled from the basis file's own mesh and supports and solved by faer's sparse LU.
 //! In each rib's refined VOI space the same holds against the refined mesh's full solve, where
 //! the coarse space's discretisation error is also measured.
@@ -45,6 +46,7 @@ fn basis_file() -> &'static Path {
 struct Space {
     basis: Arc<Basis>,
     d: Discretized,
+    contact: ves_format::Contact,
     lu: faer::sparse::linalg::solvers::Lu<usize, f64>,
 }
 
@@ -79,6 +81,11 @@ fn space(name: &str) -> Space {
         mask[f as usize] = true;
     }
     let dofs = ves_pipeline::supports::Dofs::from_mask(&mask);
+    let contact = s
+        .contact()
+        .expect("contact")
+        .expect("the default contact patches are stored");
+    assert!(contact.radius > 0.0);
     let d = Discretized::assemble(mesh, dofs, (&m).into()).expect("assemble");
     // Full K from its stored lower triangle, then a general sparse LU (not the Cholesky the
     // pipeline factors K with to make the blocks).
@@ -96,7 +103,7 @@ fn space(name: &str) -> Space {
     }
     let k = faer::sparse::SparseColMat::<usize, f64>::try_new_from_triplets(nf, nf, &triplets).expect("K");
     let lu = k.sp_lu().expect("K is regular with the supports");
-    Space { basis, d, lu }
+    Space { basis, d, contact, lu }
 }
 
 impl Space {
@@ -111,17 +118,37 @@ impl Space {
             .expect("surface") as usize
     }
 
-    /// Full static solve: displacement of kept vertex `i` under force `f` (N) applied there.
+    /// Full static solve: displacement of kept vertex `i`'s contact patch under force `f` (N)
+    /// spread over it.
     fn exact(&self, i: usize, f: [f64; 3]) -> [f64; 3] {
         use faer::linalg::solvers::SolveCore;
-        let node = self.basis.node_index[i] as usize;
-        let free = |c: usize| self.d.dofs.free_of[3 * node + c] as usize;
+        let node = self.basis.node_index[i];
+        let k = self
+            .contact
+            .centres
+            .binary_search(&node)
+            .expect("a surface vertex has a patch");
+        let (nodes, weights) = self.contact.patch(k);
+        assert!(nodes.len() > 1, "a rib tip's patch spreads over several nodes");
+        let free = |a: u32, c: usize| self.d.dofs.free_of[3 * a as usize + c];
         let mut x = faer::Mat::<f64>::zeros(self.d.dofs.free_count(), 1);
-        for (c, fc) in f.iter().enumerate() {
-            x[(free(c), 0)] = *fc;
+        for (&a, &w) in nodes.iter().zip(weights) {
+            for (c, fc) in f.iter().enumerate() {
+                if free(a, c) != u32::MAX {
+                    x[(free(a, c) as usize, 0)] += w * fc;
+                }
+            }
         }
         self.lu.solve_in_place_with_conj(faer::Conj::No, x.as_mut());
-        [0, 1, 2].map(|c| x[(free(c), 0)])
+        let mut u = [0.0; 3];
+        for (&a, &w) in nodes.iter().zip(weights) {
+            for (c, uc) in u.iter_mut().enumerate() {
+                if free(a, c) != u32::MAX {
+                    *uc += w * x[(free(a, c) as usize, 0)];
+                }
+            }
+        }
+        u
     }
 
     /// The runtime's answer: grab vertex `i`, pull the hand 0.2 mm along `dir` and hold until

@@ -69,3 +69,70 @@ pub type Block3 = [[f64; 3]; 3];
 
 /// Static compliance as stored: node indices and one block per node.
 pub type Compliance = (Vec<u32>, Vec<Block3>);
+
+/// The hand's contact patches (`contact/`): for each surface vertex (centre), the nodes its force
+/// is spread over and their weights (summing to 1). The runtime applies a hand's force F at
+/// centre k as wₐ F on each node a and reads the displacement Σ wₐ uₐ; the compliance blocks,
+/// when stored, are Wₖ K⁻¹ Wₖᵀ for these patches.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Contact {
+    /// Patch radius, m.
+    pub radius: f64,
+    /// The centres (corner vertices), ascending.
+    pub centres: Vec<u32>,
+    /// `nodes[offsets[k]..offsets[k + 1]]` is centre k's patch; `centres.len() + 1` entries.
+    pub offsets: Vec<u32>,
+    /// Node indices (corner vertices and mid-edge nodes).
+    pub nodes: Vec<u32>,
+    /// Weights, parallel to `nodes`.
+    pub weights: Vec<f64>,
+}
+
+impl Contact {
+    /// Centre k's nodes and weights.
+    pub fn patch(&self, k: usize) -> (&[u32], &[f64]) {
+        let (lo, hi) = (self.offsets[k] as usize, self.offsets[k + 1] as usize);
+        (&self.nodes[lo..hi], &self.weights[lo..hi])
+    }
+
+    /// Checks the shape a reader relies on: offsets from 0 to the number of nodes, ascending
+    /// centres, node indices below `node_count`, finite weights summing to 1 per centre.
+    pub fn check(&self, node_count: usize) -> Result<(), String> {
+        if !(self.radius.is_finite() && self.radius >= 0.0) {
+            return Err(format!("radius {} is not a length ≥ 0", self.radius));
+        }
+        if self.offsets.len() != self.centres.len() + 1
+            || self.offsets.first() != Some(&0)
+            || self.offsets.last().map(|&o| o as usize) != Some(self.nodes.len())
+            || self.offsets.windows(2).any(|w| w[0] > w[1])
+        {
+            return Err(format!(
+                "offsets do not split {} nodes into {} patches",
+                self.nodes.len(),
+                self.centres.len()
+            ));
+        }
+        if self.weights.len() != self.nodes.len() {
+            return Err(format!("{} weights for {} nodes", self.weights.len(), self.nodes.len()));
+        }
+        if self.centres.windows(2).any(|w| w[0] >= w[1]) {
+            return Err("centres are not ascending".into());
+        }
+        if let Some(v) = self
+            .centres
+            .iter()
+            .chain(&self.nodes)
+            .find(|&&v| v as usize >= node_count)
+        {
+            return Err(format!("node {v} of {node_count}"));
+        }
+        for k in 0..self.centres.len() {
+            let (_, w) = self.patch(k);
+            let sum: f64 = w.iter().sum();
+            if w.iter().any(|x| !x.is_finite()) || (sum - 1.0).abs() > 1e-6 {
+                return Err(format!("the weights of patch {k} sum to {sum}, not 1"));
+            }
+        }
+        Ok(())
+    }
+}

@@ -106,6 +106,18 @@ pub mod space {
     pub const COMPLIANCE_NODES: &str = "compliance/nodes";
     /// f64 [p, 3, 3], m/N.
     pub const COMPLIANCE_BLOCKS: &str = "compliance/blocks";
+    /// Optional group: the hand's contact patches (attribute [`CONTACT_RADIUS`]).
+    pub const CONTACT: &str = "contact";
+    /// f64 attribute of [`CONTACT`], m.
+    pub const CONTACT_RADIUS: &str = "radius";
+    /// u32 [p]: the centres (surface corner vertices), ascending.
+    pub const CONTACT_CENTRES: &str = "contact/centres";
+    /// u32 [p + 1]: patch k is entries offsets[k]..offsets[k + 1] of nodes and weights.
+    pub const CONTACT_OFFSETS: &str = "contact/offsets";
+    /// u32 [nnz]: the loaded nodes.
+    pub const CONTACT_NODES: &str = "contact/nodes";
+    /// f64 [nnz]: each node's share of the force (each patch's sum to 1).
+    pub const CONTACT_WEIGHTS: &str = "contact/weights";
     /// Optional group: `transfer/<from>` f64 [r_to, r_from].
     pub const TRANSFER: &str = "transfer";
     /// Optional u32 [n]: 1 where a support holds the node (any component), 0 elsewhere (what

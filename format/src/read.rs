@@ -767,6 +767,38 @@ impl<'a> SpaceReader<'a> {
         self.basis_block(rows, 0..cols)
     }
 
+    /// The three rows of each of `nodes` (in the order given) × the first `cols` modes,
+    /// row-major (`out[(3k + c)·cols + j]` for `nodes[k]`), finite; read in blocks of nearby rows.
+    pub fn node_rows(&self, nodes: &[u32], cols: usize) -> Result<Vec<f64>, ReadError> {
+        const BLOCK_VALUES: usize = 1 << 20;
+        let mut sorted: Vec<u32> = nodes.to_vec();
+        sorted.sort_unstable();
+        sorted.dedup();
+        if let Some(&v) = sorted.last().filter(|&&v| v as usize >= self.node_count) {
+            return Err(self.err(format!("node {v} asked of {} nodes", self.node_count)));
+        }
+        let span = (BLOCK_VALUES / (3 * cols.max(1))).max(1);
+        let mut found: Vec<f64> = Vec::with_capacity(3 * cols * sorted.len());
+        let mut k = 0;
+        while k < sorted.len() {
+            let lo = sorted[k] as usize;
+            let end = sorted[k..].partition_point(|&v| (v as usize) < lo + span) + k;
+            let hi = sorted[end - 1] as usize + 1;
+            let block = self.basis_block(3 * lo..3 * hi, 0..cols)?;
+            for &v in &sorted[k..end] {
+                let at = 3 * (v as usize - lo) * cols;
+                found.extend_from_slice(&block[at..at + 3 * cols]);
+            }
+            k = end;
+        }
+        let mut out = Vec::with_capacity(3 * cols * nodes.len());
+        for v in nodes {
+            let i = sorted.binary_search(v).unwrap_or(0);
+            out.extend_from_slice(&found[3 * cols * i..3 * cols * (i + 1)]);
+        }
+        Ok(out)
+    }
+
     /// Rows `rows` × modes `cols` of the basis, row-major, finite.
     fn basis_block(&self, rows: Range<usize>, cols: Range<usize>) -> Result<Vec<f64>, ReadError> {
         self.guard(|| {
@@ -869,6 +901,30 @@ impl<'a> SpaceReader<'a> {
                 }
             }
             Ok(Some((nodes, blocks)))
+        })
+    }
+
+    /// The hand's contact patches, if stored, checked ([`crate::Contact::check`]).
+    pub fn contact(&self) -> Result<Option<crate::Contact>, ReadError> {
+        self.guard(|| {
+            let Ok(group) = self.group.group(sp::CONTACT) else {
+                return Ok(None);
+            };
+            self.file
+                .check_object(&group, &format!("{}/{}/{}", names::SPACES, self.name, sp::CONTACT))?;
+            let radius = scalar_attr::<f64>(&group, sp::CONTACT_RADIUS)
+                .ok_or_else(|| self.err("contact/ has no radius attribute; the file is damaged"))?;
+            let contact = crate::Contact {
+                radius,
+                centres: self.read_all(sp::CONTACT_CENTRES, 1)?,
+                offsets: self.read_all(sp::CONTACT_OFFSETS, 1)?,
+                nodes: self.read_all(sp::CONTACT_NODES, 1)?,
+                weights: self.read_all(sp::CONTACT_WEIGHTS, 1)?,
+            };
+            contact
+                .check(self.node_count)
+                .map_err(|m| self.err(format!("{}: {m}; the file is damaged", sp::CONTACT)))?;
+            Ok(Some(contact))
         })
     }
 

@@ -69,6 +69,8 @@ pub struct SpaceData<'a> {
     pub basis: &'a [f64],
     /// Static compliance: nodes and blocks.
     pub compliance: Option<(&'a [u32], &'a [crate::Block3])>,
+    /// The hand's contact patches (optional group).
+    pub contact: Option<&'a crate::Contact>,
     /// Transfer matrices from other spaces, row-major [r, r_from].
     pub transfers: &'a [(String, Vec<f64>)],
     /// Static load cases (`loads/<name>/`); empty: none.
@@ -275,6 +277,14 @@ fn write_space(file: &hdf5::File, s: &SpaceData<'_>) -> Result<(), WriteError> {
             .create(sp::COMPLIANCE_BLOCKS)
             .ctx(sp::COMPLIANCE_BLOCKS)?;
     }
+    if let Some(c) = s.contact {
+        let cg = g.create_group(sp::CONTACT).ctx(sp::CONTACT)?;
+        attr_f64(&cg, sp::CONTACT_RADIUS, c.radius)?;
+        vector(&g, sp::CONTACT_CENTRES, &c.centres)?;
+        vector(&g, sp::CONTACT_OFFSETS, &c.offsets)?;
+        vector(&g, sp::CONTACT_NODES, &c.nodes)?;
+        vector(&g, sp::CONTACT_WEIGHTS, &c.weights)?;
+    }
     if !s.transfers.is_empty() {
         g.create_group(sp::TRANSFER).ctx(sp::TRANSFER)?;
         for (from, t) in s.transfers {
@@ -351,6 +361,7 @@ mod tests {
                 stress: None,
                 basis: &[0.1; 12],
                 compliance: None,
+                contact: None,
                 transfers: &[],
                 loads,
                 rigid: None,

@@ -31,6 +31,7 @@ struct RawScene {
     #[serde(default)]
     voi: Vec<Voi>,
     static_correction: Option<StaticCorrection>,
+    contact: Option<ContactSettings>,
     #[serde(default)]
     probe: Vec<Probe>,
     stress: Option<StressSettings>,
@@ -88,6 +89,14 @@ pub struct Probe {
 pub struct StaticCorrection {
     /// Which vertices: `"surface"` (every corner vertex on the boundary).
     pub region: CorrectionRegion,
+}
+
+/// Optional `[contact]` table (a compatible v1 extension): the hand's contact patch.
+#[derive(Clone, Copy, Debug, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct ContactSettings {
+    /// Radius of the patch the hand's force is spread over, m (0: one vertex).
+    pub radius: f64,
 }
 
 /// Candidate contact vertices for the static correction.
@@ -315,6 +324,9 @@ pub struct Scene {
     pub voi: Vec<Voi>,
     /// Static correction, if asked.
     pub static_correction: Option<StaticCorrection>,
+    /// Radius of the hand's contact patch, m (`[contact] radius`; default
+    /// [`crate::loads::patch::DEFAULT_RADIUS_M`]; 0: a point contact at one vertex).
+    pub contact_radius: f64,
     /// Whether each mode's stress is stored (`[stress] enabled = true`).
     pub stress: bool,
     /// Probe points for `ves report`.
@@ -634,10 +646,24 @@ impl Scene {
             damping: raw.damping,
             voi: raw.voi,
             static_correction: raw.static_correction,
+            contact_radius: contact_radius(raw.contact).map_err(err)?,
             stress: raw.stress.is_some_and(|s| s.enabled),
             probes: raw.probe,
             loads: load_cases(&raw.load, raw.gravity.as_ref(), !fixed_empty).map_err(err)?,
         })
+    }
+}
+
+/// The contact patch's radius: the scene's, or the default.
+fn contact_radius(contact: Option<ContactSettings>) -> Result<f64, String> {
+    match contact {
+        None => Ok(crate::loads::patch::DEFAULT_RADIUS_M),
+        Some(c) if c.radius.is_finite() && (0.0..=1.0).contains(&c.radius) => Ok(c.radius),
+        Some(c) => Err(format!(
+            "contact.radius = {}: give the hand's contact patch radius in metres, 0 to 1 (e.g. 0.005 for a \
+             fingertip, 0 for one vertex)",
+            c.radius
+        )),
     }
 }
 

@@ -27,6 +27,8 @@ pub struct Space<'a> {
     pub mass: &'a MassProperties,
     /// Static compliance blocks (`compliance/`), if computed.
     pub compliance: Option<&'a crate::compliance::Compliance>,
+    /// The hand's contact patches (`contact/`), if any.
+    pub contact: Option<&'a crate::loads::patch::Patches>,
     /// The meshing ladder's rung that made the mesh, if known.
     pub meshing_strategy: Option<&'a str>,
     /// State-transfer matrices from the other spaces (`transfer/<from>`, row-major
@@ -61,6 +63,7 @@ impl Space<'_> {
             stress: self.stress,
             basis,
             compliance: self.compliance.map(|c| (c.nodes.as_slice(), c.blocks.as_slice())),
+            contact: self.contact,
             transfers: self.transfers,
             loads,
             rigid: (self.modes.rigid_dropped > 0).then_some(ves_format::RigidProperties {

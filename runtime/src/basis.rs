@@ -53,6 +53,12 @@ pub struct Basis {
     /// Exact static compliance (K⁻¹)ᵢᵢ per kept vertex, m/N, when the file has it (NaN where a
     /// vertex has no block).
     pub compliance: Option<Vec<[[f64; 3]; 3]>>,
+    /// The hand's contact patch radius, m (0: a point contact at the vertex).
+    pub contact_radius: f64,
+    /// Per kept vertex, the modal rows the hand's force acts through and its displacement is
+    /// read with: the patch average Σ wₐ φₐ (`contact/` of the file), vertex-major f32,
+    /// `contact_rows[3r·i + c·r + j]`; `None`: each vertex's own rows (a point contact).
+    pub contact_rows: Option<Vec<f32>>,
     /// Bytes of basis data held in memory.
     pub bytes_loaded: usize,
     /// The volume of interest this space refines (min, max corners, m); `None` for "global".
@@ -151,6 +157,8 @@ impl Basis {
             beta,
             rigid,
             compliance: None,
+            contact_radius: 0.0,
+            contact_rows: None,
             bytes_loaded,
             voi: None,
             stress: None,
@@ -213,20 +221,20 @@ impl Basis {
     /// each vertex's 3×3 block (stored, else the modal Σ φφᵀ/λ), and that vertex. The
     /// displacement a force F can give anywhere on the surface is at most F times this.
     pub fn largest_compliance(&self) -> (f64, u32) {
-        let n = self.rest.len();
+        let r = self.eigenvalues.len();
+        let mut rows = vec![0.0; 3 * r];
         let mut best = (0.0, 0);
         for &v in &self.surface_vertices {
             let i = v as usize;
             let g = match self.compliance_of(i) {
                 Some(g) => nalgebra::Matrix3::from_fn(|a, b| g[a][b]),
                 None => {
-                    let mut g = nalgebra::Matrix3::<f64>::zeros();
-                    for (j, l) in self.eigenvalues.iter().enumerate() {
-                        let p = &self.phi[j * 3 * n + 3 * i..j * 3 * n + 3 * i + 3];
-                        let p = nalgebra::Vector3::new(f64::from(p[0]), f64::from(p[1]), f64::from(p[2]));
-                        g += p * p.transpose() / *l;
-                    }
-                    g
+                    self.gather_contact_rows(i, &mut rows);
+                    nalgebra::Matrix3::from_fn(|a, b| {
+                        (0..r)
+                            .map(|j| rows[a * r + j] * rows[b * r + j] / self.eigenvalues[j])
+                            .sum()
+                    })
                 }
             };
             let top = g.symmetric_eigenvalues().max();
@@ -235,6 +243,38 @@ impl Basis {
             }
         }
         best
+    }
+
+    /// Attaches the contact patches' modal rows (see [`Basis::contact_rows`]), checked finite.
+    pub fn with_contact(mut self, radius: f64, rows: Vec<f32>) -> Result<Basis, LoadError> {
+        let want = 3 * self.rest.len() * self.eigenvalues.len();
+        if rows.len() != want || rows.iter().any(|v| !v.is_finite()) || !(radius.is_finite() && radius >= 0.0) {
+            return Err(LoadError {
+                path: self.space.clone(),
+                message: format!(
+                    "contact patches: {} rows for {want}, radius {radius}, or a non-finite value; the file is damaged",
+                    rows.len()
+                ),
+            });
+        }
+        self.bytes_loaded += rows.len() * 4;
+        self.contact_radius = radius;
+        self.contact_rows = Some(rows);
+        Ok(self)
+    }
+
+    /// The modal rows the hand acts through at kept vertex `i` (`out[c·r + j]`): its contact
+    /// patch's average, or the vertex's own rows for a point contact.
+    pub fn gather_contact_rows(&self, i: usize, out: &mut [f64]) {
+        match &self.contact_rows {
+            Some(rows) => {
+                let n = out.len();
+                for (o, v) in out.iter_mut().zip(&rows[n * i..n * (i + 1)]) {
+                    *o = f64::from(*v);
+                }
+            }
+            None => self.gather_rows(i, out),
+        }
     }
 
     /// The compliance block of kept vertex `i`, if stored.
@@ -444,6 +484,9 @@ mod file {
             }
             basis = basis.with_stress(&kept)?;
         }
+        if let Some(contact) = s.contact()? {
+            basis = with_contact_rows(basis, &s, &contact, &keep, &rows, r)?;
+        }
         match s.compliance()? {
             Some((nodes, blocks)) => {
                 let mut per_vertex = vec![[[f64::NAN; 3]; 3]; keep.len()];
@@ -456,6 +499,57 @@ mod file {
             }
             None => Ok(basis),
         }
+    }
+
+    /// Attaches the contact rows Σ wₐ φₐ of each kept vertex's patch (its own rows when it has
+    /// none). `rows`: the file's corner-vertex rows, `rows[(3v + c)·r + j]`; mid-edge nodes in a
+    /// patch are read here.
+    fn with_contact_rows(
+        basis: Basis,
+        s: &ves_format::SpaceReader<'_>,
+        contact: &ves_format::Contact,
+        keep: &[u32],
+        rows: &[f64],
+        r: usize,
+    ) -> Result<Basis, LoadError> {
+        let nv = rows.len() / (3 * r);
+        let kept_centre = |v: u32| contact.centres.binary_search(&v).ok();
+        let mut extra: Vec<u32> = keep
+            .iter()
+            .filter_map(|&v| kept_centre(v))
+            .flat_map(|k| contact.patch(k).0.iter().copied())
+            .filter(|&a| a as usize >= nv)
+            .collect();
+        extra.sort_unstable();
+        extra.dedup();
+        let extra_rows = s.node_rows(&extra, r)?;
+        let row = |a: u32| -> &[f64] {
+            match extra.binary_search(&a) {
+                Ok(e) if a as usize >= nv => &extra_rows[3 * r * e..3 * r * (e + 1)],
+                _ => &rows[3 * r * a as usize..3 * r * (a as usize + 1)],
+            }
+        };
+        let mut out = vec![0f32; 3 * r * keep.len()];
+        let mut acc = vec![0.0f64; 3 * r];
+        for (k, &v) in keep.iter().enumerate() {
+            acc.fill(0.0);
+            match kept_centre(v) {
+                Some(c) => {
+                    let (nodes, weights) = contact.patch(c);
+                    for (&a, &w) in nodes.iter().zip(weights) {
+                        for (x, y) in acc.iter_mut().zip(row(a)) {
+                            *x += w * y;
+                        }
+                    }
+                }
+                None => acc.copy_from_slice(row(v)),
+            }
+            // File rows are (3v + c)·r + j: the same layout as `contact_rows`.
+            for (o, x) in out[3 * r * k..3 * r * (k + 1)].iter_mut().zip(&acc) {
+                *o = *x as f32;
+            }
+        }
+        basis.with_contact(contact.radius, out)
     }
 }
 

@@ -400,7 +400,7 @@ impl Haptics {
         if hd.vertex == Some(vertex) {
             return;
         }
-        basis.gather_rows(vertex as usize, &mut hd.rows);
+        basis.gather_contact_rows(vertex as usize, &mut hd.rows);
         let rows = &hd.rows;
         let state = &self.state;
         let modal = M3::from_fn(|a, b| {

@@ -16,7 +16,7 @@ use std::collections::HashMap;
 
 /// Dunavant's 6-point degree-4 rule on the reference triangle: (ξ, η, weight), weights summing
 /// to 1 (times the reference area ½ when integrating).
-const TRIANGLE_RULE: [(f64, f64, f64); 6] = [
+pub(crate) const TRIANGLE_RULE: [(f64, f64, f64); 6] = [
     (0.445_948_490_915_965, 0.445_948_490_915_965, 0.223_381_589_678_011),
     (0.445_948_490_915_965, 0.108_103_018_168_070, 0.223_381_589_678_011),
     (0.108_103_018_168_070, 0.445_948_490_915_965, 0.223_381_589_678_011),
@@ -30,7 +30,7 @@ const TRIANGLE_RULE: [(f64, f64, f64); 6] = [
 type TriangleNodes = Vec<u32>;
 
 /// The nodes of surface triangles `picked` (indices into `mesh.surface`).
-fn triangle_nodes(mesh: &Mesh, picked: &[usize]) -> Vec<TriangleNodes> {
+pub(crate) fn triangle_nodes(mesh: &Mesh, picked: &[usize]) -> Vec<TriangleNodes> {
     let corners = picked.iter().map(|&t| mesh.surface[t]);
     if mesh.kind == Kind::Tet4 {
         return corners.map(|c| c.to_vec()).collect();
@@ -92,7 +92,7 @@ fn triangle_shape(nodes: usize, xi: f64, eta: f64) -> (Vec<f64>, Vec<[f64; 2]>) 
 
 /// The area vector ∂x/∂ξ × ∂x/∂η of a triangle at (ξ, η) (outward for a surface triangle) and
 /// its shape function values there.
-fn area_vector(x: &[[f64; 3]], xi: f64, eta: f64) -> ([f64; 3], Vec<f64>) {
+pub(crate) fn area_vector(x: &[[f64; 3]], xi: f64, eta: f64) -> ([f64; 3], Vec<f64>) {
     let (n, d) = triangle_shape(x.len(), xi, eta);
     let mut g = [[0.0; 3]; 2];
     for (xa, da) in x.iter().zip(&d) {

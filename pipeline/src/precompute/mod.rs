@@ -76,6 +76,8 @@ pub struct SolvedSpace {
     pub mass: MassProperties,
     /// Static compliance blocks, when the scene asks for a static correction.
     pub compliance: Option<crate::compliance::Compliance>,
+    /// The hand's contact patches (none for a point contact).
+    pub contact: Option<crate::loads::patch::Patches>,
     /// Stage times.
     pub timings: Timings,
     /// K and M (kept for the state transfer between spaces); `None` when SLEPc left them on the
@@ -108,6 +110,7 @@ impl SolvedSpace {
             modes: &self.modes,
             mass: &self.mass,
             compliance: self.compliance.as_ref(),
+            contact: self.contact.as_ref(),
             meshing_strategy: Some(self.meshing.strategy),
             transfers: &self.transfers,
             estimated_relative_error: self.error.as_ref().map(|e| e.relative()),

@@ -7,6 +7,7 @@ use super::{SolvedSpace, Timings, advice, needs_whole_system};
 use crate::accuracy::{ErrorEstimate, Prefetch, refine};
 use crate::compliance::Compliance;
 use crate::fem::MassProperties;
+use crate::loads::patch::Patches;
 use crate::modes::{self, Modes, SolverChoice, SturmCount};
 use crate::problem::{Discretized, Meshed};
 use crate::progress;
@@ -137,7 +138,8 @@ pub(super) fn solve_space_checked(
         advice::warn_about_error(scene, &name, solved.problem.mesh(), size, estimated.error.as_ref());
     }
     progress::stage("static correction and stress", 0.85)?;
-    let (compliance, static_correction_s) = timed(|| compliance(scene, &solved));
+    let contact = contact_patches(scene, &solved);
+    let (compliance, static_correction_s) = timed(|| compliance(scene, &solved, contact.as_ref()));
     let compliance = compliance?;
     let (stress, stress_s) = timed(|| stress(scene, &solved));
     progress::stage("service loads", 0.9)?;
@@ -150,6 +152,7 @@ pub(super) fn solve_space_checked(
         sturm,
         estimated,
         compliance,
+        contact,
         stress,
         static_correction_s,
         stress_s,
@@ -303,8 +306,16 @@ fn estimate(
     })
 }
 
-/// Compliance: the static correction's blocks, when the scene asks for them.
-fn compliance(scene: &Scene, solved: &Solved) -> Result<Option<Compliance>> {
+/// Contact patches: each surface vertex's, for the hand (none with `[contact] radius = 0`).
+fn contact_patches(scene: &Scene, solved: &Solved) -> Option<Patches> {
+    let (mesh, dofs) = (solved.problem.mesh(), solved.problem.dofs());
+    let fixed = |v: u32| (0..3).any(|c| dofs.free_of[3 * v as usize + c] == u32::MAX);
+    (scene.contact_radius > 0.0).then(|| crate::loads::patch::vertex_patches(mesh, scene.contact_radius, fixed))
+}
+
+/// Compliance: the static correction's blocks, when the scene asks for them, for the contact
+/// patches (each vertex alone without them).
+fn compliance(scene: &Scene, solved: &Solved, contact: Option<&Patches>) -> Result<Option<Compliance>> {
     if scene.static_correction.is_none() {
         return Ok(None);
     }
@@ -312,7 +323,15 @@ fn compliance(scene: &Scene, solved: &Solved) -> Result<Option<Compliance>> {
         .problem
         .here()
         .context("the static correction needs K, which was left on the MPI ranks")?;
-    Ok(Some(crate::compliance::surface_compliance(d)?))
+    let points;
+    let patches = match contact {
+        Some(p) => p,
+        None => {
+            points = crate::loads::patch::vertex_patches(&d.mesh, 0.0, |_| true);
+            &points
+        }
+    };
+    Ok(Some(crate::compliance::surface_compliance(d, patches)?))
 }
 
 /// Stress: each mode's stress at the corner vertices (`[stress] enabled`).
@@ -347,6 +366,7 @@ struct AfterSolve {
     sturm: Option<SturmCount>,
     estimated: Estimated,
     compliance: Option<Compliance>,
+    contact: Option<Patches>,
     stress: Option<Vec<f64>>,
     static_correction_s: f64,
     stress_s: f64,
@@ -386,6 +406,7 @@ fn store(name: String, voi: Option<&Voi>, solved: Solved, later: AfterSolve) -> 
         modes,
         mass,
         compliance: later.compliance,
+        contact: later.contact,
         timings,
         system,
         transfers: Vec::new(),

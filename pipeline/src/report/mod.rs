@@ -13,6 +13,7 @@ mod render;
 
 use crate::compliance::Compliance;
 use crate::linsolve::factor_stiffness;
+use crate::loads::patch::{Patch, Patches, Surface};
 use crate::modes::{SolverChoice, solve};
 use crate::problem::{Discretized, discretize};
 use crate::scene::{Probe, Scene};
@@ -283,14 +284,16 @@ struct Sweep<'a> {
 
 /// Exact responses at the probes on one mesh.
 struct Exact {
-    /// Per probe: the vertex and its force.
-    at: Vec<(usize, [f64; 3])>,
-    /// Per probe: K⁻¹F at the vertex.
+    /// Per probe: its contact patch and force.
+    at: Vec<(Patch, [f64; 3])>,
+    /// Per probe: K⁻¹F averaged over the patch.
     statics: Vec<[f64; 3]>,
-    /// Per probe: compliance block of the vertex.
+    /// Per probe: compliance block of the patch.
     blocks: Vec<[[f64; 3]; 3]>,
     /// Every surface vertex's block (written with each basis, as precompute does).
     surface: Compliance,
+    /// Every surface vertex's patch (written with the blocks).
+    contact: Patches,
     /// Per probe, per step: the full-order displacement at the vertex.
     dynamic: Vec<Vec<[f64; 3]>>,
 }
@@ -390,66 +393,76 @@ impl Sweep<'_> {
         })
     }
 
-    /// Static and dynamic full-order responses at the probes, and the probes' compliance.
+    /// Static and dynamic full-order responses at the probes, and the probes' compliance. Each
+    /// probe's force is spread over the contact patch centred on the surface point nearest `at`
+    /// (`[contact] radius`; one vertex at radius 0), and its displacement read with the same
+    /// weights: what a hand on that patch feels, which converges under refinement.
     fn exact(&self, d: &Discretized) -> Result<(Exact, Vec<ProbeOnMesh>, f64, f64)> {
         let nf = d.dofs.free_count();
-        let surface = surface_vertices(d);
-        let at: Vec<(usize, [f64; 3])> = self
-            .probes
-            .iter()
-            .map(|p| (nearest(d, &surface, p.at), p.force))
-            .collect();
-        let mut load = vec![0.0; nf * at.len()];
-        for (k, &(v, f)) in at.iter().enumerate() {
-            for (c, fc) in f.iter().enumerate() {
-                let g = d.dofs.free_of[3 * v + c];
-                if g != u32::MAX {
-                    load[k * nf + g as usize] = *fc;
+        let radius = self.scene.contact_radius;
+        let index = Surface::new(&d.mesh);
+        let mut at: Vec<(Patch, [f64; 3])> = Vec::new();
+        let mut off_surface = Vec::new();
+        for p in &self.probes {
+            let (patch, distance) = index
+                .at_point(p.at, radius)
+                .context("the mesh has no surface triangles to put a probe on")?;
+            at.push((patch, p.force));
+            off_surface.push(distance);
+        }
+        let spread = |k: usize, patch: &Patch, f: [f64; 3], out: &mut [f64]| {
+            for (&a, &w) in patch.nodes.iter().zip(&patch.weights) {
+                for (c, fc) in f.iter().enumerate() {
+                    let g = d.dofs.free_of[3 * a as usize + c];
+                    if g != u32::MAX {
+                        out[k * nf + g as usize] += w * fc;
+                    }
                 }
             }
+        };
+        let mut load = vec![0.0; nf * at.len()];
+        for (k, (patch, f)) in at.iter().enumerate() {
+            spread(k, patch, *f, &mut load);
         }
-        // The offline cost of the correction is that of every surface vertex with K's
-        // factorisation, as precompute does it; the probes' blocks come out of it, and the same
-        // factor gives the full solves the errors are measured against.
+        // The offline cost of the correction is that of every surface vertex's patch with K's
+        // factorisation, as precompute does it; the same factor gives the probes' own blocks and
+        // the full solves the errors are measured against.
         let t = Instant::now();
         let chol = factor_stiffness(&d.system, &d.dofs)?;
-        let surface = crate::compliance::surface_compliance_with(d, &chol)?;
+        let fixed = |v: u32| (0..3).any(|c| d.dofs.free_of[3 * v as usize + c] == u32::MAX);
+        let contact = crate::loads::patch::vertex_patches(&d.mesh, radius, fixed);
+        let surface = crate::compliance::surface_compliance_with(d, &chol, &contact)?;
         let correction_s = t.elapsed().as_secs_f64();
         let mut x = load.clone();
         chol.solve_many_in_place(&mut x, at.len());
         let statics: Vec<[f64; 3]> = at
             .iter()
             .enumerate()
-            .map(|(k, &(v, _))| vertex_value(d, &x[k * nf..(k + 1) * nf], v))
+            .map(|(k, (patch, _))| patch_value(d, &x[k * nf..(k + 1) * nf], patch))
             .collect();
-        let probe_blocks: Vec<[[f64; 3]; 3]> = at
+        let patches: Vec<(&[u32], &[f64])> = at
             .iter()
-            .map(|&(v, _)| {
-                surface
-                    .nodes
-                    .binary_search(&(v as u32))
-                    .map(|i| surface.blocks[i])
-                    .map_err(|_| anyhow::anyhow!("probe vertex {v} has no compliance block"))
-            })
-            .collect::<Result<_>>()?;
+            .map(|(p, _)| (p.nodes.as_slice(), p.weights.as_slice()))
+            .collect();
+        let probe_blocks = crate::compliance::patch_blocks(d, &chol, &patches, || ());
         let t = Instant::now();
         let stepping = self.stepping();
         let sys = FullSystem::new(d, stepping)?;
         let steps = (self.duration / self.dt).round() as usize;
         let mut dynamic = vec![Vec::with_capacity(steps); at.len()];
         integrate_step_load(&sys, stepping, &load, at.len(), steps, |u| {
-            for (k, &(v, _)) in at.iter().enumerate() {
-                dynamic[k].push(vertex_value(d, &u[k * nf..(k + 1) * nf], v));
+            for (k, (patch, _)) in at.iter().enumerate() {
+                dynamic[k].push(patch_value(d, &u[k * nf..(k + 1) * nf], patch));
             }
         });
         let dynamic_s = t.elapsed().as_secs_f64();
         let probes = at
             .iter()
-            .zip(&self.probes)
+            .zip(&off_surface)
             .zip(&statics)
-            .map(|((&(v, _), p), u)| ProbeOnMesh {
-                vertex: v,
-                snap_distance: dist(d.mesh.nodes[v], p.at),
+            .map(|(((patch, _), &distance), u)| ProbeOnMesh {
+                vertex: heaviest(patch),
+                snap_distance: distance,
                 exact_displacement: Vector3::from(*u).norm(),
             })
             .collect();
@@ -459,6 +472,7 @@ impl Sweep<'_> {
                 statics,
                 blocks: probe_blocks,
                 surface,
+                contact,
                 dynamic,
             },
             probes,
@@ -496,6 +510,7 @@ impl Sweep<'_> {
                 modes: &modes,
                 mass: &d.system.mass,
                 compliance: exact.map(|e| &e.surface),
+                contact: exact.map(|e| &e.contact).filter(|c| c.radius > 0.0),
                 meshing_strategy: Some(d.meshing.strategy),
                 transfers: &[],
                 estimated_relative_error: None,
@@ -520,16 +535,16 @@ impl Sweep<'_> {
         let (mut st, mut stc, mut dr, mut drc) = (Vec::new(), Vec::new(), Vec::new(), Vec::new());
         if let Some(ex) = exact {
             let nf = d.dofs.free_count();
-            let rows = |v: usize| -> Vec<[f64; 3]> {
+            let rows = |patch: &Patch| -> Vec<[f64; 3]> {
                 (0..modes.eigenvalues.len())
-                    .map(|j| vertex_value(d, &modes.vectors[j * nf..(j + 1) * nf], v))
+                    .map(|j| patch_value(d, &modes.vectors[j * nf..(j + 1) * nf], patch))
                     .collect()
             };
             let stepping = self.stepping();
             let sys = ModalSystem::new(&modes.eigenvalues, stepping);
-            for (k, &(v, f)) in ex.at.iter().enumerate() {
-                let phi: Vec<Vector3<f64>> = rows(v).into_iter().map(Vector3::from).collect();
-                let f = Vector3::from(f);
+            for (k, (patch, f)) in ex.at.iter().enumerate() {
+                let phi: Vec<Vector3<f64>> = rows(patch).into_iter().map(Vector3::from).collect();
+                let f = Vector3::from(*f);
                 // Modal static response Σ φφᵀF/λ, and the correction (G − ΦΛ⁻¹Φᵀ)F on top.
                 let fj: Vec<f64> = phi.iter().map(|p| p.dot(&f)).collect();
                 let modal: Vector3<f64> = phi
@@ -615,20 +630,30 @@ fn norm(a: [f64; 3]) -> f64 {
     Vector3::from(a).norm()
 }
 
-fn dist(a: [f64; 3], b: [f64; 3]) -> f64 {
-    (Vector3::from(a) - Vector3::from(b)).norm()
-}
-
 fn surface_vertices(d: &Discretized) -> Vec<usize> {
     d.mesh.surface_vertices().into_iter().map(|i| i as usize).collect()
 }
 
-fn nearest(d: &Discretized, candidates: &[usize], p: [f64; 3]) -> usize {
-    candidates
+/// Σ wₐ uₐ over a patch of a free-DOF vector.
+fn patch_value(d: &Discretized, x: &[f64], patch: &Patch) -> [f64; 3] {
+    let mut out = [0.0; 3];
+    for (&a, &w) in patch.nodes.iter().zip(&patch.weights) {
+        let u = vertex_value(d, x, a as usize);
+        for c in 0..3 {
+            out[c] += w * u[c];
+        }
+    }
+    out
+}
+
+/// The node carrying most of a patch's force.
+fn heaviest(patch: &Patch) -> usize {
+    patch
+        .nodes
         .iter()
-        .copied()
-        .min_by(|&a, &b| dist(d.mesh.nodes[a], p).total_cmp(&dist(d.mesh.nodes[b], p)))
-        .unwrap_or(0)
+        .zip(&patch.weights)
+        .max_by(|a, b| a.1.total_cmp(b.1))
+        .map_or(0, |(&a, _)| a as usize)
 }
 
 /// The displacement of vertex `v` in a free-DOF vector (0 on supported components).

@@ -1,0 +1,453 @@
+//! The hand's contact patch (`[contact] radius`, docs/scene.md): a fingertip's force spread over
+//! the surface around the touched point instead of one vertex.
+//!
+//! A point load in a 3-D solid has no converged displacement (it grows without bound as the mesh
+//! is refined), so a hand acting on one vertex feels a stiffness set by the mesh. The patch spreads
+//! the force F as a pressure p(ρ) = (1 − ρ²)² (ρ = distance / radius: largest at the centre,
+//! falling smoothly to zero at the rim, as under a fingertip) and loads node a with the consistent
+//! share wₐ F, wₐ = ∫ Nₐ p dA / ∫ p dA over the surface triangles the patch covers (Nₐ the
+//! triangle's 3- or 6-node shape functions). The coupling reads the displacement with the same
+//! weights, ū = Σ wₐ uₐ, so the work done is F·ū and the felt compliance W K⁻¹ Wᵀ converges
+//! under refinement to that of the real part under a finger.
+//!
+//! The patch covers the surface triangles connected to the centre whose flat normal faces within
+//! [`MAX_TURN`] of the centre's normal and that come within the radius: it does not reach around
+//! a thin wall to the other side.
+
+use super::vector::{TRIANGLE_RULE, area_vector, triangle_nodes};
+use crate::tet_mesh::Mesh;
+use rayon::prelude::*;
+use std::collections::HashMap;
+
+/// Default patch radius, m: a fingertip pressed on a part touches a disk of about 1 cm.
+pub const DEFAULT_RADIUS_M: f64 = 0.005;
+
+/// A triangle joins the patch when its normal is within this cosine of the centre's normal
+/// (about 78°: both faces at a box edge or corner, not the far side of a thin wall).
+const MAX_TURN: f64 = 0.2;
+
+/// Sub-triangles per patch radius along an edge when integrating the pressure.
+const SUBDIVISIONS_PER_RADIUS: f64 = 6.0;
+
+/// Largest subdivision of a triangle edge (a triangle 8 radii long is integrated at 1/48 of it).
+const MAX_SUBDIVISION: usize = 48;
+
+/// One patch: the loaded nodes and their weights (summing to 1).
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Patch {
+    /// Node indices (corner vertices and, with 10-node tets, mid-edge nodes), ascending.
+    pub nodes: Vec<u32>,
+    /// Share of the force at each node; they sum to 1 (some may be negative: the corner shape
+    /// functions of a 6-node triangle are).
+    pub weights: Vec<f64>,
+}
+
+impl Patch {
+    /// A point contact at `node`.
+    pub fn point(node: u32) -> Patch {
+        Patch {
+            nodes: vec![node],
+            weights: vec![1.0],
+        }
+    }
+
+    /// Σ wₐ uₐ for a full displacement vector (3n, row 3i+c).
+    pub fn average(&self, u: &[f64]) -> [f64; 3] {
+        let mut out = [0.0; 3];
+        for (&a, &w) in self.nodes.iter().zip(&self.weights) {
+            for (c, o) in out.iter_mut().enumerate() {
+                *o += w * u[3 * a as usize + c];
+            }
+        }
+        out
+    }
+}
+
+/// The patches of every surface vertex, as stored in a basis (`contact/`).
+pub type Patches = ves_format::Contact;
+
+/// The surface of a mesh as the patches need it: each triangle's nodes, flat normal and
+/// neighbours across its edges, and the triangles around each corner vertex.
+pub struct Surface<'a> {
+    mesh: &'a Mesh,
+    nodes: Vec<Vec<u32>>,
+    normals: Vec<[f64; 3]>,
+    neighbours: Vec<[usize; 3]>,
+    around: HashMap<u32, Vec<usize>>,
+}
+
+fn sub(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
+    [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
+}
+
+fn dot(a: [f64; 3], b: [f64; 3]) -> f64 {
+    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
+}
+
+fn cross(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
+    [
+        a[1] * b[2] - a[2] * b[1],
+        a[2] * b[0] - a[0] * b[2],
+        a[0] * b[1] - a[1] * b[0],
+    ]
+}
+
+fn unit(v: [f64; 3]) -> [f64; 3] {
+    let n = dot(v, v).sqrt();
+    if n > 0.0 { v.map(|c| c / n) } else { [0.0; 3] }
+}
+
+/// Distance from `p` to the segment ab.
+fn segment_distance(p: [f64; 3], a: [f64; 3], b: [f64; 3]) -> f64 {
+    let (ab, ap) = (sub(b, a), sub(p, a));
+    let t = (dot(ap, ab) / dot(ab, ab).max(f64::MIN_POSITIVE)).clamp(0.0, 1.0);
+    let d = sub(ap, ab.map(|c| c * t));
+    dot(d, d).sqrt()
+}
+
+/// The closest point to `p` on triangle abc and its distance.
+fn closest_on_triangle(p: [f64; 3], [a, b, c]: [[f64; 3]; 3]) -> ([f64; 3], f64) {
+    let n = unit(cross(sub(b, a), sub(c, a)));
+    let h = dot(sub(p, a), n);
+    let q = sub(p, n.map(|x| x * h));
+    let inside = [(a, b), (b, c), (c, a)]
+        .iter()
+        .all(|&(u, v)| dot(cross(sub(v, u), sub(q, u)), n) >= 0.0);
+    if inside {
+        return (q, h.abs());
+    }
+    [(a, b), (b, c), (c, a)]
+        .iter()
+        .map(|&(u, v)| {
+            let uv = sub(v, u);
+            let t = (dot(sub(p, u), uv) / dot(uv, uv).max(f64::MIN_POSITIVE)).clamp(0.0, 1.0);
+            let x = [u[0] + t * uv[0], u[1] + t * uv[1], u[2] + t * uv[2]];
+            let d = sub(p, x);
+            (x, dot(d, d).sqrt())
+        })
+        .fold(([0.0; 3], f64::INFINITY), |best, x| if x.1 < best.1 { x } else { best })
+}
+
+/// The pressure profile at ρ = distance / radius.
+fn profile(rho2: f64) -> f64 {
+    if rho2 >= 1.0 { 0.0 } else { (1.0 - rho2) * (1.0 - rho2) }
+}
+
+impl<'a> Surface<'a> {
+    /// Indexes `mesh`'s surface.
+    pub fn new(mesh: &'a Mesh) -> Surface<'a> {
+        let all: Vec<usize> = (0..mesh.surface.len()).collect();
+        let nodes = triangle_nodes(mesh, &all);
+        let corner = |t: &[u32; 3]| t.map(|v| mesh.nodes[v as usize]);
+        let normals = mesh
+            .surface
+            .iter()
+            .map(|t| {
+                let [a, b, c] = corner(t);
+                unit(cross(sub(b, a), sub(c, a)))
+            })
+            .collect();
+        let mut edges: HashMap<(u32, u32), Vec<usize>> = HashMap::new();
+        let mut around: HashMap<u32, Vec<usize>> = HashMap::new();
+        for (k, t) in mesh.surface.iter().enumerate() {
+            for e in 0..3 {
+                let (a, b) = (t[e], t[(e + 1) % 3]);
+                edges.entry((a.min(b), a.max(b))).or_default().push(k);
+                around.entry(a).or_default().push(k);
+            }
+        }
+        let neighbours = mesh
+            .surface
+            .iter()
+            .enumerate()
+            .map(|(k, t)| {
+                std::array::from_fn(|e| {
+                    let (a, b) = (t[e], t[(e + 1) % 3]);
+                    edges[&(a.min(b), a.max(b))]
+                        .iter()
+                        .copied()
+                        .find(|&o| o != k)
+                        .unwrap_or(usize::MAX)
+                })
+            })
+            .collect();
+        Surface {
+            mesh,
+            nodes,
+            normals,
+            neighbours,
+            around,
+        }
+    }
+
+    fn corners(&self, t: usize) -> [[f64; 3]; 3] {
+        self.mesh.surface[t].map(|v| self.mesh.nodes[v as usize])
+    }
+
+    /// The patch of radius `radius` centred on surface vertex `v` (a point contact when the
+    /// radius is 0 or the vertex is on no surface triangle).
+    pub fn at_vertex(&self, v: u32, radius: f64) -> Patch {
+        let Some(seeds) = self.around.get(&v) else {
+            return Patch::point(v);
+        };
+        let normal = unit(seeds.iter().fold([0.0; 3], |n, &t| {
+            let [a, b, c] = self.corners(t);
+            let area = cross(sub(b, a), sub(c, a));
+            [n[0] + area[0], n[1] + area[1], n[2] + area[2]]
+        }));
+        let centre = self.mesh.nodes[v as usize];
+        self.spread(centre, normal, seeds, radius)
+            .unwrap_or_else(|| Patch::point(v))
+    }
+
+    /// The patch of radius `radius` centred on the surface point closest to `point`, and how far
+    /// `point` is from the surface.
+    pub fn at_point(&self, point: [f64; 3], radius: f64) -> Option<(Patch, f64)> {
+        let (t, (centre, distance)) = (0..self.mesh.surface.len())
+            .map(|t| (t, closest_on_triangle(point, self.corners(t))))
+            .min_by(|a, b| a.1.1.total_cmp(&b.1.1))?;
+        let patch = match self.spread(centre, self.normals[t], &[t], radius) {
+            Some(p) => p,
+            // Radius 0: the nearest corner of that triangle.
+            None => {
+                let v = *self.mesh.surface[t].iter().min_by(|&&a, &&b| {
+                    let d = |v: u32| {
+                        let x = sub(self.mesh.nodes[v as usize], centre);
+                        dot(x, x)
+                    };
+                    d(a).total_cmp(&d(b))
+                })?;
+                Patch::point(v)
+            }
+        };
+        Some((patch, distance))
+    }
+
+    /// The pressure around `centre` integrated over the triangles reached from `seeds`;
+    /// `None` when nothing is loaded (radius 0).
+    fn spread(&self, centre: [f64; 3], normal: [f64; 3], seeds: &[usize], radius: f64) -> Option<Patch> {
+        if radius.is_nan() || radius <= 0.0 {
+            return None;
+        }
+        let mut seen: Vec<usize> = seeds.to_vec();
+        let mut stack: Vec<usize> = seeds.to_vec();
+        let mut loads: HashMap<u32, f64> = HashMap::new();
+        while let Some(t) = stack.pop() {
+            self.integrate(t, centre, radius, &mut loads);
+            for &o in &self.neighbours[t] {
+                if o == usize::MAX || seen.contains(&o) {
+                    continue;
+                }
+                let [a, b, c] = self.corners(o);
+                let near = [(a, b), (b, c), (c, a)]
+                    .iter()
+                    .any(|&(u, v)| segment_distance(centre, u, v) < radius);
+                if near && dot(self.normals[o], normal) > MAX_TURN {
+                    seen.push(o);
+                    stack.push(o);
+                }
+            }
+        }
+        let total: f64 = loads.values().sum();
+        if !(total > 0.0) {
+            return None;
+        }
+        let mut pairs: Vec<(u32, f64)> = loads.into_iter().map(|(a, w)| (a, w / total)).collect();
+        pairs.sort_unstable_by_key(|p| p.0);
+        Some(Patch {
+            nodes: pairs.iter().map(|p| p.0).collect(),
+            weights: pairs.iter().map(|p| p.1).collect(),
+        })
+    }
+
+    /// Adds ∫ Nₐ p dA over triangle `t` to `loads`, on sub-triangles small against the radius
+    /// (those wholly outside the patch skipped).
+    fn integrate(&self, t: usize, centre: [f64; 3], radius: f64, loads: &mut HashMap<u32, f64>) {
+        let ids = &self.nodes[t];
+        let x: Vec<[f64; 3]> = ids.iter().map(|&v| self.mesh.nodes[v as usize]).collect();
+        let [a, b, c] = self.corners(t);
+        let longest = [sub(b, a), sub(c, b), sub(a, c)]
+            .iter()
+            .map(|e| dot(*e, *e).sqrt())
+            .fold(0.0, f64::max);
+        let m = ((SUBDIVISIONS_PER_RADIUS * longest / radius).ceil() as usize).clamp(1, MAX_SUBDIVISION);
+        let h = 1.0 / m as f64;
+        // The chord triangle at reference point (ξ, η), for the skip test.
+        let flat = |xi: f64, eta: f64| -> [f64; 3] {
+            std::array::from_fn(|k| a[k] + xi * (b[k] - a[k]) + eta * (c[k] - a[k]))
+        };
+        // A curved 6-node triangle bulges off its chord by at most this much.
+        let bulge = if x.len() == 6 {
+            [(0, 1, 3), (1, 2, 4), (2, 0, 5)]
+                .iter()
+                .map(|&(p, q, mid)| {
+                    let chord: [f64; 3] = std::array::from_fn(|k| 0.5 * (x[p][k] + x[q][k]));
+                    let e = sub(x[mid], chord);
+                    dot(e, e).sqrt()
+                })
+                .fold(0.0, f64::max)
+        } else {
+            0.0
+        };
+        let mut w = vec![0.0; ids.len()];
+        for i in 0..m {
+            for j in 0..m - i {
+                let mut cells = vec![[(i, j), (i + 1, j), (i, j + 1)]];
+                if i + j + 1 < m {
+                    cells.push([(i + 1, j), (i + 1, j + 1), (i, j + 1)]);
+                }
+                for cell in cells {
+                    let p = cell.map(|(u, v)| (u as f64 * h, v as f64 * h));
+                    let xs = p.map(|(u, v)| flat(u, v));
+                    let mid: [f64; 3] = std::array::from_fn(|k| (xs[0][k] + xs[1][k] + xs[2][k]) / 3.0);
+                    let reach = xs
+                        .iter()
+                        .map(|q| {
+                            let d = sub(*q, mid);
+                            dot(d, d).sqrt()
+                        })
+                        .fold(0.0, f64::max);
+                    let d = sub(mid, centre);
+                    if dot(d, d).sqrt() > radius + reach + 2.0 * bulge {
+                        continue;
+                    }
+                    for &(s, r, weight) in &TRIANGLE_RULE {
+                        let xi = p[0].0 + s * (p[1].0 - p[0].0) + r * (p[2].0 - p[0].0);
+                        let eta = p[0].1 + s * (p[1].1 - p[0].1) + r * (p[2].1 - p[0].1);
+                        let (da, n) = area_vector(&x, xi, eta);
+                        let at: [f64; 3] = std::array::from_fn(|k| n.iter().zip(&x).map(|(na, xa)| na * xa[k]).sum());
+                        let d = sub(at, centre);
+                        let pressure = profile(dot(d, d) / (radius * radius));
+                        if pressure == 0.0 {
+                            continue;
+                        }
+                        // Rule weights sum to 1 on a sub-triangle of reference area h²/2.
+                        let scale = 0.5 * weight * h * h * dot(da, da).sqrt() * pressure;
+                        for (wa, na) in w.iter_mut().zip(&n) {
+                            *wa += scale * na;
+                        }
+                    }
+                }
+            }
+        }
+        for (&a, wa) in ids.iter().zip(w) {
+            if wa != 0.0 {
+                *loads.entry(a).or_insert(0.0) += wa;
+            }
+        }
+    }
+}
+
+/// The patch of every surface vertex of `mesh` (`fixed(v)`: a vertex with a supported component,
+/// which keeps a point contact: it does not move, and its compliance block stays zero in the
+/// supported rows).
+pub fn vertex_patches(mesh: &Mesh, radius: f64, fixed: impl Fn(u32) -> bool + Sync) -> Patches {
+    let surface = Surface::new(mesh);
+    let centres = mesh.surface_vertices();
+    let patches: Vec<Patch> = centres
+        .par_iter()
+        .map(|&v| {
+            if fixed(v) {
+                Patch::point(v)
+            } else {
+                surface.at_vertex(v, radius)
+            }
+        })
+        .collect();
+    let mut out = Patches {
+        radius,
+        centres,
+        offsets: vec![0],
+        nodes: Vec::new(),
+        weights: Vec::new(),
+    };
+    for p in patches {
+        out.nodes.extend(p.nodes);
+        out.weights.extend(p.weights);
+        out.offsets.push(out.nodes.len() as u32);
+    }
+    out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::fem::element::Kind;
+
+    fn plate(kind: Kind, cells: usize) -> Mesh {
+        // 40 × 40 × 10 mm, refined `cells` per 10 mm.
+        let h = 0.01 / cells as f64;
+        Mesh::structured_box([4 * cells, 4 * cells, cells], h, kind, |_, x| x)
+    }
+
+    #[test]
+    fn weights_sum_to_one_and_centre_on_the_point() {
+        for kind in [Kind::Tet4, Kind::Tet10] {
+            for cells in [1, 2, 4] {
+                let mesh = plate(kind, cells);
+                let s = Surface::new(&mesh);
+                let (p, d) = s.at_point([0.02, 0.02, 0.01], 0.005).expect("a patch");
+                assert!(d < 1e-12, "{d}");
+                let sum: f64 = p.weights.iter().sum();
+                assert!((sum - 1.0).abs() < 1e-12, "{sum}");
+                // The load's centre of pressure is the centre (the plate is symmetric about it).
+                let x: Vec<f64> = mesh.nodes.iter().flatten().copied().collect();
+                let c = p.average(&x);
+                for (k, want) in [0.02, 0.02, 0.01].iter().enumerate() {
+                    assert!((c[k] - want).abs() < 1e-9, "{kind:?} {cells}: {c:?}");
+                }
+                // Only the top face is loaded.
+                assert!(
+                    p.nodes
+                        .iter()
+                        .all(|&a| (mesh.nodes[a as usize][2] - 0.01).abs() < 1e-12)
+                );
+            }
+        }
+    }
+
+    #[test]
+    fn the_second_moment_matches_the_profile() {
+        // ∫ r² p dA / ∫ p dA for p = (1 − r²/a²)² on a disk is a²/4; a fine mesh reproduces it.
+        let a = 0.005;
+        let mesh = plate(Kind::Tet10, 8);
+        let s = Surface::new(&mesh);
+        let (p, _) = s.at_point([0.02, 0.02, 0.01], a).expect("a patch");
+        let r2: Vec<f64> = mesh
+            .nodes
+            .iter()
+            .flat_map(|x| {
+                let d = (x[0] - 0.02).powi(2) + (x[1] - 0.02).powi(2);
+                [d, 0.0, 0.0]
+            })
+            .collect();
+        let m2 = p.average(&r2)[0];
+        assert!((m2 / (a * a / 4.0) - 1.0).abs() < 1e-3, "{m2} vs {}", a * a / 4.0);
+    }
+
+    #[test]
+    fn a_thin_wall_keeps_its_far_side_unloaded() {
+        // 2 mm thick plate: a 5 mm patch on top must not load the bottom face.
+        let mesh = Mesh::structured_box([20, 20, 1], 0.002, Kind::Tet4, |_, x| x);
+        let s = Surface::new(&mesh);
+        let (p, _) = s.at_point([0.02, 0.02, 0.002], 0.005).expect("a patch");
+        assert!(p.nodes.iter().all(|&a| mesh.nodes[a as usize][2] > 0.001));
+        assert!(p.nodes.len() > 10);
+    }
+
+    #[test]
+    fn a_vertex_on_an_edge_spreads_over_both_faces_and_radius_zero_is_a_point() {
+        let mesh = plate(Kind::Tet4, 2);
+        let s = Surface::new(&mesh);
+        let v = mesh
+            .nodes
+            .iter()
+            .position(|x| (x[0] - 0.02).abs() < 1e-12 && x[1].abs() < 1e-12 && (x[2] - 0.01).abs() < 1e-12)
+            .expect("an edge vertex") as u32;
+        let p = s.at_vertex(v, 0.005);
+        let side = p.nodes.iter().any(|&a| mesh.nodes[a as usize][2] < 0.009);
+        let top = p.nodes.iter().any(|&a| mesh.nodes[a as usize][1] > 0.001);
+        assert!(side && top, "{p:?}");
+        assert_eq!(s.at_vertex(v, 0.0), Patch::point(v));
+    }
+}
