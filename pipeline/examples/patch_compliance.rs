@@ -43,7 +43,7 @@ fn main() -> Result<()> {
             let surface = Surface::new(&d.mesh);
             let mut felt = Vec::new();
             for radius in [scene.contact_radius, 0.0] {
-                let (patch, _) = surface.at_point(p.at, radius).context("no surface")?;
+                let (patch, _, _) = surface.at_point(p.at, radius).context("no surface")?;
                 let block = ves_pipeline::compliance::patch_blocks(
                     &d,
                     &chol,

@@ -207,23 +207,6 @@ fn absurdly_small_mesh_size_is_refused_before_meshing_with_a_size_that_fits() {
     assert!(suggested > 1e-4 && suggested < 0.05, "{suggested}");
 }
 
-/// `ves report` on a scene meshed to `target_error` (no `mesh.size`) said "--sizes [0.0, 0.0,
-/// 0.0]: give element sizes > 0" where no sizes had been given.
-#[test]
-fn report_without_sizes_on_a_target_error_scene_asks_for_sizes() {
-    let (dir, scene) = workdir(&GOOD.replace("size = 0.05", "target_error = 0.05"));
-    let out = dir.path().join("report");
-    let o = ves(&["report", scene.to_str().unwrap(), "-o", out.to_str().unwrap()]);
-    let err = stderr(&o);
-    assert_eq!(o.status.code(), Some(1), "{err}");
-    assert!(
-        err.contains("mesh.target_error") && err.contains("give --sizes"),
-        "{err}"
-    );
-    assert!(!err.contains("0.0, 0.0"), "{err}");
-    assert!(!out.exists(), "nothing written");
-}
-
 /// `ves session --duration inf` panicked (capacity overflow); `nan`, `-1`, `0` ran one step and
 /// exited 0.
 #[test]

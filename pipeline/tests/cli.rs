@@ -548,11 +548,15 @@ fn bad_device_scripts_and_session_settings_are_refused() {
 
 /// A small `ves report` (CI): every output is written, the static correction makes the probe
 /// response exact, errors fall with the number of modes, 4-node tets lock where 10-node do not.
+/// A second probe sits inside the beam, halfway between its top and bottom faces: each mesh snaps
+/// it to a vertex half the thickness away (on either face), so it is flagged and left out of the
+/// "vs finest" columns, while the first (on the tip's top edge) is not.
 #[test]
 fn report_sweeps_meshes_and_modes_and_writes_plots() {
     let scene = GOOD.replace(
         "count = 4",
-        "count = 4\n[damping]\nbeta = 1.0e-5\n[[probe]]\nat = [1.0, 0.05, 0.05]\nforce = [0.0, 0.0, -1.0]",
+        "count = 4\n[damping]\nbeta = 1.0e-5\n[[probe]]\nat = [1.0, 0.05, 0.05]\nforce = [0.0, 0.0, -1.0]\n\
+         [[probe]]\nat = [0.5, 0.05, 0.025]\nforce = [0.0, 0.0, -1.0]",
     );
     let (dir, path) = workdir(&scene);
     let out = dir.path().join("report");
@@ -649,6 +653,48 @@ fn report_sweeps_meshes_and_modes_and_writes_plots() {
     );
     let md = std::fs::read_to_string(out.join("report.md")).expect("report.md");
     assert!(md.contains("the estimate against the measured"), "{md}");
+    // The probe inside the beam is flagged and left out of "vs finest"; the tip probe is not.
+    let checks = r["probe_checks"].as_array().expect("probe_checks");
+    assert_eq!(checks.len(), 2);
+    assert_eq!(checks[0]["flagged"].as_bool(), Some(false), "{}", checks[0]);
+    assert_eq!(checks[1]["flagged"].as_bool(), Some(true), "{}", checks[1]);
+    assert!(checks[1]["worst_snap_over_size"].as_f64().expect("ratio") > 0.5);
+    assert!(md.contains("| ⚠ 2 |") && md.contains("leave out probe 2"), "{md}");
+    let first_vs_finest = meshes[0]["points"][0]["static_error_total_corrected"][0]
+        .as_f64()
+        .expect("vs finest");
+    assert!(
+        md.contains(&format!("{:.3} |", 100.0 * first_vs_finest)),
+        "the \"vs finest, corrected\" cell is probe 1's: {first_vs_finest}\n{md}"
+    );
+    // The corrected static error on its own mesh is exact by construction: said so, not a number.
+    assert_eq!(r["exact_below"].as_f64(), Some(1e-12));
+    assert!(md.contains("| exact |"), "{md}");
+    // Timings carry their noise band and tier; the fastest point is in tier 1.
+    let points: Vec<&serde_json::Value> = meshes
+        .iter()
+        .flat_map(|m| m["points"].as_array().expect("points"))
+        .collect();
+    for p in &points {
+        let (lo, mid, hi) = (
+            p["haptic_step_ns_p25"].as_f64().expect("p25"),
+            p["haptic_step_ns"].as_f64().expect("median"),
+            p["haptic_step_ns_p75"].as_f64().expect("p75"),
+        );
+        assert!(lo <= mid && mid <= hi, "{p}");
+        assert!(p["haptic_step_tier"].as_u64().expect("tier") >= 1, "{p}");
+    }
+    let fastest = points
+        .iter()
+        .min_by(|a, b| {
+            a["haptic_step_ns"]
+                .as_f64()
+                .unwrap_or(0.0)
+                .total_cmp(&b["haptic_step_ns"].as_f64().unwrap_or(0.0))
+        })
+        .expect("a point");
+    assert_eq!(fastest["haptic_step_tier"].as_u64(), Some(1));
+    assert!(md.contains("step tier"), "{md}");
     // Nothing temporary left behind.
     let left: Vec<_> = std::fs::read_dir(&out)
         .expect("dir")
@@ -657,6 +703,50 @@ fn report_sweeps_meshes_and_modes_and_writes_plots() {
         .filter(|n| n.starts_with('.') || n.ends_with(".tmp"))
         .collect();
     assert!(left.is_empty(), "left behind: {left:?}");
+}
+
+/// `ves report` on a scene meshed to `target_error` (no `mesh.size`) said "--sizes [0.0, 0.0,
+/// 0.0]: give element sizes > 0" where no sizes had been given. Without --sizes it now sweeps the
+/// size the refinement starts from (1/15 of the beam's 1 m length) and two finer steps, and says so.
+#[test]
+fn report_without_sizes_on_a_target_error_scene_sweeps_the_refinements_sizes() {
+    let (dir, scene) = workdir(&GOOD.replace("size = 0.05", "target_error = 0.05"));
+    let out = dir.path().join("report");
+    let o = ves(&[
+        "report",
+        scene.to_str().unwrap(),
+        "-o",
+        out.to_str().unwrap(),
+        "--modes",
+        "4",
+        "--orders",
+        "1",
+        "--duration",
+        "0.05",
+        "--json",
+    ]);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(o.status.success(), "{err}");
+    assert!(
+        err.contains("target_error") && err.contains("1/15") && err.contains("--sizes"),
+        "{err}"
+    );
+    let r = last_json(&o);
+    let sizes: Vec<f64> = r["sizes"]
+        .as_array()
+        .expect("sizes")
+        .iter()
+        .filter_map(|x| x.as_f64())
+        .collect();
+    let start = 1.0 / 15.0;
+    assert_eq!(sizes.len(), 3, "{sizes:?}");
+    for (h, want) in sizes.iter().zip([start, start / 1.5, start / 2.0]) {
+        assert!((h / want - 1.0).abs() < 1e-6, "{sizes:?}");
+    }
+    assert!(r["sizes_from"].as_str().is_some_and(|s| s.contains("target_error")));
+    assert_eq!(r["meshes"].as_array().map(Vec::len), Some(3));
+    let md = std::fs::read_to_string(out.join("report.md")).expect("report.md");
+    assert!(md.contains("target_error"), "{md}");
 }
 
 /// `ves batch`: good scenes done, a broken one named, a second run does nothing, a changed

@@ -15,18 +15,25 @@ fn median(mut v: Vec<f64>) -> f64 {
 
 /// Median time of one haptic step (one hand grabbing a surface vertex and moving), ns.
 pub fn haptic_step_ns(basis: Arc<Basis>, batches: usize, per_batch: usize) -> f64 {
+    median(step_ns(basis, batches, per_batch, false))
+}
+
+/// The samples [`haptic_step_ns`] takes its median of: per batch, the mean time of one step, ns
+/// (their spread is the timing's noise).
+pub fn haptic_step_samples_ns(basis: Arc<Basis>, batches: usize, per_batch: usize) -> Vec<f64> {
     step_ns(basis, batches, per_batch, false)
 }
 
 /// Median time of one haptic step of a hand pressing 0.5 mm into the surface at a vertex while
 /// sliding ±10 mm across it (button up: the nearest vertex is found every step), ns.
 pub fn haptic_press_step_ns(basis: Arc<Basis>, batches: usize, per_batch: usize) -> f64 {
-    step_ns(basis, batches, per_batch, true)
+    median(step_ns(basis, batches, per_batch, true))
 }
 
-fn step_ns(basis: Arc<Basis>, batches: usize, per_batch: usize, press: bool) -> f64 {
+/// Per batch, the mean time of one step, ns (one NaN without a surface vertex).
+fn step_ns(basis: Arc<Basis>, batches: usize, per_batch: usize, press: bool) -> Vec<f64> {
     let Some(&v) = basis.surface_vertices.first() else {
-        return f64::NAN;
+        return vec![f64::NAN];
     };
     let p = basis.rest[v as usize];
     let n = basis.normals.get(v as usize).copied().unwrap_or([0.0, 0.0, 1.0]);
@@ -63,7 +70,7 @@ fn step_ns(basis: Arc<Basis>, batches: usize, per_batch: usize, press: bool) -> 
         std::hint::black_box(&out);
         samples.push(t.elapsed().as_nanos() as f64 / per_batch as f64);
     }
-    median(samples)
+    samples
 }
 
 /// A modal state to time the full-field updates with.
@@ -72,22 +79,31 @@ fn some_state(basis: &Basis) -> Vec<f64> {
 }
 
 /// Median of `repeats` timings of `f`, ms.
-fn median_ms(repeats: usize, mut f: impl FnMut()) -> f64 {
-    let samples = (0..repeats)
+fn median_ms(repeats: usize, f: impl FnMut()) -> f64 {
+    median(samples_ms(repeats, f))
+}
+
+/// `repeats` timings of `f`, ms.
+fn samples_ms(repeats: usize, mut f: impl FnMut()) -> Vec<f64> {
+    (0..repeats.max(1))
         .map(|_| {
             let t = Instant::now();
             f();
             t.elapsed().as_secs_f64() * 1e3
         })
-        .collect();
-    median(samples)
+        .collect()
 }
 
 /// Median time of one full-field update (deformed positions of all kept vertices), ms.
 pub fn full_field_ms(basis: &Basis, repeats: usize) -> f64 {
+    median(full_field_samples_ms(basis, repeats))
+}
+
+/// The samples [`full_field_ms`] takes its median of: `repeats` timings of one update, ms.
+pub fn full_field_samples_ms(basis: &Basis, repeats: usize) -> Vec<f64> {
     let q = some_state(basis);
     let mut pos = vec![0.0f32; 3 * basis.vertex_count()];
-    median_ms(repeats, || {
+    samples_ms(repeats, || {
         visual::positions(basis, &q, &mut pos);
         std::hint::black_box(&pos);
     })

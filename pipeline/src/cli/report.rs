@@ -16,7 +16,8 @@ pub struct Args {
     /// Mode counts, comma-separated (default 5,10,20,30,50,100,200).
     #[arg(long, value_delimiter = ',')]
     modes: Option<Vec<usize>>,
-    /// Element sizes in metres, comma-separated (default: 2, 1.5 and 1 × the scene's size).
+    /// Element sizes in metres, comma-separated (default: 2, 1.5 and 1 × the scene's mesh.size;
+    /// with mesh.target_error, the refinement's starting size and 1/1.5 and 1/2 of it).
     #[arg(long, value_delimiter = ',')]
     sizes: Option<Vec<f64>>,
     /// Element orders, comma-separated (default 1,2).
@@ -33,18 +34,12 @@ pub struct Args {
 impl Args {
     pub fn run(self) -> Result<()> {
         let scene = Scene::load(&self.scene)?;
-        // The default sizes scale the scene's own; a scene meshed to target_error has none.
-        if self.sizes.is_none() && scene.mesh.size <= 0.0 {
-            anyhow::bail!(
-                "{}: the scene sets mesh.target_error, not mesh.size, so there is no size to sweep around; \
-                 give --sizes in metres (e.g. --sizes 0.02,0.015,0.01; `ves precompute --json` lists the sizes its \
-                 refinement used)",
-                scene.path.display()
-            );
+        let sizes_given = self.sizes.is_some();
+        let mut opts = ReportOptions::defaults(&scene, self.sizes)?;
+        if !sizes_given {
+            eprintln!("{}: {}", scene.path.display(), opts.sizes_from);
         }
-        let mut opts = ReportOptions::defaults(&scene);
         opts.modes = self.modes.unwrap_or(opts.modes);
-        opts.sizes = self.sizes.unwrap_or(opts.sizes);
         opts.orders = self.orders.unwrap_or(opts.orders);
         opts.duration = self.duration;
         let report = report::run(&scene, &opts, &self.output)?;

@@ -200,9 +200,9 @@ impl<'a> Surface<'a> {
             .unwrap_or_else(|| Patch::point(v))
     }
 
-    /// The patch of radius `radius` centred on the surface point closest to `point`, and how far
-    /// `point` is from the surface.
-    pub fn at_point(&self, point: [f64; 3], radius: f64) -> Option<(Patch, f64)> {
+    /// The patch of radius `radius` centred on the surface point closest to `point`, that centre,
+    /// and how far `point` is from it.
+    pub fn at_point(&self, point: [f64; 3], radius: f64) -> Option<(Patch, [f64; 3], f64)> {
         let (t, (centre, distance)) = (0..self.mesh.surface.len())
             .map(|t| (t, closest_on_triangle(point, self.corners(t))))
             .min_by(|a, b| a.1.1.total_cmp(&b.1.1))?;
@@ -220,7 +220,7 @@ impl<'a> Surface<'a> {
                 Patch::point(v)
             }
         };
-        Some((patch, distance))
+        Some((patch, centre, distance))
     }
 
     /// The pressure around `centre` integrated over the triangles reached from `seeds`;
@@ -386,7 +386,7 @@ mod tests {
             for cells in [1, 2, 4] {
                 let mesh = plate(kind, cells);
                 let s = Surface::new(&mesh);
-                let (p, d) = s.at_point([0.02, 0.02, 0.01], 0.005).expect("a patch");
+                let (p, _, d) = s.at_point([0.02, 0.02, 0.01], 0.005).expect("a patch");
                 assert!(d < 1e-12, "{d}");
                 let sum: f64 = p.weights.iter().sum();
                 assert!((sum - 1.0).abs() < 1e-12, "{sum}");
@@ -412,7 +412,7 @@ mod tests {
         let a = 0.005;
         let mesh = plate(Kind::Tet10, 8);
         let s = Surface::new(&mesh);
-        let (p, _) = s.at_point([0.02, 0.02, 0.01], a).expect("a patch");
+        let (p, _, _) = s.at_point([0.02, 0.02, 0.01], a).expect("a patch");
         let r2: Vec<f64> = mesh
             .nodes
             .iter()
@@ -430,7 +430,7 @@ mod tests {
         // 2 mm thick plate: a 5 mm patch on top must not load the bottom face.
         let mesh = Mesh::structured_box([20, 20, 1], 0.002, Kind::Tet4, |_, x| x);
         let s = Surface::new(&mesh);
-        let (p, _) = s.at_point([0.02, 0.02, 0.002], 0.005).expect("a patch");
+        let (p, _, _) = s.at_point([0.02, 0.02, 0.002], 0.005).expect("a patch");
         assert!(p.nodes.iter().all(|&a| mesh.nodes[a as usize][2] > 0.001));
         assert!(p.nodes.len() > 10);
     }

@@ -37,28 +37,100 @@ pub struct ReportOptions {
     pub orders: Vec<u8>,
     /// Length of the step-load response, s.
     pub duration: f64,
+    /// Where `sizes` came from, in words (the report says it).
+    pub sizes_from: String,
 }
 
 impl ReportOptions {
-    /// The defaults for a scene: 5…200 modes, orders 1 and 2, the scene's size and two coarser.
-    pub fn defaults(scene: &Scene) -> ReportOptions {
-        let h = scene.mesh.size;
-        ReportOptions {
+    /// The defaults for a scene: 5…200 modes, orders 1 and 2, and `sizes` when given, else
+    /// [`default_sizes`] (which meshes the part once when the scene leaves the size to
+    /// `target_error`).
+    pub fn defaults(scene: &Scene, sizes: Option<Vec<f64>>) -> Result<ReportOptions> {
+        let (sizes, sizes_from) = match sizes {
+            Some(s) => (s, "given with --sizes".to_string()),
+            None => default_sizes(scene)?,
+        };
+        Ok(ReportOptions {
             modes: vec![5, 10, 20, 30, 50, 100, 200],
-            sizes: vec![2.0 * h, 1.5 * h, h],
+            sizes,
             orders: vec![1, 2],
             duration: 0.5,
-        }
+            sizes_from,
+        })
     }
 }
+
+/// The sizes swept when `--sizes` is not given, and why, in one line.
+///
+/// A scene with `mesh.size` and no `target_error`: 2, 1.5 and 1 × that size. A scene with
+/// `target_error`: the sizes its refinement works with, from the size it starts at (the scene's
+/// `mesh.size`, or when it has none the size the mesher picks for it, found by meshing the part
+/// once exactly as `ves precompute`'s first mesh is made) down to half of it (a refinement step at
+/// most halves the size): 1, 1/1.5 and 1/2 × the starting size.
+pub fn default_sizes(scene: &Scene) -> Result<(Vec<f64>, String)> {
+    let h = scene.mesh.size;
+    if scene.mesh.target_error.is_none() {
+        return Ok((
+            vec![2.0 * h, 1.5 * h, h],
+            format!("2, 1.5 and 1 × the scene's mesh.size = {} m", render::size(h)),
+        ));
+    }
+    let (start, whence) = if h > 0.0 {
+        (h, format!("the scene's mesh.size = {} m", render::size(h)))
+    } else {
+        let mut first = scene.clone();
+        first.mesh.order = 1;
+        let (_, meshing) = crate::mesh::generate(&first, None).with_context(|| {
+            format!(
+                "{}: finding the size mesh.target_error's refinement starts from (to choose others, give --sizes in metres)",
+                scene.path.display()
+            )
+        })?;
+        (
+            meshing.size,
+            format!(
+                "{} m = 1/{} of the part's largest extent, the first mesh `ves precompute` makes when mesh.size is left out",
+                render::significant(meshing.size),
+                crate::mesh::AUTO_SIZE_FRACTION
+            ),
+        )
+    };
+    let sizes = vec![start, start / 1.5, start / 2.0];
+    let why = format!(
+        "mesh.target_error scene: sweeping sizes {} m: {whence} (where its refinement starts) and two finer \
+         steps, 1/1.5 and 1/2 of it (a refinement step at most halves the size); give --sizes to sweep others",
+        sizes
+            .iter()
+            .map(|&x| render::significant(x))
+            .collect::<Vec<_>>()
+            .join(", "),
+    );
+    Ok((sizes, why))
+}
+
+/// Relative errors at or below this are reported as exact: zero up to rounding (the static
+/// correction on its own mesh is K⁻¹F by construction; ~1e-15 is its rounding).
+pub const EXACT_BELOW: f64 = 1e-12;
+
+/// A probe is flagged when, on some mesh, it snapped farther than this fraction of that mesh's
+/// element size from the point asked, or when the vertices it snapped to on two meshes are
+/// farther apart than this fraction of the coarsest element size.
+pub const SNAP_LIMIT: f64 = 0.5;
+
+/// Timings are tied when their p25–p75 ranges over the timed batches overlap (see
+/// [`Point::haptic_step_tier`]).
+pub const TIE_RULE: &str =
+    "a point's tier is the fastest tier whose fastest point's p25–p75 over the timed batches overlaps its own";
 
 /// A probe as applied on one mesh.
 #[derive(Clone, Debug, Serialize)]
 pub struct ProbeOnMesh {
-    /// The surface vertex used.
+    /// The node carrying most of the probe's contact patch (the patch's vertex at radius 0).
     pub vertex: usize,
-    /// Distance from the asked point, m.
+    /// Distance from the asked point to the patch's centre (the nearest surface point), m.
     pub snap_distance: f64,
+    /// The patch's centre, m.
+    pub position: [f64; 3],
     /// |u| of the full solve, m.
     pub exact_displacement: f64,
 }
@@ -78,8 +150,21 @@ pub struct Point {
     pub bytes_loaded: usize,
     /// Median haptic step, ns.
     pub haptic_step_ns: f64,
+    /// 25th percentile of the timed batches' step times, ns (the noise band's low end).
+    pub haptic_step_ns_p25: f64,
+    /// 75th percentile of the timed batches' step times, ns.
+    pub haptic_step_ns_p75: f64,
+    /// 1 for the fastest tier: points whose p25–p75 band overlaps that of the tier's fastest
+    /// point share its tier (their difference is within the timing noise, a tie).
+    pub haptic_step_tier: usize,
     /// Median full-field update (all vertices), ms.
     pub full_field_ms: f64,
+    /// 25th percentile of the timed full-field updates, ms.
+    pub full_field_ms_p25: f64,
+    /// 75th percentile of the timed full-field updates, ms.
+    pub full_field_ms_p75: f64,
+    /// Tier of `full_field_ms`, as `haptic_step_tier`.
+    pub full_field_tier: usize,
     /// Largest relative frequency error over the first `frequencies_compared` modes against
     /// the finest mesh (null on the finest mesh itself, which is the reference).
     pub frequency_error: Option<f64>,
@@ -146,6 +231,22 @@ pub struct MeshReport {
 /// How many of each mesh's lowest modes the error estimate is checked on.
 pub const ESTIMATE_MODES: usize = 10;
 
+/// Whether a probe lands on comparable places on every mesh.
+#[derive(Clone, Debug, Serialize)]
+pub struct ProbeCheck {
+    /// The largest, over the meshes, of its snap distance over that mesh's element size.
+    pub worst_snap_over_size: f64,
+    /// The largest distance between the vertices it snapped to on two meshes, m.
+    pub spread_m: f64,
+    /// The coarsest element size of the sweep, m (what `spread_m` is compared with).
+    pub coarsest_size: f64,
+    /// Its errors against the finest mesh compare different places: left out of the "vs finest"
+    /// worst values of the table and the plot (its own values stay in each point's arrays).
+    pub flagged: bool,
+    /// Why it is flagged (empty when it is not).
+    pub why: String,
+}
+
 /// The whole report (`report.json`).
 #[derive(Clone, Debug, Serialize)]
 pub struct Report {
@@ -157,6 +258,18 @@ pub struct Report {
     pub probes: Vec<Probe>,
     /// Whether the probes were the scene's own.
     pub probes_from_scene: bool,
+    /// Per probe: how far apart its snapped vertices are (empty for a free body).
+    pub probe_checks: Vec<ProbeCheck>,
+    /// The rule that flags a probe, in words.
+    pub probe_flag_rule: String,
+    /// Element sizes swept, m, and where they came from.
+    pub sizes: Vec<f64>,
+    /// Where `sizes` came from, in words.
+    pub sizes_from: String,
+    /// Relative errors at or below this are reported as exact ([`EXACT_BELOW`]).
+    pub exact_below: f64,
+    /// When two timings are tied, in words.
+    pub timing_tie_rule: String,
     /// Step-load length, s.
     pub duration_s: f64,
     /// Time step of both integrations, s.
@@ -223,11 +336,21 @@ pub fn run(scene: &Scene, opts: &ReportOptions, dir: &Path) -> Result<Report> {
     let _ = std::fs::remove_file(&tmp);
     let _ = std::fs::remove_file(store::sidecar_path(&tmp));
     bar.finish_and_clear();
-    let meshes: Vec<MeshReport> = meshes.into_iter().flatten().collect();
+    let mut meshes: Vec<MeshReport> = meshes.into_iter().flatten().collect();
+    assign_tiers(&mut meshes);
     let report = Report {
         scene: scene.name.clone(),
         scene_file: scene.path.display().to_string(),
         probes_from_scene: !scene.probes.is_empty(),
+        probe_checks: check_probes(&meshes, ctx.probes.len()),
+        probe_flag_rule: format!(
+            "flagged when on some mesh it snapped farther than {SNAP_LIMIT} × that mesh's element size from the point \
+             asked, or when its vertices on two meshes are farther apart than {SNAP_LIMIT} × the coarsest element size"
+        ),
+        sizes: opts.sizes.clone(),
+        sizes_from: opts.sizes_from.clone(),
+        exact_below: EXACT_BELOW,
+        timing_tie_rule: TIE_RULE.to_string(),
         probes: ctx.probes.clone(),
         duration_s: opts.duration,
         dt_s: ctx.dt,
@@ -238,6 +361,101 @@ pub fn run(scene: &Scene, opts: &ReportOptions, dir: &Path) -> Result<Report> {
     };
     render::write_all(&report, dir)?;
     Ok(report)
+}
+
+/// Flags the probes whose snapped vertices are far from the point asked or from each other.
+fn check_probes(meshes: &[MeshReport], count: usize) -> Vec<ProbeCheck> {
+    let coarsest = meshes.iter().map(|m| m.size).fold(0.0, f64::max);
+    (0..count)
+        .filter_map(|k| {
+            let on: Vec<(&MeshReport, &ProbeOnMesh)> =
+                meshes.iter().filter_map(|m| m.probes.get(k).map(|p| (m, p))).collect();
+            if on.is_empty() {
+                return None;
+            }
+            let (worst_mesh, worst_snap_over_size) = on
+                .iter()
+                .map(|(m, p)| (*m, p.snap_distance / m.size))
+                .max_by(|a, b| a.1.total_cmp(&b.1))?;
+            let spread_m = on
+                .iter()
+                .flat_map(|(_, a)| on.iter().map(|(_, b)| dist(a.position, b.position)))
+                .fold(0.0, f64::max);
+            let mut why = Vec::new();
+            if worst_snap_over_size > SNAP_LIMIT {
+                why.push(format!(
+                    "snapped {:.2} × the element size away on the order-{} {} m mesh",
+                    worst_snap_over_size,
+                    worst_mesh.order,
+                    render::size(worst_mesh.size)
+                ));
+            }
+            if spread_m > SNAP_LIMIT * coarsest {
+                why.push(format!(
+                    "its vertices on two meshes are {spread_m:.2e} m apart (> {SNAP_LIMIT} × the coarsest size {} m)",
+                    render::size(coarsest)
+                ));
+            }
+            Some(ProbeCheck {
+                worst_snap_over_size,
+                spread_m,
+                coarsest_size: coarsest,
+                flagged: !why.is_empty(),
+                why: why.join("; "),
+            })
+        })
+        .collect()
+}
+
+/// The 25th, 50th and 75th percentiles of timing samples (NaN when there are none).
+fn percentiles(mut v: Vec<f64>) -> [f64; 3] {
+    v.retain(|x| x.is_finite());
+    if v.is_empty() {
+        return [f64::NAN; 3];
+    }
+    v.sort_by(f64::total_cmp);
+    let at = |q: f64| v[((q * (v.len() - 1) as f64).round() as usize).min(v.len() - 1)];
+    [at(0.25), at(0.5), at(0.75)]
+}
+
+/// Ranks timings into tiers of ties: in order of median, a point joins the fastest tier whose
+/// first (fastest) point's p25–p75 band overlaps its own, else it starts the next tier (1 =
+/// fastest). Returns each band's tier, in the order given.
+pub fn tiers(bands: &[[f64; 3]]) -> Vec<usize> {
+    let mut order: Vec<usize> = (0..bands.len()).collect();
+    order.sort_by(|&a, &b| bands[a][1].total_cmp(&bands[b][1]));
+    let mut tier = vec![0; bands.len()];
+    // Each tier's fastest point.
+    let mut leaders: Vec<usize> = Vec::new();
+    for i in order {
+        match leaders.iter().position(|&l| bands[i][0] <= bands[l][2]) {
+            Some(t) => tier[i] = t + 1,
+            None => {
+                leaders.push(i);
+                tier[i] = leaders.len();
+            }
+        }
+    }
+    tier
+}
+
+/// Fills each point's haptic-step and full-field tiers, over the whole sweep.
+fn assign_tiers(meshes: &mut [MeshReport]) {
+    let bands = |f: &dyn Fn(&Point) -> [f64; 3]| -> Vec<[f64; 3]> {
+        meshes.iter().flat_map(|m| m.points.iter().map(f)).collect()
+    };
+    let haptic = tiers(&bands(&|p| {
+        [p.haptic_step_ns_p25, p.haptic_step_ns, p.haptic_step_ns_p75]
+    }));
+    let field = tiers(&bands(&|p| [p.full_field_ms_p25, p.full_field_ms, p.full_field_ms_p75]));
+    for (p, (h, f)) in meshes
+        .iter_mut()
+        .flat_map(|m| m.points.iter_mut())
+        .zip(haptic.into_iter().zip(field))
+    {
+        p.haptic_step_tier = h;
+        p.full_field_tier = f;
+    }
 }
 
 fn check_options(o: &ReportOptions) -> Result<()> {
@@ -404,11 +622,11 @@ impl Sweep<'_> {
         let mut at: Vec<(Patch, [f64; 3])> = Vec::new();
         let mut off_surface = Vec::new();
         for p in &self.probes {
-            let (patch, distance) = index
+            let (patch, centre, distance) = index
                 .at_point(p.at, radius)
                 .context("the mesh has no surface triangles to put a probe on")?;
             at.push((patch, p.force));
-            off_surface.push(distance);
+            off_surface.push((centre, distance));
         }
         let spread = |k: usize, patch: &Patch, f: [f64; 3], out: &mut [f64]| {
             for (&a, &w) in patch.nodes.iter().zip(&patch.weights) {
@@ -460,9 +678,10 @@ impl Sweep<'_> {
             .iter()
             .zip(&off_surface)
             .zip(&statics)
-            .map(|(((patch, _), &distance), u)| ProbeOnMesh {
+            .map(|(((patch, _), &(centre, distance)), u)| ProbeOnMesh {
                 vertex: heaviest(patch),
                 snap_distance: distance,
+                position: centre,
                 exact_displacement: Vector3::from(*u).norm(),
             })
             .collect();
@@ -522,8 +741,9 @@ impl Sweep<'_> {
         let basis = ves_runtime::basis::load(self.tmp, &ves_runtime::basis::LoadOptions::default())
             .map_err(|e| anyhow::anyhow!("{e}"))?;
         let bytes_loaded = basis.bytes_loaded;
-        let full_field_ms = ves_runtime::bench::full_field_ms(&basis, 30);
-        let haptic_step_ns = ves_runtime::bench::haptic_step_ns(Arc::new(basis), 101, 2000);
+        let [field_p25, full_field_ms, field_p75] = percentiles(ves_runtime::bench::full_field_samples_ms(&basis, 30));
+        let [step_p25, haptic_step_ns, step_p75] =
+            percentiles(ves_runtime::bench::haptic_step_samples_ns(Arc::new(basis), 101, 2000));
 
         let freqs = modes.frequencies_hz();
         let compared = freqs.len().min(self.reference_frequencies.len());
@@ -594,7 +814,13 @@ impl Sweep<'_> {
             file_bytes,
             bytes_loaded,
             haptic_step_ns,
+            haptic_step_ns_p25: step_p25,
+            haptic_step_ns_p75: step_p75,
+            haptic_step_tier: 0,
             full_field_ms,
+            full_field_ms_p25: field_p25,
+            full_field_ms_p75: field_p75,
+            full_field_tier: 0,
             frequency_error: Some(frequency_error),
             frequencies_compared: compared,
             static_error: se,
@@ -630,6 +856,10 @@ fn norm(a: [f64; 3]) -> f64 {
     Vector3::from(a).norm()
 }
 
+fn dist(a: [f64; 3], b: [f64; 3]) -> f64 {
+    (Vector3::from(a) - Vector3::from(b)).norm()
+}
+
 fn surface_vertices(d: &Discretized) -> Vec<usize> {
     d.mesh.surface_vertices().into_iter().map(|i| i as usize).collect()
 }
@@ -662,4 +892,38 @@ fn vertex_value(d: &Discretized, x: &[f64], v: usize) -> [f64; 3] {
         let g = d.dofs.free_of[3 * v + c];
         if g == u32::MAX { 0.0 } else { x[g as usize] }
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Step times of 143 and 150 ns whose batches spread over 140–160 ns are a tie, not a
+    /// ranking; 300 ns with a tight spread is slower beyond the noise.
+    #[test]
+    fn timings_within_the_noise_are_tied() {
+        let bands = [
+            [140.0, 150.0, 160.0],
+            [138.0, 143.0, 158.0],
+            [295.0, 300.0, 310.0],
+            // Overlaps the fastest point's band although a slower tier began before it.
+            [155.0, 305.0, 400.0],
+        ];
+        assert_eq!(tiers(&bands), vec![1, 1, 2, 1]);
+        // Without noise nothing ties.
+        assert_eq!(tiers(&[[1.0, 1.0, 1.0], [2.0, 2.0, 2.0]]), vec![1, 2]);
+    }
+
+    #[test]
+    fn percentiles_of_samples() {
+        let v: Vec<f64> = (0..=100).map(f64::from).collect();
+        assert_eq!(percentiles(v), [25.0, 50.0, 75.0]);
+        assert!(percentiles(vec![f64::NAN]).iter().all(|x| x.is_nan()));
+    }
+
+    #[test]
+    fn sizes_print_with_four_significant_digits() {
+        assert_eq!(render::significant(1.0 / 15.0), "0.06667");
+        assert_eq!(render::significant(4e-4 / 3.0), "0.0001333");
+    }
 }
