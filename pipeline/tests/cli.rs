@@ -337,6 +337,18 @@ fn verify_against_scikit_fem_and_calculix_passes_and_tolerances_bite() {
         .iter()
         .any(|r| r["solver"].as_str().is_some_and(|s| s.contains("FEniCSx")));
     assert_eq!(!with_fenicsx, stderr.contains("FEniCSx is not installed"), "{stderr}");
+    // ... and lists it in the report, with how to install it.
+    let skipped = v["skipped"].as_array().expect("skipped");
+    assert_eq!(
+        !with_fenicsx,
+        skipped.iter().any(|s| s["solver"] == "FEniCSx"
+            && s["reason"]
+                .as_str()
+                .is_some_and(|r| r.contains("apt-get install python3-dolfinx"))),
+        "{skipped:?}"
+    );
+    // The progress lines (solver, size, expected time) are for a terminal only.
+    assert!(!stderr.contains("unknowns, expected about"), "{stderr}");
     let skfem = find("scikit-fem");
     assert!(skfem["max_rel_freq_diff"].as_f64().unwrap() < 1e-6);
     assert!(skfem["min_mac_isolated"].as_f64().unwrap() > 0.999);
