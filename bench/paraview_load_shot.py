@@ -5,10 +5,14 @@ coloured by `load_<NAME>_von_mises`, over the undeformed part, with the supporte
 
     pvpython --force-offscreen-rendering bench/paraview_load_shot.py BASIS.xdmf NAME OUT.png
 """
+import os
 import sys
 
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+from paraview_camera import frame  # noqa: E402
+
 from paraview.simple import (ColorBy, GetActiveViewOrCreate, GetColorTransferFunction, MergeBlocks,
-                             ResetCamera, SaveScreenshot, Show, Threshold, WarpByVector, XDMFReader)
+                             SaveScreenshot, Show, Threshold, WarpByVector, XDMFReader)
 
 xdmf, name, png = sys.argv[1], sys.argv[2], sys.argv[3]
 u, vm = "load_%s_displacement" % name, "load_%s_von_mises" % name
@@ -37,9 +41,6 @@ h.SetRepresentationType("Points")
 h.PointSize = 4
 h.AmbientColor = h.DiffuseColor = [1.0, 0.85, 0.2]
 h.ColorArrayName = ["POINTS", ""]
-ResetCamera(view)
-view.CameraPosition = [c + s for c, s in zip(view.CameraFocalPoint, [0.9 * size, -1.6 * size, 1.0 * size])]
-view.CameraViewUp = [0, 0, 1]
-ResetCamera(view)
+frame(view, grid)
 SaveScreenshot(png, view, ImageResolution=[1200, 800])
 print("wrote", png)

@@ -8,8 +8,11 @@ import os
 import re
 import sys
 
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+from paraview_camera import frame  # noqa: E402
+
 from paraview.simple import (ColorBy, GetActiveViewOrCreate, GetColorTransferFunction,
-                             Hide, MergeBlocks, PythonCalculator, ResetCamera, SaveScreenshot, Show,
+                             Hide, MergeBlocks, PythonCalculator, SaveScreenshot, Show,
                              WarpByVector,
                              XDMFReader)
 
@@ -52,10 +55,7 @@ d = Show(warp, view)
 ColorBy(d, ("POINTS", name, "Magnitude"))
 d.SetScalarBarVisibility(view, True)
 GetColorTransferFunction(name).ApplyPreset("Cool to Warm", True)
-ResetCamera(view)
-view.CameraPosition = [c + s for c, s in zip(view.CameraFocalPoint, [0.9 * size, -1.6 * size, 1.0 * size])]
-view.CameraViewUp = [0, 0, 1]
-ResetCamera(view)
+frame(view, shape)
 SaveScreenshot(os.path.join(out, "%s_mode%d_shape.png" % (base, mode)), view, ImageResolution=[1200, 800])
 Hide(warp, view)
 Hide(shape, view)
@@ -72,6 +72,6 @@ d = Show(vm, view)
 ColorBy(d, ("POINTS", "von Mises (Pa per unit q)"))
 d.SetScalarBarVisibility(view, True)
 GetColorTransferFunction("von Mises (Pa per unit q)").ApplyPreset("Cool to Warm", True)
-ResetCamera(view)
+frame(view, stress)
 SaveScreenshot(os.path.join(out, "%s_mode%d_von_mises.png" % (base, mode)), view, ImageResolution=[1200, 800])
 print("wrote", out)

@@ -6,6 +6,13 @@
 //! `mode_01_stress`, `fixed`, `load_<name>_displacement`, `load_<name>_von_mises`, and the
 //! frequencies as field data `frequencies_hz`. Binary data appended raw (little-endian, 64-bit
 //! headers).
+//!
+//! A mode's amplitude is arbitrary (mass-normalised: `mode_01_stress` is Pa per unit modal
+//! coordinate, peaks like 5e11 Pa), so the vertices file also holds each mode scaled to a stated
+//! quantity: `mode_01_stress_per_mm` (tensor) and `mode_01_von_mises_per_mm` (scalar), Pa per
+//! millimetre of the mode's peak displacement magnitude (over every node of the whole grid). Its
+//! field data say the factors: `peak_displacement_m` (per mode, per unit modal coordinate) and
+//! `per_mm_scale` = 1e-3 / `peak_displacement_m` (the `_per_mm` arrays are the plain ones times it).
 
 use anyhow::{Context, Result, bail};
 use std::io::Write;
@@ -107,7 +114,9 @@ pub fn export(basis: &Path, dir: &Path, overwrite: Overwrite) -> Result<Vec<Path
         if let Some(path) = vertices
             && let Some(stress) = s.stress_rows(0..nv, r)?
         {
-            let fields: Vec<(String, usize, Vec<f64>)> = (0..r)
+            let peaks = peak_displacements(&rows, n, r);
+            let scales: Vec<f64> = peaks.iter().map(|&p| per_mm_scale(p)).collect();
+            let mut fields: Vec<(String, usize, Vec<f64>)> = (0..r)
                 .map(|j| {
                     let v = (0..nv)
                         .flat_map(|i| VOIGT_TO_VTK.map(|k| stress[(6 * i + k) * r + j]))
@@ -115,17 +124,50 @@ pub fn export(basis: &Path, dir: &Path, overwrite: Overwrite) -> Result<Vec<Path
                     (mode_array(j, r, "stress"), 6, v)
                 })
                 .collect();
+            for (j, &c) in scales.iter().enumerate() {
+                let tensor: Vec<f64> = fields[j].2.iter().map(|x| x * c).collect();
+                let von_mises = (0..nv)
+                    .map(|i| {
+                        let voigt: Vec<f64> = (0..6).map(|k| c * stress[(6 * i + k) * r + j]).collect();
+                        crate::loads::von_mises(&voigt)
+                    })
+                    .collect();
+                fields.push((mode_array(j, r, "stress_per_mm"), 6, tensor));
+                fields.push((mode_array(j, r, "von_mises_per_mm"), 1, von_mises));
+            }
             let corners: Vec<i64> = tets
                 .chunks_exact(per)
                 .flat_map(|t| t[..4].iter().map(|&v| i64::from(v)))
                 .collect();
             let (n, cell) = (Kind::Tet4.nodes(), Kind::Tet4.vtk_cell_type());
-            let field = [("frequencies_hz".to_string(), frequencies.clone())];
+            let field = [
+                ("frequencies_hz".to_string(), frequencies.clone()),
+                ("peak_displacement_m".to_string(), peaks),
+                ("per_mm_scale".to_string(), scales),
+            ];
             write_grid(path, &nodes[..3 * nv], &corners, n, cell, &fields, &field)?;
             written.push(path.clone());
         }
     }
     Ok(written)
+}
+
+/// Each mode's largest displacement magnitude over the `n` nodes, m per unit modal coordinate,
+/// from the basis rows (`rows[i * r + j]`: DOF i of mode j).
+pub fn peak_displacements(rows: &[f64], n: usize, r: usize) -> Vec<f64> {
+    (0..r)
+        .map(|j| {
+            (0..n)
+                .map(|a| (0..3).map(|c| rows[(3 * a + c) * r + j].powi(2)).sum::<f64>().sqrt())
+                .fold(0.0, f64::max)
+        })
+        .collect()
+}
+
+/// The factor that scales a mode to 1 mm of peak displacement: 1e-3 / `peak` (NaN for a mode
+/// that does not move, which a checked basis never holds).
+pub fn per_mm_scale(peak: f64) -> f64 {
+    if peak > 0.0 { 1e-3 / peak } else { f64::NAN }
 }
 
 /// The whole grid's point arrays beside the modes: `fixed` (1 where a support holds the node,
@@ -219,4 +261,30 @@ fn write_grid(
         Ok(())
     })
     .with_context(|| format!("{}: writing failed", path.display()))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Two nodes, two modes (DOF-major rows): the peaks are the largest displacement
+    /// magnitudes, and each mode times its factor peaks at exactly 1 mm.
+    #[test]
+    fn a_mode_scaled_by_its_factor_peaks_at_one_millimetre() {
+        let m0 = [3.0, 4.0, 0.0, 0.0, 0.0, 1.0];
+        let m1 = [0.0, 0.0, 0.0, 0.0, -2.0, 0.0];
+        let rows: Vec<f64> = (0..6).flat_map(|i| [m0[i], m1[i]]).collect();
+        let peaks = peak_displacements(&rows, 2, 2);
+        assert_eq!(peaks, vec![5.0, 2.0]);
+        for (j, m) in [m0, m1].iter().enumerate() {
+            let c = per_mm_scale(peaks[j]);
+            let scaled: Vec<f64> = m.iter().map(|x| x * c).collect();
+            let peak = scaled
+                .chunks_exact(3)
+                .map(|v| (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt())
+                .fold(0.0, f64::max);
+            assert!((peak - 1e-3).abs() < 1e-18, "mode {j}: {peak}");
+        }
+        assert!(per_mm_scale(0.0).is_nan());
+    }
 }

@@ -91,14 +91,30 @@ pub fn mesh_with_supports(
         worst_quality = quality,
         "meshed"
     );
-    if quality < 0.02 && !quiet {
-        tracing::warn!(
+    let sliver = (quality < 0.02).then(|| {
+        format!(
             "sliver tet (shape quality {quality:.1e}, 1 = regular) near ({:.6}, {:.6}, {:.6}) m: accuracy may suffer there; \
              change mesh.size or repair the geometry",
-            at[0],
-            at[1],
-            at[2]
-        );
+            at[0], at[1], at[2]
+        )
+    });
+    if meshing.cached {
+        // A cached mesh's warnings were said in full on the run that made it: here one line.
+        if let Some(s) = &sliver {
+            tracing::info!("(cached mesh) {s}");
+        }
+        let mut made = meshing.warnings_when_made();
+        made.extend(sliver.map(|_| format!("a sliver tet of shape quality {quality:.1e}")));
+        if !made.is_empty() && !quiet {
+            tracing::warn!(
+                "{}: cached mesh: {} warning(s) when it was made ({}); VES_LOG=info repeats them in full",
+                scene.geometry.display(),
+                made.len(),
+                made.join("; ")
+            );
+        }
+    } else if let Some(s) = sliver.filter(|_| !quiet) {
+        tracing::warn!("{s}");
     }
     let t = Instant::now();
     let dofs = supports::select(&mesh, &scene.fixed).with_context(|| scene.path.display().to_string())?;

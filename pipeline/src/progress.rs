@@ -154,3 +154,43 @@ pub fn say(what: &str) {
         w.stage(what, lo);
     }
 }
+
+/// Where log lines go: stderr, each line written with the bars lifted and drawn again after it
+/// (indicatif's `suspend`). Written straight to stderr, a warning printed while a bar was drawn
+/// was partly erased by the bar's next redraw, and the bar's old frames were left above it.
+pub struct LogWriter;
+
+impl<'a> tracing_subscriber::fmt::MakeWriter<'a> for LogWriter {
+    type Writer = LogLine;
+
+    fn make_writer(&'a self) -> LogLine {
+        LogLine(Vec::new())
+    }
+}
+
+/// One log event, collected and written to stderr as a whole when dropped.
+pub struct LogLine(Vec<u8>);
+
+impl std::io::Write for LogLine {
+    fn write(&mut self, buf: &[u8]) -> std::io::Result<usize> {
+        self.0.extend_from_slice(buf);
+        Ok(buf.len())
+    }
+
+    fn flush(&mut self) -> std::io::Result<()> {
+        Ok(())
+    }
+}
+
+impl Drop for LogLine {
+    fn drop(&mut self) {
+        if self.0.is_empty() {
+            return;
+        }
+        let line = std::mem::take(&mut self.0);
+        bars().suspend(|| {
+            // Nothing to do when stderr itself cannot be written.
+            let _ = std::io::Write::write_all(&mut std::io::stderr(), &line);
+        });
+    }
+}

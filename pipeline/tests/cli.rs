@@ -337,6 +337,18 @@ fn verify_against_scikit_fem_and_calculix_passes_and_tolerances_bite() {
         .iter()
         .any(|r| r["solver"].as_str().is_some_and(|s| s.contains("FEniCSx")));
     assert_eq!(!with_fenicsx, stderr.contains("FEniCSx is not installed"), "{stderr}");
+    // ... and lists it in the report, with how to install it.
+    let skipped = v["skipped"].as_array().expect("skipped");
+    assert_eq!(
+        !with_fenicsx,
+        skipped.iter().any(|s| s["solver"] == "FEniCSx"
+            && s["reason"]
+                .as_str()
+                .is_some_and(|r| r.contains("apt-get install python3-dolfinx"))),
+        "{skipped:?}"
+    );
+    // The progress lines (solver, size, expected time) are for a terminal only.
+    assert!(!stderr.contains("unknowns, expected about"), "{stderr}");
     let skfem = find("scikit-fem");
     assert!(skfem["max_rel_freq_diff"].as_f64().unwrap() < 1e-6);
     assert!(skfem["min_mac_isolated"].as_f64().unwrap() > 0.999);
@@ -1530,6 +1542,52 @@ fn a_second_scenario_of_the_same_part_reuses_its_meshes() {
     std::fs::remove_dir_all(&cache).unwrap();
     let (hits, _) = run(&path, &[("VES_MESH_CACHE", "off")]);
     assert_eq!((hits, entries()), (0, 0));
+}
+
+/// A warning that belongs to a mesh is said in full on the run that made it, and a cached run
+/// of the same part says it in one short line (not the full text again): the crankshaft of
+/// cases/corpus at this size has curved tets made straight-sided. The JSON says which run read
+/// the cache, and VES_LOG=info still has the full text.
+#[test]
+fn a_cached_mesh_says_its_warnings_once() {
+    let step = Path::new(env!("CARGO_MANIFEST_DIR")).join("../cases/corpus/crankshaft.step");
+    let (dir, scene) = workdir(&format!(
+        "name = \"crank\"\n[geometry]\nstep = {:?}\nunit = \"mm\"\n[material]\nyoung = 2.1e11\n\
+         poisson = 0.3\ndensity = 7850.0\n[mesh]\nsize = 0.0035\norder = 2\nerror_estimate = false\n\
+         [modes]\ncount = 4\n",
+        step.display().to_string()
+    ));
+    let cache = dir.path().join("cache");
+    let run = |log: &str| {
+        let o = Command::new(env!("CARGO_BIN_EXE_ves"))
+            .args(["precompute", scene.to_str().unwrap(), "--force", "--json", "-o"])
+            .arg(dir.path().join("c.h5"))
+            .env("VES_CACHE_DIR", &cache)
+            .env("VES_LOG", log)
+            .output()
+            .expect("ves runs");
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        let cached = last_json(&o)["spaces"][0]["meshing"]["cached"]
+            .as_bool()
+            .expect("meshing.cached");
+        (String::from_utf8_lossy(&o.stderr).into_owned(), cached)
+    };
+    let full = "were made straight-sided (their faces are flat there";
+    let (made, cached) = run("warn");
+    assert!(!cached);
+    assert!(made.contains(full), "{made}");
+    assert!(!made.contains("cached mesh"), "{made}");
+    let (again, cached) = run("warn");
+    assert!(cached);
+    let warnings: Vec<&str> = again.lines().filter(|l| l.contains("WARN")).collect();
+    assert_eq!(warnings.len(), 1, "{again}");
+    assert!(
+        warnings[0].contains("cached mesh: 1 warning(s) when it was made") && warnings[0].contains("straight-sided"),
+        "{again}"
+    );
+    assert!(!again.contains(full), "{again}");
+    let (info, _) = run("info");
+    assert!(info.contains("(cached mesh) meshed on rung 0"), "{info}");
 }
 
 /// The tags survive the mesh cache: a mesh read back from a cache entry carries the tags of the

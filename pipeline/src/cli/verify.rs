@@ -43,6 +43,9 @@ pub struct Args {
     /// Print the report as JSON.
     #[arg(long)]
     json: bool,
+    /// No progress lines on stderr (they are shown only on a terminal anyway).
+    #[arg(long, short)]
+    quiet: bool,
 }
 
 impl Args {
@@ -55,7 +58,14 @@ impl Args {
             stress: self.tol_stress,
             load: self.tol_load,
         };
-        let report = verify::verify_input(&self.input, self.against, self.modes, &tol, self.stress)?;
+        // Each step and reference solver is announced with its size and expected time, above a
+        // spinner with the elapsed time (a reference can take many minutes on a fine mesh).
+        let visible = !self.quiet && std::io::IsTerminal::is_terminal(&std::io::stderr());
+        let report = {
+            let _watching =
+                ves_pipeline::progress::watch(std::sync::Arc::new(ves_pipeline::progress::Terminal::new(visible)));
+            verify::verify_input(&self.input, self.against, self.modes, &tol, self.stress)?
+        };
         if self.json {
             super::print_json(&report)?;
         } else {
@@ -118,8 +128,14 @@ fn print_table(report: &VerifyReport) {
             r.max_rel_freq_diff, r.min_mac_isolated
         );
     }
+    for s in &report.skipped {
+        println!("\n{}: SKIPPED ({})", s.solver, s.reason);
+    }
     if !report.loads.is_empty() {
-        println!("\nload cases against CalculiX *STATIC (same mesh, same nodal loads):");
+        println!(
+            "\nload cases against CalculiX *STATIC (same mesh, same nodal loads{}):",
+            report.loads_seconds.map_or(String::new(), |t| format!(", {t:.1} s"))
+        );
         println!("  load                 kind      max |u| (m)   rel. diff (max norm)  reaction diff  tolerance");
         for l in &report.loads {
             println!(

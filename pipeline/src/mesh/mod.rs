@@ -217,20 +217,24 @@ pub fn generate_with(
     quiet: bool,
 ) -> Result<(Mesh, Meshing), MeshError> {
     let mut part = Part::read(Request::new(scene, voi, field, quiet))?;
-    if let Some((mesh, meshing)) = part.cached() {
+    if let Some((mesh, mut meshing)) = part.cached() {
         tracing::info!(nodes = mesh.nodes.len(), "mesh cache hit");
+        // Its warnings were said in full on the run that made it; the caller sums them up in
+        // one line (`problem::mesh_with_supports`), and VES_LOG=info has them here.
         if meshing.straightened > 0 || meshing.rung > 0 {
-            notice(
-                &part.request,
-                format!(
-                    "{}: (cached mesh) meshed on rung {} ({}); {} curved tets made straight-sided",
-                    part.request.geometry.display(),
-                    meshing.rung,
-                    meshing.strategy,
-                    meshing.straightened
-                ),
+            tracing::info!(
+                "{}: (cached mesh) meshed on rung {} ({}); {} of {} curved tets were invalid after order 2, \
+                 gmsh repaired {}, {} were made straight-sided",
+                part.request.geometry.display(),
+                meshing.rung,
+                meshing.strategy,
+                meshing.distorted,
+                mesh.tet_count(),
+                meshing.repaired_by_gmsh,
+                meshing.straightened
             );
         }
+        meshing.cached = true;
         return Ok((mesh, meshing));
     }
     let made = part.mesh()?;
@@ -925,6 +929,27 @@ pub struct Meshing {
     pub optimize_s: f64,
     /// The element size used, m (the scene's, or the one picked when it left it open).
     pub size: f64,
+    /// Read from the mesh cache (made by an earlier run, which said its warnings in full).
+    #[serde(default)]
+    pub cached: bool,
+}
+
+impl Meshing {
+    /// The warnings the making of this mesh gave, in a few words each (meshed on a later rung
+    /// of the ladder, curved tets made straight-sided): what a cached run sums up in one line.
+    pub fn warnings_when_made(&self) -> Vec<String> {
+        let mut w = Vec::new();
+        if self.rung > 0 {
+            w.push(format!(
+                "meshed on rung {} ({}) of the meshing ladder",
+                self.rung, self.strategy
+            ));
+        }
+        if self.straightened > 0 {
+            w.push(format!("{} curved tets made straight-sided", self.straightened));
+        }
+        w
+    }
 }
 
 /// A scene without `mesh.size` starts at this fraction of the part's largest extent.

@@ -180,12 +180,98 @@ pub struct VerifyReport {
     pub load_direction: [f64; 3],
     /// One entry per reference.
     pub references: Vec<ReferenceReport>,
+    /// The references `--against all` left out (not installed, or not applicable), and why.
+    pub skipped: Vec<Skipped>,
     /// Every reference within tolerances.
     pub pass: bool,
     /// A scene's static load cases against CalculiX `*STATIC` (absent without loads or when
     /// CalculiX is not among the references).
     #[serde(skip_serializing_if = "Vec::is_empty")]
     pub loads: Vec<loads::LoadComparison>,
+    /// Wall time of the load cases' CalculiX run, s (absent when there was none).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub loads_seconds: Option<f64>,
+}
+
+/// A reference left out of the comparison.
+#[derive(Debug, Serialize)]
+pub struct Skipped {
+    /// Which (`scikit-fem`, `CalculiX`, `FEniCSx`, or `CalculiX *STATIC` for the load cases).
+    pub solver: &'static str,
+    /// Why, and how to include it.
+    pub reason: String,
+}
+
+impl Reference {
+    /// The solver's short name.
+    pub fn label(self) -> &'static str {
+        match self {
+            Reference::ScikitFem => "scikit-fem",
+            Reference::Calculix => "CalculiX",
+            Reference::Fenicsx => "FEniCSx",
+            Reference::All => "all",
+        }
+    }
+}
+
+/// Why reference `r` cannot run here (a program or module missing), with how to install it.
+fn missing(r: Reference) -> Option<String> {
+    match r {
+        Reference::ScikitFem => (!python_has("skfem") || !python_has("h5py"))
+            .then(|| "scikit-fem is not installed for python3: run `pip install scikit-fem h5py scipy`".to_string()),
+        Reference::Calculix => Command::new("ccx")
+            .arg("-v")
+            .output()
+            .is_err()
+            .then(|| "CalculiX (ccx) is not installed: run `apt-get install calculix-ccx`".to_string()),
+        Reference::Fenicsx => fenicsx_python().is_none().then(|| {
+            "FEniCSx is not installed: run `apt-get install python3-dolfinx python3-slepc4py` (Debian 12)".to_string()
+        }),
+        Reference::All => None,
+    }
+}
+
+/// Expected wall time of a reference run, `a·n^b` seconds for `n` unknowns: `(a, b)` fitted on
+/// cases/cantilever at three mesh sizes on the 2-core VM (docs/validation.md, "Progress and
+/// expected time"). `None` where nothing was measured.
+pub fn time_model(r: Reference) -> Option<(f64, f64)> {
+    match r {
+        Reference::ScikitFem => Some(SKFEM_TIME),
+        Reference::Calculix => Some(CCX_TIME),
+        Reference::Fenicsx | Reference::All => None,
+    }
+}
+
+/// `(a, b)` of [`time_model`] for scikit-fem (eigsh shift-invert with SuperLU).
+const SKFEM_TIME: (f64, f64) = (3.634e-5, 1.367);
+/// `(a, b)` of [`time_model`] for CalculiX `*FREQUENCY` (its SPOOLES).
+const CCX_TIME: (f64, f64) = (1.267e-4, 1.168);
+/// `(a, b)` of the load cases' CalculiX `*STATIC` run, per load case.
+pub const CCX_STATIC_TIME: (f64, f64) = (8.839e-5, 1.011);
+
+/// A duration for a person: "12 s", "3.4 min", "1.2 h".
+pub fn human_seconds(s: f64) -> String {
+    if s < 1.0 {
+        "under 1 s".to_string()
+    } else if s < 90.0 {
+        format!("{s:.0} s")
+    } else if s < 5400.0 {
+        format!("{:.1} min", s / 60.0)
+    } else {
+        format!("{:.1} h", s / 3600.0)
+    }
+}
+
+/// The line said before reference `r` runs on `n` unknowns.
+fn announce(r: Reference, n: usize) -> String {
+    match time_model(r) {
+        Some((a, b)) => format!(
+            "{}: {n} unknowns, expected about {} (a·n^b model, docs/validation.md)",
+            r.label(),
+            human_seconds(a * (n as f64).powf(b))
+        ),
+        None => format!("{}: {n} unknowns (no timing measured for it)", r.label()),
+    }
 }
 
 const SKFEM: &str = include_str!("skfem_ref.py");
@@ -245,11 +331,14 @@ pub fn verify_input(
     let mut scene = None;
     let (d, ours) = if is_scene {
         let sc = Scene::load(input)?;
+        crate::progress::stage("meshing and assembling", 0.0)?;
         let d = discretize(&sc, None)?;
+        crate::progress::stage(&format!("our modes: {} unknowns", d.dofs.free_count()), 0.0)?;
         let (ours, _) = solve(&d, modes.unwrap_or(sc.modes.count), SolverChoice::Arpack)?;
         scene = Some(sc);
         (d, ours)
     } else {
+        crate::progress::stage("reading the basis and rebuilding its stiffness and mass", 0.0)?;
         discretize_basis(input, modes)?
     };
     if stress && !matches!(refs, Reference::Calculix | Reference::All) {
@@ -257,9 +346,32 @@ pub fn verify_input(
     }
     let name = input.display().to_string();
     let mut report = verify(&name, &d, &ours, refs, overrides, stress)?;
-    if let Some(sc) = scene.filter(|_| matches!(refs, Reference::Calculix | Reference::All)) {
-        report.loads = loads::compare_loads(&name, &sc, &d, overrides.load)?;
-        report.pass &= report.loads.iter().all(|l| l.pass);
+    let with_calculix = report.references.iter().any(|r| r.solver.contains("CalculiX"));
+    if let Some(sc) = scene.filter(|s| !s.loads.is_empty() && matches!(refs, Reference::Calculix | Reference::All)) {
+        if with_calculix {
+            let (a, b) = CCX_STATIC_TIME;
+            let n = d.dofs.free_count();
+            let expected = sc.loads.len() as f64 * a * (n as f64).powf(b);
+            crate::progress::stage(
+                &format!(
+                    "CalculiX *STATIC: {} load case(s), {n} unknowns, expected about {} (docs/validation.md)",
+                    sc.loads.len(),
+                    human_seconds(expected)
+                ),
+                1.0,
+            )?;
+            let t = std::time::Instant::now();
+            report.loads = loads::compare_loads(&name, &sc, &d, overrides.load)?;
+            report.loads_seconds = Some(t.elapsed().as_secs_f64());
+            report.pass &= report.loads.iter().all(|l| l.pass);
+        } else {
+            let reason = "the load cases are checked with CalculiX, which did not run".to_string();
+            tracing::warn!("CalculiX *STATIC skipped: {reason}");
+            report.skipped.push(Skipped {
+                solver: "CalculiX *STATIC",
+                reason,
+            });
+        }
     }
     Ok(report)
 }
@@ -327,21 +439,35 @@ fn verify(
     overrides: &ToleranceOverrides,
     stress: bool,
 ) -> Result<VerifyReport> {
-    let list = match refs {
-        Reference::All => {
-            let mut all = vec![Reference::ScikitFem, Reference::Calculix];
-            if fenicsx_python().is_some() {
-                all.push(Reference::Fenicsx);
-            } else {
-                tracing::warn!(
-                    "--against all: FEniCSx is not installed, so it is left out; to include it: \
-                     apt-get install python3-dolfinx python3-slepc4py (Debian 12)"
-                );
-            }
-            all
-        }
+    let candidates = match refs {
+        Reference::All => vec![Reference::ScikitFem, Reference::Calculix, Reference::Fenicsx],
         r => vec![r],
     };
+    let (mut list, mut skipped) = (Vec::new(), Vec::new());
+    for r in candidates {
+        // A free part: CalculiX's *FREQUENCY deck here has no shift for its rigid modes.
+        let free = (r == Reference::Calculix && d.rigid > 0).then(|| {
+            format!(
+                "the part is free ({} rigid modes) and the CalculiX reference runs on supported parts only",
+                d.rigid
+            )
+        });
+        match (missing(r), free) {
+            (Some(reason), _) if refs != Reference::All => bail!("{input}: {reason}"),
+            (Some(reason), _) | (None, Some(reason)) => {
+                tracing::warn!("{} skipped: {reason}", r.label());
+                skipped.push(Skipped {
+                    solver: r.label(),
+                    reason,
+                });
+            }
+            (None, None) => list.push(r),
+        }
+    }
+    if list.is_empty() {
+        let why: Vec<String> = skipped.iter().map(|s| format!("{}: {}", s.solver, s.reason)).collect();
+        bail!("{input}: no reference solver could run ({})", why.join("; "));
+    }
     let n = d.mesh.nodes.len();
     let nf = d.dofs.free_count();
     // Load: 1 N at the node that moves most in the first mode, along that motion.
@@ -376,7 +502,8 @@ fn verify(
     write_problem(&dir_tmp.join("problem.h5"), d, ours, &load, load_node)?;
 
     let mut reports = Vec::new();
-    for r in list {
+    for (i, &r) in list.iter().enumerate() {
+        crate::progress::stage(&announce(r, nf), i as f64 / list.len() as f64)?;
         let t = std::time::Instant::now();
         let result = dir_tmp.join(format!("{r:?}.h5"));
         let problem = dir_tmp.join("problem.h5");
@@ -387,9 +514,6 @@ fn verify(
         };
         match r {
             Reference::ScikitFem => {
-                if !python_has("skfem") || !python_has("h5py") {
-                    bail!("scikit-fem is not installed for python3: run `pip install scikit-fem h5py scipy`");
-                }
                 let py = script("skfem_ref.py", SKFEM)?;
                 run_checked(
                     input,
@@ -398,13 +522,6 @@ fn verify(
                 )?;
             }
             Reference::Calculix => {
-                if Command::new("ccx").arg("-v").output().is_err() {
-                    bail!("CalculiX (ccx) is not installed: run `apt-get install calculix-ccx`");
-                }
-                if d.rigid > 0 {
-                    tracing::warn!("CalculiX reference skipped: the part has rigid modes");
-                    continue;
-                }
                 let py = script("ccx_ref.py", CCX)?;
                 run_checked(
                     input,
@@ -414,9 +531,7 @@ fn verify(
             }
             Reference::Fenicsx => {
                 let Some(fx) = fenicsx_python() else {
-                    bail!(
-                        "FEniCSx is not installed: run `apt-get install python3-dolfinx python3-slepc4py` (Debian 12)"
-                    );
+                    bail!("{input}: FEniCSx disappeared while ves verify ran");
                 };
                 let bridge = script("fx_bridge.py", FX_BRIDGE)?;
                 run_checked(
@@ -463,8 +578,10 @@ fn verify(
         load_node,
         load_direction: dir,
         references: reports,
+        skipped,
         pass,
         loads: Vec::new(),
+        loads_seconds: None,
     })
 }
 
@@ -781,6 +898,34 @@ mod tests {
             let e = compare(&d, &ours, &path, None, 0, &tol, None).expect_err("refused");
             assert!(e.to_string().contains("unusable"), "{name}: {e}");
         }
+    }
+
+    /// The time model reproduces what it was fitted on (cases/cantilever at mesh.size 0.025,
+    /// 0.018 and 0.013: docs/validation.md) within 20 %, and the announcement names the solver,
+    /// the size and the expected time.
+    #[test]
+    fn the_expected_time_follows_the_measured_runs() {
+        let measured = [
+            (Reference::ScikitFem, [(11652, 14.4), (26082, 33.1), (59751, 133.9)]),
+            (Reference::Calculix, [(11652, 7.1), (26082, 18.6), (59751, 47.8)]),
+        ];
+        for (r, runs) in measured {
+            let (a, b) = time_model(r).expect("a model");
+            for (n, t) in runs {
+                let model = a * (n as f64).powf(b);
+                assert!(
+                    (model / t - 1.0).abs() < 0.2,
+                    "{r:?} at {n}: model {model:.1} s, measured {t} s"
+                );
+            }
+        }
+        assert_eq!(
+            announce(Reference::ScikitFem, 59751),
+            "scikit-fem: 59751 unknowns, expected about 2.0 min (a·n^b model, docs/validation.md)"
+        );
+        assert!(announce(Reference::Fenicsx, 10).contains("no timing measured"));
+        assert_eq!(human_seconds(0.2), "under 1 s");
+        assert_eq!(human_seconds(7200.0), "2.0 h");
     }
 
     /// Two modes that swap order between the discretisations are paired by shape; a shared

@@ -35,7 +35,24 @@ with h5py.File(h5, "r") as f:
             v = meshio.read(f"{out}/{name}_vertices.vtu")
             assert np.array_equal(v.points, nodes[:nv]) and np.array_equal(v.cells[0].data, tets[:, :4])
             stress = g["modes/stress"][:]
-            for j, k in enumerate(sorted(k for k in v.point_data if k.startswith("mode_"))):
+            plain = sorted(k for k in v.point_data if k.startswith("mode_") and k.endswith("_stress"))
+            assert len(plain) == basis.shape[1], (name, plain)
+            for j, k in enumerate(plain):
                 want = stress[:, j].reshape(nv, 6)[:, [0, 1, 2, 5, 3, 4]]
                 assert np.array_equal(v.point_data[k], want), (name, k)
+                # Scaled to 1 mm of the mode's peak displacement magnitude (over every node):
+                # the mode times the factor peaks at exactly 1 mm, and the stress arrays are the
+                # plain ones times that factor.
+                peak = np.linalg.norm(basis[:, j].reshape(-1, 3), axis=1).max()
+                scale = 1e-3 / peak
+                assert np.isclose(np.linalg.norm(scale * basis[:, j].reshape(-1, 3), axis=1).max(), 1e-3, rtol=1e-14)
+                assert np.isclose(v.field_data["peak_displacement_m"].ravel()[j], peak, rtol=1e-15), (name, j)
+                assert np.isclose(v.field_data["per_mm_scale"].ravel()[j], scale, rtol=1e-15), (name, j)
+                per_mm = v.point_data[k + "_per_mm"]
+                assert np.allclose(per_mm, want * scale, rtol=1e-14, atol=0), (name, k)
+                s = want * scale  # VTK order xx yy zz xy yz xz
+                vm = np.sqrt(0.5 * ((s[:, 0] - s[:, 1]) ** 2 + (s[:, 1] - s[:, 2]) ** 2 + (s[:, 2] - s[:, 0]) ** 2)
+                             + 3 * (s[:, 3] ** 2 + s[:, 4] ** 2 + s[:, 5] ** 2))
+                got = v.point_data[k.replace("_stress", "_von_mises_per_mm")].ravel()
+                assert np.allclose(got, vm, rtol=1e-12, atol=0), (name, k)
 print("ok")
