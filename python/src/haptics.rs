@@ -493,7 +493,7 @@ fn spaces_for(py: Python<'_>, basis: &Basis, space: Option<&str>, modes: Option<
                 .map(|(t, &r_from_all)| t.map(|t| truncated_transfer(&t, r_from_all, r_to, r_from_all.min(r))))
                 .collect();
             let basis = if r_to < b.mode_count() {
-                Arc::new(truncated(&b, r_to))
+                Arc::new(b.first_modes(r_to))
             } else {
                 b
             };
@@ -511,18 +511,6 @@ fn truncated_transfer(t: &[f64], width: usize, rows: usize, cols: usize) -> Vec<
         .collect()
 }
 
-/// The first `r` modes of a runtime basis.
-fn truncated(b: &ves_runtime::Basis, r: usize) -> ves_runtime::Basis {
-    let mut t = b.clone();
-    let n3 = 3 * b.vertex_count();
-    t.eigenvalues.truncate(r);
-    t.phi.truncate(r * n3);
-    if let Some(s) = &mut t.stress {
-        s.truncate(r * 6 * b.vertex_count());
-    }
-    t
-}
-
 /// Median time of one haptic step in Rust alone (the loop of `ves bench`: one hand grabbing a
 /// surface vertex and moving ±0.5 mm), ns, on the default space's first `modes` modes.
 #[pyfunction]
@@ -536,7 +524,7 @@ pub fn _rust_step_ns(
 ) -> PyResult<f64> {
     let rt = basis.space_ref(py, None)?.get().runtime.clone();
     let rt = match modes {
-        Some(r) if r >= 1 && r < rt.mode_count() => Arc::new(truncated(&rt, r)),
+        Some(r) if r >= 1 && r < rt.mode_count() => Arc::new(rt.first_modes(r)),
         _ => rt,
     };
     Ok(py.detach(|| ves_runtime::bench::haptic_step_ns(rt, batches.max(1), per_batch.max(1))))

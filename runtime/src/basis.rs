@@ -285,6 +285,23 @@ impl Basis {
             .filter(|b| b[0][0].is_finite())
     }
 
+    /// The same basis with only its first `r` modes (all of them when `r` is larger).
+    pub fn first_modes(&self, r: usize) -> Basis {
+        let (n, all) = (self.rest.len(), self.eigenvalues.len());
+        let r = r.min(all);
+        let mut t = self.clone();
+        t.eigenvalues.truncate(r);
+        t.phi.truncate(r * 3 * n);
+        if let Some(s) = &mut t.stress {
+            s.truncate(r * 6 * n);
+        }
+        // Vertex-major: keep the first r of each (vertex, component)'s `all` values.
+        if let Some(rows) = &mut t.contact_rows {
+            *rows = rows.chunks_exact(all).flat_map(|c| &c[..r]).copied().collect();
+        }
+        t
+    }
+
     /// Kept vertices.
     pub fn vertex_count(&self) -> usize {
         self.rest.len()
