@@ -46,11 +46,13 @@ fn grabbed_tip_settles_on_the_modal_static_response() {
         h.step(&input, &mut out);
     }
     assert_eq!(out[0].vertex as usize, tip);
-    // Force on the part F = −device force; modal static displacement Σ φφᵀF/λ.
+    // Force on the part F = −device force, spread over the tip's contact patch; the patch's
+    // modal static displacement Σ φ̄φ̄ᵀF/λ (φ̄ the patch-averaged rows the coupling reads).
     let f = out[0].force.map(|v| -v);
     let r = basis.mode_count();
     let mut rows = vec![0.0; 3 * r];
-    basis.gather_rows(tip, &mut rows);
+    basis.gather_contact_rows(tip, &mut rows);
+    assert!(basis.contact_radius > 0.0, "the default contact patch is stored");
     let mut u_static = [0.0; 3];
     for j in 0..r {
         let fj = (0..3).map(|c| rows[c * r + j] * f[c]).sum::<f64>();
@@ -58,13 +60,16 @@ fn grabbed_tip_settles_on_the_modal_static_response() {
             u_static[c] += rows[c * r + j] * fj / basis.eigenvalues[j];
         }
     }
-    let u = h.displacement(tip);
+    let u: [f64; 3] = std::array::from_fn(|c| out[0].vertex_position[c] - target[c]);
     for c in 0..3 {
         assert!(
             (u[c] - u_static[c]).abs() < 1e-6 * u_static[2].abs() + 1e-12,
             "u {u:?} vs {u_static:?}"
         );
     }
+    // The vertex itself moves with the modes (its own rows), close to its patch on a beam tip.
+    let own = h.displacement(tip);
+    assert!((own[2] / u[2] - 1.0).abs() < 0.05, "vertex {own:?} vs patch {u:?}");
     // And the coupling is in equilibrium: F = k (x − p).
     let fz = coupling.stiffness * (hip[2] - (target[2] + u[2]));
     assert!((f[2] - fz).abs() < 1e-6 * fz.abs(), "{} vs {fz}", f[2]);
@@ -259,14 +264,36 @@ fn static_correction_makes_the_felt_stiffness_exact_with_few_modes() {
     let tip = nearest(&basis, [1.0, 0.1, 0.05]);
     let node = basis.node_index[tip] as usize;
     let chol = factor_stiffness(&d.system, &d.dofs).expect("factor");
+    // The tip's contact patch as the file stores it: the force spread with its weights, the
+    // displacement read with them.
+    let contact = ves_format::BasisReader::open(&path)
+        .and_then(|f| f.space("global")?.contact())
+        .expect("read")
+        .expect("contact patches stored");
+    let k = contact
+        .centres
+        .binary_search(&(node as u32))
+        .expect("the tip has a patch");
+    let (nodes, weights) = contact.patch(k);
     let exact_u = |force: [f64; 3]| -> [f64; 3] {
         let mut f = vec![0.0; d.dofs.free_count()];
-        for c in 0..3 {
-            f[d.dofs.free_of[3 * node + c] as usize] = force[c];
+        for (&a, &w) in nodes.iter().zip(weights) {
+            for c in 0..3 {
+                let g = d.dofs.free_of[3 * a as usize + c];
+                if g != u32::MAX {
+                    f[g as usize] += w * force[c];
+                }
+            }
         }
         chol.solve_many_in_place(&mut f, 1);
         let u = d.dofs.expand(&f);
-        [u[3 * node], u[3 * node + 1], u[3 * node + 2]]
+        let mut out = [0.0; 3];
+        for (&a, &w) in nodes.iter().zip(weights) {
+            for c in 0..3 {
+                out[c] += w * u[3 * a as usize + c];
+            }
+        }
+        out
     };
     let settle = |correct: bool| {
         let coupling = Coupling {

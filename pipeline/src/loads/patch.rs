@@ -249,7 +249,7 @@ impl<'a> Surface<'a> {
             }
         }
         let total: f64 = loads.values().sum();
-        if !(total > 0.0) {
+        if total.is_nan() || total <= 0.0 {
             return None;
         }
         let mut pairs: Vec<(u32, f64)> = loads.into_iter().map(|(a, w)| (a, w / total)).collect();
