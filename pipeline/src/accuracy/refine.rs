@@ -164,6 +164,13 @@ impl Next {
                 .clamp(1.0 / 2.0, 1.0 / 1.2),
             _ => 1.0 / super::COARSENING,
         };
+        // A fixed step instead, for the benchmark that compares this sizing with plain halving
+        // (docs/accuracy.md "target_error").
+        let factor = std::env::var("VES_REFINE_FACTOR")
+            .ok()
+            .and_then(|v| v.parse::<f64>().ok())
+            .filter(|f| *f > 0.0 && *f < 1.0)
+            .unwrap_or(factor);
         let growth = local.as_ref().map_or(factor.powi(-3), |n| n.growth);
         Next {
             local,
