@@ -277,6 +277,8 @@ pub struct SpaceInfo {
     pub rigid_modes_dropped: u32,
     /// Vertices with a static-correction block (0: none stored).
     pub static_correction_vertices: usize,
+    /// The hand's contact patch radius, m (0: a point contact; files without `contact/`).
+    pub contact_radius_m: f64,
     /// How the mesh was made (the meshing ladder's rung), when the file says.
     pub meshing_strategy: Option<String>,
     /// Each mode's estimated relative discretization error, when the file has it.
@@ -341,6 +343,7 @@ pub fn info(path: &Path) -> Result<BasisInfo> {
             max_relative_residual: res.iter().fold(0.0, |a: f64, &b| a.max(b)),
             rigid_modes_dropped: s.rigid_modes_dropped,
             static_correction_vertices: s.compliance()?.map_or(0, |(n, _)| n.len()),
+            contact_radius_m: s.contact()?.map_or(0.0, |c| c.radius),
             meshing_strategy: s.meshing_strategy.clone(),
             estimated_relative_error: s.estimated_relative_error()?,
             loads: s

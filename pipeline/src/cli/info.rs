@@ -25,6 +25,12 @@ impl Args {
             } else {
                 String::new()
             };
+            let contact = if s.contact_radius_m > 0.0 {
+                format!(", hand contact patch {:.1} mm", 1e3 * s.contact_radius_m)
+            } else {
+                ", hand contact on one vertex".to_string()
+            };
+            let correction = format!("{contact}{correction}");
             let meshing = s
                 .meshing_strategy
                 .as_deref()
