@@ -229,7 +229,7 @@ impl<'a> Surface<'a> {
         if radius.is_nan() || radius <= 0.0 {
             return None;
         }
-        let mut seen: Vec<usize> = seeds.to_vec();
+        let mut seen: std::collections::HashSet<usize> = seeds.iter().copied().collect();
         let mut stack: Vec<usize> = seeds.to_vec();
         let mut loads: HashMap<u32, f64> = HashMap::new();
         while let Some(t) = stack.pop() {
@@ -243,7 +243,7 @@ impl<'a> Surface<'a> {
                     .iter()
                     .any(|&(u, v)| segment_distance(centre, u, v) < radius);
                 if near && dot(self.normals[o], normal) > MAX_TURN {
-                    seen.push(o);
+                    seen.insert(o);
                     stack.push(o);
                 }
             }
