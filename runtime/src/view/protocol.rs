@@ -30,7 +30,8 @@
 //! {…the scene's TOML tables as JSON…}}` and `{"type":"cancel"}` (the set-up panel, when the viewer has a workshop).
 //! Server → page, text, about a compute: `{"type":"progress","stage","fraction"}`,
 //! `{"type":"computed","summary","scene","seconds"}`, `{"type":"compute_error","message"}`; a
-//! new basis then comes as a new hello and its meshes. Anything else —
+//! new basis then comes as a new hello and its meshes. About a load case the file could not give
+//! (to the page that asked): `{"type":"load_error","space","index","message"}`. Anything else —
 //! binary, longer than [`MAX_MESSAGE`], not JSON, unknown fields, non-finite or far-away
 //! positions — is dropped and counted.
 
