@@ -278,10 +278,10 @@ fn static_correction_makes_the_felt_stiffness_exact_with_few_modes() {
     let exact_u = |force: [f64; 3]| -> [f64; 3] {
         let mut f = vec![0.0; d.dofs.free_count()];
         for (&a, &w) in nodes.iter().zip(weights) {
-            for c in 0..3 {
+            for (c, fc) in force.iter().enumerate() {
                 let g = d.dofs.free_of[3 * a as usize + c];
                 if g != u32::MAX {
-                    f[g as usize] += w * force[c];
+                    f[g as usize] += w * fc;
                 }
             }
         }

@@ -339,6 +339,170 @@ fn the_mouse_pulls_the_tip_in_a_real_browser_and_the_page_shows_the_static_respo
     assert!(held["latency_ms"].as_array().is_some_and(|l| !l.is_empty()), "{page}");
 }
 
+/// Issue 33: a basis with static load cases (the cantilever's `cases/cantilever/loads.toml` at a
+/// coarse size). The page offers them; choosing one draws the part deformed by the stored
+/// displacement times the page's scale (automatic: the largest displacement at 8 % of the part)
+/// and coloured by the stored von Mises stress, the legend's top the file's largest; the hands
+/// are off while it is shown and work again after "none"; load requests for unknown cases, other
+/// spaces or of the wrong shape are dropped and counted, a good one is answered.
+#[test]
+fn a_load_case_is_chosen_in_the_page_and_drawn_from_the_file() {
+    let dir = tempfile::tempdir().expect("a temporary directory");
+    let cases = Path::new(env!("CARGO_MANIFEST_DIR")).join("../cases/cantilever");
+    std::fs::copy(cases.join("cantilever.step"), dir.path().join("cantilever.step")).expect("copy the part");
+    let scene = std::fs::read_to_string(cases.join("loads.toml"))
+        .expect("the loads scene")
+        .replace("size = 0.025", "size = 0.05")
+        .replace("count = 20", "count = 8");
+    let scene = write_file(dir.path(), "loads.toml", &scene);
+    let basis = dir.path().join("loads.h5");
+    let o = ves(&["precompute", scene.to_str().unwrap(), "-o", basis.to_str().unwrap()]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+
+    let (server, out, url) = serve(&basis, "0");
+    let web = Path::new(env!("CARGO_MANIFEST_DIR")).join("../runtime/web");
+    let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/view/loads.mjs");
+    let browser = Command::new("node")
+        .arg(&script)
+        .arg(&url)
+        .arg(&web)
+        .arg(dir.path())
+        .arg("tip")
+        .output()
+        .expect("node runs (scripts/setup installs it)");
+    let rest = finish(server, out, &browser);
+    if let Ok(keep) = std::env::var("VES_VIEW_SCREENSHOTS") {
+        std::fs::copy(dir.path().join("load_case.png"), Path::new(&keep).join("load_case.png"))
+            .expect("copy the screenshot");
+    }
+    let page: serde_json::Value = serde_json::from_slice(&browser.stdout).expect("the page's JSON");
+    let stats: serde_json::Value = serde_json::from_str(rest.lines().last().expect("stats line")).expect("stats JSON");
+    assert_eq!(page["errors"].as_array().map(Vec::len), Some(0), "page errors: {page}");
+
+    // What the file holds, and the vertices the server draws (surface corner vertices).
+    let file = ves_format::BasisReader::open(&basis).expect("the basis opens");
+    let space = file.space("global").expect("global");
+    let names = space.load_names().expect("load names");
+    let mut sorted = names.clone();
+    sorted.sort();
+    assert_eq!(sorted, ["gravity", "tip", "top_pressure"], "{names:?}");
+    let tip = space.load("tip").expect("the tip case");
+    let yield_strength = file
+        .material()
+        .expect("material")
+        .yield_strength
+        .expect("a yield strength");
+    let b = ves_runtime::basis::load(
+        &basis,
+        &ves_runtime::LoadOptions {
+            surface_only: true,
+            ..Default::default()
+        },
+    )
+    .expect("basis loads");
+
+    // Offered: every case, by name, kind and total force.
+    let offered = &page["offered"];
+    assert_eq!(offered["hidden"].as_bool(), Some(false), "{offered}");
+    let options = offered["options"].as_array().expect("options");
+    assert_eq!(options.len(), names.len() + 1, "none and each case: {offered}");
+    let tip_option = options
+        .iter()
+        .filter_map(|o| o["text"].as_str())
+        .find(|t| t.starts_with("tip:"))
+        .unwrap_or_else(|| panic!("no tip option: {offered}"));
+    assert_eq!(tip_option, "tip: force, 1.00 kN");
+
+    // Drawn: rest + k·u with u the file's displacement at that vertex's node (f32 on the way).
+    let shown = &page["shown"];
+    assert_eq!(shown["name"].as_str(), Some("tip"), "{shown}");
+    assert_eq!(shown["auto"].as_bool(), Some(true), "{shown}");
+    let k = shown["scale"].as_f64().unwrap();
+    let diag = shown["diag"].as_f64().unwrap();
+    // The automatic scale: the largest displacement at 8 % of the diagonal, rounded down to
+    // 1, 2 or 5 × 10ⁿ (1.5 mm on a 1 m beam: ×50).
+    let raw = 0.08 * diag / tip.max_displacement;
+    let p = 10f64.powf(raw.log10().floor());
+    let nice = [5.0, 2.0, 1.0].map(|m| m * p).into_iter().find(|v| *v <= raw).unwrap();
+    assert_eq!(k, nice, "{shown}");
+    for at in ["far", "mid"] {
+        let v = shown[at]["vertex"].as_u64().unwrap() as usize;
+        let node = b.node_index[v] as usize;
+        let (rest_p, drawn) = (vec3(&shown[at]["rest"]), vec3(&shown[at]["drawn"]));
+        let stored: [f64; 3] = std::array::from_fn(|c| tip.displacement[3 * node + c]);
+        let want = stored.map(|c| k * c);
+        let got = sub(drawn, rest_p);
+        let gap = norm(sub(got, want)) / norm(want);
+        assert!(
+            gap < 1e-5,
+            "{at} vertex {v} (node {node}): drawn − rest {got:?} vs {k} × stored {stored:?}: relative {gap:.2e}"
+        );
+        eprintln!("load case tip, {at} vertex {v}: drawn − rest {got:?} m = {k} × stored u (relative gap {gap:.1e})");
+    }
+    // The largest displacement of the case is drawn at the tip (x = 1 m).
+    assert!(vec3(&shown["far"]["rest"])[0] > 0.99, "{shown}");
+
+    // Coloured by its von Mises stress: the legend's top is the file's largest, stated with the
+    // safety factor against the basis's yield strength.
+    let legend = &shown["legend"];
+    assert_eq!(legend["load"].as_str(), Some("tip"), "{legend}");
+    let hi = legend["hi"].as_f64().unwrap();
+    assert!(
+        (hi / tip.max_von_mises - 1.0).abs() < 1e-12,
+        "legend top {hi} vs stored {}",
+        tip.max_von_mises
+    );
+    assert_eq!(legend["lo"].as_f64(), Some(0.0));
+    let hi_text = shown["legendHi"].as_str().unwrap();
+    let mpa: f64 = hi_text
+        .strip_suffix(" MPa")
+        .and_then(|v| v.parse().ok())
+        .unwrap_or_else(|| panic!("legend top {hi_text:?}"));
+    assert!(
+        (mpa * 1e6 / tip.max_von_mises - 1.0).abs() < 5e-3,
+        "{hi_text} vs {}",
+        tip.max_von_mises
+    );
+    assert!(
+        legend["title"]
+            .as_str()
+            .is_some_and(|t| t.starts_with("von Mises stress")),
+        "{legend}"
+    );
+    let note = shown["legendNote"].as_str().unwrap();
+    let sf = yield_strength / tip.max_von_mises;
+    assert!(
+        note.contains(&format!("safety factor {sf:.1}")),
+        "{note} (yield / max = {sf})"
+    );
+    assert!(
+        shown["note"].as_str().is_some_and(|t| t.contains("Hands are off")),
+        "{shown}"
+    );
+    assert_eq!(shown["colourDisabled"].as_bool(), Some(true));
+
+    // Hands off while shown, back after "none".
+    assert_eq!(page["handsDuring"], serde_json::json!([false, false]), "{page}");
+    assert_eq!(
+        page["back"]["legend"]["load"],
+        serde_json::Value::Null,
+        "{}",
+        page["back"]
+    );
+    assert_eq!(page["back"]["colourDisabled"].as_bool(), Some(false));
+    assert_eq!(page["handsAfter"][0].as_bool(), Some(true), "{page}");
+
+    // Five hostile load requests dropped and counted, the good one answered, frames go on.
+    let before = page["droppedBefore"].as_u64().unwrap();
+    assert_eq!(page["after"]["dropped"].as_u64(), Some(before + 5), "{page}");
+    assert_eq!(page["goodReplies"].as_u64(), Some(1), "{page}");
+    assert!(
+        page["after"]["frames"].as_u64() > page["framesBefore"].as_u64(),
+        "{page}"
+    );
+    assert_eq!(stats["messages_dropped"].as_u64(), Some(5), "{stats}");
+}
+
 /// A port in use is one line naming it and what to do, exit status non-zero.
 #[test]
 fn a_port_in_use_is_a_one_line_error() {

@@ -74,6 +74,9 @@ pub struct Basis {
     /// Supported components per kept vertex: bit c set when component c (x, y, z) is fixed
     /// (drawn as supports by the viewer).
     pub fixed: Vec<u8>,
+    /// The file this basis was loaded from (`None`: built in memory). The viewer reads the
+    /// space's static load cases from it when a page asks for one.
+    pub source: Option<std::path::PathBuf>,
 }
 
 impl Basis {
@@ -165,6 +168,7 @@ impl Basis {
             yield_strength: None,
             elastic: None,
             fixed: vec![0; n],
+            source: None,
         })
     }
 
@@ -476,6 +480,7 @@ mod file {
             s.rigid()?,
         )?;
         basis.voi = s.voi;
+        basis.source = Some(file.path().to_path_buf());
         // One per file triangle, in the file's order: `triangles` keeps them all and in order
         // (surface_only renumbers their vertices only).
         if let Some(faces) = s.surface_faces()? {

@@ -6,6 +6,7 @@
 //! this server's own page may use it, within connection limits ([`server`]).
 
 pub mod hands;
+pub mod loads;
 pub mod protocol;
 pub mod server;
 #[cfg(test)]
@@ -113,6 +114,10 @@ struct Generation {
     bases: Vec<Arc<crate::Basis>>,
     extent: Option<Extent>,
     basis_path: Option<PathBuf>,
+    /// Each space's static load cases (listed in the hello; read on request).
+    loads: Vec<loads::SpaceLoads>,
+    /// Their names, per space, for checking requests.
+    load_names: Vec<Vec<String>>,
 }
 
 /// Where the drawing thread's hook publishes (shared by every session the server runs).
@@ -321,11 +326,13 @@ impl Shared {
         Shared {
             hands: std::array::from_fn(|_| Arc::new(HandSlot::default())),
             generation: RwLock::new(Arc::new(Generation {
-                hello: hello(&[], cfg, workshop.as_deref()),
+                hello: hello(&[], &[], cfg, workshop.as_deref()),
                 meshes: Vec::new(),
                 bases: Vec::new(),
                 extent: None,
                 basis_path: None,
+                loads: Vec::new(),
+                load_names: Vec::new(),
             })),
             generations: watch::channel(0).0,
             frames,
@@ -423,8 +430,17 @@ fn swap(shared: &Arc<Shared>, spaces: Vec<SpaceInput>, basis_path: Option<PathBu
         h.release_any();
     }
     let bases: Vec<Arc<crate::Basis>> = spaces.iter().map(|s| s.basis.clone()).collect();
+    // The load cases are listed (and checked) now; their arrays are read again on request.
+    let space_loads: Vec<loads::SpaceLoads> = bases.iter().map(|b| loads::list(b)).collect();
+    for (b, l) in bases.iter().zip(&space_loads) {
+        if let Some(e) = &l.error {
+            eprintln!("ves view: space {:?} offers no load case: {e}", b.space);
+        }
+    }
     let generation = Generation {
-        hello: hello(&bases, &shared.cfg, shared.workshop.as_deref()),
+        hello: hello(&bases, &space_loads, &shared.cfg, shared.workshop.as_deref()),
+        load_names: space_loads.iter().map(loads::SpaceLoads::names).collect(),
+        loads: space_loads,
         meshes: bases
             .iter()
             .enumerate()
@@ -700,10 +716,17 @@ fn frame_encoder(bases: &[Arc<crate::Basis>], hands: &[Arc<HandSlot>; HANDS], ou
     })
 }
 
-fn hello(bases: &[Arc<crate::Basis>], cfg: &ViewConfig, workshop: Option<&dyn Workshop>) -> serde_json::Value {
+fn hello(
+    bases: &[Arc<crate::Basis>],
+    space_loads: &[loads::SpaceLoads],
+    cfg: &ViewConfig,
+    workshop: Option<&dyn Workshop>,
+) -> serde_json::Value {
     let spaces: Vec<_> = bases
         .iter()
-        .map(|b| {
+        .enumerate()
+        .map(|(i, b)| {
+            let l = space_loads.get(i);
             let (compliance, at) = b.largest_compliance();
             serde_json::json!({
                 "name": b.space,
@@ -714,6 +737,8 @@ fn hello(bases: &[Arc<crate::Basis>], cfg: &ViewConfig, workshop: Option<&dyn Wo
                 "voi": b.voi,
                 "has_stress": b.stress.is_some(),
                 "frequencies_hz": b.eigenvalues.iter().map(|l| l.sqrt() / (2.0 * std::f64::consts::PI)).collect::<Vec<_>>(),
+                "loads": l.map(|l| l.cases.clone()).unwrap_or_default(),
+                "loads_error": l.and_then(|l| l.error.clone()),
             })
         })
         .collect();
@@ -824,6 +849,10 @@ async fn client(mut socket: WebSocket, shared: Arc<Shared>) {
                 Some(Ok(Message::Text(t))) => match handle(&shared, id, t.as_str()) {
                     Reply::Send(reply) => ok = send(&mut socket, Message::Binary(reply)).await,
                     Reply::Note(text) => ok = send(&mut socket, Message::Text(text.into())).await,
+                    Reply::Load(space, index) => {
+                        let reply = load_case(&shared, space, index).await;
+                        ok = send(&mut socket, reply).await;
+                    }
                     Reply::Stress(on) if on != wants_stress => {
                         wants_stress = on;
                         want_stress(&shared, on);
@@ -940,6 +969,8 @@ enum Reply {
     Note(String),
     /// Send the stress frames, or stop.
     Stress(bool),
+    /// Send load case `.1` of space `.0` (read from the file first).
+    Load(usize, usize),
 }
 
 /// Applies one client message.
@@ -951,7 +982,7 @@ fn handle(shared: &Arc<Shared>, id: u64, text: &str) -> Reply {
     let Ok(g) = shared.generation.read().map(|g| g.clone()) else {
         return dropped();
     };
-    match protocol::parse(text, g.bases.len(), g.extent.as_ref()) {
+    match protocol::parse_with(text, g.bases.len(), g.extent.as_ref(), &g.load_names) {
         Ok(ClientMessage::Hand(h, c)) => {
             if shared.hands[h].command(id, &c) {
                 Reply::None
@@ -964,6 +995,7 @@ fn handle(shared: &Arc<Shared>, id: u64, text: &str) -> Reply {
             None => dropped(),
         },
         Ok(ClientMessage::Fields { stress }) => Reply::Stress(stress),
+        Ok(ClientMessage::Load { space, index }) => Reply::Load(space, index),
         Ok(ClientMessage::Reset) => {
             for h in &shared.hands {
                 h.release_any();
@@ -983,6 +1015,38 @@ fn handle(shared: &Arc<Shared>, id: u64, text: &str) -> Reply {
             tracing_drop(id, &e);
             dropped()
         }
+    }
+}
+
+/// Load case `index` of `space` of the basis served now, read from its file (off the server's
+/// thread) and encoded as kind 4; or, if the file cannot give it, a `load_error` note for this
+/// page. A client's requests are answered one after the other (its own loop waits), so a page
+/// asking again and again only slows itself.
+async fn load_case(shared: &Shared, space: usize, index: usize) -> Message {
+    let g = shared.generation.read().ok().map(|g| Arc::clone(&g));
+    let found = g.and_then(|g| {
+        let basis = g.bases.get(space)?.clone();
+        let l = g.loads.get(space)?;
+        Some((basis, l.cases.get(index)?.name.clone(), l.node_count))
+    });
+    let read = match found {
+        // The basis changed between the request and now: the page gets the new hello anyway.
+        None => Err("the basis changed; choose the load case again".to_string()),
+        Some((basis, name, nodes)) => tokio::task::spawn_blocking(move || {
+            let case = loads::read(&basis, &name, nodes)?;
+            loads::encode(space, index, &basis, &case)
+                .ok_or_else(|| format!("load case {name:?} does not fit the basis served: the file changed"))
+        })
+        .await
+        .unwrap_or_else(|e| Err(format!("reading the load case failed: {e}"))),
+    };
+    match read {
+        Ok(b) => Message::Binary(Bytes::from(b)),
+        Err(message) => Message::Text(
+            serde_json::json!({"type": "load_error", "space": space, "index": index, "message": message})
+                .to_string()
+                .into(),
+        ),
     }
 }
 

@@ -16,16 +16,22 @@
 //!   space, nv, frame seq; f32 von Mises[nv], largest principal stress[nv] (Pa).
 //! - kind 2, a mode shape: u32 kind, space, mode, nv; f32 frequency (Hz); f32 φ[3nv] scaled to
 //!   max |φ| = 1.
+//! - kind 4, a static load case (only to the page that asked, see `load`): u32 kind, space, nv,
+//!   index (in the hello's `spaces[s].loads`); f64 largest displacement (m) and largest von Mises
+//!   stress (Pa) of the whole part; f32 u[3nv] (m), von Mises[nv] (Pa) ([`super::loads::encode`]).
 //!
 //! Server → page, text: JSON objects `hello` (once) and `status` (≈ 20 Hz).
 //! Page → server, text only: `{"type":"hand","hand":0|1,"active":bool,"button":bool,
 //! "position":[x,y,z],"seq":n}`, `{"type":"mode","space":s,"index":j}`,
-//! `{"type":"fields","stress":bool}` (send the stress frames or not; off at first) and
+//! `{"type":"fields","stress":bool}` (send the stress frames or not; off at first),
+//! `{"type":"load","space":s,"name":"…"}` (send load case `name` of space s once, as kind 4: it
+//! must be one the hello listed for that space) and
 //! `{"type":"reset"}` (the part back to rest, every hand let go), `{"type":"compute","scene":
 //! {…the scene's TOML tables as JSON…}}` and `{"type":"cancel"}` (the set-up panel, when the viewer has a workshop).
 //! Server → page, text, about a compute: `{"type":"progress","stage","fraction"}`,
 //! `{"type":"computed","summary","scene","seconds"}`, `{"type":"compute_error","message"}`; a
-//! new basis then comes as a new hello and its meshes. Anything else —
+//! new basis then comes as a new hello and its meshes. About a load case the file could not give
+//! (to the page that asked): `{"type":"load_error","space","index","message"}`. Anything else —
 //! binary, longer than [`MAX_MESSAGE`], not JSON, unknown fields, non-finite or far-away
 //! positions — is dropped and counted.
 
@@ -174,6 +180,10 @@ enum Raw {
         stress: bool,
     },
     Reset {},
+    Load {
+        space: usize,
+        name: String,
+    },
     Compute {
         scene: serde_json::Value,
     },
@@ -199,6 +209,13 @@ pub enum ClientMessage {
     },
     /// The part back to rest, every hand let go.
     Reset,
+    /// Send a static load case.
+    Load {
+        /// Space.
+        space: usize,
+        /// The case's index in that space's list (the hello's `loads`).
+        index: usize,
+    },
     /// Compute a basis from this scene (TOML text) and move the session to it.
     Compute {
         /// The scene: its TOML tables and keys as JSON.
@@ -230,8 +247,20 @@ impl Extent {
     }
 }
 
-/// Parses and checks a text message; `Err` says why it was dropped.
+/// Parses and checks a text message; `Err` says why it was dropped. No space has load cases
+/// (see [`parse_with`]).
 pub fn parse(text: &str, spaces: usize, extent: Option<&Extent>) -> Result<ClientMessage, String> {
+    parse_with(text, spaces, extent, &[])
+}
+
+/// [`parse`] where `loads[s]` names the load cases of space s (a space beyond `loads` has none):
+/// a load request must name one of them.
+pub fn parse_with(
+    text: &str,
+    spaces: usize,
+    extent: Option<&Extent>,
+    loads: &[Vec<String>],
+) -> Result<ClientMessage, String> {
     if text.len() > MAX_MESSAGE {
         return Err(format!("{} bytes (at most {MAX_MESSAGE})", text.len()));
     }
@@ -269,6 +298,15 @@ pub fn parse(text: &str, spaces: usize, extent: Option<&Extent>) -> Result<Clien
         Raw::Mode { space, .. } => Err(format!("space {space} of {spaces}")),
         Raw::Fields { stress } => Ok(ClientMessage::Fields { stress }),
         Raw::Reset {} => Ok(ClientMessage::Reset),
+        Raw::Load { space, .. } if space >= spaces => Err(format!("load case of space {space} of {spaces}")),
+        Raw::Load { space, name } => match loads.get(space).and_then(|l| l.iter().position(|n| *n == name)) {
+            Some(index) => Ok(ClientMessage::Load { space, index }),
+            // Not echoed whole: a hostile page's name may be 32 kB.
+            None => Err(format!(
+                "no load case {:?} in space {space}",
+                name.chars().take(40).collect::<String>()
+            )),
+        },
         Raw::Compute { scene } => Ok(ClientMessage::Compute { scene }),
         Raw::Cancel {} => Ok(ClientMessage::Cancel),
     }
@@ -325,6 +363,8 @@ mod tests {
         for b in bad {
             assert!(parse(b, 1, Some(&E)).is_err(), "{b}");
         }
+        let long = format!(r#"{{"type":"load","space":0,"name":"{}"}}"#, "x".repeat(40_000));
+        assert!(parse(&long, 1, Some(&E)).unwrap_err().contains("bytes"));
         let long = format!(
             r#"{{"type":"mode","space":0,"index":0,"pad":"{}"}}"#,
             "x".repeat(40_000)
@@ -339,5 +379,41 @@ mod tests {
             )
             .is_err()
         );
+    }
+
+    /// A load request names a case the hello listed for that space; anything else (an unknown
+    /// or foreign name, another space, a missing or mistyped field, an extra field) is refused.
+    #[test]
+    fn a_load_request_must_name_a_listed_case_of_a_served_space() {
+        let loads = vec![vec!["tip".to_string(), "gravity".to_string()], Vec::new()];
+        let parse = |t: &str| parse_with(t, 2, Some(&E), &loads);
+        assert_eq!(
+            parse(r#"{"type":"load","space":0,"name":"gravity"}"#),
+            Ok(ClientMessage::Load { space: 0, index: 1 })
+        );
+        let bad = [
+            r#"{"type":"load","space":0,"name":"nope"}"#,
+            r#"{"type":"load","space":1,"name":"tip"}"#,
+            r#"{"type":"load","space":2,"name":"tip"}"#,
+            r#"{"type":"load","space":-1,"name":"tip"}"#,
+            r#"{"type":"load","space":0,"name":"TIP"}"#,
+            r#"{"type":"load","space":0,"name":"tip\u0000"}"#,
+            r#"{"type":"load","space":0,"name":"../tip"}"#,
+            r#"{"type":"load","space":0,"name":7}"#,
+            r#"{"type":"load","space":0}"#,
+            r#"{"type":"load","name":"tip"}"#,
+            r#"{"type":"load","space":0,"name":"tip","index":0}"#,
+            r#"{"type":"load","space":1e99,"name":"tip"}"#,
+            r#"{"type":"load","space":0,"name":null}"#,
+        ];
+        for b in bad {
+            assert!(parse(b).is_err(), "{b}");
+        }
+        // The reason quotes at most 40 characters of a long name.
+        let long = format!(r#"{{"type":"load","space":0,"name":"{}"}}"#, "y".repeat(20_000));
+        let why = parse(&long).unwrap_err();
+        assert!(why.len() < 120, "{why}");
+        // Without a list, no space has load cases.
+        assert!(super::parse(r#"{"type":"load","space":0,"name":"tip"}"#, 2, Some(&E)).is_err());
     }
 }

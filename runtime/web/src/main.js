@@ -4,7 +4,7 @@
 // a status (JSON). Only the drawing is magnified, by the deformation scale.
 import * as THREE from 'three';
 import { OrbitControls } from 'three/examples/jsm/controls/OrbitControls.js';
-import { decodeFrame, decodeMesh, decodeMode, decodeStress } from './protocol.js';
+import { decodeFrame, decodeLoad, decodeMesh, decodeMode, decodeStress } from './protocol.js';
 import { fieldOf, REST_FORCE } from './field.js';
 import { gradient, sequential } from './colours.js';
 import { label, plain } from './units.js';
@@ -44,6 +44,8 @@ const state = {
   ready: false, connected: false, reconnects: 0, hello: null, spaces: [], active: 0, frames: 0,
   framesSkipped: 0, lastSeq: -1, status: null, scale: 1, scaleAuto: true, autoScale: 1,
   colour: 'displacement', units: 'si', locked: null, mode: null,
+  loadCase: null, // the static load case shown instead of the live part (see showLoad)
+  loadWanted: null, // the one asked for, until it comes
   framesPerSecond: 0, legend: null, probe: null, notes: [],
   latency: [], // ms from a pointer event to the first frame computed after the server got it
 };
@@ -92,6 +94,8 @@ function onText(msg) {
     $('title').textContent = `VES view — ${msg.name}`;
     showLimit();
     if (msg.spaces.length) buildModeList(msg.spaces[0]); else $('modes').textContent = '';
+    hideLoad();
+    buildLoadList(msg.spaces[0]);
     setup.hello(msg);
     for (const o of $('colour').options) o.disabled = o.value !== 'displacement' && !msg.spaces.some((s) => s.has_stress);
     if (msg.yield_strength == null) $('colour').querySelector('option[value=safety]').disabled = true;
@@ -101,6 +105,9 @@ function onText(msg) {
     state.status = msg;
     setup.computing(msg.computing, msg.checking);
     showStatus(msg);
+  } else if (msg.type === 'load_error') {
+    if (state.loadWanted) hideLoad();
+    $('loadnote').textContent = `the load case could not be read: ${msg.message}`;
   } else if (msg.type === 'progress' || msg.type === 'computed' || msg.type === 'checked' || msg.type === 'compute_error') {
     state.notes.push(msg);
     if (state.notes.length > 200) state.notes.shift();
@@ -120,6 +127,7 @@ function onBinary(buf) {
   else if (kind === 1) onFrame(decodeFrame(buf));
   else if (kind === 2) startMode(decodeMode(buf));
   else if (kind === 3) onStress(decodeStress(buf));
+  else if (kind === 4) onLoad(decodeLoad(buf));
 }
 
 function clearSpaces() {
@@ -223,6 +231,8 @@ function onFrame(f) {
     for (const t of state.spaces) if (t) { t.mesh.visible = false; if (t.supports) t.supports.visible = false; }
     state.active = f.space;
     buildModeList(state.hello.spaces[f.space]);
+    hideLoad();
+    buildLoadList(state.hello.spaces[f.space]);
     highlightBoxes();
   }
   s.mesh.visible = true;
@@ -233,7 +243,8 @@ function onFrame(f) {
   s.alarm = f.alarm;
   s.peak = { vertex: f.peakVertex, vonMises: f.peakVonMises };
   s.frameTime = f.time;
-  if (!still) state.dirty = true;
+  // A load case shown stays as it is: the live frames are kept for when it is put away.
+  if (!still && !state.loadCase) state.dirty = true;
   // Latency: from a pointer event to the first frame drawn from a state in which the haptic
   // loop had read that event's hand message (the frame says which message each hand read last).
   while (pending.length && f.handSeq[pending[0][2]] >= pending[0][1]) {
@@ -300,6 +311,7 @@ function drawScale(s) {
 }
 
 function draw(s) {
+  if (state.loadCase && state.loadCase.space === state.active) { drawLoad(s, state.loadCase); return; }
   const k = drawScale(s);
   place(s, k, s.geom.attributes.position.array);
   place(s, 1, s.truePos);
@@ -479,6 +491,7 @@ function buildModeList(space) {
     b.textContent = `mode ${j + 1}: ${f.toPrecision(5)} Hz`;
     b.onclick = () => {
       if (state.mode && state.mode.mode === j) { stopMode(); return; }
+      hideLoad();
       ws.send(JSON.stringify({ type: 'mode', space: state.active, index: j }));
     };
     box.appendChild(b);
@@ -518,6 +531,115 @@ function animateMode() {
   $('bar').style.background = gradient('magnitude');
   $('lo').textContent = '0'; $('mid').textContent = '0.5'; $('hi').textContent = '1';
 }
+
+// Static load cases (the basis's `loads`): a select offers the active space's; choosing one asks
+// the server for it (its displacement and von Mises stress, sent only then) and shows the part
+// deformed by it and coloured by its stress instead of the live part. The hands are let go and
+// off meanwhile: what is drawn is the static answer to that load alone, which a hand's pull
+// would not change; "none" brings the live part back.
+function buildLoadList(space) {
+  const sel = $('loadcase');
+  while (sel.options.length > 1) sel.remove(1);
+  const cases = (space && space.loads) || [];
+  cases.forEach((c, i) => {
+    const o = document.createElement('option');
+    o.value = String(i);
+    o.textContent = `${c.name}: ${c.kind}, ${label(Math.hypot(...c.total_force), 'force', 'si')}`;
+    sel.appendChild(o);
+  });
+  sel.value = '';
+  $('loadbox').hidden = !cases.length && !(space && space.loads_error);
+  $('loadnote').textContent = space && space.loads_error ? `load cases not offered: ${space.loads_error}` : '';
+}
+
+function chooseLoad(value) {
+  if (value === '' || value == null) { hideLoad(); state.dirty = true; return; }
+  const i = Number(value);
+  const info = state.hello.spaces[state.active].loads[i];
+  if (!info || !ws || ws.readyState !== 1) return;
+  for (const key of [...drags.keys()]) endDrag(key);
+  for (const h of [0, 1]) if (state.status && state.status.hands[h].active && state.status.hands[h].owner === state.hello.client) state.release(h);
+  stopMode();
+  hideProbe();
+  state.loadWanted = { space: state.active, index: i };
+  $('loadcase').value = String(i);
+  $('loadnote').textContent = `reading load case ${info.name}…`;
+  ws.send(JSON.stringify({ type: 'load', space: state.active, name: info.name }));
+}
+
+function onLoad(m) {
+  const w = state.loadWanted;
+  if (!w || w.space !== m.space || w.index !== m.index || !state.spaces[m.space]) return;
+  state.loadWanted = null;
+  state.loadCase = { ...m, ...state.hello.spaces[m.space].loads[m.index] };
+  // A load case is coloured by its von Mises stress (the legend says so): no other choice shown.
+  $('colour').disabled = true;
+  $('colourbox').hidden = $('lockbox').hidden = true;
+  state.dirty = true;
+}
+
+function hideLoad() {
+  const was = state.loadCase || state.loadWanted;
+  state.loadCase = null;
+  state.loadWanted = null;
+  $('colour').disabled = false;
+  $('colourbox').hidden = $('lockbox').hidden = false;
+  if ($('loadcase').value !== '') $('loadcase').value = '';
+  if (was) { $('loadnote').textContent = ''; state.dirty = true; }
+}
+
+// A load case drawn: rest + k·u with the page's scale (automatic: the case's largest
+// displacement at AUTO_FRACTION of the part), coloured by its von Mises stress from zero to the
+// case's largest (the whole part's, from the file).
+function drawLoad(s, c) {
+  const k = state.scaleAuto ? nice((AUTO_FRACTION * s.size) / c.maxDisplacement) : state.scale;
+  if (state.scaleAuto) $('scale').value = String(k);
+  state.drawnScale = k;
+  $('scaleshown').textContent = `×${plain(k)}${state.scaleAuto ? ', auto' : ''}`;
+  const p = s.geom.attributes.position.array;
+  for (let i = 0; i < p.length; i++) p[i] = s.rest[i] + k * c.u[i];
+  s.truePos.set(s.rest);
+  for (let i = 0; i < p.length; i++) s.truePos[i] += c.u[i];
+  s.geom.attributes.position.needsUpdate = true;
+  s.geom.computeBoundingSphere();
+  if (s.supports) {
+    const q = s.supports.geometry.attributes.position.array;
+    s.fixedIdx.forEach((v, j) => { q[3 * j] = p[3 * v]; q[3 * j + 1] = p[3 * v + 1]; q[3 * j + 2] = p[3 * v + 2]; });
+    s.supports.geometry.attributes.position.needsUpdate = true;
+    s.supports.geometry.computeBoundingSphere();
+  }
+  const u = state.units, hi = c.maxVonMises, ys = state.hello.yield_strength, min = state.hello.min_safety_factor;
+  const span = hi > 0 ? hi : 1;
+  const col = s.geom.attributes.color.array;
+  let top = -1;
+  for (let i = 0; i < s.vertices; i++) {
+    const [r, g, b] = sequential(c.vm[i] / span);
+    col[3 * i] = r; col[3 * i + 1] = g; col[3 * i + 2] = b;
+    if (top < 0 || c.vm[i] > c.vm[top]) top = i;
+  }
+  s.geom.attributes.color.needsUpdate = true;
+  const w = (v) => label(v, 'stress', u);
+  const sf = ys && hi > 0 ? ys / hi : null;
+  const safety = sf === null ? '' : ` · safety factor ${plain(sf)}${sf < min ? ` below the minimum ${plain(min)}: it would yield` : ''} (yield ${w(ys)})`;
+  const title = `von Mises stress, load case ${c.name} (static)`;
+  const summary = `max ${w(hi)}${safety}`;
+  state.field = { quantity: 'stress', valueAt: (i) => c.vm[i] };
+  const caption = `load case ${c.name}: ${c.kind}, ${label(Math.hypot(...c.total_force), 'force', 'si')} · deformation drawn ${$('scaleshown').textContent} · ${summary}`;
+  const ticks = [w(0), w(hi / 2), w(hi)];
+  state.legend = { title, scale: 'magnitude', ticks, caption, atRest: false, lo: 0, hi, load: c.name };
+  $('legendtitle').textContent = title;
+  $('bar').style.background = gradient('magnitude');
+  [$('lo').textContent, $('mid').textContent, $('hi').textContent] = ticks;
+  $('legendnote').textContent = summary;
+  placeMarkers(s, [{ vertex: top, text: `max on the surface ${w(c.vm[top])}` }]);
+  $('loadnote').innerHTML = '';
+  const b = document.createElement('b');
+  b.textContent = 'Hands are off while a load case is shown';
+  $('loadnote').append(`${c.name}: ${c.kind}, total ${label(Math.hypot(...c.total_force), 'force', 'si')}, largest displacement `
+    + `${label(c.maxDisplacement, 'length', u)} drawn ×${plain(k)}${state.scaleAuto ? ` (auto: the largest at ${Math.round(100 * AUTO_FRACTION)} % of the part's size)` : ''}. `, b,
+  ' (a drag orbits); choose "none" to pull the part again.');
+}
+state.chooseLoad = chooseLoad;
 
 // Hands: a pointer that goes down on the part drives a hand (left or touch: hand 1; right, a
 // second touch, or the right button pressed while the left holds: hand 2). The drag moves the
@@ -659,7 +781,8 @@ canvas.addEventListener('pointerdown', (ev) => {
     done({ point: new THREE.Vector3(s.rest[3 * v], s.rest[3 * v + 1], s.rest[3 * v + 2]), normal: hit.face.normal.clone() });
     return;
   }
-  if (!state.ready || state.mode) return;
+  // No hand while a static load case is shown (the drag orbits): its drawing is not the live part.
+  if (!state.ready || state.mode || state.loadCase || state.loadWanted) return;
   const hand = freeHand(ev.button === 2 || drags.size > 0 ? 1 : 0);
   if (!startDrag(ev.pointerId, ev, hand, ev.shiftKey)) return; // off the part: orbit
   ev.stopImmediatePropagation();
@@ -840,6 +963,7 @@ $('scale').addEventListener('change', (ev) => {
   if (Number.isFinite(v) && v >= 0) state.setScale(v); else ev.target.value = String(state.drawnScale);
 });
 $('scaleauto').addEventListener('change', (ev) => state.setScale(ev.target.checked ? 'auto' : state.drawnScale));
+$('loadcase').addEventListener('change', (ev) => chooseLoad(ev.target.value));
 $('colour').addEventListener('change', (ev) => { state.colour = ev.target.value; state.dirty = true; askFields(); });
 $('units').addEventListener('change', (ev) => { state.units = ev.target.value; state.dirty = true; if (state.hello) showLimit(); });
 $('lock').addEventListener('change', (ev) => {

@@ -1,8 +1,8 @@
 // The viewer's binary messages (little-endian; written by runtime/src/view/protocol.rs, which
 // documents the layout).
 
-const MESH = 0, FRAME = 1, MODE = 2, STRESS = 3;
-export const KINDS = { MESH, FRAME, MODE, STRESS };
+const MESH = 0, FRAME = 1, MODE = 2, STRESS = 3, LOAD = 4;
+export const KINDS = { MESH, FRAME, MODE, STRESS, LOAD };
 
 /** Kind 0: one space's surface: u32 kind, space, nv, nt; f32 rest[3nv]; u32 triangles[3nt];
  * u8 fixed[nv] (bit c: component c supported); zero bytes to a multiple of 4; when the basis
@@ -50,4 +50,16 @@ export function decodeStress(buf) {
 export function decodeMode(buf) {
   const [, space, mode, nv] = new Uint32Array(buf, 0, 4);
   return { space, mode, vertices: nv, frequency: new Float32Array(buf, 16, 1)[0], phi: new Float32Array(buf, 20, 3 * nv) };
+}
+
+/** Kind 4: a static load case (sent after `{"type":"load","space":s,"name":…}`): u32 kind, space,
+ * nv, index (in the hello's `spaces[s].loads`); f64 largest displacement (m), largest von Mises
+ * (Pa) of the whole part; f32 u[3nv] (m), von Mises[nv] (Pa). */
+export function decodeLoad(buf) {
+  const [, space, nv, index] = new Uint32Array(buf, 0, 4);
+  const [maxDisplacement, maxVonMises] = new Float64Array(buf, 16, 2);
+  return {
+    space, index, vertices: nv, maxDisplacement, maxVonMises,
+    u: new Float32Array(buf, 32, 3 * nv), vm: new Float32Array(buf, 32 + 12 * nv, nv),
+  };
 }
