@@ -137,7 +137,8 @@ fn verify_loads(scene: &Path) -> Vec<serde_json::Value> {
 /// A corpus part (the PMI block, 4-node tets: CalculiX's C3D4 stiffness is exact, as VES's)
 /// with a force on its end face, a pressure on its top face and gravity: the displacement
 /// fields equal CalculiX's to 1e-6 relative in the max norm (measured 1e-7 to 4.3e-7; CalculiX
-/// prints 7 digits), the reactions to 1e-7.
+/// prints 7 digits), the reactions to 1e-7; then ParaView opens the cases through the XDMF by
+/// their plain names, with the `fixed` array.
 #[test]
 fn corpus_part_face_loads_and_gravity_equal_calculix() {
     let dir = tempfile::tempdir().unwrap();
@@ -159,6 +160,8 @@ fn corpus_part_face_loads_and_gravity_equal_calculix() {
         assert!(rel <= 1e-6 && l["pass"] == true, "{l}");
         assert!(l["reaction_rel_diff"].as_f64().unwrap() < 1e-6, "{l}");
     }
+    // The same cases in ParaView, by their plain names, with the supports marked.
+    paraview_reads_the_cases(dir.path(), &path, &["end_face", "top_pressure", "gravity"]);
 }
 
 /// The cantilever's straight-sided 10-node tets (C3D10, whose 4-point stiffness rule is exact
@@ -180,14 +183,25 @@ fn cantilever_tet10_loads_equal_calculix() {
 #[test]
 fn paraview_reads_a_load_case_by_name() {
     let (dir, path) = workdir(&beam(0.05, TIP));
-    let out = dir.path().join("beam.h5");
-    let o = ves(&["precompute", path.to_str().unwrap(), "-o", out.to_str().unwrap()]);
+    paraview_reads_the_cases(dir.path(), &path, &["tip"]);
+}
+
+/// Precomputes `scene` into `dir`, opens its XDMF sidecar with pvpython and checks that each of
+/// `cases`' `load_<name>_displacement` and `load_<name>_von_mises`, the `fixed` array and the
+/// frequencies (field data) are there by their plain names and equal to the file.
+fn paraview_reads_the_cases(dir: &Path, scene: &Path, cases: &[&str]) {
+    let out = dir.join("basis.h5");
+    let o = ves(&["precompute", scene.to_str().unwrap(), "-o", out.to_str().unwrap()]);
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let names: Vec<String> = cases
+        .iter()
+        .flat_map(|c| [format!("load_{c}_displacement"), format!("load_{c}_von_mises")])
+        .collect();
     let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/paraview/load_dump.py");
     let o = Command::new("pvpython")
         .args(["--force-offscreen-rendering", script.to_str().unwrap()])
-        .arg(dir.path().join("beam.xdmf"))
-        .args(["load_tip_displacement", "load_tip_von_mises"])
+        .arg(dir.join("basis.xdmf"))
+        .args(&names)
         .output()
         .expect("pvpython runs (Debian's paraview: scripts/setup installs it)");
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
@@ -195,25 +209,28 @@ fn paraview_reads_a_load_case_by_name() {
         serde_json::from_str(String::from_utf8_lossy(&o.stdout).lines().last().expect("JSON line")).expect("JSON");
     let file = ves_format::BasisReader::open(&out).unwrap();
     let s = file.space("global").unwrap();
-    let tip = s.load("tip").unwrap();
     let fixed = s.fixed_dofs().unwrap();
     assert_eq!(seen["points"], s.node_count);
     let num = |v: &serde_json::Value| v.as_f64().expect("number");
-    let u = seen["arrays"]["load_tip_displacement"].as_array().unwrap();
-    let vm = seen["arrays"]["load_tip_von_mises"].as_array().unwrap();
-    let held = seen["arrays"]["fixed"].as_array().unwrap();
-    assert_eq!(
-        (u.len(), vm.len(), held.len()),
-        (s.node_count, s.node_count, s.node_count)
-    );
     let same = |a: f64, b: f64| (a - b).abs() <= 1e-14 * b.abs().max(1e-300);
+    let held = seen["arrays"]["fixed"].as_array().unwrap();
+    assert_eq!(held.len(), s.node_count);
     for i in 0..s.node_count {
-        for (c, want) in tip.displacement[3 * i..3 * i + 3].iter().enumerate() {
-            assert!(same(num(&u[i][c]), *want), "node {i}");
-        }
-        assert!(same(num(&vm[i][0]), tip.von_mises[i]), "node {i}");
         let want = f64::from(u8::from(fixed.iter().any(|&d| d as usize / 3 == i)));
         assert_eq!(num(&held[i][0]), want, "fixed at node {i}");
+    }
+    assert!(held.iter().any(|h| num(&h[0]) == 1.0), "some node is held");
+    for case in cases {
+        let stored = s.load(case).unwrap();
+        let u = seen["arrays"][format!("load_{case}_displacement")].as_array().unwrap();
+        let vm = seen["arrays"][format!("load_{case}_von_mises")].as_array().unwrap();
+        assert_eq!((u.len(), vm.len()), (s.node_count, s.node_count));
+        for i in 0..s.node_count {
+            for (c, want) in stored.displacement[3 * i..3 * i + 3].iter().enumerate() {
+                assert!(same(num(&u[i][c]), *want), "{case}: node {i}");
+            }
+            assert!(same(num(&vm[i][0]), stored.von_mises[i]), "{case}: node {i}");
+        }
     }
     let f = s.frequencies_hz().unwrap();
     let seen_f: Vec<f64> = seen["field"]["frequencies_hz"]
