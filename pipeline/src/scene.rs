@@ -325,7 +325,7 @@ pub struct Scene {
     /// Static correction, if asked.
     pub static_correction: Option<StaticCorrection>,
     /// Radius of the hand's contact patch, m (`[contact] radius`; default
-    /// [`crate::loads::patch::DEFAULT_RADIUS_M`]; 0: a point contact at one vertex).
+    /// [`DEFAULT_CONTACT_RADIUS_M`]; 0: a point contact at one vertex).
     pub contact_radius: f64,
     /// Whether each mode's stress is stored (`[stress] enabled = true`).
     pub stress: bool,
@@ -654,10 +654,14 @@ impl Scene {
     }
 }
 
+/// Default radius of the hand's contact patch, m: a fingertip pressed on a part touches a disk
+/// of about 1 cm (`loads::patch`).
+pub const DEFAULT_CONTACT_RADIUS_M: f64 = 0.005;
+
 /// The contact patch's radius: the scene's, or the default.
 fn contact_radius(contact: Option<ContactSettings>) -> Result<f64, String> {
     match contact {
-        None => Ok(crate::loads::patch::DEFAULT_RADIUS_M),
+        None => Ok(DEFAULT_CONTACT_RADIUS_M),
         Some(c) if c.radius.is_finite() && (0.0..=1.0).contains(&c.radius) => Ok(c.radius),
         Some(c) => Err(format!(
             "contact.radius = {}: give the hand's contact patch radius in metres, 0 to 1 (e.g. 0.005 for a \

@@ -33,21 +33,22 @@ fn sub(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
     [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
 }
 
-/// The static compliance the runtime couples to at a vertex: Σ φφᵀ/λ over the modes, plus the
-/// static correction when the basis carries one.
+/// How far the drawn vertex `v` moves per newton of a hand holding it, at rest: the hand's force
+/// acts through the vertex's contact patch (rows φ̄, `gather_contact_rows`) and the page draws
+/// the modal field u = Φq (the vertex's own rows φ), so G = Σ φ φ̄ᵀ/λ (the static correction acts
+/// at the hand's point, not in the drawn field).
 fn compliance(basis: &ves_runtime::Basis, v: usize) -> [[f64; 3]; 3] {
-    let n = basis.vertex_count();
+    let (n, r) = (basis.vertex_count(), basis.mode_count());
+    let mut patch = vec![0.0; 3 * r];
+    basis.gather_contact_rows(v, &mut patch);
     let mut g = [[0.0; 3]; 3];
     for (j, l) in basis.eigenvalues.iter().enumerate() {
         let phi = &basis.phi[j * 3 * n + 3 * v..j * 3 * n + 3 * v + 3];
         for a in 0..3 {
             for b in 0..3 {
-                g[a][b] += f64::from(phi[a]) * f64::from(phi[b]) / l;
+                g[a][b] += f64::from(phi[a]) * patch[b * r + j] / l;
             }
         }
-    }
-    if let Some(exact) = basis.compliance.as_ref().map(|c| c[v]).filter(|c| c[0][0].is_finite()) {
-        g = exact;
     }
     g
 }

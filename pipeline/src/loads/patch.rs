@@ -19,9 +19,6 @@ use crate::tet_mesh::Mesh;
 use rayon::prelude::*;
 use std::collections::HashMap;
 
-/// Default patch radius, m: a fingertip pressed on a part touches a disk of about 1 cm.
-pub const DEFAULT_RADIUS_M: f64 = 0.005;
-
 /// A triangle joins the patch when its normal is within this cosine of the centre's normal
 /// (about 78°: both faces at a box edge or corner, not the far side of a thin wall).
 const MAX_TURN: f64 = 0.2;

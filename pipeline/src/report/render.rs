@@ -356,10 +356,12 @@ fn probes_table(s: &mut String, r: &Report) {
     }
     let _ = writeln!(
         s,
-        "\n## Probes on the meshes\n\nEach probe is applied at the surface vertex nearest to it on each mesh. \
+        "\n## Probes on the meshes\n\nEach probe's force is spread over the scene's contact patch (`[contact] \
+         radius`) centred on the surface point nearest to it on each mesh, and its displacement is read with \
+         the same weights: a patch load converges under refinement, a point load does not (docs/accuracy.md). \
          A probe is {}: its errors against the finest mesh then compare different places (on a clamp, \
          two ears), so they are left out of the \"vs finest\" columns and plot. Move such a probe onto the \
-         surface, where the meshes have vertices close together.\n",
+         surface.\n",
         r.probe_flag_rule
     );
     header(
@@ -369,7 +371,7 @@ fn probes_table(s: &mut String, r: &Report) {
             "at (m)",
             "force (N)",
             "worst snap / element size",
-            "vertices' spread (m)",
+            "centres' spread (m)",
             "status",
         ],
     );
