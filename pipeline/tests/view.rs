@@ -33,6 +33,15 @@ fn sub(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
     [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
 }
 
+/// The surface of a basis file as the page's session loads it.
+fn surface_basis(path: &Path) -> ves_runtime::Basis {
+    let only = ves_runtime::LoadOptions {
+        surface_only: true,
+        ..Default::default()
+    };
+    ves_runtime::basis::load(path, &only).expect("basis loads")
+}
+
 /// How far the drawn vertex `v` moves per newton of a hand holding it, at rest: the hand's force
 /// acts through the vertex's contact patch (rows φ̄, `gather_contact_rows`) and the page draws
 /// the modal field u = Φq (the vertex's own rows φ), so G = Σ φ φ̄ᵀ/λ (the static correction acts
@@ -206,14 +215,7 @@ fn the_mouse_pulls_the_tip_in_a_real_browser_and_the_page_shows_the_static_respo
 
     // 1. The drawn tip moved by the static response to the force the hand feels: u = G·(−F)
     //    (the part gets the opposite of the device's force).
-    let b = ves_runtime::basis::load(
-        &basis,
-        &ves_runtime::LoadOptions {
-            surface_only: true,
-            ..Default::default()
-        },
-    )
-    .expect("basis loads");
+    let b = surface_basis(&basis);
     let b = Arc::new(b);
     let g = compliance(&b, vertex);
     let expected: [f64; 3] = [0, 1, 2].map(|a| -(0..3).map(|c| g[a][c] * force[c]).sum::<f64>());
@@ -393,14 +395,7 @@ fn a_load_case_is_chosen_in_the_page_and_drawn_from_the_file() {
         .expect("material")
         .yield_strength
         .expect("a yield strength");
-    let b = ves_runtime::basis::load(
-        &basis,
-        &ves_runtime::LoadOptions {
-            surface_only: true,
-            ..Default::default()
-        },
-    )
-    .expect("basis loads");
+    let b = surface_basis(&basis);
 
     // Offered: every case, by name, kind and total force.
     let offered = &page["offered"];
@@ -737,14 +732,7 @@ fn a_step_part_is_set_up_computed_and_pulled_in_the_page() {
     let f_session = vec3(&last_json(&o)["final_forces_n"][0]);
     let gap = norm(sub(force, f_session)) / norm(f_session);
     assert!(gap < 0.01, "page {force:?} N vs ves session {f_session:?} N");
-    let b = ves_runtime::basis::load(
-        &basis,
-        &ves_runtime::LoadOptions {
-            surface_only: true,
-            ..Default::default()
-        },
-    )
-    .expect("basis loads");
+    let b = surface_basis(&basis);
     let vertex = hand["vertex"].as_u64().unwrap() as usize;
     let g = compliance(&b, vertex);
     let expected: [f64; 3] = [0, 1, 2].map(|a| -(0..3).map(|c| g[a][c] * force[c]).sum::<f64>());

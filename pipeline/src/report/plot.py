@@ -51,9 +51,9 @@ def pareto(points):
 # (title, value of a point, corrected variant or None)
 panels = [
     ("frequency error vs finest mesh", lambda p: p["frequency_error"], None),
-    ("point-load displacement error", lambda p: worst(p["static_error"]), lambda p: worst(p["static_error_corrected"])),
+    ("probe-load displacement error (contact patch)", lambda p: worst(p["static_error"]), lambda p: worst(p["static_error_corrected"])),
     (
-        "point-load error vs finest mesh's full solve",
+        "probe-load error vs finest mesh's full solve",
         lambda p: worst_kept(p["static_error_total"]),
         lambda p: worst_kept(p["static_error_total_corrected"]),
     ),
