@@ -136,3 +136,44 @@ impl Contact {
         Ok(())
     }
 }
+
+#[cfg(test)]
+mod contact_tests {
+    use super::Contact;
+
+    fn good() -> Contact {
+        Contact {
+            radius: 0.005,
+            centres: vec![0, 2],
+            offsets: vec![0, 3, 4],
+            nodes: vec![0, 1, 5, 2],
+            weights: vec![0.75, 0.5, -0.25, 1.0],
+        }
+    }
+
+    /// What a reader relies on is checked: each damage alone is refused, naming what is wrong.
+    #[test]
+    fn a_damaged_contact_group_is_refused() {
+        assert_eq!(good().check(6), Ok(()));
+        let cases: [(&str, fn(&mut Contact)); 7] = [
+            ("node 6 of 6", |c| c.nodes[2] = 6),
+            ("offsets", |c| c.offsets = vec![0, 4, 3]),
+            ("offsets", |c| {
+                c.offsets.pop();
+            }),
+            ("weights for", |c| c.weights.truncate(3)),
+            ("sum to", |c| c.weights[0] = 0.7),
+            ("not ascending", |c| c.centres = vec![2, 0]),
+            ("radius", |c| c.radius = f64::NAN),
+        ];
+        for (says, damage) in cases {
+            let mut c = good();
+            damage(&mut c);
+            let e = c.check(6).expect_err(says);
+            assert!(e.contains(says), "{e:?} should say {says:?}");
+        }
+        let mut c = good();
+        c.weights[3] = f64::INFINITY;
+        assert!(c.check(6).is_err());
+    }
+}
