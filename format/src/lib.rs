@@ -141,6 +141,9 @@ impl Contact {
 mod contact_tests {
     use super::Contact;
 
+    /// A damage and a word its refusal must contain.
+    type Damage = (&'static str, fn(&mut Contact));
+
     fn good() -> Contact {
         Contact {
             radius: 0.005,
@@ -155,7 +158,7 @@ mod contact_tests {
     #[test]
     fn a_damaged_contact_group_is_refused() {
         assert_eq!(good().check(6), Ok(()));
-        let cases: [(&str, fn(&mut Contact)); 7] = [
+        let cases: [Damage; 7] = [
             ("node 6 of 6", |c| c.nodes[2] = 6),
             ("offsets", |c| c.offsets = vec![0, 4, 3]),
             ("offsets", |c| {
