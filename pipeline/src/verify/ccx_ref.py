@@ -17,7 +17,8 @@ import numpy as np
 CCX_FROM_GMSH = [0, 1, 2, 3, 4, 5, 6, 7, 9, 8]
 
 
-def deck(nodes, tets, fixed, a, step):
+def mesh_lines(nodes, tets):
+    """*NODE and *ELEMENT (set EALL) of a gmsh-ordered 4- or 10-node tet mesh."""
     lines = ["*NODE"]
     lines += ["%d, %.13g, %.13g, %.13g" % (i + 1, *p) for i, p in enumerate(nodes)]
     typ = "C3D10" if tets.shape[1] == 10 else "C3D4"
@@ -29,8 +30,16 @@ def deck(nodes, tets, fixed, a, step):
         lines.append("%d, %s" % (e + 1, ", ".join(ids[:8])) + ("," if len(ids) > 8 else ""))
         if len(ids) > 8:
             lines.append(", ".join(ids[8:]))
-    lines.append("*BOUNDARY")
-    lines += ["%d, %d, %d, 0." % (d // 3 + 1, d % 3 + 1, d % 3 + 1) for d in fixed]
+    return lines
+
+
+def boundary_lines(fixed):
+    """*BOUNDARY: each supported DOF 3i+c held at zero."""
+    return ["*BOUNDARY"] + ["%d, %d, %d, 0." % (d // 3 + 1, d % 3 + 1, d % 3 + 1) for d in fixed]
+
+
+def deck(nodes, tets, fixed, a, step):
+    lines = mesh_lines(nodes, tets) + boundary_lines(fixed)
     lines += ["*MATERIAL, NAME=MAT", "*ELASTIC", "%.13g, %.13g" % (a["young"], a["poisson"]),
               "*DENSITY", "%.13g" % a["density"], "*SOLID SECTION, ELSET=EALL, MATERIAL=MAT"]
     lines += step

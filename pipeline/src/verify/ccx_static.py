@@ -14,28 +14,17 @@ import sys
 import h5py
 import numpy as np
 
-# CalculiX reads at most 20 characters per number: %.13g keeps every value within that.
-# gmsh 10-node order: edges 01 12 20 30 32 31; CalculiX C3D10: 12 23 31 14 24 34.
-CCX_FROM_GMSH = [0, 1, 2, 3, 4, 5, 6, 7, 9, 8]
+# The mesh and supports as the modal reference writes them (ves verify puts it beside this file).
+from ccx_ref import boundary_lines, mesh_lines
 
 
 def deck(nodes, tets, fixed, young, poisson, load):
     n = len(nodes)
-    lines = ["*NODE"]
-    lines += ["%d, %.13g, %.13g, %.13g" % (i + 1, *p) for i, p in enumerate(nodes)]
-    typ = "C3D10" if tets.shape[1] == 10 else "C3D4"
-    lines.append("*ELEMENT, TYPE=%s, ELSET=EALL" % typ)
-    perm = CCX_FROM_GMSH if typ == "C3D10" else [0, 1, 2, 3]
-    for e, t in enumerate(tets):
-        ids = [str(t[j] + 1) for j in perm]
-        lines.append("%d, %s" % (e + 1, ", ".join(ids[:8])) + ("," if len(ids) > 8 else ""))
-        if len(ids) > 8:
-            lines.append(", ".join(ids[8:]))
+    lines = mesh_lines(nodes, tets)
     lines += ["*NSET, NSET=NALL, GENERATE", "1, %d, 1" % n, "*NSET, NSET=NFIX"]
     held = sorted({int(d) // 3 + 1 for d in fixed})
     lines += [", ".join(str(i) for i in held[k:k + 8]) for k in range(0, len(held), 8)]
-    lines.append("*BOUNDARY")
-    lines += ["%d, %d, %d, 0." % (d // 3 + 1, d % 3 + 1, d % 3 + 1) for d in fixed]
+    lines += boundary_lines(fixed)
     lines += ["*MATERIAL, NAME=MAT", "*ELASTIC", "%.13g, %.13g" % (young, poisson),
               "*SOLID SECTION, ELSET=EALL, MATERIAL=MAT", "*STEP", "*STATIC", "*CLOAD"]
     lines += ["%d, %d, %.13g" % (d // 3 + 1, d % 3 + 1, load[d]) for d in np.flatnonzero(load)]

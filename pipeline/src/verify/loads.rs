@@ -67,6 +67,8 @@ pub fn compare_loads(input: &str, scene: &Scene, d: &Discretized, tol: Option<f6
     write_problem(&problem, d, scene, &f)?;
     let script = tmp.path().join("ccx_static.py");
     std::fs::write(&script, CCX_STATIC)?;
+    // It writes the mesh and supports with the modal reference's functions.
+    std::fs::write(tmp.path().join("ccx_ref.py"), super::CCX)?;
     let ran = run_checked(
         input,
         "ccx_static.py",

@@ -275,7 +275,7 @@ fn announce(r: Reference, n: usize) -> String {
 }
 
 const SKFEM: &str = include_str!("skfem_ref.py");
-const CCX: &str = include_str!("ccx_ref.py");
+pub(crate) const CCX: &str = include_str!("ccx_ref.py");
 const FENICSX: &str = include_str!("fenicsx_ref.py");
 const FX_BRIDGE: &str = include_str!("fx_bridge.py");
 
