@@ -287,43 +287,42 @@ impl<'a> Surface<'a> {
             0.0
         };
         let mut w = vec![0.0; ids.len()];
-        for i in 0..m {
-            for j in 0..m - i {
-                let mut cells = vec![[(i, j), (i + 1, j), (i, j + 1)]];
-                if i + j + 1 < m {
-                    cells.push([(i + 1, j), (i + 1, j + 1), (i, j + 1)]);
+        // The m² sub-triangles of the reference triangle: m(m+1)/2 upright, m(m−1)/2 inverted.
+        let cells = (0..m).flat_map(|i| {
+            (0..m - i).flat_map(move |j| {
+                let inverted = (i + j + 1 < m).then_some([(i + 1, j), (i + 1, j + 1), (i, j + 1)]);
+                std::iter::once([(i, j), (i + 1, j), (i, j + 1)]).chain(inverted)
+            })
+        });
+        for cell in cells {
+            let p = cell.map(|(u, v)| (u as f64 * h, v as f64 * h));
+            let xs = p.map(|(u, v)| flat(u, v));
+            let mid: [f64; 3] = std::array::from_fn(|k| (xs[0][k] + xs[1][k] + xs[2][k]) / 3.0);
+            let reach = xs
+                .iter()
+                .map(|q| {
+                    let d = sub(*q, mid);
+                    dot(d, d).sqrt()
+                })
+                .fold(0.0, f64::max);
+            let d = sub(mid, centre);
+            if dot(d, d).sqrt() > radius + reach + 2.0 * bulge {
+                continue;
+            }
+            for &(s, r, weight) in &TRIANGLE_RULE {
+                let xi = p[0].0 + s * (p[1].0 - p[0].0) + r * (p[2].0 - p[0].0);
+                let eta = p[0].1 + s * (p[1].1 - p[0].1) + r * (p[2].1 - p[0].1);
+                let (da, n) = area_vector(&x, xi, eta);
+                let at: [f64; 3] = std::array::from_fn(|k| n.iter().zip(&x).map(|(na, xa)| na * xa[k]).sum());
+                let d = sub(at, centre);
+                let pressure = profile(dot(d, d) / (radius * radius));
+                if pressure == 0.0 {
+                    continue;
                 }
-                for cell in cells {
-                    let p = cell.map(|(u, v)| (u as f64 * h, v as f64 * h));
-                    let xs = p.map(|(u, v)| flat(u, v));
-                    let mid: [f64; 3] = std::array::from_fn(|k| (xs[0][k] + xs[1][k] + xs[2][k]) / 3.0);
-                    let reach = xs
-                        .iter()
-                        .map(|q| {
-                            let d = sub(*q, mid);
-                            dot(d, d).sqrt()
-                        })
-                        .fold(0.0, f64::max);
-                    let d = sub(mid, centre);
-                    if dot(d, d).sqrt() > radius + reach + 2.0 * bulge {
-                        continue;
-                    }
-                    for &(s, r, weight) in &TRIANGLE_RULE {
-                        let xi = p[0].0 + s * (p[1].0 - p[0].0) + r * (p[2].0 - p[0].0);
-                        let eta = p[0].1 + s * (p[1].1 - p[0].1) + r * (p[2].1 - p[0].1);
-                        let (da, n) = area_vector(&x, xi, eta);
-                        let at: [f64; 3] = std::array::from_fn(|k| n.iter().zip(&x).map(|(na, xa)| na * xa[k]).sum());
-                        let d = sub(at, centre);
-                        let pressure = profile(dot(d, d) / (radius * radius));
-                        if pressure == 0.0 {
-                            continue;
-                        }
-                        // Rule weights sum to 1 on a sub-triangle of reference area h²/2.
-                        let scale = 0.5 * weight * h * h * dot(da, da).sqrt() * pressure;
-                        for (wa, na) in w.iter_mut().zip(&n) {
-                            *wa += scale * na;
-                        }
-                    }
+                // Rule weights sum to 1 on a sub-triangle of reference area h²/2.
+                let scale = 0.5 * weight * h * h * dot(da, da).sqrt() * pressure;
+                for (wa, na) in w.iter_mut().zip(&n) {
+                    *wa += scale * na;
                 }
             }
         }
