@@ -6,7 +6,6 @@ mod common;
 
 use common::*;
 use std::path::Path;
-use std::process::Command;
 
 /// The cantilever (1.0 × 0.1 × 0.05 m steel, clamped at x = 0) with 10-node tets and loads.
 fn beam(size: f64, loads: &str) -> String {
@@ -191,22 +190,15 @@ fn paraview_reads_a_load_case_by_name() {
 /// frequencies (field data) are there by their plain names and equal to the file.
 fn paraview_reads_the_cases(dir: &Path, scene: &Path, cases: &[&str]) {
     let out = dir.join("basis.h5");
-    let o = ves(&["precompute", scene.to_str().unwrap(), "-o", out.to_str().unwrap()]);
-    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    precompute_json(scene, &out);
     let names: Vec<String> = cases
         .iter()
         .flat_map(|c| [format!("load_{c}_displacement"), format!("load_{c}_von_mises")])
         .collect();
-    let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/paraview/load_dump.py");
-    let o = Command::new("pvpython")
-        .args(["--force-offscreen-rendering", script.to_str().unwrap()])
-        .arg(dir.join("basis.xdmf"))
-        .args(&names)
-        .output()
-        .expect("pvpython runs (Debian's paraview: scripts/setup installs it)");
-    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-    let seen: serde_json::Value =
-        serde_json::from_str(String::from_utf8_lossy(&o.stdout).lines().last().expect("JSON line")).expect("JSON");
+    let sidecar = dir.join("basis.xdmf");
+    let mut args = vec![sidecar.as_os_str()];
+    args.extend(names.iter().map(std::ffi::OsStr::new));
+    let seen = pvpython_json("load_dump.py", &args);
     let file = ves_format::BasisReader::open(&out).unwrap();
     let s = file.space("global").unwrap();
     let fixed = s.fixed_dofs().unwrap();

@@ -36,6 +36,22 @@ pub fn last_json(o: &Output) -> serde_json::Value {
     serde_json::from_str(stdout.lines().last().expect("a JSON line")).expect("the last line is JSON")
 }
 
+/// `pvpython --force-offscreen-rendering tests/paraview/SCRIPT ARGS…`, which must succeed (a
+/// missing pvpython fails: scripts/setup installs it); the JSON of its last line.
+pub fn pvpython_json(script: &str, args: &[&std::ffi::OsStr]) -> serde_json::Value {
+    let script = Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("tests/paraview")
+        .join(script);
+    let o = Command::new("pvpython")
+        .arg("--force-offscreen-rendering")
+        .arg(script)
+        .args(args)
+        .output()
+        .expect("pvpython runs (Debian's paraview: scripts/setup installs it)");
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    serde_json::from_str(String::from_utf8_lossy(&o.stdout).lines().last().expect("JSON line")).expect("JSON")
+}
+
 /// `ves precompute SCENE -o OUT --json`, which must succeed; its JSON.
 pub fn precompute_json(scene: &Path, out: &Path) -> serde_json::Value {
     let o = ves(&[

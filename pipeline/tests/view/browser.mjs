@@ -11,3 +11,10 @@ export async function launch(webDir) {
       '--disable-component-update', '--disable-sync', '--no-first-run'],
   });
 }
+
+/** A new page of `viewport` (default 1200 × 800) whose uncaught errors are pushed to `errors`. */
+export async function newPage(browser, errors, viewport = { width: 1200, height: 800 }, options = {}) {
+  const page = await browser.newPage({ viewport, ...options });
+  page.on('pageerror', (e) => errors.push(e.message));
+  return page;
+}

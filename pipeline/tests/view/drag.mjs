@@ -4,14 +4,13 @@
 // WebSocket and check that frames still arrive. Prints one JSON object; the Rust test asserts.
 //
 // usage: node drag.mjs URL WEB_DIR SCREENSHOT.png
-import { launch } from './browser.mjs';
+import { launch, newPage } from './browser.mjs';
 
 const [url, webDir, shot] = process.argv.slice(2);
 const browser = await launch(webDir);
 const errors = [];
 try {
-  const page = await browser.newPage({ viewport: { width: 1200, height: 800 } });
-  page.on('pageerror', (e) => errors.push(e.message));
+  const page = await newPage(browser, errors);
   await page.goto(url);
   await page.waitForFunction(() => window.ves && window.ves.ready && window.ves.frames > 3, null, { timeout: 30000 });
 
@@ -70,8 +69,7 @@ try {
   await page.selectOption('#colour', 'displacement');
 
   // A second client shares the session: it may drive the other hand, not the one held here.
-  const other = await browser.newPage({ viewport: { width: 1200, height: 800 } });
-  other.on('pageerror', (e) => errors.push(e.message));
+  const other = await newPage(browser, errors);
   await other.goto(url);
   await other.waitForFunction(() => window.ves && window.ves.ready && window.ves.status, null, { timeout: 30000 });
   const mid = await other.evaluate(() => window.ves.nearestVertex(0, [0.5, 0.05, 0.05]));

@@ -5,15 +5,14 @@
 // 420 px wide window must leave the part visible. Prints one JSON object as its last line.
 //
 // usage: node free_body.mjs URL WEB_DIR SCREENSHOT_DIR
-import { launch } from './browser.mjs';
+import { launch, newPage } from './browser.mjs';
 
 const [url, webDir, shots] = process.argv.slice(2);
 const browser = await launch(webDir);
 const errors = [];
 const ready = (p) => p.waitForFunction(() => window.ves && window.ves.ready, null, { timeout: 40000 });
 try {
-  const page = await browser.newPage({ viewport: { width: 1200, height: 800 } });
-  page.on('pageerror', (e) => errors.push(e.message));
+  const page = await newPage(browser, errors);
   await page.goto(url);
   await ready(page);
   // Grab the beam's free end and carry it 0.2 m up and 0.1 m sideways in 1 s, then hold.
@@ -60,8 +59,7 @@ try {
   const after = await page.evaluate(() => ({ reconnects: window.ves.reconnects, conn: document.getElementById('conn').textContent, frames: window.ves.frames }));
 
   // A 420 px wide window: the panels fold and the middle of the part is not under any of them.
-  const small = await browser.newPage({ viewport: { width: 420, height: 760 } });
-  small.on('pageerror', (e) => errors.push(e.message));
+  const small = await newPage(browser, errors, { width: 420, height: 760 });
   await small.goto(url);
   await ready(small);
   await small.waitForTimeout(300);

@@ -5,14 +5,13 @@
 // test compares it with the file.
 //
 // usage: node loads.mjs URL WEB_DIR SCREENSHOT_DIR CASE
-import { launch } from './browser.mjs';
+import { launch, newPage } from './browser.mjs';
 
 const [url, webDir, shots, wanted] = process.argv.slice(2);
 const browser = await launch(webDir);
 const errors = [];
 try {
-  const page = await browser.newPage({ viewport: { width: 1200, height: 800 } });
-  page.on('pageerror', (e) => errors.push(e.message));
+  const page = await newPage(browser, errors);
   await page.goto(url);
   await page.waitForFunction(() => window.ves && window.ves.ready && window.ves.frames > 3 && window.ves.status, null, { timeout: 30000 });
   const offered = await page.evaluate(() => ({

@@ -7,7 +7,7 @@
 // Prints one JSON object.
 //
 // usage: node setup.mjs URL WEB_DIR OUT_DIR
-import { launch } from './browser.mjs';
+import { launch, newPage } from './browser.mjs';
 import { writeFileSync } from 'node:fs';
 
 const [url, webDir, out] = process.argv.slice(2);
@@ -16,8 +16,7 @@ const errors = [];
 const ends = (page) => page.evaluate(() => window.ves.notes.filter((n) => n.type === 'computed' || n.type === 'compute_error').length);
 const waitEnd = (page, n) => page.waitForFunction((n) => window.ves.notes.filter((x) => x.type === 'computed' || x.type === 'compute_error').length > n, n, { timeout: 180000 });
 try {
-  const page = await browser.newPage({ viewport: { width: 1280, height: 860 }, acceptDownloads: true });
-  page.on('pageerror', (e) => errors.push(e.message));
+  const page = await newPage(browser, errors, { width: 1280, height: 860 }, { acceptDownloads: true });
   await page.goto(url);
   await page.waitForFunction(() => window.ves && window.ves.ready, null, { timeout: 180000 });
   const free = await page.evaluate(() => ({ free: window.ves.hello.free_body, f: window.ves.hello.spaces[0].frequencies_hz }));
