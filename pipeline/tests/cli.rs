@@ -300,12 +300,9 @@ fn a_session_says_what_each_hand_held_and_traces_it() {
     assert_eq!(rows.len() as u64, v["steps"].as_u64().unwrap());
     let last = rows.last().unwrap();
     assert_eq!(last[6], hand["last_vertex"].as_f64().unwrap());
-    // The same f64 printed twice; serde_json's default float parser may round the last bit.
-    let same = |a: f64, b: f64| (a - b).abs() <= 4.0 * f64::EPSILON * a.abs().max(b.abs());
     for c in 0..3 {
-        let (u, fc) = (hand["last_displacement_m"][c].as_f64().unwrap(), f[c].as_f64().unwrap());
-        assert!(same(last[7 + c], u), "{} vs {u}", last[7 + c]);
-        assert!(same(last[10 + c], fc), "{} vs {fc}", last[10 + c]);
+        assert_eq!(last[7 + c], hand["last_displacement_m"][c].as_f64().unwrap());
+        assert_eq!(last[10 + c], f[c].as_f64().unwrap());
     }
 }
 
@@ -1255,18 +1252,7 @@ fn xdmf_sidecar_shows_the_basis_to_paraview() {
         "{}",
         String::from_utf8_lossy(&o.stderr)
     );
-    let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/paraview/sidecar_dump.py");
-    let o = Command::new("pvpython")
-        .args([
-            "--force-offscreen-rendering",
-            script.to_str().unwrap(),
-            sidecar.to_str().unwrap(),
-        ])
-        .output()
-        .expect("pvpython runs (Debian's paraview: scripts/setup installs it)");
-    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-    let seen: serde_json::Value =
-        serde_json::from_str(String::from_utf8_lossy(&o.stdout).lines().last().expect("JSON line")).expect("JSON");
+    let seen = pvpython_json("sidecar_dump.py", &[sidecar.as_os_str()]);
     let file = ves_format::BasisReader::open(&out).unwrap();
     let s = file.space("global").unwrap();
     let (n, nv, r) = (s.node_count, s.vertex_count, s.mode_count);
