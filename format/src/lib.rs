@@ -6,6 +6,8 @@
 
 pub mod checks;
 pub mod element;
+#[cfg(feature = "hdf5")]
+pub mod file;
 pub mod identifier;
 pub mod names;
 #[cfg(feature = "hdf5")]

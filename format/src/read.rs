@@ -100,7 +100,7 @@ impl BasisReader {
             .ok()
             .and_then(|f| f.metadata().ok().map(|m| (f, stamp(&m))));
         guarded(path, || {
-            let file = hdf5::File::open(path).map_err(|e| {
+            let file = crate::file::open(path).map_err(|e| {
                 err(&format!(
                     "not a readable HDF5 file (truncated or another format): {}",
                     e.to_string().replace('\n', " ")

@@ -142,13 +142,8 @@ fn attr_str(loc: &hdf5::Location, name: &str, value: &str) -> Result<(), WriteEr
 pub fn write_file(path: &Path, data: &FileData<'_>) -> Result<(), WriteError> {
     // The 1.8+ file format (v2 object headers, v3 superblock) checksums every piece of metadata:
     // a damaged header is refused by libhdf5 instead of parsed (the fuzzer found libhdf5 1.10
-    // reading freed memory when parsing corrupted v1 headers).
-    // Strong close: closing the file closes everything in it and really closes it, so that its
-    // errors are ours and a reader opening the path next reads the disk, not this handle's cache.
-    let file = hdf5::File::with_options()
-        .with_fapl(|p| p.libver_v18().fclose_degree(hdf5::file::FileCloseDegree::Strong))
-        .create(path)
-        .ctx(&path.display().to_string())?;
+    // reading freed memory when parsing corrupted v1 headers). Strong close (crate::file).
+    let file = crate::file::create(path, true).ctx(&path.display().to_string())?;
     attr_str(&file, root::FORMAT, names::FORMAT)?;
     attr_u32(&file, root::VERSION, names::VERSION)?;
     attr_str(&file, root::GENERATOR, data.generator)?;

@@ -15,10 +15,7 @@ pub fn write_matrices(out: &Path, d: &Discretized) -> Result<()> {
 fn write_to(out: &Path, d: &Discretized) -> Result<()> {
     // Strong close: closing really closes (errors are ours), and the read-back below reads the
     // disk, not this handle's cache.
-    let file = hdf5::File::with_options()
-        .with_fapl(|p| p.fclose_degree(hdf5::file::FileCloseDegree::Strong))
-        .create(out)
-        .with_context(|| format!("cannot create {}", out.display()))?;
+    let file = ves_format::file::create(out, false).with_context(|| format!("cannot create {}", out.display()))?;
     let p = &d.system.pattern;
     let as_u64 = |v: &[usize]| Array1::from(v.iter().map(|&x| x as u64).collect::<Vec<_>>());
     file.new_dataset_builder()
@@ -50,7 +47,7 @@ fn write_to(out: &Path, d: &Discretized) -> Result<()> {
     file.close().context("closing the file")?;
     // Read back in full: a write the disk could not hold, whatever layer swallowed its error,
     // is found before the rename.
-    let back = hdf5::File::open(out).context("reading the written file back")?;
+    let back = ves_format::file::open(out).context("reading the written file back")?;
     let count = |name: &str| -> Result<usize> {
         let ds = back.dataset(name)?;
         Ok(match name {

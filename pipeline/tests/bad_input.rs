@@ -631,3 +631,22 @@ EndFor
 Surface Loop(1) = {1:12};
 Volume(1) = {1};
 ";
+
+/// The root cause of the `unable to lock file, errno = 11` failures of full test runs: libhdf5
+/// locks every file it opens, without close-on-exec, so a child process started by any thread
+/// while a file is open to write keeps its exclusive lock after the writer closed it (here the
+/// test's own writer and a `sleep` in place of another test's `ves` run). A basis is renamed
+/// into place whole, so `ves` reads without the lock.
+#[test]
+fn a_basis_whose_lock_a_child_inherited_still_reads() {
+    let (_dir, basis) = good_basis();
+    let copy = basis.with_file_name("locked.h5");
+    std::fs::copy(&basis, &copy).unwrap();
+    let writer = hdf5::File::open_rw(&copy).unwrap();
+    let mut child = std::process::Command::new("sleep").arg("60").spawn().unwrap();
+    writer.close().unwrap();
+    let o = ves(&["info", copy.to_str().unwrap()]);
+    let _ = child.kill();
+    let _ = child.wait();
+    assert!(o.status.success(), "{}", stderr(&o));
+}

@@ -82,7 +82,7 @@ pub fn compare_loads(input: &str, scene: &Scene, d: &Discretized, tol: Option<f6
         eprintln!("CalculiX's load-case files kept in {}", tmp.keep().display());
     }
     ran?;
-    let r = hdf5::File::open(&result).context("reading CalculiX's static results")?;
+    let r = ves_format::file::open(&result).context("reading CalculiX's static results")?;
     let theirs: Array2<f64> = r.dataset("displacement")?.read_2d()?;
     let reactions: Array2<f64> = r.dataset("reaction")?.read_2d()?;
     let n3 = 3 * d.mesh.nodes.len();
@@ -148,7 +148,7 @@ fn displacement_gap(gap: f64, scale: f64) -> f64 {
 }
 
 fn write_problem(path: &Path, d: &Discretized, scene: &Scene, loads: &[Vec<f64>]) -> Result<()> {
-    let f = hdf5::File::create(path).with_context(|| format!("cannot create {}", path.display()))?;
+    let f = ves_format::file::create(path, false).with_context(|| format!("cannot create {}", path.display()))?;
     super::write_mesh(&f, d)?;
     let n = d.mesh.nodes.len();
     f.new_dataset_builder()

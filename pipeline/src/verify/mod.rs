@@ -610,7 +610,7 @@ pub(super) fn write_mesh(f: &hdf5::File, d: &Discretized) -> Result<()> {
 }
 
 fn write_problem(path: &Path, d: &Discretized, ours: &Modes, load: &[f64], load_node: usize) -> Result<()> {
-    let f = hdf5::File::create(path).with_context(|| format!("cannot create {}", path.display()))?;
+    let f = ves_format::file::create(path, false).with_context(|| format!("cannot create {}", path.display()))?;
     write_mesh(&f, d)?;
     f.new_dataset_builder()
         .with_data(&Array1::from(load.to_vec()))
@@ -723,7 +723,7 @@ fn compare(
     tol: &Tolerances,
     stress: Option<&crate::fem::element::Lame>,
 ) -> Result<ReferenceReport> {
-    let f = hdf5::File::open(result).with_context(|| format!("cannot read {}", result.display()))?;
+    let f = ves_format::file::open(result).with_context(|| format!("cannot read {}", result.display()))?;
     let freqs: Vec<f64> = f.dataset("frequencies_hz")?.read_raw()?;
     let modes: Array2<f64> = f.dataset("modes")?.read_2d()?;
     let solver = ves_format::strings::read(&f, "solver").unwrap_or_default();
