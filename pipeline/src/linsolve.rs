@@ -4,7 +4,7 @@
 
 use crate::fem::assembly::NodeGraph;
 use crate::supports::Dofs;
-use faer::dyn_stack::{MemBuffer, MemStack};
+use faer::dyn_stack::{MemBuffer, MemStack, StackReq};
 use faer::linalg::cholesky::ldlt::factor::LdltRegularization;
 use faer::linalg::cholesky::llt::factor::LltRegularization;
 use faer::perm::PermRef;
@@ -108,6 +108,33 @@ pub enum FactorError {
     /// Symbolic analysis failed (out of memory or index overflow).
     #[error("sparse Cholesky analysis failed: {0}")]
     Symbolic(String),
+    /// The factor would not fit in memory (refused before it was allocated).
+    #[error(
+        "{0}: coarsen the mesh (mesh.size × {coarser:.2} or more: a 3D factor grows about as size⁻⁴) or free memory",
+        coarser = .0.coarsening()
+    )]
+    Memory(crate::memory::OutOfMemory),
+}
+
+impl From<crate::memory::OutOfMemory> for FactorError {
+    fn from(e: crate::memory::OutOfMemory) -> Self {
+        FactorError::Memory(e)
+    }
+}
+
+/// The factor's values and the factorisation's scratch, each allocated only after
+/// [`crate::memory::ensure_fits`] said both fit (and fallibly: never an abort).
+fn factor_storage(symbolic: &SymbolicCholesky<usize>, req: StackReq) -> Result<(Vec<f64>, MemBuffer), FactorError> {
+    let what = format!("the sparse factor of K − σM ({} values)", symbolic.len_val());
+    let bytes = 8 * symbolic.len_val() as u64 + req.size_bytes() as u64;
+    crate::memory::ensure_fits(&what, bytes)?;
+    let l = crate::memory::try_zeros::<f64>(&what, symbolic.len_val())?;
+    let stack = MemBuffer::try_new(req).map_err(|_| crate::memory::OutOfMemory {
+        what,
+        needed: bytes,
+        available: crate::memory::headroom_bytes().unwrap_or(0),
+    })?;
+    Ok((l, stack))
 }
 
 /// The node graph as METIS takes it: full symmetric adjacency without self loops (CSR).
@@ -248,11 +275,10 @@ impl Cholesky {
     ) -> Result<Cholesky, FactorError> {
         let par = Par::rayon(0);
         let a = SparseColMatRef::new(pattern.as_ref(), values);
-        let mut l = vec![0.0; symbolic.len_val()];
         let req = symbolic
             .factorize_numeric_llt_scratch::<f64>(par, Default::default())
             .or(symbolic.solve_in_place_scratch::<f64>(1, Par::Seq));
-        let mut stack = MemBuffer::new(req);
+        let (mut l, mut stack) = factor_storage(&symbolic, req)?;
         symbolic
             .factorize_numeric_llt(
                 &mut l,
@@ -330,8 +356,10 @@ pub fn negative_pivots(
 ) -> Result<usize, FactorError> {
     let par = Par::rayon(0);
     let a = SparseColMatRef::new(pattern.as_ref(), values);
-    let mut l = vec![0.0; symbolic.len_val()];
-    let mut stack = MemBuffer::new(symbolic.factorize_numeric_ldlt_scratch::<f64>(par, Default::default()));
+    let (mut l, mut stack) = factor_storage(
+        symbolic,
+        symbolic.factorize_numeric_ldlt_scratch::<f64>(par, Default::default()),
+    )?;
     symbolic
         .factorize_numeric_ldlt(
             &mut l,

@@ -1,5 +1,6 @@
-//! This process's memory: resident and peak resident size (Linux /proc), and giving malloc's
-//! free pages back to the system between stages.
+//! This process's memory: resident and peak resident size (Linux /proc), what may still be
+//! taken before an allocation is made ([`ensure_fits`]: a refusal in one line instead of an
+//! abort), and giving malloc's free pages back to the system between stages.
 
 /// Peak resident set size of this process (Linux `/proc/self/status`, `VmHWM`), bytes.
 pub fn peak_rss_bytes() -> u64 {
@@ -15,6 +16,131 @@ pub fn rss_bytes() -> u64 {
 /// bytes; `None` where it cannot be read.
 pub fn available_bytes() -> Option<u64> {
     Some(kb_field("/proc/meminfo", "MemAvailable:") * 1024).filter(|&b| b > 0)
+}
+
+/// Memory this process may still take, bytes: the least of what the system can give without
+/// swapping (`MemAvailable`), what its cgroup (a container, a systemd slice) still allows
+/// (`memory.max − memory.current`, v2), and what its address-space limit (`ulimit -v`) leaves.
+/// `None` where none of them can be read.
+/// [`CAP_VAR`], when set, caps what the process may hold in all (its resident size counts).
+pub fn headroom_bytes() -> Option<u64> {
+    let capped = cap_from_env().ok().flatten().map(|cap| cap.saturating_sub(rss_bytes()));
+    [available_bytes(), cgroup_headroom(), address_space_headroom(), capped]
+        .into_iter()
+        .flatten()
+        .min()
+}
+
+/// The environment variable that caps the memory a run may take (bytes, or with a K, M, G or T
+/// suffix, powers of 1024): for a shared machine or a server whose computes must leave room for
+/// the rest. `ves` refuses an unreadable value at its start ([`cap_from_env`]).
+pub const CAP_VAR: &str = "VES_MAX_MEMORY";
+
+/// The cap [`CAP_VAR`] sets, `None` when unset; an error naming it when it is not a size.
+pub fn cap_from_env() -> Result<Option<u64>, String> {
+    let Some(v) = std::env::var_os(CAP_VAR) else {
+        return Ok(None);
+    };
+    let text = v.to_string_lossy();
+    let t = text.trim();
+    let (digits, unit) = match t.char_indices().last() {
+        Some((i, c)) if c.is_ascii_alphabetic() => (&t[..i], c.to_ascii_uppercase()),
+        _ => (t, 'B'),
+    };
+    let scale: u64 = match unit {
+        'B' => 1,
+        'K' => 1 << 10,
+        'M' => 1 << 20,
+        'G' => 1 << 30,
+        'T' => 1 << 40,
+        _ => 0,
+    };
+    match digits.trim().parse::<f64>() {
+        Ok(x) if scale > 0 && x.is_finite() && x > 0.0 && x * (scale as f64) < 2f64.powi(63) => {
+            Ok(Some((x * scale as f64) as u64))
+        }
+        _ => Err(format!(
+            "{CAP_VAR}={text:?}: not a memory size; give bytes or a number with K, M, G or T (e.g. {CAP_VAR}=8G), or unset it"
+        )),
+    }
+}
+
+/// What the cgroup v2 of this process still allows (None without a limit or outside cgroup v2).
+fn cgroup_headroom() -> Option<u64> {
+    // "0::/path" is the v2 entry of /proc/self/cgroup.
+    let own = std::fs::read_to_string("/proc/self/cgroup").ok()?;
+    let rel = own.lines().find_map(|l| l.strip_prefix("0::"))?.trim();
+    let dir = std::path::Path::new("/sys/fs/cgroup").join(rel.trim_start_matches('/'));
+    let read = |f: &str| std::fs::read_to_string(dir.join(f)).ok()?.trim().parse::<u64>().ok();
+    // "max" (no limit) does not parse: None.
+    let max = read("memory.max")?;
+    Some(max.saturating_sub(read("memory.current").unwrap_or(0)))
+}
+
+/// What RLIMIT_AS leaves of the address space (None when unlimited).
+fn address_space_headroom() -> Option<u64> {
+    let mut limit = libc::rlimit {
+        rlim_cur: 0,
+        rlim_max: 0,
+    };
+    // SAFETY: getrlimit writes the struct given; nothing else is touched.
+    if unsafe { libc::getrlimit(libc::RLIMIT_AS, &mut limit) } != 0 || limit.rlim_cur == libc::RLIM_INFINITY {
+        return None;
+    }
+    Some(limit.rlim_cur.saturating_sub(status_kb("VmSize:") * 1024))
+}
+
+/// An allocation that would not fit in the memory this process may still take.
+#[derive(Debug, Clone, thiserror::Error)]
+#[error("{what} needs {:.2} GB of memory, {:.2} GB available", *needed as f64 / 1e9, *available as f64 / 1e9)]
+pub struct OutOfMemory {
+    /// What the memory was for.
+    pub what: String,
+    /// Bytes asked.
+    pub needed: u64,
+    /// Bytes the process could still take ([`headroom_bytes`]).
+    pub available: u64,
+}
+
+impl OutOfMemory {
+    /// By how much the mesh size must grow for a sparse factor of `needed` bytes to fit in
+    /// `available`: nested-dissection fill on a 3D mesh grows as n^{4/3} ∝ size⁻⁴; a tenth more
+    /// for the margin [`ensure_fits`] keeps and the rule's roughness. Rounded up to 0.01.
+    pub fn coarsening(&self) -> f64 {
+        let ratio = self.needed as f64 / (0.9 * self.available.max(1) as f64);
+        (1.1 * ratio.max(1.0).powf(0.25) * 100.0).ceil() / 100.0
+    }
+}
+
+/// Checks, before allocating, that `bytes` more fit in what the process may still take (with a
+/// tenth kept for everything else the step allocates). A failed allocation aborts the process
+/// — every page of `ves view` with it — so each large allocation is asked for here first, and is
+/// then made with `try_reserve` (the estimate can be beaten by another process meanwhile).
+/// Passes where the headroom cannot be read.
+pub fn ensure_fits(what: &str, bytes: u64) -> Result<(), OutOfMemory> {
+    match headroom_bytes() {
+        Some(free) if bytes > free / 10 * 9 => Err(OutOfMemory {
+            what: what.to_string(),
+            needed: bytes,
+            available: free,
+        }),
+        _ => Ok(()),
+    }
+}
+
+/// A zeroed vector of `len` values, or the error instead of an abort when memory is short
+/// ([`ensure_fits`] first, then a fallible reservation).
+pub fn try_zeros<T: Clone + Default>(what: &str, len: usize) -> Result<Vec<T>, OutOfMemory> {
+    let bytes = (len as u64).saturating_mul(std::mem::size_of::<T>() as u64);
+    ensure_fits(what, bytes)?;
+    let mut v = Vec::new();
+    v.try_reserve_exact(len).map_err(|_| OutOfMemory {
+        what: what.to_string(),
+        needed: bytes,
+        available: headroom_bytes().unwrap_or(0),
+    })?;
+    v.resize(len, T::default());
+    Ok(v)
 }
 
 /// A kB field of /proc/self/status.
@@ -40,5 +166,27 @@ pub fn release_free_memory() {
     // SAFETY: malloc_trim only releases pages that malloc holds free; no pointer is touched.
     unsafe {
         libc::malloc_trim(0);
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// What cannot fit is refused, naming it and both sizes; what fits passes.
+    #[test]
+    fn an_allocation_beyond_the_headroom_is_refused_not_attempted() {
+        let free = headroom_bytes().expect("Linux reports the memory available");
+        let e = ensure_fits("the test's factor", free.saturating_mul(2)).expect_err("twice the headroom");
+        assert_eq!(e.needed, free.saturating_mul(2));
+        let text = e.to_string();
+        assert!(
+            text.starts_with("the test's factor needs ") && text.contains("GB available"),
+            "{text}"
+        );
+        ensure_fits("a kilobyte", 1024).expect("fits");
+        let big = try_zeros::<f64>("the test's factor", usize::MAX / 16);
+        assert!(big.is_err(), "an impossible size is an error, not an abort");
+        assert_eq!(try_zeros::<f64>("small", 3).unwrap(), vec![0.0; 3]);
     }
 }

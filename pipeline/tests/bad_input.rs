@@ -650,3 +650,59 @@ fn a_basis_whose_lock_a_child_inherited_still_reads() {
     let _ = child.wait();
     assert!(o.status.success(), "{}", stderr(&o));
 }
+
+/// A mesh whose factorisation does not fit in memory ended in `memory allocation of … bytes
+/// failed` and SIGABRT (exit 134), the page's server with it. Now it is refused before the
+/// factor is allocated, in one line naming a mesh size that fits — and that size does fit.
+/// `VES_MAX_MEMORY` stands in for a small machine (the headroom is the least of it, the
+/// system's available memory, the cgroup's and `ulimit -v`).
+#[test]
+fn a_factor_beyond_memory_is_refused_with_a_size_that_fits() {
+    let scene = GOOD
+        .replace("size = 0.05", "size = 0.012")
+        .replace("order = 1", "order = 2");
+    let (dir, path) = workdir(&scene);
+    let out = dir.path().join("out.h5");
+    std::fs::write(&out, b"previous result").unwrap();
+    let run = |scene: &Path| {
+        std::process::Command::new(env!("CARGO_BIN_EXE_ves"))
+            .args([
+                "precompute",
+                scene.to_str().unwrap(),
+                "-o",
+                out.to_str().unwrap(),
+                "--force",
+            ])
+            .env("VES_MAX_MEMORY", "300M")
+            .output()
+            .unwrap()
+    };
+    let o = run(&path);
+    let err = stderr(&o);
+    assert_eq!(o.status.code(), Some(1), "{err}");
+    assert_eq!(err.lines().count(), 1, "{err}");
+    assert!(err.contains("sparse factor") && err.contains("GB available"), "{err}");
+    assert_eq!(std::fs::read(&out).unwrap(), b"previous result", "output overwritten");
+    let advised = number_after(&err, "set mesh.size = ");
+    assert!(advised > 0.012, "{err}");
+    let coarser = write_file(
+        dir.path(),
+        "coarser.toml",
+        &scene.replace("size = 0.012", &format!("size = {advised}")),
+    );
+    let o = run(&coarser);
+    assert!(
+        o.status.success(),
+        "the advised mesh.size = {advised} does not fit: {}",
+        stderr(&o)
+    );
+    for bad in ["12Q", "-1G", "lots", ""] {
+        let o = std::process::Command::new(env!("CARGO_BIN_EXE_ves"))
+            .args(["info", out.to_str().unwrap()])
+            .env("VES_MAX_MEMORY", bad)
+            .output()
+            .unwrap();
+        assert_eq!(o.status.code(), Some(1), "VES_MAX_MEMORY={bad:?}: {}", stderr(&o));
+        assert!(stderr(&o).contains("VES_MAX_MEMORY"), "{}", stderr(&o));
+    }
+}

@@ -73,6 +73,7 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
     {
         ves_pipeline::mesh::isolate_with(exe);
     }
+    ves_pipeline::memory::cap_from_env().map_err(anyhow::Error::msg)?;
     match cli.command {
         Command::MeshWorker { dir } => ves_pipeline::mesh::serve_rung(&dir).map_err(anyhow::Error::msg),
         Command::Precompute(a) => a.run(),

@@ -77,6 +77,9 @@ impl EigenSolver for BlockKrylov<'_> {
         let t = Instant::now();
         let chol = super::factor_shifted(problem, self.ordering, sigma)?;
         let factorize_s = t.elapsed().as_secs_f64();
+        // The Krylov basis and its K − σM images: the largest allocation after the factor.
+        crate::memory::ensure_fits("the block Krylov basis", 16 * (n * (m + b)) as u64)
+            .map_err(crate::linsolve::FactorError::from)?;
         let t = Instant::now();
         let mut s = State::new(problem, n, m, b);
         s.start(&chol)?;

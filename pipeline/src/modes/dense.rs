@@ -59,6 +59,9 @@ impl EigenSolver for Dense<'_> {
         let problem = self.0;
         let t = Instant::now();
         let n = problem.size();
+        // M, C, the eigenvectors and QR's scratch: about four n × n matrices.
+        crate::memory::ensure_fits("the dense eigen-solve (four n × n matrices)", 4 * 8 * (n as u64).pow(2))
+            .map_err(|e| ModesError::Dense(format!("{e}; use --solver auto for more than a few thousand unknowns")))?;
         let m = densify(problem, problem.m);
         let mut c = densify(problem, problem.k);
         let llt = m

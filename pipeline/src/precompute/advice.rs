@@ -91,3 +91,19 @@ pub(super) fn report_sturm(name: &str, s: &SturmCount) {
         );
     }
 }
+
+/// A solve that would not fit in memory, told with the mesh size that would (the scene's
+/// `mesh.size` scaled by [`crate::memory::OutOfMemory::coarsening`]); any other error as it is.
+pub(super) fn memory(e: crate::modes::ModesError, scene: &Scene) -> anyhow::Error {
+    use crate::linsolve::FactorError;
+    use crate::modes::ModesError;
+    match (&e, scene.mesh.size) {
+        (ModesError::Factor(FactorError::Memory(m)), size) if size > 0.0 => anyhow::anyhow!(
+            "{m}: set mesh.size = {:.3e} m or more (now {size:.3e} m; a 3D factor grows about as size⁻⁴), \
+             or free memory ({} caps what a run may take)",
+            size * m.coarsening(),
+            crate::memory::CAP_VAR
+        ),
+        _ => e.into(),
+    }
+}
