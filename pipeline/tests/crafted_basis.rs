@@ -415,3 +415,38 @@ fn a_compressed_contact_dataset_is_refused_before_it_is_allocated() {
     }
     assert!(!vtu.exists());
 }
+
+/// `transfer/<from>` was never validated: an entry of 1e9 (a switch of space multiplied the
+/// state by it) and `transfer` stored as a dataset passed `ves info`; the first passed
+/// `ves session` too. Both are refused by info, export and session, naming the dataset.
+#[test]
+fn a_damaged_transfer_is_refused_by_every_reader() {
+    let voi = "[[voi]]\nname = \"tip\"\nbox = { min = [0.8, -0.1, -0.1], max = [1.1, 0.2, 0.2] }\nsize = 0.02\n";
+    let (dir, path) = workdir(&format!("{GOOD}{voi}"));
+    let basis = dir.path().join("beam.h5");
+    let o = ves(&["precompute", path.to_str().unwrap(), "-o", basis.to_str().unwrap()]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let device = press_script(dir.path());
+    for (name, edit, why) in [
+        (
+            "big.h5",
+            "d = g['transfer/tip']\nv = d[...]\nv[0, 0] = 1e9\nd[...] = v",
+            &["transfer/tip", "1e9", "row 0, column 0"][..],
+        ),
+        (
+            "dataset.h5",
+            "t = f['spaces/tip']\ndel t['transfer']\nt['transfer'] = np.zeros(3)",
+            &["transfer", "not a group"],
+        ),
+    ] {
+        let file = craft(&basis, name, edit);
+        let f = file.to_str().unwrap();
+        let vtu = dir.path().join(format!("{name}-vtu"));
+        refused(&["info", f], &file, why);
+        refused(&["export", f, "--vtu", vtu.to_str().unwrap()], &file, why);
+        assert!(!vtu.exists(), "{name}: export wrote {}", vtu.display());
+        refused(&["session", f, "--device", &device, "--duration", "0.01"], &file, why);
+    }
+    let o = ves(&["info", basis.to_str().unwrap()]);
+    assert!(o.status.success(), "{}", stderr(&o));
+}
