@@ -15,6 +15,20 @@ pub const MAX_DAMPING_RATIO: f64 = 1e3;
 /// felt force vanish.
 pub const MAX_DIMENSIONLESS_COMPLIANCE: f64 = 1e12;
 
+/// Most tets per node a mesh may hold (its nodes are uncompressed, its tets deflated: this bounds
+/// what reading the tets allocates). A quality tet mesh has about 6 tets per corner vertex and
+/// fewer per node with mid-edge nodes; 64 leaves room for any mesh gmsh makes.
+pub const MAX_TETS_PER_NODE: usize = 64;
+
+/// Largest magnitude of an entry of a transfer matrix T = Φᵀ M I Φ_from. Its entries are M-inner
+/// products of unit modes with interpolated unit modes (Cauchy–Schwarz: |Tᵢⱼ| ≤ ‖I φⱼ‖_M, about
+/// 1 up to the interpolation between the two meshes); 2 leaves room for a coarse `from` mesh.
+pub const MAX_TRANSFER: f64 = 2.0;
+
+/// Largest magnitude of a load case's value (displacement, von Mises, stress): the runtime and
+/// the page hold them in single precision, where a larger one becomes infinite.
+pub const MAX_SINGLE: f64 = f32::MAX as f64;
+
 /// Relative tolerance of symmetry (of 3×3 blocks) and of frequencies against √λ/2π.
 pub const RELATIVE_TOLERANCE: f64 = 1e-6;
 
@@ -128,6 +142,16 @@ pub fn symmetric_positive_definite(b: &Block3, free: [bool; 3]) -> Result<f64, S
         }
     }
     Ok((0..3).map(|i| b[i][i]).fold(0.0, f64::max))
+}
+
+/// A load case's stated largest value `stated` (attribute `max_displacement` or `max_von_mises`)
+/// equal to the largest of its data, `found`, to [`RELATIVE_TOLERANCE`].
+pub fn stated_max(stated: f64, found: f64) -> Result<(), String> {
+    if (stated - found).abs() <= RELATIVE_TOLERANCE * stated.abs().max(found.abs()) {
+        Ok(())
+    } else {
+        Err(format!("says {stated:e} but its data's largest value is {found:e}"))
+    }
 }
 
 /// Surface triangles: three distinct corner vertices each (a repeated index is no triangle).

@@ -97,9 +97,10 @@ impl Contact {
         (&self.nodes[lo..hi], &self.weights[lo..hi])
     }
 
-    /// Checks the shape a reader relies on: offsets from 0 to the number of nodes, ascending
-    /// centres, node indices below `node_count`, finite weights summing to 1 per centre.
-    pub fn check(&self, node_count: usize) -> Result<(), String> {
+    /// Checks what a reader relies on: offsets from 0 to the number of nodes, ascending centres
+    /// that are corner vertices (below `vertex_count`), node indices below `node_count`, and per
+    /// patch finite weights summing to 1, each within [`Contact::weight_range`] of its node.
+    pub fn check(&self, kind: crate::ElementKind, vertex_count: usize, node_count: usize) -> Result<(), String> {
         if !(self.radius.is_finite() && self.radius >= 0.0) {
             return Err(format!("radius {} is not a length ≥ 0", self.radius));
         }
@@ -120,48 +121,77 @@ impl Contact {
         if self.centres.windows(2).any(|w| w[0] >= w[1]) {
             return Err("centres are not ascending".into());
         }
-        if let Some(v) = self
-            .centres
-            .iter()
-            .chain(&self.nodes)
-            .find(|&&v| v as usize >= node_count)
-        {
+        if let Some(v) = self.centres.iter().find(|&&v| v as usize >= vertex_count) {
+            return Err(format!("centre {v} is not a corner vertex (of {vertex_count})"));
+        }
+        if let Some(v) = self.nodes.iter().find(|&&v| v as usize >= node_count) {
             return Err(format!("node {v} of {node_count}"));
         }
         for k in 0..self.centres.len() {
-            let (_, w) = self.patch(k);
+            let (nodes, w) = self.patch(k);
+            for (&a, &x) in nodes.iter().zip(w) {
+                let (lo, hi) = Contact::weight_range(kind, a as usize >= vertex_count);
+                if !(x >= lo - WEIGHT_TOLERANCE && x <= hi + WEIGHT_TOLERANCE) {
+                    return Err(format!(
+                        "weight {x:e} of node {a} in patch {k} (centre {}) is outside [{lo}, {hi}]: a weight is the \
+                         node's shape function averaged over the patch's pressure",
+                        self.centres[k]
+                    ));
+                }
+            }
             let sum: f64 = w.iter().sum();
-            if w.iter().any(|x| !x.is_finite()) || (sum - 1.0).abs() > 1e-6 {
+            if (sum - 1.0).abs() > WEIGHT_TOLERANCE {
                 return Err(format!("the weights of patch {k} sum to {sum}, not 1"));
             }
         }
         Ok(())
     }
+
+    /// The range of a contact weight wₐ = ∫ Nₐ p dA / ∫ p dA: with a pressure p ≥ 0 it is an
+    /// average of the shape function Nₐ over the patch, so it lies within Nₐ's range on a
+    /// surface triangle: [0, 1] for a 3-node triangle's corners and a 6-node triangle's mid-edge
+    /// nodes (4 L₁L₂), [−1/8, 1] for a 6-node triangle's corners (L(2L − 1), least at L = 1/4).
+    /// The runtime multiplies the hand's force by each weight: a weight of 1e9 in a patch that
+    /// still sums to 1 makes a 12.5 mm pull feel 6e-10 N instead of 6.3 N.
+    pub fn weight_range(kind: crate::ElementKind, mid_edge: bool) -> (f64, f64) {
+        match kind {
+            crate::ElementKind::Tet10 if !mid_edge => (-0.125, 1.0),
+            _ => (0.0, 1.0),
+        }
+    }
 }
+
+/// Rounding allowed on a contact weight's range and on a patch's sum (the integration's rounding
+/// is far below it).
+pub const WEIGHT_TOLERANCE: f64 = 1e-6;
 
 #[cfg(test)]
 mod contact_tests {
     use super::Contact;
+    use crate::ElementKind::{Tet4, Tet10};
 
     /// A damage and a word its refusal must contain.
     type Damage = (&'static str, fn(&mut Contact));
 
+    /// Two patches of a 10-node mesh of 4 corner vertices and 6 nodes: a corner's share may be
+    /// negative (down to −1/8), a mid-edge node's may not.
     fn good() -> Contact {
         Contact {
             radius: 0.005,
             centres: vec![0, 2],
             offsets: vec![0, 3, 4],
             nodes: vec![0, 1, 5, 2],
-            weights: vec![0.75, 0.5, -0.25, 1.0],
+            weights: vec![0.625, -0.125, 0.5, 1.0],
         }
     }
 
     /// What a reader relies on is checked: each damage alone is refused, naming what is wrong.
     #[test]
     fn a_damaged_contact_group_is_refused() {
-        assert_eq!(good().check(6), Ok(()));
-        let cases: [Damage; 7] = [
+        assert_eq!(good().check(Tet10, 4, 6), Ok(()));
+        let cases: [Damage; 11] = [
             ("node 6 of 6", |c| c.nodes[2] = 6),
+            ("not a corner vertex", |c| c.centres[1] = 4),
             ("offsets", |c| c.offsets = vec![0, 4, 3]),
             ("offsets", |c| {
                 c.offsets.pop();
@@ -170,15 +200,34 @@ mod contact_tests {
             ("sum to", |c| c.weights[0] = 0.7),
             ("not ascending", |c| c.centres = vec![2, 0]),
             ("radius", |c| c.radius = f64::NAN),
+            // Issue 40: ±1e9 summing to 1 divided the felt force by 1e10.
+            ("outside [-0.125, 1]", |c| {
+                c.weights[0] += 1e9;
+                c.weights[1] -= 1e9;
+            }),
+            // A mid-edge node's shape function 4 L₁L₂ is never negative.
+            ("outside [0, 1]", |c| {
+                c.weights[2] = -0.125;
+                c.weights[1] = 0.5;
+            }),
+            ("outside", |c| c.weights[3] = f64::INFINITY),
         ];
         for (says, damage) in cases {
             let mut c = good();
             damage(&mut c);
-            let e = c.check(6).expect_err(says);
+            let e = c.check(Tet10, 4, 6).expect_err(says);
             assert!(e.contains(says), "{e:?} should say {says:?}");
         }
+        // The sum alone, as the check was, lets the ±1e9 patch through.
         let mut c = good();
-        c.weights[3] = f64::INFINITY;
-        assert!(c.check(6).is_err());
+        c.weights[0] += 1e9;
+        c.weights[1] -= 1e9;
+        assert!((c.weights[..3].iter().sum::<f64>() - 1.0).abs() < 1e-6);
+        // With 4-node tets every node is a corner of a 3-node triangle: no share is negative.
+        let e = good().check(Tet4, 6, 6).unwrap_err();
+        assert!(e.contains("outside [0, 1]"), "{e}");
+        let mut rounded = good();
+        rounded.weights[3] = 1.0 + 1e-9;
+        assert_eq!(rounded.check(Tet10, 4, 6), Ok(()), "rounding is allowed");
     }
 }

@@ -125,6 +125,13 @@ pub mod space {
     pub const FIXED_MASK: &str = "mesh/fixed_mask";
     /// Optional group: one group `loads/<name>` per static load case.
     pub const LOADS: &str = "loads";
+    /// The datasets the writer compresses (deflate, shuffle), each of an extent the reader
+    /// checks against uncompressed counts before reading it: `mesh/tets` (at most
+    /// [`crate::checks::MAX_TETS_PER_NODE`] per node), `mesh/surface_faces` (one per surface
+    /// triangle) and `mesh/fixed_mask` (one per node). Any other dataset must be stored
+    /// uncompressed: its values are then no more bytes than the file holds, where deflate lets
+    /// a 1 MB file hold a gigabyte of zeros.
+    pub const COMPRESSED: [&str; 3] = [TETS, SURFACE_FACES, FIXED_MASK];
 }
 
 /// Names inside `/spaces/<space>/loads/<name>/` (one static load case).

@@ -372,6 +372,19 @@ impl BasisReader {
         })
     }
 
+    /// Reads and checks everything in the file: the default space, the material and every
+    /// space ([`SpaceReader::validate`]). The one validation every reader runs before it uses
+    /// a file (`ves info`, `ves export`, the runtime's loader and through it `ves session`,
+    /// `ves view`, the C ABI and Python).
+    pub fn validate(&self) -> Result<(), ReadError> {
+        self.default_space()?;
+        self.material()?;
+        for name in self.space_names()? {
+            self.space(&name)?.validate()?;
+        }
+        Ok(())
+    }
+
     /// Opens space `name`, checking its attributes and that its datasets' shapes agree.
     pub fn space(&self, name: &str) -> Result<SpaceReader<'_>, ReadError> {
         self.guard(|| SpaceReader::open(self, name))
@@ -500,6 +513,16 @@ impl<'a> SpaceReader<'a> {
             &[None, Some(3)],
         )?;
         s.shape::<u32>(sp::FIXED_DOFS, 1)?;
+        // The tets are deflated: their count is bounded by the nodes' (stored uncompressed)
+        // before they are read.
+        if tets[0] > checks::MAX_TETS_PER_NODE * n {
+            return Err(bad(&format!(
+                "{} holds {} tets for {n} nodes, more than {} per node; the file is damaged",
+                sp::TETS,
+                tets[0],
+                checks::MAX_TETS_PER_NODE
+            )));
+        }
         if nv == 0 || nv as usize > n || r == 0 || tets[0] == 0 {
             return Err(bad(&format!(
                 "{nv} vertices of {n} nodes, {r} modes, {} tets: nothing to simulate or inconsistent",
@@ -545,6 +568,13 @@ impl<'a> SpaceReader<'a> {
             return Err(self.err(format!("{name} has {} dimensions, expected {rank}", shape.len())));
         }
         let bytes = shape.iter().map(|&d| d as u128).product::<u128>() * std::mem::size_of::<T>() as u128;
+        if !ds.filters().is_empty() && !sp::COMPRESSED.contains(&name) {
+            return Err(self.err(format!(
+                "{name} is compressed; the format compresses only {} (refused: deflate lets a small file claim \
+                 gigabytes of values)",
+                sp::COMPRESSED.join(", ")
+            )));
+        }
         let limit = if ds.filters().is_empty() {
             self.file.file_bytes
         } else {
@@ -570,6 +600,47 @@ impl<'a> SpaceReader<'a> {
             )));
         }
         Ok((ds, shape))
+    }
+
+    /// Whether the space holds dataset `name` (an optional one): false when nothing has that
+    /// name, an error when something else does (a reader taking it for absent would skip its
+    /// checks).
+    fn has_dataset(&self, name: &str) -> Result<bool, ReadError> {
+        if !self.group.link_exists(name) {
+            return Ok(false);
+        }
+        self.group.dataset(name).map(|_| true).map_err(|_| {
+            self.err(format!(
+                "{name} is not a dataset (the format declares one there); the file is damaged"
+            ))
+        })
+    }
+
+    /// The space's optional group `name`, checked ([`BasisReader::check_object`]): `None` when
+    /// nothing has that name, an error when something else (a dataset) does.
+    fn optional_group(&self, name: &str) -> Result<Option<hdf5::Group>, ReadError> {
+        if !self.group.link_exists(name) {
+            return Ok(None);
+        }
+        let g = self.group.group(name).map_err(|_| {
+            self.err(format!(
+                "{name} is not a group (the format declares a group there); the file is damaged"
+            ))
+        })?;
+        self.file
+            .check_object(&g, &format!("{}/{}/{name}", names::SPACES, self.name))?;
+        Ok(Some(g))
+    }
+
+    /// The shape of 1-D dataset `name`, which must hold `want` values: checked before it is read.
+    fn expect_len<T: H5Type>(&self, name: &str, want: usize, of: &str) -> Result<(), ReadError> {
+        let got = self.shape::<T>(name, 1)?[0];
+        if got != want {
+            return Err(self.err(format!(
+                "{name} holds {got} values for {want} {of}; the file is damaged"
+            )));
+        }
+        Ok(())
     }
 
     fn shape<T: H5Type>(&self, name: &str, rank: usize) -> Result<Vec<usize>, ReadError> {
@@ -650,19 +721,19 @@ impl<'a> SpaceReader<'a> {
     /// them (files written before them do not).
     pub fn surface_faces(&self) -> Result<Option<Vec<u32>>, ReadError> {
         self.guard(|| {
-            if self.group.dataset(sp::SURFACE_FACES).is_err() {
+            if !self.has_dataset(sp::SURFACE_FACES)? {
                 return Ok(None);
             }
-            let v = self.read_all::<u32>(sp::SURFACE_FACES, 1)?;
-            if v.len() != self.triangle_count {
+            // Deflated: its extent is checked against the triangles' before it is read.
+            let got = self.shape::<u32>(sp::SURFACE_FACES, 1)?[0];
+            if got != self.triangle_count {
                 return Err(self.err(format!(
-                    "{} holds {} tags for {} surface triangles; the file is damaged",
+                    "{} holds {got} tags for {} surface triangles; the file is damaged",
                     sp::SURFACE_FACES,
-                    v.len(),
                     self.triangle_count
                 )));
             }
-            Ok(Some(v))
+            Ok(Some(self.read_all::<u32>(sp::SURFACE_FACES, 1)?))
         })
     }
 
@@ -715,10 +786,10 @@ impl<'a> SpaceReader<'a> {
     /// the file has no stress.
     pub fn stress_rows(&self, vertices: Range<usize>, cols: usize) -> Result<Option<Vec<f64>>, ReadError> {
         self.guard(|| {
-            let Ok(ds) = self.group.dataset(sp::STRESS) else {
+            if !self.has_dataset(sp::STRESS)? {
                 return Ok(None);
-            };
-            let (checked, shape) = self.dataset::<f64>(sp::STRESS, 2)?;
+            }
+            let (ds, shape) = self.dataset::<f64>(sp::STRESS, 2)?;
             if shape != [6 * self.vertex_count, self.mode_count] {
                 return Err(self.err(format!(
                     "{} has shape {shape:?}, expected [{}, {}] (6 per corner vertex, one column per mode)",
@@ -733,7 +804,7 @@ impl<'a> SpaceReader<'a> {
                     self.vertex_count, self.mode_count
                 )));
             }
-            self.charge::<f64>(sp::STRESS, &checked, &shape, 6 * vertices.len() * cols)?;
+            self.charge::<f64>(sp::STRESS, &ds, &shape, 6 * vertices.len() * cols)?;
             let block: ndarray::Array2<f64> = ds
                 .read_slice(ndarray::s![6 * vertices.start..6 * vertices.end, 0..cols])
                 .map_err(|e| self.err(format!("{}: {e}", sp::STRESS)))?;
@@ -746,9 +817,10 @@ impl<'a> SpaceReader<'a> {
     /// non-negative value per mode (NaN where a mode had no estimate).
     pub fn estimated_relative_error(&self) -> Result<Option<Vec<f64>>, ReadError> {
         self.guard(|| {
-            if self.group.dataset(sp::ESTIMATED_RELATIVE_ERROR).is_err() {
+            if !self.has_dataset(sp::ESTIMATED_RELATIVE_ERROR)? {
                 return Ok(None);
             }
+            self.expect_len::<f64>(sp::ESTIMATED_RELATIVE_ERROR, self.mode_count, "modes")?;
             let v: Vec<f64> = self.read_all(sp::ESTIMATED_RELATIVE_ERROR, 1)?;
             if v.len() != self.mode_count || v.iter().any(|e| *e < 0.0 || e.is_infinite()) {
                 return Err(self.err(format!(
@@ -857,11 +929,9 @@ impl<'a> SpaceReader<'a> {
     /// in the others, and below [`checks::MAX_DIMENSIONLESS_COMPLIANCE`] / (E·L).
     pub fn compliance(&self) -> Result<Option<crate::Compliance>, ReadError> {
         self.guard(|| {
-            let Ok(group) = self.group.group(sp::COMPLIANCE) else {
+            if self.optional_group(sp::COMPLIANCE)?.is_none() {
                 return Ok(None);
-            };
-            self.file
-                .check_object(&group, &format!("{}/{}/{}", names::SPACES, self.name, sp::COMPLIANCE))?;
+            }
             let nodes = self.read_all::<u32>(sp::COMPLIANCE_NODES, 1)?;
             let nodes = self.indices(sp::COMPLIANCE_NODES, nodes, self.node_count)?;
             let (_, shape) = self.dataset::<f64>(sp::COMPLIANCE_BLOCKS, 3)?;
@@ -907,13 +977,24 @@ impl<'a> SpaceReader<'a> {
     /// The hand's contact patches, if stored, checked ([`crate::Contact::check`]).
     pub fn contact(&self) -> Result<Option<crate::Contact>, ReadError> {
         self.guard(|| {
-            let Ok(group) = self.group.group(sp::CONTACT) else {
+            let Some(group) = self.optional_group(sp::CONTACT)? else {
                 return Ok(None);
             };
-            self.file
-                .check_object(&group, &format!("{}/{}/{}", names::SPACES, self.name, sp::CONTACT))?;
             let radius = scalar_attr::<f64>(&group, sp::CONTACT_RADIUS)
                 .ok_or_else(|| self.err("contact/ has no radius attribute; the file is damaged"))?;
+            // Extents against each other and the mesh before anything is read: one centre per
+            // corner vertex at most, one more offset than centres, a weight per node.
+            let p = self.shape::<u32>(sp::CONTACT_CENTRES, 1)?[0];
+            if p > self.vertex_count {
+                return Err(self.err(format!(
+                    "{} holds {p} centres for {} corner vertices; the file is damaged",
+                    sp::CONTACT_CENTRES,
+                    self.vertex_count
+                )));
+            }
+            self.expect_len::<u32>(sp::CONTACT_OFFSETS, p + 1, "centres + 1")?;
+            let nnz = self.shape::<u32>(sp::CONTACT_NODES, 1)?[0];
+            self.expect_len::<f64>(sp::CONTACT_WEIGHTS, nnz, &format!("nodes of {}", sp::CONTACT_NODES))?;
             let contact = crate::Contact {
                 radius,
                 centres: self.read_all(sp::CONTACT_CENTRES, 1)?,
@@ -922,7 +1003,7 @@ impl<'a> SpaceReader<'a> {
                 weights: self.read_all(sp::CONTACT_WEIGHTS, 1)?,
             };
             contact
-                .check(self.node_count)
+                .check(self.kind, self.vertex_count, self.node_count)
                 .map_err(|m| self.err(format!("{}: {m}; the file is damaged", sp::CONTACT)))?;
             Ok(Some(contact))
         })
@@ -931,14 +1012,12 @@ impl<'a> SpaceReader<'a> {
     /// Mass properties of a free body, if stored (mass > 0, all finite).
     pub fn rigid(&self) -> Result<Option<RigidProperties>, ReadError> {
         self.guard(|| {
-            let Ok(g) = self.group.group(sp::RIGID) else {
+            let Some(g) = self.optional_group(sp::RIGID)? else {
                 return Ok(None);
             };
             let mass = scalar_attr::<f64>(&g, sp::MASS).filter(|m| m.is_finite() && *m > 0.0);
             let c = f64_array_attr(&g, sp::CENTER_OF_MASS, 3);
             let i = f64_array_attr(&g, sp::INERTIA, 9);
-            self.file
-                .check_object(&g, &format!("{}/{}/{}", names::SPACES, self.name, sp::RIGID))?;
             match (mass, c, i) {
                 (Some(mass), Some(c), Some(i)) => {
                     let inertia = [[i[0], i[1], i[2]], [i[3], i[4], i[5]], [i[6], i[7], i[8]]];
@@ -956,12 +1035,12 @@ impl<'a> SpaceReader<'a> {
     }
 
     /// The state-transfer matrix from space `from`, its first `r_to × r_from` block row-major,
-    /// when the file holds one.
+    /// when the file holds one: finite, each entry at most [`checks::MAX_TRANSFER`] in magnitude.
     pub fn transfer(&self, from: &str, r_to: usize, r_from: usize) -> Result<Option<Vec<f64>>, ReadError> {
         self.guard(|| {
             names::check_space_name(from).map_err(|m| self.err(format!("transfer: {m}")))?;
             let name = format!("{}/{from}", sp::TRANSFER);
-            if self.group.dataset(&name).is_err() {
+            if self.optional_group(sp::TRANSFER)?.is_none() || !self.has_dataset(&name)? {
                 return Ok(None);
             }
             let (ds, shape) = self.dataset::<f64>(&name, 2)?;
@@ -975,7 +1054,60 @@ impl<'a> SpaceReader<'a> {
             let a: ndarray::Array2<f64> = ds
                 .read_slice(s![0..r_to, 0..r_from])
                 .map_err(|_| self.err(format!("{name}: data unreadable (damaged)")))?;
-            self.finite(&name, a.iter().copied().collect()).map(Some)
+            let t = self.finite(&name, a.iter().copied().collect())?;
+            if let Some(i) = t.iter().position(|x| x.abs() > checks::MAX_TRANSFER) {
+                return Err(self.err(format!(
+                    "{name} holds {:e} at row {}, column {}: a transfer between M-normalised modes has entries \
+                     of at most about 1 (refused above {}); the file is damaged",
+                    t[i],
+                    i / r_from.max(1),
+                    i % r_from.max(1),
+                    checks::MAX_TRANSFER
+                )));
+            }
+            Ok(Some(t))
+        })
+    }
+
+    /// Checks every `transfer/<from>`: `from` a space of the file other than this one, the
+    /// matrix [r, r_from] (the two spaces' mode counts), finite and in range.
+    pub fn check_transfers(&self) -> Result<(), ReadError> {
+        self.guard(|| {
+            let Some(g) = self.optional_group(sp::TRANSFER)? else {
+                return Ok(());
+            };
+            let count = usize::try_from(g.len()).unwrap_or(usize::MAX);
+            if count > names::MAX_SPACES {
+                return Err(self.err(format!(
+                    "{} holds {count} matrices, more than {} spaces: refused before reading them",
+                    sp::TRANSFER,
+                    names::MAX_SPACES
+                )));
+            }
+            let spaces = self.file.listed_spaces()?;
+            let listed = g
+                .member_names()
+                .map_err(|_| self.err(format!("{} unreadable; the file is damaged", sp::TRANSFER)))?;
+            for from in &listed {
+                let name = format!("{}/{from}", sp::TRANSFER);
+                if *from == self.name || !spaces.contains(from) {
+                    return Err(self.err(format!(
+                        "{name}: the file holds no other space \"{}\" to transfer from; the file is damaged",
+                        names::escape_for_terminal(from)
+                    )));
+                }
+                let r_from = self.file.space(from)?.mode_count;
+                let shape = self.shape::<f64>(&name, 2)?;
+                if shape != [self.mode_count, r_from] {
+                    return Err(self.err(format!(
+                        "{name} has shape {shape:?}, expected [{}, {r_from}] (the two spaces' mode counts); the file \
+                         is damaged",
+                        self.mode_count
+                    )));
+                }
+                self.transfer(from, self.mode_count, r_from)?;
+            }
+            Ok(())
         })
     }
 
@@ -1021,6 +1153,8 @@ impl<'a> SpaceReader<'a> {
         self.stress_rows(0..self.vertex_count, self.mode_count)?;
         self.fixed_mask()?;
         self.loads()?;
+        self.contact()?;
+        self.check_transfers()?;
         Ok(())
     }
 }

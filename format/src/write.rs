@@ -418,6 +418,10 @@ mod tests {
     #[test]
     fn load_cases_are_written_read_back_and_checked() {
         let u: Vec<f64> = (0..12).map(|i| 1e-6 * f64::from(i)).collect();
+        let largest = u
+            .chunks_exact(3)
+            .map(|v| (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt())
+            .fold(0.0, f64::max);
         let (vm, stress) = ([1.0, 2.0, 3.0, 4.0], [5.0; 24]);
         let load = super::LoadData {
             name: "tip",
@@ -425,7 +429,7 @@ mod tests {
             total_force: [0.0, 0.0, -10.0],
             reaction: [0.0, 0.0, 10.0],
             balance_residual: 1e-12,
-            max_displacement: 1.9e-5,
+            max_displacement: largest,
             max_von_mises: 4.0,
             displacement: &u,
             von_mises: &vm,
@@ -460,11 +464,17 @@ mod tests {
                 .unwrap()
                 .is_empty()
         );
-        // Damage: a NaN, a wrong shape, an unknown kind.
+        // Damage: a NaN, a wrong shape, an unknown kind; (issue 40) a value beyond single
+        // precision, a `max_displacement` that is not the data's, `loads` stored as a dataset, a
+        // `fixed_mask` that disagrees with `fixed_dofs`.
         for (what, says) in [
             ("nan", "non-finite value"),
             ("shape", "expected [4]"),
             ("kind", "kind missing or not one of"),
+            ("huge", "beyond single precision"),
+            ("max", "max_displacement says"),
+            ("dataset", "loads is not a group"),
+            ("mask", "mesh/fixed_mask is 0 at node 0 but mesh/fixed_dofs holds it"),
         ] {
             write_tet_with(&path, None, std::slice::from_ref(&load)).unwrap();
             {
@@ -482,6 +492,31 @@ mod tests {
                         c.new_dataset_builder()
                             .with_data(&ndarray::arr1(&[1.0, 2.0]))
                             .create("von_mises")
+                            .unwrap();
+                    }
+                    "huge" => {
+                        c.dataset("von_mises")
+                            .unwrap()
+                            .write(&ndarray::arr1(&[1.0, 1e300, 3.0, 4.0]))
+                            .unwrap();
+                    }
+                    "max" => {
+                        c.delete_attr("max_displacement").unwrap();
+                        super::attr_f64(&c, "max_displacement", 2.0 * largest).unwrap();
+                    }
+                    "dataset" => {
+                        f.unlink("spaces/global/loads").unwrap();
+                        f.group("spaces/global")
+                            .unwrap()
+                            .new_dataset_builder()
+                            .with_data(&ndarray::arr1(&[0.0; 3]))
+                            .create("loads")
+                            .unwrap();
+                    }
+                    "mask" => {
+                        f.dataset("spaces/global/mesh/fixed_mask")
+                            .unwrap()
+                            .write(&ndarray::arr1(&[0u32, 1, 1, 1]))
                             .unwrap();
                     }
                     _ => {

@@ -51,12 +51,15 @@ impl Data<'_> {
     }
 }
 
-/// Writes the basis at `basis` into `dir` (created if missing); returns the files written.
-/// Every output is checked before the first is written ([`crate::output::check`]: a symbolic
+/// Writes the basis at `basis` into `dir` (created if missing); returns the files written. The
+/// whole file is checked first ([`ves_format::BasisReader::validate`]). Every output is checked before the first is written ([`crate::output::check`]: a symbolic
 /// link is replaced only under `overwrite.force`, the basis itself never), and a space name that
 /// would leave `dir` or give two spaces one file is refused.
 pub fn export(basis: &Path, dir: &Path, overwrite: Overwrite) -> Result<Vec<PathBuf>> {
     let file = ves_format::BasisReader::open(basis)?;
+    // Everything is checked before anything is written: a damaged second space must not leave
+    // the first one's files behind.
+    file.validate()?;
     if dir.exists() && !dir.is_dir() {
         bail!("{}: is a file; give a directory for the VTK files", dir.display());
     }

@@ -148,9 +148,7 @@ pub fn write(out: &Path, scene: &Scene, spaces: &[Space<'_>]) -> Result<()> {
             // What was written is read back through the guarded reader: a write the disk
             // could not hold, whatever layer swallowed its error, is found before the rename.
             let reader = ves_format::BasisReader::open(tmp)?;
-            for name in reader.space_names()? {
-                reader.space(&name)?.validate()?;
-            }
+            reader.validate()?;
             sidecar_text = sidecar_of(&reader, out)?;
             Ok(())
         })
@@ -326,11 +324,10 @@ pub struct BasisInfo {
 /// uses, plus the rows and arrays the runtime does not load).
 pub fn info(path: &Path) -> Result<BasisInfo> {
     let file = ves_format::BasisReader::open(path)?;
-    file.material()?;
+    file.validate()?;
     let mut spaces = Vec::new();
     for name in file.space_names()? {
         let s = file.space(&name)?;
-        s.validate()?;
         let res = s.relative_residuals()?;
         spaces.push(SpaceInfo {
             name: name.clone(),

@@ -317,3 +317,136 @@ fn a_dataset_never_written_in_a_sparse_file_is_refused_before_it_is_read() {
         &["never written"],
     );
 }
+
+/// The good scene with a tip load case (the default contact patch is stored too).
+fn basis_with_load() -> (tempfile::TempDir, PathBuf) {
+    let tip = "[[load]]\nname = \"tip\"\nplane = { axis = \"x\", value = 1.0 }\nforce = [0.0, 0.0, -1000.0]\n";
+    let (dir, path) = workdir(&format!("{GOOD}{tip}"));
+    let basis = dir.path().join("beam.h5");
+    let o = ves(&["precompute", path.to_str().unwrap(), "-o", basis.to_str().unwrap()]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    (dir, basis)
+}
+
+/// Issue 40: values and groups the reader let through. Contact weights of ±1e9 that still sum
+/// to 1 (the felt force fell from 6.3 N to 6e-10 N), `contact` or `loads` stored as a dataset
+/// (read as absent), an inverted `fixed_mask`, load data of 1e300 (the page sent `inf`) and a
+/// `max_displacement` never compared with the data: `ves info` accepted some, `ves export` and
+/// the runtime's loader (`ves session`) all. Each is refused by all three, naming the dataset,
+/// and export writes nothing.
+#[test]
+fn every_reader_refuses_damaged_contact_loads_and_mask() {
+    let (dir, basis) = basis_with_load();
+    let cases = [
+        (
+            "weights.h5",
+            "w = g['contact/weights']\nv = w[...]\no = g['contact/offsets'][...]\n\
+             k = next(k for k in range(len(o) - 1) if o[k + 1] - o[k] >= 2)\n\
+             v[o[k]] += 1e9\nv[o[k] + 1] -= 1e9\nw[...] = v",
+            &["contact", "outside [0, 1]"][..],
+        ),
+        (
+            "contact_dataset.h5",
+            "del g['contact']\ng['contact'] = np.zeros(3)",
+            &["contact", "not a group"],
+        ),
+        (
+            "loads_dataset.h5",
+            "del g['loads']\ng['loads'] = np.zeros(3)",
+            &["loads", "not a group"],
+        ),
+        (
+            "inverted_mask.h5",
+            "d = g['mesh/fixed_mask']\nd[...] = 1 - d[...]",
+            &["mesh/fixed_mask", "mesh/fixed_dofs"],
+        ),
+        (
+            "huge_load.h5",
+            "c = g['loads/tip']\nd = c['displacement']\nv = d[...]\nv[-1] = [1e300, 0.0, 0.0]\nd[...] = v\n\
+             c.attrs['max_displacement'] = 1e300",
+            &["loads/tip/displacement", "single precision"],
+        ),
+        (
+            "wrong_max.h5",
+            "c = g['loads/tip']\nc.attrs['max_displacement'] = 2 * c.attrs['max_displacement']",
+            &["loads/tip", "max_displacement"],
+        ),
+    ];
+    let device = press_script(dir.path());
+    for (name, edit, why) in cases {
+        let file = craft(&basis, name, edit);
+        let f = file.to_str().unwrap();
+        let vtu = dir.path().join(format!("{name}-vtu"));
+        refused(&["info", f], &file, why);
+        refused(&["export", f, "--vtu", vtu.to_str().unwrap()], &file, why);
+        assert!(!vtu.exists(), "{name}: export wrote {}", vtu.display());
+        refused(&["session", f, "--device", &device, "--duration", "0.01"], &file, why);
+    }
+    let o = ves(&["info", basis.to_str().unwrap()]);
+    assert!(o.status.success(), "{}", stderr(&o));
+}
+
+/// A 1 MB file whose `contact/nodes` is 2e8 deflated zeros (800 MB of values) made `ves info`
+/// allocate them all (2.4 GB with the weights). It is refused before the values are read: under
+/// a 600 MB address-space limit, in one line naming the dataset.
+#[test]
+fn a_compressed_contact_dataset_is_refused_before_it_is_allocated() {
+    let (dir, basis) = basis_with_load();
+    let file = craft(
+        &basis,
+        "zeros.h5",
+        "del g['contact/nodes']\nn = 200_000_000\nstep = 1 << 22\n\
+         d = g.create_dataset('contact/nodes', shape=(n,), dtype='<u4', chunks=(1 << 20,), compression='gzip')\n\
+         z = np.zeros(step, dtype='<u4')\nfor i in range(0, n, step):\n    d[i:i + step] = z[:min(step, n - i)]",
+    );
+    let f = file.to_str().unwrap();
+    let vtu = dir.path().join("zeros-vtu");
+    for args in [vec!["info", f], vec!["export", f, "--vtu", vtu.to_str().unwrap()]] {
+        let o = Command::new("prlimit")
+            .arg("--as=600000000")
+            .arg(env!("CARGO_BIN_EXE_ves"))
+            .args(&args)
+            .output()
+            .expect("prlimit runs");
+        let err = stderr(&o);
+        assert_eq!(o.status.code(), Some(1), "{args:?}: {err}");
+        assert!(err.contains(f) && err.contains("contact/nodes"), "{args:?}: {err}");
+        assert_eq!(err.lines().count(), 1, "{args:?}: {err}");
+    }
+    assert!(!vtu.exists());
+}
+
+/// `transfer/<from>` was never validated: an entry of 1e9 (a switch of space multiplied the
+/// state by it) and `transfer` stored as a dataset passed `ves info`; the first passed
+/// `ves session` too. Both are refused by info, export and session, naming the dataset.
+#[test]
+fn a_damaged_transfer_is_refused_by_every_reader() {
+    let voi = "[[voi]]\nname = \"tip\"\nbox = { min = [0.8, -0.1, -0.1], max = [1.1, 0.2, 0.2] }\nsize = 0.02\n";
+    let (dir, path) = workdir(&format!("{GOOD}{voi}"));
+    let basis = dir.path().join("beam.h5");
+    let o = ves(&["precompute", path.to_str().unwrap(), "-o", basis.to_str().unwrap()]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let device = press_script(dir.path());
+    for (name, edit, why) in [
+        (
+            "big.h5",
+            "d = g['transfer/tip']\nv = d[...]\nv[0, 0] = 1e9\nd[...] = v",
+            &["transfer/tip", "1e9", "row 0, column 0"][..],
+        ),
+        (
+            "dataset.h5",
+            "t = f['spaces/tip']\ndel t['transfer']\nt['transfer'] = np.zeros(3)",
+            &["transfer", "not a group"],
+        ),
+    ] {
+        let file = craft(&basis, name, edit);
+        let f = file.to_str().unwrap();
+        let vtu = dir.path().join(format!("{name}-vtu"));
+        refused(&["info", f], &file, why);
+        refused(&["export", f, "--vtu", vtu.to_str().unwrap()], &file, why);
+        assert!(!vtu.exists(), "{name}: export wrote {}", vtu.display());
+        refused(&["session", f, "--device", &device, "--duration", "0.01"], &file, why);
+    }
+    let o = ves(&["info", basis.to_str().unwrap()]);
+    assert!(o.status.success(), "{}", stderr(&o));
+}

@@ -418,14 +418,15 @@ mod file {
     use ves_format::BasisReader;
 
     /// Loads what `opts` asks for from a v1 basis file: only corner-vertex rows of the first r
-    /// modes are kept in memory. Every value the file holds is checked (the rest of the basis is
-    /// streamed through a finiteness check and dropped).
+    /// modes are kept in memory. Every value of the space is checked first
+    /// ([`ves_format::SpaceReader::validate`]: the basis streamed, contact, loads, transfers).
     pub fn load(path: &Path, opts: &LoadOptions) -> Result<Basis, LoadError> {
         let file = BasisReader::open(path)?;
         load_space(&file, opts)
     }
 
-    /// [`load`] from an open file.
+    /// [`load`] from an open file; the space loaded is validated whole, so every caller (the C
+    /// ABI, `ves session`, `ves view`, Python) refuses what `ves info` refuses.
     pub fn load_space(file: &BasisReader, opts: &LoadOptions) -> Result<Basis, LoadError> {
         let p = file.path().display().to_string();
         let space = match &opts.space {
@@ -433,6 +434,9 @@ mod file {
             None => file.default_space()?,
         };
         let s = file.space(&space)?;
+        // The one validation of a space, before anything is kept; it streams the whole basis
+        // (a NaN in rows the runtime does not keep is refused too).
+        s.validate()?;
         let nv = s.vertex_count;
         let r = opts.modes.unwrap_or(s.mode_count);
         if r == 0 || r > s.mode_count {
@@ -445,8 +449,6 @@ mod file {
         let mut triangles = s.surface_triangles()?;
         let lam = s.eigenvalues()?;
         let rows = s.basis_rows(0..3 * nv, r)?;
-        // The rest of the basis is never held, but a file with a NaN anywhere is refused.
-        s.check_unread_finite(3 * nv, r)?;
         let mut keep: Vec<u32> = (0..nv as u32).collect();
         if opts.surface_only {
             let mut used = vec![false; nv];

@@ -2,9 +2,11 @@
 //! (files written before them, or of scenes without loads, have none), checked when present.
 
 use super::{ReadError, SpaceReader, f64_array_attr, scalar_attr};
-use crate::names::{self, load as ld, space as sp};
+use crate::checks;
+use crate::names::{load as ld, space as sp};
 
-/// One static load case as read, every array checked (shape, finite values).
+/// One static load case as read, every array checked (shape, finite values within single
+/// precision, the largest values as its attributes state them).
 #[derive(Clone, Debug, PartialEq)]
 pub struct LoadCase {
     /// Its name.
@@ -34,11 +36,9 @@ impl SpaceReader<'_> {
     /// [`ld::MAX_LOADS`], counted before any name is listed; each a valid identifier.
     pub fn load_names(&self) -> Result<Vec<String>, ReadError> {
         self.guard(|| {
-            let Ok(g) = self.group.group(sp::LOADS) else {
+            let Some(g) = self.optional_group(sp::LOADS)? else {
                 return Ok(Vec::new());
             };
-            self.file
-                .check_object(&g, &format!("{}/{}/{}", names::SPACES, self.name, sp::LOADS))?;
             let count = usize::try_from(g.len()).unwrap_or(usize::MAX);
             if count > ld::MAX_LOADS {
                 return Err(self.err(format!(
@@ -62,12 +62,12 @@ impl SpaceReader<'_> {
         self.guard(|| {
             crate::check_identifier("load case name", name).map_err(|m| self.err(m))?;
             let path = format!("{}/{name}", sp::LOADS);
+            if self.optional_group(sp::LOADS)?.is_none() {
+                return Err(self.err(format!("no load case {name:?}")));
+            }
             let g = self
-                .group
-                .group(&path)
-                .map_err(|_| self.err(format!("no load case {name:?}")))?;
-            self.file
-                .check_object(&g, &format!("{}/{}/{path}", names::SPACES, self.name))?;
+                .optional_group(&path)?
+                .ok_or_else(|| self.err(format!("no load case {name:?}")))?;
             let bad = |what: String| self.err(format!("{path}: {what}; the file is damaged"));
             let kind = crate::strings::read(&g, ld::KIND)
                 .filter(|k| ld::KINDS.contains(&k.as_str()))
@@ -89,10 +89,18 @@ impl SpaceReader<'_> {
                 if shape != want {
                     return Err(bad(format!("{dataset} has shape {shape:?}, expected {want:?}")));
                 }
-                let v = self.read_all::<f64>(&full, rank)?;
-                self.finite(&full, v)
+                let v = self.finite(&full, self.read_all::<f64>(&full, rank)?)?;
+                match v.iter().position(|x| x.abs() > checks::MAX_SINGLE) {
+                    Some(i) => Err(self.err(format!(
+                        "{full} holds {:e} at entry {i}, beyond single precision ({:.1e}), in which the runtime \
+                         and the page hold it; the file is damaged",
+                        v[i],
+                        checks::MAX_SINGLE
+                    ))),
+                    None => Ok(v),
+                }
             };
-            Ok(LoadCase {
+            let case = LoadCase {
                 name: name.to_string(),
                 kind,
                 total_force: vec3(ld::TOTAL_FORCE)?,
@@ -103,7 +111,30 @@ impl SpaceReader<'_> {
                 displacement: array(ld::DISPLACEMENT, 2, &[n, 3])?,
                 von_mises: array(ld::VON_MISES, 1, &[n])?,
                 stress: array(ld::STRESS, 2, &[nv, 6])?,
-            })
+            };
+            // The attributes are what a page shows first: they must be the data's.
+            let largest_u = case
+                .displacement
+                .chunks_exact(3)
+                .map(|u| (u[0] * u[0] + u[1] * u[1] + u[2] * u[2]).sqrt())
+                .fold(0.0, f64::max);
+            checks::stated_max(case.max_displacement, largest_u).map_err(|m| {
+                bad(format!(
+                    "{} {m} (largest nodal displacement magnitude)",
+                    ld::MAX_DISPLACEMENT
+                ))
+            })?;
+            if let Some(i) = case.von_mises.iter().position(|&v| v < 0.0) {
+                return Err(bad(format!(
+                    "{} is {} at node {i}: it is ≥ 0",
+                    ld::VON_MISES,
+                    case.von_mises[i]
+                )));
+            }
+            let largest_vm = case.von_mises[..nv].iter().copied().fold(0.0, f64::max);
+            checks::stated_max(case.max_von_mises, largest_vm)
+                .map_err(|m| bad(format!("{} {m} (largest at a corner vertex)", ld::MAX_VON_MISES)))?;
+            Ok(case)
         })
     }
 
@@ -112,20 +143,28 @@ impl SpaceReader<'_> {
         self.load_names()?.iter().map(|n| self.load(n)).collect()
     }
 
-    /// `mesh/fixed_mask` (1 where a support holds the node), one 0 or 1 per node, when the file
-    /// has it (files written before it do not).
+    /// `mesh/fixed_mask` (1 where a support holds the node), one per node, when the file has it
+    /// (files written before it do not): 1 exactly at the nodes with a DOF in
+    /// `mesh/fixed_dofs`, 0 elsewhere.
     pub fn fixed_mask(&self) -> Result<Option<Vec<u32>>, ReadError> {
         self.guard(|| {
-            if self.group.dataset(sp::FIXED_MASK).is_err() {
+            if !self.has_dataset(sp::FIXED_MASK)? {
                 return Ok(None);
             }
+            // Deflated: its extent is checked against the node count before it is read.
+            self.expect_len::<u32>(sp::FIXED_MASK, self.node_count, "nodes")?;
             let v = self.read_all::<u32>(sp::FIXED_MASK, 1)?;
-            if v.len() != self.node_count || v.iter().any(|&m| m > 1) {
+            let mut held = vec![0u32; self.node_count];
+            for d in self.fixed_dofs()? {
+                held[d as usize / 3] = 1;
+            }
+            if let Some(i) = (0..v.len()).find(|&i| v[i] != held[i]) {
                 return Err(self.err(format!(
-                    "{} holds {} values for {} nodes, or one that is not 0 or 1; the file is damaged",
+                    "{} is {} at node {i} but {} {} it; the file is damaged",
                     sp::FIXED_MASK,
-                    v.len(),
-                    self.node_count
+                    v[i],
+                    sp::FIXED_DOFS,
+                    if held[i] == 1 { "holds" } else { "does not hold" }
                 )));
             }
             Ok(Some(v))
