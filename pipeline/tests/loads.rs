@@ -1,6 +1,7 @@
 //! Service loads (`[[load]]`, `[gravity]`; docs/scene.md): refusals in one line, the cantilever
 //! against beam theory, a corpus part and the cantilever against CalculiX `*STATIC` on the same
-//! mesh and nodal loads (`ves verify`), and ParaView reading a load case by its array names.
+//! mesh and nodal loads (`ves verify`), a corpus part's pressures (on a bore) and gravity against
+//! CalculiX's own `*DLOAD`, and ParaView reading a load case by its array names.
 
 mod common;
 
@@ -119,9 +120,24 @@ fn cantilever_tip_force_agrees_with_beam_theory() {
     let j = loads.iter().find(|c| c["name"] == "tip").expect("tip");
     let vm = j["max_von_mises_pa"].as_f64().unwrap();
     assert!((j["safety_factor"].as_f64().unwrap() - 2.5e8 / vm).abs() < 1e-9 * 2.5e8 / vm);
-    // Root bending stress F L c / I = 24 MPa (the clamp's corners concentrate it, the averaging
-    // at a vertex smooths it).
-    assert!(vm > 0.8 * 24e6 && vm < 3.0 * 24e6, "{vm}");
+    // The stress against beam theory where it holds: on the top face between 0.2 and 0.8 m, more
+    // than four depths from the clamp and the tip (Saint-Venant), σ = F (L − x) (h/2) / I, the
+    // von Mises stress there (σ_yy, σ_zz and the shear vanish at the top face). Measured: within
+    // 1.3 %, most nodes within 0.3 % (10-node tets: the stress is linear in each, as the beam's is
+    // in x and z; the averaging at a node of its elements' values leaves the rest); 2 % allows for
+    // that, a 2× error in the stresses is far out. The largest stress, at the clamp's corners, is
+    // no check: the corners are singular, its value set by the mesh (23.6 MPa here).
+    let top = nodes.iter().map(|x| x[2]).fold(f64::MIN, f64::max);
+    let mid: Vec<usize> = (0..nodes.len())
+        .filter(|&k| (nodes[k][2] - top).abs() < 1e-9 && nodes[k][0] > 0.2 && nodes[k][0] < 0.8)
+        .collect();
+    assert!(mid.len() > 20, "{} top-face nodes between 0.2 and 0.8 m", mid.len());
+    let worst = mid
+        .iter()
+        .map(|&k| tip.von_mises[k] / (f * (l - nodes[k][0]) * (h / 2.0) / i) - 1.0)
+        .fold(0.0f64, |a, r| if r.abs() > a.abs() { r } else { a });
+    println!("top-face stress against beam theory, 0.2 to 0.8 m: worst {worst:+.2e}");
+    assert!(worst.abs() < 0.02, "{worst:+e}");
     let o = ves(&["info", out.to_str().unwrap()]);
     assert!(String::from_utf8_lossy(&o.stdout).contains("load tip (force)"));
 }
