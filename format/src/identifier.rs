@@ -133,4 +133,44 @@ mod tests {
         let e = check_identifier("voi[1].name", "a\u{202E}b").expect_err("bidi");
         assert!(e.contains("U+202E") && !e.contains('\u{202E}'), "{e}");
     }
+
+    /// The limit counts UTF-8 bytes (a file name's limit is in bytes), not characters: at 127
+    /// and 128 bytes a name passes, at 129 it is refused, whether its last character is one
+    /// byte or several; a count of characters would pass every multi-byte name below.
+    #[test]
+    fn the_length_limit_is_128_bytes_of_utf8() {
+        use super::MAX_IDENTIFIER_BYTES;
+        assert_eq!(MAX_IDENTIFIER_BYTES, 128);
+        let x = |n: usize| "x".repeat(n);
+        for (name, bytes, ok) in [
+            (x(127), 127, true),
+            (x(128), 128, true),
+            (x(129), 129, false),
+            // 'ä' is 2 bytes, '梁' 3, '🦀' 4: each ends exactly at the limit, or straddles it.
+            (x(126) + "ä", 128, true),
+            (x(127) + "ä", 129, false),
+            (x(125) + "梁", 128, true),
+            (x(126) + "梁", 129, false),
+            (x(124) + "🦀", 128, true),
+            (x(125) + "🦀", 129, false),
+            // Only multi-byte characters: 43 of 3 bytes are 43 characters but 129 bytes.
+            ("梁".repeat(42), 126, true),
+            ("梁".repeat(43), 129, false),
+            ("🦀".repeat(32), 128, true),
+            ("🦀".repeat(32) + "x", 129, false),
+        ] {
+            assert_eq!(name.len(), bytes, "{name}");
+            let got = check_identifier("voi[0].name", &name);
+            if ok {
+                assert_eq!(got, Ok(()), "{bytes} bytes, {} characters", name.chars().count());
+            } else {
+                let e = got.expect_err(&name);
+                // One line naming the key, the length in bytes and the limit; the quoted head is
+                // cut at a character boundary (no panic inside a multi-byte character).
+                assert!(e.starts_with("voi[0].name = \"") && !e.contains('\n'), "{e}");
+                assert!(e.contains(&format!("is {bytes} bytes long; at most 128")), "{e}");
+                assert!(e.len() < 200, "{e}");
+            }
+        }
+    }
 }

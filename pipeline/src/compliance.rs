@@ -102,3 +102,84 @@ pub fn patch_blocks(
         })
         .collect()
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::fem::element::Kind;
+    use crate::loads::patch::{Patch, Surface};
+    use crate::material::Material;
+    use crate::supports::Dofs;
+    use crate::tet_mesh::Mesh;
+
+    /// A cantilever of steel, 40 × 10 × 10 mm clamped at x = 0, 10-node tets `cells` per 10 mm:
+    /// for each of `radii` (0: a point contact, the nearest vertex), the felt compliance along the
+    /// surface normal (m/N) at each of `points` (a point and its outward normal's axis). One
+    /// factorisation serves every radius.
+    fn felt(cells: usize, points: &[([f64; 3], usize)], radii: &[f64]) -> Vec<Vec<f64>> {
+        let mesh = Mesh::structured_box([4 * cells, cells, cells], 0.01 / cells as f64, Kind::Tet10, |_, x| x);
+        let mask: Vec<bool> = (0..3 * mesh.nodes.len())
+            .map(|d| mesh.nodes[d / 3][0] < 1e-12)
+            .collect();
+        let patches: Vec<Vec<Patch>> = {
+            let s = Surface::new(&mesh);
+            radii
+                .iter()
+                .map(|&r| {
+                    points
+                        .iter()
+                        .map(|&(p, _)| s.at_point(p, r).expect("a surface point").0)
+                        .collect()
+                })
+                .collect()
+        };
+        let d = Discretized::assemble(mesh, Dofs::from_mask(&mask), Material::elastic(2.1e11, 0.3, 7850.0))
+            .expect("assembles");
+        let chol = factor_stiffness(&d.system, &d.dofs).expect("factors");
+        patches
+            .iter()
+            .map(|at| {
+                let list: Vec<(&[u32], &[f64])> = at.iter().map(|p| (&p.nodes[..], &p.weights[..])).collect();
+                patch_blocks(&d, &chol, &list, || ())
+                    .iter()
+                    .zip(points)
+                    .map(|(b, &(_, axis))| b[axis][axis])
+                    .collect()
+            })
+            .collect()
+    }
+
+    /// The patch's purpose (`loads::patch`): the felt compliance W K⁻¹ Wᵀ converges under
+    /// refinement, where a point contact's grows without bound (a point load's displacement in a
+    /// solid is infinite; the mesh's size sets it). On 3 meshes halving h (5, 2.5, 1.25 mm), at a
+    /// point on the top face and one on a side face: with a 2.5 mm patch the change from one mesh
+    /// to the next shrinks by a factor below 0.7 (measured 0.34 and 0.31), with a point contact
+    /// the compliance keeps growing and its changes do not shrink (measured 1.84 and 1.66: about
+    /// 2 for a displacement going as h⁻¹).
+    #[test]
+    fn the_felt_compliance_of_a_patch_converges_and_of_a_point_does_not() {
+        let points = [([0.02, 0.005, 0.01], 2), ([0.03, 0.0, 0.005], 1)];
+        let radii = [0.0025, 0.0];
+        // c[mesh][radius][point]
+        let c: Vec<Vec<Vec<f64>>> = [2, 4, 8].iter().map(|&n| felt(n, &points, &radii)).collect();
+        for (r, radius) in radii.iter().enumerate() {
+            for (p, (point, _)) in points.iter().enumerate() {
+                let f = [0, 1, 2].map(|m| c[m][r][p]);
+                let (d1, d2) = (f[1] - f[0], f[2] - f[1]);
+                let ratio = d2.abs() / d1.abs();
+                println!(
+                    "radius {radius} m at {point:?}: {:.5e}, {:.5e}, {:.5e} m/N, ratio of changes {ratio:.3}",
+                    f[0], f[1], f[2]
+                );
+                if *radius > 0.0 {
+                    assert!(ratio < 0.7, "patch at {point:?}: {f:?}, changes {d1:e}, {d2:e}");
+                } else {
+                    assert!(
+                        d1 > 0.0 && d2 > 0.0 && ratio > 0.9,
+                        "point at {point:?}: {f:?}, changes {d1:e}, {d2:e}"
+                    );
+                }
+            }
+        }
+    }
+}

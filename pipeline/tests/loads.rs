@@ -1,6 +1,7 @@
 //! Service loads (`[[load]]`, `[gravity]`; docs/scene.md): refusals in one line, the cantilever
 //! against beam theory, a corpus part and the cantilever against CalculiX `*STATIC` on the same
-//! mesh and nodal loads (`ves verify`), and ParaView reading a load case by its array names.
+//! mesh and nodal loads (`ves verify`), a corpus part's pressures (on a bore) and gravity against
+//! CalculiX's own `*DLOAD`, and ParaView reading a load case by its array names.
 
 mod common;
 
@@ -119,9 +120,24 @@ fn cantilever_tip_force_agrees_with_beam_theory() {
     let j = loads.iter().find(|c| c["name"] == "tip").expect("tip");
     let vm = j["max_von_mises_pa"].as_f64().unwrap();
     assert!((j["safety_factor"].as_f64().unwrap() - 2.5e8 / vm).abs() < 1e-9 * 2.5e8 / vm);
-    // Root bending stress F L c / I = 24 MPa (the clamp's corners concentrate it, the averaging
-    // at a vertex smooths it).
-    assert!(vm > 0.8 * 24e6 && vm < 3.0 * 24e6, "{vm}");
+    // The stress against beam theory where it holds: on the top face between 0.2 and 0.8 m, more
+    // than four depths from the clamp and the tip (Saint-Venant), σ = F (L − x) (h/2) / I, the
+    // von Mises stress there (σ_yy, σ_zz and the shear vanish at the top face). Measured: within
+    // 1.3 %, most nodes within 0.3 % (10-node tets: the stress is linear in each, as the beam's is
+    // in x and z; the averaging at a node of its elements' values leaves the rest); 2 % allows for
+    // that, a 2× error in the stresses is far out. The largest stress, at the clamp's corners, is
+    // no check: the corners are singular, its value set by the mesh (23.6 MPa here).
+    let top = nodes.iter().map(|x| x[2]).fold(f64::MIN, f64::max);
+    let mid: Vec<usize> = (0..nodes.len())
+        .filter(|&k| (nodes[k][2] - top).abs() < 1e-9 && nodes[k][0] > 0.2 && nodes[k][0] < 0.8)
+        .collect();
+    assert!(mid.len() > 20, "{} top-face nodes between 0.2 and 0.8 m", mid.len());
+    let worst = mid
+        .iter()
+        .map(|&k| tip.von_mises[k] / (f * (l - nodes[k][0]) * (h / 2.0) / i) - 1.0)
+        .fold(0.0f64, |a, r| if r.abs() > a.abs() { r } else { a });
+    println!("top-face stress against beam theory, 0.2 to 0.8 m: worst {worst:+.2e}");
+    assert!(worst.abs() < 0.02, "{worst:+e}");
     let o = ves(&["info", out.to_str().unwrap()]);
     assert!(String::from_utf8_lossy(&o.stdout).contains("load tip (force)"));
 }
@@ -161,6 +177,196 @@ fn corpus_part_face_loads_and_gravity_equal_calculix() {
     }
     // The same cases in ParaView, by their plain names, with the supports marked.
     paraview_reads_the_cases(dir.path(), &path, &["end_face", "top_pressure", "gravity"]);
+}
+
+/// The PMI block's lower bore (faces 24 and 25: two half-cylinders) and its top face under
+/// pressure, and gravity, against CalculiX loaded by its own means: `*DLOAD … P<face>` on the
+/// faces of the elements under those surface triangles, and `*DLOAD … GRAV` from `*DENSITY`, on
+/// the mesh and supports read back from the basis. The references to `ves verify` (above) are
+/// handed VES's nodal forces, so an error in them (a wrong normal, face or mass) would be
+/// reproduced there; here nothing of VES's load vectors reaches CalculiX.
+///
+/// Tolerance: 4-node tets, whose stiffness both integrate exactly, and flat faces (the bore is a
+/// faceted cylinder: each triangle its own normal) whose uniform pressure, like the linear
+/// element's mass, both integrate exactly: the same discrete problem, so the fields agree to
+/// CalculiX's 7 printed digits (5e-7 of each value); 1e-6 relative in the max norm. Measured:
+/// see the printout.
+#[test]
+fn corpus_part_pressure_on_a_bore_and_gravity_equal_calculix_own_loads() {
+    let dir = tempfile::tempdir().unwrap();
+    let step = Path::new(env!("CARGO_MANIFEST_DIR")).join("../cases/corpus/pmi_block_2holes.step");
+    let scene = format!(
+        "name = \"pmi\"\n[geometry]\nstep = {:?}\nunit = \"mm\"\n[material]\nyoung = 2.1e11\npoisson = 0.3\n\
+         density = 7850.0\n[mesh]\nsize = 0.0013\norder = 1\nerror_estimate = false\n[[fixed]]\n\
+         box = {{ min = [-0.001, -0.006, -0.001], max = [0.0006, 0.006, 0.007] }}\n[modes]\ncount = 1\n\
+         [[load]]\nname = \"bore\"\nfaces = [24, 25]\npressure = 5.0e6\n\
+         [[load]]\nname = \"top\"\nfaces = [4]\npressure = -2.0e6\n\
+         [gravity]\nacceleration = [3.0, 0.0, -9.81]\n",
+        step.display().to_string()
+    );
+    let path = write_file(dir.path(), "pmi.toml", &scene);
+    let out = dir.path().join("pmi.h5");
+    precompute_json(&path, &out);
+    let file = ves_format::BasisReader::open(&out).unwrap();
+    let s = file.space("global").unwrap();
+    let nodes = s.nodes(s.node_count).unwrap();
+    let tets = s.tets().unwrap();
+    assert_eq!(tets.len(), 4 * s.tet_count, "4-node tets");
+    let triangles = s.surface_triangles().unwrap();
+    let faces = s.surface_faces().unwrap().expect("surface_faces");
+    let fixed = s.fixed_dofs().unwrap();
+    // Each surface triangle's element face, in CalculiX's numbering of a 4-node tet's faces:
+    // 1 = (1 2 3), 2 = (1 4 2), 3 = (2 4 3), 4 = (3 4 1).
+    let mut face_of = std::collections::HashMap::new();
+    for (e, t) in tets.chunks_exact(4).enumerate() {
+        for (k, [a, b, c]) in [[0, 1, 2], [0, 3, 1], [1, 3, 2], [2, 3, 0]].into_iter().enumerate() {
+            let mut key = [t[a], t[b], t[c]];
+            key.sort_unstable();
+            face_of.entry(key).or_insert_with(Vec::new).push((e + 1, k + 1));
+        }
+    }
+    let pressure_lines = |on: &[u32], p: f64| -> Vec<String> {
+        let mut lines = vec!["*DLOAD".to_string()];
+        for (tri, _) in triangles.iter().zip(&faces).filter(|(_, f)| on.contains(f)) {
+            let mut key = *tri;
+            key.sort_unstable();
+            let owners = &face_of[&key];
+            assert_eq!(owners.len(), 1, "a surface triangle belongs to one element");
+            let (e, k) = owners[0];
+            lines.push(format!("{e}, P{k}, {p:.12e}"));
+        }
+        lines
+    };
+    let bore = pressure_lines(&[24, 25], 5.0e6);
+    // The bore is curved: its triangles' normals turn through a half-turn and more.
+    let bore_normals: Vec<[f64; 3]> = triangles
+        .iter()
+        .zip(&faces)
+        .filter(|(_, f)| [24, 25].contains(*f))
+        .map(|(tri, _)| {
+            let [a, b, c] = tri.map(|v| nodes[v as usize]);
+            let (u, v) = ([0, 1, 2].map(|i| b[i] - a[i]), [0, 1, 2].map(|i| c[i] - a[i]));
+            let n = [
+                u[1] * v[2] - u[2] * v[1],
+                u[2] * v[0] - u[0] * v[2],
+                u[0] * v[1] - u[1] * v[0],
+            ];
+            let len = n.iter().map(|x| x * x).sum::<f64>().sqrt();
+            n.map(|x| x / len)
+        })
+        .collect();
+    let least_cos = bore_normals
+        .iter()
+        .flat_map(|a| {
+            bore_normals
+                .iter()
+                .map(move |b| a[0] * b[0] + a[1] * b[1] + a[2] * b[2])
+        })
+        .fold(1.0f64, f64::min);
+    assert!(
+        bore.len() > 50 && least_cos < -0.9,
+        "{} triangles, least cos {least_cos}",
+        bore.len()
+    );
+    let g = [3.0f64, 0.0, -9.81];
+    let g_norm = g.iter().map(|x| x * x).sum::<f64>().sqrt();
+    let gravity = vec![
+        "*DLOAD".to_string(),
+        format!(
+            "EALL, GRAV, {g_norm:.12e}, {:.12e}, {:.12e}, {:.12e}",
+            g[0] / g_norm,
+            g[1] / g_norm,
+            g[2] / g_norm
+        ),
+    ];
+    let cases = [
+        ("bore", bore),
+        ("top", pressure_lines(&[4], -2.0e6)),
+        ("gravity", gravity),
+    ];
+    let mut worst = Vec::new();
+    for (name, load) in cases {
+        let theirs = calculix_static(dir.path(), name, &nodes, &tets, &fixed, &load);
+        let ours = s.load(name).unwrap().displacement;
+        let scale = theirs.iter().fold(0.0f64, |a, v| a.max(v.abs()));
+        let gap = ours.iter().zip(&theirs).fold(0.0f64, |a, (x, y)| a.max((x - y).abs()));
+        println!("{name}: max |u| {scale:.4e} m, relative difference {:.2e}", gap / scale);
+        worst.push((name, gap / scale));
+    }
+    assert!(worst.iter().all(|&(_, r)| r <= 1e-6), "{worst:?}");
+}
+
+/// CalculiX `*STATIC` on 4-node tets (`nodes`, `tets` in gmsh order, the same for C3D4), steel
+/// of the scenes above held at `fixed` (DOFs 3i+c), loaded by the deck lines `load`; every
+/// node's displacement (3n) from the .dat file (7 significant digits).
+fn calculix_static(
+    dir: &Path,
+    name: &str,
+    nodes: &[[f64; 3]],
+    tets: &[u32],
+    fixed: &[u32],
+    load: &[String],
+) -> Vec<f64> {
+    let mut deck = vec!["*NODE".to_string()];
+    deck.extend(
+        nodes
+            .iter()
+            .enumerate()
+            .map(|(i, p)| format!("{}, {:.12e}, {:.12e}, {:.12e}", i + 1, p[0], p[1], p[2])),
+    );
+    deck.push("*ELEMENT, TYPE=C3D4, ELSET=EALL".to_string());
+    deck.extend(
+        tets.chunks_exact(4)
+            .enumerate()
+            .map(|(e, t)| format!("{}, {}, {}, {}, {}", e + 1, t[0] + 1, t[1] + 1, t[2] + 1, t[3] + 1)),
+    );
+    deck.push(format!("*NSET, NSET=NALL, GENERATE\n1, {}, 1", nodes.len()));
+    deck.push("*BOUNDARY".to_string());
+    deck.extend(
+        fixed
+            .iter()
+            .map(|d| format!("{}, {c}, {c}, 0.", d / 3 + 1, c = d % 3 + 1)),
+    );
+    deck.extend(
+        [
+            "*MATERIAL, NAME=STEEL",
+            "*ELASTIC",
+            "2.1e11, 0.3",
+            "*DENSITY",
+            "7850.",
+            "*SOLID SECTION, ELSET=EALL, MATERIAL=STEEL",
+            "*STEP",
+            "*STATIC",
+        ]
+        .map(String::from),
+    );
+    deck.extend(load.iter().cloned());
+    deck.extend(["*NODE PRINT, NSET=NALL", "U", "*END STEP"].map(String::from));
+    std::fs::write(dir.join(format!("{name}.inp")), deck.join("\n") + "\n").unwrap();
+    let run = std::process::Command::new("ccx")
+        .args(["-i", name])
+        .current_dir(dir)
+        .output()
+        .expect("ccx runs (calculix-ccx: scripts/setup installs it)");
+    let said = String::from_utf8_lossy(&run.stdout);
+    assert!(run.status.success() && !said.contains("*ERROR"), "ccx: {said}");
+    let dat = std::fs::read_to_string(dir.join(format!("{name}.dat"))).unwrap();
+    let mut u = vec![f64::NAN; 3 * nodes.len()];
+    for line in dat.lines() {
+        let w: Vec<&str> = line.split_whitespace().collect();
+        if let [i, x, y, z] = w[..]
+            && let Ok(i) = i.parse::<usize>()
+        {
+            for (c, v) in [x, y, z].into_iter().enumerate() {
+                u[3 * (i - 1) + c] = v.parse().unwrap();
+            }
+        }
+    }
+    assert!(
+        u.iter().all(|v| v.is_finite()),
+        "{name}: a node missing from CalculiX's .dat"
+    );
+    u
 }
 
 /// The cantilever's straight-sided 10-node tets (C3D10, whose 4-point stiffness rule is exact
