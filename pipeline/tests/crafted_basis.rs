@@ -374,13 +374,7 @@ fn every_reader_refuses_damaged_contact_loads_and_mask() {
     ];
     let device = press_script(dir.path());
     for (name, edit, why) in cases {
-        let file = craft(&basis, name, edit);
-        let f = file.to_str().unwrap();
-        let vtu = dir.path().join(format!("{name}-vtu"));
-        refused(&["info", f], &file, why);
-        refused(&["export", f, "--vtu", vtu.to_str().unwrap()], &file, why);
-        assert!(!vtu.exists(), "{name}: export wrote {}", vtu.display());
-        refused(&["session", f, "--device", &device, "--duration", "0.01"], &file, why);
+        refused_by_every_reader(&craft(&basis, name, edit), dir.path(), &device, why);
     }
     let o = ves(&["info", basis.to_str().unwrap()]);
     assert!(o.status.success(), "{}", stderr(&o));
@@ -439,14 +433,19 @@ fn a_damaged_transfer_is_refused_by_every_reader() {
             &["transfer", "not a group"],
         ),
     ] {
-        let file = craft(&basis, name, edit);
-        let f = file.to_str().unwrap();
-        let vtu = dir.path().join(format!("{name}-vtu"));
-        refused(&["info", f], &file, why);
-        refused(&["export", f, "--vtu", vtu.to_str().unwrap()], &file, why);
-        assert!(!vtu.exists(), "{name}: export wrote {}", vtu.display());
-        refused(&["session", f, "--device", &device, "--duration", "0.01"], &file, why);
+        refused_by_every_reader(&craft(&basis, name, edit), dir.path(), &device, why);
     }
     let o = ves(&["info", basis.to_str().unwrap()]);
     assert!(o.status.success(), "{}", stderr(&o));
+}
+
+/// `ves info`, `ves export` (writing nothing) and `ves session` each refuse `file`, naming it and
+/// `why`.
+fn refused_by_every_reader(file: &Path, dir: &Path, device: &str, why: &[&str]) {
+    let f = file.to_str().unwrap();
+    let vtu = dir.join(format!("{}-vtu", file.file_name().unwrap().to_string_lossy()));
+    refused(&["info", f], file, why);
+    refused(&["export", f, "--vtu", vtu.to_str().unwrap()], file, why);
+    assert!(!vtu.exists(), "{f}: export wrote {}", vtu.display());
+    refused(&["session", f, "--device", device, "--duration", "0.01"], file, why);
 }
