@@ -3,7 +3,9 @@
 //! The page sends the scene as JSON (the TOML's tables and keys); it is checked by the same
 //! parser as every scene file. The geometry is always the workshop's own file: whatever the
 //! page names as `geometry.step` is replaced, so a page cannot make the server read another
-//! file. Bases go to a private temporary directory, removed when the viewer ends.
+//! file. Uploaded parts and bases go to a private work folder ([`crate::workdir`]), removed
+//! when the viewer ends; a part or a basis replaced by a newer one is removed at once, so the
+//! folder holds at most the part open, the basis served and the one being computed.
 
 use crate::modes::SolverChoice;
 use crate::precompute;
@@ -82,11 +84,14 @@ pub const MATERIALS: [MaterialPreset; 7] = [
     },
 ];
 
-/// Computes bases for one part (or the parts the page opens) in a private directory.
+/// Computes bases for one part (or the parts the page opens) in a private work folder.
 pub struct PartWorkshop {
     part: std::sync::Mutex<Part>,
+    /// Held by a compute from start to end: a part is not opened under it (the server lets
+    /// one of the two run at a time; this keeps a library user to it too).
+    busy: std::sync::Mutex<()>,
     options: SceneOptions,
-    dir: tempfile::TempDir,
+    dir: crate::workdir::WorkDir,
     computed: AtomicU64,
     solver: SolverChoice,
     /// The compute's threads, below the session's in priority (see [`lower_priority`]).
@@ -218,7 +223,7 @@ impl PartWorkshop {
         options: SceneOptions,
         solver: SolverChoice,
     ) -> anyhow::Result<PartWorkshop> {
-        let dir = tempfile::Builder::new().prefix("ves-view-").tempdir()?;
+        let dir = crate::workdir::WorkDir::new("view")?;
         let pool = rayon::ThreadPoolBuilder::new()
             .thread_name(|i| format!("ves-compute-{i}"))
             .start_handler(|_| lower_priority())
@@ -226,11 +231,26 @@ impl PartWorkshop {
         Ok(PartWorkshop {
             pool,
             part: std::sync::Mutex::new(Part { geometry, start }),
+            busy: std::sync::Mutex::new(()),
             options,
             dir,
             computed: AtomicU64::new(0),
             solver,
         })
+    }
+
+    /// Removes the bases computed here but `keep`.
+    fn remove_bases_but(&self, keep: &Path) {
+        let Ok(entries) = std::fs::read_dir(self.dir.path()) else {
+            return;
+        };
+        for e in entries.flatten() {
+            let name = e.file_name();
+            let name = name.to_string_lossy();
+            if name.starts_with("basis-") && name.ends_with(".h5") && e.path() != keep {
+                let _ = std::fs::remove_file(e.path());
+            }
+        }
     }
 
     fn part(&self) -> std::sync::MutexGuard<'_, Part> {
@@ -301,6 +321,7 @@ impl Workshop for PartWorkshop {
         cancel: Arc<AtomicBool>,
         ready: &mut dyn FnMut(&Computed) -> Result<(), String>,
     ) -> Result<Computed, String> {
+        let _busy = self.busy.lock().unwrap_or_else(|p| p.into_inner());
         let n = self.computed.fetch_add(1, Ordering::Relaxed) + 1;
         let geometry = self.part().geometry.clone();
         let text = Self::text(&geometry, scene, true)?;
@@ -323,12 +344,24 @@ impl Workshop for PartWorkshop {
         let _watch = crate::progress::watch(Arc::new(PageWatch { progress, cancel }));
         // In the workshop's pool: faer and rayon take their threads from it. `ready` runs here,
         // outside the pool: the session it starts must not inherit the pool's lower priority.
-        let first = self
-            .pool
-            .install(|| precompute::run_first(&parsed, &out, self.solver))
-            .map_err(message)?;
-        ready(&computed(&first.summary))?;
+        let first = self.pool.install(|| precompute::run_first(&parsed, &out, self.solver));
+        let first = match first {
+            Ok(first) => first,
+            Err(e) => {
+                let _ = std::fs::remove_file(&out);
+                return Err(message(e));
+            }
+        };
+        crate::workdir::seal(&out).map_err(|e| format!("cannot keep the basis: {e}"))?;
+        if let Err(e) = ready(&computed(&first.summary)) {
+            let _ = std::fs::remove_file(&out);
+            return Err(e);
+        }
+        // The session serves this basis now: the ones before are of no more use.
+        self.remove_bases_but(&out);
         let summary = self.pool.install(|| first.check()).map_err(message)?;
+        // The checks wrote the file again.
+        crate::workdir::seal(&out).map_err(|e| format!("cannot keep the basis: {e}"))?;
         Ok(computed(&summary))
     }
 
@@ -362,18 +395,83 @@ impl Workshop for PartWorkshop {
         let kind = geometry_kind(bytes).ok_or_else(|| {
             format!("{shown}: not a STEP, IGES or BREP file (a STEP file starts with ISO-10303-21); export the part again from its CAD system")
         })?;
+        let Ok(_busy) = self.busy.try_lock() else {
+            return Err(format!(
+                "{shown}: a compute is running: cancel it or wait, then open the part"
+            ));
+        };
         let n = self.computed.fetch_add(1, Ordering::Relaxed) + 1;
         // Its own directory: the part keeps the name the user knows (in the title and in the
         // saved scene), and a later part of the same name cannot replace it.
         let safe = safe_stem(Path::new(&file));
         let dir = self.dir.path().join(format!("part-{n}"));
-        std::fs::create_dir(&dir).map_err(|e| format!("cannot keep the part: {e}"))?;
+        crate::workdir::create_dir(&dir).map_err(|e| format!("cannot keep the part: {e}"))?;
         let path = dir.join(format!("{safe}.{}", if kind == "step" { ext.as_str() } else { kind }));
-        crate::output::write_atomically(&path, |tmp| std::fs::write(tmp, bytes).map_err(Into::into))
-            .map_err(|e| format!("cannot keep the part: {e:#}"))?;
+        if let Err(e) = crate::workdir::write(&path, bytes) {
+            let _ = std::fs::remove_dir_all(&dir);
+            return Err(format!("cannot keep the part: {e}"));
+        }
         let mut part = self.part();
         part.start = starting_scene(&path);
-        part.geometry = path;
+        let before = std::mem::replace(&mut part.geometry, path);
+        // A part uploaded before (not the user's own file): no compute can use it any more.
+        if let Some(old) = before.parent().filter(|d| d.starts_with(self.dir.path())) {
+            let _ = std::fs::remove_dir_all(old);
+        }
         Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use std::os::unix::fs::MetadataExt;
+
+    fn mode(p: &Path) -> u32 {
+        std::fs::metadata(p)
+            .map(|m| m.mode() & 0o777)
+            .unwrap_or_else(|e| panic!("{}: {e}", p.display()))
+    }
+
+    /// An uploaded part is readable by its owner only, in a folder only its owner can enter;
+    /// the next part replaces it on disk too (before, every upload stayed until the end).
+    #[test]
+    fn uploaded_parts_are_private_and_a_replaced_one_is_removed() {
+        let w = PartWorkshop::for_geometry(Path::new("part.step"), SolverChoice::Auto).unwrap();
+        assert_eq!(mode(w.dir.path()), 0o700, "the work folder");
+        let step = b"ISO-10303-21;\nHEADER;\n";
+        w.open("first.step", step).unwrap();
+        let first = w.part().geometry.clone();
+        assert!(first.starts_with(w.dir.path()), "{}", first.display());
+        assert_eq!(mode(&first), 0o600, "the uploaded part");
+        assert_eq!(mode(first.parent().unwrap()), 0o700, "its folder");
+        w.open("second.stp", step).unwrap();
+        let second = w.part().geometry.clone();
+        assert!(second.exists());
+        assert!(
+            !first.exists() && !first.parent().unwrap().exists(),
+            "the first part stays"
+        );
+        // A refused upload changes nothing.
+        assert!(w.open("third.step", b"not a part").is_err());
+        assert_eq!(w.part().geometry, second);
+        let kept: Vec<_> = std::fs::read_dir(w.dir.path())
+            .unwrap()
+            .flatten()
+            .map(|e| e.file_name())
+            .collect();
+        assert_eq!(kept.len(), 2, "the lock and the part open: {kept:?}");
+    }
+
+    /// While a compute holds the workshop, no part is opened.
+    #[test]
+    fn no_part_is_opened_while_a_compute_runs() {
+        let w = PartWorkshop::for_geometry(Path::new("part.step"), SolverChoice::Auto).unwrap();
+        let before = w.part().geometry.clone();
+        let busy = w.busy.lock().unwrap();
+        let e = w.open("other.step", b"ISO-10303-21;\n").unwrap_err();
+        assert!(e.contains("compute is running"), "{e}");
+        drop(busy);
+        assert_eq!(w.part().geometry, before);
     }
 }
