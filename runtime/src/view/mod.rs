@@ -697,7 +697,9 @@ async fn open_part(
     // The opening and the compute's start in one blocking task that owns the slot: a page
     // that goes away meanwhile cannot leave the slot taken or let another part in between.
     let opened = tokio::task::spawn_blocking(move || {
-        workshop.open(&name, &bytes).map_err(|e| (StatusCode::UNPROCESSABLE_ENTITY, e))?;
+        workshop
+            .open(&name, &bytes)
+            .map_err(|e| (StatusCode::UNPROCESSABLE_ENTITY, e))?;
         let scene = workshop.setup()["scene"].clone();
         launch(claim, workshop, scene).map_err(|e| (StatusCode::INTERNAL_SERVER_ERROR, e))
     })

@@ -428,18 +428,39 @@ mod tests {
     fn an_origin_must_name_the_host_the_request_was_sent_to() {
         for bound in ["0.0.0.0:8765", "[::]:8765", "127.0.0.1:8765"] {
             let g = Guard::new(bound.parse().unwrap());
-            let host = if bound.starts_with('1') { "127.0.0.1:8765" } else { "10.0.0.5:8765" };
-            assert_eq!(status(&g, &[("host", host), ("origin", &format!("http://{host}"))]), 200, "{bound}");
+            let host = if bound.starts_with('1') {
+                "127.0.0.1:8765"
+            } else {
+                "10.0.0.5:8765"
+            };
+            assert_eq!(
+                status(&g, &[("host", host), ("origin", &format!("http://{host}"))]),
+                200,
+                "{bound}"
+            );
             for foreign in ["http://10.9.9.9:8765", "http://127.0.0.2:8765", "http://localhost:8765"] {
-                assert_eq!(status(&g, &[("host", host), ("origin", foreign)]), 403, "{bound}: {foreign}");
+                assert_eq!(
+                    status(&g, &[("host", host), ("origin", foreign)]),
+                    403,
+                    "{bound}: {foreign}"
+                );
                 let ws = [("host", host), ("upgrade", "websocket"), ("origin", foreign)];
                 assert_eq!(status(&g, &ws), 403, "{bound}: WebSocket from {foreign}");
             }
         }
         let g = Guard::new("0.0.0.0:8765".parse().unwrap());
         // The same host spelled in another case, and IPv6 literals, are the same host.
-        assert_eq!(status(&g, &[("host", "LOCALHOST:8765"), ("origin", "http://localhost:8765")]), 200);
-        assert_eq!(status(&g, &[("host", "[fe80::1]:8765"), ("origin", "http://[FE80::1]:8765")]), 200);
-        assert_eq!(status(&g, &[("host", "[fe80::1]:8765"), ("origin", "http://[fe80::2]:8765")]), 403);
+        assert_eq!(
+            status(&g, &[("host", "LOCALHOST:8765"), ("origin", "http://localhost:8765")]),
+            200
+        );
+        assert_eq!(
+            status(&g, &[("host", "[fe80::1]:8765"), ("origin", "http://[FE80::1]:8765")]),
+            200
+        );
+        assert_eq!(
+            status(&g, &[("host", "[fe80::1]:8765"), ("origin", "http://[fe80::2]:8765")]),
+            403
+        );
     }
 }

@@ -307,19 +307,32 @@ fn of_two_parts_opened_at_once_the_one_answered_200_is_the_one_computed() {
         let asks: Vec<_> = ["a.step", "b.step"]
             .map(|name| {
                 let (server, host) = (&server, &host);
-                s.spawn(move || (name.to_string(), server.exchange(&upload(host, name, body.len(), body)).0))
+                s.spawn(move || {
+                    (
+                        name.to_string(),
+                        server.exchange(&upload(host, name, body.len(), body)).0,
+                    )
+                })
             })
             .into_iter()
             .collect();
         asks.into_iter().map(|a| a.join().unwrap()).collect()
     });
-    let ok: Vec<_> = answers.iter().filter(|(_, s)| *s == 200).map(|(n, _)| n.clone()).collect();
+    let ok: Vec<_> = answers
+        .iter()
+        .filter(|(_, s)| *s == 200)
+        .map(|(n, _)| n.clone())
+        .collect();
     assert_eq!(ok.len(), 1, "{answers:?}");
     assert!(answers.iter().any(|(_, s)| *s == 409), "{answers:?}");
     // Whatever the refused request was still doing is over by now.
     std::thread::sleep(Duration::from_millis(800));
     assert_eq!(*fake.computed.lock().unwrap(), ok, "the part computed ({answers:?})");
-    assert_eq!(*fake.part.lock().unwrap(), ok[0], "the part open after both ({answers:?})");
+    assert_eq!(
+        *fake.part.lock().unwrap(),
+        ok[0],
+        "the part open after both ({answers:?})"
+    );
     server.finish();
 }
 
@@ -330,8 +343,12 @@ fn status_before_body(server: &Running, head: &str) -> Result<u16, String> {
     s.set_read_timeout(Some(Duration::from_secs(3))).unwrap();
     s.write_all(head.as_bytes()).unwrap();
     let mut got = [0u8; 12];
-    s.read_exact(&mut got).map_err(|e| format!("no answer before the body: {e}"))?;
-    std::str::from_utf8(&got[9..12]).unwrap().parse().map_err(|e| format!("{e}"))
+    s.read_exact(&mut got)
+        .map_err(|e| format!("no answer before the body: {e}"))?;
+    std::str::from_utf8(&got[9..12])
+        .unwrap()
+        .parse()
+        .map_err(|e| format!("{e}"))
 }
 
 /// An upload larger than the limit is refused on its `Content-Length`, and one sent while a
@@ -343,11 +360,17 @@ fn an_upload_too_large_or_while_computing_is_refused_before_its_body_is_read() {
     let server = Running::start_with("127.0.0.1:0", Limits::default(), Some(fake.clone()));
     let host = format!("127.0.0.1:{}", server.addr.port());
     let big = workshop::MAX_UPLOAD + 1;
-    assert_eq!(status_before_body(&server, &upload(&host, "big.step", big, "")), Ok(413));
+    assert_eq!(
+        status_before_body(&server, &upload(&host, "big.step", big, "")),
+        Ok(413)
+    );
     assert!(fake.part.lock().unwrap().is_empty(), "nothing opened");
     let body = "ISO-10303-21;";
     assert_eq!(server.exchange(&upload(&host, "a.step", body.len(), body)).0, 200);
-    assert_eq!(status_before_body(&server, &upload(&host, "b.step", 1 << 20, "")), Ok(409));
+    assert_eq!(
+        status_before_body(&server, &upload(&host, "b.step", 1 << 20, "")),
+        Ok(409)
+    );
     assert_eq!(*fake.part.lock().unwrap(), "a.step");
     server.finish();
 }
