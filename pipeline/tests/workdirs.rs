@@ -94,3 +94,133 @@ fn ves_view_s_folder_is_private_gone_after_a_signal_and_stale_ones_are_removed_a
         );
     }
 }
+
+/// The children of process `pid` whose command line holds `word`.
+fn children_running(pid: u32, word: &str) -> Vec<u32> {
+    let Ok(entries) = std::fs::read_dir("/proc") else {
+        return Vec::new();
+    };
+    entries
+        .flatten()
+        .filter_map(|e| e.file_name().to_str()?.parse::<u32>().ok())
+        .filter(|&p| {
+            let stat = std::fs::read_to_string(format!("/proc/{p}/stat")).unwrap_or_default();
+            // The parent is the 2nd field after the command name in parentheses.
+            let ppid = stat
+                .rsplit_once(") ")
+                .and_then(|(_, r)| r.split(' ').nth(1)?.parse::<u32>().ok());
+            let cmd = std::fs::read(format!("/proc/{p}/cmdline")).unwrap_or_default();
+            ppid == Some(pid) && String::from_utf8_lossy(&cmd).contains(word)
+        })
+        .collect()
+}
+
+/// GET / as the page would; the status.
+fn page_status(port: u16) -> Option<u16> {
+    use std::io::{Read, Write};
+    let mut s = std::net::TcpStream::connect(("127.0.0.1", port)).ok()?;
+    s.set_read_timeout(Some(std::time::Duration::from_secs(5))).ok()?;
+    write!(
+        s,
+        "GET / HTTP/1.1\r\nHost: 127.0.0.1:{port}\r\nConnection: close\r\n\r\n"
+    )
+    .ok()?;
+    let mut head = [0u8; 12];
+    s.read_exact(&mut head).ok()?;
+    std::str::from_utf8(&head[9..12]).ok()?.parse().ok()
+}
+
+/// The page's compute runs in a child process: when it dies (as one whose factorisation does
+/// not fit dies of `memory allocation … failed`), the compute fails in one line and the server
+/// goes on serving, the compute's folder removed. Before, the compute ran in the server, whose
+/// abort disconnected every page.
+#[test]
+fn a_compute_process_that_dies_fails_the_compute_and_the_server_stays_up() {
+    let tmp = tempfile::tempdir().expect("tempdir");
+    let mut server = Command::new(env!("CARGO_BIN_EXE_ves"))
+        .args([
+            "view",
+            step().to_str().unwrap(),
+            "--port",
+            "0",
+            "--duration",
+            "60",
+            "--json",
+        ])
+        .env("TMPDIR", tmp.path())
+        .stdin(Stdio::null())
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .expect("ves view starts");
+    let mut out = BufReader::new(server.stdout.take().expect("stdout"));
+    let mut line = String::new();
+    out.read_line(&mut line).expect("the URL line");
+    let port: u16 = line
+        .split("http://127.0.0.1:")
+        .nth(1)
+        .and_then(|r| r.split('/').next())
+        .and_then(|p| p.parse().ok())
+        .unwrap_or_else(|| panic!("no URL in {line:?}"));
+    let pid = server.id();
+    // The first compute starts at once.
+    let t0 = std::time::Instant::now();
+    let child = loop {
+        if let Some(&c) = children_running(pid, "view-compute").first() {
+            break c;
+        }
+        assert!(
+            t0.elapsed().as_secs() < 20,
+            "no compute process under ves view after 20 s"
+        );
+        std::thread::sleep(std::time::Duration::from_millis(20));
+    };
+    let view = owned_by(tmp.path(), pid);
+    assert_eq!(view.len(), 1, "{view:?}");
+    let compute_dirs = || -> Vec<PathBuf> {
+        std::fs::read_dir(&view[0])
+            .map(|d| {
+                d.flatten()
+                    .map(|e| e.path())
+                    .filter(|p| p.to_string_lossy().contains("compute-"))
+                    .collect()
+            })
+            .unwrap_or_default()
+    };
+    assert_eq!(compute_dirs().len(), 1, "the compute's folder while it runs");
+    let killed = Command::new("kill").args(["-KILL", &child.to_string()]).status();
+    assert!(killed.is_ok_and(|s| s.success()));
+    // The compute thread notices, reports and removes the folder.
+    let t0 = std::time::Instant::now();
+    while !compute_dirs().is_empty() && t0.elapsed().as_secs() < 10 {
+        std::thread::sleep(std::time::Duration::from_millis(20));
+    }
+    assert!(
+        compute_dirs().is_empty(),
+        "the dead compute's folder stays: {:?}",
+        compute_dirs()
+    );
+    assert_eq!(
+        page_status(port),
+        Some(200),
+        "the server answers after its compute died"
+    );
+    assert!(server.try_wait().expect("try_wait").is_none(), "ves view ended");
+    let _ = Command::new("kill").args(["-INT", &pid.to_string()]).status();
+    let status = server.wait().expect("ves view ends");
+    let mut rest = String::new();
+    std::io::Read::read_to_string(&mut out, &mut rest).expect("stdout");
+    let mut err = String::new();
+    server
+        .stderr
+        .take()
+        .map(|mut e| std::io::Read::read_to_string(&mut e, &mut err));
+    assert!(status.success(), "{status:?}: {err}");
+    let stats: serde_json::Value = rest
+        .lines()
+        .filter_map(|l| serde_json::from_str(l).ok())
+        .last()
+        .unwrap_or_else(|| panic!("no JSON statistics in {rest:?}"));
+    assert_eq!(stats["computes_failed"], 1, "{stats}");
+    assert!(owned_by(tmp.path(), pid).is_empty(), "folders left after the end");
+}
