@@ -218,8 +218,8 @@ fn a_compute_process_that_dies_fails_the_compute_and_the_server_stays_up() {
     assert!(status.success(), "{status:?}: {err}");
     let stats: serde_json::Value = rest
         .lines()
-        .filter_map(|l| serde_json::from_str(l).ok())
-        .last()
+        .rev()
+        .find_map(|l| serde_json::from_str(l).ok())
         .unwrap_or_else(|| panic!("no JSON statistics in {rest:?}"));
     assert_eq!(stats["computes_failed"], 1, "{stats}");
     assert!(owned_by(tmp.path(), pid).is_empty(), "folders left after the end");
