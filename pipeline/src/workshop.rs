@@ -776,6 +776,23 @@ mod tests {
         assert_eq!(kept.len(), 2, "the lock and the part open: {kept:?}");
     }
 
+    /// A compute process's death is one line that says what it likely was.
+    #[test]
+    fn a_dead_compute_process_is_described_in_one_line() {
+        use std::os::unix::process::ExitStatusExt;
+        let status = |raw| Some(std::process::ExitStatus::from_raw(raw));
+        assert!(
+            describe(status(6)).contains("aborted (out of memory?"),
+            "{}",
+            describe(status(6))
+        );
+        assert!(describe(status(9)).contains("SIGKILL"));
+        assert!(describe(status(1 << 8)).contains("status 1"));
+        for raw in [6, 9, 11, 15, 1 << 8] {
+            assert!(!describe(status(raw)).contains('\n'));
+        }
+    }
+
     /// While a compute holds the workshop, no part is opened.
     #[test]
     fn no_part_is_opened_while_a_compute_runs() {
