@@ -32,6 +32,7 @@ pub mod tall;
 pub mod tet_mesh;
 pub mod transfer;
 pub mod verify;
+pub mod workdir;
 pub mod workshop;
 
 /// Makes a FIFO at `path`: the tests' stand-in for an input that would block a reader.

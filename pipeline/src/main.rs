@@ -28,7 +28,10 @@ fn main() -> ExitCode {
             eprintln!("internal error (please report): {}", msg.replace('\n', " "));
         }));
     }
-    match cli::run(cli::Cli::parse()) {
+    let done = cli::run(cli::Cli::parse());
+    // Threads still running (a viewer's compute) may hold work folders: they go now.
+    ves_pipeline::workdir::remove_all();
+    match done {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) => {
             if cli::rank() == 0 {

@@ -3,14 +3,16 @@
 //! The page sends the scene as JSON (the TOML's tables and keys); it is checked by the same
 //! parser as every scene file. The geometry is always the workshop's own file: whatever the
 //! page names as `geometry.step` is replaced, so a page cannot make the server read another
-//! file. Bases go to a private temporary directory, removed when the viewer ends.
+//! file. Uploaded parts and bases go to a private work folder ([`crate::workdir`]), removed
+//! when the viewer ends; a part or a basis replaced by a newer one is removed at once, so the
+//! folder holds at most the part open, the basis served and the one being computed.
 
 use crate::modes::SolverChoice;
 use crate::precompute;
 use crate::scene::{Scene, SceneOptions};
 use std::path::{Path, PathBuf};
-use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
+use std::sync::{Arc, OnceLock};
 use ves_runtime::view::{Computed, Progress, Workshop};
 
 /// A real material: name, Young's modulus (Pa), Poisson's ratio, density (kg/m³), yield
@@ -82,11 +84,14 @@ pub const MATERIALS: [MaterialPreset; 7] = [
     },
 ];
 
-/// Computes bases for one part (or the parts the page opens) in a private directory.
+/// Computes bases for one part (or the parts the page opens) in a private work folder.
 pub struct PartWorkshop {
     part: std::sync::Mutex<Part>,
+    /// Held by a compute from start to end: a part is not opened under it (the server lets
+    /// one of the two run at a time; this keeps a library user to it too).
+    busy: std::sync::Mutex<()>,
     options: SceneOptions,
-    dir: tempfile::TempDir,
+    dir: crate::workdir::WorkDir,
     computed: AtomicU64,
     solver: SolverChoice,
     /// The compute's threads, below the session's in priority (see [`lower_priority`]).
@@ -218,7 +223,7 @@ impl PartWorkshop {
         options: SceneOptions,
         solver: SolverChoice,
     ) -> anyhow::Result<PartWorkshop> {
-        let dir = tempfile::Builder::new().prefix("ves-view-").tempdir()?;
+        let dir = crate::workdir::WorkDir::new("view")?;
         let pool = rayon::ThreadPoolBuilder::new()
             .thread_name(|i| format!("ves-compute-{i}"))
             .start_handler(|_| lower_priority())
@@ -226,11 +231,25 @@ impl PartWorkshop {
         Ok(PartWorkshop {
             pool,
             part: std::sync::Mutex::new(Part { geometry, start }),
+            busy: std::sync::Mutex::new(()),
             options,
             dir,
             computed: AtomicU64::new(0),
             solver,
         })
+    }
+
+    /// Removes the bases computed here (and their sidecars, `basis-N.*`) but `keep`'s.
+    fn remove_bases_but(&self, keep: &Path) {
+        let Ok(entries) = std::fs::read_dir(self.dir.path()) else {
+            return;
+        };
+        for e in entries.flatten() {
+            let path = e.path();
+            if e.file_name().to_string_lossy().starts_with("basis-") && path.file_stem() != keep.file_stem() {
+                let _ = std::fs::remove_file(path);
+            }
+        }
     }
 
     fn part(&self) -> std::sync::MutexGuard<'_, Part> {
@@ -256,6 +275,306 @@ impl PartWorkshop {
         };
         geometry.insert("step".into(), toml::Value::String(file));
         toml::to_string(&table).map_err(|e| format!("the page's scene: {e}"))
+    }
+}
+
+/// Set by [`isolate_with`]: the `ves` binary that computes in a child process.
+static CHILD: OnceLock<PathBuf> = OnceLock::new();
+
+/// The hidden subcommand of the `ves` binary that runs one compute of the viewer.
+pub const COMPUTE_COMMAND: &str = "view-compute";
+
+/// Runs the viewer's computes in child processes of `exe`, which must answer
+/// `exe view-compute DIR` with [`serve_compute`]: a compute that aborts (a factorisation that
+/// does not fit in memory), crashes or is killed ends its process, not the server with every
+/// page. The `ves` binary turns this on; a library user computes in-process unless it does too.
+pub fn isolate_with(exe: PathBuf) {
+    let _ = CHILD.set(exe);
+}
+
+/// What a compute process is given (`job.json` in its folder).
+#[derive(serde::Serialize, serde::Deserialize)]
+struct ComputeJob {
+    /// The scene's text, its geometry named by its full path.
+    scene: String,
+    /// The path it is parsed as (errors name "scene" instead).
+    path: PathBuf,
+    /// The basis file to write.
+    out: PathBuf,
+    /// The solver, by its command-line name.
+    solver: String,
+    /// The parent's process id: the child ends at once if it already has another parent.
+    parent: u32,
+}
+
+/// What a compute process says, one JSON line each on its stdout.
+#[derive(serde::Serialize, serde::Deserialize)]
+enum ChildNote {
+    /// A stage began.
+    Progress { stage: String, fraction: f64 },
+    /// The basis is written, its checks to come: the child waits for `check` on its stdin.
+    First {
+        summary: String,
+        estimated_error: Option<f64>,
+    },
+    /// The checks are written too.
+    Done {
+        summary: String,
+        estimated_error: Option<f64>,
+    },
+    /// The compute failed (one line).
+    Error(String),
+}
+
+fn solver_name(s: SolverChoice) -> String {
+    use clap::ValueEnum;
+    s.to_possible_value()
+        .map_or_else(|| "auto".into(), |v| v.get_name().to_string())
+}
+
+/// How a compute process ended, when it said nothing of it.
+fn describe(status: Option<std::process::ExitStatus>) -> String {
+    use std::os::unix::process::ExitStatusExt;
+    let Some(status) = status else {
+        return "its status is unknown".into();
+    };
+    match (status.code(), status.signal()) {
+        (_, Some(6)) => "it aborted (out of memory? a smaller mesh or fewer modes need less)".into(),
+        (_, Some(9)) => "it was killed (SIGKILL: out of memory?)".into(),
+        (_, Some(11)) => "it crashed (segmentation fault)".into(),
+        (_, Some(s)) => format!("it was killed by signal {s}"),
+        (Some(c), _) => format!("it exited with status {c} without a basis"),
+        (None, None) => "no status".into(),
+    }
+}
+
+/// Makes a basis and its XDMF sidecar (written beside it) readable by their owner only.
+fn seal_basis(out: &Path) -> std::io::Result<()> {
+    let sidecar = out.with_extension("xdmf");
+    if sidecar.exists() {
+        crate::workdir::seal(&sidecar)?;
+    }
+    crate::workdir::seal(out)
+}
+
+/// Deletes a basis (and its sidecar) when dropped unless a session took it.
+struct Unless<'a>(&'a Path, bool);
+
+impl Drop for Unless<'_> {
+    fn drop(&mut self) {
+        if !self.1 {
+            let _ = std::fs::remove_file(self.0);
+            let _ = std::fs::remove_file(self.0.with_extension("xdmf"));
+        }
+    }
+}
+
+impl PartWorkshop {
+    /// Runs `job` in a child process with its folder `dir` (its `$TMPDIR` too): its progress
+    /// and basis come back as [`ChildNote`]s; Cancel kills it; its death is one line.
+    #[allow(clippy::too_many_arguments)]
+    fn compute_in_child(
+        &self,
+        exe: &Path,
+        dir: &Path,
+        job: &ComputeJob,
+        saved: &str,
+        progress: &Arc<dyn Fn(Progress) + Send + Sync>,
+        cancel: &AtomicBool,
+        ready: &mut dyn FnMut(&Computed) -> Result<(), String>,
+    ) -> Result<Computed, String> {
+        use std::io::{BufRead, Write};
+        let mut served = Unless(&job.out, false);
+        crate::workdir::create_dir(dir).map_err(|e| format!("cannot start the compute: {e}"))?;
+        let text = serde_json::to_string(job).map_err(|e| format!("cannot start the compute: {e}"))?;
+        crate::workdir::write(&dir.join("job.json"), text.as_bytes())
+            .map_err(|e| format!("cannot start the compute: {e}"))?;
+        let mut child = std::process::Command::new(exe)
+            .arg(COMPUTE_COMMAND)
+            .arg(dir)
+            .env("TMPDIR", dir)
+            .stdin(std::process::Stdio::piped())
+            .stdout(std::process::Stdio::piped())
+            .stderr(std::process::Stdio::piped())
+            .spawn()
+            .map_err(|e| format!("cannot start the compute process {}: {e}", exe.display()))?;
+        let (tx, notes) = std::sync::mpsc::channel();
+        let stdout = child.stdout.take();
+        let reader = std::thread::spawn(move || {
+            let Some(stdout) = stdout else { return };
+            for line in std::io::BufReader::new(stdout).lines().map_while(Result::ok) {
+                // Anything else a library prints there is not a note.
+                if let Ok(n) = serde_json::from_str::<ChildNote>(&line)
+                    && tx.send(n).is_err()
+                {
+                    break;
+                }
+            }
+        });
+        // Its warnings go on to the server's stderr; the last line says why it died, if it did
+        // ("memory allocation of … bytes failed").
+        let stderr = child.stderr.take();
+        let last_words = std::thread::spawn(move || {
+            let mut last = String::new();
+            let Some(stderr) = stderr else { return last };
+            for line in std::io::BufReader::new(stderr).lines().map_while(Result::ok) {
+                eprintln!("{line}");
+                if !line.trim().is_empty() {
+                    last = line.trim().chars().take(300).collect();
+                }
+            }
+            last
+        });
+        let mut stdin = child.stdin.take();
+        let (mut outcome, mut killed) = (None, false);
+        let computed = |summary: String, estimated_error: Option<f64>| Computed {
+            basis: job.out.clone(),
+            scene: saved.to_string(),
+            summary,
+            estimated_error,
+        };
+        loop {
+            let note = notes.recv_timeout(std::time::Duration::from_millis(50));
+            match note {
+                Ok(ChildNote::Progress { stage, fraction }) => progress(Progress { stage, fraction }),
+                Ok(ChildNote::First {
+                    summary,
+                    estimated_error,
+                }) => {
+                    let taken = seal_basis(&job.out)
+                        .map_err(|e| format!("cannot keep the basis: {e}"))
+                        .and_then(|()| ready(&computed(summary, estimated_error)));
+                    match taken {
+                        Ok(()) => {
+                            served.1 = true;
+                            // The session serves this basis now: the ones before are of no more use.
+                            self.remove_bases_but(&job.out);
+                            if let Some(s) = stdin.as_mut() {
+                                let _ = writeln!(s, "check").and_then(|()| s.flush());
+                            }
+                        }
+                        Err(e) => {
+                            outcome.get_or_insert(Err(e));
+                            let _ = child.kill();
+                        }
+                    }
+                }
+                Ok(ChildNote::Done {
+                    summary,
+                    estimated_error,
+                }) => {
+                    let _ = seal_basis(&job.out);
+                    outcome.get_or_insert(Ok(computed(summary, estimated_error)));
+                }
+                Ok(ChildNote::Error(e)) => {
+                    outcome.get_or_insert(Err(e));
+                }
+                Err(std::sync::mpsc::RecvTimeoutError::Timeout) => {
+                    if cancel.load(Ordering::Relaxed) && !killed {
+                        killed = true;
+                        let _ = child.kill();
+                    }
+                }
+                Err(std::sync::mpsc::RecvTimeoutError::Disconnected) => break,
+            }
+        }
+        drop(stdin);
+        let status = child.wait().ok();
+        let _ = reader.join();
+        let last = last_words.join().unwrap_or_default();
+        match outcome {
+            Some(done) => done,
+            None if killed && served.1 => Err("cancelled: the part shown stays, without its checks".into()),
+            None if killed => Err("cancelled: nothing was written".into()),
+            None => {
+                let why = if last.is_empty() {
+                    String::new()
+                } else {
+                    format!(": {last}")
+                };
+                Err(format!("the compute process ended: {}{why}", describe(status)))
+            }
+        }
+    }
+}
+
+/// The child's side of a compute: runs the job in `dir` and says how it goes on stdout
+/// ([`ChildNote`] lines). An error is about the job's file only (the compute's own failures are
+/// notes).
+pub fn serve_compute(dir: &Path) -> Result<(), String> {
+    use std::io::{BufRead, Write};
+    // Die with the parent: a killed server must not leave a compute running for minutes.
+    // SAFETY: prctl with these arguments only sets this process's parent-death signal.
+    unsafe { libc::prctl(libc::PR_SET_PDEATHSIG, libc::SIGKILL as libc::c_ulong, 0, 0, 0) };
+    let file = dir.join("job.json");
+    let text = std::fs::read_to_string(&file).map_err(|e| format!("{}: {e}", file.display()))?;
+    let job: ComputeJob = serde_json::from_str(&text).map_err(|e| format!("{}: {e}", file.display()))?;
+    // The parent may have died before the line above: then the signal never comes.
+    if unsafe { libc::getppid() } as u32 != job.parent {
+        return Err(format!("the parent process {} is gone", job.parent));
+    }
+    // Below the session in priority, the whole process (gmsh inherits it), as in-process
+    // computes' pool is.
+    // SAFETY: setpriority on this process, no memory involved.
+    unsafe { libc::setpriority(libc::PRIO_PROCESS, 0, 10) };
+    let say = |n: ChildNote| {
+        if let Ok(line) = serde_json::to_string(&n) {
+            let mut out = std::io::stdout().lock();
+            let _ = writeln!(out, "{line}").and_then(|()| out.flush());
+        }
+    };
+    let solver = <SolverChoice as clap::ValueEnum>::from_str(&job.solver, true)
+        .map_err(|e| format!("{}: solver {:?}: {e}", file.display(), job.solver))?;
+    let message = |e: anyhow::Error| format!("{e:#}").replace('\n', " ");
+    let parsed = match Scene::parse(&job.path, &job.scene) {
+        Ok(p) => p,
+        Err(e) => {
+            say(ChildNote::Error(
+                e.to_string().replace(&job.path.display().to_string(), "scene"),
+            ));
+            return Ok(());
+        }
+    };
+    let _watch = crate::progress::watch(Arc::new(ChildWatch(say)));
+    let first = match precompute::run_first(&parsed, &job.out, solver) {
+        Ok(f) => f,
+        Err(e) => {
+            say(ChildNote::Error(message(e)));
+            return Ok(());
+        }
+    };
+    say(ChildNote::First {
+        summary: summary_line(&first.summary),
+        estimated_error: worst_estimate(&first.summary),
+    });
+    let mut go = String::new();
+    let _ = std::io::stdin().lock().read_line(&mut go);
+    if go.trim() != "check" {
+        return Ok(());
+    }
+    match first.check() {
+        Ok(s) => say(ChildNote::Done {
+            summary: summary_line(&s),
+            estimated_error: worst_estimate(&s),
+        }),
+        Err(e) => say(ChildNote::Error(message(e))),
+    }
+    Ok(())
+}
+
+/// The child's stages, to its parent.
+struct ChildWatch<F>(F);
+
+impl<F: Fn(ChildNote) + Send + Sync> crate::progress::Watcher for ChildWatch<F> {
+    fn stage(&self, name: &str, fraction: f64) {
+        (self.0)(ChildNote::Progress {
+            stage: name.to_string(),
+            fraction,
+        });
+    }
+    fn cancelled(&self) -> bool {
+        // The parent kills the process instead.
+        false
     }
 }
 
@@ -301,6 +620,7 @@ impl Workshop for PartWorkshop {
         cancel: Arc<AtomicBool>,
         ready: &mut dyn FnMut(&Computed) -> Result<(), String>,
     ) -> Result<Computed, String> {
+        let _busy = self.busy.lock().unwrap_or_else(|p| p.into_inner());
         let n = self.computed.fetch_add(1, Ordering::Relaxed) + 1;
         let geometry = self.part().geometry.clone();
         let text = Self::text(&geometry, scene, true)?;
@@ -319,16 +639,42 @@ impl Workshop for PartWorkshop {
             summary: summary_line(summary),
             estimated_error: worst_estimate(summary),
         };
+        if let Some(exe) = CHILD.get() {
+            let job = ComputeJob {
+                scene: text,
+                path,
+                out: out.clone(),
+                solver: solver_name(self.solver),
+                parent: std::process::id(),
+            };
+            let dir = self.dir.path().join(format!("compute-{n}"));
+            let done = self.compute_in_child(exe, &dir, &job, &saved, &progress, &cancel, ready);
+            // Whatever happened: the child's own folders (meshing) are in there too.
+            let _ = std::fs::remove_dir_all(&dir);
+            return done;
+        }
         let message = |e: anyhow::Error| format!("{e:#}").replace('\n', " ");
         let _watch = crate::progress::watch(Arc::new(PageWatch { progress, cancel }));
         // In the workshop's pool: faer and rayon take their threads from it. `ready` runs here,
         // outside the pool: the session it starts must not inherit the pool's lower priority.
-        let first = self
-            .pool
-            .install(|| precompute::run_first(&parsed, &out, self.solver))
-            .map_err(message)?;
-        ready(&computed(&first.summary))?;
+        let first = self.pool.install(|| precompute::run_first(&parsed, &out, self.solver));
+        let first = match first {
+            Ok(first) => first,
+            Err(e) => {
+                let _ = std::fs::remove_file(&out);
+                return Err(message(e));
+            }
+        };
+        seal_basis(&out).map_err(|e| format!("cannot keep the basis: {e}"))?;
+        if let Err(e) = ready(&computed(&first.summary)) {
+            let _ = std::fs::remove_file(&out);
+            return Err(e);
+        }
+        // The session serves this basis now: the ones before are of no more use.
+        self.remove_bases_but(&out);
         let summary = self.pool.install(|| first.check()).map_err(message)?;
+        // The checks wrote the file again.
+        seal_basis(&out).map_err(|e| format!("cannot keep the basis: {e}"))?;
         Ok(computed(&summary))
     }
 
@@ -362,18 +708,100 @@ impl Workshop for PartWorkshop {
         let kind = geometry_kind(bytes).ok_or_else(|| {
             format!("{shown}: not a STEP, IGES or BREP file (a STEP file starts with ISO-10303-21); export the part again from its CAD system")
         })?;
+        let Ok(_busy) = self.busy.try_lock() else {
+            return Err(format!(
+                "{shown}: a compute is running: cancel it or wait, then open the part"
+            ));
+        };
         let n = self.computed.fetch_add(1, Ordering::Relaxed) + 1;
         // Its own directory: the part keeps the name the user knows (in the title and in the
         // saved scene), and a later part of the same name cannot replace it.
         let safe = safe_stem(Path::new(&file));
         let dir = self.dir.path().join(format!("part-{n}"));
-        std::fs::create_dir(&dir).map_err(|e| format!("cannot keep the part: {e}"))?;
+        crate::workdir::create_dir(&dir).map_err(|e| format!("cannot keep the part: {e}"))?;
         let path = dir.join(format!("{safe}.{}", if kind == "step" { ext.as_str() } else { kind }));
-        crate::output::write_atomically(&path, |tmp| std::fs::write(tmp, bytes).map_err(Into::into))
-            .map_err(|e| format!("cannot keep the part: {e:#}"))?;
+        if let Err(e) = crate::workdir::write(&path, bytes) {
+            let _ = std::fs::remove_dir_all(&dir);
+            return Err(format!("cannot keep the part: {e}"));
+        }
         let mut part = self.part();
         part.start = starting_scene(&path);
-        part.geometry = path;
+        let before = std::mem::replace(&mut part.geometry, path);
+        // A part uploaded before (not the user's own file): no compute can use it any more.
+        if let Some(old) = before.parent().filter(|d| d.starts_with(self.dir.path())) {
+            let _ = std::fs::remove_dir_all(old);
+        }
         Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use std::os::unix::fs::MetadataExt;
+
+    fn mode(p: &Path) -> u32 {
+        std::fs::metadata(p)
+            .map(|m| m.mode() & 0o777)
+            .unwrap_or_else(|e| panic!("{}: {e}", p.display()))
+    }
+
+    /// An uploaded part is readable by its owner only, in a folder only its owner can enter;
+    /// the next part replaces it on disk too (before, every upload stayed until the end).
+    #[test]
+    fn uploaded_parts_are_private_and_a_replaced_one_is_removed() {
+        let w = PartWorkshop::for_geometry(Path::new("part.step"), SolverChoice::Auto).unwrap();
+        assert_eq!(mode(w.dir.path()), 0o700, "the work folder");
+        let step = b"ISO-10303-21;\nHEADER;\n";
+        w.open("first.step", step).unwrap();
+        let first = w.part().geometry.clone();
+        assert!(first.starts_with(w.dir.path()), "{}", first.display());
+        assert_eq!(mode(&first), 0o600, "the uploaded part");
+        assert_eq!(mode(first.parent().unwrap()), 0o700, "its folder");
+        w.open("second.stp", step).unwrap();
+        let second = w.part().geometry.clone();
+        assert!(second.exists());
+        assert!(
+            !first.exists() && !first.parent().unwrap().exists(),
+            "the first part stays"
+        );
+        // A refused upload changes nothing.
+        assert!(w.open("third.step", b"not a part").is_err());
+        assert_eq!(w.part().geometry, second);
+        let kept: Vec<_> = std::fs::read_dir(w.dir.path())
+            .unwrap()
+            .flatten()
+            .map(|e| e.file_name())
+            .collect();
+        assert_eq!(kept.len(), 2, "the lock and the part open: {kept:?}");
+    }
+
+    /// A compute process's death is one line that says what it likely was.
+    #[test]
+    fn a_dead_compute_process_is_described_in_one_line() {
+        use std::os::unix::process::ExitStatusExt;
+        let status = |raw| Some(std::process::ExitStatus::from_raw(raw));
+        assert!(
+            describe(status(6)).contains("aborted (out of memory?"),
+            "{}",
+            describe(status(6))
+        );
+        assert!(describe(status(9)).contains("SIGKILL"));
+        assert!(describe(status(1 << 8)).contains("status 1"));
+        for raw in [6, 9, 11, 15, 1 << 8] {
+            assert!(!describe(status(raw)).contains('\n'));
+        }
+    }
+
+    /// While a compute holds the workshop, no part is opened.
+    #[test]
+    fn no_part_is_opened_while_a_compute_runs() {
+        let w = PartWorkshop::for_geometry(Path::new("part.step"), SolverChoice::Auto).unwrap();
+        let before = w.part().geometry.clone();
+        let busy = w.busy.lock().unwrap();
+        let e = w.open("other.step", b"ISO-10303-21;\n").unwrap_err();
+        assert!(e.contains("compute is running"), "{e}");
+        drop(busy);
+        assert_eq!(w.part().geometry, before);
     }
 }

@@ -61,6 +61,12 @@ enum Command {
         /// The job's directory.
         dir: std::path::PathBuf,
     },
+    /// Internal: one compute of `ves view`'s set-up panel for a parent `ves view`.
+    #[command(name = "view-compute", hide = true)]
+    ViewCompute {
+        /// The job's directory.
+        dir: std::path::PathBuf,
+    },
 }
 
 /// Runs the parsed command.
@@ -71,11 +77,14 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
         && std::env::var_os("PMI_SIZE").is_none()
         && let Ok(exe) = std::env::current_exe()
     {
+        // The viewer's computes too: one that aborts (out of memory) must not end the server.
+        ves_pipeline::workshop::isolate_with(exe.clone());
         ves_pipeline::mesh::isolate_with(exe);
     }
     ves_pipeline::memory::cap_from_env().map_err(anyhow::Error::msg)?;
     match cli.command {
         Command::MeshWorker { dir } => ves_pipeline::mesh::serve_rung(&dir).map_err(anyhow::Error::msg),
+        Command::ViewCompute { dir } => ves_pipeline::workshop::serve_compute(&dir).map_err(anyhow::Error::msg),
         Command::Precompute(a) => a.run(),
         Command::Batch(a) => a.run(),
         Command::Session(a) => a.run(),

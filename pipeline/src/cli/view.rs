@@ -76,6 +76,9 @@ impl Args {
             limits: view::Limits::default(),
         };
         let stop = Arc::new(AtomicBool::new(false));
+        // Ctrl-C ends the session and prints the statistics; SIGTERM and SIGHUP end the
+        // process at once, its work folder removed (ves_pipeline::workdir).
+        ves_pipeline::workdir::stop_on_interrupt(stop.clone());
         let stats = view::serve_with(spaces, workshop, &cfg, stop, |addr| {
             // The URL on stdout, flushed: scripts and tests wait for this line.
             let host = if addr.ip().is_unspecified() {

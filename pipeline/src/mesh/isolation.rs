@@ -7,7 +7,6 @@
 
 use super::{Attempt, LADDER, Mesh, MeshError, Meshing, Request};
 use std::io::{BufReader, BufWriter, Read, Write};
-use std::os::unix::fs::OpenOptionsExt;
 use std::path::{Path, PathBuf};
 use std::sync::OnceLock;
 
@@ -55,96 +54,6 @@ struct Job {
     parent: u32,
 }
 
-/// Names of the private directories of meshing: `ves-mesh-pid<PID>-<random>`.
-const PREFIX: &str = "ves-mesh-pid";
-/// Held (flock) by the owner of a private directory for as long as it lives.
-const LOCK: &str = "owner.lock";
-
-/// A private directory (mode 0700, in `$TMPDIR`) for one meshing of a part: the copy of its
-/// geometry that gmsh reads, and each rung's job, reply and mesh. Removed when dropped; one
-/// left by a process that was killed is removed by the next run that meshes (its name says
-/// whose it is, and the owner holds a lock on a file inside while it lives).
-pub(super) struct WorkDir {
-    dir: tempfile::TempDir,
-    _lock: std::fs::File,
-}
-
-impl WorkDir {
-    /// A new private directory; the first one of a process first removes those whose owners
-    /// are gone.
-    pub(super) fn new() -> std::io::Result<WorkDir> {
-        static SWEPT: std::sync::Once = std::sync::Once::new();
-        SWEPT.call_once(|| remove_stale(&std::env::temp_dir()));
-        let dir = tempfile::Builder::new()
-            .prefix(&format!("{PREFIX}{}-", std::process::id()))
-            .tempdir()?;
-        let lock = std::fs::File::create_new(dir.path().join(LOCK))?;
-        // Exclusive until this process ends (the kernel drops it even on SIGKILL); children do
-        // not inherit it (the descriptor is close-on-exec).
-        if unsafe { libc::flock(std::os::fd::AsRawFd::as_raw_fd(&lock), libc::LOCK_EX | libc::LOCK_NB) } != 0 {
-            return Err(std::io::Error::last_os_error());
-        }
-        Ok(WorkDir { dir, _lock: lock })
-    }
-
-    /// Its path.
-    pub(super) fn path(&self) -> &Path {
-        self.dir.path()
-    }
-}
-
-/// Removes the private directories in `tmp` of processes that no longer run: only this
-/// user's, only real directories (not symlinks), and not one whose lock is still held (its
-/// owner may run in another PID namespace sharing `tmp`).
-pub(super) fn remove_stale(tmp: &Path) {
-    use std::os::unix::fs::MetadataExt;
-    let Ok(entries) = std::fs::read_dir(tmp) else { return };
-    let me = std::process::id();
-    let uid = unsafe { libc::geteuid() };
-    for entry in entries.flatten() {
-        let name = entry.file_name();
-        let Some(pid) = name
-            .to_str()
-            .and_then(|n| n.strip_prefix(PREFIX))
-            .and_then(|n| n.split_once('-'))
-            .and_then(|(pid, _)| pid.parse::<u32>().ok())
-        else {
-            continue;
-        };
-        let path = entry.path();
-        let Ok(meta) = std::fs::symlink_metadata(&path) else {
-            continue;
-        };
-        if pid == me || !meta.is_dir() || meta.uid() != uid || process_runs(pid) {
-            continue;
-        }
-        if let Ok(lock) = std::fs::OpenOptions::new()
-            .read(true)
-            .custom_flags(libc::O_NOFOLLOW | libc::O_NONBLOCK)
-            .open(path.join(LOCK))
-        {
-            let fd = std::os::fd::AsRawFd::as_raw_fd(&lock);
-            if unsafe { libc::flock(fd, libc::LOCK_EX | libc::LOCK_NB) } != 0 {
-                continue;
-            }
-        }
-        match std::fs::remove_dir_all(&path) {
-            Ok(()) => tracing::info!("removed {}, left by process {pid} that no longer runs", path.display()),
-            Err(e) => tracing::info!("cannot remove {} (left by process {pid}): {e}", path.display()),
-        }
-    }
-}
-
-/// Whether process `pid` exists (kill(pid, 0): ESRCH means gone; EPERM, another user's).
-fn process_runs(pid: u32) -> bool {
-    let Ok(pid) = libc::pid_t::try_from(pid) else {
-        return false;
-    };
-    // SAFETY: signal 0 only checks that the process exists.
-    let found = unsafe { libc::kill(pid, 0) } == 0;
-    found || std::io::Error::last_os_error().raw_os_error() == Some(libc::EPERM)
-}
-
 /// Runs rung `rung` of the ladder: in a child process when isolation is on.
 /// `dir`: a new directory for the job's files, inside the meshing's private directory.
 pub(super) fn attempt(req: &Request, rung: usize, dir: &Path) -> Result<(Mesh, Meshing), Attempt> {
@@ -161,7 +70,8 @@ pub(super) fn attempt(req: &Request, rung: usize, dir: &Path) -> Result<(Mesh, M
             Vec::new(),
         )
     };
-    std::fs::create_dir(dir).map_err(|e| failed(format!("cannot create the directory {}: {e}", dir.display())))?;
+    crate::workdir::create_dir(dir)
+        .map_err(|e| failed(format!("cannot create the directory {}: {e}", dir.display())))?;
     let job = Job {
         request: req.clone(),
         rung,

@@ -304,13 +304,14 @@ impl Part {
 
     /// A private directory holding the bytes read (once: they are not kept), and the request
     /// that makes gmsh read that copy.
-    fn private_copy(&mut self) -> Result<(isolation::WorkDir, Request), MeshError> {
+    fn private_copy(&mut self) -> Result<(crate::workdir::WorkDir, Request), MeshError> {
         let path = self.request.geometry.display().to_string();
         let failed = |what: &str, e: std::io::Error| MeshError::Geometry {
             path: path.clone(),
             message: format!("cannot {what} for meshing: {e}"),
         };
-        let work = isolation::WorkDir::new().map_err(|e| failed("create a private temporary directory", e))?;
+        let work =
+            crate::workdir::WorkDir::new("mesh").map_err(|e| failed("create a private temporary directory", e))?;
         let mut request = self.request.clone();
         if let Some(bytes) = self.bytes.take() {
             let ext = request
@@ -319,12 +320,7 @@ impl Part {
                 .map(|e| e.to_string_lossy().to_ascii_lowercase())
                 .unwrap_or_default();
             let copy = work.path().join(format!("geometry.{ext}"));
-            std::fs::OpenOptions::new()
-                .write(true)
-                .create_new(true)
-                .open(&copy)
-                .and_then(|mut f| std::io::Write::write_all(&mut f, &bytes))
-                .map_err(|e| failed("copy the geometry", e))?;
+            crate::workdir::write(&copy, &bytes).map_err(|e| failed("copy the geometry", e))?;
             request.source = Some(copy);
         }
         Ok((work, request))

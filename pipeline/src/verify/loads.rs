@@ -59,16 +59,15 @@ pub fn compare_loads(input: &str, scene: &Scene, d: &Discretized, tol: Option<f6
     let ours = solve_static(d, &f)?;
     let m = &scene.material;
     let lame = crate::fem::element::Lame::of(m);
-    let tmp = tempfile::Builder::new()
-        .prefix("ves-verify-loads-")
-        .tempdir()
-        .context("cannot create a temporary directory for CalculiX")?;
+    let tmp =
+        crate::workdir::WorkDir::new("verify-loads").context("cannot create a temporary directory for CalculiX")?;
     let (problem, result) = (tmp.path().join("loads.h5"), tmp.path().join("ccx_loads.h5"));
     write_problem(&problem, d, scene, &f)?;
+    crate::workdir::seal(&problem)?;
     let script = tmp.path().join("ccx_static.py");
-    std::fs::write(&script, CCX_STATIC)?;
+    crate::workdir::write(&script, CCX_STATIC.as_bytes())?;
     // It writes the mesh and supports with the modal reference's functions.
-    std::fs::write(tmp.path().join("ccx_ref.py"), super::CCX)?;
+    crate::workdir::write(&tmp.path().join("ccx_ref.py"), super::CCX.as_bytes())?;
     let ran = run_checked(
         input,
         "ccx_static.py",

@@ -491,14 +491,14 @@ fn verify(
         None
     };
 
-    // A private directory (mode 0700, unpredictable name): the reference scripts run from it.
-    let tmp = tempfile::Builder::new()
-        .prefix("ves-verify-")
-        .tempdir()
+    // A private work folder (mode 0700, unpredictable name, removed even on SIGTERM): the
+    // reference scripts run from it.
+    let tmp = crate::workdir::WorkDir::new("verify")
         .context("cannot create a temporary directory for the reference solvers")?;
     let dir_tmp = tmp.path().to_path_buf();
 
     write_problem(&dir_tmp.join("problem.h5"), d, ours, &load, load_node)?;
+    crate::workdir::seal(&dir_tmp.join("problem.h5"))?;
 
     let mut reports = Vec::new();
     for (i, &r) in list.iter().enumerate() {
@@ -508,7 +508,9 @@ fn verify(
         let problem = dir_tmp.join("problem.h5");
         let script = |name: &str, text: &str| -> Result<std::path::PathBuf> {
             let path = dir_tmp.join(name);
-            std::fs::write(&path, text)?;
+            // Written again for each reference: the last one's copy goes first.
+            let _ = std::fs::remove_file(&path);
+            crate::workdir::write(&path, text.as_bytes())?;
             Ok(path)
         };
         match r {

@@ -259,10 +259,7 @@ fn router(shared: Arc<Shared>) -> axum::Router {
         )
         .route("/favicon.ico", get(|| async { axum::http::StatusCode::NO_CONTENT }))
         .route("/basis.h5", get(basis_file))
-        .route(
-            "/open",
-            axum::routing::post(open_part).layer(axum::extract::DefaultBodyLimit::max(workshop::MAX_UPLOAD)),
-        )
+        .route("/open", axum::routing::post(open_part))
         .route("/ws", get(upgrade))
         .with_state(shared)
 }
@@ -494,7 +491,7 @@ fn start_compute(shared: &Arc<Shared>, scene: serde_json::Value) -> Result<(), S
     let Some(workshop) = shared.workshop.clone() else {
         return Err("this viewer was opened on a basis: open a scene or a STEP file to set the part up".into());
     };
-    if shared.computing.swap(true, Ordering::AcqRel) {
+    let Some(claim) = Claim::take(shared) else {
         // Under the lock the compute's end takes `queued` with: a request is either queued
         // before that end or finds the checks over, never queued after it and lost.
         let mut queued = shared.queued.lock().unwrap_or_else(|p| p.into_inner());
@@ -505,7 +502,38 @@ fn start_compute(shared: &Arc<Shared>, scene: serde_json::Value) -> Result<(), S
             return Ok(());
         }
         return Err("a compute is already running: wait for it or cancel it".into());
+    };
+    launch(claim, workshop, scene)
+}
+
+/// The compute slot (`Shared::computing`), held: one compute or part opening at a time. Let go
+/// when dropped, unless a compute took it over (its end lets it go, see [`start_queued`]).
+struct Claim {
+    shared: Arc<Shared>,
+    passed_on: bool,
+}
+
+impl Claim {
+    /// The slot, if free.
+    fn take(shared: &Arc<Shared>) -> Option<Claim> {
+        (!shared.computing.swap(true, Ordering::AcqRel)).then(|| Claim {
+            shared: shared.clone(),
+            passed_on: false,
+        })
     }
+}
+
+impl Drop for Claim {
+    fn drop(&mut self) {
+        if !self.passed_on {
+            self.shared.computing.store(false, Ordering::Release);
+        }
+    }
+}
+
+/// Starts a compute of `scene` in its own thread, in the slot `claim` holds.
+fn launch(mut claim: Claim, workshop: Arc<dyn Workshop>, scene: serde_json::Value) -> Result<(), String> {
+    let shared = claim.shared.clone();
     shared.cancel.store(false, Ordering::Relaxed);
     shared.computes.fetch_add(1, Ordering::Relaxed);
     let spawned = std::thread::Builder::new().name("ves-compute".into()).spawn({
@@ -515,11 +543,13 @@ fn start_compute(shared: &Arc<Shared>, scene: serde_json::Value) -> Result<(), S
             start_queued(&shared);
         }
     });
-    if let Err(e) = spawned {
-        shared.computing.store(false, Ordering::Release);
-        return Err(format!("cannot start the compute: {e}"));
+    match spawned {
+        Ok(_) => {
+            claim.passed_on = true;
+            Ok(())
+        }
+        Err(e) => Err(format!("cannot start the compute: {e}")),
     }
-    Ok(())
 }
 
 /// Sends a compute note to every page.
@@ -602,12 +632,20 @@ fn start_queued(shared: &Arc<Shared>) {
     }
 }
 
+/// How long a part's upload may take once it holds the compute slot: a page that sends its
+/// file slowly on purpose cannot keep the slot for ever.
+const UPLOAD_TIME: Duration = Duration::from_secs(120);
+
 /// POST /open?name=FILE: the page opens a geometry file (the body) as the part; its first
 /// compute starts at once. The answer is JSON: `{"ok": true}` or `{"error": "one line"}`.
+/// Everything that can refuse the upload (its announced size, a compute running) is decided
+/// before its body is read; then the compute slot is this request's until its compute starts
+/// (or the opening fails), so no other page can open or compute another part in between.
 async fn open_part(
     State(shared): State<Arc<Shared>>,
     axum::extract::Query(q): axum::extract::Query<std::collections::HashMap<String, String>>,
-    body: Bytes,
+    headers: axum::http::HeaderMap,
+    body: axum::body::Body,
 ) -> Response {
     let answer = |status: StatusCode, v: serde_json::Value| {
         (status, [(header::CONTENT_TYPE, "application/json")], v.to_string()).into_response()
@@ -618,32 +656,58 @@ async fn open_part(
             serde_json::json!({"error": "this viewer serves a basis file: start ves view on a STEP file or a scene to open parts"}),
         );
     };
-    if shared.computing.load(Ordering::Acquire) {
+    let name = q.get("name").cloned().unwrap_or_default();
+    let too_large = |bytes: String| {
+        let shown = ves_format::identifier::escape_for_terminal(&name);
+        answer(
+            StatusCode::PAYLOAD_TOO_LARGE,
+            serde_json::json!({"error": format!(
+                "{shown}: {bytes} bytes, more than the {} MiB a page may send; simplify the part or open it with ves view PART.step",
+                workshop::MAX_UPLOAD >> 20
+            )}),
+        )
+    };
+    let length = headers.get(header::CONTENT_LENGTH).and_then(|v| v.to_str().ok());
+    if let Some(n) = length.filter(|n| n.parse::<usize>().map_or(true, |n| n > workshop::MAX_UPLOAD)) {
+        return too_large(n.to_string());
+    }
+    let Some(claim) = Claim::take(&shared) else {
         return answer(
             StatusCode::CONFLICT,
             serde_json::json!({"error": "a compute is running: cancel it or wait, then open the part"}),
         );
-    }
-    let name = q.get("name").cloned().unwrap_or_default();
-    let opened = tokio::task::spawn_blocking({
-        let body = body.clone();
-        move || workshop.open(&name, &body)
+    };
+    let bytes = match tokio::time::timeout(UPLOAD_TIME, axum::body::to_bytes(body, workshop::MAX_UPLOAD)).await {
+        Ok(Ok(b)) => b,
+        // Without a Content-Length (chunked), the limit shows while reading.
+        Ok(Err(_)) if length.is_none() => return too_large(format!("more than {}", workshop::MAX_UPLOAD)),
+        Ok(Err(e)) => {
+            return answer(
+                StatusCode::BAD_REQUEST,
+                serde_json::json!({"error": format!("the upload of {name:?} broke off: {e}")}),
+            );
+        }
+        Err(_) => {
+            return answer(
+                StatusCode::REQUEST_TIMEOUT,
+                serde_json::json!({"error": format!("the upload of {name:?} took more than {} s", UPLOAD_TIME.as_secs())}),
+            );
+        }
+    };
+    // The opening and the compute's start in one blocking task that owns the slot: a page
+    // that goes away meanwhile cannot leave the slot taken or let another part in between.
+    let opened = tokio::task::spawn_blocking(move || {
+        workshop
+            .open(&name, &bytes)
+            .map_err(|e| (StatusCode::UNPROCESSABLE_ENTITY, e))?;
+        let scene = workshop.setup()["scene"].clone();
+        launch(claim, workshop, scene).map_err(|e| (StatusCode::INTERNAL_SERVER_ERROR, e))
     })
     .await
-    .unwrap_or_else(|e| Err(format!("opening failed: {e}")));
+    .unwrap_or_else(|e| Err((StatusCode::INTERNAL_SERVER_ERROR, format!("opening failed: {e}"))));
     match opened {
-        Ok(()) => {
-            let scene = shared
-                .workshop
-                .as_ref()
-                .map(|w| w.setup()["scene"].clone())
-                .unwrap_or_default();
-            match start_compute(&shared, scene) {
-                Ok(()) => answer(StatusCode::OK, serde_json::json!({"ok": true})),
-                Err(e) => answer(StatusCode::CONFLICT, serde_json::json!({"error": e})),
-            }
-        }
-        Err(e) => answer(StatusCode::UNPROCESSABLE_ENTITY, serde_json::json!({"error": e})),
+        Ok(()) => answer(StatusCode::OK, serde_json::json!({"ok": true})),
+        Err((status, e)) => answer(status, serde_json::json!({"error": e})),
     }
 }
 

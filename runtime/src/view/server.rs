@@ -5,7 +5,7 @@
 //! page whose name the attacker re-points at 127.0.0.1 (DNS rebinding) reads our responses as
 //! its own (only its `Host` header tells). So every request must name this server in `Host`,
 //! and a request that carries an `Origin` (every WebSocket handshake from a browser does) must
-//! come from this server's page. Connections are served here rather than by `axum::serve`,
+//! come from this server's page, served from the address the request was sent to. Connections are served here rather than by `axum::serve`,
 //! which gives no header timeout and no connection limit: one that does not complete its
 //! request headers in time is closed, and when the limit is reached the oldest HTTP
 //! connection makes way for the new one, so connections held open on purpose cannot lock the
@@ -47,7 +47,7 @@ impl Default for Limits {
     }
 }
 
-/// Which `Host` and `Origin` values name this server.
+/// Which `Host` and `Origin` values name this server: the `Origin` must be the `Host`.
 #[derive(Debug)]
 pub(crate) struct Guard {
     port: u16,
@@ -98,13 +98,30 @@ impl Guard {
         }
     }
 
-    /// Whether an `Origin` header is this server's page (`http://` and a good authority).
-    fn origin_ok(&self, origin: &str) -> bool {
-        origin
+    /// Whether an `Origin` header is this server's page: `http://` and the authority the
+    /// request was sent to (`host`, its `Host` header, already checked). Any address names a
+    /// server on all interfaces, so a page served by another machine of the network at
+    /// `http://ITS-ADDRESS:PORT` would pass a check of the origin alone.
+    fn origin_ok(&self, origin: &str, host: &str) -> bool {
+        let Some(a) = origin
             .get(..7)
             .filter(|s| s.eq_ignore_ascii_case("http://"))
             .map(|_| &origin[7..])
-            .is_some_and(|a| !a.contains('/') && self.authority_ok(a))
+            .filter(|a| !a.contains('/') && self.authority_ok(a))
+        else {
+            return false;
+        };
+        match (split_authority(a), split_authority(host)) {
+            (Some((oh, op)), Some((hh, hp))) => {
+                let same = match (ip_literal(oh), ip_literal(hh)) {
+                    (Some(o), Some(h)) => o == h,
+                    (None, None) => oh.eq_ignore_ascii_case(hh),
+                    _ => false,
+                };
+                same && op == hp
+            }
+            _ => false,
+        }
     }
 
     /// Lets a request through, or says why not: a `Host` (or an absolute request URI) that
@@ -119,14 +136,14 @@ impl Guard {
             ),
         };
         let mut hosts = headers.get_all(header::HOST).iter();
-        match (hosts.next(), hosts.next()) {
+        let host = match (hosts.next(), hosts.next()) {
             (Some(h), None) => match h.to_str() {
-                Ok(h) if self.authority_ok(h) => {}
+                Ok(h) if self.authority_ok(h) => h,
                 _ => return Err(misdirected(format!("Host {h:?}"))),
             },
             (None, _) => return Err(misdirected("a request without Host".into())),
             (Some(_), Some(_)) => return Err(misdirected("a request with two Host headers".into())),
-        }
+        };
         if let Some(a) = uri.authority().filter(|a| !self.authority_ok(a.as_str())) {
             return Err(misdirected(format!("the request's address {a}")));
         }
@@ -144,9 +161,9 @@ impl Guard {
                 "a WebSocket handshake without Origin: only this server's page may connect".into(),
             )),
             (None, _) => Ok(()),
-            (Some(o), None) if o.to_str().is_ok_and(|o| self.origin_ok(o)) => Ok(()),
+            (Some(o), None) if o.to_str().is_ok_and(|o| self.origin_ok(o, host)) => Ok(()),
             (Some(o), None) => Err(forbidden(format!(
-                "Origin {o:?} is not this server's page: only the page `ves view` serves may use it"
+                "Origin {o:?} is not this server's page at {host}: only the page `ves view` serves may use it"
             ))),
             (Some(_), Some(_)) => Err(forbidden("a request with two Origin headers".into())),
         }
@@ -366,7 +383,7 @@ mod tests {
         let ws = [own, ("upgrade", "websocket"), ("connection", "Upgrade")];
         assert_eq!(status(&g, &ws), 403, "a WebSocket handshake without Origin");
         assert_eq!(
-            status(&g, &[ws[0], ws[1], ws[2], ("origin", "http://localhost:8765")]),
+            status(&g, &[ws[0], ws[1], ws[2], ("origin", "http://127.0.0.1:8765")]),
             200
         );
         // An absolute request URI must name this server too.
@@ -401,6 +418,49 @@ mod tests {
         assert_eq!(
             status(&g, &[("host", "localhost"), ("origin", "http://localhost")]),
             200
+        );
+    }
+
+    /// On all interfaces any address names the server, but a page's `Origin` must be the
+    /// address the request was sent to: a page of another machine of the network
+    /// (http://10.9.9.9:PORT) must not drive the part through the user's own address.
+    #[test]
+    fn an_origin_must_name_the_host_the_request_was_sent_to() {
+        for bound in ["0.0.0.0:8765", "[::]:8765", "127.0.0.1:8765"] {
+            let g = Guard::new(bound.parse().unwrap());
+            let host = if bound.starts_with('1') {
+                "127.0.0.1:8765"
+            } else {
+                "10.0.0.5:8765"
+            };
+            assert_eq!(
+                status(&g, &[("host", host), ("origin", &format!("http://{host}"))]),
+                200,
+                "{bound}"
+            );
+            for foreign in ["http://10.9.9.9:8765", "http://127.0.0.2:8765", "http://localhost:8765"] {
+                assert_eq!(
+                    status(&g, &[("host", host), ("origin", foreign)]),
+                    403,
+                    "{bound}: {foreign}"
+                );
+                let ws = [("host", host), ("upgrade", "websocket"), ("origin", foreign)];
+                assert_eq!(status(&g, &ws), 403, "{bound}: WebSocket from {foreign}");
+            }
+        }
+        let g = Guard::new("0.0.0.0:8765".parse().unwrap());
+        // The same host spelled in another case, and IPv6 literals, are the same host.
+        assert_eq!(
+            status(&g, &[("host", "LOCALHOST:8765"), ("origin", "http://localhost:8765")]),
+            200
+        );
+        assert_eq!(
+            status(&g, &[("host", "[fe80::1]:8765"), ("origin", "http://[FE80::1]:8765")]),
+            200
+        );
+        assert_eq!(
+            status(&g, &[("host", "[fe80::1]:8765"), ("origin", "http://[fe80::2]:8765")]),
+            403
         );
     }
 }

@@ -36,8 +36,13 @@ struct Running {
 
 impl Running {
     fn start(limits: Limits) -> Running {
+        Running::start_with("127.0.0.1:0", limits, None)
+    }
+
+    /// A server on `addr` with `workshop` as its set-up panel.
+    fn start_with(addr: &str, limits: Limits, workshop: Option<Arc<dyn Workshop>>) -> Running {
         let cfg = ViewConfig {
-            addr: "127.0.0.1:0".parse().unwrap(),
+            addr: addr.parse().unwrap(),
             session: SessionConfig {
                 duration_s: f64::INFINITY,
                 free_body: None,
@@ -49,7 +54,8 @@ impl Running {
         let (tx, rx) = std::sync::mpsc::channel();
         let stop = Arc::new(AtomicBool::new(false));
         let s = stop.clone();
-        let done = std::thread::spawn(move || serve(vec![tet()], &cfg, s, move |a| tx.send(a).unwrap()));
+        let done =
+            std::thread::spawn(move || serve_with(Some(vec![tet()]), workshop, &cfg, s, move |a| tx.send(a).unwrap()));
         let addr = rx.recv_timeout(Duration::from_secs(20)).expect("the server starts");
         Running {
             addr,
@@ -242,5 +248,143 @@ fn a_flood_of_partial_connections_is_capped_and_the_page_stays_reachable() {
         "{open} of 200 partial connections still open; the limit is {}",
         limits.connections
     );
+    server.finish();
+}
+
+/// A set-up panel that records what it is asked: `open` takes its time (longer for a name that
+/// starts with `b`) before the part is replaced, and a compute notes the part it computes and
+/// runs until cancelled.
+#[derive(Default)]
+struct Fake {
+    part: Mutex<String>,
+    computed: Mutex<Vec<String>>,
+}
+
+impl Workshop for Fake {
+    fn setup(&self) -> serde_json::Value {
+        serde_json::json!({"scene": {"name": *self.part.lock().unwrap()}})
+    }
+    fn compute(
+        &self,
+        _scene: &serde_json::Value,
+        _progress: Arc<dyn Fn(Progress) + Send + Sync>,
+        cancel: Arc<AtomicBool>,
+        _ready: &mut dyn FnMut(&Computed) -> Result<(), String>,
+    ) -> Result<Computed, String> {
+        let part = self.part.lock().unwrap().clone();
+        self.computed.lock().unwrap().push(part);
+        while !cancel.load(Ordering::Relaxed) {
+            std::thread::sleep(Duration::from_millis(10));
+        }
+        Err("cancelled".into())
+    }
+    fn open(&self, name: &str, _bytes: &[u8]) -> Result<(), String> {
+        let ms = if name.starts_with('b') { 500 } else { 100 };
+        std::thread::sleep(Duration::from_millis(ms));
+        *self.part.lock().unwrap() = name.to_string();
+        Ok(())
+    }
+}
+
+/// POST /open?name=NAME with `body`, its `Content-Length` saying `length` bytes.
+fn upload(host: &str, name: &str, length: usize, body: &str) -> String {
+    format!(
+        "POST /open?name={name} HTTP/1.1\r\nHost: {host}\r\nOrigin: http://{host}\r\n\
+         Content-Length: {length}\r\nConnection: close\r\n\r\n{body}"
+    )
+}
+
+/// Two pages open two parts at once: one is answered 200 and computed, the other 409 and
+/// changes nothing (before: both were opened, the later one replacing the part after the
+/// first had been answered 200).
+#[test]
+fn of_two_parts_opened_at_once_the_one_answered_200_is_the_one_computed() {
+    let fake = Arc::new(Fake::default());
+    let server = Running::start_with("127.0.0.1:0", Limits::default(), Some(fake.clone()));
+    let host = format!("127.0.0.1:{}", server.addr.port());
+    let body = "ISO-10303-21;";
+    let answers: Vec<(String, u16)> = std::thread::scope(|s| {
+        let asks: Vec<_> = ["a.step", "b.step"]
+            .map(|name| {
+                let (server, host) = (&server, &host);
+                s.spawn(move || {
+                    (
+                        name.to_string(),
+                        server.exchange(&upload(host, name, body.len(), body)).0,
+                    )
+                })
+            })
+            .into_iter()
+            .collect();
+        asks.into_iter().map(|a| a.join().unwrap()).collect()
+    });
+    let ok: Vec<_> = answers
+        .iter()
+        .filter(|(_, s)| *s == 200)
+        .map(|(n, _)| n.clone())
+        .collect();
+    assert_eq!(ok.len(), 1, "{answers:?}");
+    assert!(answers.iter().any(|(_, s)| *s == 409), "{answers:?}");
+    // Whatever the refused request was still doing is over by now.
+    std::thread::sleep(Duration::from_millis(800));
+    assert_eq!(*fake.computed.lock().unwrap(), ok, "the part computed ({answers:?})");
+    assert_eq!(
+        *fake.part.lock().unwrap(),
+        ok[0],
+        "the part open after both ({answers:?})"
+    );
+    server.finish();
+}
+
+/// Sends `head` (a request whose body is announced but never sent) and reads the status: the
+/// answer must come before the body, within 3 s.
+fn status_before_body(server: &Running, head: &str) -> Result<u16, String> {
+    let mut s = server.connect();
+    s.set_read_timeout(Some(Duration::from_secs(3))).unwrap();
+    s.write_all(head.as_bytes()).unwrap();
+    let mut got = [0u8; 12];
+    s.read_exact(&mut got)
+        .map_err(|e| format!("no answer before the body: {e}"))?;
+    std::str::from_utf8(&got[9..12])
+        .unwrap()
+        .parse()
+        .map_err(|e| format!("{e}"))
+}
+
+/// An upload larger than the limit is refused on its `Content-Length`, and one sent while a
+/// compute runs is refused at once: neither body is read (before, 16 parallel 60 MiB uploads
+/// were all held in memory to be told a compute was running).
+#[test]
+fn an_upload_too_large_or_while_computing_is_refused_before_its_body_is_read() {
+    let fake = Arc::new(Fake::default());
+    let server = Running::start_with("127.0.0.1:0", Limits::default(), Some(fake.clone()));
+    let host = format!("127.0.0.1:{}", server.addr.port());
+    let big = workshop::MAX_UPLOAD + 1;
+    assert_eq!(
+        status_before_body(&server, &upload(&host, "big.step", big, "")),
+        Ok(413)
+    );
+    assert!(fake.part.lock().unwrap().is_empty(), "nothing opened");
+    let body = "ISO-10303-21;";
+    assert_eq!(server.exchange(&upload(&host, "a.step", body.len(), body)).0, 200);
+    assert_eq!(
+        status_before_body(&server, &upload(&host, "b.step", 1 << 20, "")),
+        Ok(409)
+    );
+    assert_eq!(*fake.part.lock().unwrap(), "a.step");
+    server.finish();
+}
+
+/// On all interfaces, a page served by another machine of the network (its `Origin`) cannot
+/// use the server through the address the user opened.
+#[test]
+fn on_all_interfaces_a_page_of_another_host_is_refused() {
+    let server = Running::start_with("0.0.0.0:0", Limits::default(), None);
+    let port = server.addr.port();
+    let host = format!("10.0.0.5:{port}");
+    assert_eq!(server.exchange(&get(&host, Some(&format!("http://{host}")))).0, 200);
+    let foreign = format!("http://10.9.9.9:{port}");
+    assert_eq!(server.exchange(&get(&host, Some(&foreign))).0, 403);
+    assert_eq!(server.exchange(&websocket(&host, Some(&foreign))).0, 403);
     server.finish();
 }
