@@ -85,8 +85,11 @@ mod three {
                         )));
                     }
                     Err(e) => {
+                        // toml's message ends in a line break.
+                        let e = e.to_string();
                         return Err(A::Error::custom(format!(
-                            "{key}[{i}]: {e}; give exactly 3 numbers [x, y, z]"
+                            "{key}[{i}]: {}; give exactly 3 numbers [x, y, z]",
+                            e.trim()
                         )));
                     }
                 }
@@ -1282,12 +1285,16 @@ acceleration = [0.0, 0.0, -9.81]
                 "acceleration",
             ),
             ("acceleration = [0.0, 0.0, -9.81]", "acceleration = []", "acceleration"),
+            ("force = [0.0, 0.0, -100.0]", "force = [0, \"a\", 1]", "force[1]"),
         ] {
             let text = SCENE.replacen(from, to, 1);
             assert_ne!(text, SCENE, "{from}");
             let e = Scene::parse(&path, &text).expect_err(to).to_string();
             assert!(
-                e.contains(&format!("{key}: ")) && e.contains("exactly 3 numbers") && !e.contains('\n'),
+                e.contains(&format!("{key}: "))
+                    && e.contains("exactly 3 numbers")
+                    && !e.contains('\n')
+                    && !e.contains(" ;"),
                 "{to}: {e}"
             );
         }
