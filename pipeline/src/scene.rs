@@ -651,7 +651,7 @@ impl Scene {
         let unsupported = || {
             err(format!(
                 "geometry.step = {:?}: unsupported file type; use a .step/.stp, .iges, .brep or .geo file",
-                raw.geometry.step
+                shorten(&raw.geometry.step.to_string_lossy(), 200)
             ))
         };
         let supported = GEOMETRY_EXTENSIONS.contains(&ext.as_str());
@@ -660,7 +660,11 @@ impl Scene {
             if !supported && !geometry.exists() {
                 return Err(unsupported());
             }
-            return Err(err(format!("geometry.step = {:?}: {e}", raw.geometry.step)));
+            return Err(err(format!(
+                "geometry.step = {:?}: {}",
+                shorten(&raw.geometry.step.to_string_lossy(), 200),
+                shorten(&e, 400)
+            )));
         }
         if !supported {
             return Err(unsupported());
@@ -961,7 +965,7 @@ fn axis_index(key: &str, s: &str) -> Result<usize, String> {
         "x" => Ok(0),
         "y" => Ok(1),
         "z" => Ok(2),
-        _ => Err(format!("{key} = {s:?}: must be \"x\", \"y\" or \"z\"")),
+        _ => Err(format!("{key} = {:?}: must be \"x\", \"y\" or \"z\"", shorten(s, 24))),
     }
 }
 
@@ -1080,7 +1084,7 @@ fn load_cases(raw: &[RawLoad], gravity: Option<&RawGravity>, held: bool) -> Resu
                 Applied::Force { region, total: f }
             }
             (None, Some(p)) => {
-                if p == 0.0 || !(p.abs() <= MAX_PRESSURE_PA) {
+                if p == 0.0 || !(-MAX_PRESSURE_PA..=MAX_PRESSURE_PA).contains(&p) {
                     return Err(format!(
                         "{key}.pressure = {p:e}: a pressure in Pa, not zero and at most {MAX_PRESSURE_PA:e} Pa either way \
                          (positive pushes into the part)"
@@ -1097,7 +1101,7 @@ fn load_cases(raw: &[RawLoad], gravity: Option<&RawGravity>, held: bool) -> Resu
     }
     if let Some(g) = gravity {
         let a = g.acceleration;
-        if a.iter().any(|v| !(v.abs() <= MAX_ACCELERATION)) || a.iter().all(|&v| v == 0.0) {
+        if a.iter().any(|v| !(-MAX_ACCELERATION..=MAX_ACCELERATION).contains(v)) || a.iter().all(|&v| v == 0.0) {
             return Err(format!(
                 "gravity.acceleration = {a:?}: an acceleration in m/s², not all zero and each component at most \
                  {MAX_ACCELERATION:e} m/s² either way (e.g. [0.0, 0.0, -9.81])"
@@ -1124,7 +1128,7 @@ fn load_name(key: &str, name: &str) -> Result<(), String> {
         Err(format!(
             "{key}.name = \"{}\": a load name is a plain identifier (ASCII letters, digits, `_` and `-`, starting \
              with a letter or `_`, at most 64 bytes), e.g. \"tip\" or \"bolt_preload\"",
-            ves_format::names::escape_for_terminal(name)
+            ves_format::names::escape_for_terminal(&shorten(name, 80))
         ))
     }
 }
@@ -1362,7 +1366,8 @@ acceleration = [0.0, 0.0, -9.81]
     }
 
     /// An error quotes a bounded part of what it names: a list of thousands of face tags (or a
-    /// TOML error on a line that long) gave one line of hundreds of kilobytes.
+    /// TOML error on a line that long, or a string of that length) gave one line of hundreds of
+    /// kilobytes.
     #[test]
     fn errors_on_long_lists_stay_one_short_line() {
         let (dir, path) = beside_stub("longlist");
@@ -1371,6 +1376,14 @@ acceleration = [0.0, 0.0, -9.81]
         for (fixed, says) in [
             (format!("faces = [{list}]"), "fixed[2].faces: 8000 entries"),
             (format!("faces = [{list}, \"x\"]"), "line "),
+            (
+                format!("faces = [1]\ncomponents = [\"{}\"]", "q".repeat(40_000)),
+                "fixed[2].components = \"qqq",
+            ),
+            (
+                format!("plane = {{ axis = \"{}\", value = 0.0 }}", "w".repeat(40_000)),
+                "fixed[2].plane.axis",
+            ),
         ] {
             let text = SCENE.replace("[modes]", &format!("[[fixed]]\n{fixed}\n[modes]"));
             let e = Scene::parse(&path, &text).expect_err("long list").to_string();

@@ -393,12 +393,11 @@ mod tests {
         let mut scene = w.setup()["scene"].clone();
         scene["fixed"] = serde_json::json!([{ "plane": { "axis": "x", "value": 0.0 } }]);
         scene["load"] = serde_json::json!([{ "name": "tip", "faces": [1], "force": [0.0, 0.0, -1.0, 5.0] }]);
-        let e = w
-            .compute(&scene, Arc::new(|_| {}), Arc::new(AtomicBool::new(false)), &mut |_| {
-                Ok(())
-            })
-            .err()
-            .expect("refused");
+        let Err(e) = w.compute(&scene, Arc::new(|_| {}), Arc::new(AtomicBool::new(false)), &mut |_| {
+            Ok(())
+        }) else {
+            panic!("a force of four numbers was computed");
+        };
         assert!(
             e.starts_with("scene: ") && e.contains("force: ") && e.contains("exactly 3 numbers"),
             "{e}"
