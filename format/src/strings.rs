@@ -8,7 +8,11 @@
 
 use hdf5::types::{FixedUnicode, TypeDescriptor, VarLenAscii, VarLenUnicode};
 
-/// Writes `value` as a fixed-length UTF-8 string attribute (sizes 64 B to 64 KiB).
+/// Longest string attribute written, bytes (64 KiB): the scene's text is one, so the pipeline
+/// refuses a longer scene when it reads it.
+pub const MAX_BYTES: usize = 65536;
+
+/// Writes `value` as a fixed-length UTF-8 string attribute (sizes 64 B to [`MAX_BYTES`]).
 pub fn write(loc: &hdf5::Location, name: &str, value: &str) -> hdf5::Result<()> {
     macro_rules! put {
         ($n:literal) => {{
@@ -20,7 +24,7 @@ pub fn write(loc: &hdf5::Location, name: &str, value: &str) -> hdf5::Result<()> 
         0..=64 => put!(64),
         65..=1024 => put!(1024),
         1025..=16384 => put!(16384),
-        16385..=65536 => put!(65536),
+        16385..=MAX_BYTES => put!(65536),
         n => Err(hdf5::Error::from(format!(
             "{name}: a {n}-byte string is too long for an attribute"
         ))),

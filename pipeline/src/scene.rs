@@ -50,14 +50,84 @@ struct RawLoad {
     #[serde(rename = "box")]
     bbox: Option<BoxRegion>,
     faces: Option<Vec<u32>>,
+    #[serde(default, deserialize_with = "three::force_opt")]
     force: Option<[f64; 3]>,
     pressure: Option<f64>,
+}
+
+/// The scene's 3-vectors, read with exactly three numbers: serde's `[f64; 3]` through the toml
+/// crate reads the first three elements of a longer array and ignores the rest. One function
+/// per key, so that the refusal names it (toml adds the line).
+mod three {
+    use serde::Deserializer;
+    use serde::de::{Error, IgnoredAny, SeqAccess, Visitor};
+    use std::fmt;
+
+    struct Exact(&'static str);
+
+    impl<'de> Visitor<'de> for Exact {
+        type Value = [f64; 3];
+
+        fn expecting(&self, f: &mut fmt::Formatter) -> fmt::Result {
+            write!(f, "exactly 3 numbers [x, y, z]")
+        }
+
+        fn visit_seq<A: SeqAccess<'de>>(self, mut seq: A) -> Result<[f64; 3], A::Error> {
+            let key = self.0;
+            let mut v = [0.0; 3];
+            for (i, x) in v.iter_mut().enumerate() {
+                match seq.next_element::<f64>() {
+                    Ok(Some(e)) => *x = e,
+                    Ok(None) => {
+                        let s = if i == 1 { "" } else { "s" };
+                        return Err(A::Error::custom(format!(
+                            "{key}: {i} element{s}; give exactly 3 numbers [x, y, z]"
+                        )));
+                    }
+                    Err(e) => {
+                        // toml's message ends in a line break.
+                        let e = e.to_string();
+                        return Err(A::Error::custom(format!(
+                            "{key}[{i}]: {}; give exactly 3 numbers [x, y, z]",
+                            e.trim()
+                        )));
+                    }
+                }
+            }
+            // Counted, not kept: the rest may be of any type.
+            let mut n = 3usize;
+            while seq.next_element::<IgnoredAny>()?.is_some() {
+                n += 1;
+            }
+            if n > 3 {
+                return Err(A::Error::custom(format!(
+                    "{key}: {n} elements; give exactly 3 numbers [x, y, z]"
+                )));
+            }
+            Ok(v)
+        }
+    }
+
+    macro_rules! keys {
+        ($($key:ident),*) => {$(
+            pub fn $key<'de, D: Deserializer<'de>>(d: D) -> Result<[f64; 3], D::Error> {
+                d.deserialize_seq(Exact(stringify!($key)))
+            }
+        )*};
+    }
+    keys!(at, force, min, max, acceleration);
+
+    /// `force` where the key may be left out (`#[serde(default)]` gives `None`).
+    pub fn force_opt<'de, D: Deserializer<'de>>(d: D) -> Result<Option<[f64; 3]>, D::Error> {
+        force(d).map(Some)
+    }
 }
 
 /// Optional `[gravity]` table (a compatible v1 extension): the load case `gravity`, M·g.
 #[derive(Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
 struct RawGravity {
+    #[serde(deserialize_with = "three::acceleration")]
     acceleration: [f64; 3],
 }
 
@@ -76,8 +146,10 @@ pub struct StressSettings {
 #[serde(deny_unknown_fields)]
 pub struct Probe {
     /// Where, m (snapped to the nearest surface vertex).
+    #[serde(deserialize_with = "three::at")]
     pub at: [f64; 3],
     /// Force, N.
+    #[serde(deserialize_with = "three::force")]
     pub force: [f64; 3],
 }
 
@@ -224,8 +296,10 @@ struct RawPlane {
 #[serde(deny_unknown_fields)]
 pub struct BoxRegion {
     /// Lower corner.
+    #[serde(deserialize_with = "three::min")]
     pub min: [f64; 3],
     /// Upper corner.
+    #[serde(deserialize_with = "three::max")]
     pub max: [f64; 3],
 }
 
@@ -466,6 +540,14 @@ impl Scene {
             file: path.to_path_buf(),
             message,
         };
+        if text.len() > MAX_SCENE_TEXT_BYTES {
+            return Err(err(format!(
+                "the scene is {} bytes; a basis stores its scene's text in at most {} KiB: shorten it (long comments, \
+                 long face lists)",
+                text.len(),
+                MAX_SCENE_TEXT_BYTES >> 10
+            )));
+        }
         let raw: RawScene = toml::from_str(text).map_err(|e| err(one_line_toml_error(text, &e)))?;
         let dir = path.parent().unwrap_or(Path::new("."));
         let dir = std::path::absolute(dir).unwrap_or_else(|_| dir.to_path_buf());
@@ -523,7 +605,7 @@ impl Scene {
             _ => {}
         }
         if raw.mesh.size != 0.0 || raw.mesh.target_error.is_none() {
-            finite_positive("mesh.size", raw.mesh.size, "m").map_err(err)?;
+            element_size("mesh.size", raw.mesh.size).map_err(err)?;
         }
         if raw.mesh.target_error.is_some() && !raw.mesh.error_estimate {
             return Err(err(
@@ -548,10 +630,14 @@ impl Scene {
                 raw.modes.count
             )));
         }
-        for (key, v) in [("damping.alpha", raw.damping.alpha), ("damping.beta", raw.damping.beta)] {
-            if !v.is_finite() || v < 0.0 {
+        for (key, v, max, unit) in [
+            ("damping.alpha", raw.damping.alpha, MAX_DAMPING_ALPHA, "1/s"),
+            ("damping.beta", raw.damping.beta, MAX_DAMPING_BETA, "s"),
+        ] {
+            if !(0.0..=max).contains(&v) {
                 return Err(err(format!(
-                    "{key} = {v}: Rayleigh coefficients must be finite and ≥ 0"
+                    "{key} = {v:e}: Rayleigh coefficients are finite, ≥ 0 and at most {max:e} {unit} (beyond, every \
+                     mode is overdamped thousands of times over; e.g. beta = 1e-5)"
                 )));
             }
         }
@@ -565,7 +651,7 @@ impl Scene {
         let unsupported = || {
             err(format!(
                 "geometry.step = {:?}: unsupported file type; use a .step/.stp, .iges, .brep or .geo file",
-                raw.geometry.step
+                shorten(&raw.geometry.step.to_string_lossy(), 200)
             ))
         };
         let supported = GEOMETRY_EXTENSIONS.contains(&ext.as_str());
@@ -574,7 +660,11 @@ impl Scene {
             if !supported && !geometry.exists() {
                 return Err(unsupported());
             }
-            return Err(err(format!("geometry.step = {:?}: {e}", raw.geometry.step)));
+            return Err(err(format!(
+                "geometry.step = {:?}: {}",
+                shorten(&raw.geometry.step.to_string_lossy(), 200),
+                shorten(&e, 400)
+            )));
         }
         if !supported {
             return Err(unsupported());
@@ -594,7 +684,7 @@ impl Scene {
         }
         let mut names = vec!["global".to_string()];
         for (i, v) in raw.voi.iter().enumerate() {
-            finite_positive(&format!("voi[{i}].size"), v.size, "m").map_err(err)?;
+            element_size(&format!("voi[{i}].size"), v.size).map_err(err)?;
             check_box(&format!("voi[{i}].box"), &v.bbox).map_err(err)?;
             // The name becomes an HDF5 group, a .vtu file name and part of messages.
             ves_format::check_identifier(&format!("voi[{i}].name"), &v.name).map_err(err)?;
@@ -608,12 +698,8 @@ impl Scene {
             names.push(v.name.clone());
         }
         for (i, p) in raw.probe.iter().enumerate() {
-            if p.at.iter().chain(&p.force).any(|v| !v.is_finite()) || p.force.iter().all(|&v| v == 0.0) {
-                return Err(err(format!(
-                    "probe[{i}]: at {:?} and force {:?} must be finite, and the force non-zero (N)",
-                    p.at, p.force
-                )));
-            }
+            point(&format!("probe[{i}].at"), p.at).map_err(err)?;
+            force(&format!("probe[{i}].force"), p.force).map_err(err)?;
         }
         // The name becomes the output's file name (`<name>.h5`, in `ves batch --out DIR` too):
         // an identifier, never a path.
@@ -680,9 +766,99 @@ fn one_line_toml_error(text: &str, e: &toml::de::Error) -> String {
             let start = span.start.min(text.len());
             let line_no = text[..start].matches('\n').count() + 1;
             let line = text.lines().nth(line_no - 1).unwrap_or("").trim();
-            format!("line {line_no} (`{line}`): {msg}")
+            format!("line {line_no} (`{}`): {}", shorten(line, 80), shorten(&msg, 400))
         }
         None => format!("invalid scene: {msg}"),
+    }
+}
+
+/// Longest scene text, bytes: the basis stores it verbatim in one string attribute
+/// (`scene_toml`), which holds at most this much.
+pub const MAX_SCENE_TEXT_BYTES: usize = ves_format::strings::MAX_BYTES;
+
+/// Largest coordinate a scene may give (box corners, plane values, probe points), m, either
+/// way. No part is a thousand kilometres long, a box meant to hold everything can say ±1e6, and
+/// a coordinate stays finite through every product the pipeline forms (squares of differences,
+/// the division by 1e-3 that hands a millimetre geometry its fields in millimetres).
+pub const MAX_COORDINATE_M: f64 = 1e6;
+
+/// Largest length a scene may give (element sizes, plane tolerances), m.
+pub const MAX_LENGTH_M: f64 = 1e6;
+
+/// Smallest element size, m: a nanometre, finer than any part is meshed. Far below it the
+/// element-count estimate (size³) underflows to zero and its quotients become infinite.
+pub const MIN_ELEMENT_SIZE_M: f64 = 1e-9;
+
+/// Largest force component, N (a probe's, a load case's total): far beyond any service load
+/// (a rocket engine's thrust is 1e7 N), small enough that stresses, their squares (von Mises)
+/// and displacements on the softest, smallest part the scene admits stay finite, in f64 and in
+/// the f32 the page is sent.
+pub const MAX_FORCE_N: f64 = 1e12;
+
+/// Largest pressure, Pa, either way: the top of the range of Young's moduli ([`YOUNG_RANGE`]).
+pub const MAX_PRESSURE_PA: f64 = 1e13;
+
+/// Largest acceleration component, m/s² (1e8 g): beyond any centrifuge or impact.
+pub const MAX_ACCELERATION: f64 = 1e9;
+
+/// Largest Rayleigh α, 1/s.
+pub const MAX_DAMPING_ALPHA: f64 = 1e6;
+
+/// Largest Rayleigh β, s.
+pub const MAX_DAMPING_BETA: f64 = 1.0;
+
+fn within_reach(x: f64) -> bool {
+    x.abs() <= MAX_COORDINATE_M
+}
+
+fn point(key: &str, p: [f64; 3]) -> Result<(), String> {
+    if p.iter().all(|&x| within_reach(x)) {
+        Ok(())
+    } else {
+        Err(format!(
+            "{key} = {p:?}: a point in m, finite and each coordinate within ±{MAX_COORDINATE_M:e} m"
+        ))
+    }
+}
+
+fn force(key: &str, f: [f64; 3]) -> Result<(), String> {
+    if f.iter().all(|v| v.abs() <= MAX_FORCE_N) && f.iter().any(|&v| v != 0.0) {
+        Ok(())
+    } else {
+        Err(format!(
+            "{key} = {f:?}: a force in N, not all zero and each component at most {MAX_FORCE_N:e} N either way"
+        ))
+    }
+}
+
+fn element_size(key: &str, h: f64) -> Result<(), String> {
+    if (MIN_ELEMENT_SIZE_M..=MAX_LENGTH_M).contains(&h) {
+        Ok(())
+    } else {
+        Err(format!(
+            "{key} = {h:e}: an element size in m, from {MIN_ELEMENT_SIZE_M:e} to {MAX_LENGTH_M:e} m"
+        ))
+    }
+}
+
+/// Face tags as an error quotes them: ` = [..]` when short; else their count and the first few,
+/// so that the error stays one readable line.
+pub fn quote_tags(tags: &[u32]) -> String {
+    const SHOWN: usize = 8;
+    if tags.len() <= SHOWN {
+        format!(" = {tags:?}")
+    } else {
+        let first: Vec<String> = tags[..SHOWN].iter().map(u32::to_string).collect();
+        format!(": {} entries, the first: [{}, …]", tags.len(), first.join(", "))
+    }
+}
+
+/// `s` cut to its first `shown` characters (an ellipsis says so): what an error quotes of a
+/// line or of toml's message (which may quote the value).
+fn shorten(s: &str, shown: usize) -> String {
+    match s.char_indices().nth(shown) {
+        Some((at, _)) => format!("{}…", &s[..at]),
+        None => s.to_string(),
     }
 }
 
@@ -775,9 +951,9 @@ fn fmt3(p: [f64; 3], size: f64) -> String {
 }
 
 fn check_box(key: &str, b: &BoxRegion) -> Result<(), String> {
-    if b.min.iter().chain(&b.max).any(|v| !v.is_finite()) || (0..3).any(|c| b.min[c] > b.max[c]) {
+    if b.min.iter().chain(&b.max).any(|v| !within_reach(*v)) || (0..3).any(|c| b.min[c] > b.max[c]) {
         return Err(format!(
-            "{key}: min {:?} and max {:?} must be finite with min ≤ max on each axis",
+            "{key}: min {:?} and max {:?} must be finite, within ±{MAX_COORDINATE_M:e} m, with min ≤ max on each axis",
             b.min, b.max
         ));
     }
@@ -789,7 +965,7 @@ fn axis_index(key: &str, s: &str) -> Result<usize, String> {
         "x" => Ok(0),
         "y" => Ok(1),
         "z" => Ok(2),
-        _ => Err(format!("{key} = {s:?}: must be \"x\", \"y\" or \"z\"")),
+        _ => Err(format!("{key} = {:?}: must be \"x\", \"y\" or \"z\"", shorten(s, 24))),
     }
 }
 
@@ -828,11 +1004,19 @@ fn region(
     Ok(match (plane, bbox, faces) {
         (Some(p), None, None) => {
             let axis = axis_index(&format!("{key}.plane.axis"), &p.axis)?;
-            if !p.value.is_finite() {
-                return Err(format!("{key}.plane.value = {}: must be finite", p.value));
+            if !within_reach(p.value) {
+                return Err(format!(
+                    "{key}.plane.value = {:e}: a coordinate in m, finite and within ±{MAX_COORDINATE_M:e} m",
+                    p.value
+                ));
             }
-            if let Some(t) = p.tol {
-                finite_positive(&format!("{key}.plane.tol"), t, "m")?;
+            match p.tol {
+                Some(t) if !(t > 0.0 && t <= MAX_LENGTH_M) => {
+                    return Err(format!(
+                        "{key}.plane.tol = {t:e}: a distance in m, > 0 and at most {MAX_LENGTH_M:e} m"
+                    ));
+                }
+                _ => {}
             }
             Region::Plane {
                 axis,
@@ -852,7 +1036,8 @@ fn region(
             }
             if list.contains(&0) {
                 return Err(format!(
-                    "{key}.faces = {list:?}: face tags start at 1 (gmsh numbers the faces of the geometry from 1)"
+                    "{key}.faces{}: face tags start at 1 (gmsh numbers the faces of the geometry from 1)",
+                    quote_tags(list)
                 ));
             }
             let mut tags = list.clone();
@@ -895,17 +1080,14 @@ fn load_cases(raw: &[RawLoad], gravity: Option<&RawGravity>, held: bool) -> Resu
         let region = region(&key, l.plane.as_ref(), l.bbox.as_ref(), l.faces.as_ref())?;
         let applied = match (l.force, l.pressure) {
             (Some(f), None) => {
-                if f.iter().any(|v| !v.is_finite()) || f.iter().all(|&v| v == 0.0) {
-                    return Err(format!(
-                        "{key}.force = {f:?}: the total force in N, finite and not all zero"
-                    ));
-                }
+                force(&format!("{key}.force"), f)?;
                 Applied::Force { region, total: f }
             }
             (None, Some(p)) => {
-                if !p.is_finite() || p == 0.0 {
+                if p == 0.0 || !(-MAX_PRESSURE_PA..=MAX_PRESSURE_PA).contains(&p) {
                     return Err(format!(
-                        "{key}.pressure = {p}: a pressure in Pa, finite and not zero (positive pushes into the part)"
+                        "{key}.pressure = {p:e}: a pressure in Pa, not zero and at most {MAX_PRESSURE_PA:e} Pa either way \
+                         (positive pushes into the part)"
                     ));
                 }
                 Applied::Pressure { region, pascal: p }
@@ -919,9 +1101,10 @@ fn load_cases(raw: &[RawLoad], gravity: Option<&RawGravity>, held: bool) -> Resu
     }
     if let Some(g) = gravity {
         let a = g.acceleration;
-        if a.iter().any(|v| !v.is_finite()) || a.iter().all(|&v| v == 0.0) {
+        if a.iter().any(|v| !(-MAX_ACCELERATION..=MAX_ACCELERATION).contains(v)) || a.iter().all(|&v| v == 0.0) {
             return Err(format!(
-                "gravity.acceleration = {a:?}: an acceleration in m/s², finite and not all zero (e.g. [0.0, 0.0, -9.81])"
+                "gravity.acceleration = {a:?}: an acceleration in m/s², not all zero and each component at most \
+                 {MAX_ACCELERATION:e} m/s² either way (e.g. [0.0, 0.0, -9.81])"
             ));
         }
         cases.push(LoadCase {
@@ -945,7 +1128,7 @@ fn load_name(key: &str, name: &str) -> Result<(), String> {
         Err(format!(
             "{key}.name = \"{}\": a load name is a plain identifier (ASCII letters, digits, `_` and `-`, starting \
              with a letter or `_`, at most 64 bytes), e.g. \"tip\" or \"bolt_preload\"",
-            ves_format::names::escape_for_terminal(name)
+            ves_format::names::escape_for_terminal(&shorten(name, 80))
         ))
     }
 }
@@ -1066,6 +1249,149 @@ acceleration = [0.0, 0.0, -9.81]
         ] {
             let e = with(load).expect_err(load).to_string();
             assert!(e.contains(says) && !e.contains('\n'), "{load}: {e}");
+        }
+        let _ = std::fs::remove_dir_all(&dir);
+    }
+
+    /// A directory holding a geometry stub, and the path of a scene beside it.
+    fn beside_stub(tag: &str) -> (PathBuf, PathBuf) {
+        let dir = std::env::temp_dir().join(format!("ves-scene-{tag}-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).expect("temp dir");
+        std::fs::write(dir.join("x.step"), "ISO-10303-21;").expect("geometry stub");
+        let path = dir.join("s.toml");
+        (dir, path)
+    }
+
+    /// Every fixed-size array has exactly its length: a fourth element (or a fifth of another
+    /// type) ran silently, the toml crate reading the first three; a refusal names the key.
+    #[test]
+    fn three_vectors_have_exactly_three_numbers() {
+        let (dir, path) = beside_stub("shapes");
+        for (from, to, key) in [
+            (
+                "force = [0.0, 0.0, -100.0]",
+                "force = [0, 0, -1, \"junk\", true]",
+                "force",
+            ),
+            ("force = [0.0, 0.0, -100.0]", "force = [0.0, -100.0]", "force"),
+            ("at = [0.1, 0.0, 0.05]", "at = [0.1, 0.0, 0.05, 7.0]", "at"),
+            ("force = [0.0, 1.0, 0.0]", "force = [0.0, 1.0, 0.0, 0.0]", "force"),
+            ("max = [0.1, 0.1, 0.1] }", "max = [0.1, 0.1, 0.1, 0.1] }", "max"),
+            (
+                "{ min = [0.0, 0.0, 0.0], max = [1.0",
+                "{ min = [0.0, 0.0, 0.0, 0.0], max = [1.0",
+                "min",
+            ),
+            ("min = [0.9, 0.0, 0.0]", "min = [0.9, 0.0, 0.0, 0.0]", "min"),
+            (
+                "acceleration = [0.0, 0.0, -9.81]",
+                "acceleration = [0.0, 0.0, -9.81, 1.0]",
+                "acceleration",
+            ),
+            ("acceleration = [0.0, 0.0, -9.81]", "acceleration = []", "acceleration"),
+            ("force = [0.0, 0.0, -100.0]", "force = [0, \"a\", 1]", "force[1]"),
+        ] {
+            let text = SCENE.replacen(from, to, 1);
+            assert_ne!(text, SCENE, "{from}");
+            let e = Scene::parse(&path, &text).expect_err(to).to_string();
+            assert!(
+                e.contains(&format!("{key}: "))
+                    && e.contains("exactly 3 numbers")
+                    && !e.contains('\n')
+                    && !e.contains(" ;"),
+                "{to}: {e}"
+            );
+        }
+        let _ = std::fs::remove_dir_all(&dir);
+    }
+
+    /// Values no solve can use are refused when the scene is read, naming the key: a force of
+    /// 1e308 N passed the parser and failed after the whole solve (its stress squared is
+    /// infinite), and a box corner of 1e307 m becomes infinite in millimetres for gmsh.
+    #[test]
+    fn values_beyond_what_a_solve_can_hold_are_refused_at_parse() {
+        let (dir, path) = beside_stub("ranges");
+        for (from, to, key) in [
+            ("force = [0.0, 0.0, -100.0]", "force = [0, 0, -1e308]", "load[0].force"),
+            ("force = [0.0, 0.0, -100.0]", "force = [0, 0, -1e13]", "load[0].force"),
+            ("force = [0.0, 1.0, 0.0]", "force = [0.0, 1e300, 0.0]", "probe[0]"),
+            ("at = [0.1, 0.0, 0.05]", "at = [0.1, 1e307, 0.05]", "probe[0]"),
+            (
+                "acceleration = [0.0, 0.0, -9.81]",
+                "acceleration = [0.0, 0.0, -1e300]",
+                "gravity.acceleration",
+            ),
+            ("max = [0.1, 0.1, 0.1] }", "max = [0.1, 0.1, 1e307] }", "voi[0].box"),
+            ("max = [1.0, 1.0, 1.0] }", "max = [1.0, 1.0, 1e307] }", "fixed[1].box"),
+            ("min = [0.9, 0.0, 0.0]", "min = [-1e307, 0.0, 0.0]", "load[0].box"),
+            (
+                "value = 0.0, tol = 1e-6",
+                "value = 1e307, tol = 1e-6",
+                "fixed[0].plane.value",
+            ),
+            (
+                "value = 0.0, tol = 1e-6",
+                "value = 0.0, tol = 1e307",
+                "fixed[0].plane.tol",
+            ),
+            ("size = 0.001", "size = 1e307", "voi[0].size"),
+            ("size = 0.01", "size = 1e307", "mesh.size"),
+            ("size = 0.01", "size = 1e-300", "mesh.size"),
+            ("alpha = 0.1", "alpha = 1e300", "damping.alpha"),
+            ("beta = 1e-5", "beta = 1e300", "damping.beta"),
+        ] {
+            let text = SCENE.replacen(from, to, 1);
+            assert_ne!(text, SCENE, "{from}");
+            let e = Scene::parse(&path, &text).expect_err(to).to_string();
+            assert!(e.contains(key) && !e.contains('\n'), "{to}: {e}");
+        }
+        let with_load = |load: &str| {
+            let text = SCENE.replace("[gravity]", &format!("[[load]]\n{load}\n[gravity]"));
+            Scene::parse(&path, &text)
+        };
+        let e = with_load("name = \"p\"\nfaces = [1]\npressure = 1e300").expect_err("1e300 Pa");
+        assert!(e.to_string().contains("load[1].pressure"), "{e}");
+        let _ = std::fs::remove_dir_all(&dir);
+    }
+
+    /// The basis stores the scene's text in an attribute of at most 64 KiB: a longer scene was
+    /// refused only when the basis was written, after the whole solve.
+    #[test]
+    fn a_scene_longer_than_the_basis_can_store_is_refused_at_parse() {
+        let (dir, path) = beside_stub("long");
+        let text = format!("{SCENE}\n# {}\n", "x".repeat(70_000));
+        let e = Scene::parse(&path, &text).expect_err("70 kB").to_string();
+        assert!(e.contains("64 KiB") && !e.contains('\n'), "{e}");
+        let _ = std::fs::remove_dir_all(&dir);
+    }
+
+    /// An error quotes a bounded part of what it names: a list of thousands of face tags (or a
+    /// TOML error on a line that long, or a string of that length) gave one line of hundreds of
+    /// kilobytes.
+    #[test]
+    fn errors_on_long_lists_stay_one_short_line() {
+        let (dir, path) = beside_stub("longlist");
+        let tags: Vec<String> = (0..8000).map(|t| t.to_string()).collect();
+        let list = tags.join(", ");
+        for (fixed, says) in [
+            (format!("faces = [{list}]"), "fixed[2].faces: 8000 entries"),
+            (format!("faces = [{list}, \"x\"]"), "line "),
+            (
+                format!("faces = [1]\ncomponents = [\"{}\"]", "q".repeat(40_000)),
+                "fixed[2].components = \"qqq",
+            ),
+            (
+                format!("plane = {{ axis = \"{}\", value = 0.0 }}", "w".repeat(40_000)),
+                "fixed[2].plane.axis",
+            ),
+        ] {
+            let text = SCENE.replace("[modes]", &format!("[[fixed]]\n{fixed}\n[modes]"));
+            let e = Scene::parse(&path, &text).expect_err("long list").to_string();
+            assert!(
+                e.contains(says) && !e.contains('\n') && e.len() < 400,
+                "{} bytes: {e:.600}",
+                e.len()
+            );
         }
         let _ = std::fs::remove_dir_all(&dir);
     }

@@ -72,7 +72,7 @@ pub enum SupportError {
     #[error(transparent)]
     Empty(#[from] EmptySupport),
     /// `faces` names a tag the geometry does not have.
-    #[error("fixed[{index}].faces = {asked:?}: {message}")]
+    #[error("fixed[{index}].faces{}: {message}", crate::scene::quote_tags(asked))]
     UnknownFaces {
         /// Index of the `[[fixed]]` table.
         index: usize,
@@ -110,15 +110,23 @@ fn describe(region: &Region, lo: [f64; 3], hi: [f64; 3], default_tol: f64) -> (S
             format!("box {:?}..{:?} m", b.min, b.max),
             format!("the part spans {lo:.6?} to {hi:.6?} m: move or enlarge the box (in metres)"),
         ),
-        Region::Faces(tags) => (format!("faces {tags:?}"), "name faces the geometry has".to_string()),
+        Region::Faces(tags) => (
+            format!("faces{}", crate::scene::quote_tags(tags)),
+            "name faces the geometry has".to_string(),
+        ),
     }
 }
 
-/// Sorted tags as ranges: `1..=6, 9, 11..=12`.
+/// Sorted tags as ranges: `1..=6, 9, 11..=12`; past the first 12 ranges, how many more (an
+/// error stays one readable line).
 pub fn tag_ranges(tags: &[u32]) -> String {
+    const SHOWN: usize = 12;
     let mut parts = Vec::new();
     let mut i = 0;
     while i < tags.len() {
+        if parts.len() == SHOWN {
+            return format!("{}, … ({} tags more)", parts.join(", "), tags.len() - i);
+        }
         let mut j = i;
         while j + 1 < tags.len() && tags[j + 1] == tags[j] + 1 {
             j += 1;
@@ -212,7 +220,7 @@ pub fn region_triangles(mesh: &Mesh, key: &str, region: &Region) -> Result<Vec<u
     let picked: Vec<usize> = match region {
         Region::Faces(tags) => {
             if let Some(message) = unknown_faces(mesh, tags) {
-                return Err(format!("{key}.faces = {tags:?}: {message}"));
+                return Err(format!("{key}.faces{}: {message}", crate::scene::quote_tags(tags)));
             }
             (0..mesh.surface.len())
                 .filter(|&t| tags.binary_search(&mesh.surface_faces[t]).is_ok())
@@ -273,4 +281,19 @@ pub fn select(mesh: &Mesh, supports: &[Support]) -> Result<Dofs, SupportError> {
         }
     }
     Ok(Dofs::from_mask(&fixed_mask))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A list of a hundred thousand unknown tags made a message of hundreds of kilobytes: past
+    /// twelve ranges, the rest is counted.
+    #[test]
+    fn tag_ranges_stay_one_short_line() {
+        assert_eq!(tag_ranges(&[1, 2, 3, 5, 7, 8]), "1..=3, 5, 7..=8");
+        let many: Vec<u32> = (1..=200_000).step_by(2).collect();
+        let s = tag_ranges(&many);
+        assert!(s.len() < 200 && s.ends_with("… (99988 tags more)"), "{s:.300}");
+    }
 }

@@ -804,4 +804,26 @@ mod tests {
         drop(busy);
         assert_eq!(w.part().geometry, before);
     }
+
+    /// The page's scene is checked by the scene parser, exact shapes included: a force of four
+    /// numbers from the page was read as its first three and computed.
+    #[test]
+    fn the_page_s_scene_is_refused_with_a_fourth_number() {
+        let dir = tempfile::tempdir().expect("temp dir");
+        let step = dir.path().join("part.step");
+        std::fs::write(&step, "ISO-10303-21;").expect("geometry stub");
+        let w = PartWorkshop::for_geometry(&step, SolverChoice::Auto).expect("a workshop");
+        let mut scene = w.setup()["scene"].clone();
+        scene["fixed"] = serde_json::json!([{ "plane": { "axis": "x", "value": 0.0 } }]);
+        scene["load"] = serde_json::json!([{ "name": "tip", "faces": [1], "force": [0.0, 0.0, -1.0, 5.0] }]);
+        let Err(e) = w.compute(&scene, Arc::new(|_| {}), Arc::new(AtomicBool::new(false)), &mut |_| {
+            Ok(())
+        }) else {
+            panic!("a force of four numbers was computed");
+        };
+        assert!(
+            e.starts_with("scene: ") && e.contains("force: ") && e.contains("exactly 3 numbers"),
+            "{e}"
+        );
+    }
 }

@@ -229,6 +229,38 @@ fn session_durations_that_are_not_a_positive_finite_time_are_refused() {
     }
 }
 
+/// `ves session --trace … --duration 1e7` reserved a row per step of every hand before the
+/// session (1.7 TB at 1 kHz) and aborted; a trace longer than its stated limit is refused.
+#[test]
+fn a_trace_longer_than_its_limit_is_refused_before_anything_runs() {
+    let (dir, basis) = good_basis();
+    let script = dir.path().join("hand.csv");
+    std::fs::write(&script, "0,1,0.05,0.05\n0.01,1,0.05,0.05\n").unwrap();
+    let dev = format!("script:{}", script.display());
+    let trace = dir.path().join("trace.csv");
+    for d in ["1e7", "2000"] {
+        let arg = format!("--duration={d}");
+        let o = ves(&[
+            "session",
+            basis.to_str().unwrap(),
+            "--device",
+            &dev,
+            &arg,
+            "--trace",
+            trace.to_str().unwrap(),
+            "--no-realtime",
+        ]);
+        let err = stderr(&o);
+        assert_eq!(o.status.code(), Some(1), "--duration {d}: {err}");
+        assert!(
+            err.contains("--duration") && err.contains("--trace") && err.contains("1000000 steps"),
+            "--duration {d}: {err}"
+        );
+        assert_eq!(err.trim().lines().count(), 1, "{err}");
+        assert!(!trace.exists());
+    }
+}
+
 /// Rewrites one dataset of a copy of `basis` and returns the copy.
 fn damaged(basis: &Path, name: &str, edit: impl FnOnce(&hdf5::Group)) -> std::path::PathBuf {
     let copy = basis.with_file_name(name);

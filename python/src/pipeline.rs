@@ -122,8 +122,41 @@ pub(crate) fn run_long<T: Send + 'static>(
     }
 }
 
-/// A Python value of a scene dict as TOML; `key` names where it is, for the error.
-fn to_toml(v: &Bound<'_, PyAny>, key: &str) -> PyResult<toml::Value> {
+/// How deep a scene dict may nest: a scene is at most three tables deep (`load[0].box.min`).
+/// A dict that holds itself, or lists nested thousands deep, recursed until the interpreter's
+/// stack overflowed.
+const MAX_SCENE_DEPTH: usize = 16;
+
+/// How many values a scene dict may hold in all: a scene's text is at most
+/// [`ves_pipeline::scene::MAX_SCENE_TEXT_BYTES`], two bytes a value at the least.
+const MAX_SCENE_VALUES: usize = ves_pipeline::scene::MAX_SCENE_TEXT_BYTES / 2;
+
+/// `key` as an error quotes it: its first 120 characters.
+fn shown(key: &str) -> String {
+    match key.char_indices().nth(120) {
+        Some((at, _)) => format!("{}…", &key[..at]),
+        None => key.to_string(),
+    }
+}
+
+/// A Python value of a scene dict as TOML; `key` names where it is, for the error; `depth` is
+/// its nesting level, `left` how many more values the whole dict may hold.
+fn to_toml(v: &Bound<'_, PyAny>, key: &str, depth: usize, left: &mut usize) -> PyResult<toml::Value> {
+    if depth > MAX_SCENE_DEPTH {
+        return Err(errors::SceneError::new_err(format!(
+            "scene key {}: nested more than {MAX_SCENE_DEPTH} levels deep (a dict or list that holds itself?); a \
+             scene is a few tables deep",
+            shown(key)
+        )));
+    }
+    *left = left.checked_sub(1).ok_or_else(|| {
+        errors::SceneError::new_err(format!(
+            "the scene dict holds more than {MAX_SCENE_VALUES} entries in all (at {}); a scene is at most {} KiB \
+             of TOML",
+            shown(key),
+            ves_pipeline::scene::MAX_SCENE_TEXT_BYTES >> 10
+        ))
+    })?;
     if v.is_instance_of::<PyBool>() {
         return Ok(toml::Value::Boolean(v.extract()?));
     }
@@ -150,14 +183,14 @@ fn to_toml(v: &Bound<'_, PyAny>, key: &str) -> PyResult<toml::Value> {
             } else {
                 format!("{key}.{name}")
             };
-            t.insert(name, to_toml(&item, &path)?);
+            t.insert(name, to_toml(&item, &path, depth + 1, left)?);
         }
         return Ok(toml::Value::Table(t));
     }
     if v.is_instance_of::<PyList>() || v.is_instance_of::<PyTuple>() {
         let mut a = Vec::new();
         for (i, item) in v.try_iter()?.enumerate() {
-            a.push(to_toml(&item?, &format!("{key}[{i}]"))?);
+            a.push(to_toml(&item?, &format!("{key}[{i}]"), depth + 1, left)?);
         }
         return Ok(toml::Value::Array(a));
     }
@@ -182,7 +215,8 @@ pub(crate) fn scene_from(scene: &Bound<'_, PyAny>, allow_geo_scripts: bool) -> P
     let py = scene.py();
     let options = SceneOptions { allow_geo_scripts };
     let parsed = if let Ok(d) = scene.cast::<PyDict>() {
-        let value = to_toml(d.as_any(), "")?;
+        let mut left = MAX_SCENE_VALUES;
+        let value = to_toml(d.as_any(), "", 0, &mut left)?;
         let text = toml::to_string(&value)
             .map_err(|e| PyValueError::new_err(format!("the scene dict cannot be written as TOML: {e}")))?;
         let name = value

@@ -98,6 +98,21 @@ def test_bad_arguments_are_exceptions(call, kind):
         call()
 
 
+def test_scene_dicts_that_nest_without_end_are_scene_errors():
+    """A dict that holds itself, or lists nested 10 000 deep, crashed the interpreter (the
+    conversion to TOML recursed without bound); a scene is a few levels deep."""
+    looped = {"geometry": {"step": "x.step", "unit": "mm"}}
+    looped["geometry"]["again"] = looped
+    deep = [1.0]
+    for _ in range(10_000):
+        deep = [deep]
+    wide = {"fixed": [{"faces": list(range(1, 200_000))}]}
+    for scene, says in [(looped, "geometry.again"), ({"mesh": {"size": deep}}, "mesh.size"), (wide, "entries")]:
+        with pytest.raises(ves.SceneError, match=says) as e:
+            ves.matrices(scene, progress=False)
+        assert "\n" not in str(e.value) and len(str(e.value)) < 400
+
+
 def test_output_over_an_input_is_refused(tmp_path):
     scene = scene_copy(tmp_path, GOOD)
     with pytest.raises(ves.Error, match="scene.toml"):

@@ -172,6 +172,20 @@ impl Args {
         let cfg = self.settings.config(duration, "session")?;
         let trace = match &self.trace {
             Some(path) => {
+                // Every row is reserved before the session (the haptic thread must not allocate):
+                // a bound on the steps bounds that memory.
+                let steps = (duration * cfg.rate_hz).round() + 1.0;
+                let max = super::trace::MAX_STEPS;
+                if steps > max as f64 {
+                    anyhow::bail!(
+                        "--duration {duration}: --trace records at most {max} steps per hand ({} s at --rate {} Hz, \
+                         {} MB a hand); give a shorter --duration, or leave out --trace",
+                        max as f64 / cfg.rate_hz,
+                        cfg.rate_hz,
+                        max * super::trace::ROW_BYTES / 1_000_000
+                    );
+                }
+                let steps = steps as usize;
                 let mut inputs = vec![self.basis.as_path()];
                 inputs.extend(
                     self.devices
@@ -185,7 +199,6 @@ impl Args {
                     ves_pipeline::output::Overwrite { force: false },
                     "--trace",
                 )?;
-                let steps = (duration * cfg.rate_hz).round() as usize + 1;
                 let trace = super::trace::Trace::with_room(steps);
                 devices = devices
                     .into_iter()

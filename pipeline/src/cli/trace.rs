@@ -1,4 +1,5 @@
-//! `ves session --trace FILE.csv`: every haptic step of every hand, written after the session.
+//! `ves session --trace FILE.csv`: every haptic step of every hand (at most [`MAX_STEPS`] each),
+//! written after the session.
 //! Each hand's recording device fills rows made before the session starts and hands them over
 //! when the session drops it, so the haptic thread neither allocates nor locks.
 
@@ -6,6 +7,13 @@ use anyhow::Result;
 use std::sync::mpsc;
 use ves_runtime::device::{Device, DeviceState};
 use ves_runtime::haptic::HandOutput;
+
+/// Most steps a trace records per hand: 1000 s at the default 1 kHz. Its rows are reserved
+/// before the session starts, [`ROW_BYTES`] each.
+pub const MAX_STEPS: usize = 1_000_000;
+
+/// Bytes of one reserved row.
+pub const ROW_BYTES: usize = std::mem::size_of::<Row>();
 
 /// One hand-step: time, hand position, and what the step gave the hand.
 #[derive(Clone, Copy, Default)]
@@ -23,8 +31,9 @@ pub struct Trace {
 }
 
 impl Trace {
-    /// Room for `steps` steps per hand (recording stops when it is full).
+    /// Room for `steps` steps per hand, at most [`MAX_STEPS`] (recording stops when it is full).
     pub fn with_room(steps: usize) -> Trace {
+        let steps = steps.min(MAX_STEPS);
         let (tx, rx) = mpsc::channel();
         Trace { steps, tx, rx }
     }
@@ -40,20 +49,22 @@ impl Trace {
         })
     }
 
-    /// The rows as CSV, a header line first, step by step and hand by hand within a step.
-    pub fn csv(&self) -> String {
+    /// Writes the rows as CSV to `w`, a header line first, step by step and hand by hand within
+    /// a step (streamed: a long trace is not held twice, as rows and as text).
+    fn write_csv(&self, w: &mut impl std::io::Write) -> std::io::Result<()> {
         let mut hands: Vec<(usize, Vec<Row>)> = self.rx.try_iter().collect();
         hands.sort_by_key(|(hand, _)| *hand);
-        let mut s = String::from(
-            "t_s,hand,x_m,y_m,z_m,contact,vertex,ux_m,uy_m,uz_m,fx_n,fy_n,fz_n,grip_gap_m,strain,von_mises_pa\n",
-        );
+        w.write_all(
+            b"t_s,hand,x_m,y_m,z_m,contact,vertex,ux_m,uy_m,uz_m,fx_n,fy_n,fz_n,grip_gap_m,strain,von_mises_pa\n",
+        )?;
         let steps = hands.iter().map(|(_, rows)| rows.len()).max().unwrap_or(0);
         for i in 0..steps {
             for (hand, r) in hands.iter().filter_map(|(hand, rows)| rows.get(i).map(|r| (hand, r))) {
                 let (p, o) = (r.position, r.out);
                 let (u, f) = (o.displacement, o.force);
-                s += &format!(
-                    "{},{hand},{},{},{},{},{},{},{},{},{},{},{},{},{},{}\n",
+                writeln!(
+                    w,
+                    "{},{hand},{},{},{},{},{},{},{},{},{},{},{},{},{},{}",
                     r.t,
                     p[0],
                     p[1],
@@ -69,10 +80,10 @@ impl Trace {
                     o.grip_gap,
                     o.strain,
                     o.von_mises
-                );
+                )?;
             }
         }
-        s
+        Ok(())
     }
 }
 
@@ -116,6 +127,11 @@ impl Drop for Recording {
 
 /// Writes the trace to `path` (atomically: a killed run leaves no half file).
 pub fn write(trace: &Trace, path: &std::path::Path) -> Result<()> {
-    let text = trace.csv();
-    ves_pipeline::output::write_atomically(path, |tmp| Ok(std::fs::write(tmp, text)?))
+    ves_pipeline::output::write_atomically(path, |tmp| {
+        let mut w = std::io::BufWriter::new(std::fs::File::create(tmp)?);
+        trace.write_csv(&mut w)?;
+        // Flushed here; the staging syncs the file before renaming it.
+        w.into_inner().map_err(|e| e.into_error())?;
+        Ok(())
+    })
 }
