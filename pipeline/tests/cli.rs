@@ -659,8 +659,14 @@ fn report_sweeps_meshes_and_modes_and_writes_plots() {
         worst(&meshes[2], "estimated_relative_error"),
         worst(&meshes[2], "measured_relative_error"),
     );
+    // Measured e / t = 0.95 (2.87 % against 3.01 %, both mode 10, torsion). The bound leaves
+    // 1.36× below and 1.42× above it, and an estimate off by 2× either way (1.91 or 0.48) fails.
+    // The measured error is against the 0.04 m mesh, itself 1.3 % off on that mode
+    // (cases/cantilever/converged.json): against the converged frequency the estimate is 0.66×
+    // the true error. So the bound pins what the estimate says of this pair of meshes; it is
+    // not a check against the truth.
     assert!(
-        e < 0.05 && t < 0.05 && e > 0.2 * t,
+        e < 0.05 && t < 0.05 && (0.7..=1.35).contains(&(e / t)),
         "order 2: estimated {e}, measured {t}"
     );
     let md = std::fs::read_to_string(out.join("report.md")).expect("report.md");
