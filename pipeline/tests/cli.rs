@@ -1112,11 +1112,16 @@ fn assert_within_one_percent(f: &[f64], estimate: &[f64], converged: &[f64], rat
 
 /// `[mesh] target_error = 0.01` with no size: the cantilever is refined uniformly until its
 /// estimate says 1 %, every mode then is within 1 % of the mesh-converged answer, and the
-/// estimate tracks the true error (measured 1.21–2.07× where it is above 0.1 %).
+/// estimate tracks the true error: measured 1.42–1.95× on the 8 modes above 0.1 % (2.0k, 6.1k,
+/// 29.3k unknowns; docs/accuracy.md). An over-estimate by design: the bending modes (11, 14, 18,
+/// 20: 1.42–1.95×) take the Richardson estimate at the credited rate 2 where they converge at a
+/// measured 4.4–4.9, the torsion modes (5, 10, 13, 17: 1.47–1.54×) the recovery one. The bound
+/// 1.1–2.4 leaves 1.29× below the lowest and 1.23× above the highest, and any one mode's estimate
+/// off by 2× fails it (halved: at most 0.98; doubled: at least 2.85).
 #[test]
 fn target_error_refines_the_cantilever_to_within_one_percent_of_converged() {
     let (_, f, estimate, converged) = refine_cantilever("");
-    assert_within_one_percent(&f, &estimate, &converged, 0.5..=3.0);
+    assert_within_one_percent(&f, &estimate, &converged, 1.1..=2.4);
 }
 
 /// The cantilever at its default size (25 mm, 11.7k unknowns) against its mesh-converged
