@@ -1126,10 +1126,16 @@ fn target_error_refines_the_cantilever_to_within_one_percent_of_converged() {
 
 /// The cantilever at its default size (25 mm, 11.7k unknowns) against its mesh-converged
 /// reference (cases/cantilever/converged.json): the recovery estimate on the mesh itself is
-/// within 0.45–1.3× of the true error of every mode off by more than 0.1 % (measured 0.63–1.03),
-/// the number the basis carries within 0.5–2× (measured 0.63–1.38: the Richardson estimate is
-/// taken where it is asymptotic and larger), no more than a fifth of the modes are flagged
-/// (measured none), and the JSON says per mode which rule chose.
+/// within 0.55–1.2× of the true error of every mode off by more than 0.1 %, the number the basis
+/// carries within 0.55–1.6×, no more than a fifth of the modes are flagged (measured none), and
+/// the JSON says per mode which rule chose. Measured on the 13 such modes: recovery 0.985–1.027×
+/// on the torsion modes (5, 10, 13, 17) and 0.628–0.986× on the 9 bending ones (recovery is low
+/// on the solid beam's bending, docs/accuracy.md); the number carried is the recovery one but
+/// for modes 1 and 19, where the asymptotic Richardson estimate is larger (0.886×, 1.381×), so
+/// 0.628–1.381×. Both bounds leave 1.14× below the lowest and 1.16–1.17× above the highest.
+/// Recovery off by 2× on any one mode fails (halved: at most 0.51; doubled: at least 1.26), and
+/// so does a number carried at 2× or ½ the truth, or the whole estimate doubled (2.76) or
+/// halved (0.31).
 #[test]
 fn error_estimate_of_the_cantilever_tracks_its_true_error() {
     let case = cantilever_dir();
@@ -1154,12 +1160,12 @@ fn error_estimate_of_the_cantilever_tracks_its_true_error() {
         }
         let recovery = m["recovery"].as_f64().expect("recovery") / truth;
         assert!(
-            (0.45..=1.3).contains(&recovery),
+            (0.55..=1.2).contains(&recovery),
             "mode {}: recovery {recovery:.2}× the truth",
             i + 1
         );
         assert!(
-            (0.5..=2.0).contains(&(kept / truth)),
+            (0.55..=1.6).contains(&(kept / truth)),
             "mode {}: estimate {:.2}× the truth",
             i + 1,
             kept / truth
