@@ -659,8 +659,14 @@ fn report_sweeps_meshes_and_modes_and_writes_plots() {
         worst(&meshes[2], "estimated_relative_error"),
         worst(&meshes[2], "measured_relative_error"),
     );
+    // Measured e / t = 0.95 (2.87 % against 3.01 %, both mode 10, torsion). The bound leaves
+    // 1.36× below and 1.42× above it, and an estimate off by 2× either way (1.91 or 0.48) fails.
+    // The measured error is against the 0.04 m mesh, itself 1.3 % off on that mode
+    // (cases/cantilever/converged.json): against the converged frequency the estimate is 0.66×
+    // the true error. So the bound pins what the estimate says of this pair of meshes; it is
+    // not a check against the truth.
     assert!(
-        e < 0.05 && t < 0.05 && e > 0.2 * t,
+        e < 0.05 && t < 0.05 && (0.7..=1.35).contains(&(e / t)),
         "order 2: estimated {e}, measured {t}"
     );
     let md = std::fs::read_to_string(out.join("report.md")).expect("report.md");
@@ -1106,19 +1112,30 @@ fn assert_within_one_percent(f: &[f64], estimate: &[f64], converged: &[f64], rat
 
 /// `[mesh] target_error = 0.01` with no size: the cantilever is refined uniformly until its
 /// estimate says 1 %, every mode then is within 1 % of the mesh-converged answer, and the
-/// estimate tracks the true error (measured 1.21–2.07× where it is above 0.1 %).
+/// estimate tracks the true error: measured 1.42–1.95× on the 8 modes above 0.1 % (2.0k, 6.1k,
+/// 29.3k unknowns; docs/accuracy.md). An over-estimate by design: the bending modes (11, 14, 18,
+/// 20: 1.42–1.95×) take the Richardson estimate at the credited rate 2 where they converge at a
+/// measured 4.4–4.9, the torsion modes (5, 10, 13, 17: 1.47–1.54×) the recovery one. The bound
+/// 1.1–2.4 leaves 1.29× below the lowest and 1.23× above the highest, and any one mode's estimate
+/// off by 2× fails it (halved: at most 0.98; doubled: at least 2.85).
 #[test]
 fn target_error_refines_the_cantilever_to_within_one_percent_of_converged() {
     let (_, f, estimate, converged) = refine_cantilever("");
-    assert_within_one_percent(&f, &estimate, &converged, 0.5..=3.0);
+    assert_within_one_percent(&f, &estimate, &converged, 1.1..=2.4);
 }
 
 /// The cantilever at its default size (25 mm, 11.7k unknowns) against its mesh-converged
 /// reference (cases/cantilever/converged.json): the recovery estimate on the mesh itself is
-/// within 0.45–1.3× of the true error of every mode off by more than 0.1 % (measured 0.63–1.03),
-/// the number the basis carries within 0.5–2× (measured 0.63–1.38: the Richardson estimate is
-/// taken where it is asymptotic and larger), no more than a fifth of the modes are flagged
-/// (measured none), and the JSON says per mode which rule chose.
+/// within 0.55–1.2× of the true error of every mode off by more than 0.1 %, the number the basis
+/// carries within 0.55–1.6×, no more than a fifth of the modes are flagged (measured none), and
+/// the JSON says per mode which rule chose. Measured on the 13 such modes: recovery 0.985–1.027×
+/// on the torsion modes (5, 10, 13, 17) and 0.628–0.986× on the 9 bending ones (recovery is low
+/// on the solid beam's bending, docs/accuracy.md); the number carried is the recovery one but
+/// for modes 1 and 19, where the asymptotic Richardson estimate is larger (0.886×, 1.381×), so
+/// 0.628–1.381×. Both bounds leave 1.14× below the lowest and 1.16–1.17× above the highest.
+/// Recovery off by 2× on any one mode fails (halved: at most 0.51; doubled: at least 1.26), and
+/// so does a number carried at 2× or ½ the truth, or the whole estimate doubled (2.76) or
+/// halved (0.31).
 #[test]
 fn error_estimate_of_the_cantilever_tracks_its_true_error() {
     let case = cantilever_dir();
@@ -1143,12 +1160,12 @@ fn error_estimate_of_the_cantilever_tracks_its_true_error() {
         }
         let recovery = m["recovery"].as_f64().expect("recovery") / truth;
         assert!(
-            (0.45..=1.3).contains(&recovery),
+            (0.55..=1.2).contains(&recovery),
             "mode {}: recovery {recovery:.2}× the truth",
             i + 1
         );
         assert!(
-            (0.5..=2.0).contains(&(kept / truth)),
+            (0.55..=1.6).contains(&(kept / truth)),
             "mode {}: estimate {:.2}× the truth",
             i + 1,
             kept / truth
