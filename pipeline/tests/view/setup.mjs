@@ -14,11 +14,16 @@ const [url, webDir, out] = process.argv.slice(2);
 const browser = await launch(webDir);
 const errors = [];
 const ends = (page) => page.evaluate(() => window.ves.notes.filter((n) => n.type === 'computed' || n.type === 'compute_error').length);
-const waitEnd = (page, n) => page.waitForFunction((n) => window.ves.notes.filter((x) => x.type === 'computed' || x.type === 'compute_error').length > n, n, { timeout: 180000 });
+// Deadlines, not waits: a compute runs at a lower priority than everything else on the machine.
+const waitEnd = async (page, n) => {
+  if (!await until(page, (k) => window.ves.notes.filter((x) => x.type === 'computed' || x.type === 'compute_error').length > k, n, 900000)) {
+    throw new Error(`no compute ended in 15 min; the last notes: ${JSON.stringify(await page.evaluate(() => window.ves.notes.slice(-3)))}`);
+  }
+};
 try {
   const page = await newPage(browser, errors, { width: 1280, height: 860 }, { acceptDownloads: true });
   await page.goto(url);
-  await page.waitForFunction(() => window.ves && window.ves.ready, null, { timeout: 180000 });
+  await page.waitForFunction(() => window.ves && window.ves.ready, null, { timeout: 900000 });
   const free = await page.evaluate(() => ({ free: window.ves.hello.free_body, f: window.ves.hello.spaces[0].frequencies_hz }));
 
   // Two faces: the +x end seen from +x, the −x end seen from −x, each clicked in the middle.
