@@ -4,7 +4,7 @@
 // WebSocket and check that frames still arrive. Prints one JSON object; the Rust test asserts.
 //
 // usage: node drag.mjs URL WEB_DIR SCREENSHOT.png
-import { launch, newPage } from './browser.mjs';
+import { handAt, launch, newPage, rendered, statuses, steady, until } from './browser.mjs';
 
 const [url, webDir, shot] = process.argv.slice(2);
 const browser = await launch(webDir);
@@ -25,19 +25,13 @@ try {
   await page.mouse.move(x, y);
   await page.mouse.down();
   const pixels = 60;
+  // Each step of the drag reaches the server before the next.
   for (let k = 1; k <= 12; k++) {
     await page.mouse.move(x, y + (pixels * k) / 12);
-    await page.waitForTimeout(25);
+    await handAt(page, 0);
   }
-  // Held until the grabbed vertex's true displacement is steady (1 s of frames within 0.2 %).
-  await page.waitForFunction((v) => {
-    const s = window.ves.spaces[0];
-    const h = (window.__steady ||= []);
-    h.push(s.umag[v]);
-    if (h.length > 20) h.shift();
-    const [lo, hi] = [Math.min(...h), Math.max(...h)];
-    return h.length === 20 && hi > 0 && hi - lo < 2e-3 * hi;
-  }, vertex, { polling: 50, timeout: 30000 });
+  // Held until the grabbed vertex's true displacement is steady.
+  await steady(page, vertex);
   const [x2, y2] = await page.evaluate((v) => window.ves.screenOf(0, v), vertex);
   const held = await page.evaluate((v) => {
     const s = window.ves.spaces[0];
@@ -46,10 +40,12 @@ try {
       target: window.ves.lastTarget,
       hand: h,
       rest: Array.from(s.rest.subarray(3 * v, 3 * v + 3)),
+      // Read back as drawn: the true position (k = 1) and the magnified one.
       position: window.ves.trueOf(0, v),
       u: Array.from(s.u.subarray(3 * v, 3 * v + 3)),
       drawn: window.ves.drawnOf(0, v),
       scale: window.ves.drawnScale,
+      drawnPose: s.drawnPose,
       umag: s.umag[v],
       legend: window.ves.legend,
       scaleText: document.getElementById('scaleshown').textContent,
@@ -63,7 +59,8 @@ try {
   await page.screenshot({ path: shot });
   // The same moment coloured by von Mises stress: the clamped root is the hot spot.
   await page.selectOption('#colour', 'vonmises');
-  await page.waitForTimeout(300);
+  await page.waitForFunction(() => window.ves.spaces[0].vm && window.ves.legend.title === 'von Mises stress' && !window.ves.dirty, null, { timeout: 20000 });
+  await rendered(page);
   const vonMisesLegend = await page.evaluate(() => [document.getElementById('legendtitle').textContent, document.getElementById('hi').textContent]);
   await page.screenshot({ path: shot.replace(/\.png$/, '_von_mises.png') });
   await page.selectOption('#colour', 'displacement');
@@ -77,32 +74,39 @@ try {
   await other.mouse.move(mx, my);
   await other.mouse.down();
   await other.mouse.move(mx, my + 20, { steps: 5 });
-  await other.waitForTimeout(500);
+  await handAt(other, 1);
   const second = await other.evaluate(() => ({ client: window.ves.hello.client, hands: window.ves.status.hands }));
   await other.mouse.up();
   await other.close();
 
   await page.mouse.up();
-  await page.waitForTimeout(300);
+  await until(page, () => !window.ves.status.hands[0].active);
   const released = await page.evaluate(() => window.ves.status.hands[0].active);
 
-  // Malformed input through the page's own socket: text garbage, binary, oversized, a non-finite
-  // position (JSON has no NaN: null), a hand that does not exist. All five must be dropped.
+  // Malformed input through a socket of its own: text garbage, binary, oversized, a non-finite
+  // position (JSON has no NaN: null), a hand that does not exist. All five must be dropped. A
+  // good mode request last: the server reads a socket in order, so its answer means all six
+  // were handled.
   const before = await page.evaluate(() => window.ves.frames);
+  const droppedBefore = await page.evaluate(() => window.ves.status.messages_dropped);
   await page.evaluate(() => {
     const ws = new WebSocket(`ws://${location.host}/ws`);
+    ws.binaryType = 'arraybuffer';
     return new Promise((done) => {
+      ws.onmessage = (ev) => { if (typeof ev.data !== 'string' && new Uint32Array(ev.data, 0, 1)[0] === 2) { ws.close(); done(); } };
       ws.onopen = () => {
         ws.send('garbage');
         ws.send(new Uint8Array([1, 2, 3]));
         ws.send(JSON.stringify({ type: 'mode', space: 0, index: 0, pad: 'x'.repeat(5000) }));
         ws.send(JSON.stringify({ type: 'hand', hand: 0, active: true, button: true, position: [null, 0, 0] }));
         ws.send(JSON.stringify({ type: 'hand', hand: 7, active: true, button: true, position: [1, 0, 0] }));
-        setTimeout(() => { ws.close(); done(); }, 300);
+        ws.send(JSON.stringify({ type: 'mode', space: 0, index: 0 }));
       };
     });
   });
-  await page.waitForTimeout(500);
+  // The count as the server has it now, and frames still coming to this page.
+  await statuses(page);
+  await until(page, ([n, d]) => window.ves.frames > n && window.ves.status.messages_dropped >= d + 5, [before, droppedBefore]);
   const after = await page.evaluate(() => ({ frames: window.ves.frames, dropped: window.ves.status.messages_dropped }));
 
   // Lost in space: a wild orbit (dragged off the part) and a deep zoom, then F fits the view.
@@ -110,11 +114,11 @@ try {
   await page.mouse.down();
   await page.mouse.move(700, 400, { steps: 10 });
   await page.mouse.up();
-  for (let k = 0; k < 12; k++) { await page.mouse.move(600, 400); await page.mouse.wheel(0, -400); await page.waitForTimeout(20); }
-  await page.waitForTimeout(200);
+  for (let k = 0; k < 12; k++) { await page.mouse.move(600, 400); await page.mouse.wheel(0, -400); await rendered(page, 1); }
+  await rendered(page);
   const lost = await page.evaluate(() => window.ves.drawnExtent());
   await page.keyboard.press('f');
-  await page.waitForTimeout(200);
+  await rendered(page);
   const fitted = await page.evaluate(() => window.ves.drawnExtent());
 
   // The mode browser: click mode 1 and check the page animates its shape.

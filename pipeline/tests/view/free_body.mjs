@@ -5,7 +5,7 @@
 // 420 px wide window must leave the part visible. Prints one JSON object as its last line.
 //
 // usage: node free_body.mjs URL WEB_DIR SCREENSHOT_DIR
-import { launch, newPage } from './browser.mjs';
+import { handAt, launch, newPage, rendered, until } from './browser.mjs';
 
 const [url, webDir, shots] = process.argv.slice(2);
 const browser = await launch(webDir);
@@ -15,7 +15,8 @@ try {
   const page = await newPage(browser, errors);
   await page.goto(url);
   await ready(page);
-  // Grab the beam's free end and carry it 0.2 m up and 0.1 m sideways in 1 s, then hold.
+  // Grab the beam's free end and carry it 0.2 m up and 0.1 m sideways in 20 steps (each at the
+  // server before the next), then hold until the body has followed the hand.
   const start = await page.evaluate(() => {
     const s = window.ves.spaces[0];
     const v = window.ves.nearestVertex(0, [1.0, 0.05, 0.05]);
@@ -24,9 +25,12 @@ try {
   for (let k = 0; k <= 20; k++) {
     const t = k / 20;
     await page.evaluate((p) => window.ves.drive(0, p), [start[0], start[1] + 0.1 * t, start[2] + 0.2 * t]);
-    await page.waitForTimeout(50);
+    await handAt(page, 0);
   }
-  await page.waitForTimeout(500);
+  await until(page, () => {
+    const q = window.ves.spaces[0].pose, c = window.ves.hello.center;
+    return q && Math.hypot(q[0] - c[0], q[1] - c[1], q[2] - c[2]) > 0.1;
+  });
   await page.evaluate(() => window.ves.setScale(200));
   await page.waitForFunction(() => window.ves.drawnScale === 200 && !window.ves.dirty, null, { timeout: 10000 });
   // The drawn centroid against the rigid motion alone, computed here from the pose the page drew
@@ -62,7 +66,7 @@ try {
   const small = await newPage(browser, errors, { width: 420, height: 760 });
   await small.goto(url);
   await ready(small);
-  await small.waitForTimeout(300);
+  await rendered(small);
   const narrow = await small.evaluate(() => {
     const [x0, y0, x1, y1] = window.ves.drawnExtent();
     const probes = [[0.5, 0.5], [0.25, 0.5], [0.75, 0.5]].map(([a, b]) => [x0 + a * (x1 - x0), y0 + b * (y1 - y0)]);

@@ -5,7 +5,7 @@
 // test compares it with the file.
 //
 // usage: node loads.mjs URL WEB_DIR SCREENSHOT_DIR CASE
-import { launch, newPage } from './browser.mjs';
+import { launch, newPage, rendered, statuses, until } from './browser.mjs';
 
 const [url, webDir, shots, wanted] = process.argv.slice(2);
 const browser = await launch(webDir);
@@ -25,7 +25,6 @@ try {
   // The user's way: the select.
   await page.selectOption('#loadcase', String(index));
   await page.waitForFunction((n) => window.ves.loadCase && window.ves.legend && window.ves.legend.load === n && !window.ves.dirty, wanted, { timeout: 10000 });
-  await page.waitForTimeout(300);
   const shown = await page.evaluate(() => {
     const c = window.ves.loadCase, s = window.ves.spaces[0];
     // The drawn vertex the case moves most, and one near the middle of the beam.
@@ -49,18 +48,25 @@ try {
   });
   await page.screenshot({ path: `${shots}/load_case.png` });
 
-  // The hands are off: a drag on the part orbits and no hand becomes active.
+  // The hands are off: a drag on the part orbits (the camera moves), the page sends no hand
+  // message (its last target stays) and the server's status, two after the drag, has no hand.
   const [x, y] = await page.evaluate((v) => window.ves.screenOf(0, v), shown.far.vertex);
+  const sent = await page.evaluate(() => JSON.stringify(window.ves.lastTarget ?? null));
   await page.mouse.move(x, y);
   await page.mouse.down();
   await page.mouse.move(x, y + 40, { steps: 6 });
-  await page.waitForTimeout(400);
+  await rendered(page);
+  await statuses(page);
+  const orbited = await page.evaluate(([v, a, b]) => { const [p, q] = window.ves.screenOf(0, v); return Math.hypot(p - a, q - b); }, [shown.far.vertex, x, y]);
+  const sentDuring = await page.evaluate((s) => JSON.stringify(window.ves.lastTarget ?? null) !== s, sent);
   const handsDuring = await page.evaluate(() => window.ves.status.hands.map((h) => h.active));
   await page.mouse.up();
 
   // Hostile load requests through a socket of its own: an unknown name, another space, a
   // mistyped name, an extra field, an oversized one. All five dropped and counted; the server
-  // goes on (frames keep coming).
+  // goes on (frames keep coming). A good one after them is answered (kind 4), and last a mode
+  // request: the server reads a socket in order, so its answer (kind 2) means every request
+  // before it was handled and answered if it was to be.
   const framesBefore = await page.evaluate(() => window.ves.frames);
   const droppedBefore = await page.evaluate(() => window.ves.status.messages_dropped);
   const replies = await page.evaluate((name) => {
@@ -68,7 +74,11 @@ try {
     ws.binaryType = 'arraybuffer';
     const kinds = [];
     return new Promise((done) => {
-      ws.onmessage = (ev) => { if (typeof ev.data !== 'string') kinds.push(new Uint32Array(ev.data, 0, 1)[0]); };
+      ws.onmessage = (ev) => {
+        if (typeof ev.data === 'string') return;
+        const kind = new Uint32Array(ev.data, 0, 1)[0];
+        if (kind === 2) { ws.close(); done(kinds.filter((k) => k === 4).length); } else kinds.push(kind);
+      };
       ws.onopen = () => {
         ws.send(JSON.stringify({ type: 'load', space: 0, name: 'no_such_case' }));
         ws.send(JSON.stringify({ type: 'load', space: 5, name }));
@@ -77,11 +87,12 @@ try {
         ws.send(JSON.stringify({ type: 'load', space: 0, name: 'x'.repeat(40000) }));
         // And a good one: answered on this socket alone, as kind 4.
         ws.send(JSON.stringify({ type: 'load', space: 0, name }));
-        setTimeout(() => { ws.close(); done(kinds.filter((k) => k === 4).length); }, 800);
+        ws.send(JSON.stringify({ type: 'mode', space: 0, index: 0 }));
       };
     });
   }, wanted);
-  await page.waitForTimeout(400);
+  await statuses(page);
+  await until(page, ([n, d]) => window.ves.frames > n && window.ves.status.messages_dropped >= d + 5, [framesBefore, droppedBefore]);
   const after = await page.evaluate(() => ({ frames: window.ves.frames, dropped: window.ves.status.messages_dropped }));
 
   // "none": the live part again, with its own legend; the hands work again.
@@ -94,11 +105,11 @@ try {
   await page.mouse.move(x3, y3);
   await page.mouse.down();
   await page.mouse.move(x3, y3 + 30, { steps: 6 });
-  await page.waitForTimeout(600);
+  await until(page, () => window.ves.status.hands[0].active);
   const handsAfter = await page.evaluate(() => window.ves.status.hands.map((h) => h.active));
   await page.mouse.up();
 
-  console.log(JSON.stringify({ offered, shown, handsDuring, framesBefore, droppedBefore, after, goodReplies: replies, back, handsAfter, errors }));
+  console.log(JSON.stringify({ offered, shown, orbited, sentDuring, handsDuring, framesBefore, droppedBefore, after, goodReplies: replies, back, handsAfter, errors }));
 } finally {
   await browser.close();
 }

@@ -7,34 +7,44 @@
 // Prints one JSON object.
 //
 // usage: node setup.mjs URL WEB_DIR OUT_DIR
-import { launch, newPage } from './browser.mjs';
+import { handAt, launch, newPage, rendered, steady, until } from './browser.mjs';
 import { writeFileSync } from 'node:fs';
 
 const [url, webDir, out] = process.argv.slice(2);
 const browser = await launch(webDir);
 const errors = [];
 const ends = (page) => page.evaluate(() => window.ves.notes.filter((n) => n.type === 'computed' || n.type === 'compute_error').length);
-const waitEnd = (page, n) => page.waitForFunction((n) => window.ves.notes.filter((x) => x.type === 'computed' || x.type === 'compute_error').length > n, n, { timeout: 180000 });
+// Deadlines, not waits: a compute runs at a lower priority than everything else on the machine.
+const waitEnd = async (page, n) => {
+  if (!await until(page, (k) => window.ves.notes.filter((x) => x.type === 'computed' || x.type === 'compute_error').length > k, n, 900000)) {
+    throw new Error(`no compute ended in 15 min; the last notes: ${JSON.stringify(await page.evaluate(() => window.ves.notes.slice(-3)))}`);
+  }
+};
 try {
   const page = await newPage(browser, errors, { width: 1280, height: 860 }, { acceptDownloads: true });
   await page.goto(url);
-  await page.waitForFunction(() => window.ves && window.ves.ready, null, { timeout: 180000 });
+  await page.waitForFunction(() => window.ves && window.ves.ready, null, { timeout: 900000 });
   const free = await page.evaluate(() => ({ free: window.ves.hello.free_body, f: window.ves.hello.spaces[0].frequencies_hz }));
 
   // Two faces: the +x end seen from +x, the −x end seen from −x, each clicked in the middle.
+  const supports = () => page.evaluate(() => window.ves.setup.scene().fixed?.length ?? 0);
   const holdFace = async (key) => {
     await page.keyboard.press(key);
-    await page.waitForTimeout(300);
+    await rendered(page);
     await page.click('#pickplane');
     const [x0, y0, x1, y1] = await page.evaluate(() => window.ves.drawnExtent());
+    const n = await supports();
     await page.mouse.click((x0 + x1) / 2, (y0 + y1) / 2);
-    await page.waitForTimeout(200);
+    await page.waitForFunction((k) => (window.ves.setup.scene().fixed?.length ?? 0) > k, n, { timeout: 10000 });
   };
   await holdFace('x');
   await holdFace('Shift+X');
   await page.selectOption('#material', { label: 'aluminium 6061-T6' });
   await page.fill('#modecount', '10');
   const asked = await page.evaluate(() => window.ves.setup.scene());
+  // The planes as the panel shows them (mm).
+  asked.shown = await page.evaluate(() => [...document.querySelectorAll('#supportlist .support')].map((r) => ({
+    axis: r.querySelector('select').value, value: r.querySelector('input[type=number]').value })));
   let n = await ends(page);
   await page.click('#compute');
   await waitEnd(page, n);
@@ -42,7 +52,7 @@ try {
   const held = await page.evaluate(() => ({ notes: window.ves.notes.filter((x) => x.type !== 'progress'), f: window.ves.hello.spaces[0].frequencies_hz,
     stages: [...new Set(window.ves.notes.filter((x) => x.type === 'progress').map((x) => x.stage))] }));
   await page.keyboard.press('h');
-  await page.waitForTimeout(300);
+  await rendered(page);
   await page.screenshot({ path: `${out}/setup_held.png` });
 
   // Pull the vertex nearest the middle of the top: by script, so the hand path is known exactly.
@@ -55,16 +65,15 @@ try {
   });
   const target = [grab.rest[0], grab.rest[1], grab.rest[2] + 0.05];
   await page.evaluate((p) => window.ves.drive(0, p), grab.rest);
-  await page.waitForTimeout(300);
+  await handAt(page, 0);
   await page.evaluate((p) => window.ves.drive(0, p), target);
-  await page.waitForFunction((v) => {
-    const h = (window.__steady ||= []);
-    h.push(window.ves.spaces[0].umag[v]);
-    if (h.length > 20) h.shift();
-    const [lo, hi] = [Math.min(...h), Math.max(...h)];
-    return h.length === 20 && hi > 0 && hi - lo < 2e-3 * hi;
-  }, grab.v, { polling: 50, timeout: 60000 });
-  const pulled = await page.evaluate((v) => ({ hand: window.ves.status.hands[0], u: Array.from(window.ves.spaces[0].u.subarray(3 * v, 3 * v + 3)) }), grab.v);
+  await handAt(page, 0);
+  await steady(page, grab.v, 60000);
+  const pulled = await page.evaluate((v) => ({
+    hand: window.ves.status.hands[0], u: Array.from(window.ves.spaces[0].u.subarray(3 * v, 3 * v + 3)),
+    position: window.ves.trueOf(0, v), drawn: window.ves.drawnOf(0, v), scale: window.ves.drawnScale,
+    scaleText: document.getElementById('scaleshown').textContent,
+  }), grab.v);
   await page.screenshot({ path: `${out}/setup_pulled.png` });
   await page.evaluate(() => window.ves.release(0));
 
@@ -76,11 +85,11 @@ try {
   // removed: compute again, the session moves to the new basis.
   while (await page.locator('#supportlist .support').count()) await page.click('#supportlist .support:first-child button');
   await page.keyboard.press('x');
-  await page.waitForTimeout(300);
+  await rendered(page);
   await page.click('#pickfaces');
   const [fx0, fy0, fx1, fy1] = await page.evaluate(() => window.ves.drawnExtent());
   await page.mouse.move((fx0 + fx1) / 2, (fy0 + fy1) / 2);
-  await page.waitForTimeout(200);
+  await until(page, () => window.ves.hoverFace != null, null, 10000);
   const hovered = await page.evaluate(() => window.ves.hoverFace);
   await page.mouse.click((fx0 + fx1) / 2, (fy0 + fy1) / 2);
   await page.click('#pickfaces');
@@ -111,8 +120,7 @@ try {
     await page.evaluate(() => { document.getElementById('setuperror').textContent = ''; });
   }
   const before = await page.evaluate(() => window.ves.frames);
-  await page.waitForTimeout(500);
-  const alive = await page.evaluate((b) => window.ves.frames > b && window.ves.connected, before);
+  const alive = await until(page, (b) => window.ves.frames > b && window.ves.connected, before);
   writeFileSync(`${out}/page.json`, JSON.stringify({ free, asked, held, grab, target, pulled, one, cancelled, opened, alive, errors }));
   console.log('done');
 } finally {
