@@ -118,7 +118,7 @@ impl Settings {
             anyhow::anyhow!(
                 "--{} {}: must be finite and {}{unit}; see ves {command} --help",
                 e.setting,
-                e.value,
+                short(e.value),
                 e.requirement
             )
         })?;
@@ -167,7 +167,10 @@ impl Args {
         let duration = self.duration.unwrap_or(longest.max(1.0 / self.settings.rate));
         // The runtime runs an infinite session until stopped (ves view); scripts end.
         if !duration.is_finite() {
-            anyhow::bail!("--duration {duration}: must be finite and > 0 (s); see ves session --help");
+            anyhow::bail!(
+                "--duration {}: must be finite and > 0 (s); see ves session --help",
+                short(duration)
+            );
         }
         let cfg = self.settings.config(duration, "session")?;
         let trace = match &self.trace {
@@ -226,5 +229,14 @@ impl Args {
             println!("{stats:#?}");
         }
         Ok(())
+    }
+}
+
+/// A number as a user wrote it, short: `1e300` is not printed as 301 digits.
+fn short(x: f64) -> String {
+    if x != 0.0 && x.is_finite() && !(1e-3..1e6).contains(&x.abs()) {
+        format!("{x:e}")
+    } else {
+        format!("{x}")
     }
 }

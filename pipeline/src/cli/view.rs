@@ -52,8 +52,13 @@ pub struct Args {
 impl Args {
     pub fn run(self) -> Result<()> {
         let mut cfg = self.settings.config(self.duration.unwrap_or(f64::INFINITY), "view")?;
-        if !self.gravity.is_finite() {
-            anyhow::bail!("--gravity {}: must be finite (m/s², e.g. 9.81)", self.gravity);
+        // 1000 g: beyond it a free part leaves the view within one drawn frame, and products
+        // with the part's mass and the step could leave the range of the frames' f32.
+        if !(self.gravity.abs() <= 1e4) {
+            anyhow::bail!(
+                "--gravity {:e}: must be finite and within ±1e4 m/s² (e.g. 9.81)",
+                self.gravity
+            );
         }
         if let Some((g, _)) = cfg.free_body.as_mut() {
             *g = [0.0, 0.0, -self.gravity];
