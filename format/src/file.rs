@@ -18,7 +18,7 @@ pub fn open(path: &Path) -> hdf5::Result<hdf5::File> {
     let file = hdf5::File::with_options()
         .with_fapl(|p| p.file_locking(false))
         .open(path)?;
-    close_on_exec(&file);
+    close_on_exec(path);
     Ok(file)
 }
 
@@ -27,7 +27,7 @@ pub fn open_rw(path: &Path) -> hdf5::Result<hdf5::File> {
     let file = hdf5::File::with_options()
         .with_fapl(|p| p.file_locking(false).fclose_degree(hdf5::file::FileCloseDegree::Strong))
         .open_rw(path)?;
-    close_on_exec(&file);
+    close_on_exec(path);
     Ok(file)
 }
 
@@ -42,29 +42,43 @@ pub fn create(path: &Path, v18: bool) -> hdf5::Result<hdf5::File> {
             if v18 { p.libver_v18() } else { p }
         })
         .create(path)?;
-    close_on_exec(&file);
+    close_on_exec(path);
     Ok(file)
 }
 
-/// Marks the file's descriptor close-on-exec. Only the default (POSIX, "sec2") driver hands out a
-/// descriptor; for any other nothing is done.
-fn close_on_exec(file: &hdf5::File) {
-    let id = file.id();
-    hdf5::sync::sync(|| {
-        let mut handle: *mut std::ffi::c_void = std::ptr::null_mut();
-        // SAFETY: `id` is an open file of this process (held by `file`); for the sec2 driver the
-        // handle is a pointer to its `int` descriptor, valid while the file is open, and read at
-        // once. The global HDF5 lock is held, as for every libhdf5 call.
+/// Marks the descriptors of `path` that this process holds close-on-exec. libhdf5 gives no
+/// descriptor through a safe API, so they are found by what they are: `/proc/self/fd` entries
+/// whose device and inode are the file's (another descriptor of the same file gains the flag too,
+/// which is what every descriptor of a basis should have). Where /proc cannot be read, nothing is
+/// done.
+fn close_on_exec(path: &Path) {
+    use std::os::unix::fs::MetadataExt;
+    let Ok(meta) = std::fs::metadata(path) else {
+        return;
+    };
+    let Ok(fds) = std::fs::read_dir("/proc/self/fd") else {
+        return;
+    };
+    for fd in fds
+        .flatten()
+        .filter_map(|e| e.file_name().to_str()?.parse::<libc::c_int>().ok())
+    {
+        let mut st = std::mem::MaybeUninit::<libc::stat>::uninit();
+        // SAFETY: fstat writes the struct given or fails (a descriptor closed meanwhile, such as
+        // the listing's own); fcntl changes only the descriptor's flags, and only on this file's.
         unsafe {
-            if hdf5_sys::h5f::H5Fget_vfd_handle(id, hdf5_sys::h5p::H5P_DEFAULT, &mut handle) >= 0 && !handle.is_null() {
-                let fd = *(handle as *const libc::c_int);
+            if libc::fstat(fd, st.as_mut_ptr()) != 0 {
+                continue;
+            }
+            let st = st.assume_init();
+            if st.st_dev == meta.dev() && st.st_ino == meta.ino() {
                 let flags = libc::fcntl(fd, libc::F_GETFD);
-                if flags >= 0 {
+                if flags >= 0 && flags & libc::FD_CLOEXEC == 0 {
                     libc::fcntl(fd, libc::F_SETFD, flags | libc::FD_CLOEXEC);
                 }
             }
         }
-    });
+    }
 }
 
 #[cfg(test)]
