@@ -611,7 +611,7 @@ fn bad_view_input_is_one_line_and_a_public_host_is_warned_about() {
     // 1e308 ran: a free part would leave the range of the frames in one step.
     for g in ["nan", "1e308", "-2e4"] {
         assert_refused(
-            &ves(&["view", b, "--port", "0", "--gravity", g, "--duration", "1"]),
+            &ves(&["view", b, "--port", "0", &format!("--gravity={g}"), "--duration", "1"]),
             "--gravity",
         );
     }
