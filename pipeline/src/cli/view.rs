@@ -54,7 +54,7 @@ impl Args {
         let mut cfg = self.settings.config(self.duration.unwrap_or(f64::INFINITY), "view")?;
         // 1000 g: beyond it a free part leaves the view within one drawn frame, and products
         // with the part's mass and the step could leave the range of the frames' f32.
-        if !(self.gravity.abs() <= 1e4) {
+        if !self.gravity.is_finite() || self.gravity.abs() > 1e4 {
             anyhow::bail!(
                 "--gravity {:e}: must be finite and within ±1e4 m/s² (e.g. 9.81)",
                 self.gravity
