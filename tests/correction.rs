@@ -80,7 +80,7 @@ fn space(name: &str) -> Space {
     for f in s.fixed_dofs().expect("fixed") {
         mask[f as usize] = true;
     }
-    let dofs = ves_pipeline::supports::Dofs::from_mask(&mask);
+    let dofs = ves_pipeline::fem::Dofs::from_mask(&mask);
     let contact = s
         .contact()
         .expect("contact")

@@ -75,7 +75,7 @@ fn thin_plate_200_to_1_matches_kirchhoff() {
 
 /// A structured 10-node beam mesh (0.4 × 0.1 × 0.1 m, 8 × 2 × 2 cubes of 6 tets), clamped at
 /// x = 0, with interior node (x = 0.2, y = z = 0.05) moved by `shift` along y.
-fn raw_beam(shift: f64) -> (ves_pipeline::mesh::Mesh, ves_pipeline::supports::Dofs) {
+fn raw_beam(shift: f64) -> (ves_pipeline::mesh::Mesh, ves_pipeline::fem::Dofs) {
     let mesh = ves_pipeline::mesh::Mesh::structured_box(
         [8, 2, 2],
         0.05,
@@ -88,7 +88,7 @@ fn raw_beam(shift: f64) -> (ves_pipeline::mesh::Mesh, ves_pipeline::supports::Do
         },
     );
     let mask: Vec<bool> = mesh.nodes.iter().flat_map(|p| [p[0] < 1e-9; 3]).collect();
-    let dofs = ves_pipeline::supports::Dofs::from_mask(&mask);
+    let dofs = ves_pipeline::fem::Dofs::from_mask(&mask);
     (mesh, dofs)
 }
 

@@ -106,10 +106,10 @@ pub fn patch_blocks(
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::fem::Dofs;
     use crate::fem::element::Kind;
     use crate::loads::patch::{Patch, Surface};
     use crate::material::Material;
-    use crate::supports::Dofs;
     use crate::tet_mesh::Mesh;
 
     /// A cantilever of steel, 40 × 10 × 10 mm clamped at x = 0, 10-node tets `cells` per 10 mm:

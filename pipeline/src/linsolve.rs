@@ -2,8 +2,8 @@
 //! K − σM with a METIS nested-dissection ordering (on 3D elasticity it factors several times
 //! faster than AMD, see DEPENDENCIES.md).
 
+use crate::fem::Dofs;
 use crate::fem::assembly::NodeGraph;
-use crate::supports::Dofs;
 use faer::dyn_stack::{MemBuffer, MemStack, StackReq};
 use faer::linalg::cholesky::ldlt::factor::LdltRegularization;
 use faer::linalg::cholesky::llt::factor::LltRegularization;
@@ -410,7 +410,7 @@ mod tests {
     fn grouped_products_equal_single_ones() {
         let mesh = crate::tet_mesh::Mesh::structured_box([3, 2, 2], 0.02, crate::fem::element::Kind::Tet4, |_, p| p);
         let mask = vec![false; 3 * mesh.nodes.len()];
-        let dofs = crate::supports::Dofs::from_mask(&mask);
+        let dofs = crate::fem::Dofs::from_mask(&mask);
         let d =
             crate::problem::Discretized::assemble(mesh, dofs, crate::material::Material::elastic(2e11, 0.3, 7800.0))
                 .expect("assembles");
@@ -436,7 +436,7 @@ mod tests {
         let mesh = crate::tet_mesh::Mesh::structured_box([4, 1, 1], 0.02, crate::fem::element::Kind::Tet4, |_, p| p);
         // Clamped at x = 0.
         let mask: Vec<bool> = mesh.nodes.iter().flat_map(|p| [p[0] < 1e-9; 3]).collect();
-        let dofs = crate::supports::Dofs::from_mask(&mask);
+        let dofs = crate::fem::Dofs::from_mask(&mask);
         let d =
             crate::problem::Discretized::assemble(mesh, dofs, crate::material::Material::elastic(2e11, 0.3, 7800.0))
                 .expect("assembles");

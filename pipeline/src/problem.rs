@@ -2,11 +2,12 @@
 //! type every later stage (modes, static correction, transfer, store, checks) starts from.
 
 use crate::fem;
+use crate::fem::Dofs;
 use crate::material::Material;
 use crate::mesh::{self, Mesh};
 use crate::rigid_motions::free_rigid_count;
 use crate::scene::{Scene, Voi};
-use crate::supports::{self, Dofs};
+use crate::supports;
 use anyhow::{Context, Result};
 use std::time::Instant;
 

@@ -1,6 +1,6 @@
 //! Rigid-body motions: how many the supports leave free, and the vectors themselves.
 
-use crate::supports::Dofs;
+use crate::fem::Dofs;
 
 /// The six rigid motions sampled at the nodes (full DOF vectors): three translations, then
 /// rotations about the axes through `center`, scaled by 1/`length` so all six are O(1).

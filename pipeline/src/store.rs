@@ -1,10 +1,10 @@
 //! Modal basis file, version 1 (HDF5; docs/format.md). Written under a temporary name and renamed
 //! when complete, so a killed run never leaves a half-written basis under the final name.
 
+use crate::fem::Dofs;
 use crate::fem::MassProperties;
 use crate::modes::Modes;
 use crate::scene::{Scene, Voi};
-use crate::supports::Dofs;
 use crate::tet_mesh::Mesh;
 use anyhow::{Context, Result};
 use std::path::Path;

@@ -4,9 +4,9 @@
 //! M_b-orthogonal projection of a's displacement onto b's modes — the best b can represent in
 //! its energy-consistent norm — computed offline, so a switch at run time is an r×r product.
 
+use crate::fem::Dofs;
 use crate::fem::element::{Shape, tet4::Tet4, tet10::Tet10};
 use crate::linsolve::sym_matmul;
-use crate::supports::Dofs;
 use crate::tet_mesh::Mesh;
 use faer::sparse::SymbolicSparseColMat;
 use nalgebra::{Matrix3, Vector3};

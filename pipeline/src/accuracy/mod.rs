@@ -466,9 +466,9 @@ impl Solved {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::fem::Dofs;
     use crate::fem::element::Lame;
     use crate::problem::Discretized;
-    use crate::supports::Dofs;
     use crate::tet_mesh::Mesh;
 
     /// A square-section cantilever 0.8 × 0.1 × 0.1 m clamped at x = 0, 10-node tets of side `h`.

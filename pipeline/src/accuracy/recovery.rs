@@ -38,7 +38,7 @@ pub const LARGEST_SHARE: f64 = 0.99;
 
 /// Per mode, the recovery estimate of its relative frequency error: `modes` on the free DOFs
 /// (column-major free × r, M-normalised), `lambda` their eigenvalues.
-pub fn estimate(mesh: &Mesh, dofs: &crate::supports::Dofs, mat: &Lame, modes: &[f64], lambda: &[f64]) -> Vec<f64> {
+pub fn estimate(mesh: &Mesh, dofs: &crate::fem::Dofs, mat: &Lame, modes: &[f64], lambda: &[f64]) -> Vec<f64> {
     let nf = dofs.free_count();
     let r = lambda.len().min(modes.len() / nf.max(1));
     if r == 0 {

@@ -5,8 +5,8 @@
 //! expanded to DOF level with the supported DOFs removed.
 
 use super::element::{self, BadJacobian, Kind, Lame, Shape, tet4::Tet4, tet10::Tet10};
+use crate::fem::Dofs;
 use crate::material::Material;
-use crate::supports::Dofs;
 use crate::tet_mesh::Mesh;
 use faer::sparse::SymbolicSparseColMat;
 use rayon::prelude::*;

@@ -5,8 +5,8 @@
 //! holds the whole K and M.
 
 use super::assembly::{AssemblyError, Moments, assemble_counting};
+use crate::fem::Dofs;
 use crate::material::Material;
-use crate::supports::Dofs;
 use crate::tet_mesh::Mesh;
 
 /// The free DOFs numbered rank by rank: rank r owns the rows `bounds[r]..bounds[r + 1]`, the

@@ -400,10 +400,10 @@ impl<'p> State<'p> {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::fem::Dofs;
     use crate::linsolve::{nested_dissection, sym_matvec};
     use crate::modes::dense::Dense;
     use crate::problem::Discretized;
-    use crate::supports::Dofs;
     use crate::tet_mesh::Mesh;
     use faer::sparse::SymbolicSparseColMat;
 

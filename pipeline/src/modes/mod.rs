@@ -18,8 +18,8 @@ pub mod mpi_job;
 #[cfg(feature = "slepc")]
 pub mod slepc;
 
+use crate::fem::Dofs;
 use crate::linsolve::{FactorError, nested_dissection, sym_matmul};
-use crate::supports::Dofs;
 use faer::sparse::SymbolicSparseColMat;
 use faer::sparse::linalg::cholesky::SymbolicCholesky;
 use rayon::prelude::*;
@@ -522,7 +522,7 @@ pub const STURM_MARGIN: f64 = 1e-6;
 /// modes. Proves that the solver skipped none below it.
 pub fn sturm_count(
     system: &crate::fem::Assembled,
-    dofs: &crate::supports::Dofs,
+    dofs: &crate::fem::Dofs,
     modes: &Modes,
 ) -> Result<Option<SturmCount>, ModesError> {
     let Some(&top) = modes.eigenvalues.last() else {

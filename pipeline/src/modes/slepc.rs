@@ -14,10 +14,10 @@
 
 use super::mpi_job::{HEADER, IN_SOLVE, header, message, with_token};
 use super::{EigenSolver, ModesError, Scales, SolvedOnRanks, SolverChoice, Spectrum};
+use crate::fem::Dofs;
 use crate::fem::Moments;
 use crate::fem::share::{Numbering, Share};
 use crate::material::Material;
-use crate::supports::Dofs;
 use crate::tet_mesh::Mesh;
 use std::sync::atomic::Ordering::SeqCst;
 use ves_ffi::slepc::{Method, Operators, Slepc};

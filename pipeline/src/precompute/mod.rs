@@ -5,12 +5,12 @@ mod stages;
 
 pub use stages::{Checks, solve_space};
 
+use crate::fem::Dofs;
 use crate::fem::{self, MassProperties};
 use crate::modes::{self, Modes, SolverChoice};
 use crate::output::Overwrite;
 use crate::scene::{Scene, Voi};
 use crate::store;
-use crate::supports::Dofs;
 use crate::tet_mesh::Mesh;
 use anyhow::{Context, Result};
 use serde::Serialize;

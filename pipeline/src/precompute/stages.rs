@@ -6,13 +6,13 @@
 use super::{SolvedSpace, Timings, advice, needs_whole_system};
 use crate::accuracy::{ErrorEstimate, Prefetch, refine};
 use crate::compliance::Compliance;
+use crate::fem::Dofs;
 use crate::fem::MassProperties;
 use crate::loads::patch::Patches;
 use crate::modes::{self, Modes, SolverChoice, SturmCount};
 use crate::problem::{Discretized, Meshed};
 use crate::progress;
 use crate::scene::{Scene, Voi};
-use crate::supports::Dofs;
 use crate::tet_mesh::Mesh;
 use anyhow::{Context, Result};
 use std::time::Instant;

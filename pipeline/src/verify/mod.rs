@@ -405,7 +405,7 @@ pub fn discretize_basis(path: &Path, modes: Option<usize>) -> Result<(Discretize
     for &f in &fixed {
         mask[f as usize] = true;
     }
-    let dofs = crate::supports::Dofs::from_mask(&mask);
+    let dofs = crate::fem::Dofs::from_mask(&mask);
     let d = Discretized::assemble(mesh, dofs, material)
         .with_context(|| format!("{}: rebuilding its stiffness and mass", path.display()))?;
     let nf = d.dofs.free_count();
@@ -867,7 +867,7 @@ mod tests {
     fn a_reference_output_of_the_wrong_shape_is_refused() {
         let mesh = crate::tet_mesh::Mesh::structured_box([2, 1, 1], 0.1, crate::fem::element::Kind::Tet4, |_, p| p);
         let n = mesh.nodes.len();
-        let dofs = crate::supports::Dofs::from_mask(&vec![false; 3 * n]);
+        let dofs = crate::fem::Dofs::from_mask(&vec![false; 3 * n]);
         let d = Discretized::assemble(mesh, dofs, crate::material::Material::elastic(2e11, 0.3, 7800.0))
             .expect("assembles");
         let nf = d.dofs.free_count();
