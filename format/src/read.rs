@@ -916,14 +916,6 @@ impl<'a> SpaceReader<'a> {
         self.check_block_finite(0..3 * self.node_count, 0..self.mode_count)
     }
 
-    /// Checks the values a reader of `basis_rows(0..rows, cols)` did not see (the other rows and
-    /// modes) are finite too: a file is refused for a NaN anywhere, read once.
-    pub fn check_unread_finite(&self, rows: usize, cols: usize) -> Result<(), ReadError> {
-        let (all_rows, all_cols) = (3 * self.node_count, self.mode_count);
-        self.check_block_finite(rows.min(all_rows)..all_rows, 0..all_cols)?;
-        self.check_block_finite(0..rows.min(all_rows), cols.min(all_cols)..all_cols)
-    }
-
     /// Static compliance: node indices (below n) and their 3×3 blocks, if stored. Each block is
     /// finite, symmetric, zero in the supported components' rows and columns, positive definite
     /// in the others, and below [`checks::MAX_DIMENSIONLESS_COMPLIANCE`] / (E·L).

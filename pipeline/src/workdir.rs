@@ -213,6 +213,24 @@ pub fn remove_on_signals() {
     });
 }
 
+/// A child process's side of a job (mesh worker, page compute): arms the parent-death signal
+/// (a killed `ves` must not leave gmsh or a solve running for minutes), reads `dir/job.json`,
+/// and checks that the parent it names is still this process's parent (if it died before the
+/// signal was armed, the signal never comes). Errors name the job file.
+pub fn child_job<T: serde::de::DeserializeOwned>(dir: &Path, parent_of: impl Fn(&T) -> u32) -> Result<T, String> {
+    // SAFETY: prctl with these arguments only sets this process's parent-death signal.
+    unsafe { libc::prctl(libc::PR_SET_PDEATHSIG, libc::SIGKILL as libc::c_ulong, 0, 0, 0) };
+    let file = dir.join("job.json");
+    let text = std::fs::read_to_string(&file).map_err(|e| format!("{}: {e}", file.display()))?;
+    let job: T = serde_json::from_str(&text).map_err(|e| format!("{}: {e}", file.display()))?;
+    // SAFETY: getppid has no arguments and cannot fail.
+    let parent = unsafe { libc::getppid() } as u32;
+    if parent != parent_of(&job) {
+        return Err(format!("the parent process {} is gone", parent_of(&job)));
+    }
+    Ok(job)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

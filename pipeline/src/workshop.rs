@@ -503,16 +503,8 @@ impl PartWorkshop {
 /// notes).
 pub fn serve_compute(dir: &Path) -> Result<(), String> {
     use std::io::{BufRead, Write};
-    // Die with the parent: a killed server must not leave a compute running for minutes.
-    // SAFETY: prctl with these arguments only sets this process's parent-death signal.
-    unsafe { libc::prctl(libc::PR_SET_PDEATHSIG, libc::SIGKILL as libc::c_ulong, 0, 0, 0) };
+    let job: ComputeJob = crate::workdir::child_job(dir, |j: &ComputeJob| j.parent)?;
     let file = dir.join("job.json");
-    let text = std::fs::read_to_string(&file).map_err(|e| format!("{}: {e}", file.display()))?;
-    let job: ComputeJob = serde_json::from_str(&text).map_err(|e| format!("{}: {e}", file.display()))?;
-    // The parent may have died before the line above: then the signal never comes.
-    if unsafe { libc::getppid() } as u32 != job.parent {
-        return Err(format!("the parent process {} is gone", job.parent));
-    }
     // Below the session in priority, the whole process (gmsh inherits it), as in-process
     // computes' pool is.
     // SAFETY: setpriority on this process, no memory involved.

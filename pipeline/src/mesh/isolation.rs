@@ -133,16 +133,8 @@ fn describe(status: std::process::ExitStatus) -> String {
 /// The child's side: runs the job in `dir` and leaves its reply there. An error is about the
 /// job's files only (the meshing's own failures are replies).
 pub fn serve(dir: &Path) -> Result<(), String> {
-    // Die with the parent: a killed `ves` must not leave gmsh running for minutes.
-    // SAFETY: prctl with these arguments only sets this process's parent-death signal.
-    unsafe { libc::prctl(libc::PR_SET_PDEATHSIG, libc::SIGKILL as libc::c_ulong, 0, 0, 0) };
+    let job: Job = crate::workdir::child_job(dir, |j: &Job| j.parent)?;
     let job_file = dir.join("job.json");
-    let text = std::fs::read_to_string(&job_file).map_err(|e| format!("{}: {e}", job_file.display()))?;
-    let job: Job = serde_json::from_str(&text).map_err(|e| format!("{}: {e}", job_file.display()))?;
-    // The parent may have died before the line above: then the signal never comes.
-    if unsafe { libc::getppid() } as u32 != job.parent {
-        return Err(format!("the parent process {} is gone", job.parent));
-    }
     let rung = LADDER
         .get(job.rung)
         .ok_or_else(|| format!("{}: no rung {}", job_file.display(), job.rung))?;
