@@ -3,7 +3,7 @@
 # docs/cluster.md): wall time, stage timings and peak resident memory per rank, rank 0 first
 # (GNU time, one file per rank). 4 ranks on a 2-core machine are oversubscribed: their memory is
 # what they are run for, not their time. Needs a build with SLEPc:
-#   cargo build --release -p ves-pipeline --features slepc
+#   cargo build --release -p ves-cli --features slepc
 set -euo pipefail
 cd "$(dirname "$0")/.."
 scene="${1:-bench/mould-p2.toml}"

@@ -6,7 +6,7 @@
 set -euo pipefail
 cd "$(dirname "$0")/.."
 ves=target/release/ves
-[ -x "$ves" ] || cargo build --release -p ves-pipeline >&2
+[ -x "$ves" ] || cargo build --release -p ves-cli >&2
 basis=${1:-bench/out/mould.h5}
 if [ ! -f "$basis" ]; then
   mkdir -p "$(dirname "$basis")"

@@ -1,8 +1,12 @@
 //! With feature `view`: bundles the page (runtime/web: three.js and the page's modules) into one
-//! file with esbuild, installed from the pinned lockfile by `npm ci`, so the binary embeds it and
-//! nothing is fetched at run time.
+//! file with esbuild, so the binary embeds it and nothing is fetched at run time.
+//!
+//! The pinned packages are installed by `npm ci` into this build's `OUT_DIR`, never into the
+//! source tree: two builds at once (cargo and maturin, two profiles) each have their own, and
+//! an ordinary build leaves runtime/web untouched. The test drivers' copy in runtime/web is
+//! installed by scripts/setup.
 
-use std::path::Path;
+use std::path::{Path, PathBuf};
 use std::process::Command;
 
 fn main() {
@@ -13,33 +17,35 @@ fn main() {
     for f in ["package.json", "package-lock.json", "index.html", "src"] {
         println!("cargo:rerun-if-changed={}", web.join(f).display());
     }
-    let out = std::path::PathBuf::from(std::env::var("OUT_DIR").expect("cargo sets OUT_DIR"));
+    let out = PathBuf::from(std::env::var("OUT_DIR").expect("cargo sets OUT_DIR"));
     let fail = |what: &str| -> ! {
         panic!(
-            "feature `view`: {what} in {}; install Node.js and npm (Debian: apt-get install nodejs npm; scripts/setup does)",
+            "feature `view`: {what} (for {}); install Node.js and npm (Debian: apt-get install nodejs npm; scripts/setup does)",
             web.display()
         )
     };
-    let esbuild = web.join("node_modules/.bin/esbuild");
-    let lock = web.join("package-lock.json");
-    let stale = |p: &Path| match (
-        p.metadata().and_then(|m| m.modified()),
-        lock.metadata().and_then(|m| m.modified()),
-    ) {
-        (Ok(a), Ok(b)) => a < b,
-        _ => true,
-    };
-    if !esbuild.is_file() || stale(&web.join("node_modules/.package-lock.json")) {
+    let npm = out.join("npm");
+    let read = |p: &Path| std::fs::read(p).ok();
+    let lock = read(&web.join("package-lock.json")).unwrap_or_else(|| fail("no package-lock.json"));
+    // Installed already from this very lockfile: nothing to do.
+    if read(&npm.join("package-lock.json")).as_deref() != Some(&lock[..]) || !npm.join("node_modules").is_dir() {
+        let copied = std::fs::create_dir_all(&npm).is_ok()
+            && ["package.json", "package-lock.json"]
+                .iter()
+                .all(|f| std::fs::copy(web.join(f), npm.join(f)).is_ok());
+        if !copied {
+            fail("cannot copy the package files into OUT_DIR");
+        }
         let ok = Command::new("npm")
-            .args(["ci", "--no-audit", "--no-fund", "--ignore-scripts"])
-            .current_dir(&web)
+            .args(["ci", "--no-audit", "--no-fund", "--ignore-scripts", "--prefer-offline"])
+            .current_dir(&npm)
             .status()
             .is_ok_and(|s| s.success());
         if !ok {
             fail("`npm ci` failed");
         }
     }
-    let ok = Command::new(&esbuild)
+    let ok = Command::new(npm.join("node_modules/.bin/esbuild"))
         .args([
             "src/main.js",
             "--bundle",
@@ -49,6 +55,8 @@ fn main() {
             "--log-level=warning",
         ])
         .arg(format!("--outfile={}", out.join("app.js").display()))
+        // The page's imports of three.js resolve to the packages installed above.
+        .env("NODE_PATH", npm.join("node_modules"))
         .current_dir(&web)
         .status()
         .is_ok_and(|s| s.success());

@@ -106,7 +106,7 @@ fn sliver_tets_are_located_and_the_modes_stay_right() {
             ves_pipeline::material::Material::elastic(2.1e11, 0.3, 7850.0),
         )
         .expect("assemble");
-        let (modes, _) = ves_pipeline::modes::solve(&d, 6, SolverChoice::Arpack).expect("modes");
+        let (modes, _) = ves_pipeline::modes::solve(d.space(), 6, SolverChoice::Arpack).expect("modes");
         (q, at, modes)
     };
     let (q0, _, regular) = solve(0.0);

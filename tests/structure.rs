@@ -93,7 +93,7 @@ fn find_cycle(graph: &BTreeMap<String, BTreeSet<String>>) -> Option<Vec<String>>
 
 #[test]
 fn no_import_cycles_between_modules() {
-    for krate in ["pipeline", "runtime", "format", "ffi"] {
+    for krate in ["pipeline", "runtime", "format", "ffi", "cli"] {
         let graph = module_graph(&workspace().join(krate).join("src"));
         assert!(
             graph.len() > 1 || krate == "format" || krate == "ffi",
@@ -103,6 +103,100 @@ fn no_import_cycles_between_modules() {
             panic!("{krate}: import cycle {}", cycle.join(" → "));
         }
     }
+}
+
+/// The layers pipeline/README.md states, lowest first: `- layer N, what: `a` `b` …` lines.
+fn stated_layers(readme: &str) -> BTreeMap<String, usize> {
+    let mut layer = BTreeMap::new();
+    for line in readme.lines().filter(|l| l.starts_with("- layer ")) {
+        let n: usize = line[8..]
+            .split(|c: char| !c.is_ascii_digit())
+            .next()
+            .and_then(|d| d.parse().ok())
+            .expect("a layer number");
+        let names = line.split_once(':').map_or("", |(_, rest)| rest);
+        for name in names.split('`').skip(1).step_by(2) {
+            layer.insert(name.to_string(), n);
+        }
+    }
+    layer
+}
+
+/// Imports that reach into a higher layer, as `from (layer) → to (layer)`, and modules the
+/// list leaves out.
+fn layer_violations(graph: &BTreeMap<String, BTreeSet<String>>, layer: &BTreeMap<String, usize>) -> Vec<String> {
+    let mut bad = Vec::new();
+    for (from, deps) in graph {
+        let Some(&lf) = layer.get(from) else {
+            bad.push(format!("{from} is in no layer"));
+            continue;
+        };
+        for to in deps {
+            match layer.get(to) {
+                Some(&lt) if lt > lf => bad.push(format!("{from} ({lf}) → {to} ({lt})")),
+                None => bad.push(format!("{to} is in no layer")),
+                _ => {}
+            }
+        }
+    }
+    bad
+}
+
+#[test]
+fn pipeline_modules_import_only_from_their_layer_or_below() {
+    let readme = std::fs::read_to_string(workspace().join("pipeline/README.md")).expect("pipeline/README.md");
+    let layer = stated_layers(&readme);
+    assert!(
+        layer.len() >= 20,
+        "pipeline/README.md states the layers of every module: {layer:?}"
+    );
+    let graph = module_graph(&workspace().join("pipeline/src"));
+    let bad = layer_violations(&graph, &layer);
+    assert!(bad.is_empty(), "imports against pipeline/README.md's layers: {bad:?}");
+}
+
+#[test]
+fn layer_check_finds_a_planted_upward_import() {
+    let layer = stated_layers("- layer 1, base: `memory`\n- layer 3, solvers: `linsolve`\n- layer 4, x: `mesh`\n");
+    let mut g: BTreeMap<String, BTreeSet<String>> = BTreeMap::new();
+    g.entry("linsolve".into()).or_default().insert("memory".into());
+    assert!(layer_violations(&g, &layer).is_empty());
+    g.entry("linsolve".into()).or_default().insert("mesh".into());
+    assert_eq!(layer_violations(&g, &layer), ["linsolve (3) → mesh (4)"]);
+}
+
+/// The library crates carry no application: no web server, terminal drawing or argument
+/// parsing among their dependencies, and the runtime's server feature turned on only by the
+/// `ves` binary's crate.
+#[test]
+fn libraries_carry_no_application_dependencies() {
+    let root = workspace();
+    let application = ["axum", "hyper", "tokio", "indicatif", "tracing-subscriber", "ves-cli"];
+    let mut bad = Vec::new();
+    for krate in ["ffi", "format", "pipeline", "runtime", "python"] {
+        let toml = std::fs::read_to_string(root.join(krate).join("Cargo.toml")).expect("Cargo.toml");
+        let mut section = String::new();
+        for line in toml.lines() {
+            let line = line.trim();
+            if line.starts_with('[') {
+                section = line.to_string();
+                continue;
+            }
+            if line.starts_with('#') || !section.ends_with("dependencies]") || section.contains("dev-") {
+                continue;
+            }
+            let name = line.split(['=', ' ']).next().unwrap_or("");
+            // The runtime's server stack is optional, behind its `view` feature.
+            let optional = line.contains("optional = true");
+            if application.contains(&name) && !optional {
+                bad.push(format!("{krate}: {name}"));
+            }
+            if name.starts_with("ves-runtime") && line.contains("\"view\"") {
+                bad.push(format!("{krate}: ves-runtime's feature view"));
+            }
+        }
+    }
+    assert!(bad.is_empty(), "application dependencies of library crates: {bad:?}");
 }
 
 #[test]
@@ -140,7 +234,7 @@ fn readme_layout_names_every_folder() {
             missing.push(name);
         }
     }
-    for sub in ["pipeline/src", "runtime/src"] {
+    for sub in ["pipeline/src", "runtime/src", "cli/src"] {
         for e in std::fs::read_dir(root.join(sub)).expect("src").flatten() {
             let name = e.file_name().to_string_lossy().into_owned();
             if e.path().is_dir() && !readme.contains(&format!("{name}/")) {
@@ -157,7 +251,7 @@ fn readme_layout_names_every_folder() {
 fn c_declarations_live_only_in_ffi() {
     let root = workspace();
     let mut offenders = Vec::new();
-    for krate in ["format", "pipeline", "runtime", "tests"] {
+    for krate in ["format", "pipeline", "runtime", "tests", "cli"] {
         let mut files = Vec::new();
         rust_files(&root.join(krate), &mut files);
         for f in files

@@ -156,8 +156,17 @@ pub fn run(scenes: &[PathBuf], opts: &BatchOptions) -> Result<Vec<Outcome>> {
         std::fs::create_dir_all(dir)
             .map_err(|e| anyhow::anyhow!("{}: cannot create the output directory: {e}", dir.display()))?;
     }
-    let bar = crate::progress::outer_bar(scenes.len() as u64, "scenes");
-    crate::progress::hide_inner(true);
+    let outer = crate::progress::innermost();
+    let note = |line: String| {
+        if let Some(w) = &outer {
+            w.note(&line);
+        }
+    };
+    let bar = crate::progress::count(scenes.len() as u64, "scenes");
+    // The scenes' own stages and counts are not drawn: the batch's count is.
+    let _quiet = outer
+        .clone()
+        .map(|w| crate::progress::watch(std::sync::Arc::new(crate::progress::Quiet(w))));
     let next = AtomicUsize::new(0);
     let results: Mutex<Vec<Option<Outcome>>> = Mutex::new(vec![None; scenes.len()]);
     // Outputs claimed so far: two scenes may not write one file.
@@ -168,16 +177,12 @@ pub fn run(scenes: &[PathBuf], opts: &BatchOptions) -> Result<Vec<Outcome>> {
                 loop {
                     let i = next.fetch_add(1, Ordering::Relaxed);
                     let Some(path) = scenes.get(i) else { break };
-                    bar.set_message(path.display().to_string());
+                    bar.message(&path.display().to_string());
                     let o = one(path, opts, &claimed);
-                    // On stderr as it happens (the bar, if shown, is redrawn below it).
+                    // Told as it happens (the terminal prints it above the batch's bar).
                     match &o.status {
-                        Status::Failed => {
-                            bar.suspend(|| eprintln!("failed: {}: {}", o.scene, o.error.as_deref().unwrap_or("")))
-                        }
-                        Status::Done => {
-                            bar.suspend(|| eprintln!("done: {} → {}", o.scene, o.output.as_deref().unwrap_or("")))
-                        }
+                        Status::Failed => note(format!("failed: {}: {}", o.scene, o.error.as_deref().unwrap_or(""))),
+                        Status::Done => note(format!("done: {} → {}", o.scene, o.output.as_deref().unwrap_or(""))),
                         Status::UpToDate => {}
                     }
                     results.lock().unwrap_or_else(|p| p.into_inner())[i] = Some(o);
@@ -186,8 +191,6 @@ pub fn run(scenes: &[PathBuf], opts: &BatchOptions) -> Result<Vec<Outcome>> {
             });
         }
     });
-    crate::progress::hide_inner(false);
-    bar.finish_and_clear();
     Ok(results
         .into_inner()
         .unwrap_or_else(|p| p.into_inner())

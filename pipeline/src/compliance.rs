@@ -44,9 +44,8 @@ pub fn surface_compliance(d: &Discretized, patches: &Patches) -> Result<Complian
 pub fn surface_compliance_with(d: &Discretized, chol: &Cholesky, patches: &Patches) -> Result<Compliance> {
     require_supported(d)?;
     let all: Vec<(&[u32], &[f64])> = (0..patches.centres.len()).map(|k| patches.patch(k)).collect();
-    let bar = crate::progress::bar(all.len() as u64, "vertices (static correction)");
+    let bar = crate::progress::count(all.len() as u64, "vertices (static correction)");
     let blocks = patch_blocks(d, chol, &all, || bar.inc(VERTICES_PER_BLOCK as u64));
-    bar.finish_and_clear();
     Ok(Compliance {
         nodes: patches.centres.clone(),
         blocks,

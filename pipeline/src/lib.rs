@@ -33,7 +33,6 @@ pub mod tet_mesh;
 pub mod transfer;
 pub mod verify;
 pub mod workdir;
-pub mod workshop;
 
 /// Makes a FIFO at `path`: the tests' stand-in for an input that would block a reader.
 #[cfg(test)]

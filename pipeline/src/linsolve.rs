@@ -193,14 +193,31 @@ pub fn node_parts(graph: &NodeGraph, dofs: &Dofs, parts: usize) -> Vec<u32> {
         .unwrap_or_else(|| (0..n).map(|i| (i * parts / n) as u32).collect())
 }
 
+/// Where fill-reducing orderings are kept between runs, keyed by the node graph (CSR `xadj`,
+/// `adj`): the mesh cache keeps them beside its meshes and installs itself with
+/// [`keep_orderings_in`] (the solvers know nothing of meshing).
+pub trait OrderingStore: Send + Sync {
+    /// The node ordering stored for this graph: a permutation of its nodes, else None.
+    fn lookup(&self, xadj: &[i32], adj: &[i32]) -> Option<Vec<i32>>;
+    /// Keeps `order` for this graph.
+    fn store(&self, xadj: &[i32], adj: &[i32], order: &[i32]);
+}
+
+static ORDERINGS: std::sync::OnceLock<&'static dyn OrderingStore> = std::sync::OnceLock::new();
+
+/// Orderings are looked up in and stored to `store` from now on (the first call wins).
+pub fn keep_orderings_in(store: &'static dyn OrderingStore) {
+    let _ = ORDERINGS.set(store);
+}
+
 /// Fill-reducing ordering of the free DOFs: METIS nested dissection of the node graph,
 /// each node's free DOFs kept together. Returns (new→old, old→new).
 pub fn nested_dissection(graph: &NodeGraph, dofs: &Dofs) -> (Vec<usize>, Vec<usize>) {
     let n = graph.col_ptr.len() - 1;
     let (xadj, adj) = adjacency(graph);
     let mut node_order: Vec<i32> = (0..n as i32).collect();
-    let key = crate::mesh::ordering_key(&xadj, &adj);
-    let cached = key.as_deref().and_then(|k| crate::mesh::ordering_lookup(k, n));
+    let store = ORDERINGS.get();
+    let cached = store.and_then(|s| s.lookup(&xadj, &adj)).filter(|o| o.len() == n);
     if let Some(order) = cached {
         node_order = order;
     } else if n > 1 && !adj.is_empty() {
@@ -211,8 +228,8 @@ pub fn nested_dissection(graph: &NodeGraph, dofs: &Dofs) -> (Vec<usize>, Vec<usi
         // On failure the natural order is kept: slower, never wrong.
         if let Some(perm) = ves_ffi::metis::nested_dissection(&graph) {
             node_order = perm;
-            if let Some(k) = &key {
-                crate::mesh::ordering_store(k, &node_order);
+            if let Some(s) = store {
+                s.store(&xadj, &adj, &node_order);
             }
         }
     }

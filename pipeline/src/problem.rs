@@ -31,6 +31,19 @@ pub struct Discretized {
     pub assemble_s: f64,
 }
 
+impl Discretized {
+    /// What the eigen-solvers take of it.
+    pub fn space(&self) -> crate::modes::Space<'_> {
+        crate::modes::Space {
+            mesh: &self.mesh,
+            dofs: &self.dofs,
+            system: &self.system,
+            material: self.material,
+            rigid: self.rigid,
+        }
+    }
+}
+
 /// One space meshed and its supports selected, K and M not yet assembled: what SLEPc under MPI
 /// starts from (each rank assembles its own rows), and what [`Meshed::assemble`] makes a
 /// [`Discretized`] of.

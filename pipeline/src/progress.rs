@@ -1,97 +1,107 @@
-//! Progress display on stderr (hidden when stderr is not a terminal).
+//! Who watches a long computation: told each stage, each count's steps, and asked whether to
+//! stop. The library draws nothing itself; the `ves` binary's terminal, the viewer's progress bar
+//! and Python's tqdm are watchers.
+//!
+//! Watchers nest: [`watch`] puts one on top for as long as its guard lives, and dropping the
+//! guard removes that one only (a batch's quiet inner watcher ends, the terminal's stays).
 
-use indicatif::{MultiProgress, ProgressBar, ProgressStyle};
-use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::{Arc, Mutex};
 
-/// Every bar of this process, drawn together (two bars drawn apart overwrite each other).
-fn bars() -> &'static MultiProgress {
-    static BARS: std::sync::OnceLock<MultiProgress> = std::sync::OnceLock::new();
-    BARS.get_or_init(MultiProgress::new)
-}
-
-static INNER_HIDDEN: AtomicBool = AtomicBool::new(false);
-
-/// Hides the bars of inner stages (a batch shows one bar for all its scenes instead).
-pub fn hide_inner(hidden: bool) {
-    INNER_HIDDEN.store(hidden, Ordering::Relaxed);
-}
-
-/// A bar of `len` steps counting `unit` (hidden inside a batch).
-pub fn bar(len: u64, unit: &str) -> ProgressBar {
-    if INNER_HIDDEN.load(Ordering::Relaxed) {
-        return ProgressBar::hidden();
-    }
-    outer_bar(len, unit)
-}
-
-/// A bar that shows even inside a batch (the batch's own).
-pub fn outer_bar(len: u64, unit: &str) -> ProgressBar {
-    let bar = bars().add(ProgressBar::new(len));
-    let style = ProgressStyle::with_template(&format!(
-        "{{spinner}} [{{elapsed_precise}}] {{bar:30}} {{pos}}/{{len}} {unit} {{msg}}"
-    ))
-    .unwrap_or_else(|_| ProgressStyle::default_bar());
-    bar.set_style(style);
-    bar.enable_steady_tick(std::time::Duration::from_millis(120));
-    bar
-}
-
-/// Who watches a long computation besides the terminal (the viewer's progress bar): told each
-/// stage, and asked whether to stop.
+/// A watcher of long computations.
 pub trait Watcher: Send + Sync {
     /// A stage began; `fraction` of the whole computation is done.
     fn stage(&self, name: &str, fraction: f64);
     /// The computation should stop at the next stage.
-    fn cancelled(&self) -> bool;
-}
-
-/// A watcher and the share of the whole (from, to) that the current part (a space) covers.
-type Watched = (std::sync::Arc<dyn Watcher>, f64, f64);
-
-static WATCHER: std::sync::Mutex<Option<Watched>> = std::sync::Mutex::new(None);
-
-/// Watches what this process computes until the guard drops (one computation at a time).
-pub fn watch(w: std::sync::Arc<dyn Watcher>) -> WatchGuard {
-    if let Ok(mut g) = WATCHER.lock() {
-        *g = Some((w, 0.0, 1.0));
+    fn cancelled(&self) -> bool {
+        false
     }
-    WatchGuard
+    /// A count of `len` steps of `unit` begins (a bar on a terminal).
+    fn count(&self, _len: u64, _unit: &str) -> Box<dyn Count> {
+        Box::new(Uncounted)
+    }
+    /// An outcome worth a line of its own (a batch's scene done or failed).
+    fn note(&self, _line: &str) {}
 }
 
-/// Ends a [`watch`].
-pub struct WatchGuard;
+/// The steps of one count, told as they are done (from any thread).
+pub trait Count: Send + Sync {
+    /// `n` more steps are done.
+    fn inc(&self, n: u64);
+    /// What the current step is.
+    fn message(&self, _what: &str) {}
+}
+
+/// A count nobody watches.
+struct Uncounted;
+
+impl Count for Uncounted {
+    fn inc(&self, _n: u64) {}
+}
+
+/// A watcher on the stack, and the share of the whole (from, to) that the current part (a
+/// space among several) covers.
+struct Watched {
+    id: u64,
+    watcher: Arc<dyn Watcher>,
+    lo: f64,
+    hi: f64,
+}
+
+/// The watchers, innermost last, and the next guard's id.
+static WATCHERS: Mutex<(Vec<Watched>, u64)> = Mutex::new((Vec::new(), 0));
+
+fn with_top<T>(f: impl FnOnce(&mut Watched) -> T) -> Option<T> {
+    let mut g = WATCHERS.lock().unwrap_or_else(|p| p.into_inner());
+    g.0.last_mut().map(f)
+}
+
+/// Watches what this process computes until the guard drops; an inner watch hides the outer
+/// one meanwhile.
+pub fn watch(w: Arc<dyn Watcher>) -> WatchGuard {
+    let mut g = WATCHERS.lock().unwrap_or_else(|p| p.into_inner());
+    g.1 += 1;
+    let id = g.1;
+    g.0.push(Watched {
+        id,
+        watcher: w,
+        lo: 0.0,
+        hi: 1.0,
+    });
+    WatchGuard { id }
+}
+
+/// Ends its [`watch`] (only its own, wherever it is on the stack).
+#[must_use = "the watch ends when the guard drops"]
+pub struct WatchGuard {
+    id: u64,
+}
 
 impl Drop for WatchGuard {
     fn drop(&mut self) {
-        if let Ok(mut g) = WATCHER.lock() {
-            *g = None;
-        }
+        let mut g = WATCHERS.lock().unwrap_or_else(|p| p.into_inner());
+        g.0.retain(|w| w.id != self.id);
     }
+}
+
+/// The innermost watcher and its span.
+fn current() -> Option<(Arc<dyn Watcher>, f64, f64)> {
+    with_top(|w| (w.watcher.clone(), w.lo, w.hi))
 }
 
 /// The stages that follow cover `lo..hi` of the whole (a space among several).
 pub fn span(lo: f64, hi: f64) {
-    if let Ok(mut g) = WATCHER.lock()
-        && let Some(w) = g.as_mut()
-    {
-        (w.1, w.2) = (lo, hi);
-    }
+    with_top(|w| (w.lo, w.hi) = (lo, hi));
 }
 
 /// Whether the watcher asked to stop (long stages look between their steps).
 pub fn cancelled() -> bool {
-    WATCHER
-        .lock()
-        .ok()
-        .and_then(|g| g.as_ref().map(|w| w.0.cancelled()))
-        .unwrap_or(false)
+    current().is_some_and(|(w, _, _)| w.cancelled())
 }
 
 /// Stage `name` begins, `at` (0 to 1) of the way through the current span. Fails when the
 /// watcher asked to stop, so the computation ends there with nothing written.
 pub fn stage(name: &str, at: f64) -> anyhow::Result<()> {
-    let w = WATCHER.lock().ok().and_then(|g| g.clone());
-    if let Some((w, lo, hi)) = w {
+    if let Some((w, lo, hi)) = current() {
         if w.cancelled() {
             anyhow::bail!("cancelled before {name}: nothing was written");
         }
@@ -100,97 +110,71 @@ pub fn stage(name: &str, at: f64) -> anyhow::Result<()> {
     Ok(())
 }
 
-/// The stages of a long computation on the terminal: a line per stage with the seconds since
-/// the start (printed above a spinner that shows the current one), on stderr, and nothing when
-/// stderr is not a terminal or a batch shows its own bar.
-pub struct Terminal {
-    bar: ProgressBar,
-    start: std::time::Instant,
-}
-
-impl Terminal {
-    /// Shown when `visible` and stderr is a terminal.
-    pub fn new(visible: bool) -> Terminal {
-        let bar = if visible && !INNER_HIDDEN.load(Ordering::Relaxed) {
-            let bar = bars().add(ProgressBar::new_spinner());
-            let style = ProgressStyle::with_template("{spinner} [{elapsed_precise}] {msg}")
-                .unwrap_or_else(|_| ProgressStyle::default_spinner());
-            bar.set_style(style);
-            bar.enable_steady_tick(std::time::Duration::from_millis(120));
-            bar
-        } else {
-            ProgressBar::hidden()
-        };
-        Terminal {
-            bar,
-            start: std::time::Instant::now(),
-        }
-    }
-}
-
-impl Watcher for Terminal {
-    fn stage(&self, name: &str, fraction: f64) {
-        let t = self.start.elapsed().as_secs_f64();
-        self.bar.println(format!("{t:7.1} s  {name}"));
-        self.bar.set_message(format!("{name} ({:.0} %)", 100.0 * fraction));
-    }
-
-    fn cancelled(&self) -> bool {
-        false
-    }
-}
-
-impl Drop for Terminal {
-    fn drop(&mut self) {
-        self.bar.finish_and_clear();
-    }
-}
-
-/// Says `what` on the terminal's stage log, if one is watching (a line that is not a stage: the
-/// fraction stays where it is).
+/// Says `what` on the watcher's stage log (a line that is not a stage: the fraction stays where
+/// it is).
 pub fn say(what: &str) {
-    let w = WATCHER.lock().ok().and_then(|g| g.clone());
-    if let Some((w, lo, _)) = w {
+    if let Some((w, lo, _)) = current() {
         w.stage(what, lo);
     }
 }
 
-/// Where log lines go: stderr, each line written with the bars lifted and drawn again after it
-/// (indicatif's `suspend`). Written straight to stderr, a warning printed while a bar was drawn
-/// was partly erased by the bar's next redraw, and the bar's old frames were left above it.
-pub struct LogWriter;
-
-impl<'a> tracing_subscriber::fmt::MakeWriter<'a> for LogWriter {
-    type Writer = LogLine;
-
-    fn make_writer(&'a self) -> LogLine {
-        LogLine(Vec::new())
+/// A count of `len` steps of `unit`, shown by the innermost watcher (nowhere without one).
+pub fn count(len: u64, unit: &str) -> Box<dyn Count> {
+    match current() {
+        Some((w, _, _)) => w.count(len, unit),
+        None => Box::new(Uncounted),
     }
 }
 
-/// One log event, collected and written to stderr as a whole when dropped.
-pub struct LogLine(Vec<u8>);
+/// A watcher that shows nothing and passes cancellation on from another: a batch's scenes run
+/// under it, so the batch's own count is the only one drawn.
+pub struct Quiet(pub Arc<dyn Watcher>);
 
-impl std::io::Write for LogLine {
-    fn write(&mut self, buf: &[u8]) -> std::io::Result<usize> {
-        self.0.extend_from_slice(buf);
-        Ok(buf.len())
-    }
+impl Watcher for Quiet {
+    fn stage(&self, _name: &str, _fraction: f64) {}
 
-    fn flush(&mut self) -> std::io::Result<()> {
-        Ok(())
+    fn cancelled(&self) -> bool {
+        self.0.cancelled()
     }
 }
 
-impl Drop for LogLine {
-    fn drop(&mut self) {
-        if self.0.is_empty() {
-            return;
+/// The innermost watcher, to wrap in a [`Quiet`] (or `None`).
+pub fn innermost() -> Option<Arc<dyn Watcher>> {
+    current().map(|(w, _, _)| w)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use std::sync::atomic::{AtomicUsize, Ordering};
+
+    /// Counts this test's own lines only: other tests in the process may announce stages.
+    #[derive(Default)]
+    struct Seen(AtomicUsize);
+
+    impl Watcher for Seen {
+        fn stage(&self, name: &str, _fraction: f64) {
+            if name.starts_with("guards test") {
+                self.0.fetch_add(1, Ordering::Relaxed);
+            }
         }
-        let line = std::mem::take(&mut self.0);
-        bars().suspend(|| {
-            // Nothing to do when stderr itself cannot be written.
-            let _ = std::io::Write::write_all(&mut std::io::stderr(), &line);
-        });
+    }
+
+    /// An inner watch hides the outer; dropping the outer's guard first leaves the inner one
+    /// watching (the old single slot cleared whichever watcher was there). No other unit test
+    /// of this crate installs a watcher.
+    #[test]
+    fn guards_remove_only_their_own_watcher() {
+        let (a, b) = (Arc::new(Seen::default()), Arc::new(Seen::default()));
+        let ga = watch(a.clone());
+        let gb = watch(b.clone());
+        say("guards test x");
+        assert_eq!((a.0.load(Ordering::Relaxed), b.0.load(Ordering::Relaxed)), (0, 1));
+        drop(ga);
+        say("guards test y");
+        assert_eq!((a.0.load(Ordering::Relaxed), b.0.load(Ordering::Relaxed)), (0, 2));
+        drop(gb);
+        say("guards test z");
+        assert_eq!((a.0.load(Ordering::Relaxed), b.0.load(Ordering::Relaxed)), (0, 2));
     }
 }

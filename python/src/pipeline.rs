@@ -74,8 +74,6 @@ pub(crate) fn run_long<T: Send + 'static>(
 ) -> PyResult<T> {
     let watch = Arc::new(Watch::default());
     let w = watch.clone();
-    // The terminal bars of the pipeline are never drawn: progress goes to tqdm, or nowhere.
-    ves_pipeline::progress::hide_inner(true);
     let handle = std::thread::Builder::new()
         .name("ves-pipeline".into())
         .spawn(move || {

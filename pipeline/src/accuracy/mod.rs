@@ -435,7 +435,7 @@ impl Solved {
         let (at, voi, field) = coarser(scene, voi, field, factor);
         let d = discretize_with(&at, voi.as_ref(), field.as_ref(), quiet)?;
         let count = (kept + kept / 2 + 2).min(d.dofs.free_count() / 3).max(1);
-        let (modes, ordering_s) = modes::solve(&d, count, choice)?;
+        let (modes, ordering_s) = modes::solve(d.space(), count, choice)?;
         Ok(Solved {
             size: d.meshing.size,
             d,
@@ -482,7 +482,7 @@ mod tests {
             crate::material::Material::elastic(2e11, 0.3, 7800.0),
         )
         .expect("assembles");
-        let (m, _) = modes::solve(&d, 8, SolverChoice::Arpack).expect("solves");
+        let (m, _) = modes::solve(d.space(), 8, SolverChoice::Arpack).expect("solves");
         (d, m)
     }
 

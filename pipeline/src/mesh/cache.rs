@@ -326,6 +326,21 @@ pub(crate) fn ordering_store(key: &std::path::Path, order: &[i32]) {
     write_atomically(key, |w| order.iter().try_for_each(|v| w.write_all(&v.to_le_bytes())));
 }
 
+/// The cache as the solvers' [`crate::linsolve::OrderingStore`].
+pub(crate) struct Orderings;
+
+impl crate::linsolve::OrderingStore for Orderings {
+    fn lookup(&self, xadj: &[i32], adj: &[i32]) -> Option<Vec<i32>> {
+        ordering_lookup(&ordering_key(xadj, adj)?, xadj.len().saturating_sub(1))
+    }
+
+    fn store(&self, xadj: &[i32], adj: &[i32], order: &[i32]) {
+        if let Some(k) = ordering_key(xadj, adj) {
+            ordering_store(&k, order);
+        }
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

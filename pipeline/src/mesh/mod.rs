@@ -10,7 +10,6 @@ pub mod walls;
 use crate::fem::element::Kind;
 pub(crate) use crate::tet_mesh::signed_volume;
 pub use crate::tet_mesh::{Mesh, TET10_EDGES};
-pub(crate) use cache::{ordering_key, ordering_lookup, ordering_store};
 pub use isolation::{isolate_with, serve as serve_rung};
 use std::collections::HashMap;
 use ves_ffi::gmsh::{self, element_type};
@@ -216,6 +215,8 @@ pub fn generate_with(
     field: Option<&field::SizeField>,
     quiet: bool,
 ) -> Result<(Mesh, Meshing), MeshError> {
+    // The solvers of a mesh made here reuse its fill-reducing ordering from the cache's folder.
+    crate::linsolve::keep_orderings_in(&cache::Orderings);
     let mut part = Part::read(Request::new(scene, voi, field, quiet))?;
     if let Some((mesh, mut meshing)) = part.cached() {
         tracing::info!(nodes = mesh.nodes.len(), "mesh cache hit");

@@ -549,8 +549,9 @@ pub fn sturm_count(
     }))
 }
 
-/// Which eigen-solver to use.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+/// Which eigen-solver to use (named on the command line and in a page's compute by
+/// [`SolverChoice::name`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum SolverChoice {
     /// Dense for tiny problems (≤ 500 unknowns), the block Krylov–Schur solver otherwise, ARPACK
     /// when the block solver's basis would exceed 4 GiB.
@@ -569,20 +570,93 @@ pub enum SolverChoice {
 }
 
 impl SolverChoice {
+    /// Every choice, in the order the command line lists them.
+    pub const ALL: [SolverChoice; 6] = [
+        SolverChoice::Auto,
+        SolverChoice::Arpack,
+        SolverChoice::Block,
+        SolverChoice::Dense,
+        SolverChoice::Slepc,
+        SolverChoice::SlepcIterative,
+    ];
+
+    /// Its name on the command line.
+    pub fn name(self) -> &'static str {
+        match self {
+            SolverChoice::Auto => "auto",
+            SolverChoice::Arpack => "arpack",
+            SolverChoice::Block => "block",
+            SolverChoice::Dense => "dense",
+            SolverChoice::Slepc => "slepc",
+            SolverChoice::SlepcIterative => "slepc-iterative",
+        }
+    }
+
+    /// One line on what it does (the command line's help).
+    pub fn about(self) -> &'static str {
+        match self {
+            SolverChoice::Auto => {
+                "Dense for tiny problems (≤ 500 unknowns), the block Krylov–Schur solver otherwise, ARPACK when the block solver's basis would exceed 4 GiB"
+            }
+            SolverChoice::Arpack => "ARPACK shift-invert with a sparse Cholesky factor",
+            SolverChoice::Block => {
+                "Block Krylov–Schur shift-invert with the same factor (8 right-hand sides per solve)"
+            }
+            SolverChoice::Dense => "Dense generalized eigen-solve (small meshes only)",
+            SolverChoice::Slepc => {
+                "SLEPc Krylov–Schur, shift-invert with MUMPS, on every MPI rank (run under `mpirun`)"
+            }
+            SolverChoice::SlepcIterative => {
+                "SLEPc Jacobi–Davidson preconditioned by algebraic multigrid (GAMG with the rigid-body near-null space), on every MPI rank: no factorisation, for parts whose factor does not fit"
+            }
+        }
+    }
+
     /// Whether this solver runs in SLEPc (MPI initialised; under `mpirun`, rank 0 leads).
     pub fn is_slepc(self) -> bool {
         matches!(self, SolverChoice::Slepc | SolverChoice::SlepcIterative)
     }
 }
 
-/// Solves the eigenproblem of a discretized space; also the seconds spent before the solver
-/// (the fill-reducing ordering, or under SLEPc the ranks' assembly of their rows).
-pub fn solve(d: &crate::problem::Discretized, count: usize, choice: SolverChoice) -> Result<(Modes, f64), ModesError> {
+impl std::str::FromStr for SolverChoice {
+    type Err = String;
+
+    /// By [`SolverChoice::name`], in any case.
+    fn from_str(s: &str) -> Result<Self, String> {
+        SolverChoice::ALL
+            .into_iter()
+            .find(|c| c.name().eq_ignore_ascii_case(s))
+            .ok_or_else(|| {
+                let names: Vec<&str> = SolverChoice::ALL.iter().map(|c| c.name()).collect();
+                format!("no eigen-solver named {s:?}; choose one of {}", names.join(", "))
+            })
+    }
+}
+
+/// What an eigen-solve needs of one space (a `problem::Discretized` lends it): the mesh and
+/// material too, from which SLEPc's ranks assemble their own rows.
+#[derive(Clone, Copy)]
+pub struct Space<'a> {
+    /// The mesh.
+    pub mesh: &'a crate::tet_mesh::Mesh,
+    /// DOF numbering (the supports).
+    pub dofs: &'a Dofs,
+    /// K, M and the node graph.
+    pub system: &'a crate::fem::Assembled,
+    /// The material.
+    pub material: crate::material::Material,
+    /// Rigid motions the supports leave free.
+    pub rigid: usize,
+}
+
+/// Solves the eigenproblem of a space; also the seconds spent before the solver (the
+/// fill-reducing ordering, or under SLEPc the ranks' assembly of their rows).
+pub fn solve(d: Space<'_>, count: usize, choice: SolverChoice) -> Result<(Modes, f64), ModesError> {
     let t = Instant::now();
     if choice.is_slepc() {
         return on_ranks(d, count, choice);
     }
-    let problem = EigenProblem::of(&d.system);
+    let problem = EigenProblem::of(d.system);
     let dense = match choice {
         SolverChoice::Dense => true,
         SolverChoice::Arpack | SolverChoice::Block | SolverChoice::Slepc | SolverChoice::SlepcIterative => false,
@@ -595,7 +669,7 @@ pub fn solve(d: &crate::problem::Discretized, count: usize, choice: SolverChoice
         || (choice == SolverChoice::Auto
             && block::BlockKrylov::basis_bytes(problem.size(), count + d.rigid, BLOCK) <= AUTO_BLOCK_BYTES)
     {
-        ordering = nested_dissection(&d.system.graph, &d.dofs);
+        ordering = nested_dissection(&d.system.graph, d.dofs);
         // Tighter than ARPACK's 1e-12: at 1e-12 the mode checks measured 2e-10 on the mould and
         // 1.7e-9 on a 323k-unknown mesh (ARPACK: 2e-12, 1.2e-11); 1e-14 gave 8.7e-12 on the
         // mould for 7 % more solves.
@@ -606,7 +680,7 @@ pub fn solve(d: &crate::problem::Discretized, count: usize, choice: SolverChoice
             block: BLOCK,
         })
     } else {
-        ordering = nested_dissection(&d.system.graph, &d.dofs);
+        ordering = nested_dissection(&d.system.graph, d.dofs);
         Box::new(arpack::Arpack {
             problem: &problem,
             ordering: &ordering,
@@ -614,14 +688,14 @@ pub fn solve(d: &crate::problem::Discretized, count: usize, choice: SolverChoice
         })
     };
     let ordering_s = t.elapsed().as_secs_f64();
-    let modes = compute(&problem, &d.dofs, d.rigid, count, solver.as_ref())?;
+    let modes = compute(&problem, d.dofs, d.rigid, count, solver.as_ref())?;
     Ok((modes, ordering_s))
 }
 
 /// SLEPc over the MPI ranks, which assemble their own rows from the mesh (rank 0's whole K and M
 /// are not sent); also the seconds of that assembly.
-fn on_ranks(d: &crate::problem::Discretized, count: usize, choice: SolverChoice) -> Result<(Modes, f64), ModesError> {
-    let s = solve_on_ranks(&d.mesh, &d.dofs, d.material, d.rigid, count, choice)?;
+fn on_ranks(d: Space<'_>, count: usize, choice: SolverChoice) -> Result<(Modes, f64), ModesError> {
+    let s = solve_on_ranks(d.mesh, d.dofs, d.material, d.rigid, count, choice)?;
     Ok((s.modes, s.assemble_s))
 }
 
@@ -721,7 +795,7 @@ mod tests {
             crate::material::Material::elastic(2e11, 0.3, 7800.0),
         )
         .expect("assembles");
-        let (mut m, _) = solve(&d, 8, SolverChoice::Arpack).expect("solves");
+        let (mut m, _) = solve(d.space(), 8, SolverChoice::Arpack).expect("solves");
         let s = sturm_count(&d.system, &d.dofs, &m).unwrap().unwrap();
         assert!(s.complete() && s.below == 8, "{s:?}");
         // Skip mode 4: the top is unchanged, so 8 eigenvalues still lie below σ, 7 were "found".

@@ -350,11 +350,11 @@ fn pipeline<'s>(
 fn solve_all(scene: &Scene, choice: SolverChoice, checks: Checks) -> Result<Vec<SolvedSpace>> {
     let mut spaces = Vec::with_capacity(1 + scene.voi.len());
     let targets: Vec<Option<&Voi>> = std::iter::once(None).chain(scene.voi.iter().map(Some)).collect();
-    let bar = crate::progress::bar(targets.len() as u64, "spaces");
+    let bar = crate::progress::count(targets.len() as u64, "spaces");
     let n = targets.len() as f64;
     for (i, voi) in targets.into_iter().enumerate() {
         let name = voi.map_or("global", |v| v.name.as_str());
-        bar.set_message(format!("space {name}"));
+        bar.message(&format!("space {name}"));
         // Each space a share of the whole; transfers and writing the last 5 %.
         crate::progress::span(0.95 * i as f64 / n, 0.95 * (i + 1) as f64 / n);
         let s = stages::solve_space_checked(scene, voi, choice, checks).with_context(|| format!("space {name:?}"))?;
@@ -366,7 +366,6 @@ fn solve_all(scene: &Scene, choice: SolverChoice, checks: Checks) -> Result<Vec<
         spaces.push(s);
         bar.inc(1);
     }
-    bar.finish_and_clear();
     Ok(spaces)
 }
 

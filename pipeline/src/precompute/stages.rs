@@ -239,7 +239,7 @@ fn solve(scene: &Scene, problem: Problem, choice: SolverChoice) -> Result<Solved
     let count = scene.modes.count;
     match problem {
         Problem::Here(d) => {
-            let (modes, ordering_s) = modes::solve(&d, count, choice).map_err(|e| advice::memory(e, scene))?;
+            let (modes, ordering_s) = modes::solve(d.space(), count, choice).map_err(|e| advice::memory(e, scene))?;
             Ok(Solved {
                 mass: d.system.mass,
                 problem: Problem::Here(d),

@@ -311,14 +311,14 @@ pub fn run(scene: &Scene, opts: &ReportOptions, dir: &Path) -> Result<Report> {
             ha.total_cmp(&hb).then(ob.cmp(&oa))
         })
         .unwrap_or(0);
-    let bar = crate::progress::bar((meshes_asked.len() * modes.len()) as u64, "bases");
+    let bar = crate::progress::count((meshes_asked.len() * modes.len()) as u64, "bases");
     let tmp = dir.join(".report-basis.h5");
     let mut ctx = Sweep {
         scene,
         modes: &modes,
         duration: opts.duration,
         tmp: &tmp,
-        bar: &bar,
+        bar: &*bar,
         reference_frequencies: Vec::new(),
         reference_statics: Vec::new(),
         dt: 0.0,
@@ -335,7 +335,6 @@ pub fn run(scene: &Scene, opts: &ReportOptions, dir: &Path) -> Result<Report> {
     }
     let _ = std::fs::remove_file(&tmp);
     let _ = std::fs::remove_file(store::sidecar_path(&tmp));
-    bar.finish_and_clear();
     let mut meshes: Vec<MeshReport> = meshes.into_iter().flatten().collect();
     assign_tiers(&mut meshes);
     let report = Report {
@@ -492,7 +491,7 @@ struct Sweep<'a> {
     modes: &'a [usize],
     duration: f64,
     tmp: &'a Path,
-    bar: &'a indicatif::ProgressBar,
+    bar: &'a dyn crate::progress::Count,
     reference_frequencies: Vec<f64>,
     /// K⁻¹F at each probe on the finest mesh: the converged answer the total errors use.
     reference_statics: Vec<[f64; 3]>,
@@ -540,7 +539,7 @@ impl Sweep<'_> {
             bail!("{free} unknowns: too few for the mode counts asked; use smaller --sizes");
         };
         // The largest solve first: its modes choose the default probe and the time step.
-        let (top, _) = solve(&d, rmax, SolverChoice::Auto)?;
+        let (top, _) = solve(d.space(), rmax, SolverChoice::Auto)?;
         let freqs = top.frequencies_hz();
         let is_reference = self.reference_frequencies.is_empty();
         if is_reference {
@@ -581,7 +580,7 @@ impl Sweep<'_> {
         };
         let mut points = Vec::with_capacity(counts.len());
         for &r in &counts {
-            self.bar.set_message(format!("order {order}, {:.4} m, {r} modes", size));
+            self.bar.message(&format!("order {order}, {:.4} m, {r} modes", size));
             let mut p = self.point(&scene, &d, r, exact.as_ref(), correction_s)?;
             if is_reference {
                 // The reference against itself: nothing to report.
@@ -716,7 +715,7 @@ impl Sweep<'_> {
         exact: Option<&Exact>,
         correction_s: Option<f64>,
     ) -> Result<Point> {
-        let (modes, ordering_s) = solve(d, r, SolverChoice::Auto)?;
+        let (modes, ordering_s) = solve(d.space(), r, SolverChoice::Auto)?;
         let offline_s = d.mesh_s + d.assemble_s + ordering_s + modes.factorize_s + modes.eigensolve_s;
         store::write(
             self.tmp,

@@ -334,7 +334,7 @@ pub fn verify_input(
         crate::progress::stage("meshing and assembling", 0.0)?;
         let d = discretize(&sc, None)?;
         crate::progress::stage(&format!("our modes: {} unknowns", d.dofs.free_count()), 0.0)?;
-        let (ours, _) = solve(&d, modes.unwrap_or(sc.modes.count), SolverChoice::Arpack)?;
+        let (ours, _) = solve(d.space(), modes.unwrap_or(sc.modes.count), SolverChoice::Arpack)?;
         scene = Some(sc);
         (d, ours)
     } else {

@@ -69,6 +69,14 @@ enum Command {
     },
 }
 
+/// `--solver`'s parser: the library's names, each with its line of help.
+fn solver_parser() -> impl clap::builder::TypedValueParser<Value = ves_pipeline::modes::SolverChoice> {
+    use clap::builder::{PossibleValue, PossibleValuesParser, TypedValueParser};
+    use ves_pipeline::modes::SolverChoice;
+    PossibleValuesParser::new(SolverChoice::ALL.map(|c| PossibleValue::new(c.name()).help(c.about())))
+        .try_map(|s| s.parse::<SolverChoice>())
+}
+
 /// Runs the parsed command.
 pub fn run(cli: Cli) -> anyhow::Result<()> {
     // gmsh runs in child processes of this binary, so that nothing it does can end `ves` (a
@@ -78,13 +86,16 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
         && let Ok(exe) = std::env::current_exe()
     {
         // The viewer's computes too: one that aborts (out of memory) must not end the server.
-        ves_pipeline::workshop::isolate_with(exe.clone());
+        crate::workshop::isolate_with(exe.clone());
         ves_pipeline::mesh::isolate_with(exe);
     }
     ves_pipeline::memory::cap_from_env().map_err(anyhow::Error::msg)?;
+    // Counts (a batch's scenes, a report's bases) as bars; a command with stages of its own
+    // (precompute, verify) puts its terminal, quiet or not, above this one.
+    let _terminal = ves_pipeline::progress::watch(crate::terminal::Terminal::on_stderr(true));
     match cli.command {
         Command::MeshWorker { dir } => ves_pipeline::mesh::serve_rung(&dir).map_err(anyhow::Error::msg),
-        Command::ViewCompute { dir } => ves_pipeline::workshop::serve_compute(&dir).map_err(anyhow::Error::msg),
+        Command::ViewCompute { dir } => crate::workshop::serve_compute(&dir).map_err(anyhow::Error::msg),
         Command::Precompute(a) => a.run(),
         Command::Batch(a) => a.run(),
         Command::Session(a) => a.run(),

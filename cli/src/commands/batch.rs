@@ -21,7 +21,7 @@ pub struct Args {
     #[arg(long)]
     out: Option<PathBuf>,
     /// Eigen-solver.
-    #[arg(long, value_enum, default_value_t = SolverChoice::Auto)]
+    #[arg(long, default_value = "auto", value_parser = super::solver_parser())]
     solver: SolverChoice,
     /// Accept .geo geometries (gmsh scripts, which can run shell commands): only for scenes you trust.
     #[arg(long)]

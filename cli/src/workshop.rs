@@ -3,16 +3,16 @@
 //! The page sends the scene as JSON (the TOML's tables and keys); it is checked by the same
 //! parser as every scene file. The geometry is always the workshop's own file: whatever the
 //! page names as `geometry.step` is replaced, so a page cannot make the server read another
-//! file. Uploaded parts and bases go to a private work folder ([`crate::workdir`]), removed
+//! file. Uploaded parts and bases go to a private work folder ([`ves_pipeline::workdir`]), removed
 //! when the viewer ends; a part or a basis replaced by a newer one is removed at once, so the
 //! folder holds at most the part open, the basis served and the one being computed.
 
-use crate::modes::SolverChoice;
-use crate::precompute;
-use crate::scene::{Scene, SceneOptions};
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::sync::{Arc, OnceLock};
+use ves_pipeline::modes::SolverChoice;
+use ves_pipeline::precompute;
+use ves_pipeline::scene::{Scene, SceneOptions};
 use ves_runtime::view::{Computed, Progress, Workshop};
 
 /// A real material: name, Young's modulus (Pa), Poisson's ratio, density (kg/m³), yield
@@ -91,7 +91,7 @@ pub struct PartWorkshop {
     /// one of the two run at a time; this keeps a library user to it too).
     busy: std::sync::Mutex<()>,
     options: SceneOptions,
-    dir: crate::workdir::WorkDir,
+    dir: ves_pipeline::workdir::WorkDir,
     computed: AtomicU64,
     solver: SolverChoice,
     /// The compute's threads, below the session's in priority (see [`lower_priority`]).
@@ -223,7 +223,7 @@ impl PartWorkshop {
         options: SceneOptions,
         solver: SolverChoice,
     ) -> anyhow::Result<PartWorkshop> {
-        let dir = crate::workdir::WorkDir::new("view")?;
+        let dir = ves_pipeline::workdir::WorkDir::new("view")?;
         let pool = rayon::ThreadPoolBuilder::new()
             .thread_name(|i| format!("ves-compute-{i}"))
             .start_handler(|_| lower_priority())
@@ -326,12 +326,6 @@ enum ChildNote {
     Error(String),
 }
 
-fn solver_name(s: SolverChoice) -> String {
-    use clap::ValueEnum;
-    s.to_possible_value()
-        .map_or_else(|| "auto".into(), |v| v.get_name().to_string())
-}
-
 /// How a compute process ended, when it said nothing of it.
 fn describe(status: Option<std::process::ExitStatus>) -> String {
     use std::os::unix::process::ExitStatusExt;
@@ -352,9 +346,9 @@ fn describe(status: Option<std::process::ExitStatus>) -> String {
 fn seal_basis(out: &Path) -> std::io::Result<()> {
     let sidecar = out.with_extension("xdmf");
     if sidecar.exists() {
-        crate::workdir::seal(&sidecar)?;
+        ves_pipeline::workdir::seal(&sidecar)?;
     }
-    crate::workdir::seal(out)
+    ves_pipeline::workdir::seal(out)
 }
 
 /// Deletes a basis (and its sidecar) when dropped unless a session took it.
@@ -385,9 +379,9 @@ impl PartWorkshop {
     ) -> Result<Computed, String> {
         use std::io::{BufRead, Write};
         let mut served = Unless(&job.out, false);
-        crate::workdir::create_dir(dir).map_err(|e| format!("cannot start the compute: {e}"))?;
+        ves_pipeline::workdir::create_dir(dir).map_err(|e| format!("cannot start the compute: {e}"))?;
         let text = serde_json::to_string(job).map_err(|e| format!("cannot start the compute: {e}"))?;
-        crate::workdir::write(&dir.join("job.json"), text.as_bytes())
+        ves_pipeline::workdir::write(&dir.join("job.json"), text.as_bytes())
             .map_err(|e| format!("cannot start the compute: {e}"))?;
         let mut child = std::process::Command::new(exe)
             .arg(COMPUTE_COMMAND)
@@ -503,7 +497,7 @@ impl PartWorkshop {
 /// notes).
 pub fn serve_compute(dir: &Path) -> Result<(), String> {
     use std::io::{BufRead, Write};
-    let job: ComputeJob = crate::workdir::child_job(dir, |j: &ComputeJob| j.parent)?;
+    let job: ComputeJob = ves_pipeline::workdir::child_job(dir, |j: &ComputeJob| j.parent)?;
     let file = dir.join("job.json");
     // Below the session in priority, the whole process (gmsh inherits it), as in-process
     // computes' pool is.
@@ -515,8 +509,7 @@ pub fn serve_compute(dir: &Path) -> Result<(), String> {
             let _ = writeln!(out, "{line}").and_then(|()| out.flush());
         }
     };
-    let solver = <SolverChoice as clap::ValueEnum>::from_str(&job.solver, true)
-        .map_err(|e| format!("{}: solver {:?}: {e}", file.display(), job.solver))?;
+    let solver: SolverChoice = job.solver.parse().map_err(|e| format!("{}: {e}", file.display()))?;
     let message = |e: anyhow::Error| format!("{e:#}").replace('\n', " ");
     let parsed = match Scene::parse(&job.path, &job.scene) {
         Ok(p) => p,
@@ -527,7 +520,7 @@ pub fn serve_compute(dir: &Path) -> Result<(), String> {
             return Ok(());
         }
     };
-    let _watch = crate::progress::watch(Arc::new(ChildWatch(say)));
+    let _watch = ves_pipeline::progress::watch(Arc::new(ChildWatch(say)));
     let first = match precompute::run_first(&parsed, &job.out, solver) {
         Ok(f) => f,
         Err(e) => {
@@ -557,7 +550,7 @@ pub fn serve_compute(dir: &Path) -> Result<(), String> {
 /// The child's stages, to its parent.
 struct ChildWatch<F>(F);
 
-impl<F: Fn(ChildNote) + Send + Sync> crate::progress::Watcher for ChildWatch<F> {
+impl<F: Fn(ChildNote) + Send + Sync> ves_pipeline::progress::Watcher for ChildWatch<F> {
     fn stage(&self, name: &str, fraction: f64) {
         (self.0)(ChildNote::Progress {
             stage: name.to_string(),
@@ -576,7 +569,7 @@ struct PageWatch {
     cancel: Arc<AtomicBool>,
 }
 
-impl crate::progress::Watcher for PageWatch {
+impl ves_pipeline::progress::Watcher for PageWatch {
     fn stage(&self, name: &str, fraction: f64) {
         (self.progress)(Progress {
             stage: name.to_string(),
@@ -636,7 +629,7 @@ impl Workshop for PartWorkshop {
                 scene: text,
                 path,
                 out: out.clone(),
-                solver: solver_name(self.solver),
+                solver: self.solver.name().to_string(),
                 parent: std::process::id(),
             };
             let dir = self.dir.path().join(format!("compute-{n}"));
@@ -646,7 +639,7 @@ impl Workshop for PartWorkshop {
             return done;
         }
         let message = |e: anyhow::Error| format!("{e:#}").replace('\n', " ");
-        let _watch = crate::progress::watch(Arc::new(PageWatch { progress, cancel }));
+        let _watch = ves_pipeline::progress::watch(Arc::new(PageWatch { progress, cancel }));
         // In the workshop's pool: faer and rayon take their threads from it. `ready` runs here,
         // outside the pool: the session it starts must not inherit the pool's lower priority.
         let first = self.pool.install(|| precompute::run_first(&parsed, &out, self.solver));
@@ -710,9 +703,9 @@ impl Workshop for PartWorkshop {
         // saved scene), and a later part of the same name cannot replace it.
         let safe = safe_stem(Path::new(&file));
         let dir = self.dir.path().join(format!("part-{n}"));
-        crate::workdir::create_dir(&dir).map_err(|e| format!("cannot keep the part: {e}"))?;
+        ves_pipeline::workdir::create_dir(&dir).map_err(|e| format!("cannot keep the part: {e}"))?;
         let path = dir.join(format!("{safe}.{}", if kind == "step" { ext.as_str() } else { kind }));
-        if let Err(e) = crate::workdir::write(&path, bytes) {
+        if let Err(e) = ves_pipeline::workdir::write(&path, bytes) {
             let _ = std::fs::remove_dir_all(&dir);
             return Err(format!("cannot keep the part: {e}"));
         }

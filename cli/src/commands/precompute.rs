@@ -18,7 +18,7 @@ pub struct Args {
     #[arg(long)]
     json: bool,
     /// Eigen-solver.
-    #[arg(long, value_enum, default_value_t = SolverChoice::Auto)]
+    #[arg(long, default_value = "auto", value_parser = super::solver_parser())]
     solver: SolverChoice,
     /// Elastic modes to keep (overrides the scene's modes.count).
     #[arg(long)]
@@ -37,13 +37,7 @@ impl Args {
         }
         // SLEPc brings MPI up first: under mpirun every rank runs this command.
         let _slepc = match self.solver {
-            SolverChoice::Slepc | SolverChoice::SlepcIterative => {
-                let s = mpi_job::SlepcGuard::init()?;
-                if mpi_job::rank() != 0 {
-                    ves_pipeline::progress::hide_inner(true);
-                }
-                Some(s)
-            }
+            SolverChoice::Slepc | SolverChoice::SlepcIterative => Some(mpi_job::SlepcGuard::init()?),
             _ => None,
         };
         // Under MPI an error on one rank must end all of them (before the guard finalises MPI).
@@ -62,8 +56,7 @@ impl Args {
             .unwrap_or_else(|| scene.path.with_file_name(format!("{}.h5", scene.name)));
         let summary = {
             let visible = !self.quiet && mpi_job::rank() == 0 && std::io::IsTerminal::is_terminal(&std::io::stderr());
-            let _watching =
-                ves_pipeline::progress::watch(std::sync::Arc::new(ves_pipeline::progress::Terminal::new(visible)));
+            let _watching = ves_pipeline::progress::watch(crate::terminal::Terminal::on_stderr(visible));
             precompute::run_with(&scene, &out, self.solver, self.write.overwrite())?
         };
         if mpi_job::rank() != 0 {

@@ -62,8 +62,7 @@ impl Args {
         // spinner with the elapsed time (a reference can take many minutes on a fine mesh).
         let visible = !self.quiet && std::io::IsTerminal::is_terminal(&std::io::stderr());
         let report = {
-            let _watching =
-                ves_pipeline::progress::watch(std::sync::Arc::new(ves_pipeline::progress::Terminal::new(visible)));
+            let _watching = ves_pipeline::progress::watch(crate::terminal::Terminal::on_stderr(visible));
             verify::verify_input(&self.input, self.against, self.modes, &tol, self.stress)?
         };
         if self.json {

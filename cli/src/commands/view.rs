@@ -2,6 +2,7 @@
 //! geometry file, the page also sets the part up and computes its basis (the workshop).
 
 use super::session::Settings;
+use crate::workshop::PartWorkshop;
 use anyhow::{Context, Result};
 use std::io::Write;
 use std::net::{IpAddr, Ipv4Addr, SocketAddr};
@@ -9,7 +10,6 @@ use std::path::PathBuf;
 use std::sync::Arc;
 use std::sync::atomic::AtomicBool;
 use ves_pipeline::scene::{Scene, SceneOptions};
-use ves_pipeline::workshop::PartWorkshop;
 use ves_runtime::view::{self, ViewConfig, Workshop};
 
 /// What `ves view` was given: a basis to serve, or a part to set up (first basis to come).

@@ -1,8 +1,10 @@
-//! `ves`: the VES command line. Parses, runs one subcommand ([`cli`]), prints an error with its
+//! `ves`: the VES command line. Parses, runs one subcommand ([`commands`]), prints an error with its
 //! cause chain on one line, and maps it to the exit status: 0 done, 1 error, 2 verification
 //! outside its tolerances.
 
-mod cli;
+mod commands;
+mod terminal;
+mod workshop;
 
 use clap::Parser;
 use std::process::ExitCode;
@@ -10,7 +12,7 @@ use std::process::ExitCode;
 fn main() -> ExitCode {
     tracing_subscriber::fmt()
         // On stderr, with the progress bars lifted while a line is written.
-        .with_writer(ves_pipeline::progress::LogWriter)
+        .with_writer(terminal::LogWriter)
         // Colour codes only for a terminal, not in logs and pipes.
         .with_ansi(std::io::IsTerminal::is_terminal(&std::io::stderr()))
         .with_env_filter(tracing_subscriber::EnvFilter::try_from_env("VES_LOG").unwrap_or_else(|_| "warn".into()))
@@ -28,16 +30,16 @@ fn main() -> ExitCode {
             eprintln!("internal error (please report): {}", msg.replace('\n', " "));
         }));
     }
-    let done = cli::run(cli::Cli::parse());
+    let done = commands::run(commands::Cli::parse());
     // Threads still running (a viewer's compute) may hold work folders: they go now.
     ves_pipeline::workdir::remove_all();
     match done {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) => {
-            if cli::rank() == 0 {
+            if commands::rank() == 0 {
                 eprintln!("error: {e:#}");
             }
-            ExitCode::from(if e.is::<cli::VerifyFailed>() { 2 } else { 1 })
+            ExitCode::from(if e.is::<commands::VerifyFailed>() { 2 } else { 1 })
         }
     }
 }

@@ -1,0 +1,147 @@
+//! Progress on the terminal: the stages of a long computation as lines with the seconds since
+//! the start, above a spinner showing the current one; each count as a bar; log lines written
+//! with the bars lifted. Nothing is drawn when stderr is not a terminal.
+
+use indicatif::{MultiProgress, ProgressBar, ProgressStyle};
+use ves_pipeline::progress::{Count, Watcher};
+
+/// Every bar of this process, drawn together (two bars drawn apart overwrite each other).
+fn bars() -> &'static MultiProgress {
+    static BARS: std::sync::OnceLock<MultiProgress> = std::sync::OnceLock::new();
+    BARS.get_or_init(MultiProgress::new)
+}
+
+/// The terminal as a watcher of the library's computations.
+pub struct Terminal {
+    visible: bool,
+    /// Drawn from the first stage on (a command that tells no stage shows no spinner).
+    spinner: std::sync::OnceLock<ProgressBar>,
+    start: std::time::Instant,
+}
+
+impl Terminal {
+    /// Drawn when `visible` (and stderr is a terminal: the caller checks).
+    pub fn new(visible: bool) -> Terminal {
+        Terminal {
+            visible,
+            spinner: std::sync::OnceLock::new(),
+            start: std::time::Instant::now(),
+        }
+    }
+
+    fn spinner(&self) -> &ProgressBar {
+        self.spinner.get_or_init(|| {
+            if !self.visible {
+                return ProgressBar::hidden();
+            }
+            let bar = bars().add(ProgressBar::new_spinner());
+            let style = ProgressStyle::with_template("{spinner} [{elapsed_precise}] {msg}")
+                .unwrap_or_else(|_| ProgressStyle::default_spinner());
+            bar.set_style(style);
+            bar.enable_steady_tick(std::time::Duration::from_millis(120));
+            bar
+        })
+    }
+
+    /// Shown when stderr is a terminal and `wanted` (not `--quiet`, rank 0 under MPI).
+    pub fn on_stderr(wanted: bool) -> std::sync::Arc<Terminal> {
+        std::sync::Arc::new(Terminal::new(
+            wanted && std::io::IsTerminal::is_terminal(&std::io::stderr()),
+        ))
+    }
+}
+
+impl Watcher for Terminal {
+    fn stage(&self, name: &str, fraction: f64) {
+        let t = self.start.elapsed().as_secs_f64();
+        let spinner = self.spinner();
+        spinner.println(format!("{t:7.1} s  {name}"));
+        spinner.set_message(format!("{name} ({:.0} %)", 100.0 * fraction));
+    }
+
+    fn count(&self, len: u64, unit: &str) -> Box<dyn Count> {
+        if !self.visible {
+            return Box::new(Bar(ProgressBar::hidden()));
+        }
+        let bar = bars().add(ProgressBar::new(len));
+        let style = ProgressStyle::with_template(&format!(
+            "{{spinner}} [{{elapsed_precise}}] {{bar:30}} {{pos}}/{{len}} {unit} {{msg}}"
+        ))
+        .unwrap_or_else(|_| ProgressStyle::default_bar());
+        bar.set_style(style);
+        bar.enable_steady_tick(std::time::Duration::from_millis(120));
+        Box::new(Bar(bar))
+    }
+
+    /// Printed whether or not bars are drawn (a batch's outcomes are its log).
+    fn note(&self, line: &str) {
+        bars().suspend(|| eprintln!("{line}"));
+    }
+}
+
+impl Drop for Terminal {
+    fn drop(&mut self) {
+        if let Some(s) = self.spinner.get() {
+            s.finish_and_clear();
+        }
+    }
+}
+
+/// A count drawn as a bar, cleared when the count ends.
+struct Bar(ProgressBar);
+
+impl Count for Bar {
+    fn inc(&self, n: u64) {
+        self.0.inc(n);
+    }
+
+    fn message(&self, what: &str) {
+        self.0.set_message(what.to_string());
+    }
+}
+
+impl Drop for Bar {
+    fn drop(&mut self) {
+        self.0.finish_and_clear();
+    }
+}
+
+/// Where log lines go: stderr, each line written with the bars lifted and drawn again after it
+/// (indicatif's `suspend`). Written straight to stderr, a warning printed while a bar was drawn
+/// was partly erased by the bar's next redraw, and the bar's old frames were left above it.
+pub struct LogWriter;
+
+impl<'a> tracing_subscriber::fmt::MakeWriter<'a> for LogWriter {
+    type Writer = LogLine;
+
+    fn make_writer(&'a self) -> LogLine {
+        LogLine(Vec::new())
+    }
+}
+
+/// One log event, collected and written to stderr as a whole when dropped.
+pub struct LogLine(Vec<u8>);
+
+impl std::io::Write for LogLine {
+    fn write(&mut self, buf: &[u8]) -> std::io::Result<usize> {
+        self.0.extend_from_slice(buf);
+        Ok(buf.len())
+    }
+
+    fn flush(&mut self) -> std::io::Result<()> {
+        Ok(())
+    }
+}
+
+impl Drop for LogLine {
+    fn drop(&mut self) {
+        if self.0.is_empty() {
+            return;
+        }
+        let line = std::mem::take(&mut self.0);
+        bars().suspend(|| {
+            // Nothing to do when stderr itself cannot be written.
+            let _ = std::io::Write::write_all(&mut std::io::stderr(), &line);
+        });
+    }
+}
