@@ -245,6 +245,39 @@ fn readme_layout_names_every_folder() {
     assert!(missing.is_empty(), "README.md's layout table does not name {missing:?}");
 }
 
+/// `unsafe` code outside the FFI crates stands in one module per crate (`os.rs`: the libc
+/// calls behind safe functions; the format crate's `file.rs`, its one module that touches the
+/// OS) and the C ABI's exported functions (`capi.rs`); unit tests (a `mod tests` at the end of
+/// a file) are left out.
+#[test]
+fn unsafe_code_lives_in_one_module_per_crate() {
+    let root = workspace();
+    let mut offenders = Vec::new();
+    for krate in ["format", "pipeline", "runtime", "cli"] {
+        let mut files = Vec::new();
+        rust_files(&root.join(krate).join("src"), &mut files);
+        for f in &files {
+            let name = f.file_name().and_then(|n| n.to_str()).unwrap_or("");
+            if name == "os.rs" || name == "capi.rs" || name == "file.rs" && krate == "format" {
+                continue;
+            }
+            let text = std::fs::read_to_string(f).expect("source");
+            let code = text.split("#[cfg(test)]\nmod tests").next().unwrap_or("");
+            for (i, line) in code.lines().enumerate() {
+                let code = line.split("//").next().unwrap_or("");
+                if code.contains("unsafe ") || code.contains("unsafe{") {
+                    offenders.push(format!("{}:{}: {}", f.display(), i + 1, line.trim()));
+                }
+            }
+        }
+    }
+    assert!(
+        offenders.is_empty(),
+        "unsafe outside os.rs and capi.rs:\n{}",
+        offenders.join("\n")
+    );
+}
+
 /// C declarations (`extern "C" { … }` blocks) and calls into `-sys` crates of C libraries
 /// belong in `ffi/`, apart from the rest; exported C functions (`extern "C" fn`) are the C ABI's.
 #[test]

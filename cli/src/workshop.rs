@@ -193,13 +193,7 @@ fn geometry_kind(bytes: &[u8]) -> Option<&'static str> {
 /// every nice level anyway). Processes the thread starts (gmsh) inherit it. Best effort: a
 /// refusal leaves the priority as it was.
 fn lower_priority() {
-    // SAFETY: setpriority on this thread's own id (Linux: PRIO_PROCESS with a thread id sets
-    // that thread's nice value), no memory involved.
-    #[cfg(target_os = "linux")]
-    unsafe {
-        let tid = libc::gettid();
-        libc::setpriority(libc::PRIO_PROCESS, tid as libc::id_t, 10);
-    }
+    ves_pipeline::os::lower_thread_priority();
 }
 
 impl PartWorkshop {
@@ -501,8 +495,7 @@ pub fn serve_compute(dir: &Path) -> Result<(), String> {
     let file = dir.join("job.json");
     // Below the session in priority, the whole process (gmsh inherits it), as in-process
     // computes' pool is.
-    // SAFETY: setpriority on this process, no memory involved.
-    unsafe { libc::setpriority(libc::PRIO_PROCESS, 0, 10) };
+    ves_pipeline::os::lower_process_priority();
     let say = |n: ChildNote| {
         if let Ok(line) = serde_json::to_string(&n) {
             let mut out = std::io::stdout().lock();

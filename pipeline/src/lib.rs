@@ -17,6 +17,7 @@ pub mod matrices;
 pub mod memory;
 pub mod mesh;
 pub mod modes;
+pub mod os;
 pub mod output;
 pub mod precompute;
 pub mod preview;
@@ -37,12 +38,5 @@ pub mod workdir;
 /// Makes a FIFO at `path`: the tests' stand-in for an input that would block a reader.
 #[cfg(test)]
 pub(crate) fn make_fifo(path: &std::path::Path) {
-    let c = std::ffi::CString::new(path.as_os_str().as_encoded_bytes()).expect("no NUL in a test path");
-    // SAFETY: a valid NUL-terminated path.
-    assert_eq!(
-        unsafe { libc::mkfifo(c.as_ptr(), 0o600) },
-        0,
-        "mkfifo {}",
-        path.display()
-    );
+    os::make_fifo(path).unwrap_or_else(|e| panic!("mkfifo {}: {e}", path.display()));
 }

@@ -79,15 +79,7 @@ fn cgroup_headroom() -> Option<u64> {
 
 /// What RLIMIT_AS leaves of the address space (None when unlimited).
 fn address_space_headroom() -> Option<u64> {
-    let mut limit = libc::rlimit {
-        rlim_cur: 0,
-        rlim_max: 0,
-    };
-    // SAFETY: getrlimit writes the struct given; nothing else is touched.
-    if unsafe { libc::getrlimit(libc::RLIMIT_AS, &mut limit) } != 0 || limit.rlim_cur == libc::RLIM_INFINITY {
-        return None;
-    }
-    Some(limit.rlim_cur.saturating_sub(status_kb("VmSize:") * 1024))
+    Some(crate::os::address_space_limit()?.saturating_sub(status_kb("VmSize:") * 1024))
 }
 
 /// An allocation that would not fit in the memory this process may still take.
@@ -163,10 +155,7 @@ fn kb_field(file: &str, field: &str) -> u64 {
 /// Gives the free heap pages back to the system (glibc keeps them, in every thread's arena):
 /// the stages after a solve would otherwise add their peak on top of the solve's.
 pub fn release_free_memory() {
-    // SAFETY: malloc_trim only releases pages that malloc holds free; no pointer is touched.
-    unsafe {
-        libc::malloc_trim(0);
-    }
+    crate::os::trim_heap();
 }
 
 #[cfg(test)]

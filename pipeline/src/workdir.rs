@@ -53,8 +53,7 @@ impl WorkDir {
             .open(dir.path().join(LOCK))?;
         // Exclusive until this process ends (the kernel drops it even on SIGKILL); children do
         // not inherit it (the descriptor is close-on-exec).
-        // SAFETY: flock on a descriptor this function owns.
-        if unsafe { libc::flock(std::os::fd::AsRawFd::as_raw_fd(&lock), libc::LOCK_EX | libc::LOCK_NB) } != 0 {
+        if !crate::os::lock_exclusive(&lock, false) {
             return Err(std::io::Error::last_os_error());
         }
         live().push(dir.path().to_path_buf());
@@ -109,8 +108,7 @@ pub fn remove_stale(tmp: &Path) {
     use std::os::unix::fs::MetadataExt;
     let Ok(entries) = std::fs::read_dir(tmp) else { return };
     let me = std::process::id();
-    // SAFETY: geteuid has no preconditions.
-    let uid = unsafe { libc::geteuid() };
+    let uid = crate::os::effective_uid();
     for entry in entries.flatten() {
         let name = entry.file_name();
         let Some(pid) = name.to_str().and_then(owner) else {
@@ -120,19 +118,16 @@ pub fn remove_stale(tmp: &Path) {
         let Ok(meta) = std::fs::symlink_metadata(&path) else {
             continue;
         };
-        if pid == me || !meta.is_dir() || meta.uid() != uid || process_runs(pid) {
+        if pid == me || !meta.is_dir() || meta.uid() != uid || crate::os::process_runs(pid) {
             continue;
         }
         if let Ok(lock) = std::fs::OpenOptions::new()
             .read(true)
             .custom_flags(libc::O_NOFOLLOW | libc::O_NONBLOCK)
             .open(path.join(LOCK))
+            && !crate::os::lock_exclusive(&lock, false)
         {
-            let fd = std::os::fd::AsRawFd::as_raw_fd(&lock);
-            // SAFETY: flock on a descriptor owned here.
-            if unsafe { libc::flock(fd, libc::LOCK_EX | libc::LOCK_NB) } != 0 {
-                continue;
-            }
+            continue;
         }
         match std::fs::remove_dir_all(&path) {
             Ok(()) => tracing::info!("removed {}, left by process {pid} that no longer runs", path.display()),
@@ -152,16 +147,6 @@ fn owner(name: &str) -> Option<u32> {
     (!random.is_empty() && pid.bytes().all(|b| b.is_ascii_digit()))
         .then(|| pid.parse().ok())
         .flatten()
-}
-
-/// Whether process `pid` exists (kill(pid, 0): ESRCH means gone; EPERM, another user's).
-fn process_runs(pid: u32) -> bool {
-    let Ok(pid) = libc::pid_t::try_from(pid) else {
-        return false;
-    };
-    // SAFETY: signal 0 only checks that the process exists.
-    let found = unsafe { libc::kill(pid, 0) } == 0;
-    found || std::io::Error::last_os_error().raw_os_error() == Some(libc::EPERM)
 }
 
 /// Removes every live work folder of this process (at its end: threads still running, a
@@ -218,13 +203,11 @@ pub fn remove_on_signals() {
 /// and checks that the parent it names is still this process's parent (if it died before the
 /// signal was armed, the signal never comes). Errors name the job file.
 pub fn child_job<T: serde::de::DeserializeOwned>(dir: &Path, parent_of: impl Fn(&T) -> u32) -> Result<T, String> {
-    // SAFETY: prctl with these arguments only sets this process's parent-death signal.
-    unsafe { libc::prctl(libc::PR_SET_PDEATHSIG, libc::SIGKILL as libc::c_ulong, 0, 0, 0) };
+    crate::os::die_with_parent();
     let file = dir.join("job.json");
     let text = std::fs::read_to_string(&file).map_err(|e| format!("{}: {e}", file.display()))?;
     let job: T = serde_json::from_str(&text).map_err(|e| format!("{}: {e}", file.display()))?;
-    // SAFETY: getppid has no arguments and cannot fail.
-    let parent = unsafe { libc::getppid() } as u32;
+    let parent = crate::os::parent_pid();
     if parent != parent_of(&job) {
         return Err(format!("the parent process {} is gone", parent_of(&job)));
     }
@@ -302,10 +285,7 @@ mod tests {
         // A dead pid whose folder's lock is held (an owner in another PID namespace).
         let held = make(&format!("ves-mesh-pid{dead}-e"));
         let lock = std::fs::File::create(held.join(LOCK)).unwrap();
-        assert_eq!(
-            unsafe { libc::flock(std::os::fd::AsRawFd::as_raw_fd(&lock), libc::LOCK_EX) },
-            0
-        );
+        assert!(crate::os::lock_exclusive(&lock, true));
         remove_stale(tmp.path());
         for p in gone {
             assert!(!p.exists(), "{} stays", p.display());

@@ -33,31 +33,12 @@ pub const PRIORITY: i32 = 40;
 
 /// Cores this process may run on.
 fn allowed_cores() -> Vec<usize> {
-    // SAFETY: a zeroed cpu_set_t is a valid empty set; sched_getaffinity fills it.
-    unsafe {
-        let mut set: libc::cpu_set_t = std::mem::zeroed();
-        if libc::sched_getaffinity(0, std::mem::size_of::<libc::cpu_set_t>(), &mut set) != 0 {
-            return Vec::new();
-        }
-        (0..libc::CPU_SETSIZE as usize)
-            .filter(|&c| libc::CPU_ISSET(c, &set))
-            .collect()
-    }
+    crate::os::allowed_cores()
 }
 
 /// Pins the calling thread to `core`.
 fn pin(core: usize) -> Result<(), String> {
-    // SAFETY: the set is initialised before use; 0 = the calling thread.
-    let rc = unsafe {
-        let mut set: libc::cpu_set_t = std::mem::zeroed();
-        libc::CPU_SET(core, &mut set);
-        libc::sched_setaffinity(0, std::mem::size_of::<libc::cpu_set_t>(), &set)
-    };
-    if rc == 0 {
-        Ok(())
-    } else {
-        Err(format!("pinning to core {core}: {}", std::io::Error::last_os_error()))
-    }
+    crate::os::set_cores(&[core]).map_err(|e| format!("pinning to core {core}: {e}"))
 }
 
 /// Whether the kernel throttles real-time threads (`sched_rt_runtime_us` below
@@ -88,27 +69,17 @@ pub fn haptic_thread(core: Option<usize>) -> Realtime {
         original_cores: allowed_cores(),
         ..Default::default()
     };
-    let param = libc::sched_param {
-        sched_priority: PRIORITY,
-    };
-    // SAFETY: valid parameter for the calling thread.
-    let rc = unsafe { libc::pthread_setschedparam(libc::pthread_self(), libc::SCHED_FIFO, &param) };
-    if rc == 0 {
-        r.sched_fifo = true;
-    } else {
-        r.refused.push(format!(
-            "SCHED_FIFO: {} (run as root, or grant CAP_SYS_NICE / an rtprio limit)",
-            std::io::Error::from_raw_os_error(rc)
-        ));
+    match crate::os::set_fifo(Some(PRIORITY)) {
+        Ok(()) => r.sched_fifo = true,
+        Err(e) => r.refused.push(format!(
+            "SCHED_FIFO: {e} (run as root, or grant CAP_SYS_NICE / an rtprio limit)"
+        )),
     }
-    // SAFETY: no arguments beyond the flags.
-    if unsafe { libc::mlockall(libc::MCL_CURRENT | libc::MCL_FUTURE) } == 0 {
-        r.memory_locked = true;
-    } else {
-        r.refused.push(format!(
-            "mlockall: {} (raise the memlock limit, ulimit -l)",
-            std::io::Error::last_os_error()
-        ));
+    match crate::os::lock_memory(true) {
+        Ok(()) => r.memory_locked = true,
+        Err(e) => r
+            .refused
+            .push(format!("mlockall: {e} (raise the memlock limit, ulimit -l)")),
     }
     if let Some(c) = core {
         match pin(c) {
@@ -123,23 +94,14 @@ pub fn haptic_thread(core: Option<usize>) -> Realtime {
 /// application's own, e.g. the main thread of `ves session`).
 pub fn restore(r: &Realtime) {
     if r.sched_fifo {
-        let param = libc::sched_param { sched_priority: 0 };
-        // SAFETY: valid parameter for the calling thread.
-        unsafe { libc::pthread_setschedparam(libc::pthread_self(), libc::SCHED_OTHER, &param) };
+        // Best effort: a thread that cannot go back keeps FIFO (nothing else to do).
+        let _ = crate::os::set_fifo(None);
     }
     if r.memory_locked {
-        // SAFETY: no arguments.
-        unsafe { libc::munlockall() };
+        let _ = crate::os::lock_memory(false);
     }
     if r.haptic_core.is_some() && !r.original_cores.is_empty() {
-        // SAFETY: the set is initialised before use; 0 = the calling thread.
-        unsafe {
-            let mut set: libc::cpu_set_t = std::mem::zeroed();
-            for &c in &r.original_cores {
-                libc::CPU_SET(c, &mut set);
-            }
-            libc::sched_setaffinity(0, std::mem::size_of::<libc::cpu_set_t>(), &set);
-        }
+        let _ = crate::os::set_cores(&r.original_cores);
     }
 }
 
@@ -158,16 +120,12 @@ mod tests {
                 !r.refused.iter().any(|m| m.starts_with("SCHED_FIFO")),
                 "{r:?}"
             );
-            // SAFETY: sched_getscheduler(0) reads the calling thread's policy.
-            let policy = unsafe { libc::sched_getscheduler(0) };
-            assert_eq!(policy == libc::SCHED_FIFO, r.sched_fifo, "{r:?}");
+            assert_eq!(crate::os::is_fifo(), r.sched_fifo, "{r:?}");
             if let Some(c) = r.haptic_core {
                 assert_eq!(allowed_cores(), [c], "pinned: {r:?}");
             }
             restore(&r);
-            // SAFETY: sched_getscheduler(0) reads the calling thread's policy.
-            let policy = unsafe { libc::sched_getscheduler(0) };
-            assert_eq!(policy, libc::SCHED_OTHER, "{r:?}");
+            assert!(!crate::os::is_fifo(), "{r:?}");
             assert_eq!(allowed_cores(), r.original_cores, "affinity restored");
         })
         .join()

@@ -72,7 +72,7 @@ impl Guard {
     pub(crate) fn new(bound: SocketAddr) -> Guard {
         let any_ip = bound.ip().is_unspecified();
         let mut names = vec!["localhost".to_string()];
-        if any_ip && let Some(h) = hostname() {
+        if any_ip && let Some(h) = crate::os::hostname() {
             names.push(format!("{h}.local"));
             names.push(h);
         }
@@ -205,22 +205,6 @@ fn ip_literal(host: &str) -> Option<IpAddr> {
         Some(v6) => v6.parse::<std::net::Ipv6Addr>().ok().map(IpAddr::V6),
         None => host.parse::<std::net::Ipv4Addr>().ok().map(IpAddr::V4),
     }
-}
-
-/// The machine's host name, as other machines on the network may call it.
-fn hostname() -> Option<String> {
-    let mut buf = [0u8; 256];
-    // SAFETY: the buffer is valid for its length; the name is NUL-terminated within it or the
-    // call fails.
-    let rc = unsafe { libc::gethostname(buf.as_mut_ptr().cast(), buf.len()) };
-    if rc != 0 {
-        return None;
-    }
-    let end = buf.iter().position(|&b| b == 0)?;
-    std::str::from_utf8(&buf[..end])
-        .ok()
-        .filter(|h| !h.is_empty())
-        .map(str::to_ascii_lowercase)
 }
 
 /// Open HTTP connections, oldest first, each with the way to close it.
@@ -403,7 +387,7 @@ mod tests {
                 "{ok}"
             );
         }
-        if let Some(h) = hostname() {
+        if let Some(h) = crate::os::hostname() {
             assert_eq!(status(&g, &[("host", &format!("{h}:8765"))]), 200, "{h}");
         }
         for bad in ["attacker.example:8765", "192.168.1.7:80", "192.168.1.7"] {
