@@ -13,7 +13,7 @@ pub use crate::tet_mesh::{Mesh, TET10_EDGES};
 pub(crate) use cache::{ordering_key, ordering_lookup, ordering_store};
 pub use isolation::{isolate_with, serve as serve_rung};
 use std::collections::HashMap;
-use ves_ffi::gmsh::{self, element_type};
+use ves_gmsh::{self as gmsh, element_type};
 
 /// Meshing failed.
 #[derive(Debug, thiserror::Error)]
