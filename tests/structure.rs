@@ -208,3 +208,132 @@ fn c_declarations_live_only_in_ffi() {
         offenders.join("\n")
     );
 }
+
+/// One `ffi/` crate's manifest, as far as the licence split needs it.
+struct Manifest {
+    name: String,
+    links: Option<String>,
+    license: String,
+    /// Path dependencies of every kind (normal, build, dev, per target), relative to the workspace.
+    path_deps: Vec<String>,
+    /// Every dependency's package name.
+    dep_names: Vec<String>,
+}
+
+fn manifest(krate: &str) -> Manifest {
+    let path = workspace().join(krate).join("Cargo.toml");
+    let text = std::fs::read_to_string(&path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+    let doc: toml::Table = text.parse().unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+    let package = doc.get("package").and_then(|p| p.as_table()).expect("[package]");
+    let string = |key: &str| package.get(key).and_then(|v| v.as_str()).map(String::from);
+    let license = match package.get("license") {
+        // `license.workspace = true`: the workspace's.
+        Some(toml::Value::Table(_)) => workspace_license(),
+        Some(v) => v.as_str().unwrap_or("").to_string(),
+        None => String::new(),
+    };
+    let mut tables = Vec::new();
+    for kind in ["dependencies", "build-dependencies", "dev-dependencies"] {
+        tables.extend(doc.get(kind).and_then(|t| t.as_table()));
+        for target in doc
+            .get("target")
+            .and_then(|t| t.as_table())
+            .into_iter()
+            .flat_map(|t| t.values())
+        {
+            tables.extend(target.get(kind).and_then(|t| t.as_table()));
+        }
+    }
+    let (mut path_deps, mut dep_names) = (Vec::new(), Vec::new());
+    for (key, spec) in tables.into_iter().flatten() {
+        let package_name = spec.get("package").and_then(|p| p.as_str()).unwrap_or(key);
+        dep_names.push(package_name.to_string());
+        if let Some(p) = spec.get("path").and_then(|p| p.as_str()) {
+            // Normalise `ffi/metis/../gmsh` to `ffi/gmsh` (paths stay inside the workspace).
+            let mut parts: Vec<&str> = krate.split('/').collect();
+            for c in p.split('/') {
+                match c {
+                    ".." => {
+                        parts.pop();
+                    }
+                    "." | "" => {}
+                    c => parts.push(c),
+                }
+            }
+            path_deps.push(parts.join("/"));
+        }
+    }
+    Manifest {
+        name: string("name").expect("package.name"),
+        links: string("links"),
+        license,
+        path_deps,
+        dep_names,
+    }
+}
+
+fn workspace_license() -> String {
+    let text = std::fs::read_to_string(workspace().join("Cargo.toml")).expect("Cargo.toml");
+    let doc: toml::Table = text.parse().expect("workspace Cargo.toml");
+    doc.get("workspace")
+        .and_then(|w| w.get("package"))
+        .and_then(|p| p.get("license"))
+        .and_then(|l| l.as_str())
+        .expect("workspace.package.license")
+        .to_string()
+}
+
+/// gmsh is GPL: only ves-gmsh links it, and the other C wrappers (and the permissive crates,
+/// format and runtime) reach it through no path dependency, however indirect, so they build
+/// and are licensed without it.
+#[test]
+fn only_ves_gmsh_depends_on_gmsh() {
+    let root = workspace();
+    let ffi = ffi_crates();
+    let gmsh: Vec<&str> = ffi
+        .iter()
+        .map(String::as_str)
+        .filter(|k| manifest(k).links.as_deref() == Some("gmsh"))
+        .collect();
+    assert_eq!(gmsh, ["ffi/gmsh"], "the crates that link gmsh");
+    assert_eq!(manifest("ffi/gmsh").name, "ves-gmsh");
+    assert!(manifest("ffi/gmsh").license.contains("GPL"), "ves-gmsh links gmsh: GPL");
+    let others = ffi.iter().filter(|k| k.as_str() != "ffi/gmsh").map(String::as_str);
+    for krate in others.chain(["format", "runtime"]) {
+        // Every crate reachable through path dependencies, the crate itself first.
+        let mut reached = vec![krate.to_string()];
+        let mut next = 0;
+        while next < reached.len() {
+            let m = manifest(&reached[next]);
+            assert!(
+                m.links.as_deref() != Some("gmsh") && !m.dep_names.iter().any(|d| d.contains("gmsh")),
+                "{krate} reaches gmsh: {} ({}) links it or depends on it",
+                reached[next],
+                m.name
+            );
+            for d in m.path_deps {
+                if !reached.contains(&d) {
+                    reached.push(d);
+                }
+            }
+            next += 1;
+        }
+        let own = manifest(krate);
+        assert!(
+            !own.license.contains("GPL"),
+            "{krate}: licence {} without gmsh",
+            own.license
+        );
+        // Nor does it link gmsh by hand, from its build script or an `extern` block.
+        let mut files = vec![root.join(krate).join("build.rs")];
+        rust_files(&root.join(krate).join("src"), &mut files);
+        for f in files.iter().filter(|f| f.is_file()) {
+            let text = std::fs::read_to_string(f).expect("source");
+            assert!(
+                !text.contains("rustc-link-lib=gmsh") && !text.contains("name = \"gmsh\""),
+                "{} links gmsh",
+                f.display()
+            );
+        }
+    }
+}
