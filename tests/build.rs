@@ -1,5 +1,5 @@
-//! Exports ves-ffi's XERBLA from the integration tests, so liblapack calls it instead of
-//! its own (which ends the process with exit status 0): see ffi/src/xerbla.rs.
+//! Exports ves-arpack's XERBLA from the integration tests, so liblapack calls it instead
+//! of its own (which ends the process with exit status 0): see ffi/arpack/src/xerbla.rs.
 fn main() {
     println!("cargo:rustc-link-arg=-Wl,--export-dynamic-symbol=xerbla_");
 }

@@ -27,8 +27,8 @@ fn default_scene(step: &Path, dir: &Path) -> PathBuf {
     // OpenCASCADE's bounding box (mm, padded) sizes a first-order mesh, whose nodes give the
     // real extent.
     let path = step.to_path_buf();
-    let (lo, hi) = ves_ffi::gmsh::on_gmsh_thread(move || {
-        let g = ves_ffi::gmsh::Gmsh::start()?;
+    let (lo, hi) = ves_gmsh::on_gmsh_thread(move || {
+        let g = ves_gmsh::Gmsh::start()?;
         g.set_string("Geometry.OCCTargetUnit", "MM")?;
         g.open(&path)?;
         g.bounding_box()

@@ -184,13 +184,12 @@ pub fn node_parts(graph: &NodeGraph, dofs: &Dofs, parts: usize) -> Vec<u32> {
     let weight: Vec<i32> = (0..n)
         .map(|i| (0..3).filter(|&c| dofs.free_of[3 * i + c] != u32::MAX).count().max(1) as i32)
         .collect();
-    let graph = ves_ffi::metis::Graph {
+    let graph = ves_metis::Graph {
         offsets: &xadj,
         adjacency: &adj,
     };
     // On failure, stripes of the numbering: correct, only less local.
-    ves_ffi::metis::partition(&graph, &weight, parts)
-        .unwrap_or_else(|| (0..n).map(|i| (i * parts / n) as u32).collect())
+    ves_metis::partition(&graph, &weight, parts).unwrap_or_else(|| (0..n).map(|i| (i * parts / n) as u32).collect())
 }
 
 /// Where fill-reducing orderings are kept between runs, keyed by the node graph (CSR `xadj`,
@@ -221,12 +220,12 @@ pub fn nested_dissection(graph: &NodeGraph, dofs: &Dofs) -> (Vec<usize>, Vec<usi
     if let Some(order) = cached {
         node_order = order;
     } else if n > 1 && !adj.is_empty() {
-        let graph = ves_ffi::metis::Graph {
+        let graph = ves_metis::Graph {
             offsets: &xadj,
             adjacency: &adj,
         };
         // On failure the natural order is kept: slower, never wrong.
-        if let Some(perm) = ves_ffi::metis::nested_dissection(&graph) {
+        if let Some(perm) = ves_metis::nested_dissection(&graph) {
             node_order = perm;
             if let Some(s) = store {
                 s.store(&xadj, &adj, &node_order);

@@ -12,7 +12,7 @@ pub(crate) use crate::tet_mesh::signed_volume;
 pub use crate::tet_mesh::{Mesh, TET10_EDGES};
 pub use isolation::{isolate_with, serve as serve_rung};
 use std::collections::HashMap;
-use ves_ffi::gmsh::{self, element_type};
+use ves_gmsh::{self as gmsh, element_type};
 
 /// Meshing failed.
 #[derive(Debug, thiserror::Error)]

@@ -3,7 +3,7 @@
 use super::{EigenProblem, EigenSolver, ModesError, Spectrum};
 use crate::linsolve::sym_matvec;
 use std::time::Instant;
-use ves_ffi::arpack::{ShiftInvert, shift_invert};
+use ves_arpack::{ShiftInvert, shift_invert};
 
 /// ARPACK with a METIS-ordered sparse Cholesky factorisation.
 pub struct Arpack<'g> {

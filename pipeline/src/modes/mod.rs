@@ -161,7 +161,7 @@ pub enum ModesError {
     Factor(#[from] FactorError),
     /// ARPACK failed.
     #[error(transparent)]
-    Arpack(#[from] ves_ffi::arpack::ArpackError),
+    Arpack(#[from] ves_arpack::ArpackError),
     /// Too few unknowns for the modes asked.
     #[error(
         "the mesh has {unknowns} free unknowns, too few for {wanted} modes (+{rigid} rigid); refine the mesh or ask fewer modes"

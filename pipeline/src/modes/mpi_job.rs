@@ -12,7 +12,7 @@ use super::ModesError;
 use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering::SeqCst};
 
 thread_local! {
-    static TOKEN: std::cell::RefCell<Option<ves_ffi::slepc::Slepc>> = const { std::cell::RefCell::new(None) };
+    static TOKEN: std::cell::RefCell<Option<ves_slepc::Slepc>> = const { std::cell::RefCell::new(None) };
 }
 
 /// This process's MPI rank, set once MPI is up and kept after it is finalised (the last error
@@ -25,7 +25,7 @@ pub struct SlepcGuard(());
 impl SlepcGuard {
     /// Initialises SLEPc and MPI (once per process).
     pub fn init() -> Result<SlepcGuard, ModesError> {
-        let token = ves_ffi::slepc::Slepc::init().map_err(|e| ModesError::Slepc(e.to_string()))?;
+        let token = ves_slepc::Slepc::init().map_err(|e| ModesError::Slepc(e.to_string()))?;
         RANK.store(token.rank(), SeqCst);
         TOKEN.with(|t| *t.borrow_mut() = Some(token));
         Ok(SlepcGuard(()))
@@ -49,7 +49,7 @@ pub fn ranks() -> usize {
 }
 
 /// Runs `f` with SLEPc's handle (an error when [`SlepcGuard::init`] was not called).
-pub(super) fn with_token<T>(f: impl FnOnce(&ves_ffi::slepc::Slepc) -> Result<T, ModesError>) -> Result<T, ModesError> {
+pub(super) fn with_token<T>(f: impl FnOnce(&ves_slepc::Slepc) -> Result<T, ModesError>) -> Result<T, ModesError> {
     TOKEN.with(|t| {
         let guard = t.borrow();
         let token = guard
@@ -107,7 +107,7 @@ pub fn agree<T>(result: anyhow::Result<T>) -> anyhow::Result<T> {
     }
     let me = rank();
     let failed = result.is_err();
-    let reduced = TOKEN.with(|t| -> Result<Option<String>, ves_ffi::slepc::PetscError> {
+    let reduced = TOKEN.with(|t| -> Result<Option<String>, ves_slepc::PetscError> {
         let guard = t.borrow();
         let Some(mpi) = guard.as_ref() else {
             return Ok(None);
@@ -182,7 +182,7 @@ pub fn serve() -> anyhow::Result<()> {
 }
 
 /// [`serve`] with SLEPc's handle.
-fn serve_with(token: &ves_ffi::slepc::Slepc) -> anyhow::Result<()> {
+fn serve_with(token: &ves_slepc::Slepc) -> anyhow::Result<()> {
     let mut ops = None;
     loop {
         let h: Vec<u64> = token.receive(0, HEADER)?;
@@ -203,9 +203,9 @@ fn serve_with(token: &ves_ffi::slepc::Slepc) -> anyhow::Result<()> {
                     .as_ref()
                     .ok_or_else(|| anyhow::anyhow!("rank 0 asked for a solve before an assembly"))?;
                 let method = if h[4] == 1 {
-                    ves_ffi::slepc::Method::Iterative
+                    ves_slepc::Method::Iterative
                 } else {
-                    ves_ffi::slepc::Method::ShiftInvert
+                    ves_slepc::Method::ShiftInvert
                 };
                 let (nev, sigma, tol) = (h[1] as usize, f64::from_bits(h[2]), f64::from_bits(h[3]));
                 token.lowest_eigenpairs(o, nev, sigma, tol, method)?;
@@ -223,7 +223,7 @@ pub fn release<T>(result: anyhow::Result<T>) -> anyhow::Result<T> {
         return result;
     }
     let kind = if result.is_ok() { message::STOP } else { message::FAIL };
-    let told = TOKEN.with(|t| -> Result<(), ves_ffi::slepc::PetscError> {
+    let told = TOKEN.with(|t| -> Result<(), ves_slepc::PetscError> {
         if let Some(token) = t.borrow().as_ref() {
             for r in 1..token.size() {
                 token.send(r, &header(kind, &[]))?;

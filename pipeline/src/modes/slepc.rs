@@ -20,7 +20,7 @@ use crate::fem::share::{Numbering, Share};
 use crate::material::Material;
 use crate::tet_mesh::Mesh;
 use std::sync::atomic::Ordering::SeqCst;
-use ves_ffi::slepc::{Method, Operators, Slepc};
+use ves_slepc::{Method, Operators, Slepc};
 
 /// [`super::solve_on_ranks`]: solves K φ = λ M φ of `mesh` (its material; supports in `dofs`, `rigid` rigid motions left) with
 /// SLEPc over every MPI rank: rank 0 calls this while the others are in
@@ -192,7 +192,7 @@ fn send_share(
     s: &Share,
     numbers: &[f64; 7],
     frame: bool,
-) -> Result<(), ves_ffi::slepc::PetscError> {
+) -> Result<(), ves_slepc::PetscError> {
     let words = [
         n as u64,
         lo as u64,
@@ -297,16 +297,16 @@ fn rows_of(
     frame: Option<([f64; 3], f64)>,
     lo: usize,
     hi: usize,
-) -> anyhow::Result<(ves_ffi::slepc::LocalRows, Moments)> {
+) -> anyhow::Result<(ves_slepc::LocalRows, Moments)> {
     let (a, global, moments, mesh, dofs) = share.assemble(&material)?;
-    let pair = ves_ffi::slepc::SymmetricPair {
+    let pair = ves_slepc::SymmetricPair {
         n: global.len(),
         col_ptr: a.pattern.col_ptr(),
         row_idx: a.pattern.row_idx(),
         k: &a.k,
         m: &a.m,
     };
-    let mut rows = ves_ffi::slepc::LocalRows::from_lower(&pair, &global, lo, hi);
+    let mut rows = ves_slepc::LocalRows::from_lower(&pair, &global, lo, hi);
     drop(a);
     if let Some(r) = (0..hi - lo).find(|&r| rows.row_ptr[r + 1] == rows.row_ptr[r]) {
         anyhow::bail!(
@@ -329,6 +329,6 @@ fn rows_of(
     Ok((rows, moments))
 }
 
-fn slepc_error(e: ves_ffi::slepc::PetscError) -> ModesError {
+fn slepc_error(e: ves_slepc::PetscError) -> ModesError {
     ModesError::Slepc(e.to_string())
 }

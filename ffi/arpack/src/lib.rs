@@ -5,8 +5,13 @@
 //! ARPACK keeps its iteration state in Fortran `SAVE` variables, so two runs at once in one
 //! process corrupt each other (seen as info = 3 when two tests solved in parallel): one lock
 //! serialises whole runs.
+//!
+//! LAPACK, which ARPACK calls, reports an illegal argument through XERBLA; the reference one
+//! ends the process. [`xerbla`] defines a non-fatal one and the solver returns what it recorded
+//! as [`ArpackError::Lapack`].
 
 mod sys;
+pub mod xerbla;
 
 use std::os::raw::c_int;
 use std::sync::Mutex;

@@ -1,12 +1,12 @@
 //! The hand-written PETSc/SLEPc declarations against the installed headers: a C program built
-//! with `pkg-config --cflags slepc` prints every constant and type size `slepc/sys.rs` declares,
+//! with `pkg-config --cflags slepc` prints every constant and type size `src/sys.rs` declares,
 //! and each must equal the Rust one (review once found `SAME_NONZERO_PATTERN` declared as 0,
 //! which PETSc reads as DIFFERENT_NONZERO_PATTERN).
 #![cfg(feature = "slepc")]
 
 use std::collections::HashMap;
 use std::process::Command;
-use ves_ffi::slepc::sys;
+use ves_slepc::sys;
 
 #[test]
 fn every_declared_constant_and_type_size_matches_the_headers() {

@@ -2,8 +2,9 @@
 //! liblapack, which ARPACK calls) prints a line and `STOP`s the program with exit status 0: a
 //! scene with density = 1e120 ended `ves` silently "successfully", and a whole `ves batch` with
 //! it. This crate defines XERBLA itself; the executable's definition takes precedence over the
-//! shared library's (the binaries export it: see `pipeline/build.rs`). The error is recorded and
-//! the caller turns it into an error after the LAPACK-using call returns.
+//! shared library's (the binaries export it: see this crate's `build.rs` and `pipeline/build.rs`).
+//! The error is recorded and the caller turns it into an error after the LAPACK-using call
+//! returns.
 
 use std::os::raw::{c_char, c_int};
 use std::sync::Mutex;
@@ -37,22 +38,8 @@ pub fn take_error() -> Option<String> {
 
 #[cfg(test)]
 mod tests {
-    unsafe extern "C" {
-        fn dlascl_(
-            ty: *const c_char,
-            kl: *const c_int,
-            ku: *const c_int,
-            cfrom: *const f64,
-            cto: *const f64,
-            m: *const c_int,
-            n: *const c_int,
-            a: *mut f64,
-            lda: *const c_int,
-            info: *mut c_int,
-            ty_len: usize,
-        );
-    }
-    use std::os::raw::{c_char, c_int};
+    use crate::sys::dlascl_;
+    use std::os::raw::c_int;
 
     /// cfrom = 0 is illegal (argument 4): what density = 1e120 provoked inside ARPACK. The
     /// process must still be running afterwards, with the error recorded.

@@ -49,3 +49,22 @@ unsafe extern "C" {
         info: *mut c_int,
     );
 }
+
+// LAPACK itself, for XERBLA's test only: an illegal argument must come back, not end the test.
+#[cfg(test)]
+#[link(name = "lapack")]
+unsafe extern "C" {
+    pub fn dlascl_(
+        ty: *const c_char,
+        kl: *const c_int,
+        ku: *const c_int,
+        cfrom: *const f64,
+        cto: *const f64,
+        m: *const c_int,
+        n: *const c_int,
+        a: *mut f64,
+        lda: *const c_int,
+        info: *mut c_int,
+        ty_len: usize,
+    );
+}

@@ -9,6 +9,9 @@
 //! message (its printing error handler is replaced by the silent one). Options can still be
 //! overridden from the environment (`PETSC_OPTIONS="-eps_ncv 80 -st_pc_factor_mat_solver_type
 //! superlu_dist"`), since the solver calls `EPSSetFromOptions`.
+//!
+//! Everything is behind the `slepc` feature: without it the crate is empty and links nothing.
+#![cfg(feature = "slepc")]
 
 /// Raw declarations (public so a test can check them against the installed headers).
 pub mod sys;
