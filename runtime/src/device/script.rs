@@ -1,8 +1,16 @@
 //! The scripted device (`script:FILE.csv`): replays a trajectory file, so sessions are
 //! reproducible.
 
-use super::{Device, DeviceFault, DeviceInfo, DeviceState};
+use super::{Device, DeviceFault, DeviceInfo, DeviceState, Kind};
 use std::path::{Path, PathBuf};
+
+/// `script:FILE.csv` in a device spec.
+pub(super) const KIND: Kind = Kind {
+    name: "script",
+    argument: "FILE.csv",
+    about: "t, x, y, z[, button] in SI units",
+    open: |file| Ok(Box::new(ScriptedDevice::load(Path::new(file))?)),
+};
 
 /// A trajectory read from CSV `t, x, y, z[, button]` (SI units, rows in increasing t; `#` lines,
 /// a header line of column names before the first row and a leading byte-order mark are
