@@ -140,3 +140,24 @@ fn haptic_steps_allocate_nothing() {
         assert!(stressed, "the stress watch ran and tripped");
     }
 }
+
+/// A device read allocates nothing either, a fault included (it runs in the same loop): a
+/// scripted device read through the trait over and past its trajectory, then closed.
+#[test]
+fn device_reads_allocate_nothing() {
+    use ves_runtime::device::{Device, DeviceFault, ScriptedDevice};
+    let script = ScriptedDevice::parse("hand.csv", "t,x,y,z,button\n0,0,0,0,1\n0.5,0.01,0,0,1\n1,0.01,0,0,0\n");
+    let mut device: Box<dyn Device> = Box::new(script.expect("script parses"));
+    let before = allocations();
+    let mut moved = 0.0;
+    for k in 0..2000 {
+        let s = device.read(f64::from(k) * 1e-3).expect("open");
+        moved += s.position[0];
+        device.write([0.0, 0.0, -1.0]);
+    }
+    device.close();
+    let fault = device.read(2.0);
+    assert_eq!(allocations() - before, 0, "a device read allocated");
+    assert!(moved > 0.0);
+    assert_eq!(fault, Err(DeviceFault::Disconnected));
+}

@@ -4,7 +4,7 @@ use anyhow::{Context, Result};
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 use ves_runtime::LoadOptions;
-use ves_runtime::device::{Device, ScriptedDevice};
+use ves_runtime::device::{self, Device};
 use ves_runtime::haptic::{Coupling, StrainPolicy, ValidityWatch};
 use ves_runtime::session::{self, SessionConfig};
 use ves_runtime::switching::{self, SpaceInput};
@@ -25,8 +25,8 @@ enum StrainReaction {
 pub struct Args {
     /// Basis file (HDF5).
     basis: PathBuf,
-    /// A device per hand: `script:FILE.csv` (t, x, y, z[, button] in SI units).
-    #[arg(long = "device", required = true)]
+    // Help: every kind of device the runtime can open, e.g. `script:FILE.csv`.
+    #[arg(long = "device", required = true, help = format!("A device per hand: {}", device::usage()))]
     devices: Vec<String>,
     /// Session length, s (default: the longest script).
     #[arg(long)]
@@ -156,12 +156,9 @@ impl Args {
         let mut devices: Vec<Box<dyn Device>> = Vec::new();
         let mut longest = 0.0f64;
         for d in &self.devices {
-            let file = d
-                .strip_prefix("script:")
-                .ok_or_else(|| anyhow::anyhow!("--device {d:?}: use script:FILE.csv"))?;
-            let dev = ScriptedDevice::load(Path::new(file))?;
-            longest = longest.max(dev.duration());
-            devices.push(Box::new(dev));
+            let dev = device::open(d)?;
+            longest = longest.max(dev.info().length_s.unwrap_or(0.0));
+            devices.push(dev);
         }
         // A duration given is checked as given; the scripts' length gets at least one step.
         let duration = self.duration.unwrap_or(longest.max(1.0 / self.settings.rate));
@@ -190,12 +187,7 @@ impl Args {
                 }
                 let steps = steps as usize;
                 let mut inputs = vec![self.basis.as_path()];
-                inputs.extend(
-                    self.devices
-                        .iter()
-                        .filter_map(|d| d.strip_prefix("script:"))
-                        .map(Path::new),
-                );
+                inputs.extend(devices.iter().filter_map(|d| d.info().file));
                 ves_pipeline::output::check_as(
                     path,
                     &inputs,

@@ -5,7 +5,7 @@
 
 use anyhow::Result;
 use std::sync::mpsc;
-use ves_runtime::device::{Device, DeviceState};
+use ves_runtime::device::{Device, DeviceFault, DeviceInfo, DeviceState};
 use ves_runtime::haptic::HandOutput;
 
 /// Most steps a trace records per hand: 1000 s at the default 1 kHz. Its rows are reserved
@@ -98,11 +98,15 @@ struct Recording {
 }
 
 impl Device for Recording {
-    fn read(&mut self, t: f64) -> DeviceState {
-        let s = self.inner.read(t);
+    fn info(&self) -> DeviceInfo<'_> {
+        self.inner.info()
+    }
+
+    fn read(&mut self, t: f64) -> Result<DeviceState, DeviceFault> {
+        let s = self.inner.read(t)?;
         self.row.t = t;
         self.row.position = s.position;
-        s
+        Ok(s)
     }
 
     fn write(&mut self, force: [f64; 3]) {
@@ -115,6 +119,10 @@ impl Device for Recording {
         if self.rows.len() < self.rows.capacity() {
             self.rows.push(self.row);
         }
+    }
+
+    fn close(&mut self) {
+        self.inner.close();
     }
 }
 

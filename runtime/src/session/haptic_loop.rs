@@ -1,9 +1,10 @@
 //! The haptic thread's loop: wait for the deadline, read the devices, step the simulation,
-//! write the forces, publish the state for drawing.
+//! write the forces, publish the state for drawing. A device that faults ends the loop with zero
+//! force sent to every device.
 
 use super::SessionConfig;
 use super::stats::{HandTally, LoopTimings, PartRecord};
-use crate::device::Device;
+use crate::device::{Device, DeviceFault};
 use crate::haptic::{HandInput, HandOutput};
 use crate::snapshot::{Published, Snapshot};
 use crate::switching::Switcher;
@@ -74,15 +75,30 @@ pub(super) struct HapticLoop<'a> {
     pub reset: &'a AtomicBool,
 }
 
-/// What the loop leaves: its timings, its tallies and the last step's hand outputs.
+/// What the loop leaves: its timings, its tallies, the last step's hand outputs (forces as last
+/// sent) and the device fault that ended it, if one did.
 pub(super) struct Ran {
     pub timings: LoopTimings,
     pub tally: HandTally,
     pub outputs: Vec<HandOutput>,
+    pub fault: Option<Fault>,
+}
+
+/// A device read that failed.
+#[derive(Clone, Copy, Debug)]
+pub(super) struct Fault {
+    /// The hand whose device it was.
+    pub hand: usize,
+    pub fault: DeviceFault,
+    /// Session time of the read, s.
+    pub time_s: f64,
+    /// Steps completed before it.
+    pub step: u64,
 }
 
 impl HapticLoop<'_> {
-    /// Runs `steps` steps (or until stopped) at the session's rate. Allocation-free per step.
+    /// Runs `steps` steps (or until stopped, or until a device faults) at the session's rate.
+    /// Allocation-free per step.
     pub(super) fn run(
         self,
         cfg: &SessionConfig,
@@ -108,6 +124,7 @@ impl HapticLoop<'_> {
         let mut published = Published::new(r_max);
         let start = Instant::now();
         let mut pacer = Pacer::new(cfg, rt, start);
+        let mut fault = None;
         for k in 0..steps {
             if self.stop.load(Ordering::Relaxed) {
                 break;
@@ -118,13 +135,21 @@ impl HapticLoop<'_> {
                 .period_error_ns
                 .record(woke.duration_since(pacer.next).as_nanos() as u64);
             let t = k as f64 * dt;
-            for (inp, dev) in inputs.iter_mut().zip(self.devices.iter_mut()) {
-                let s = dev.read(t);
-                *inp = HandInput {
-                    position: s.position,
-                    velocity: s.velocity,
-                    button: s.button,
-                };
+            if let Err((hand, f)) = read_devices(self.devices, &mut inputs, t) {
+                // Without that hand's position the step cannot be taken: the session ends here,
+                // every device let go rather than left pushing with the last force.
+                for (out, dev) in outputs.iter_mut().zip(self.devices.iter_mut()) {
+                    out.force = [0.0; 3];
+                    dev.write(out.force);
+                }
+                timings.steps = k;
+                fault = Some(Fault {
+                    hand,
+                    fault: f,
+                    time_s: t,
+                    step: k,
+                });
+                break;
             }
             if self.reset.load(Ordering::Relaxed) && self.reset.swap(false, Ordering::Relaxed) {
                 self.haptics.reset();
@@ -155,6 +180,21 @@ impl HapticLoop<'_> {
             timings,
             tally,
             outputs,
+            fault,
         })
     }
+}
+
+/// Reads every device at `t` into its hand's input; the first fault stops the reads and names
+/// its hand.
+fn read_devices(devices: &mut [Box<dyn Device>], inputs: &mut [HandInput], t: f64) -> Result<(), (usize, DeviceFault)> {
+    for (hand, (inp, dev)) in inputs.iter_mut().zip(devices.iter_mut()).enumerate() {
+        let s = dev.read(t).map_err(|f| (hand, f))?;
+        *inp = HandInput {
+            position: s.position,
+            velocity: s.velocity,
+            button: s.button,
+        };
+    }
+    Ok(())
 }

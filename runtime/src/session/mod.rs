@@ -1,12 +1,16 @@
 //! A real-time session: a haptic thread at a fixed rate (devices in, forces out, modal state
 //! published lock-free; [`haptic_loop`]) beside a drawing thread making the whole deformed part
-//! ([`drawing`]), each keeping its own statistics ([`stats`]).
+//! ([`drawing`]), each keeping its own statistics ([`stats`]). The session owns its devices and
+//! closes them when it ends, whichever way; a device's fault ends it early and is reported in
+//! [`SessionStats::device_fault`].
 
 mod drawing;
 mod haptic_loop;
 mod stats;
+#[cfg(test)]
+mod tests;
 
-pub use stats::{HandReport, SessionStats};
+pub use stats::{DeviceFaultReport, HandReport, SessionStats};
 
 use crate::basis::Basis;
 use crate::device::Device;
@@ -151,8 +155,8 @@ pub struct Hooks {
 }
 
 /// Runs a session on one space with one hand per device; returns when `duration_s` has
-/// elapsed. A part whose basis holds mass properties moves as a free body when `cfg.free_body`
-/// is set.
+/// elapsed or a device faults. A part whose basis holds mass properties moves as a free body
+/// when `cfg.free_body` is set.
 pub fn run(
     basis: Arc<Basis>,
     devices: Vec<Box<dyn Device>>,
@@ -181,12 +185,13 @@ pub fn run_spaces(
 /// [`run_spaces`] with hooks: an external stop and a frame observer (the viewer's path).
 pub fn run_spaces_with(
     spaces: Vec<SpaceInput>,
-    mut devices: Vec<Box<dyn Device>>,
+    devices: Vec<Box<dyn Device>>,
     cfg: &SessionConfig,
     hooks: Hooks,
 ) -> Result<SessionStats, SessionError> {
+    let mut devices = Devices(devices);
     cfg.validate().map_err(SessionError::Setting)?;
-    let hands = devices.len().max(1);
+    let hands = devices.0.len().max(1);
     // Saturates at u64::MAX for an infinite session.
     let steps = (cfg.duration_s * cfg.rate_hz).round().max(1.0) as u64;
     let bases: Vec<Arc<Basis>> = spaces.iter().map(|s| s.basis.clone()).collect();
@@ -211,7 +216,7 @@ pub fn run_spaces_with(
         .then(|| crate::realtime::haptic_thread(crate::realtime::haptic_core()));
     let ran = haptic_loop::HapticLoop {
         haptics: &mut haptics,
-        devices: &mut devices,
+        devices: &mut devices.0,
         snapshot: &snapshot,
         part: &part,
         stop: &hooks.stop.unwrap_or_default(),
@@ -222,14 +227,27 @@ pub fn run_spaces_with(
     if let Some(r) = &rt {
         crate::realtime::restore(r);
     }
+    devices.close();
     let drawing_wall = drawing.join();
     let ran = ran?;
+    let device_fault = ran.fault.map(|f| DeviceFaultReport {
+        hand: f.hand,
+        device: devices
+            .0
+            .get(f.hand)
+            .map(|d| d.info().name.to_string())
+            .unwrap_or_default(),
+        fault: f.fault,
+        time_s: f.time_s,
+        step: f.step,
+    });
     Ok(SessionStats::from_parts(
         stats::HapticSide {
             timings: &ran.timings,
             tally: &ran.tally,
             switcher: &haptics,
             final_forces: ran.outputs.iter().map(|o| o.force).collect(),
+            device_fault,
             realtime: rt,
         },
         stats::DrawingSide {
@@ -240,6 +258,24 @@ pub fn run_spaces_with(
             elastic: bases[0].elastic.is_some(),
         },
     ))
+}
+
+/// A session's devices, closed when it ends: explicitly after the haptic loop, or when dropped
+/// on any other way out (an error before the loop, a panic).
+struct Devices(Vec<Box<dyn Device>>);
+
+impl Devices {
+    fn close(&mut self) {
+        for d in &mut self.0 {
+            d.close();
+        }
+    }
+}
+
+impl Drop for Devices {
+    fn drop(&mut self) {
+        self.close();
+    }
 }
 
 /// The simulations of every space, with the session's free body and validity watch.

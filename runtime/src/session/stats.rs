@@ -73,8 +73,26 @@ pub struct SessionStats {
     pub final_forces_n: Vec<[f64; 3]>,
     /// Per hand: the vertex it touched, where, from how far, and how that vertex moved.
     pub hands: Vec<HandReport>,
+    /// The device fault that ended the session early (null: none did).
+    pub device_fault: Option<DeviceFaultReport>,
     /// What real-time hygiene the session got (null when not asked for).
     pub realtime: Option<crate::realtime::Realtime>,
+}
+
+/// A device read that failed and ended the session: every device was sent zero force at that
+/// step, and the session stopped.
+#[derive(Clone, Debug, serde::Serialize)]
+pub struct DeviceFaultReport {
+    /// The hand whose device faulted (its index among the session's devices).
+    pub hand: usize,
+    /// That device's name (its file, or its kind).
+    pub device: String,
+    /// What went wrong: `disconnected`, `out_of_range`, `timeout` or `hardware`.
+    pub fault: crate::device::DeviceFault,
+    /// Session time of the failed read, s.
+    pub time_s: f64,
+    /// Steps completed before it.
+    pub step: u64,
 }
 
 /// What one hand did over a session.
@@ -243,6 +261,7 @@ pub(super) struct HapticSide<'a> {
     pub tally: &'a HandTally,
     pub switcher: &'a crate::switching::Switcher,
     pub final_forces: Vec<[f64; 3]>,
+    pub device_fault: Option<DeviceFaultReport>,
     pub realtime: Option<crate::realtime::Realtime>,
 }
 
@@ -300,6 +319,7 @@ impl SessionStats {
             principal_strain_max: (d.has_stress && d.elastic).then(|| d.part.principal_strain.get()),
             final_forces_n: h.final_forces,
             hands: h.tally.hands.clone(),
+            device_fault: h.device_fault,
             realtime: h.realtime,
         }
     }

@@ -1,7 +1,7 @@
 //! The browser as a haptic device: a hand slot written by the client that owns it, read by the
 //! haptic thread through the same [`Device`] trait as every other device.
 
-use crate::device::{Device, DeviceState};
+use crate::device::{Device, DeviceFault, DeviceInfo, DeviceState};
 use crate::haptic::HandOutput;
 use crate::snapshot::Snapshot;
 use std::sync::Arc;
@@ -227,18 +227,27 @@ impl WebHand {
 }
 
 impl Device for WebHand {
-    fn read(&mut self, _t: f64) -> DeviceState {
+    fn info(&self) -> DeviceInfo<'_> {
+        DeviceInfo {
+            name: "page",
+            length_s: None,
+            file: None,
+        }
+    }
+
+    /// Never faults: a hand no client drives is absent (no vertex, no force), not broken.
+    fn read(&mut self, _t: f64) -> Result<DeviceState, DeviceFault> {
         let mut i = [0.0; INPUT];
         self.slot.input.read(&mut i);
         self.seq = i[5] as u32;
         if i[4] == 0.0 {
             // No hand: a non-finite position gives no vertex and no force.
             self.following = false;
-            return DeviceState {
+            return Ok(DeviceState {
                 position: [f64::NAN; 3],
                 velocity: [0.0; 3],
                 button: false,
-            };
+            });
         }
         let target = [i[0], i[1], i[2]];
         if !self.following {
@@ -254,11 +263,11 @@ impl Device for WebHand {
                 *v = step / self.dt;
             }
         }
-        DeviceState {
+        Ok(DeviceState {
             position: self.x,
             velocity: self.v,
             button: i[3] != 0.0,
-        }
+        })
     }
 
     fn write(&mut self, _force: [f64; 3]) {}

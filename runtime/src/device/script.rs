@@ -1,29 +1,16 @@
-//! Haptic devices: position (and button) in, force out, SI units. A scripted device replays a
-//! trajectory file so sessions are reproducible.
+//! The scripted device (`script:FILE.csv`): replays a trajectory file, so sessions are
+//! reproducible.
 
-use std::path::Path;
+use super::{Device, DeviceFault, DeviceInfo, DeviceState, Kind};
+use std::path::{Path, PathBuf};
 
-/// What a device reports at one instant.
-#[derive(Clone, Copy, Debug, Default, PartialEq)]
-pub struct DeviceState {
-    /// End-effector position, m.
-    pub position: [f64; 3],
-    /// End-effector velocity, m/s.
-    pub velocity: [f64; 3],
-    /// Button held.
-    pub button: bool,
-}
-
-/// A haptic device. `read` and `write` are called from the haptic thread at its rate: they must
-/// not block.
-pub trait Device: Send {
-    /// State at session time `t` (s).
-    fn read(&mut self, t: f64) -> DeviceState;
-    /// Force to render, N (already limited by the runtime).
-    fn write(&mut self, force: [f64; 3]);
-    /// Everything the step gave this hand (vertex, contact, strain, stress), after `write`.
-    fn observe(&mut self, _out: &crate::haptic::HandOutput) {}
-}
+/// `script:FILE.csv` in a device spec.
+pub(super) const KIND: Kind = Kind {
+    name: "script",
+    argument: "FILE.csv",
+    about: "t, x, y, z[, button] in SI units",
+    open: |file| Ok(Box::new(ScriptedDevice::load(Path::new(file))?)),
+};
 
 /// A trajectory read from CSV `t, x, y, z[, button]` (SI units, rows in increasing t; `#` lines,
 /// a header line of column names before the first row and a leading byte-order mark are
@@ -35,6 +22,12 @@ pub struct ScriptedDevice {
     p: Vec<[f64; 3]>,
     b: Vec<bool>,
     cursor: usize,
+    /// The file (or other source) it was read from, as given.
+    name: String,
+    /// The file, when read from one.
+    file: Option<PathBuf>,
+    /// Closed: reads fail.
+    closed: bool,
     /// Largest force magnitude written, N.
     pub peak_force: f64,
     /// Last force written.
@@ -59,6 +52,9 @@ impl ScriptedDevice {
             p: vec![],
             b: vec![],
             cursor: 0,
+            name: path.into(),
+            file: None,
+            closed: false,
             peak_force: 0.0,
             last_force: [0.0; 3],
         };
@@ -159,7 +155,9 @@ impl ScriptedDevice {
                 e.utf8_error().valid_up_to()
             ))
         })?;
-        Self::parse(&p, &text)
+        let mut d = Self::parse(&p, &text)?;
+        d.file = Some(path.to_path_buf());
+        Ok(d)
     }
 
     /// Time of the last row, s.
@@ -178,7 +176,18 @@ fn excerpt(line: &str) -> String {
 }
 
 impl Device for ScriptedDevice {
-    fn read(&mut self, t: f64) -> DeviceState {
+    fn info(&self) -> DeviceInfo<'_> {
+        DeviceInfo {
+            name: &self.name,
+            length_s: Some(self.duration()),
+            file: self.file.as_deref(),
+        }
+    }
+
+    fn read(&mut self, t: f64) -> Result<DeviceState, DeviceFault> {
+        if self.closed {
+            return Err(DeviceFault::Disconnected);
+        }
         let n = self.t.len();
         while self.cursor + 1 < n && self.t[self.cursor + 1] <= t {
             self.cursor += 1;
@@ -186,26 +195,30 @@ impl Device for ScriptedDevice {
         let i = self.cursor;
         if i + 1 >= n || t <= self.t[0] {
             let k = if t <= self.t[0] { 0 } else { n - 1 };
-            return DeviceState {
+            return Ok(DeviceState {
                 position: self.p[k],
                 velocity: [0.0; 3],
                 button: self.b[k],
-            };
+            });
         }
         let (t0, t1) = (self.t[i], self.t[i + 1]);
         let s = (t - t0) / (t1 - t0);
         let (a, b) = (self.p[i], self.p[i + 1]);
-        DeviceState {
+        Ok(DeviceState {
             position: std::array::from_fn(|c| a[c] + s * (b[c] - a[c])),
             velocity: std::array::from_fn(|c| (b[c] - a[c]) / (t1 - t0)),
             button: self.b[i],
-        }
+        })
     }
 
     fn write(&mut self, force: [f64; 3]) {
         let m = (force[0] * force[0] + force[1] * force[1] + force[2] * force[2]).sqrt();
         self.peak_force = self.peak_force.max(m);
         self.last_force = force;
+    }
+
+    fn close(&mut self) {
+        self.closed = true;
     }
 }
 
@@ -216,10 +229,13 @@ mod tests {
     #[test]
     fn interpolates_and_rejects_bad_rows() {
         let mut d = ScriptedDevice::parse("s.csv", "t,x,y,z,button\n0,0,0,0,0\n1,1,2,3,1\n").expect("valid");
-        let s = d.read(0.5);
+        let s = d.read(0.5).expect("open");
         assert_eq!(s.position, [0.5, 1.0, 1.5]);
         assert_eq!(s.velocity, [1.0, 2.0, 3.0]);
-        assert_eq!(d.read(5.0).position, [1.0, 2.0, 3.0]);
+        assert_eq!(d.read(5.0).expect("open").position, [1.0, 2.0, 3.0]);
+        d.close();
+        assert_eq!(d.read(0.5), Err(DeviceFault::Disconnected));
+        d.close();
         assert!(ScriptedDevice::parse("s.csv", "0,0,0,0\n0,1,1,1\n").is_err());
         assert!(ScriptedDevice::parse("s.csv", "0,0,0\n").is_err());
         assert!(ScriptedDevice::parse("s.csv", "0,0,0,nan\n").is_err());
