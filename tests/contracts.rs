@@ -244,7 +244,7 @@ fn scene_contract_gaps(scene_rs: &str, scene_md: &str) -> Vec<String> {
 /// The scene parser's serde items: scene.rs and the material table it takes from material.rs.
 fn scene_sources() -> String {
     let code = |path: &str| read(path).split("#[cfg(test)]").next().unwrap_or_default().to_string();
-    code("pipeline/src/scene.rs") + "\n" + &code("pipeline/src/material.rs")
+    code("pipeline/src/scene.rs") + "\n" + &code("numerics/src/material.rs")
 }
 
 #[test]

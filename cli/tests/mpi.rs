@@ -181,7 +181,7 @@ fn a_killed_rank_ends_the_job_and_leaves_no_process() {
     // Both ranks log when their operators are assembled: the solve (MUMPS, then the
     // eigen-solver, ~10 s) starts then, and the kill is sent into it.
     let mut job = mpirun(&[app(2, &path, &out)]);
-    job.env("VES_LOG", "ves_pipeline::modes::slepc=debug");
+    job.env("VES_LOG", "ves_numerics::modes::slepc=debug");
     let mut child = job.spawn().expect("mpirun runs");
     let launcher = child.id();
     let stderr = child.stderr.take().expect("stderr piped");

@@ -3,34 +3,28 @@
 //! Data flows one way: [`scene`] → [`mesh`] → [`supports`] → [`fem`] (K, M) → [`modes`]
 //! (eigen-solve) → [`store`] (HDF5). [`precompute`] strings the stages together.
 
+// The numerics core, re-exported: the pipeline's modules and its users name it as before.
+pub use ves_numerics::{fem, linsolve, material, memory, modes, os, rigid_motions, tall, tet_mesh};
+
 pub mod accuracy;
 pub mod batch;
 pub mod compliance;
 pub mod export;
-pub mod fem;
 pub mod fingerprint;
 pub mod input;
-pub mod linsolve;
 pub mod loads;
-pub mod material;
 pub mod matrices;
-pub mod memory;
 pub mod mesh;
-pub mod modes;
-pub mod os;
 pub mod output;
 pub mod precompute;
 pub mod preview;
 pub mod problem;
 pub mod progress;
 pub mod report;
-pub mod rigid_motions;
 pub mod scene;
 pub mod step_units;
 pub mod store;
 pub mod supports;
-pub mod tall;
-pub mod tet_mesh;
 pub mod transfer;
 pub mod verify;
 pub mod workdir;

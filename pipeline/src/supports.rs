@@ -248,3 +248,47 @@ mod tests {
         assert!(s.len() < 200 && s.ends_with("… (99988 tags more)"), "{s:.300}");
     }
 }
+
+/// The rigid motions supports leave free, counted on selected nodes.
+#[cfg(test)]
+mod rigid_motions_left {
+    use crate::rigid_motions::free_rigid_count;
+    use crate::scene::{Region, Support};
+    use crate::supports::select;
+    use crate::tet_mesh::Mesh;
+
+    fn cube() -> Mesh {
+        // Unit cube split into 6 tets around the diagonal 0–6.
+        let c: Vec<[f64; 3]> = (0..8)
+            .map(|i| [(i & 1) as f64, ((i >> 1) & 1) as f64, ((i >> 2) & 1) as f64])
+            .collect();
+        let tets = [0, 1, 3, 7, 0, 1, 5, 7, 0, 4, 5, 7, 0, 2, 3, 7, 0, 2, 6, 7, 0, 4, 6, 7];
+        Mesh::from_raw(&c, &tets, ves_format::ElementKind::Tet4)
+    }
+
+    fn count(supports: &[Support]) -> usize {
+        let m = cube();
+        free_rigid_count(&m.nodes, &select(&m, supports).expect("supports select nodes"))
+    }
+
+    #[test]
+    fn counts_rigid_motions_left_by_supports() {
+        let plane = |axis, value, components| Support {
+            region: Region::Plane { axis, value, tol: None },
+            components,
+        };
+        assert_eq!(count(&[]), 6);
+        assert_eq!(count(&[plane(2, 0.0, [true; 3])]), 0);
+        // Out-of-plane support of a face: in-plane translations and the rotation about z remain.
+        assert_eq!(count(&[plane(2, 0.0, [false, false, true])]), 3);
+        // One clamped edge (x = 0, z = 0 is a line): rotation about it remains.
+        let edge = Support {
+            region: Region::Box(crate::scene::BoxRegion {
+                min: [0.0, -1.0, 0.0],
+                max: [0.0, 2.0, 0.0],
+            }),
+            components: [true; 3],
+        };
+        assert_eq!(count(&[edge]), 1);
+    }
+}

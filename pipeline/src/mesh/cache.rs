@@ -25,7 +25,7 @@ use std::path::{Path, PathBuf};
 /// The meshing code and the entries' format: part of every key.
 const SOURCES: [&str; 4] = [
     include_str!("mod.rs"),
-    include_str!("quality.rs"),
+    include_str!("../../../numerics/src/tet_mesh/quality.rs"),
     include_str!("isolation.rs"),
     include_str!("cache.rs"),
 ];
@@ -282,7 +282,7 @@ pub(crate) fn ordering_key(xadj: &[i32], adj: &[i32]) -> Option<PathBuf> {
     let bytes = |v: &[i32]| -> Vec<u8> { v.iter().flat_map(|x| x.to_le_bytes()).collect() };
     let mut h = crate::fingerprint::Fingerprint::default();
     h.field(env!("CARGO_PKG_VERSION").as_bytes())
-        .field(include_str!("../linsolve.rs").as_bytes())
+        .field(include_str!("../../../numerics/src/linsolve.rs").as_bytes())
         .field(&bytes(xadj))
         .field(&bytes(adj));
     Some(dir.join(format!("{:016x}.order", h.value())))

@@ -5,11 +5,10 @@ use crate::scene::{LengthUnit, Scene, Voi};
 mod cache;
 pub mod field;
 mod isolation;
-pub mod quality;
-pub mod walls;
 use crate::fem::element::Kind;
 pub(crate) use crate::tet_mesh::signed_volume;
-pub use crate::tet_mesh::{Mesh, TET10_EDGES};
+// Element quality and wall thickness are the mesh type's own (the numerics core).
+pub use crate::tet_mesh::{Mesh, TET10_EDGES, quality, walls};
 pub use isolation::{isolate_with, serve as serve_rung};
 use std::collections::HashMap;
 use ves_gmsh::{self as gmsh, element_type};

@@ -57,12 +57,12 @@ mod tests {
     #[test]
     fn a_plate_one_element_thick_is_found_and_a_block_is_not() {
         // 10 × 10 × 1 cubes of side 0.01: a 0.1 × 0.1 × 0.01 m plate.
-        let plate = Mesh::structured_box([10, 10, 1], 0.01, crate::fem::element::Kind::Tet10, |_, p| p);
+        let plate = Mesh::structured_box([10, 10, 1], 0.01, ves_format::ElementKind::Tet10, |_, p| p);
         let w = plate.walls();
         assert!(w.spanning_fraction > 0.99, "{w:?}");
         // 2V/A = 2·1e-4 / (2·0.01 + 4·0.001) = 8.3e-3 m.
         assert!((w.thickness - 2e-4 / 0.024).abs() < 1e-12, "{w:?}");
-        let block = Mesh::structured_box([4, 4, 4], 0.01, crate::fem::element::Kind::Tet10, |_, p| p);
+        let block = Mesh::structured_box([4, 4, 4], 0.01, ves_format::ElementKind::Tet10, |_, p| p);
         assert!(
             block.walls().spanning_fraction < ONE_ELEMENT_THICK,
             "{:?}",

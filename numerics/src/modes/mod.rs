@@ -649,6 +649,51 @@ pub struct Space<'a> {
     pub rigid: usize,
 }
 
+/// A space's model in one piece (mesh, DOFs, material, K and M): what a caller without a scene
+/// (a test, a library user with its own mesh) assembles and solves.
+pub struct Model {
+    /// The mesh.
+    pub mesh: crate::tet_mesh::Mesh,
+    /// DOF numbering (the supports).
+    pub dofs: Dofs,
+    /// K, M and the node graph.
+    pub system: crate::fem::Assembled,
+    /// The material.
+    pub material: crate::material::Material,
+    /// Rigid motions the supports leave free.
+    pub rigid: usize,
+}
+
+impl Model {
+    /// Assembles K and M of `mesh` with `material`, supported as `dofs` says.
+    pub fn assemble(
+        mesh: crate::tet_mesh::Mesh,
+        dofs: Dofs,
+        material: crate::material::Material,
+    ) -> Result<Model, crate::fem::assembly::AssemblyError> {
+        let system = crate::fem::assemble(&mesh, &material, &dofs)?;
+        let rigid = crate::rigid_motions::free_rigid_count(&mesh.nodes, &dofs);
+        Ok(Model {
+            mesh,
+            dofs,
+            system,
+            material,
+            rigid,
+        })
+    }
+
+    /// What the eigen-solvers take of it.
+    pub fn space(&self) -> Space<'_> {
+        Space {
+            mesh: &self.mesh,
+            dofs: &self.dofs,
+            system: &self.system,
+            material: self.material,
+            rigid: self.rigid,
+        }
+    }
+}
+
 /// Solves the eigenproblem of a space; also the seconds spent before the solver (the
 /// fill-reducing ordering, or under SLEPc the ranks' assembly of their rows).
 pub fn solve(d: Space<'_>, count: usize, choice: SolverChoice) -> Result<(Modes, f64), ModesError> {
@@ -765,8 +810,8 @@ pub(crate) fn blame_petsc_options(e: ModesError, petsc_options: bool) -> ModesEr
 
 #[cfg(test)]
 mod tests {
+    use super::Model as Discretized;
     use super::*;
-    use crate::problem::Discretized;
     use crate::tet_mesh::Mesh;
 
     #[test]

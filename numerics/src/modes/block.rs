@@ -402,8 +402,8 @@ mod tests {
     use super::*;
     use crate::fem::Dofs;
     use crate::linsolve::{nested_dissection, sym_matvec};
+    use crate::modes::Model as Discretized;
     use crate::modes::dense::Dense;
-    use crate::problem::Discretized;
     use crate::tet_mesh::Mesh;
     use faer::sparse::SymbolicSparseColMat;
 

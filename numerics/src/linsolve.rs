@@ -427,9 +427,8 @@ mod tests {
         let mesh = crate::tet_mesh::Mesh::structured_box([3, 2, 2], 0.02, crate::fem::element::Kind::Tet4, |_, p| p);
         let mask = vec![false; 3 * mesh.nodes.len()];
         let dofs = crate::fem::Dofs::from_mask(&mask);
-        let d =
-            crate::problem::Discretized::assemble(mesh, dofs, crate::material::Material::elastic(2e11, 0.3, 7800.0))
-                .expect("assembles");
+        let d = crate::modes::Model::assemble(mesh, dofs, crate::material::Material::elastic(2e11, 0.3, 7800.0))
+            .expect("assembles");
         let n = d.system.pattern.nrows();
         let x: Vec<f64> = (0..7 * n).map(|i| ((i * 37 % 101) as f64 - 50.0) / 7.0).collect();
         let mut grouped = vec![0.0; 7 * n];
@@ -453,9 +452,8 @@ mod tests {
         // Clamped at x = 0.
         let mask: Vec<bool> = mesh.nodes.iter().flat_map(|p| [p[0] < 1e-9; 3]).collect();
         let dofs = crate::fem::Dofs::from_mask(&mask);
-        let d =
-            crate::problem::Discretized::assemble(mesh, dofs, crate::material::Material::elastic(2e11, 0.3, 7800.0))
-                .expect("assembles");
+        let d = crate::modes::Model::assemble(mesh, dofs, crate::material::Material::elastic(2e11, 0.3, 7800.0))
+            .expect("assembles");
         let problem = crate::modes::EigenProblem::of(&d.system);
         let dense = crate::modes::dense::Dense(&problem)
             .lowest(9, 0.0)

@@ -47,7 +47,7 @@ fn det_j(x: &[[f64; 3]], l: [f64; 4]) -> f64 {
     j.determinant()
 }
 
-pub use crate::tet_mesh::is_curved;
+pub use super::is_curved;
 
 /// Smallest det J over the element relative to the straight tet's; 1 for a straight tet.
 pub fn min_scaled_jacobian(x: &[[f64; 3]]) -> f64 {
@@ -67,7 +67,7 @@ impl Mesh {
 
     /// The 10-node tets with a mid-edge node off its edge's midpoint (see [`is_curved`]).
     pub fn curved_tets(&self) -> Vec<usize> {
-        if self.kind != crate::fem::element::Kind::Tet10 {
+        if self.kind != super::Kind::Tet10 {
             return Vec::new();
         }
         (0..self.tet_count())
@@ -77,7 +77,7 @@ impl Mesh {
 
     /// The curved tets whose scaled Jacobian is below `min` (none for 4-node meshes).
     pub fn distorted_tets(&self, min: f64) -> Vec<usize> {
-        if self.kind != crate::fem::element::Kind::Tet10 {
+        if self.kind != super::Kind::Tet10 {
             return Vec::new();
         }
         (0..self.tet_count())
@@ -116,7 +116,7 @@ mod tests {
 
     #[test]
     fn straight_tets_score_one_and_a_folded_mid_edge_node_scores_below_zero() {
-        let mut m = Mesh::structured_box([1, 1, 1], 1.0, crate::fem::element::Kind::Tet10, |_, p| p);
+        let mut m = Mesh::structured_box([1, 1, 1], 1.0, ves_format::ElementKind::Tet10, |_, p| p);
         assert!(m.distorted_tets(0.999).is_empty(), "straight tets score 1");
         // Push one mid-edge node far across its tet: the element folds over.
         let t = 0;
@@ -140,7 +140,7 @@ mod tests {
 
     #[test]
     fn a_gently_curved_edge_stays_valid() {
-        let mut m = Mesh::structured_box([1, 1, 1], 1.0, crate::fem::element::Kind::Tet10, |_, p| p);
+        let mut m = Mesh::structured_box([1, 1, 1], 1.0, ves_format::ElementKind::Tet10, |_, p| p);
         let tet = m.tet(0).to_vec();
         let p = m.nodes[tet[4] as usize];
         m.nodes[tet[4] as usize] = [p[0] + 0.02, p[1] + 0.02, p[2] - 0.02];

@@ -2,6 +2,9 @@
 //! apart from gmsh: fem, supports, transfer, store and the checks read it without depending on
 //! the mesher (`mesh/`, which makes it).
 
+pub mod quality;
+pub mod walls;
+
 use nalgebra::Vector3;
 use std::collections::HashMap;
 use ves_format::ElementKind as Kind;
@@ -174,7 +177,9 @@ impl Mesh {
     }
 
     /// [`Mesh::from_raw`], and the new index of each raw node (`u32::MAX`: used by no tet).
-    pub(crate) fn from_raw_numbered(coords: &[[f64; 3]], tets: &[u32], kind: Kind) -> (Mesh, Vec<u32>) {
+    /// [`Mesh::from_raw`], also returning each given node's new index (corner vertices are
+    /// numbered first).
+    pub fn from_raw_numbered(coords: &[[f64; 3]], tets: &[u32], kind: Kind) -> (Mesh, Vec<u32>) {
         let p = kind.nodes();
         let mut new_index = vec![u32::MAX; coords.len()];
         let mut nodes = Vec::new();
@@ -218,7 +223,7 @@ impl Mesh {
 }
 
 /// Six times the signed volume of the corner tet.
-pub(crate) fn signed_volume(nodes: &[[f64; 3]], tet: &[u32]) -> f64 {
+pub fn signed_volume(nodes: &[[f64; 3]], tet: &[u32]) -> f64 {
     let x = |i: usize| Vector3::from(nodes[tet[i] as usize]);
     (x(1) - x(0)).dot(&(x(2) - x(0)).cross(&(x(3) - x(0))))
 }
