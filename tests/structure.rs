@@ -191,7 +191,15 @@ fn layer_check_finds_a_planted_upward_import() {
 #[test]
 fn libraries_carry_no_application_dependencies() {
     let root = workspace();
-    let application = ["axum", "hyper", "tokio", "indicatif", "tracing-subscriber", "ves-cli"];
+    let application = [
+        "axum",
+        "hyper",
+        "tokio",
+        "clap",
+        "indicatif",
+        "tracing-subscriber",
+        "ves-cli",
+    ];
     let mut bad = Vec::new();
     let ffi = ffi_crates();
     for krate in ["format", "numerics", "pipeline", "runtime", "python"]

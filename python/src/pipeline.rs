@@ -360,18 +360,17 @@ pub fn verify<'py>(
     tol_stress: Option<f64>,
     progress: bool,
 ) -> PyResult<Bound<'py, PyAny>> {
-    use ves_pipeline::verify::{Reference, ToleranceOverrides};
-    let refs = match against.to_ascii_lowercase().as_str() {
-        "scikit-fem" | "skfem" => Reference::ScikitFem,
-        "calculix" => Reference::Calculix,
-        "fenicsx" => Reference::Fenicsx,
-        "all" => Reference::All,
-        _ => {
-            return Err(PyValueError::new_err(format!(
-                "against={against:?}: give \"scikit-fem\", \"calculix\", \"fenicsx\" or \"all\""
-            )));
-        }
+    use ves_pipeline::verify::{Against, ToleranceOverrides};
+    let name = match against.to_ascii_lowercase() {
+        short if short == "skfem" => "scikit-fem".to_string(),
+        name => name,
     };
+    let refs: Against = name.parse().map_err(|_| {
+        PyValueError::new_err(format!(
+            "against={against:?}: give {}",
+            ves_pipeline::verify::reference::known_names()
+        ))
+    })?;
     if modes == Some(0) {
         return Err(PyValueError::new_err("modes=0: compare at least one mode"));
     }

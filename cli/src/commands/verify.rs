@@ -2,7 +2,7 @@
 
 use anyhow::Result;
 use std::path::PathBuf;
-use ves_pipeline::verify::{self, Reference, ToleranceOverrides, VerifyReport};
+use ves_pipeline::verify::{self, Against, ToleranceOverrides, VerifyReport};
 
 /// Arguments.
 #[derive(clap::Args)]
@@ -10,8 +10,8 @@ pub struct Args {
     /// Scene file (TOML, version 1) or basis file (HDF5).
     input: PathBuf,
     /// Reference solver.
-    #[arg(long, value_enum, default_value_t = Reference::All)]
-    against: Reference,
+    #[arg(long, default_value = "all", value_parser = against())]
+    against: Against,
     /// Modes compared (default: the scene's count).
     #[arg(long)]
     modes: Option<usize>,
@@ -77,6 +77,16 @@ impl Args {
     }
 }
 
+/// `--against`: the registry's names with their descriptions (as `--help` lists them), or `all`.
+fn against() -> impl clap::builder::TypedValueParser<Value = Against> {
+    use clap::builder::{PossibleValue, PossibleValuesParser, TypedValueParser};
+    let each = verify::REFERENCES
+        .iter()
+        .map(|r| PossibleValue::new(r.name()).help(r.about()));
+    let all = PossibleValue::new(verify::reference::ALL).help("Every available reference");
+    PossibleValuesParser::new(each.chain([all])).try_map(|name| name.parse::<Against>())
+}
+
 fn print_table(report: &VerifyReport) {
     println!(
         "{}: {} nodes, {} tets (order {}), {} unknowns",
@@ -132,7 +142,8 @@ fn print_table(report: &VerifyReport) {
     }
     if !report.loads.is_empty() {
         println!(
-            "\nload cases against CalculiX *STATIC (same mesh, same nodal loads{}):",
+            "\nload cases against {} (same mesh, same nodal loads{}):",
+            report.loads_solver.unwrap_or("the reference"),
             report.loads_seconds.map_or(String::new(), |t| format!(", {t:.1} s"))
         );
         println!("  load                 kind      max |u| (m)   rel. diff (max norm)  reaction diff  tolerance");
