@@ -4,7 +4,7 @@
 // a status (JSON). Only the drawing is magnified, by the deformation scale.
 import * as THREE from 'three';
 import { OrbitControls } from 'three/examples/jsm/controls/OrbitControls.js';
-import { decodeFrame, decodeLoad, decodeMesh, decodeMode, decodeStress } from './protocol.js';
+import { KINDS, ProtocolError, decode, helloMismatch, kindOf } from './protocol.js';
 import { fieldOf, REST_FORCE } from './field.js';
 import { gradient, sequential } from './colours.js';
 import { label, plain } from './units.js';
@@ -50,6 +50,8 @@ const state = {
   latency: [], // ms from a pointer event to the first frame computed after the server got it
 };
 window.ves = state;
+// Tests' own sockets read the kind of what they receive as the page does.
+state.kindOf = kindOf;
 
 let ws;
 let retry = 0;
@@ -62,6 +64,7 @@ function connect() {
   ws.onopen = () => { state.connected = true; retry = 0; $('conn').textContent = 'connected'; };
   ws.onclose = () => {
     state.connected = false; state.ready = false; state.meshesIn = false;
+    if (state.refused) return; // the server speaks another protocol: a reload, not a retry
     for (const d of drags.values()) d.ended = true;
     drags.clear();
     controls.enabled = true;
@@ -79,8 +82,20 @@ function connect() {
   };
 }
 
+// A server of another protocol version (updated while this page was open): said once, and the
+// page stops listening to it.
+function refuse(why) {
+  state.refused = why;
+  $('warn').textContent = why;
+  $('conn').textContent = 'refused';
+  document.body.classList.add('stale');
+  ws.close();
+}
+
 function onText(msg) {
   if (msg.type === 'hello') {
+    const mismatch = helloMismatch(msg);
+    if (mismatch) { refuse(mismatch); return; }
     const again = state.hello !== null;
     const samePart = again && state.hello.name === msg.name;
     if (again) { state.reconnects += 1; clearSpaces(); clearHands(); }
@@ -122,12 +137,20 @@ function showLimit() {
 }
 
 function onBinary(buf) {
-  const kind = new Uint32Array(buf, 0, 1)[0];
-  if (kind === 0) addSpace(decodeMesh(buf));
-  else if (kind === 1) onFrame(decodeFrame(buf));
-  else if (kind === 2) startMode(decodeMode(buf));
-  else if (kind === 3) onStress(decodeStress(buf));
-  else if (kind === 4) onLoad(decodeLoad(buf));
+  let got;
+  try {
+    got = decode(buf);
+  } catch (e) {
+    if (!(e instanceof ProtocolError)) throw e;
+    if (e.foreign) refuse(e.message); else $('warn').textContent = `dropped ${e.message}`;
+    return;
+  }
+  const { kind, message } = got;
+  if (kind === KINDS.MESH) addSpace(message);
+  else if (kind === KINDS.FRAME) onFrame(message);
+  else if (kind === KINDS.MODE) startMode(message);
+  else if (kind === KINDS.STRESS) onStress(message);
+  else if (kind === KINDS.LOAD) onLoad(message);
 }
 
 function clearSpaces() {
