@@ -11,6 +11,8 @@
 // estimate. Prints one JSON object.
 //
 // usage: node --experimental-websocket bench/setup.mjs URL
+import { KINDS, kindOf } from '../runtime/web/src/protocol.js';
+
 const [url] = process.argv.slice(2);
 const origin = new URL(url).origin;
 const ws = new WebSocket(`${origin.replace('http', 'ws')}/ws`, { headers: { Origin: origin } });
@@ -29,7 +31,7 @@ ws.onmessage = (e) => {
     const m = JSON.parse(e.data);
     if (m.type === 'hello') { hello = m; meshes = 0; }
     else if (['progress', 'computed', 'checked', 'compute_error'].includes(m.type)) notes.push({ ...m, at: Date.now() });
-  } else if (new Uint32Array(e.data, 0, 1)[0] === 0) meshes += 1;
+  } else if (kindOf(e.data) === KINDS.MESH) meshes += 1;
   settle();
 };
 const count = (type) => notes.filter((n) => n.type === type).length;

@@ -11,6 +11,7 @@ const [url, pid, webDir] = process.argv.slice(2);
 const mod = (p) => import(pathToFileURL(`${webDir}/node_modules/${p}`).href);
 const { chromium } = await mod('playwright-core/index.mjs');
 const { default: WebSocket } = await mod('ws/wrapper.mjs');
+const { KINDS, kindOf } = await import(pathToFileURL(`${webDir}/src/protocol.js`).href);
 const rss = () => Number(/VmRSS:\s+(\d+)/.exec(readFileSync(`/proc/${pid}/status`, 'utf8'))[1]) * 1024;
 const sleep = (ms) => new Promise((r) => setTimeout(r, ms));
 const quantile = (a, q) => { const s = [...a].sort((x, y) => x - y); return s.length ? s[Math.min(s.length - 1, Math.floor(q * s.length))] : null; };
@@ -19,7 +20,7 @@ const quantile = (a, q) => { const s = [...a].sort((x, y) => x - y); return s.le
 function client() {
   // The server takes WebSockets from its own page only; a browser sends this Origin itself.
   const c = { frames: 0, ws: new WebSocket(url.replace('http', 'ws') + 'ws', { origin: new URL(url).origin }) };
-  c.ws.on('message', (data, binary) => { if (binary && new Uint32Array(new Uint8Array(data).buffer, 0, 1)[0] === 1) c.frames += 1; });
+  c.ws.on('message', (data, binary) => { if (binary && kindOf(new Uint8Array(data).buffer) === KINDS.FRAME) c.frames += 1; });
   c.open = new Promise((r) => c.ws.on('open', r));
   return c;
 }

@@ -93,7 +93,7 @@ try {
     const ws = new WebSocket(`ws://${location.host}/ws`);
     ws.binaryType = 'arraybuffer';
     return new Promise((done) => {
-      ws.onmessage = (ev) => { if (typeof ev.data !== 'string' && new Uint32Array(ev.data, 0, 1)[0] === 2) { ws.close(); done(); } };
+      ws.onmessage = (ev) => { if (typeof ev.data !== 'string' && window.ves.kindOf(ev.data) === 2) { ws.close(); done(); } };
       ws.onopen = () => {
         ws.send('garbage');
         ws.send(new Uint8Array([1, 2, 3]));

@@ -37,7 +37,7 @@ try {
   // with: x + R(mean(rest) − c).
   const body = await page.evaluate(() => {
     const s = window.ves.spaces[0];
-    const p = s.geom.attributes.position.array;
+    const p = window.ves.drawnPositions(0);
     const mean = (a) => [0, 1, 2].map((k) => { let t = 0; for (let i = k; i < a.length; i += 3) t += a[i]; return t / (a.length / 3); });
     return { drawn: mean(p), rest: mean(s.rest), pose: s.drawnPose, center: window.ves.hello.center, scale: window.ves.drawnScale };
   });

@@ -76,7 +76,7 @@ try {
     return new Promise((done) => {
       ws.onmessage = (ev) => {
         if (typeof ev.data === 'string') return;
-        const kind = new Uint32Array(ev.data, 0, 1)[0];
+        const kind = window.ves.kindOf(ev.data);
         if (kind === 2) { ws.close(); done(kinds.filter((k) => k === 4).length); } else kinds.push(kind);
       };
       ws.onopen = () => {

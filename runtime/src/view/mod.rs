@@ -479,12 +479,6 @@ fn swap(shared: &Arc<Shared>, spaces: Vec<SpaceInput>, basis_path: Option<PathBu
 /// An unchanged frame is sent again after this long (the page's frame count shows it live).
 const KEEPALIVE: Duration = Duration::from_millis(200);
 
-/// Whether two encoded frames draw the same: equal but for the sequence number (bytes 16..20)
-/// and the time (32..40), see [`protocol::FrameHeader`].
-fn same_frame(a: &[u8], b: &[u8]) -> bool {
-    a.len() == b.len() && a.len() >= 40 && a[..16] == b[..16] && a[20..32] == b[20..32] && a[40..] == b[40..]
-}
-
 /// Runs one compute of the set-up panel in its own thread; its progress and its end go to every
 /// page; on success the session moves to the new basis.
 fn start_compute(shared: &Arc<Shared>, scene: serde_json::Value) -> Result<(), String> {
@@ -810,6 +804,7 @@ fn hello(
     let first = bases.first();
     serde_json::json!({
         "type": "hello",
+        "protocol": protocol::VERSION,
         "name": cfg.name,
         "client": 0,
         "rate_hz": s.rate_hz,
@@ -988,10 +983,7 @@ impl FrameGate {
     /// mould 250 kB at 60 Hz kept the browser busy on two cores): a frame that differs from
     /// the last one sent only in its number and time waits, up to KEEPALIVE.
     fn pass(&mut self, shared: &Shared, f: Bytes) -> Option<Bytes> {
-        if f.len() < 20 {
-            return None;
-        }
-        let seq = u32::from_le_bytes([f[16], f[17], f[18], f[19]]);
+        let seq = protocol::frame_seq(&f)?;
         if let Some(l) = self.last_seq {
             shared
                 .frames_skipped
@@ -1001,7 +993,7 @@ impl FrameGate {
         if self
             .last_sent
             .as_ref()
-            .is_some_and(|(l, at)| same_frame(l, &f) && at.elapsed() < KEEPALIVE)
+            .is_some_and(|(l, at)| protocol::frames_draw_the_same(l, &f) && at.elapsed() < KEEPALIVE)
         {
             return None;
         }
@@ -1098,7 +1090,7 @@ async fn load_case(shared: &Shared, space: usize, index: usize) -> Message {
         None => Err("the basis changed; choose the load case again".to_string()),
         Some((basis, name, nodes)) => tokio::task::spawn_blocking(move || {
             let case = loads::read(&basis, &name, nodes)?;
-            loads::encode(space, index, &basis, &case)
+            protocol::load_case(space, index, &basis, &case)
                 .ok_or_else(|| format!("load case {name:?} does not fit the basis served: the file changed"))
         })
         .await

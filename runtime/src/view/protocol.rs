@@ -1,26 +1,15 @@
-//! The viewer's messages, defined once here (the page's `web/src/protocol.js` decodes them).
+//! The viewer's messages, defined once here and in the page's `web/src/protocol.js`, which
+//! decodes them; both follow the one written description, docs/view.md, "The WebSocket
+//! protocol", and `runtime/tests/protocol_js.rs` has the page's decoder read what this module
+//! encodes.
 //!
-//! Server → page, binary, little-endian, every array 4-byte aligned:
-//! - kind 0, a space's surface: u32 kind, space, nv, nt; f32 rest[3nv]; u32 triangles[3nt];
-//!   u8 fixed[nv] (bit c: component c of that vertex is supported); zero bytes to a multiple of
-//!   4; when the basis has them, u32 faces[nt] (each triangle's CAD face tag).
-//! - kind 1, a drawn frame: u32 kind, space, nv, flags (1: the space has stress, 2: the part's
-//!   safety factor is below the minimum), frame seq, last hand-message seq read per hand [2],
-//!   vertex of the part's largest von Mises stress (u32::MAX: none); f64 time, pose[7]
-//!   (position of the centre of mass, quaternion w x y z; all zero for a supported part), largest
-//!   von Mises stress (Pa, NaN: none); f32 u[3nv], the elastic displacement in the part frame.
-//!   The page draws rest + k·u (posed: x + R(rest + k·u − centre)) for its deformation scale k:
-//!   sending displacements, not positions, keeps sub-micrometre motion exact at any scale (an f32
-//!   position near 1 m is rounded by 6e-8 m, which a scale of 2000 would draw as 0.1 mm).
-//! - kind 3, the same frame's stress (only to clients that asked for it, see `fields`): u32 kind,
-//!   space, nv, frame seq; f32 von Mises[nv], largest principal stress[nv] (Pa).
-//! - kind 2, a mode shape: u32 kind, space, mode, nv; f32 frequency (Hz); f32 φ[3nv] scaled to
-//!   max |φ| = 1.
-//! - kind 4, a static load case (only to the page that asked, see `load`): u32 kind, space, nv,
-//!   index (in the hello's `spaces[s].loads`); f64 largest displacement (m) and largest von Mises
-//!   stress (Pa) of the whole part; f32 u[3nv] (m), von Mises[nv] (Pa) ([`super::loads::encode`]).
+//! Server → page, binary, little-endian, every array aligned to its element: a [`HEADER`]
+//! (u32 [`MAGIC`], [`VERSION`], [`Kind`]) then the kind's fields — a space's surface
+//! ([`mesh`]), a drawn frame ([`frame`]), a mode shape ([`mode`]), a frame's stress
+//! ([`stress_frame`]), a static load case ([`load_case`]).
 //!
-//! Server → page, text: JSON objects `hello` (once) and `status` (≈ 20 Hz).
+//! Server → page, text: JSON objects `hello` (once per basis; its `protocol` is [`VERSION`])
+//! and `status` (≈ 20 Hz).
 //! Page → server, text only: `{"type":"hand","hand":0|1,"active":bool,"button":bool,
 //! "position":[x,y,z],"seq":n}`, `{"type":"mode","space":s,"index":j}`,
 //! `{"type":"fields","stress":bool}` (send the stress frames or not; off at first),
@@ -37,6 +26,7 @@
 
 use super::hands::HandCommand;
 use crate::basis::Basis;
+use ves_format::read::LoadCase;
 
 /// Longest client message accepted, bytes (a hand message is ≈ 120, a scene to compute a few
 /// kB).
@@ -44,6 +34,50 @@ pub const MAX_MESSAGE: usize = 32 * 1024;
 
 /// Hands the viewer simulates.
 pub const HANDS: usize = 2;
+
+/// First word of every binary message: "VESV" in ASCII, so a page never reads another
+/// stream's bytes as a part.
+pub const MAGIC: u32 = u32::from_le_bytes(*b"VESV");
+
+/// Version of the binary layouts below, also the hello's `protocol`: a page refuses any other
+/// (its server was updated under it: a reload fetches the matching page). Bumped whenever a
+/// layout changes; 1 was the unversioned layout without [`MAGIC`].
+pub const VERSION: u32 = 2;
+
+/// Bytes of the header every binary message starts with: u32 magic, version, kind. A multiple
+/// of 8, so the f64 fields after it stay aligned.
+pub const HEADER: usize = 12;
+
+/// What a binary message carries (the header's third word).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[repr(u32)]
+pub enum Kind {
+    /// A space's surface ([`mesh`]).
+    Mesh = 0,
+    /// A drawn frame ([`frame`]).
+    Frame = 1,
+    /// A mode shape ([`mode`]).
+    Mode = 2,
+    /// A frame's stress ([`stress_frame`]).
+    Stress = 3,
+    /// A static load case ([`load_case`]).
+    Load = 4,
+}
+
+/// Offset of a frame's sequence number (after the header's space, nv and flags).
+pub const FRAME_SEQ: usize = HEADER + 3 * 4;
+
+/// Offset of a frame's time (after the header's 7 u32 fields).
+pub const FRAME_TIME: usize = HEADER + 7 * 4;
+
+/// Bytes before a frame's displacements: the header, 7 u32 and 9 f64 fields.
+pub const FRAME_HEADER: usize = FRAME_TIME + 9 * 8;
+
+/// Bytes before a load case's arrays: the header, 3 u32 and 2 f64 fields.
+pub const LOAD_HEADER: usize = HEADER + 3 * 4 + 2 * 8;
+
+/// Bytes before a mesh's, a mode's and a stress frame's arrays (but a mode's f32 frequency).
+pub const SHORT_HEADER: usize = HEADER + 3 * 4;
 
 fn put_u32(b: &mut Vec<u8>, v: u32) {
     b.extend_from_slice(&v.to_le_bytes());
@@ -53,11 +87,22 @@ fn put_f32(b: &mut Vec<u8>, v: f32) {
     b.extend_from_slice(&v.to_le_bytes());
 }
 
-/// Kind 0: the surface of space `space`.
+/// Starts a message of `kind` in `b` (cleared first).
+fn begin(b: &mut Vec<u8>, kind: Kind) {
+    b.clear();
+    for v in [MAGIC, VERSION, kind as u32] {
+        put_u32(b, v);
+    }
+}
+
+/// Kind 0, the surface of space `space`: u32 space, nv, nt; f32 rest[3nv]; u32 triangles[3nt];
+/// u8 fixed[nv] (bit c: component c supported); zero bytes to a multiple of 4; when the basis
+/// has them, u32 faces[nt] (each triangle's CAD face tag).
 pub fn mesh(space: usize, basis: &Basis) -> Vec<u8> {
     let (nv, nt) = (basis.vertex_count(), basis.triangles.len());
-    let mut b = Vec::with_capacity(16 + 12 * nv + 12 * nt);
-    for v in [0, space as u32, nv as u32, nt as u32] {
+    let mut b = Vec::with_capacity(SHORT_HEADER + 13 * nv + 16 * nt + 3);
+    begin(&mut b, Kind::Mesh);
+    for v in [space as u32, nv as u32, nt as u32] {
         put_u32(&mut b, v);
     }
     for p in basis.rest.iter().flatten() {
@@ -94,13 +139,12 @@ pub struct FrameHeader {
     pub von_mises_max: Option<(f64, usize)>,
 }
 
-/// Bytes before a frame's displacements.
-pub const FRAME_HEADER: usize = 8 * 4 + 9 * 8;
-
-/// Kind 1 into `b` (cleared first): the elastic displacement `u` (3 per vertex, part frame);
-/// `has_stress` sets flag 1.
+/// Kind 1 into `b` (cleared first), a drawn frame: u32 space, nv, flags (1: `has_stress`, 2:
+/// alarm), seq, hand_seq[2], vertex of the largest von Mises stress (u32::MAX: none); f64
+/// time, pose[7], largest von Mises stress (NaN: none); f32 u[3nv], the elastic displacement
+/// `u` (3 per vertex, part frame).
 pub fn frame(b: &mut Vec<u8>, h: &FrameHeader, u: &[f32], has_stress: bool) {
-    b.clear();
+    begin(b, Kind::Frame);
     let nv = u.len() / 3;
     let flags = u32::from(has_stress) | (u32::from(h.alarm) << 1);
     let (peak, at) = match h.von_mises_max {
@@ -108,7 +152,6 @@ pub fn frame(b: &mut Vec<u8>, h: &FrameHeader, u: &[f32], has_stress: bool) {
         None => (f64::NAN, u32::MAX),
     };
     for v in [
-        1,
         h.space as u32,
         nv as u32,
         flags,
@@ -127,11 +170,27 @@ pub fn frame(b: &mut Vec<u8>, h: &FrameHeader, u: &[f32], has_stress: bool) {
     }
 }
 
-/// Kind 3 into `b` (cleared first): the stress of frame `seq` of `space`, von Mises then the
-/// largest principal stress (n each).
+/// The sequence number of an encoded frame (`None`: too short to be one).
+pub fn frame_seq(f: &[u8]) -> Option<u32> {
+    let word = f.get(FRAME_SEQ..FRAME_SEQ + 4)?;
+    Some(u32::from_le_bytes(word.try_into().ok()?))
+}
+
+/// Whether two encoded frames draw the same: equal but for their sequence number and time.
+pub fn frames_draw_the_same(a: &[u8], b: &[u8]) -> bool {
+    let (seq, time) = (FRAME_SEQ..FRAME_SEQ + 4, FRAME_TIME..FRAME_TIME + 8);
+    a.len() == b.len()
+        && a.len() >= FRAME_HEADER
+        && a[..seq.start] == b[..seq.start]
+        && a[seq.end..time.start] == b[seq.end..time.start]
+        && a[time.end..] == b[time.end..]
+}
+
+/// Kind 3 into `b` (cleared first), the stress of frame `seq` of `space`: u32 space, nv, seq;
+/// f32 von Mises[nv], then the largest principal stress[nv] (Pa).
 pub fn stress_frame(b: &mut Vec<u8>, space: usize, seq: u32, von_mises: &[f32], principal: &[f32]) {
-    b.clear();
-    for v in [3, space as u32, von_mises.len() as u32, seq] {
+    begin(b, Kind::Stress);
+    for v in [space as u32, von_mises.len() as u32, seq] {
         put_u32(b, v);
     }
     for v in von_mises.iter().chain(principal) {
@@ -139,7 +198,8 @@ pub fn stress_frame(b: &mut Vec<u8>, space: usize, seq: u32, von_mises: &[f32], 
     }
 }
 
-/// Kind 2: mode `j` of space `space`, scaled to a largest vertex amplitude of 1.
+/// Kind 2, mode `j` of space `space`: u32 space, mode, nv; f32 frequency (Hz), φ[3nv] scaled
+/// to a largest vertex amplitude of 1.
 pub fn mode(space: usize, basis: &Basis, j: usize) -> Option<Vec<u8>> {
     let n = basis.vertex_count();
     let lambda = *basis.eigenvalues.get(j)?;
@@ -149,13 +209,41 @@ pub fn mode(space: usize, basis: &Basis, j: usize) -> Option<Vec<u8>> {
         .map(|p| (p[0] * p[0] + p[1] * p[1] + p[2] * p[2]).sqrt())
         .fold(0.0f32, f32::max);
     let scale = if peak > 0.0 { 1.0 / peak } else { 0.0 };
-    let mut b = Vec::with_capacity(20 + 12 * n);
-    for v in [2, space as u32, j as u32, n as u32] {
+    let mut b = Vec::with_capacity(SHORT_HEADER + 4 + 12 * n);
+    begin(&mut b, Kind::Mode);
+    for v in [space as u32, j as u32, n as u32] {
         put_u32(&mut b, v);
     }
     put_f32(&mut b, (lambda.sqrt() / (2.0 * std::f64::consts::PI)) as f32);
     for v in phi {
         put_f32(&mut b, v * scale);
+    }
+    Some(b)
+}
+
+/// Kind 4, load case `index` (in the hello's list) of space `space`: u32 space, nv, index; f64
+/// largest displacement (m), largest von Mises stress (Pa) of the whole part (the file's
+/// attributes); f32 u[3nv] (the static displacement of each drawn vertex, m), von Mises[nv]
+/// (Pa). `None` if the case does not fit the basis (a vertex's node beyond the case's arrays).
+pub fn load_case(space: usize, index: usize, basis: &Basis, case: &LoadCase) -> Option<Vec<u8>> {
+    let nv = basis.vertex_count();
+    let mut b = Vec::with_capacity(LOAD_HEADER + 16 * nv);
+    begin(&mut b, Kind::Load);
+    for v in [space as u32, nv as u32, index as u32] {
+        put_u32(&mut b, v);
+    }
+    for v in [case.max_displacement, case.max_von_mises] {
+        b.extend_from_slice(&v.to_le_bytes());
+    }
+    for &node in &basis.node_index {
+        let u = case.displacement.get(3 * node as usize..3 * node as usize + 3)?;
+        for c in u {
+            put_f32(&mut b, *c as f32);
+        }
+    }
+    for &node in &basis.node_index {
+        let s = *case.von_mises.get(node as usize)?;
+        put_f32(&mut b, s as f32);
     }
     Some(b)
 }
@@ -415,5 +503,83 @@ mod tests {
         assert!(why.len() < 120, "{why}");
         // Without a list, no space has load cases.
         assert!(super::parse(r#"{"type":"load","space":0,"name":"tip"}"#, 2, Some(&E)).is_err());
+    }
+
+    /// The arrays are the kept vertices' rows of the case, in f32, after the whole part's maxima.
+    #[test]
+    fn a_load_case_is_encoded_for_the_kept_vertices() {
+        let rest = vec![[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]];
+        let mut basis = Basis::new(
+            "mem",
+            "global",
+            rest,
+            vec![0, 2, 3],
+            vec![[0, 1, 2]],
+            vec![1.0],
+            &[1.0; 9],
+            (0.0, 0.0),
+            None,
+        )
+        .expect("a basis");
+        let case = LoadCase {
+            name: "tip".into(),
+            kind: "force".into(),
+            total_force: [0.0, 0.0, -1.0],
+            reaction: [0.0, 0.0, 1.0],
+            balance_residual: 0.0,
+            max_displacement: 3.0,
+            max_von_mises: 40.0,
+            displacement: (0..12).map(f64::from).collect(),
+            von_mises: vec![10.0, 20.0, 30.0, 40.0],
+            stress: vec![0.0; 18],
+        };
+        let b = load_case(1, 2, &basis, &case).expect("fits");
+        let u32s = |at: usize| u32::from_le_bytes([b[at], b[at + 1], b[at + 2], b[at + 3]]);
+        let f32s = |at: usize| f32::from_le_bytes([b[at], b[at + 1], b[at + 2], b[at + 3]]);
+        assert_eq!(
+            [u32s(0), u32s(4), u32s(8), u32s(12), u32s(16), u32s(20)],
+            [MAGIC, VERSION, Kind::Load as u32, 1, 3, 2]
+        );
+        let f64s = |at: usize| f64::from_le_bytes(b[at..at + 8].try_into().expect("8 bytes"));
+        assert_eq!([f64s(LOAD_HEADER - 16), f64s(LOAD_HEADER - 8)], [3.0, 40.0]);
+        let u: Vec<f32> = (0..9).map(|k| f32s(LOAD_HEADER + 4 * k)).collect();
+        assert_eq!(u, [0.0, 1.0, 2.0, 6.0, 7.0, 8.0, 9.0, 10.0, 11.0]);
+        let vm: Vec<f32> = (0..3).map(|k| f32s(LOAD_HEADER + 36 + 4 * k)).collect();
+        assert_eq!(vm, [10.0, 30.0, 40.0]);
+        assert_eq!(b.len(), LOAD_HEADER + 16 * 3);
+        // A case shorter than the basis's nodes (a file changed under the server) is refused.
+        basis.node_index[2] = 4;
+        assert!(load_case(0, 0, &basis, &case).is_none());
+    }
+
+    /// A frame is told from the next one at rest by its sequence number and time only, both
+    /// read where the page reads them.
+    #[test]
+    fn frames_differ_only_in_seq_and_time_at_rest() {
+        let mut h = FrameHeader {
+            space: 0,
+            seq: 7,
+            alarm: false,
+            hand_seq: [1, 2],
+            time: 0.5,
+            pose: [0.0; 7],
+            von_mises_max: None,
+        };
+        let u = [0.25f32; 6];
+        let (mut a, mut b) = (Vec::new(), Vec::new());
+        frame(&mut a, &h, &u, false);
+        assert_eq!(a.len(), FRAME_HEADER + 4 * u.len());
+        assert_eq!(frame_seq(&a), Some(7));
+        assert_eq!(
+            f64::from_le_bytes(a[FRAME_TIME..FRAME_TIME + 8].try_into().expect("8")),
+            0.5
+        );
+        (h.seq, h.time) = (8, 0.75);
+        frame(&mut b, &h, &u, false);
+        assert!(frames_draw_the_same(&a, &b));
+        h.hand_seq[1] = 3;
+        frame(&mut b, &h, &u, false);
+        assert!(!frames_draw_the_same(&a, &b));
+        assert_eq!(frame_seq(&a[..FRAME_SEQ + 3]), None);
     }
 }

@@ -12,16 +12,23 @@ export const DANGER = [0.85, 0.05, 0.1];
 /** A part at rest: no colour to read. */
 export const NEUTRAL = [0.72, 0.74, 0.76];
 
-function sample(stops, t) {
+// The colour at t (0..1) of a scale, into `out` (a new array if none: a redraw passes one it
+// reuses for every vertex).
+function sample(stops, t, out = [0, 0, 0]) {
   const x = Math.min(1, Math.max(0, Number.isFinite(t) ? t : 0)) * (stops.length - 1);
   const i = Math.min(stops.length - 2, Math.floor(x));
   const u = x - i;
-  return stops[i].map((a, k) => a + u * (stops[i + 1][k] - a));
+  const a = stops[i], b = stops[i + 1];
+  for (let k = 0; k < 3; k++) out[k] = a[k] + u * (b[k] - a[k]);
+  return out;
 }
 
-export const sequential = (t) => sample(SEQUENTIAL, t);
-export const diverging = (t) => sample(DIVERGING, t);
-export const safetyRamp = (t) => sample(SAFETY, t);
+/** The sequential scale's colour at t (0..1), into `out` if given. */
+export const sequential = (t, out) => sample(SEQUENTIAL, t, out);
+/** The diverging scale's colour at t (0..1), into `out` if given. */
+export const diverging = (t, out) => sample(DIVERGING, t, out);
+/** The safety ramp's colour at t (0..1), into `out` if given. */
+export const safetyRamp = (t, out) => sample(SAFETY, t, out);
 
 const css = (c) => `rgb(${c.map((v) => Math.round(255 * v)).join(',')})`;
 /** CSS gradient of a scale, for the legend bar. */

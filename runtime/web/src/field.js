@@ -20,8 +20,26 @@ function extremes(values) {
 }
 
 /**
+ * A field as coloured (the properties after `values` are set as it is worked out).
+ * @typedef {object} Field
+ * @property {string} title the legend's title
+ * @property {string} quantity 'length', 'stress' or 'ratio' (units.js `label`)
+ * @property {string} scale the colour scale: 'magnitude', 'signed', 'safety' or 'neutral'
+ * @property {Float32Array|null} values per vertex (null: computed, the safety factor)
+ * @property {boolean} [atRest] no displacement above round-off: nothing to colour
+ * @property {{vertex: number, text: string}[]} [markers] the extremes to mark
+ * @property {(i: number, out: number[]) => number[]} [colourOf] vertex i's colour
+ * @property {(i: number) => number} [valueAt] vertex i's value
+ * @property {string[]} [ticks] the legend's three labels
+ * @property {number} [lo] the range's low end
+ * @property {number} [hi] the range's high end
+ * @property {string} [summary] the note under the legend
+ */
+
+/**
  * The field of space `s` for colouring `colour` ('displacement', 'vonmises', 'principal',
- * 'safety'): `{ title, quantity, scale, values, lo, hi, atRest, markers, colourOf(i), ticks }`.
+ * 'safety'): `{ title, quantity, scale, values, lo, hi, atRest, markers, colourOf(i, out), ticks }`
+ * (`colourOf` writes vertex i's colour into `out` and returns it, or returns a shared constant).
  * `ctx`: `{ hello, restLevel, units, locked }` (`locked`: `{lo, hi}` to keep a range).
  */
 export function fieldOf(colour, s, ctx) {
@@ -29,6 +47,7 @@ export function fieldOf(colour, s, ctx) {
   const fmt = (q) => (v) => label(v, q, units);
   const { hi: umax } = extremes(s.umag);
   const atRest = !(umax > ctx.restLevel);
+  /** @type {Field} */
   let f;
   if (colour === 'vonmises' && s.vm) {
     f = { title: 'von Mises stress', quantity: 'stress', scale: 'magnitude', values: s.vm };
@@ -64,7 +83,7 @@ export function fieldOf(colour, s, ctx) {
   f.lo = lo; f.hi = hi;
   const span = hi - lo > 0 ? hi - lo : 1;
   const map = f.scale === 'signed' ? diverging : sequential;
-  f.colourOf = (i) => map((f.values[i] - lo) / span);
+  f.colourOf = (i, out) => map((f.values[i] - lo) / span, out);
   f.valueAt = (i) => f.values[i];
   const w = fmt(f.quantity);
   f.ticks = [w(lo), w((lo + hi) / 2), w(hi)];
@@ -81,9 +100,9 @@ function safety(f, s, ctx) {
   const cap = min * SAFETY_SPAN;
   const sf = (i) => ys / Math.max(s.vm[i], 1e-300);
   f.valueAt = sf;
-  f.colourOf = (i) => {
+  f.colourOf = (i, out) => {
     const v = sf(i);
-    return v < min ? DANGER : safetyRamp(Math.log(v / min) / Math.log(SAFETY_SPAN));
+    return v < min ? DANGER : safetyRamp(Math.log(v / min) / Math.log(SAFETY_SPAN), out);
   };
   const e = extremes(s.vm);
   const lowest = sf(e.at);

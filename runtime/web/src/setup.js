@@ -1,9 +1,9 @@
 // The set-up panel: the part's material, mesh, modes and supports. Compute sends the scene to the
 // server, which runs the pipeline (meshing in its own process) and reports its stages here; when
 // the basis is ready the live session moves to it and the page redraws the new mesh.
+import { $, el } from './dom.js';
 import { plain } from './units.js';
 
-const $ = (id) => document.getElementById(id);
 const MM = 1e-3;
 // A preset is the material when its constants match to the fields' rounding.
 const close = (a, b) => Math.abs(a - b) <= 1e-6 * Math.abs(b);
@@ -48,19 +48,20 @@ export function setupPanel(send, pick, faceMode) {
       const row = document.createElement('div');
       row.className = 'support';
       if (f.plane) {
-        row.innerHTML = `plane <select>${['x', 'y', 'z'].map((a) => `<option${a === f.plane.axis ? ' selected' : ''}>${a}</option>`).join('')}</select>
-          = <input type="number" step="any" value="${plain(f.plane.value / MM)}"> mm`;
-        row.querySelector('select').onchange = (e) => { f.plane.axis = e.target.value; };
-        row.querySelector('input').onchange = (e) => { f.plane.value = Number(e.target.value) * MM; };
+        const axis = el('select', {}, ...['x', 'y', 'z'].map((a) => el('option', { textContent: a, selected: a === f.plane.axis })));
+        const value = el('input', { type: 'number', step: 'any', value: plain(f.plane.value / MM) });
+        axis.onchange = () => { f.plane.axis = axis.value; };
+        value.onchange = () => { f.plane.value = Number(value.value) * MM; };
+        row.append('plane ', axis, ' = ', value, ' mm');
       } else if (f.box) {
         row.textContent = `box ${f.box.min.map((v) => plain(v / MM)).join(', ')} … ${f.box.max.map((v) => plain(v / MM)).join(', ')} mm`;
       } else if (f.faces) {
         row.textContent = `faces ${f.faces.join(', ')}`;
       }
-      const held = document.createElement('select');
-      held.innerHTML = [['x,y,z', 'clamped'], ['x', 'x only'], ['y', 'y only'], ['z', 'z only']]
-        .map(([v, t]) => `<option value="${v}"${(f.components || ['x', 'y', 'z']).join(',') === v ? ' selected' : ''}>${t}</option>`).join('');
-      held.onchange = (e) => { if (e.target.value === 'x,y,z') delete f.components; else f.components = e.target.value.split(','); };
+      const components = (f.components || ['x', 'y', 'z']).join(',');
+      const held = el('select', {}, ...[['x,y,z', 'clamped'], ['x', 'x only'], ['y', 'y only'], ['z', 'z only']]
+        .map(([v, t]) => el('option', { value: v, textContent: t, selected: components === v })));
+      held.onchange = () => { if (held.value === 'x,y,z') delete f.components; else f.components = held.value.split(','); };
       const del = document.createElement('button');
       del.textContent = '×';
       del.title = 'remove';
@@ -163,7 +164,8 @@ export function setupPanel(send, pick, faceMode) {
       panel.hidden = !s;
       if (!s) return;
       materials = s.materials;
-      $('material').innerHTML = materials.map((m, i) => `<option value="${i}">${m.name}</option>`).join('') + '<option value="custom">custom</option>';
+      $('material').replaceChildren(...materials.map((m, i) => el('option', { value: String(i), textContent: m.name })),
+        el('option', { value: 'custom', textContent: 'custom' }));
       if (geometry !== s.geometry || !scene) {
         geometry = s.geometry;
         scene = JSON.parse(JSON.stringify(s.scene));

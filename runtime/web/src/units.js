@@ -1,6 +1,7 @@
 // How values are written: SI with prefixes (123 µm, 250 MPa) or the engineer's fixed units
 // (mm, MPa). Never a prefix and an exponent together ("7.41e-9 nm" was printed for 7e-18 m).
 
+/** @type {[number, string][]} */
 const PREFIXES = [[1e9, 'G'], [1e6, 'M'], [1e3, 'k'], [1, ''], [1e-3, 'm'], [1e-6, 'µ'], [1e-9, 'n'], [1e-12, 'p'], [1e-15, 'f']];
 
 /** A value with an SI prefix: 1.23e-4 m -> "123 µm", 2.5e8 Pa -> "250 MPa"; beyond the

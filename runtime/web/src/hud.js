@@ -1,0 +1,139 @@
+// What the page writes over the view: the readout (space, rates, device, hands, warnings), the
+// legend, the markers at the field's extremes and the probe under the cursor.
+import * as THREE from 'three';
+import { $, el } from './dom.js';
+import { gradient } from './colours.js';
+import { label, plain } from './units.js';
+import { DRAW_WINDOW, state } from './state.js';
+import { scene, screenOfPoint } from './viewport.js';
+
+/** The device's limit and coupling, in the units chosen. */
+export function showLimit() {
+  const h = state.hello;
+  $('limit').textContent = `device force limit ${plain(h.max_force)} N · coupling ${label(h.stiffness, 'stiffness', state.units)}`
+    + (h.free_body ? ` · free body, gravity ${plain(Math.hypot(...(h.gravity || [0, 0, 0])))} m/s²` : '');
+}
+
+/** Redraws per second over the last DRAW_WINDOW redraws. */
+function drawnRate() {
+  const n = Math.min(state.draws, DRAW_WINDOW);
+  if (n < 2) return 0;
+  const newest = state.drawTimes[(state.draws - 1) % DRAW_WINDOW], oldest = state.drawTimes[(state.draws - n) % DRAW_WINDOW];
+  return (1000 * (n - 1)) / (newest - oldest);
+}
+
+/** A status: the space, the rates, each hand's force and stress, and the warnings. */
+export function showStatus(m) {
+  const sp = state.hello.spaces[m.space];
+  if (!sp) { $('space').textContent = m.computing ? 'computing the basis…' : 'no basis yet: set the part up and compute'; return; }
+  $('space').textContent = `space ${sp.name}${sp.voi ? ' (volume of interest, yellow box)' : ''} · ${sp.vertices} vertices · ${m.clients} client(s)`;
+  const fps = drawnRate();
+  state.framesPerSecond = fps;
+  $('rates').textContent = `haptic ${m.haptic_hz.toFixed(0)} Hz · visual ${m.visual_hz.toFixed(0)} Hz · drawn here ${fps.toFixed(0)} fps`;
+  const u = state.units, min = state.hello.min_safety_factor, ys = state.hello.yield_strength;
+  const lines = [];
+  const warn = [];
+  m.hands.forEach((h, i) => {
+    if (!h.active) return;
+    const f = Math.hypot(...h.force);
+    lines.push(`hand ${i + 1}: ${label(f, 'force', 'si')} on the part${h.clamped ? ' (device limit)' : ''}${h.button ? '' : ', pressing'}`
+      + (h.von_mises > 0 ? ` · σvM ${label(h.von_mises, 'stress', u)} · σ1 ${label(h.principal_stress, 'stress', u)} · ε1 ${h.principal_strain.toExponential(2)}` : '')
+      + (h.safety_factor != null && h.von_mises > 0 ? ` · safety ${plain(h.safety_factor)}` : ''));
+    if (h.strain_exceeded) {
+      warn.push(`hand ${i + 1}: surface strain ${(100 * h.strain).toPrecision(2)} % at the held point is past the linear model's limit of ${(100 * state.hello.strain_limit).toPrecision(2)} %: the result there is not valid`);
+    }
+    // The hand's own criterion; when only the whole part is below the minimum, the part's line says so.
+    if (h.stress_exceeded && h.safety_factor != null && h.safety_factor < min) {
+      warn.push(`hand ${i + 1}: at the held point von Mises ${label(h.von_mises, 'stress', u)}, safety factor ${plain(h.safety_factor)} below the minimum ${plain(min)} (yield ${label(ys, 'stress', u)})`);
+    }
+  });
+  const s = state.spaces[m.space];
+  if (m.alarm && s && s.peak && s.peak.vertex >= 0) {
+    const p = Array.from(s.truePos.subarray(3 * s.peak.vertex, 3 * s.peak.vertex + 3)).map((v) => label(v, 'length', u)).join(', ');
+    warn.push(`part: von Mises ${label(s.peak.vonMises, 'stress', u)} at (${p}), safety factor ${plain(ys / s.peak.vonMises)} below the minimum ${plain(min)}: it would yield there`);
+  } else if (m.alarm) {
+    warn.push(`part: safety factor below the minimum ${plain(min)}: it would yield`);
+  }
+  $('handinfo').textContent = lines.join(' · ');
+  $('warn').textContent = warn.join(' · ');
+}
+
+/** The legend: its title, colour scale ('magnitude', 'signed', 'safety', 'neutral'), the three
+ * tick labels and the note under it. */
+export function showLegend(title, scale, ticks, note) {
+  $('legendtitle').textContent = title;
+  $('bar').style.background = gradient(scale);
+  [$('lo').textContent, $('mid').textContent, $('hi').textContent] = ticks;
+  if (note !== undefined) $('legendnote').textContent = note;
+}
+
+/** The deformation scale as drawn ("×5000, auto"). */
+export function showScale(k) {
+  $('scaleshown').textContent = `×${plain(k)}${state.scaleAuto ? ', auto' : ''}`;
+}
+
+// Markers at the field's extremes: a dot on the part and its value beside it. Made once and
+// reused: a redraw only moves them.
+const markers = [];
+const markerGeometry = new THREE.SphereGeometry(1, 12, 8);
+
+/** Places the markers of `list` ({vertex, text}) on space `s` as drawn. */
+export function placeMarkers(s, list) {
+  while (markers.length < list.length) {
+    const dot = new THREE.Mesh(markerGeometry, new THREE.MeshBasicMaterial({ color: 0xffffff, depthTest: false }));
+    dot.renderOrder = 2;
+    const tag = el('div', { className: 'marker' });
+    document.body.appendChild(tag);
+    scene.add(dot);
+    markers.push({ dot, tag });
+  }
+  const shown = $('showmarkers').checked;
+  markers.forEach((m, i) => {
+    const on = i < list.length && list[i].vertex >= 0 && shown;
+    m.dot.visible = on;
+    m.tag.style.display = on ? 'block' : 'none';
+    if (!on) return;
+    m.dot.position.fromBufferAttribute(s.geom.attributes.position, list[i].vertex);
+    m.dot.scale.setScalar(0.006 * state.diag);
+    m.vertex = list[i].vertex;
+    m.tag.textContent = list[i].text;
+  });
+}
+
+const at = [0, 0];
+/** Moves the markers' labels to where their dots are drawn (after a render). */
+export function placeTags() {
+  for (const m of markers) {
+    if (!m.dot.visible) continue;
+    const [x, y] = screenOfPoint(m.dot.position, at);
+    m.tag.style.left = `${x + 8}px`; m.tag.style.top = `${y - 8}px`;
+  }
+}
+
+/** The probe: the coloured value at vertex `v` and where it is, beside the cursor (x, y). */
+export function showProbe(v, x, y) {
+  const f = state.field, s = state.spaces[state.active];
+  if (!f || !s || v >= s.vertices) return;
+  const value = f.valueAt(v);
+  const shown = f.quantity === 'ratio' ? (Number.isFinite(value) ? plain(value) : 'no stress') : label(value, f.quantity, state.units);
+  // Coordinates to 1e-5 of the part's size: f32 round-off is not a position.
+  const q = 1e-5 * state.diag;
+  const where = Array.from(s.truePos.subarray(3 * v, 3 * v + 3)).map((c) => label(Math.round(c / q) * q, 'length', state.units)).join(', ');
+  const tip = $('probe');
+  tip.textContent = `${shown} · vertex ${v} at (${where})`;
+  tip.style.left = `${x + 14}px`; tip.style.top = `${y + 22}px`;
+  tip.style.display = 'block';
+  state.probe.text = tip.textContent;
+}
+
+/** The probe shows `text` (a face's tag) beside the cursor, or hides (null). */
+export function showTip(text, x, y) {
+  const tip = $('probe');
+  tip.style.display = text === null ? 'none' : 'block';
+  if (text === null) return;
+  tip.textContent = text;
+  tip.style.left = `${x + 14}px`; tip.style.top = `${y + 22}px`;
+}
+
+/** No probe. */
+export function hideProbe() { state.probe = null; $('probe').style.display = 'none'; }
