@@ -1,6 +1,8 @@
 //! Names that become file names, HDF5 group names and lines of messages (a scene's `name`, a
-//! VOI's `name`, a space of a basis file): one rule for all of them, so that no name can leave
-//! its directory or group, hide in a terminal, or break a one-line error in two.
+//! VOI's `name`, a space of a basis file, a load case): one rule every one of them keeps, so that
+//! no name can leave its directory or group, hide in a terminal, or break a one-line error in two.
+//! A scene's load case names keep a stricter rule on top (plain ASCII identifiers, checked where
+//! the scene is parsed: they also become array names in the XDMF and VTK files).
 
 /// Longest identifier, bytes: a name becomes `<name>.h5` plus a temporary suffix, and file names
 /// stop at 255 bytes.

@@ -404,7 +404,7 @@ fn verify(
             dir: &dir,
             stress: with_stress,
         })?;
-        let tol = Tolerances::resolve(r, d.mesh.kind.order(), curved, overrides);
+        let tol = r.tolerances(d.mesh.kind.order(), curved).overridden(overrides);
         let static_checked = static_ours
             .as_deref()
             .filter(|_| r.capabilities().has(Capability::Static));

@@ -1,12 +1,11 @@
 //! Pass/fail thresholds: each reference's defaults (see its file) and the user's overrides.
 
-use super::reference::Reference;
 use serde::Serialize;
 
 /// Default `--tol-stress` (see [`Tolerances::stress`]); measured in docs/validation.md.
 pub const STRESS_TOLERANCE: f64 = 1e-2;
 
-/// Pass/fail thresholds; `None` fields take the reference's default (see [`Tolerances::resolve`]).
+/// Pass/fail thresholds; `None` fields take the reference's default (see [`Tolerances::overridden`]).
 #[derive(Clone, Copy, Debug, Default)]
 pub struct ToleranceOverrides {
     /// Largest relative frequency difference.
@@ -67,10 +66,9 @@ impl Tolerances {
         }
     }
 
-    /// The defaults of `reference` on elements of `order` (curved or not), then the user's
-    /// overrides.
-    pub fn resolve(reference: &dyn Reference, order: u8, curved: bool, o: &ToleranceOverrides) -> Tolerances {
-        let d = reference.tolerances(order, curved);
+    /// These defaults (a reference's, for the elements compared), with the user's overrides.
+    pub fn overridden(self, o: &ToleranceOverrides) -> Tolerances {
+        let d = self;
         Tolerances {
             freq: o.freq.unwrap_or(d.freq),
             mac: o.mac.unwrap_or(d.mac),
