@@ -3,9 +3,11 @@
 //!
 //! Each is `$TMPDIR/ves-KIND-pidPID-RANDOM`, mode 0700 (files written through [`write`] or
 //! [`seal`]ed are 0600), and its owner holds a lock on a file inside for as long as it lives.
-//! It is removed when dropped; on SIGINT, SIGTERM and SIGHUP every live one is removed before
-//! the process ends (see [`remove_on_signals`]); one left by a process that ended otherwise (an
-//! abort, SIGKILL) is removed by the next process that makes a work folder.
+//! It is removed when dropped; in a program that asks for it ([`remove_on_signals`]: the `ves`
+//! binary does), every live one is removed on SIGINT, SIGTERM and SIGHUP before the process ends;
+//! one left by a process that ended otherwise (an abort, SIGKILL) is removed by the next process
+//! that makes a work folder. The library itself installs no signal handler: in an embedding
+//! program (Python, whose Ctrl-C must stay a KeyboardInterrupt) the signals stay its own.
 
 use std::os::unix::fs::{DirBuilderExt, OpenOptionsExt, PermissionsExt};
 use std::path::{Path, PathBuf};
@@ -34,14 +36,10 @@ pub struct WorkDir {
 
 impl WorkDir {
     /// A new work folder of `kind` (lower-case letters and `-`: `mesh`, `view`, `verify`). The
-    /// first one of a process first removes those whose owners are gone, and sets up their
-    /// removal on SIGINT, SIGTERM and SIGHUP.
+    /// first one of a process first removes those whose owners are gone.
     pub fn new(kind: &str) -> std::io::Result<WorkDir> {
         static SWEPT: Once = Once::new();
-        SWEPT.call_once(|| {
-            remove_stale(&std::env::temp_dir());
-            remove_on_signals();
-        });
+        SWEPT.call_once(|| remove_stale(&std::env::temp_dir()));
         let dir = tempfile::Builder::new()
             .prefix(&format!("{PREFIX}{kind}{PID}{}-", std::process::id()))
             .permissions(std::fs::Permissions::from_mode(0o700))
@@ -169,8 +167,9 @@ pub fn stop_on_interrupt(stop: Arc<AtomicBool>) {
 /// On SIGINT, SIGTERM or SIGHUP, removes every live work folder, then ends the process as the
 /// signal would have (a SIGINT with a [`stop_on_interrupt`] flag asks it to stop instead). In
 /// a thread of its own (signal-hook's self-pipe): removing folders is no work for a signal
-/// handler. Once per process; a handler that cannot be installed leaves the signals as they
-/// were (the next run removes the folders).
+/// handler. For programs that own their process (the `ves` binary calls it first thing), never
+/// for a library's caller. Once per process; a handler that cannot be installed leaves the
+/// signals as they were (the next run removes the folders).
 pub fn remove_on_signals() {
     use signal_hook::consts::{SIGHUP, SIGINT, SIGTERM};
     static INSTALLED: Once = Once::new();

@@ -3,9 +3,11 @@
 from __future__ import annotations
 
 import _thread
+import os
 import re
 import shutil
 import subprocess
+import sys
 import threading
 import time
 
@@ -131,6 +133,28 @@ def test_ctrl_c_stops_precompute_and_writes_nothing(tmp_path):
     timer.cancel()
     assert not out.exists()
     assert time.monotonic() - t < 30
+
+
+def test_a_real_sigint_raises_keyboardinterrupt_and_the_interpreter_lives(tmp_path):
+    """A Ctrl-C from the terminal is a SIGINT to the process, not `interrupt_main`: after a mesh
+    was made (the library's work folders exist), it must still reach Python as KeyboardInterrupt.
+    Run in a child interpreter, so a handler that ended the process shows as its exit status."""
+    scene = scene_copy(tmp_path, GOOD)
+    out = tmp_path / "stopped.h5"
+    code = (
+        "import os, signal, sys, threading, ves\n"
+        "ves.matrices(sys.argv[1], progress=False)\n"
+        "threading.Timer(0.3, lambda: os.kill(os.getpid(), signal.SIGINT)).start()\n"
+        "try:\n"
+        "    ves.precompute(sys.argv[1], sys.argv[2], progress=False)\n"
+        "except KeyboardInterrupt:\n"
+        "    print('interrupted')\n"
+    )
+    env = dict(os.environ, VES_MESH_CACHE="off")
+    r = subprocess.run([sys.executable, "-c", code, str(scene), str(out)], capture_output=True, text=True, timeout=120, env=env)
+    assert r.returncode == 0, (r.returncode, r.stderr[-2000:])
+    assert r.stdout.strip() == "interrupted", (r.stdout, r.stderr[-2000:])
+    assert not out.exists()
 
 
 def test_a_file_rewritten_in_place_is_read_whole_or_refused(cantilever, tmp_path):

@@ -89,6 +89,8 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
         crate::workshop::isolate_with(exe.clone());
         ves_pipeline::mesh::isolate_with(exe);
     }
+    // This program owns its process: a signal removes its work folders before it ends.
+    ves_pipeline::workdir::remove_on_signals();
     ves_pipeline::memory::cap_from_env().map_err(anyhow::Error::msg)?;
     // Counts (a batch's scenes, a report's bases) as bars; a command with stages of its own
     // (precompute, verify) puts its terminal, quiet or not, above this one.
