@@ -687,7 +687,7 @@ impl Scene {
             element_size(&format!("voi[{i}].size"), v.size).map_err(err)?;
             check_box(&format!("voi[{i}].box"), &v.bbox).map_err(err)?;
             // The name becomes an HDF5 group, a .vtu file name and part of messages.
-            ves_format::check_identifier(&format!("voi[{i}].name"), &v.name).map_err(err)?;
+            ves_format::check_identifier(&format!("voi[{i}].name"), &v.name).map_err(|e| err(e.to_string()))?;
             if names.contains(&v.name) {
                 return Err(err(format!(
                     "voi[{i}].name = {:?}: names must be unique and not \"global\" (the whole part's space); \
@@ -705,7 +705,7 @@ impl Scene {
         // an identifier, never a path.
         let name = match raw.name {
             Some(n) => {
-                ves_format::check_identifier("name", &n).map_err(err)?;
+                ves_format::check_identifier("name", &n).map_err(|e| err(e.to_string()))?;
                 n
             }
             None => {
