@@ -491,7 +491,8 @@ impl PartWorkshop {
 /// notes).
 pub fn serve_compute(dir: &Path) -> Result<(), String> {
     use std::io::{BufRead, Write};
-    let job: ComputeJob = ves_pipeline::workdir::child_job(dir, |j: &ComputeJob| j.parent)?;
+    let job: ComputeJob =
+        ves_pipeline::workdir::child_job(dir, |j: &ComputeJob| j.parent).map_err(|e| e.to_string())?;
     let file = dir.join("job.json");
     // Below the session in priority, the whole process (gmsh inherits it), as in-process
     // computes' pool is.

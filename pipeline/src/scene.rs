@@ -483,7 +483,7 @@ impl Scene {
             file: path.to_path_buf(),
             message,
         };
-        let text = crate::input::read_scene(path).map_err(err)?;
+        let text = crate::input::read_scene(path).map_err(|e| err(e.to_string()))?;
         let scene = Self::parse(path, &text)?;
         if scene.is_script() && !opts.allow_geo_scripts {
             return Err(err(format!(
@@ -663,7 +663,7 @@ impl Scene {
             return Err(err(format!(
                 "geometry.step = {:?}: {}",
                 shorten(&raw.geometry.step.to_string_lossy(), 200),
-                shorten(&e, 400)
+                shorten(&e.to_string(), 400)
             )));
         }
         if !supported {
