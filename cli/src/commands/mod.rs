@@ -95,7 +95,7 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
     let _terminal = ves_pipeline::progress::watch(crate::terminal::Terminal::on_stderr(true));
     match cli.command {
         Command::MeshWorker { dir } => Ok(ves_pipeline::mesh::serve_rung(&dir)?),
-        Command::ViewCompute { dir } => crate::workshop::serve_compute(&dir).map_err(anyhow::Error::msg),
+        Command::ViewCompute { dir } => crate::workshop::serve_compute(&dir),
         Command::Precompute(a) => a.run(),
         Command::Batch(a) => a.run(),
         Command::Session(a) => a.run(),
