@@ -13,7 +13,7 @@ use std::sync::{Arc, OnceLock};
 use ves_pipeline::modes::SolverChoice;
 use ves_pipeline::precompute;
 use ves_pipeline::scene::{Scene, SceneOptions};
-use ves_runtime::view::{Computed, Progress, Workshop};
+use ves_runtime::view::{Computed, Progress, Workshop, WorkshopError};
 
 /// A real material: name, Young's modulus (Pa), Poisson's ratio, density (kg/m³), yield
 /// strength (Pa; for brittle PMMA its tensile strength).
@@ -252,14 +252,16 @@ impl PartWorkshop {
 
     /// `scene` (JSON from the page) as scene text with `geometry`: `absolute` names the file by
     /// its full path (to compute), else by its name (to save beside it).
-    fn text(file: &Path, scene: &serde_json::Value, absolute: bool) -> Result<String, String> {
-        let mut table: toml::Table =
-            serde_json::from_value(scene.clone()).map_err(|e| format!("the page's scene: {e}"))?;
+    fn text(file: &Path, scene: &serde_json::Value, absolute: bool) -> Result<String, WorkshopError> {
+        let refused = |e: &dyn std::fmt::Display| WorkshopError::Scene {
+            message: format!("the page's scene: {e}"),
+        };
+        let mut table: toml::Table = serde_json::from_value(scene.clone()).map_err(|e| refused(&e))?;
         let geometry = table
             .entry("geometry")
             .or_insert_with(|| toml::Value::Table(toml::Table::new()));
         let toml::Value::Table(geometry) = geometry else {
-            return Err("the page's scene: geometry must be a table".into());
+            return Err(refused(&"geometry must be a table"));
         };
         let file = if absolute {
             file.display().to_string()
@@ -268,7 +270,7 @@ impl PartWorkshop {
                 .map_or(String::new(), |n| n.to_string_lossy().into_owned())
         };
         geometry.insert("step".into(), toml::Value::String(file));
-        toml::to_string(&table).map_err(|e| format!("the page's scene: {e}"))
+        toml::to_string(&table).map_err(|e| refused(&e))
     }
 }
 
@@ -369,14 +371,14 @@ impl PartWorkshop {
         saved: &str,
         progress: &Arc<dyn Fn(Progress) + Send + Sync>,
         cancel: &AtomicBool,
-        ready: &mut dyn FnMut(&Computed) -> Result<(), String>,
-    ) -> Result<Computed, String> {
+        ready: &mut dyn FnMut(&Computed) -> Result<(), WorkshopError>,
+    ) -> Result<Computed, WorkshopError> {
         use std::io::{BufRead, Write};
         let mut served = Unless(&job.out, false);
-        ves_pipeline::workdir::create_dir(dir).map_err(|e| format!("cannot start the compute: {e}"))?;
-        let text = serde_json::to_string(job).map_err(|e| format!("cannot start the compute: {e}"))?;
-        ves_pipeline::workdir::write(&dir.join("job.json"), text.as_bytes())
-            .map_err(|e| format!("cannot start the compute: {e}"))?;
+        ves_pipeline::workdir::create_dir(dir).map_err(WorkshopError::Start)?;
+        // serde_json's error as an io::Error keeps its message.
+        let text = serde_json::to_string(job).map_err(|e| WorkshopError::Start(e.into()))?;
+        ves_pipeline::workdir::write(&dir.join("job.json"), text.as_bytes()).map_err(WorkshopError::Start)?;
         let mut child = std::process::Command::new(exe)
             .arg(COMPUTE_COMMAND)
             .arg(dir)
@@ -385,7 +387,10 @@ impl PartWorkshop {
             .stdout(std::process::Stdio::piped())
             .stderr(std::process::Stdio::piped())
             .spawn()
-            .map_err(|e| format!("cannot start the compute process {}: {e}", exe.display()))?;
+            .map_err(|error| WorkshopError::StartProcess {
+                exe: exe.to_path_buf(),
+                error,
+            })?;
         let (tx, notes) = std::sync::mpsc::channel();
         let stdout = child.stdout.take();
         let reader = std::thread::spawn(move || {
@@ -430,7 +435,7 @@ impl PartWorkshop {
                     estimated_error,
                 }) => {
                     let taken = seal_basis(&job.out)
-                        .map_err(|e| format!("cannot keep the basis: {e}"))
+                        .map_err(WorkshopError::KeepBasis)
                         .and_then(|()| ready(&computed(summary, estimated_error)));
                     match taken {
                         Ok(()) => {
@@ -454,8 +459,8 @@ impl PartWorkshop {
                     let _ = seal_basis(&job.out);
                     outcome.get_or_insert(Ok(computed(summary, estimated_error)));
                 }
-                Ok(ChildNote::Error(e)) => {
-                    outcome.get_or_insert(Err(e));
+                Ok(ChildNote::Error(message)) => {
+                    outcome.get_or_insert(Err(WorkshopError::Failed { message }));
                 }
                 Err(std::sync::mpsc::RecvTimeoutError::Timeout) => {
                     if cancel.load(Ordering::Relaxed) && !killed {
@@ -472,16 +477,11 @@ impl PartWorkshop {
         let last = last_words.join().unwrap_or_default();
         match outcome {
             Some(done) => done,
-            None if killed && served.1 => Err("cancelled: the part shown stays, without its checks".into()),
-            None if killed => Err("cancelled: nothing was written".into()),
-            None => {
-                let why = if last.is_empty() {
-                    String::new()
-                } else {
-                    format!(": {last}")
-                };
-                Err(format!("the compute process ended: {}{why}", describe(status)))
-            }
+            None if killed => Err(WorkshopError::Cancelled { served: served.1 }),
+            None => Err(WorkshopError::ProcessEnded {
+                how: describe(status),
+                last_words: last,
+            }),
         }
     }
 }
@@ -489,7 +489,8 @@ impl PartWorkshop {
 /// The child's side of a compute: runs the job in `dir` and says how it goes on stdout
 /// ([`ChildNote`] lines). An error is about the job's file only (the compute's own failures are
 /// notes).
-pub fn serve_compute(dir: &Path) -> Result<(), String> {
+pub fn serve_compute(dir: &Path) -> anyhow::Result<()> {
+    use anyhow::Context;
     use std::io::{BufRead, Write};
     let job: ComputeJob = ves_pipeline::workdir::child_job(dir, |j: &ComputeJob| j.parent)?;
     let file = dir.join("job.json");
@@ -502,7 +503,7 @@ pub fn serve_compute(dir: &Path) -> Result<(), String> {
             let _ = writeln!(out, "{line}").and_then(|()| out.flush());
         }
     };
-    let solver: SolverChoice = job.solver.parse().map_err(|e| format!("{}: {e}", file.display()))?;
+    let solver: SolverChoice = job.solver.parse().with_context(|| file.display().to_string())?;
     let message = |e: anyhow::Error| format!("{e:#}").replace('\n', " ");
     let parsed = match Scene::parse(&job.path, &job.scene) {
         Ok(p) => p,
@@ -596,18 +597,19 @@ impl Workshop for PartWorkshop {
         scene: &serde_json::Value,
         progress: Arc<dyn Fn(Progress) + Send + Sync>,
         cancel: Arc<AtomicBool>,
-        ready: &mut dyn FnMut(&Computed) -> Result<(), String>,
-    ) -> Result<Computed, String> {
+        ready: &mut dyn FnMut(&Computed) -> Result<(), WorkshopError>,
+    ) -> Result<Computed, WorkshopError> {
         let _busy = self.busy.lock().unwrap_or_else(|p| p.into_inner());
         let n = self.computed.fetch_add(1, Ordering::Relaxed) + 1;
         let geometry = self.part().geometry.clone();
         let text = Self::text(&geometry, scene, true)?;
         // Parsed as if it sat beside the geometry; its name in errors is the page's.
         let path = self.dir.path().join("page.toml");
-        let parsed =
-            Scene::parse(&path, &text).map_err(|e| e.to_string().replace(&path.display().to_string(), "scene"))?;
+        let parsed = Scene::parse(&path, &text).map_err(|e| WorkshopError::Scene {
+            message: e.to_string().replace(&path.display().to_string(), "scene"),
+        })?;
         if parsed.is_script() && !self.options.allow_geo_scripts {
-            return Err("a .geo geometry is a gmsh script: open a STEP, IGES or BREP file".into());
+            return Err(WorkshopError::Script);
         }
         let out = self.dir.path().join(format!("basis-{n}.h5"));
         let saved = Self::text(&geometry, scene, false)?;
@@ -631,7 +633,9 @@ impl Workshop for PartWorkshop {
             let _ = std::fs::remove_dir_all(&dir);
             return done;
         }
-        let message = |e: anyhow::Error| format!("{e:#}").replace('\n', " ");
+        let failed = |e: anyhow::Error| WorkshopError::Failed {
+            message: format!("{e:#}").replace('\n', " "),
+        };
         let _watch = ves_pipeline::progress::watch(Arc::new(PageWatch { progress, cancel }));
         // In the workshop's pool: faer and rayon take their threads from it. `ready` runs here,
         // outside the pool: the session it starts must not inherit the pool's lower priority.
@@ -640,23 +644,23 @@ impl Workshop for PartWorkshop {
             Ok(first) => first,
             Err(e) => {
                 let _ = std::fs::remove_file(&out);
-                return Err(message(e));
+                return Err(failed(e));
             }
         };
-        seal_basis(&out).map_err(|e| format!("cannot keep the basis: {e}"))?;
+        seal_basis(&out).map_err(WorkshopError::KeepBasis)?;
         if let Err(e) = ready(&computed(&first.summary)) {
             let _ = std::fs::remove_file(&out);
             return Err(e);
         }
         // The session serves this basis now: the ones before are of no more use.
         self.remove_bases_but(&out);
-        let summary = self.pool.install(|| first.check()).map_err(message)?;
+        let summary = self.pool.install(|| first.check()).map_err(failed)?;
         // The checks wrote the file again.
-        seal_basis(&out).map_err(|e| format!("cannot keep the basis: {e}"))?;
+        seal_basis(&out).map_err(WorkshopError::KeepBasis)?;
         Ok(computed(&summary))
     }
 
-    fn open(&self, name: &str, bytes: &[u8]) -> Result<(), String> {
+    fn open(&self, name: &str, bytes: &[u8]) -> Result<(), WorkshopError> {
         let file = Path::new(name)
             .file_name()
             .map(|n| n.to_string_lossy().into_owned())
@@ -667,40 +671,33 @@ impl Workshop for PartWorkshop {
             .unwrap_or_default();
         let shown = ves_format::identifier::escape_for_terminal(&file);
         if ext == "geo" {
-            return Err(format!(
-                "{shown}: a .geo file is a gmsh script and can run commands; export the part as STEP, IGES or BREP"
-            ));
+            return Err(WorkshopError::GeoUpload { file: shown });
         }
         if !["step", "stp", "iges", "igs", "brep"].contains(&ext.as_str()) {
-            return Err(format!(
-                "{shown}: open a STEP (.step, .stp), IGES (.iges, .igs) or BREP (.brep) file"
-            ));
+            return Err(WorkshopError::Extension { file: shown });
         }
         if bytes.len() > ves_runtime::view::workshop::MAX_UPLOAD {
-            return Err(format!(
-                "{shown}: {} bytes, more than the {} MiB a page may send",
-                bytes.len(),
-                ves_runtime::view::workshop::MAX_UPLOAD >> 20
-            ));
+            return Err(WorkshopError::TooLarge {
+                file: shown,
+                bytes: bytes.len(),
+            });
         }
-        let kind = geometry_kind(bytes).ok_or_else(|| {
-            format!("{shown}: not a STEP, IGES or BREP file (a STEP file starts with ISO-10303-21); export the part again from its CAD system")
-        })?;
+        let Some(kind) = geometry_kind(bytes) else {
+            return Err(WorkshopError::NotGeometry { file: shown });
+        };
         let Ok(_busy) = self.busy.try_lock() else {
-            return Err(format!(
-                "{shown}: a compute is running: cancel it or wait, then open the part"
-            ));
+            return Err(WorkshopError::Busy { file: shown });
         };
         let n = self.computed.fetch_add(1, Ordering::Relaxed) + 1;
         // Its own directory: the part keeps the name the user knows (in the title and in the
         // saved scene), and a later part of the same name cannot replace it.
         let safe = safe_stem(Path::new(&file));
         let dir = self.dir.path().join(format!("part-{n}"));
-        ves_pipeline::workdir::create_dir(&dir).map_err(|e| format!("cannot keep the part: {e}"))?;
+        ves_pipeline::workdir::create_dir(&dir).map_err(WorkshopError::KeepPart)?;
         let path = dir.join(format!("{safe}.{}", if kind == "step" { ext.as_str() } else { kind }));
         if let Err(e) = ves_pipeline::workdir::write(&path, bytes) {
             let _ = std::fs::remove_dir_all(&dir);
-            return Err(format!("cannot keep the part: {e}"));
+            return Err(WorkshopError::KeepPart(e));
         }
         let mut part = self.part();
         part.start = starting_scene(&path);
@@ -777,7 +774,7 @@ mod tests {
         let w = PartWorkshop::for_geometry(Path::new("part.step"), SolverChoice::Auto).unwrap();
         let before = w.part().geometry.clone();
         let busy = w.busy.lock().unwrap();
-        let e = w.open("other.step", b"ISO-10303-21;\n").unwrap_err();
+        let e = w.open("other.step", b"ISO-10303-21;\n").unwrap_err().to_string();
         assert!(e.contains("compute is running"), "{e}");
         drop(busy);
         assert_eq!(w.part().geometry, before);
@@ -799,6 +796,7 @@ mod tests {
         }) else {
             panic!("a force of four numbers was computed");
         };
+        let e = e.to_string();
         assert!(
             e.starts_with("scene: ") && e.contains("force: ") && e.contains("exactly 3 numbers"),
             "{e}"

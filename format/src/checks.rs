@@ -1,8 +1,139 @@
 //! What physics requires of the values a basis file holds, beyond their being finite: one place,
-//! used by the guarded reader and by the runtime's in-memory bases. Each check returns `Err` with
-//! what is wrong (the caller names the file and the dataset).
+//! used by the guarded reader and by the runtime's in-memory bases. Each check returns a
+//! [`CheckError`] saying what is wrong (the caller names the file and the dataset).
 
 use crate::Block3;
+
+/// A stored value that physics does not allow; the message says what is wrong, without the file
+/// and the dataset (the caller adds them).
+#[derive(Clone, Debug, PartialEq, thiserror::Error)]
+pub enum CheckError {
+    /// Rayleigh damping with a negative or non-finite coefficient.
+    #[error("Rayleigh damping (α {alpha}, β {beta}) must be finite and ≥ 0")]
+    DampingSign {
+        /// α, 1/s.
+        alpha: f64,
+        /// β, s.
+        beta: f64,
+    },
+    /// Rayleigh damping whose damping ratio exceeds [`MAX_DAMPING_RATIO`] at a stored mode.
+    #[error(
+        "Rayleigh damping (α {alpha} 1/s, β {beta} s) gives a damping ratio of {ratio:.3e} at {hz:.4e} Hz, \
+         above {MAX_DAMPING_RATIO:e}: no solid is damped so; check the units of rayleigh_alpha/rayleigh_beta"
+    )]
+    DampingRatio {
+        /// α, 1/s.
+        alpha: f64,
+        /// β, s.
+        beta: f64,
+        /// The damping ratio ζ at that mode.
+        ratio: f64,
+        /// The mode's frequency, Hz.
+        hz: f64,
+    },
+    /// An eigenvalue that is not finite and positive.
+    #[error("eigenvalue {index} is {value}: elastic eigenvalues are finite and > 0")]
+    Eigenvalue {
+        /// Its index.
+        index: usize,
+        /// Its value.
+        value: f64,
+    },
+    /// An eigenvalue below the one before it.
+    #[error("eigenvalue {index} ({value}) is below eigenvalue {} ({previous}): they must be ascending", .index - 1)]
+    Descending {
+        /// Its index (≥ 1).
+        index: usize,
+        /// Its value.
+        value: f64,
+        /// The value of eigenvalue `index − 1`.
+        previous: f64,
+    },
+    /// Not one frequency per eigenvalue.
+    #[error("{frequencies} frequencies for {eigenvalues} eigenvalues")]
+    FrequencyCount {
+        /// Frequencies stored.
+        frequencies: usize,
+        /// Eigenvalues stored.
+        eigenvalues: usize,
+    },
+    /// A frequency that is not √λ/2π of its eigenvalue.
+    #[error("frequency {index} is {hz} Hz but its eigenvalue {eigenvalue} gives {expected} Hz (√λ/2π)")]
+    Frequency {
+        /// Its index.
+        index: usize,
+        /// The frequency stored, Hz.
+        hz: f64,
+        /// Its eigenvalue.
+        eigenvalue: f64,
+        /// √λ/2π, Hz.
+        expected: f64,
+    },
+    /// A 3×3 block with a value that is not finite.
+    #[error("a value is not finite")]
+    NotFinite,
+    /// A zero block at a node with a free component.
+    #[error("the block is zero at a node that is not fully supported")]
+    ZeroBlock,
+    /// A block that is not symmetric.
+    #[error("not symmetric: entry ({i}, {j}) is {ij} and ({j}, {i}) is {ji}")]
+    Asymmetric {
+        /// Row.
+        i: usize,
+        /// Column.
+        j: usize,
+        /// Entry (i, j).
+        ij: f64,
+        /// Entry (j, i).
+        ji: f64,
+    },
+    /// A block with a non-zero entry in a supported component's row or column.
+    #[error("entry ({i}, {j}) is {value} but component {component} is supported (must be 0)")]
+    Supported {
+        /// Row.
+        i: usize,
+        /// Column.
+        j: usize,
+        /// The entry.
+        value: f64,
+        /// The supported component.
+        component: usize,
+    },
+    /// A block that is not positive definite on its free components.
+    #[error("not positive definite (pivot {pivot} is {value:.3e}): it must be positive in every unsupported direction")]
+    NotPositiveDefinite {
+        /// The pivot of the Cholesky factorisation that failed.
+        pivot: usize,
+        /// Its value (in the block's units).
+        value: f64,
+    },
+    /// A load case's stated largest value that its data does not reach.
+    #[error("says {stated:e} but its data's largest value is {found:e}")]
+    StatedMax {
+        /// The attribute's value.
+        stated: f64,
+        /// The data's largest value.
+        found: f64,
+    },
+    /// A surface triangle with a repeated corner.
+    #[error("triangle {index} {corners:?} repeats a vertex: a triangle has three distinct corners")]
+    Triangle {
+        /// Its index.
+        index: usize,
+        /// Its corners.
+        corners: [u32; 3],
+    },
+    /// A tet with a repeated node.
+    #[error("tet {index} {nodes:?} repeats node {node}: a tet has distinct nodes")]
+    Tet {
+        /// Its index.
+        index: usize,
+        /// Its nodes.
+        nodes: Vec<u32>,
+        /// The node it holds twice.
+        node: u32,
+    },
+}
 
 /// Largest damping ratio ζ = α/(2ω) + βω/2 accepted at any stored mode. No solid damps a mode a
 /// thousand times beyond critical (it would creep back over 2000/ω seconds); a larger ratio is a
@@ -34,9 +165,9 @@ pub const RELATIVE_TOLERANCE: f64 = 1e-6;
 
 /// Rayleigh damping (α ≥ 0, β ≥ 0, finite) whose damping ratio stays at most
 /// [`MAX_DAMPING_RATIO`] at every mode of eigenvalues `eigenvalues` (λ = ω² > 0).
-pub fn damping(alpha: f64, beta: f64, eigenvalues: &[f64]) -> Result<(), String> {
+pub fn damping(alpha: f64, beta: f64, eigenvalues: &[f64]) -> Result<(), CheckError> {
     if !(alpha.is_finite() && beta.is_finite() && alpha >= 0.0 && beta >= 0.0) {
-        return Err(format!("Rayleigh damping (α {alpha}, β {beta}) must be finite and ≥ 0"));
+        return Err(CheckError::DampingSign { alpha, beta });
     }
     // ζ(ω) is convex in ω: its largest value over the modes is at the lowest or the highest.
     let ratio = |l: f64| {
@@ -46,43 +177,49 @@ pub fn damping(alpha: f64, beta: f64, eigenvalues: &[f64]) -> Result<(), String>
     for l in [eigenvalues.first(), eigenvalues.last()].into_iter().flatten() {
         let z = ratio(*l);
         if z.is_nan() || z > MAX_DAMPING_RATIO {
-            return Err(format!(
-                "Rayleigh damping (α {alpha} 1/s, β {beta} s) gives a damping ratio of {z:.3e} at {:.4e} Hz, \
-                 above {MAX_DAMPING_RATIO:e}: no solid is damped so; check the units of rayleigh_alpha/rayleigh_beta",
-                l.sqrt() / (2.0 * std::f64::consts::PI)
-            ));
+            return Err(CheckError::DampingRatio {
+                alpha,
+                beta,
+                ratio: z,
+                hz: l.sqrt() / (2.0 * std::f64::consts::PI),
+            });
         }
     }
     Ok(())
 }
 
 /// Elastic eigenvalues: finite, > 0, ascending (equal neighbours allowed: repeated modes).
-pub fn eigenvalues(lambda: &[f64]) -> Result<(), String> {
-    if let Some((i, l)) = lambda.iter().enumerate().find(|(_, l)| !(l.is_finite() && **l > 0.0)) {
-        return Err(format!("eigenvalue {i} is {l}: elastic eigenvalues are finite and > 0"));
+pub fn eigenvalues(lambda: &[f64]) -> Result<(), CheckError> {
+    if let Some((index, &value)) = lambda.iter().enumerate().find(|(_, l)| !(l.is_finite() && **l > 0.0)) {
+        return Err(CheckError::Eigenvalue { index, value });
     }
-    if let Some(i) = (1..lambda.len()).find(|&i| lambda[i] < lambda[i - 1]) {
-        return Err(format!(
-            "eigenvalue {i} ({}) is below eigenvalue {} ({}): they must be ascending",
-            lambda[i],
-            i - 1,
-            lambda[i - 1]
-        ));
+    if let Some(index) = (1..lambda.len()).find(|&i| lambda[i] < lambda[i - 1]) {
+        return Err(CheckError::Descending {
+            index,
+            value: lambda[index],
+            previous: lambda[index - 1],
+        });
     }
     Ok(())
 }
 
 /// Frequencies (Hz) equal to √λ/2π to [`RELATIVE_TOLERANCE`].
-pub fn frequencies(lambda: &[f64], hz: &[f64]) -> Result<(), String> {
+pub fn frequencies(lambda: &[f64], hz: &[f64]) -> Result<(), CheckError> {
     if lambda.len() != hz.len() {
-        return Err(format!("{} frequencies for {} eigenvalues", hz.len(), lambda.len()));
+        return Err(CheckError::FrequencyCount {
+            frequencies: hz.len(),
+            eigenvalues: lambda.len(),
+        });
     }
-    for (i, (&l, &f)) in lambda.iter().zip(hz).enumerate() {
+    for (index, (&l, &f)) in lambda.iter().zip(hz).enumerate() {
         let want = l.sqrt() / (2.0 * std::f64::consts::PI);
         if f.is_nan() || (f - want).abs() > RELATIVE_TOLERANCE * want {
-            return Err(format!(
-                "frequency {i} is {f} Hz but its eigenvalue {l} gives {want} Hz (√λ/2π)"
-            ));
+            return Err(CheckError::Frequency {
+                index,
+                hz: f,
+                eigenvalue: l,
+                expected: want,
+            });
         }
     }
     Ok(())
@@ -92,14 +229,14 @@ pub fn frequencies(lambda: &[f64], hz: &[f64]) -> Result<(), String> {
 /// of the components not in `free`, and positive definite on the others (Cholesky of the block
 /// scaled to unit largest entry, so tiny or huge values neither underflow nor overflow).
 /// Returns the largest diagonal entry.
-pub fn symmetric_positive_definite(b: &Block3, free: [bool; 3]) -> Result<f64, String> {
+pub fn symmetric_positive_definite(b: &Block3, free: [bool; 3]) -> Result<f64, CheckError> {
     if b.iter().flatten().any(|v| !v.is_finite()) {
-        return Err("a value is not finite".into());
+        return Err(CheckError::NotFinite);
     }
     let scale = b.iter().flatten().fold(0.0f64, |m, v| m.max(v.abs()));
     if scale == 0.0 {
         return if free.iter().any(|&f| f) {
-            Err("the block is zero at a node that is not fully supported".into())
+            Err(CheckError::ZeroBlock)
         } else {
             Ok(0.0)
         };
@@ -107,17 +244,20 @@ pub fn symmetric_positive_definite(b: &Block3, free: [bool; 3]) -> Result<f64, S
     for i in 0..3 {
         for j in 0..3 {
             if (b[i][j] - b[j][i]).abs() > RELATIVE_TOLERANCE * scale {
-                return Err(format!(
-                    "not symmetric: entry ({i}, {j}) is {} and ({j}, {i}) is {}",
-                    b[i][j], b[j][i]
-                ));
+                return Err(CheckError::Asymmetric {
+                    i,
+                    j,
+                    ij: b[i][j],
+                    ji: b[j][i],
+                });
             }
             if (!free[i] || !free[j]) && b[i][j].abs() > RELATIVE_TOLERANCE * scale {
-                return Err(format!(
-                    "entry ({i}, {j}) is {} but component {} is supported (must be 0)",
-                    b[i][j],
-                    if free[i] { j } else { i }
-                ));
+                return Err(CheckError::Supported {
+                    i,
+                    j,
+                    value: b[i][j],
+                    component: if free[i] { j } else { i },
+                });
             }
         }
     }
@@ -130,10 +270,10 @@ pub fn symmetric_positive_definite(b: &Block3, free: [bool; 3]) -> Result<f64, S
                 - l[a][..c].iter().zip(&l[c][..c]).map(|(x, y)| x * y).sum::<f64>();
             if a == c {
                 if s.is_nan() || s <= 0.0 {
-                    return Err(format!(
-                        "not positive definite (pivot {a} is {:.3e}): it must be positive in every unsupported direction",
-                        s * scale
-                    ));
+                    return Err(CheckError::NotPositiveDefinite {
+                        pivot: a,
+                        value: s * scale,
+                    });
                 }
                 l[a][a] = s.sqrt();
             } else {
@@ -146,34 +286,38 @@ pub fn symmetric_positive_definite(b: &Block3, free: [bool; 3]) -> Result<f64, S
 
 /// A load case's stated largest value `stated` (attribute `max_displacement` or `max_von_mises`)
 /// equal to the largest of its data, `found`, to [`RELATIVE_TOLERANCE`].
-pub fn stated_max(stated: f64, found: f64) -> Result<(), String> {
+pub fn stated_max(stated: f64, found: f64) -> Result<(), CheckError> {
     if (stated - found).abs() <= RELATIVE_TOLERANCE * stated.abs().max(found.abs()) {
         Ok(())
     } else {
-        Err(format!("says {stated:e} but its data's largest value is {found:e}"))
+        Err(CheckError::StatedMax { stated, found })
     }
 }
 
 /// Surface triangles: three distinct corner vertices each (a repeated index is no triangle).
-pub fn triangles(t: &[u32]) -> Result<(), String> {
+pub fn triangles(t: &[u32]) -> Result<(), CheckError> {
     match t
         .chunks_exact(3)
         .position(|t| t[0] == t[1] || t[1] == t[2] || t[0] == t[2])
     {
-        Some(i) => Err(format!(
-            "triangle {i} {:?} repeats a vertex: a triangle has three distinct corners",
-            &t[3 * i..3 * i + 3]
-        )),
+        Some(index) => Err(CheckError::Triangle {
+            index,
+            corners: [t[3 * index], t[3 * index + 1], t[3 * index + 2]],
+        }),
         None => Ok(()),
     }
 }
 
 /// Tets of `per` nodes each: no node twice in one tet (a degenerate element has no volume).
-pub fn tets(t: &[u32], per: usize) -> Result<(), String> {
-    for (i, e) in t.chunks_exact(per.max(1)).enumerate() {
+pub fn tets(t: &[u32], per: usize) -> Result<(), CheckError> {
+    for (index, e) in t.chunks_exact(per.max(1)).enumerate() {
         for a in 0..e.len() {
             if e[a + 1..].contains(&e[a]) {
-                return Err(format!("tet {i} {e:?} repeats node {}: a tet has distinct nodes", e[a]));
+                return Err(CheckError::Tet {
+                    index,
+                    nodes: e.to_vec(),
+                    node: e[a],
+                });
             }
         }
     }
@@ -192,12 +336,14 @@ mod tests {
         assert!(
             symmetric_positive_definite(&anti, [true; 3])
                 .unwrap_err()
+                .to_string()
                 .contains("symmetric")
         );
         let neg = [[-1e-9, 0.0, 0.0], [0.0, 1e-9, 0.0], [0.0, 0.0, 1e-9]];
         assert!(
             symmetric_positive_definite(&neg, [true; 3])
                 .unwrap_err()
+                .to_string()
                 .contains("positive definite")
         );
         let indefinite = [[1.0, 2.0, 0.0], [2.0, 1.0, 0.0], [0.0, 0.0, 1.0]];

@@ -36,40 +36,112 @@ fn is_hidden(c: char) -> bool {
     )
 }
 
+/// What a name must be written with instead, said at the end of every refusal.
+const ADVICE: &str = "use letters, digits, '-', '_' and '.', e.g. \"rib_1\"";
+
+/// A name that is not an identifier: one line naming the key and saying what to change. The
+/// name is quoted with its hidden characters escaped (see [`escape_for_terminal`]).
+#[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
+pub enum IdentifierError {
+    /// The name is empty.
+    #[error("{what} is empty; {ADVICE}")]
+    Empty {
+        /// The key, e.g. `voi[2].name`.
+        what: String,
+    },
+    /// The name is longer than [`MAX_IDENTIFIER_BYTES`].
+    #[error("{what} = \"{head}…\" is {bytes} bytes long; at most {MAX_IDENTIFIER_BYTES}")]
+    TooLong {
+        /// The key.
+        what: String,
+        /// Its first 24 characters, escaped.
+        head: String,
+        /// Its length, bytes.
+        bytes: usize,
+    },
+    /// The name holds a control, bidirectional or zero-width character.
+    #[error(
+        "{what} = \"{name}\" holds the invisible character U+{code:04X} (a control, bidirectional or zero-width \
+         character); {ADVICE}"
+    )]
+    Hidden {
+        /// The key.
+        what: String,
+        /// The name, escaped.
+        name: String,
+        /// The first such character's code point.
+        code: u32,
+    },
+    /// The name begins or ends with a space.
+    #[error("{what} = \"{name}\" begins or ends with a space (a file name no one can tell apart); {ADVICE}")]
+    Space {
+        /// The key.
+        what: String,
+        /// The name, escaped.
+        name: String,
+    },
+    /// The name holds '/' or '\\'.
+    #[error("{what} = \"{name}\" holds a path separator ('/' or '\\'); {ADVICE}")]
+    Separator {
+        /// The key.
+        what: String,
+        /// The name, escaped.
+        name: String,
+    },
+    /// The name is "." or holds "..".
+    #[error("{what} = \"{name}\" is \".\" or holds \"..\" (a path to another directory); {ADVICE}")]
+    Dots {
+        /// The key.
+        what: String,
+        /// The name, escaped.
+        name: String,
+    },
+}
+
 /// Checks that `name` is an identifier: not empty, at most [`MAX_IDENTIFIER_BYTES`] bytes, no
 /// '/' or '\\', not "." and no "..", no space at either end, no control character
 /// (U+0000–U+001F, U+007F–U+009F) and no default-ignorable (invisible), bidirectional or
 /// line-separating character (U+00AD, U+061C, U+200B–U+200F, U+2028–U+202E, U+2060–U+206F,
 /// U+FEFF, tags U+E0000–U+E0FFF and the others Unicode lists as default-ignorable). `what` names the key in the message (e.g.
 /// `voi[2].name`); the message is one line and says what to change.
-pub fn check_identifier(what: &str, name: &str) -> Result<(), String> {
-    const ADVICE: &str = "use letters, digits, '-', '_' and '.', e.g. \"rib_1\"";
+pub fn check_identifier(what: &str, name: &str) -> Result<(), IdentifierError> {
+    let what = what.to_string();
     if name.is_empty() {
-        return Err(format!("{what} is empty; {ADVICE}"));
+        return Err(IdentifierError::Empty { what });
     }
     if name.len() > MAX_IDENTIFIER_BYTES {
         let head: String = name.chars().take(24).collect();
-        return Err(format!(
-            "{what} = \"{}…\" is {} bytes long; at most {MAX_IDENTIFIER_BYTES}",
-            shown(&head),
-            name.len()
-        ));
+        return Err(IdentifierError::TooLong {
+            what,
+            head: shown(&head),
+            bytes: name.len(),
+        });
     }
-    let why = if let Some(c) = name.chars().find(|&c| c.is_control() || is_hidden(c)) {
-        format!(
-            "holds the invisible character U+{:04X} (a control, bidirectional or zero-width character)",
-            u32::from(c)
-        )
+    let shown_name = || shown(name);
+    if let Some(c) = name.chars().find(|&c| c.is_control() || is_hidden(c)) {
+        Err(IdentifierError::Hidden {
+            what,
+            name: shown_name(),
+            code: u32::from(c),
+        })
     } else if name.starts_with(char::is_whitespace) || name.ends_with(char::is_whitespace) {
-        "begins or ends with a space (a file name no one can tell apart)".to_string()
+        Err(IdentifierError::Space {
+            what,
+            name: shown_name(),
+        })
     } else if name.contains(['/', '\\']) {
-        "holds a path separator ('/' or '\\')".to_string()
+        Err(IdentifierError::Separator {
+            what,
+            name: shown_name(),
+        })
     } else if name == "." || name.contains("..") {
-        "is \".\" or holds \"..\" (a path to another directory)".to_string()
+        Err(IdentifierError::Dots {
+            what,
+            name: shown_name(),
+        })
     } else {
-        return Ok(());
-    };
-    Err(format!("{what} = \"{}\" {why}; {ADVICE}", shown(name)))
+        Ok(())
+    }
 }
 
 /// `name` with its control and hidden characters written as `\u{…}`, and its quotes and
@@ -126,13 +198,15 @@ mod tests {
             " a",
             "a ",
         ] {
-            let e = check_identifier("voi[0].name", bad).expect_err(bad);
+            let e = check_identifier("voi[0].name", bad).expect_err(bad).to_string();
             assert!(e.starts_with("voi[0].name") && !e.contains('\n'), "{e}");
         }
         let long = "x".repeat(10_000);
-        let e = check_identifier("name", &long).expect_err("long");
+        let e = check_identifier("name", &long).expect_err("long").to_string();
         assert!(e.len() < 200, "the message repeats the whole name: {e}");
-        let e = check_identifier("voi[1].name", "a\u{202E}b").expect_err("bidi");
+        let e = check_identifier("voi[1].name", "a\u{202E}b")
+            .expect_err("bidi")
+            .to_string();
         assert!(e.contains("U+202E") && !e.contains('\u{202E}'), "{e}");
     }
 
@@ -166,7 +240,7 @@ mod tests {
             if ok {
                 assert_eq!(got, Ok(()), "{bytes} bytes, {} characters", name.chars().count());
             } else {
-                let e = got.expect_err(&name);
+                let e = got.expect_err(&name).to_string();
                 // One line naming the key, the length in bytes and the limit; the quoted head is
                 // cut at a character boundary (no panic inside a multi-byte character).
                 assert!(e.starts_with("voi[0].name = \"") && !e.contains('\n'), "{e}");

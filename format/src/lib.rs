@@ -19,7 +19,7 @@ pub mod write;
 pub mod xdmf;
 
 pub use element::ElementKind;
-pub use identifier::check_identifier;
+pub use identifier::{IdentifierError, check_identifier};
 pub use names::{FORMAT, VERSION};
 #[cfg(feature = "hdf5")]
 pub use read::{BasisReader, ReadError, SpaceReader, guarded};
@@ -100,48 +100,52 @@ impl Contact {
     /// Checks what a reader relies on: offsets from 0 to the number of nodes, ascending centres
     /// that are corner vertices (below `vertex_count`), node indices below `node_count`, and per
     /// patch finite weights summing to 1, each within [`Contact::weight_range`] of its node.
-    pub fn check(&self, kind: crate::ElementKind, vertex_count: usize, node_count: usize) -> Result<(), String> {
+    pub fn check(&self, kind: crate::ElementKind, vertex_count: usize, node_count: usize) -> Result<(), ContactError> {
         if !(self.radius.is_finite() && self.radius >= 0.0) {
-            return Err(format!("radius {} is not a length ≥ 0", self.radius));
+            return Err(ContactError::Radius { radius: self.radius });
         }
         if self.offsets.len() != self.centres.len() + 1
             || self.offsets.first() != Some(&0)
             || self.offsets.last().map(|&o| o as usize) != Some(self.nodes.len())
             || self.offsets.windows(2).any(|w| w[0] > w[1])
         {
-            return Err(format!(
-                "offsets do not split {} nodes into {} patches",
-                self.nodes.len(),
-                self.centres.len()
-            ));
+            return Err(ContactError::Offsets {
+                nodes: self.nodes.len(),
+                patches: self.centres.len(),
+            });
         }
         if self.weights.len() != self.nodes.len() {
-            return Err(format!("{} weights for {} nodes", self.weights.len(), self.nodes.len()));
+            return Err(ContactError::Weights {
+                weights: self.weights.len(),
+                nodes: self.nodes.len(),
+            });
         }
         if self.centres.windows(2).any(|w| w[0] >= w[1]) {
-            return Err("centres are not ascending".into());
+            return Err(ContactError::Centres);
         }
-        if let Some(v) = self.centres.iter().find(|&&v| v as usize >= vertex_count) {
-            return Err(format!("centre {v} is not a corner vertex (of {vertex_count})"));
+        if let Some(&centre) = self.centres.iter().find(|&&v| v as usize >= vertex_count) {
+            return Err(ContactError::NotCorner { centre, vertex_count });
         }
-        if let Some(v) = self.nodes.iter().find(|&&v| v as usize >= node_count) {
-            return Err(format!("node {v} of {node_count}"));
+        if let Some(&node) = self.nodes.iter().find(|&&v| v as usize >= node_count) {
+            return Err(ContactError::Node { node, node_count });
         }
         for k in 0..self.centres.len() {
             let (nodes, w) = self.patch(k);
             for (&a, &x) in nodes.iter().zip(w) {
                 let (lo, hi) = Contact::weight_range(kind, a as usize >= vertex_count);
                 if !(x >= lo - WEIGHT_TOLERANCE && x <= hi + WEIGHT_TOLERANCE) {
-                    return Err(format!(
-                        "weight {x:e} of node {a} in patch {k} (centre {}) is outside [{lo}, {hi}]: a weight is the \
-                         node's shape function averaged over the patch's pressure",
-                        self.centres[k]
-                    ));
+                    return Err(ContactError::WeightRange {
+                        weight: x,
+                        node: a,
+                        patch: k,
+                        centre: self.centres[k],
+                        range: (lo, hi),
+                    });
                 }
             }
             let sum: f64 = w.iter().sum();
             if (sum - 1.0).abs() > WEIGHT_TOLERANCE {
-                return Err(format!("the weights of patch {k} sum to {sum}, not 1"));
+                return Err(ContactError::Sum { patch: k, sum });
             }
         }
         Ok(())
@@ -159,6 +163,77 @@ impl Contact {
             _ => (0.0, 1.0),
         }
     }
+}
+
+/// A contact group a reader cannot rely on: what is wrong with it (the caller names the file).
+#[derive(Clone, Debug, PartialEq, thiserror::Error)]
+pub enum ContactError {
+    /// The radius is not a length.
+    #[error("radius {radius} is not a length ≥ 0")]
+    Radius {
+        /// The radius stored, m.
+        radius: f64,
+    },
+    /// The offsets do not split the nodes into one run per centre.
+    #[error("offsets do not split {nodes} nodes into {patches} patches")]
+    Offsets {
+        /// Nodes stored.
+        nodes: usize,
+        /// Centres stored.
+        patches: usize,
+    },
+    /// Not one weight per node.
+    #[error("{weights} weights for {nodes} nodes")]
+    Weights {
+        /// Weights stored.
+        weights: usize,
+        /// Nodes stored.
+        nodes: usize,
+    },
+    /// The centres are not strictly ascending.
+    #[error("centres are not ascending")]
+    Centres,
+    /// A centre that is not a corner vertex.
+    #[error("centre {centre} is not a corner vertex (of {vertex_count})")]
+    NotCorner {
+        /// The centre.
+        centre: u32,
+        /// Corner vertices of the space.
+        vertex_count: usize,
+    },
+    /// A node index beyond the space's nodes.
+    #[error("node {node} of {node_count}")]
+    Node {
+        /// The index.
+        node: u32,
+        /// Nodes of the space.
+        node_count: usize,
+    },
+    /// A weight outside its node's shape-function range ([`Contact::weight_range`]).
+    #[error(
+        "weight {weight:e} of node {node} in patch {patch} (centre {centre}) is outside [{}, {}]: a weight is the \
+         node's shape function averaged over the patch's pressure", .range.0, .range.1
+    )]
+    WeightRange {
+        /// The weight.
+        weight: f64,
+        /// Its node.
+        node: u32,
+        /// The patch.
+        patch: usize,
+        /// The patch's centre.
+        centre: u32,
+        /// The range allowed.
+        range: (f64, f64),
+    },
+    /// A patch whose weights do not sum to 1.
+    #[error("the weights of patch {patch} sum to {sum}, not 1")]
+    Sum {
+        /// The patch.
+        patch: usize,
+        /// The sum.
+        sum: f64,
+    },
 }
 
 /// Rounding allowed on a contact weight's range and on a patch's sum (the integration's rounding
@@ -215,7 +290,7 @@ mod contact_tests {
         for (says, damage) in cases {
             let mut c = good();
             damage(&mut c);
-            let e = c.check(Tet10, 4, 6).expect_err(says);
+            let e = c.check(Tet10, 4, 6).expect_err(says).to_string();
             assert!(e.contains(says), "{e:?} should say {says:?}");
         }
         // The sum alone, as the check was, lets the ±1e9 patch through.
@@ -224,7 +299,7 @@ mod contact_tests {
         c.weights[1] -= 1e9;
         assert!((c.weights[..3].iter().sum::<f64>() - 1.0).abs() < 1e-6);
         // With 4-node tets every node is a corner of a 3-node triangle: no share is negative.
-        let e = good().check(Tet4, 6, 6).unwrap_err();
+        let e = good().check(Tet4, 6, 6).unwrap_err().to_string();
         assert!(e.contains("outside [0, 1]"), "{e}");
         let mut rounded = good();
         rounded.weights[3] = 1.0 + 1e-9;

@@ -172,7 +172,7 @@ pub use crate::identifier::escape_for_terminal;
 /// Checks a space name as the scene and the file may give it: an identifier
 /// ([`crate::check_identifier`]: names are printed to terminals and become file names). `Err`
 /// says what is wrong.
-pub fn check_space_name(name: &str) -> Result<(), String> {
+pub fn check_space_name(name: &str) -> Result<(), crate::IdentifierError> {
     crate::check_identifier("space name", name)
 }
 

@@ -438,7 +438,7 @@ pub struct SpaceReader<'a> {
 
 impl<'a> SpaceReader<'a> {
     fn open(file: &'a BasisReader, name: &str) -> Result<SpaceReader<'a>, ReadError> {
-        names::check_space_name(name).map_err(|m| file.err(m))?;
+        names::check_space_name(name).map_err(|m| file.err(m.to_string()))?;
         let path = format!("{}/{name}", names::SPACES);
         let group = file
             .file
@@ -952,7 +952,7 @@ impl<'a> SpaceReader<'a> {
                         sp::COMPLIANCE_BLOCKS
                     ))
                 };
-                let c = checks::symmetric_positive_definite(b, free).map_err(bad)?;
+                let c = checks::symmetric_positive_definite(b, free).map_err(|e| bad(e.to_string()))?;
                 let dimensionless = c * young * size;
                 if dimensionless.is_nan() || dimensionless > checks::MAX_DIMENSIONLESS_COMPLIANCE {
                     return Err(bad(format!(

@@ -36,8 +36,18 @@ pub fn headroom_bytes() -> Option<u64> {
 /// the rest. `ves` refuses an unreadable value at its start ([`cap_from_env`]).
 pub const CAP_VAR: &str = "VES_MAX_MEMORY";
 
+/// [`CAP_VAR`] is set to something that is not a memory size.
+#[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
+#[error(
+    "{CAP_VAR}={text:?}: not a memory size; give bytes or a number with K, M, G or T (e.g. {CAP_VAR}=8G), or unset it"
+)]
+pub struct MemoryCapError {
+    /// The variable's value as given.
+    pub text: String,
+}
+
 /// The cap [`CAP_VAR`] sets, `None` when unset; an error naming it when it is not a size.
-pub fn cap_from_env() -> Result<Option<u64>, String> {
+pub fn cap_from_env() -> Result<Option<u64>, MemoryCapError> {
     let Some(v) = std::env::var_os(CAP_VAR) else {
         return Ok(None);
     };
@@ -59,9 +69,9 @@ pub fn cap_from_env() -> Result<Option<u64>, String> {
         Ok(x) if scale > 0 && x.is_finite() && x > 0.0 && x * (scale as f64) < 2f64.powi(63) => {
             Ok(Some((x * scale as f64) as u64))
         }
-        _ => Err(format!(
-            "{CAP_VAR}={text:?}: not a memory size; give bytes or a number with K, M, G or T (e.g. {CAP_VAR}=8G), or unset it"
-        )),
+        _ => Err(MemoryCapError {
+            text: text.into_owned(),
+        }),
     }
 }
 

@@ -9,7 +9,7 @@ use std::path::Path;
 /// Writes `col_ptr`, `row_idx`, `k`, `m` (lower-triangle CSC), `free_dofs`, `nodes`, `tets`.
 /// The file is written atomically (the caller checked `out` with [`crate::output::check`]).
 pub fn write_matrices(out: &Path, d: &Discretized) -> Result<()> {
-    crate::output::write_atomically(out, |tmp| write_to(tmp, d))
+    Ok(crate::output::write_atomically(out, |tmp| write_to(tmp, d))?)
 }
 
 fn write_to(out: &Path, d: &Discretized) -> Result<()> {

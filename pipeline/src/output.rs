@@ -5,8 +5,95 @@
 //! under the final name and never touches what was there. Files that belong together (a basis
 //! and its XDMF sidecar) are all written and flushed before the first is renamed.
 
-use anyhow::{Context, Result, bail};
+use anyhow::Context;
 use std::path::{Path, PathBuf};
+
+/// An output that cannot or must not be written; whatever was at its path is left as it was.
+/// Each message names the output and says what to change.
+#[derive(Debug, thiserror::Error)]
+pub enum OutputError {
+    /// Its directory does not exist.
+    #[error("{}: the output directory does not exist; create it or choose another {flag}", out.display())]
+    NoDirectory {
+        /// The output path.
+        out: PathBuf,
+        /// The command-line option that gave it (`-o`, `--trace`).
+        flag: String,
+    },
+    /// It is one of the run's inputs.
+    #[error("{}: is an input of this run ({}); choose another output path", out.display(), input.display())]
+    IsInput {
+        /// The output path.
+        out: PathBuf,
+        /// The input it names.
+        input: PathBuf,
+    },
+    /// It is a symbolic link and replacing links was not asked for.
+    #[error(
+        "{}: is a symbolic link; choose another {flag}{}", out.display(),
+        if flag == "-o" { ", or pass --force to replace the link (its target is left alone)" } else { "" }
+    )]
+    Symlink {
+        /// The output path.
+        out: PathBuf,
+        /// The command-line option that gave it; only `-o` offers `--force`.
+        flag: String,
+    },
+    /// It is a directory.
+    #[error("{}: is a directory; give a file name with {flag}", out.display())]
+    Directory {
+        /// The output path.
+        out: PathBuf,
+        /// The command-line option that gave it.
+        flag: String,
+    },
+    /// It is a device, pipe or socket.
+    #[error("{}: is not a regular file (a device, pipe or socket); choose another output path", out.display())]
+    NotRegular {
+        /// The output path.
+        out: PathBuf,
+    },
+    /// Its directory cannot be written in.
+    #[error("{}: cannot write in {}; choose another {flag}", out.display(), directory_of(out).display())]
+    NotWritable {
+        /// The output path.
+        out: PathBuf,
+        /// The command-line option that gave it.
+        flag: String,
+        /// Why the trial file could not be made.
+        source: std::io::Error,
+    },
+    /// No temporary file can be made beside it.
+    #[error("{}: cannot create a temporary file beside it", out.display())]
+    Temporary {
+        /// The output path.
+        out: PathBuf,
+        /// Why.
+        source: std::io::Error,
+    },
+    /// The writer failed, or what it wrote could not be flushed to disk.
+    #[error(
+        "{}: nothing was written, the previous file is kept{}: {cause}", out.display(),
+        if *full { "; free space on its disk or write elsewhere" } else { "" }
+    )]
+    NotWritten {
+        /// The output path.
+        out: PathBuf,
+        /// Whether the disk is full (or a quota or file size limit reached): then the message
+        /// says what to do about it.
+        full: bool,
+        /// The writer's error, its cause chain on one line.
+        cause: String,
+    },
+    /// The finished file cannot be given its name.
+    #[error("{}: cannot move the finished file to its name", out.display())]
+    Rename {
+        /// The output path.
+        out: PathBuf,
+        /// Why.
+        source: std::io::Error,
+    },
+}
 
 /// What an output may replace.
 #[derive(Clone, Copy, Debug, Default)]
@@ -33,54 +120,49 @@ fn same_file(a: &Path, b: &Path) -> bool {
 /// Fails early, with what to change, when `out` cannot or must not be written: its directory is
 /// missing or read-only, it is a directory, a device or other special file, a symlink (unless
 /// `force`), or one of `inputs`. Removes temporaries that killed runs left beside it.
-pub fn check(out: &Path, inputs: &[&Path], policy: Overwrite) -> Result<()> {
+pub fn check(out: &Path, inputs: &[&Path], policy: Overwrite) -> Result<(), OutputError> {
     check_as(out, inputs, policy, "-o")
 }
 
 /// [`check`] of the output given by command-line option `flag` (`-o`, `--trace`): the advice
 /// names it, and offers `--force` only with `-o` (the commands that take it).
-pub fn check_as(out: &Path, inputs: &[&Path], policy: Overwrite, flag: &str) -> Result<()> {
-    let dir = directory_of(out);
-    if !dir.is_dir() {
-        bail!(
-            "{}: the output directory does not exist; create it or choose another {flag}",
-            out.display()
-        );
+pub fn check_as(out: &Path, inputs: &[&Path], policy: Overwrite, flag: &str) -> Result<(), OutputError> {
+    let path = || out.to_path_buf();
+    if !directory_of(out).is_dir() {
+        return Err(OutputError::NoDirectory {
+            out: path(),
+            flag: flag.to_string(),
+        });
     }
     if let Some(input) = inputs.iter().find(|i| same_file(out, i)) {
-        bail!(
-            "{}: is an input of this run ({}); choose another output path",
-            out.display(),
-            input.display()
-        );
+        return Err(OutputError::IsInput {
+            out: path(),
+            input: input.to_path_buf(),
+        });
     }
     if let Ok(meta) = std::fs::symlink_metadata(out) {
         let ty = meta.file_type();
         if ty.is_symlink() && !policy.force {
-            let force = if flag == "-o" {
-                ", or pass --force to replace the link (its target is left alone)"
-            } else {
-                ""
-            };
-            bail!("{}: is a symbolic link; choose another {flag}{force}", out.display());
+            return Err(OutputError::Symlink {
+                out: path(),
+                flag: flag.to_string(),
+            });
         }
         if ty.is_dir() {
-            bail!("{}: is a directory; give a file name with {flag}", out.display());
+            return Err(OutputError::Directory {
+                out: path(),
+                flag: flag.to_string(),
+            });
         }
         if !ty.is_file() && !ty.is_symlink() {
-            bail!(
-                "{}: is not a regular file (a device, pipe or socket); choose another output path",
-                out.display()
-            );
+            return Err(OutputError::NotRegular { out: path() });
         }
     }
     // A read-only directory is found now, not after the whole computation.
-    temporary_beside(out).with_context(|| {
-        format!(
-            "{}: cannot write in {}; choose another {flag}",
-            out.display(),
-            dir.display()
-        )
+    temporary_beside(out).map_err(|source| OutputError::NotWritable {
+        out: path(),
+        flag: flag.to_string(),
+        source,
     })?;
     remove_stale_temps(out);
     Ok(())
@@ -89,7 +171,7 @@ pub fn check_as(out: &Path, inputs: &[&Path], policy: Overwrite, flag: &str) -> 
 /// A new empty file beside `out` (same directory, so the rename is atomic), named
 /// `<out name>.tmp-<pid>.<random>` and created exclusively (`O_EXCL`: a planted file or link of
 /// that name is never opened). Removed when dropped unless persisted.
-fn temporary_beside(out: &Path) -> Result<tempfile::NamedTempFile> {
+fn temporary_beside(out: &Path) -> std::io::Result<tempfile::NamedTempFile> {
     let name = out
         .file_name()
         .map(|n| n.to_string_lossy().into_owned())
@@ -97,11 +179,11 @@ fn temporary_beside(out: &Path) -> Result<tempfile::NamedTempFile> {
     // 0666 less the umask, as any new file: the default 0600 of temporaries would make every
     // output private to its writer.
     use std::os::unix::fs::PermissionsExt;
-    Ok(tempfile::Builder::new()
+    tempfile::Builder::new()
         .prefix(&format!("{name}.tmp-{}.", std::process::id()))
         .rand_bytes(8)
         .permissions(std::fs::Permissions::from_mode(0o666))
-        .tempfile_in(directory_of(out))?)
+        .tempfile_in(directory_of(out))
 }
 
 /// Files written together: each is written and flushed to disk under a temporary name by
@@ -116,9 +198,11 @@ pub struct Staging {
 impl Staging {
     /// Writes one file through `write` (given the temporary path; it may reopen and truncate it,
     /// as HDF5 does) and flushes it to disk.
-    pub fn stage(&mut self, out: &Path, write: impl FnOnce(&Path) -> Result<()>) -> Result<()> {
-        let tmp = temporary_beside(out)
-            .with_context(|| format!("{}: cannot create a temporary file beside it", out.display()))?;
+    pub fn stage(&mut self, out: &Path, write: impl FnOnce(&Path) -> anyhow::Result<()>) -> Result<(), OutputError> {
+        let tmp = temporary_beside(out).map_err(|source| OutputError::Temporary {
+            out: out.to_path_buf(),
+            source,
+        })?;
         write(tmp.path())
             .and_then(|()| {
                 // The data reaches the disk before the name does: a crash leaves the old file or
@@ -131,31 +215,27 @@ impl Staging {
             .map_err(|e| {
                 // One line whatever the writer said (HDF5's messages span lines); a full disk is
                 // the likely cause of a failed write: say what to do about it.
-                let chain = ves_format::write::one_line(&format!("{e:#}"));
+                let cause = ves_format::write::one_line(&format!("{e:#}"));
                 let full = ["No space left", "File too large", "Disk quota"]
                     .iter()
-                    .any(|m| chain.contains(m));
-                let advice = if full {
-                    "; free space on its disk or write elsewhere"
-                } else {
-                    ""
-                };
-                anyhow::anyhow!(
-                    "{}: nothing was written, the previous file is kept{advice}: {chain}",
-                    out.display()
-                )
+                    .any(|m| cause.contains(m));
+                OutputError::NotWritten {
+                    out: out.to_path_buf(),
+                    full,
+                    cause,
+                }
             })?;
         self.files.push((tmp, out.to_path_buf()));
         Ok(())
     }
 
     /// Renames every staged file to its final name, then flushes the directories.
-    pub fn commit(self) -> Result<()> {
+    pub fn commit(self) -> Result<(), OutputError> {
         let mut dirs: Vec<PathBuf> = Vec::new();
         for (tmp, out) in self.files {
-            tmp.persist(&out)
-                .map_err(|e| e.error)
-                .with_context(|| format!("{}: cannot move the finished file to its name", out.display()))?;
+            if let Err(e) = tmp.persist(&out) {
+                return Err(OutputError::Rename { out, source: e.error });
+            }
             let d = directory_of(&out).to_path_buf();
             if !dirs.contains(&d) {
                 dirs.push(d);
@@ -172,7 +252,7 @@ impl Staging {
 
 /// Writes one file through `write` (given a temporary path beside `out`), flushes it to disk and
 /// renames it to `out`. On failure nothing is left and whatever was at `out` is untouched.
-pub fn write_atomically(out: &Path, write: impl FnOnce(&Path) -> Result<()>) -> Result<()> {
+pub fn write_atomically(out: &Path, write: impl FnOnce(&Path) -> anyhow::Result<()>) -> Result<(), OutputError> {
     let mut staging = Staging::default();
     staging.stage(out, write)?;
     staging.commit()
@@ -243,7 +323,7 @@ mod tests {
         std::fs::write(&out, "old").expect("write");
         let r = write_atomically(&out, |tmp| {
             std::fs::write(tmp, "half")?;
-            bail!("failed midway")
+            anyhow::bail!("failed midway")
         });
         assert!(r.is_err());
         assert_eq!(std::fs::read_to_string(&out).expect("read"), "old");
@@ -261,7 +341,7 @@ mod tests {
         // The second file fails after the first was written in full: neither is replaced.
         let mut s = Staging::default();
         s.stage(&a, |t| Ok(std::fs::write(t, "new a")?)).expect("stage a");
-        assert!(s.stage(&b, |_| bail!("disk full")).is_err());
+        assert!(s.stage(&b, |_| anyhow::bail!("disk full")).is_err());
         drop(s);
         assert_eq!(std::fs::read_to_string(&a).expect("read"), "old a");
         assert_eq!(std::fs::read_to_string(&b).expect("read"), "old b");

@@ -133,7 +133,7 @@ pub fn mesh_with_supports(
     let t = Instant::now();
     let dofs = supports::select(&mesh, &scene.fixed).with_context(|| scene.path.display().to_string())?;
     if !dofs.fixed.is_empty() {
-        unheld_body(&mesh, &dofs).map_err(|m| anyhow::anyhow!("{}: {m}", scene.path.display()))?;
+        unheld_body(&mesh, &dofs).with_context(|| scene.path.display().to_string())?;
     }
     let rigid = free_rigid_count(&mesh.nodes, &dofs);
     Ok(Meshed {
@@ -219,7 +219,7 @@ fn bodies(mesh: &Mesh) -> (Vec<usize>, usize) {
 
 /// With supports given, every separate body must be held by them: a body the supports do not
 /// reach would float (singular K) and used to fail later as a "mode check" with the wrong advice.
-fn unheld_body(mesh: &Mesh, dofs: &Dofs) -> Result<(), String> {
+fn unheld_body(mesh: &Mesh, dofs: &Dofs) -> Result<(), supports::SupportError> {
     let (body, count) = bodies(mesh);
     if count < 2 {
         return Ok(());
@@ -241,15 +241,13 @@ fn unheld_body(mesh: &Mesh, dofs: &Dofs) -> Result<(), String> {
                     c[k] += p[k] / xyz.len() as f64;
                 }
             }
-            return Err(format!(
-                "the geometry has {count} separate bodies and body {} ({} nodes, centred at ({:.4}, {:.4}, {:.4}) m) is not held \
-                 by the supports ({free} rigid motions left): add a [[fixed]] region that touches it, or join the bodies in CAD",
-                b + 1,
-                xyz.len(),
-                c[0],
-                c[1],
-                c[2]
-            ));
+            return Err(supports::SupportError::UnheldBody {
+                bodies: count,
+                body: b + 1,
+                nodes: xyz.len(),
+                centre: c,
+                free,
+            });
         }
     }
     Ok(())

@@ -483,7 +483,7 @@ impl Scene {
             file: path.to_path_buf(),
             message,
         };
-        let text = crate::input::read_scene(path).map_err(err)?;
+        let text = crate::input::read_scene(path).map_err(|e| err(e.to_string()))?;
         let scene = Self::parse(path, &text)?;
         if scene.is_script() && !opts.allow_geo_scripts {
             return Err(err(format!(
@@ -663,7 +663,7 @@ impl Scene {
             return Err(err(format!(
                 "geometry.step = {:?}: {}",
                 shorten(&raw.geometry.step.to_string_lossy(), 200),
-                shorten(&e, 400)
+                shorten(&e.to_string(), 400)
             )));
         }
         if !supported {
@@ -687,7 +687,7 @@ impl Scene {
             element_size(&format!("voi[{i}].size"), v.size).map_err(err)?;
             check_box(&format!("voi[{i}].box"), &v.bbox).map_err(err)?;
             // The name becomes an HDF5 group, a .vtu file name and part of messages.
-            ves_format::check_identifier(&format!("voi[{i}].name"), &v.name).map_err(err)?;
+            ves_format::check_identifier(&format!("voi[{i}].name"), &v.name).map_err(|e| err(e.to_string()))?;
             if names.contains(&v.name) {
                 return Err(err(format!(
                     "voi[{i}].name = {:?}: names must be unique and not \"global\" (the whole part's space); \
@@ -705,7 +705,7 @@ impl Scene {
         // an identifier, never a path.
         let name = match raw.name {
             Some(n) => {
-                ves_format::check_identifier("name", &n).map_err(err)?;
+                ves_format::check_identifier("name", &n).map_err(|e| err(e.to_string()))?;
                 n
             }
             None => {

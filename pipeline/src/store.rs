@@ -157,7 +157,7 @@ pub fn write(out: &Path, scene: &Scene, spaces: &[Space<'_>]) -> Result<()> {
     staging
         .stage(&sidecar, |tmp| Ok(std::fs::write(tmp, sidecar_text.as_bytes())?))
         .with_context(|| format!("{}: writing the XDMF sidecar failed", sidecar.display()))?;
-    staging.commit()
+    Ok(staging.commit()?)
 }
 
 /// The XDMF file ParaView opens beside a basis `B.h5`: `B.xdmf`.
@@ -235,7 +235,7 @@ fn file_name(out: &Path) -> String {
 /// A content hash of what a basis depends on: the tool version, the scene text, the effective
 /// mode count and the geometry file's bytes (FNV-1a, 64 bits: change detection, not security).
 pub fn source_hash(scene: &Scene) -> Result<String> {
-    let geometry = crate::input::read(&scene.geometry).map_err(anyhow::Error::msg)?;
+    let geometry = crate::input::read(&scene.geometry)?;
     let h = crate::fingerprint::Fingerprint::default()
         .field(concat!("ves ", env!("CARGO_PKG_VERSION")).as_bytes())
         .field(scene.toml.as_bytes())

@@ -32,6 +32,51 @@ pub enum SupportError {
         /// Which are unknown, and the tags the geometry has.
         message: String,
     },
+    /// The geometry has separate bodies and the supports leave one of them free.
+    #[error(
+        "the geometry has {bodies} separate bodies and body {body} ({nodes} nodes, centred at ({:.4}, {:.4}, {:.4}) m) \
+         is not held by the supports ({free} rigid motions left): add a [[fixed]] region that touches it, or join the \
+         bodies in CAD",
+        .centre[0], .centre[1], .centre[2]
+    )]
+    UnheldBody {
+        /// Separate bodies in the mesh.
+        bodies: usize,
+        /// The body left free, counted from 1.
+        body: usize,
+        /// Its nodes.
+        nodes: usize,
+        /// Its centroid, m.
+        centre: [f64; 3],
+        /// Rigid motions the supports leave it.
+        free: usize,
+    },
+}
+
+/// A load's surface region (`[[load]]`) that the mesh cannot apply: the same faults as a
+/// support's, for a region that selects surface triangles rather than nodes.
+#[derive(Debug, thiserror::Error)]
+pub enum RegionError {
+    /// `faces` names a tag the geometry does not have.
+    #[error("{key}.faces{}: {message}", crate::scene::quote_tags(asked))]
+    UnknownFaces {
+        /// The scene entry, e.g. `load[0]`.
+        key: String,
+        /// The tags as given (sorted, each once).
+        asked: Vec<u32>,
+        /// Which are unknown, and the tags the geometry has.
+        message: String,
+    },
+    /// The region selects no surface triangle.
+    #[error("{key} ({what}) selects no surface triangle of the mesh (a load acts on the surface); {hint}")]
+    Empty {
+        /// The scene entry, e.g. `load[0]`.
+        key: String,
+        /// The region, in words.
+        what: String,
+        /// Where the part lies, to help fix the value.
+        hint: String,
+    },
 }
 
 /// Whether a support region holds point `p` (`default_tol`: 1e-6 × part size); `Faces` selects
@@ -166,12 +211,16 @@ fn unknown_faces(mesh: &Mesh, tags: &[u32]) -> Option<String> {
 /// `box`, the triangles whose three corners it selects (so a region a support would hold is the
 /// surface a load acts on). `key` names the scene entry (`load[0]`) in the one-line error for a
 /// region that selects no triangle or names a face the geometry does not have.
-pub fn region_triangles(mesh: &Mesh, key: &str, region: &Region) -> Result<Vec<usize>, String> {
+pub fn region_triangles(mesh: &Mesh, key: &str, region: &Region) -> Result<Vec<usize>, RegionError> {
     let default_tol = 1e-6 * mesh.diameter();
     let picked: Vec<usize> = match region {
         Region::Faces(tags) => {
             if let Some(message) = unknown_faces(mesh, tags) {
-                return Err(format!("{key}.faces{}: {message}", crate::scene::quote_tags(tags)));
+                return Err(RegionError::UnknownFaces {
+                    key: key.to_string(),
+                    asked: tags.clone(),
+                    message,
+                });
             }
             (0..mesh.surface.len())
                 .filter(|&t| tags.binary_search(&mesh.surface_faces[t]).is_ok())
@@ -188,9 +237,11 @@ pub fn region_triangles(mesh: &Mesh, key: &str, region: &Region) -> Result<Vec<u
     if picked.is_empty() {
         let (lo, hi) = mesh.bounding_box();
         let (what, hint) = describe(region, lo, hi, default_tol);
-        return Err(format!(
-            "{key} ({what}) selects no surface triangle of the mesh (a load acts on the surface); {hint}"
-        ));
+        return Err(RegionError::Empty {
+            key: key.to_string(),
+            what,
+            hint,
+        });
     }
     Ok(picked)
 }

@@ -197,18 +197,53 @@ pub fn remove_on_signals() {
     });
 }
 
+/// A child process's job that cannot be taken up (see [`child_job`]).
+#[derive(Debug, thiserror::Error)]
+pub enum WorkdirError {
+    /// The job file cannot be read.
+    #[error("{}: {error}", file.display())]
+    Unreadable {
+        /// The job file.
+        file: PathBuf,
+        /// The system's error (in the message, so not also a `source`).
+        error: std::io::Error,
+    },
+    /// The job file is not a job of this kind.
+    #[error("{}: {error}", file.display())]
+    Malformed {
+        /// The job file.
+        file: PathBuf,
+        /// The decoder's error (in the message).
+        error: serde_json::Error,
+    },
+    /// The process that wrote the job is no longer this one's parent.
+    #[error("the parent process {parent} is gone")]
+    ParentGone {
+        /// The parent the job names.
+        parent: u32,
+    },
+}
+
 /// A child process's side of a job (mesh worker, page compute): arms the parent-death signal
 /// (a killed `ves` must not leave gmsh or a solve running for minutes), reads `dir/job.json`,
 /// and checks that the parent it names is still this process's parent (if it died before the
 /// signal was armed, the signal never comes). Errors name the job file.
-pub fn child_job<T: serde::de::DeserializeOwned>(dir: &Path, parent_of: impl Fn(&T) -> u32) -> Result<T, String> {
+pub fn child_job<T: serde::de::DeserializeOwned>(dir: &Path, parent_of: impl Fn(&T) -> u32) -> Result<T, WorkdirError> {
     crate::os::die_with_parent();
     let file = dir.join("job.json");
-    let text = std::fs::read_to_string(&file).map_err(|e| format!("{}: {e}", file.display()))?;
-    let job: T = serde_json::from_str(&text).map_err(|e| format!("{}: {e}", file.display()))?;
+    let text = match std::fs::read_to_string(&file) {
+        Ok(text) => text,
+        Err(error) => return Err(WorkdirError::Unreadable { file, error }),
+    };
+    let job: T = match serde_json::from_str(&text) {
+        Ok(job) => job,
+        Err(error) => return Err(WorkdirError::Malformed { file, error }),
+    };
     let parent = crate::os::parent_pid();
     if parent != parent_of(&job) {
-        return Err(format!("the parent process {} is gone", parent_of(&job)));
+        return Err(WorkdirError::ParentGone {
+            parent: parent_of(&job),
+        });
     }
     Ok(job)
 }

@@ -22,7 +22,7 @@ create_exception!(
     ves,
     SupportError,
     Error,
-    "A `[[fixed]]` region cannot be applied to the mesh."
+    "A `[[fixed]]` or `[[load]]` region cannot be applied to the mesh, or the supports leave a body free."
 );
 create_exception!(
     ves,
@@ -37,32 +37,100 @@ create_exception!(
     Error,
     "A basis file is missing, foreign, damaged or inconsistent."
 );
+create_exception!(
+    ves,
+    OutputError,
+    Error,
+    "The output file cannot or must not be written; whatever was at its path is kept."
+);
+create_exception!(
+    ves,
+    VerifyError,
+    Error,
+    "A reference solver is missing, not applicable, or failed."
+);
+
+/// The exception class of each typed error of the pipeline, by kind of failure.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Kind {
+    Scene,
+    Mesh,
+    Support,
+    Assembly,
+    Solver,
+    Basis,
+    Output,
+    Verify,
+}
+
+impl Kind {
+    /// The kind of `cause` if it is one of the pipeline's typed errors (an unreadable input
+    /// file is the scene's or the geometry's; a load case's region is a support's, its
+    /// degenerate element an assembly's).
+    fn of(cause: &(dyn std::error::Error + 'static)) -> Option<Kind> {
+        use ves_pipeline::input::{FileKind, InputError};
+        use ves_pipeline::loads::LoadCaseError;
+        if cause.is::<ves_pipeline::scene::SceneError>() {
+            return Some(Kind::Scene);
+        }
+        if let Some(e) = cause.downcast_ref::<InputError>() {
+            return Some(match e.file() {
+                FileKind::Scene => Kind::Scene,
+                FileKind::Geometry => Kind::Mesh,
+            });
+        }
+        if cause.is::<ves_pipeline::mesh::MeshError>() {
+            return Some(Kind::Mesh);
+        }
+        if cause.is::<ves_pipeline::supports::SupportError>() || cause.is::<ves_pipeline::supports::RegionError>() {
+            return Some(Kind::Support);
+        }
+        if let Some(e) = cause.downcast_ref::<LoadCaseError>() {
+            return Some(match e {
+                LoadCaseError::Region(_) => Kind::Support,
+                LoadCaseError::Degenerate { .. } => Kind::Assembly,
+            });
+        }
+        if cause.is::<ves_pipeline::fem::assembly::AssemblyError>() {
+            return Some(Kind::Assembly);
+        }
+        if cause.is::<ves_pipeline::modes::ModesError>() || cause.is::<ves_pipeline::linsolve::FactorError>() {
+            return Some(Kind::Solver);
+        }
+        if cause.is::<ves_format::ReadError>() || cause.is::<ves_runtime::basis::LoadError>() {
+            return Some(Kind::Basis);
+        }
+        if cause.is::<ves_pipeline::output::OutputError>() {
+            return Some(Kind::Output);
+        }
+        if cause.is::<ves_pipeline::verify::VerifyError>() {
+            return Some(Kind::Verify);
+        }
+        None
+    }
+
+    fn new_err(self, msg: String) -> PyErr {
+        match self {
+            Kind::Scene => SceneError::new_err(msg),
+            Kind::Mesh => MeshError::new_err(msg),
+            Kind::Support => SupportError::new_err(msg),
+            Kind::Assembly => AssemblyError::new_err(msg),
+            Kind::Solver => SolverError::new_err(msg),
+            Kind::Basis => BasisError::new_err(msg),
+            Kind::Output => OutputError::new_err(msg),
+            Kind::Verify => VerifyError::new_err(msg),
+        }
+    }
+}
 
 /// The Python exception for a pipeline error: its kind from the first typed error in the cause
 /// chain, its message the chain on one line, as the CLI prints it.
 pub fn from_anyhow(e: &anyhow::Error) -> PyErr {
     let msg = format!("{e:#}");
-    for cause in e.chain() {
-        if cause.is::<ves_pipeline::scene::SceneError>() {
-            return SceneError::new_err(msg);
-        }
-        if cause.is::<ves_pipeline::mesh::MeshError>() {
-            return MeshError::new_err(msg);
-        }
-        if cause.is::<ves_pipeline::supports::SupportError>() {
-            return SupportError::new_err(msg);
-        }
-        if cause.is::<ves_pipeline::fem::assembly::AssemblyError>() {
-            return AssemblyError::new_err(msg);
-        }
-        if cause.is::<ves_pipeline::modes::ModesError>() || cause.is::<ves_pipeline::linsolve::FactorError>() {
-            return SolverError::new_err(msg);
-        }
-        if cause.is::<ves_format::ReadError>() || cause.is::<ves_runtime::basis::LoadError>() {
-            return BasisError::new_err(msg);
-        }
+    match e.chain().find_map(Kind::of) {
+        Some(kind) => kind.new_err(msg),
+        None => Error::new_err(msg),
     }
-    Error::new_err(msg)
 }
 
 /// A basis file that could not be read.

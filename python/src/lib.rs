@@ -24,6 +24,8 @@ fn _native(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add("AssemblyError", py.get_type::<errors::AssemblyError>())?;
     m.add("SolverError", py.get_type::<errors::SolverError>())?;
     m.add("BasisError", py.get_type::<errors::BasisError>())?;
+    m.add("OutputError", py.get_type::<errors::OutputError>())?;
+    m.add("VerifyError", py.get_type::<errors::VerifyError>())?;
     m.add_class::<basis::Basis>()?;
     m.add_class::<basis::Space>()?;
     m.add_class::<haptics::Haptics>()?;

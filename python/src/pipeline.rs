@@ -418,5 +418,5 @@ pub fn _isolate_meshing(worker: PathBuf) {
 #[pyfunction]
 pub fn _serve_mesh_rung(py: Python<'_>, dir: PathBuf) -> PyResult<()> {
     py.detach(|| ves_pipeline::mesh::serve_rung(Path::new(&dir)))
-        .map_err(errors::MeshError::new_err)
+        .map_err(|e| errors::MeshError::new_err(e.to_string()))
 }

@@ -44,6 +44,9 @@ def scene_copy(tmp_path, text):
         (lambda s: s.replace("young = 2.1e11", "young = -1.0"), ves.SceneError),
         (lambda s: s.replace('value = 0.0 }', 'value = 5.0 }'), ves.SupportError),
         (lambda s: s.replace('step = "cantilever.step"', 'step = "missing.step"'), ves.SceneError),
+        # A load's region is checked on the mesh, as a support's is.
+        (lambda s: s + '[[load]]\nname = "a"\nplane = { axis = "x", value = 2.0 }\nforce = [0.0, 0.0, 1.0]\n', ves.SupportError),
+        (lambda s: s + '[[load]]\nname = "a"\nfaces = [99]\npressure = 1.0e5\n', ves.SupportError),
     ],
 )
 def test_bad_scenes_raise_the_cli_line(cli, tmp_path, edit, kind):
@@ -115,11 +118,17 @@ def test_scene_dicts_that_nest_without_end_are_scene_errors():
         assert "\n" not in str(e.value) and len(str(e.value)) < 400
 
 
-def test_output_over_an_input_is_refused(tmp_path):
+def test_output_over_an_input_is_refused(cli, tmp_path):
     scene = scene_copy(tmp_path, GOOD)
-    with pytest.raises(ves.Error, match="scene.toml"):
+    expected = cli_error(cli, scene, scene)
+    with pytest.raises(ves.OutputError) as e:
         ves.precompute(scene, scene, progress=False)
+    assert str(e.value) == expected and "is an input of this run" in expected
+    assert isinstance(e.value, ves.Error)
     assert scene.read_text() == GOOD
+    # A directory as the output: the same class.
+    with pytest.raises(ves.OutputError, match="is a directory"):
+        ves.precompute(scene, tmp_path, progress=False)
 
 
 def test_ctrl_c_stops_precompute_and_writes_nothing(tmp_path):

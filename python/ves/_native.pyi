@@ -22,7 +22,7 @@ class MeshError(Error):
     """The geometry could not be read or meshed."""
 
 class SupportError(Error):
-    """A ``[[fixed]]`` region cannot be applied to the mesh."""
+    """A ``[[fixed]]`` or ``[[load]]`` region cannot be applied to the mesh, or the supports leave a body free."""
 
 class AssemblyError(Error):
     """An element of the mesh is degenerate or inverted."""
@@ -32,6 +32,12 @@ class SolverError(Error):
 
 class BasisError(Error):
     """A basis file is missing, foreign, damaged or inconsistent."""
+
+class OutputError(Error):
+    """The output file cannot or must not be written; whatever was at its path is kept."""
+
+class VerifyError(Error):
+    """A reference solver is missing, not applicable, or failed."""
 
 class Space:
     """One space of a basis: the global mesh, or the finer mesh of one volume of interest."""

@@ -55,6 +55,17 @@ impl Coupling {
     }
 }
 
+/// Why a part cannot move as a free body.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, thiserror::Error)]
+pub enum FreeBodyError {
+    /// The basis holds no mass properties: its part is held by supports.
+    #[error("the basis has no rigid-body properties: the part is supported, not free")]
+    Supported,
+    /// The stored inertia tensor cannot be inverted.
+    #[error("the stored inertia tensor is singular")]
+    SingularInertia,
+}
+
 /// A setting out of its range: which one (named as `ves session`'s flag), its value and unit.
 #[derive(Clone, Debug, PartialEq, thiserror::Error)]
 #[error("{setting} = {value} {unit}: out of range (finite, {requirement})")]
@@ -331,12 +342,9 @@ impl Haptics {
     /// basis's mass properties; `damping` (1/s) bleeds both momenta, so a part hanging from a
     /// hand stops swinging. Inputs and outputs are then in the world frame, which starts equal
     /// to the part frame. Fails when the basis holds no mass properties (a supported part).
-    pub fn set_free_body(&mut self, gravity: [f64; 3], damping: f64) -> Result<(), String> {
-        let props = self
-            .basis
-            .rigid
-            .ok_or("the basis has no rigid-body properties: the part is supported, not free")?;
-        let mut body = RigidBody::new(&props, gravity).ok_or("the stored inertia tensor is singular")?;
+    pub fn set_free_body(&mut self, gravity: [f64; 3], damping: f64) -> Result<(), FreeBodyError> {
+        let props = self.basis.rigid.ok_or(FreeBodyError::Supported)?;
+        let mut body = RigidBody::new(&props, gravity).ok_or(FreeBodyError::SingularInertia)?;
         body.damping = damping.max(0.0);
         self.rigid = Some(body);
         self.initial_rigid = Some(body);

@@ -91,13 +91,13 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
     }
     // This program owns its process: a signal removes its work folders before it ends.
     ves_pipeline::workdir::remove_on_signals();
-    ves_pipeline::memory::cap_from_env().map_err(anyhow::Error::msg)?;
+    ves_pipeline::memory::cap_from_env()?;
     // Counts (a batch's scenes, a report's bases) as bars; a command with stages of its own
     // (precompute, verify) puts its terminal, quiet or not, above this one.
     let _terminal = ves_pipeline::progress::watch(crate::terminal::Terminal::on_stderr(true));
     match cli.command {
-        Command::MeshWorker { dir } => ves_pipeline::mesh::serve_rung(&dir).map_err(anyhow::Error::msg),
-        Command::ViewCompute { dir } => crate::workshop::serve_compute(&dir).map_err(anyhow::Error::msg),
+        Command::MeshWorker { dir } => Ok(ves_pipeline::mesh::serve_rung(&dir)?),
+        Command::ViewCompute { dir } => crate::workshop::serve_compute(&dir),
         Command::Precompute(a) => a.run(),
         Command::Batch(a) => a.run(),
         Command::Session(a) => a.run(),

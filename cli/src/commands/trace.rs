@@ -141,5 +141,6 @@ pub fn write(trace: &Trace, path: &std::path::Path) -> Result<()> {
         // Flushed here; the staging syncs the file before renaming it.
         w.into_inner().map_err(|e| e.into_error())?;
         Ok(())
-    })
+    })?;
+    Ok(())
 }

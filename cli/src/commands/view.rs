@@ -125,7 +125,7 @@ impl Args {
                 Ok((None, Some(Arc::new(PartWorkshop::for_scene(&scene, options, solver)?))))
             }
             "step" | "stp" | "iges" | "igs" | "brep" => {
-                ves_pipeline::input::open(p).map_err(anyhow::Error::msg)?;
+                ves_pipeline::input::open(p)?;
                 Ok((None, Some(Arc::new(PartWorkshop::for_geometry(p, solver)?))))
             }
             "geo" => anyhow::bail!(

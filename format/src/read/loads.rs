@@ -60,7 +60,7 @@ impl SpaceReader<'_> {
     /// Load case `name`, all of it read and checked.
     pub fn load(&self, name: &str) -> Result<LoadCase, ReadError> {
         self.guard(|| {
-            crate::check_identifier("load case name", name).map_err(|m| self.err(m))?;
+            crate::check_identifier("load case name", name).map_err(|m| self.err(m.to_string()))?;
             let path = format!("{}/{name}", sp::LOADS);
             if self.optional_group(sp::LOADS)?.is_none() {
                 return Err(self.err(format!("no load case {name:?}")));

@@ -618,18 +618,23 @@ impl SolverChoice {
     }
 }
 
+/// A name that is no [`SolverChoice`]'s.
+#[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
+#[error("no eigen-solver named {name:?}; choose one of {}", SolverChoice::ALL.map(SolverChoice::name).join(", "))]
+pub struct UnknownSolver {
+    /// The name given.
+    pub name: String,
+}
+
 impl std::str::FromStr for SolverChoice {
-    type Err = String;
+    type Err = UnknownSolver;
 
     /// By [`SolverChoice::name`], in any case.
-    fn from_str(s: &str) -> Result<Self, String> {
+    fn from_str(s: &str) -> Result<Self, UnknownSolver> {
         SolverChoice::ALL
             .into_iter()
             .find(|c| c.name().eq_ignore_ascii_case(s))
-            .ok_or_else(|| {
-                let names: Vec<&str> = SolverChoice::ALL.iter().map(|c| c.name()).collect();
-                format!("no eigen-solver named {s:?}; choose one of {}", names.join(", "))
-            })
+            .ok_or_else(|| UnknownSolver { name: s.to_string() })
     }
 }
 

@@ -6,11 +6,13 @@
 pub mod patch;
 pub mod vector;
 
+pub use vector::LoadCaseError;
+
 use crate::fem::element::Lame;
 use crate::linsolve::factor_stiffness;
 use crate::problem::Discretized;
 use crate::scene::Scene;
-use anyhow::{Result, bail};
+use anyhow::{Context, Result, bail};
 
 /// One load case solved.
 #[derive(Clone, Debug)]
@@ -101,7 +103,7 @@ pub fn check_before_solve(scene: &Scene, mesh: &crate::tet_mesh::Mesh, rigid: us
     for (i, case) in scene.loads.iter().enumerate() {
         if let Some(region) = case.applied.region() {
             crate::supports::region_triangles(mesh, &format!("load[{i}]"), region)
-                .map_err(|e| anyhow::anyhow!("{}: {e}", scene.path.display()))?;
+                .with_context(|| scene.path.display().to_string())?;
         }
     }
     Ok(())
@@ -134,8 +136,7 @@ pub fn load_vectors(scene: &Scene, d: &Discretized) -> Result<Vec<Vec<f64>>> {
                 Some(_) => format!("load[{i}]"),
                 None => "gravity".to_string(),
             };
-            vector::nodal_loads(&d.mesh, &lame, case, &key)
-                .map_err(|e| anyhow::anyhow!("{}: {e}", scene.path.display()))
+            vector::nodal_loads(&d.mesh, &lame, case, &key).with_context(|| scene.path.display().to_string())
         })
         .collect()
 }

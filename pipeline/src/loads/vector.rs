@@ -249,8 +249,24 @@ fn internal_with<S: Shape>(mesh: &Mesh, lame: &Lame, u: &[f64]) -> Result<Vec<f6
     })
 }
 
+/// A load case that cannot be applied to the mesh.
+#[derive(Debug, thiserror::Error)]
+pub enum LoadCaseError {
+    /// Its surface region selects nothing or names an unknown face.
+    #[error(transparent)]
+    Region(#[from] crate::supports::RegionError),
+    /// Gravity met an element with a non-positive Jacobian.
+    #[error("{key}: an element is degenerate (det J = {det:.3e})")]
+    Degenerate {
+        /// The scene entry (`gravity`).
+        key: String,
+        /// The element's Jacobian determinant.
+        det: f64,
+    },
+}
+
 /// The nodal loads of a load case (3n, N); `key` names its scene entry in errors.
-pub fn nodal_loads(mesh: &Mesh, lame: &Lame, case: &LoadCase, key: &str) -> Result<Vec<f64>, String> {
+pub fn nodal_loads(mesh: &Mesh, lame: &Lame, case: &LoadCase, key: &str) -> Result<Vec<f64>, LoadCaseError> {
     match &case.applied {
         Applied::Force { region, total } => {
             let picked = crate::supports::region_triangles(mesh, key, region)?;
@@ -260,8 +276,12 @@ pub fn nodal_loads(mesh: &Mesh, lame: &Lame, case: &LoadCase, key: &str) -> Resu
             let picked = crate::supports::region_triangles(mesh, key, region)?;
             Ok(surface_loads(mesh, &picked, Traction::Pressure(*pascal)))
         }
-        Applied::Gravity { acceleration } => gravity_loads(mesh, lame, *acceleration)
-            .map_err(|e| format!("{key}: an element is degenerate (det J = {:.3e})", e.det)),
+        Applied::Gravity { acceleration } => {
+            gravity_loads(mesh, lame, *acceleration).map_err(|e| LoadCaseError::Degenerate {
+                key: key.to_string(),
+                det: e.det,
+            })
+        }
     }
 }
 

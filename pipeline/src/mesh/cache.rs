@@ -267,7 +267,8 @@ fn write_atomically(key: &Path, body: impl FnOnce(&mut std::io::BufWriter<File>)
             body(&mut w)?;
             w.flush()?;
             Ok(())
-        })
+        })?;
+        Ok(())
     })();
     if let Err(e) = result {
         tracing::info!("cache: cannot store {}: {e:#}", key.display());

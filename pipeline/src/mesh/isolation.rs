@@ -130,14 +130,46 @@ fn describe(status: std::process::ExitStatus) -> String {
     }
 }
 
+/// A meshing job the child cannot take up or answer: about the job's files only (the meshing's
+/// own failures are replies).
+#[derive(Debug, thiserror::Error)]
+pub enum WorkerError {
+    /// The job file cannot be read, or its parent is gone.
+    #[error(transparent)]
+    Job(#[from] crate::workdir::WorkdirError),
+    /// The job names a rung the ladder does not have.
+    #[error("{}: no rung {rung}", file.display())]
+    NoRung {
+        /// The job file.
+        file: PathBuf,
+        /// The rung it names.
+        rung: usize,
+    },
+    /// The reply cannot be encoded.
+    #[error("{0}")]
+    Encode(serde_json::Error),
+    /// The mesh or the reply cannot be written.
+    #[error("{}: {error}", path.display())]
+    Write {
+        /// The file or folder written.
+        path: PathBuf,
+        /// The system's error (in the message, so not also a `source`).
+        error: std::io::Error,
+    },
+}
+
 /// The child's side: runs the job in `dir` and leaves its reply there. An error is about the
 /// job's files only (the meshing's own failures are replies).
-pub fn serve(dir: &Path) -> Result<(), String> {
+pub fn serve(dir: &Path) -> Result<(), WorkerError> {
     let job: Job = crate::workdir::child_job(dir, |j: &Job| j.parent)?;
-    let job_file = dir.join("job.json");
-    let rung = LADDER
-        .get(job.rung)
-        .ok_or_else(|| format!("{}: no rung {}", job_file.display(), job.rung))?;
+    let rung = LADDER.get(job.rung).ok_or_else(|| WorkerError::NoRung {
+        file: dir.join("job.json"),
+        rung: job.rung,
+    })?;
+    let written = |path: &Path| {
+        let path = path.to_path_buf();
+        move |error| WorkerError::Write { path, error }
+    };
     let phase_file = dir.join("phase");
     let mut phase = |p: &str| {
         // Best effort: only read when the process dies.
@@ -145,7 +177,7 @@ pub fn serve(dir: &Path) -> Result<(), String> {
     };
     let reply = match super::attempt(&job.request, rung, &mut phase) {
         Ok((mesh, meshing)) => {
-            write_mesh(&dir.join("mesh.bin"), &mesh).map_err(|e| format!("{}: {e}", dir.display()))?;
+            write_mesh(&dir.join("mesh.bin"), &mesh).map_err(written(dir))?;
             Reply::Meshed {
                 meshing,
                 vertex_count: mesh.vertex_count,
@@ -155,11 +187,11 @@ pub fn serve(dir: &Path) -> Result<(), String> {
         Err(Attempt::Retry(e, log)) => Reply::Retry { cause: e.cause(), log },
         Err(Attempt::Fatal(e)) => Reply::Fatal { cause: e.cause() },
     };
-    let text = serde_json::to_string(&reply).map_err(|e| e.to_string())?;
+    let text = serde_json::to_string(&reply).map_err(WorkerError::Encode)?;
     // Whole or absent: the parent takes a missing reply for a crash.
     let tmp = dir.join("reply.json.tmp");
-    std::fs::write(&tmp, text).map_err(|e| format!("{}: {e}", tmp.display()))?;
-    std::fs::rename(&tmp, dir.join("reply.json")).map_err(|e| format!("{}: {e}", dir.display()))
+    std::fs::write(&tmp, text).map_err(written(&tmp))?;
+    std::fs::rename(&tmp, dir.join("reply.json")).map_err(written(dir))
 }
 
 pub(super) fn write_mesh(path: &Path, mesh: &Mesh) -> std::io::Result<()> {

@@ -9,7 +9,7 @@ use crate::fem::element::Kind;
 pub(crate) use crate::tet_mesh::signed_volume;
 // Element quality and wall thickness are the mesh type's own (the numerics core).
 pub use crate::tet_mesh::{Mesh, TET10_EDGES, quality, walls};
-pub use isolation::{isolate_with, serve as serve_rung};
+pub use isolation::{WorkerError, isolate_with, serve as serve_rung};
 use std::collections::HashMap;
 use ves_gmsh::{self as gmsh, element_type};
 
@@ -263,12 +263,10 @@ impl Part {
         let bytes = if is_geo {
             None
         } else {
-            Some(
-                crate::input::read(&request.geometry).map_err(|message| MeshError::Geometry {
-                    path: request.geometry.display().to_string(),
-                    message,
-                })?,
-            )
+            Some(crate::input::read(&request.geometry).map_err(|e| MeshError::Geometry {
+                path: request.geometry.display().to_string(),
+                message: e.to_string(),
+            })?)
         };
         let key = bytes.as_deref().and_then(|b| cache::key(&request, b));
         Ok(Part { request, bytes, key })

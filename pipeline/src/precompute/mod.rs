@@ -276,7 +276,11 @@ fn run_checked<'s>(
                 out.display()
             );
         }
-        crate::output::check(&store::sidecar_path(out), &scene.inputs(), overwrite)
+        Ok(crate::output::check(
+            &store::sidecar_path(out),
+            &scene.inputs(),
+            overwrite,
+        )?)
     })())?;
     if distributed && !root {
         modes::mpi_job::serve()?;

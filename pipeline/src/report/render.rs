@@ -39,7 +39,9 @@ pub fn write_all(report: &Report, dir: &Path) -> Result<()> {
 
 /// A reader never sees a half-written file (the one atomic writer of every output).
 fn write_text(path: &Path, text: &str) -> Result<()> {
-    crate::output::write_atomically(path, |tmp| Ok(std::fs::write(tmp, text)?))
+    Ok(crate::output::write_atomically(path, |tmp| {
+        Ok(std::fs::write(tmp, text)?)
+    })?)
 }
 
 fn pct(v: f64) -> String {

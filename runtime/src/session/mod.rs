@@ -74,7 +74,7 @@ pub enum SessionError {
     /// The spaces cannot be switched between (a transfer missing or of the wrong size).
     Spaces(SwitchError),
     /// The part cannot move as a free body (its mass properties are unusable).
-    FreeBody(String),
+    FreeBody(crate::haptic::FreeBodyError),
     /// The timing statistics could not be set up.
     Statistics(String),
 }

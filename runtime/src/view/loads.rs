@@ -3,8 +3,47 @@
 //! asks for one (kind 4, [`super::protocol::load_case`]), since each carries a displacement and a stress per vertex.
 
 use crate::Basis;
-use ves_format::BasisReader;
+use std::path::PathBuf;
 use ves_format::read::LoadCase;
+use ves_format::{BasisReader, ReadError};
+
+/// Why a load case a page asked for cannot be sent.
+#[derive(Debug, thiserror::Error)]
+pub enum LoadsError {
+    /// The basis served was built in memory.
+    #[error("this basis was not loaded from a file")]
+    NoFile,
+    /// The file cannot give it (damaged, gone, or no such case).
+    #[error(transparent)]
+    Read(#[from] ReadError),
+    /// The file's space is not the one the cases were listed from.
+    #[error(
+        "{}: space {space:?} now has {now} nodes, {then} when it was loaded: the file changed",
+        path.display()
+    )]
+    Changed {
+        /// The basis file.
+        path: PathBuf,
+        /// The space.
+        space: String,
+        /// Its nodes now.
+        now: usize,
+        /// Its nodes when the cases were listed.
+        then: usize,
+    },
+    /// The basis served changed between the request and its answer.
+    #[error("the basis changed; choose the load case again")]
+    BasisChanged,
+    /// The case read does not fit the basis served.
+    #[error("load case {name:?} does not fit the basis served: the file changed")]
+    DoesNotFit {
+        /// The case.
+        name: String,
+    },
+    /// The task reading it panicked or was cancelled.
+    #[error("reading the load case failed: {0}")]
+    Failed(tokio::task::JoinError),
+}
 
 /// What the hello says of one load case (its data comes on request).
 #[derive(Clone, Debug, PartialEq, serde::Serialize)]
@@ -49,10 +88,10 @@ pub fn list(basis: &Basis) -> SpaceLoads {
     let Some(path) = &basis.source else {
         return SpaceLoads::default();
     };
-    let read = || -> Result<(Vec<LoadInfo>, usize), String> {
-        let file = BasisReader::open(path).map_err(|e| e.to_string())?;
-        let space = file.space(&basis.space).map_err(|e| e.to_string())?;
-        let cases = space.loads().map_err(|e| e.to_string())?;
+    let read = || -> Result<(Vec<LoadInfo>, usize), ReadError> {
+        let file = BasisReader::open(path)?;
+        let space = file.space(&basis.space)?;
+        let cases = space.loads()?;
         Ok((cases.iter().map(info).collect(), space.node_count))
     };
     match read() {
@@ -62,7 +101,7 @@ pub fn list(basis: &Basis) -> SpaceLoads {
             error: None,
         },
         Err(e) => SpaceLoads {
-            error: Some(e),
+            error: Some(e.to_string()),
             ..SpaceLoads::default()
         },
     }
@@ -81,17 +120,17 @@ fn info(c: &LoadCase) -> LoadInfo {
 
 /// Reads load case `name` of `basis`'s space from its file; `node_count` is the file's node
 /// count when the case was listed.
-pub fn read(basis: &Basis, name: &str, node_count: usize) -> Result<LoadCase, String> {
-    let path = basis.source.as_ref().ok_or("this basis was not loaded from a file")?;
-    let file = BasisReader::open(path).map_err(|e| e.to_string())?;
-    let space = file.space(&basis.space).map_err(|e| e.to_string())?;
+pub fn read(basis: &Basis, name: &str, node_count: usize) -> Result<LoadCase, LoadsError> {
+    let path = basis.source.as_ref().ok_or(LoadsError::NoFile)?;
+    let file = BasisReader::open(path)?;
+    let space = file.space(&basis.space)?;
     if space.node_count != node_count {
-        return Err(format!(
-            "{}: space {:?} now has {} nodes, {node_count} when it was loaded: the file changed",
-            path.display(),
-            basis.space,
-            space.node_count
-        ));
+        return Err(LoadsError::Changed {
+            path: path.clone(),
+            space: basis.space.clone(),
+            now: space.node_count,
+            then: node_count,
+        });
     }
-    space.load(name).map_err(|e| e.to_string())
+    Ok(space.load(name)?)
 }

@@ -32,7 +32,7 @@ use std::sync::atomic::{AtomicBool, AtomicU32, AtomicU64, AtomicUsize, Ordering}
 use std::sync::{Arc, Mutex, RwLock};
 use std::time::{Duration, Instant};
 use tokio::sync::{Semaphore, broadcast, watch};
-pub use workshop::{Computed, Progress, Workshop};
+pub use workshop::{Computed, Progress, Workshop, WorkshopError};
 
 const INDEX_HTML: &str = include_str!("../../web/index.html");
 const APP_JS: &str = include_str!(concat!(env!("OUT_DIR"), "/app.js"));
@@ -101,10 +101,68 @@ pub struct SessionTiming {
     pub period_error_us_max: f64,
 }
 
-/// The viewer could not start.
+/// The viewer could not start, or could not move its session to a new basis.
 #[derive(Debug, thiserror::Error)]
-#[error("{0}")]
-pub struct ViewError(pub String);
+pub enum ViewError {
+    /// A session setting out of range.
+    #[error(transparent)]
+    Setting(#[from] crate::haptic::InvalidSetting),
+    /// The port asked for is taken.
+    #[error("port {} on {} is in use: pick another with --port (0 picks a free one)", addr.port(), addr.ip())]
+    PortInUse {
+        /// The address asked for.
+        addr: SocketAddr,
+    },
+    /// The address cannot be listened on.
+    #[error("cannot listen on {addr}: {error}; check --host and --port")]
+    Listen {
+        /// The address asked for.
+        addr: SocketAddr,
+        /// The system's error (in the message, so not also a `source`).
+        error: std::io::Error,
+    },
+    /// The listening socket cannot be set up.
+    #[error("{0}")]
+    Socket(std::io::Error),
+    /// The server's runtime cannot be started.
+    #[error("cannot start the server: {0}")]
+    Runtime(std::io::Error),
+    /// Neither a basis nor a workshop to make one.
+    #[error("nothing to serve: give a basis, a scene or a geometry file")]
+    NothingToServe,
+    /// The first compute cannot be started.
+    #[error(transparent)]
+    Compute(#[from] ComputeError),
+    /// The basis computed cannot be loaded.
+    #[error(transparent)]
+    Load(#[from] crate::basis::LoadError),
+    /// A thread panicked holding the live session.
+    #[error("the session lock is poisoned")]
+    SessionLock,
+    /// The session's thread panicked.
+    #[error("the session thread panicked")]
+    SessionPanicked,
+    /// The session ended with an error.
+    #[error(transparent)]
+    Session(#[from] session::SessionError),
+    /// The session's thread cannot be started.
+    #[error("cannot start the session: {0}")]
+    SessionThread(std::io::Error),
+}
+
+/// Why the server starts no compute (the page is told, or `ves view` ends with it).
+#[derive(Debug, thiserror::Error)]
+pub enum ComputeError {
+    /// The viewer serves a basis file: it has no workshop to compute with.
+    #[error("this viewer was opened on a basis: open a scene or a STEP file to set the part up")]
+    NoWorkshop,
+    /// Another compute (or a part's opening) holds the slot.
+    #[error("a compute is already running: wait for it or cancel it")]
+    Running,
+    /// The compute's thread cannot be started.
+    #[error("cannot start the compute: {0}")]
+    Thread(std::io::Error),
+}
 
 /// One basis being served: what every page is sent when it connects, and what the hand
 /// messages are checked against. A compute makes a new one; pages get it at once.
@@ -202,27 +260,23 @@ pub fn serve_with(
     stop: Arc<AtomicBool>,
     ready: impl FnOnce(SocketAddr),
 ) -> Result<ViewStats, ViewError> {
-    cfg.session.validate().map_err(|e| ViewError(e.to_string()))?;
+    cfg.session.validate()?;
     let listener = listen(cfg.addr)?;
-    let addr = listener.local_addr().map_err(|e| ViewError(e.to_string()))?;
+    let addr = listener.local_addr().map_err(ViewError::Socket)?;
     let (status_tx, status_rx) = watch::channel(String::new());
     let shared = Arc::new(Shared::new(cfg, workshop, status_rx));
     match (spaces, &shared.workshop) {
         (Some(spaces), _) => swap(&shared, spaces, None)?,
         // A part without a basis yet: its first compute starts at once, from the scene the
         // workshop starts with, and the pages show its progress.
-        (None, Some(w)) => start_compute(&shared, w.setup()["scene"].clone()).map_err(ViewError)?,
-        (None, None) => {
-            return Err(ViewError(
-                "nothing to serve: give a basis, a scene or a geometry file".into(),
-            ));
-        }
+        (None, Some(w)) => start_compute(&shared, w.setup()["scene"].clone())?,
+        (None, None) => return Err(ViewError::NothingToServe),
     }
     let rt = tokio::runtime::Builder::new_multi_thread()
         .worker_threads(1)
         .enable_all()
         .build()
-        .map_err(|e| ViewError(format!("cannot start the server: {e}")))?;
+        .map_err(ViewError::Runtime)?;
     rt.block_on(run_server(&shared, listener, addr, status_tx, &stop, ready))?;
     rt.shutdown_timeout(Duration::from_millis(200));
     end_session(&shared)?;
@@ -231,18 +285,14 @@ pub fn serve_with(
 
 /// The listening socket on `addr`; a port in use says how to pick another.
 fn listen(addr: SocketAddr) -> Result<std::net::TcpListener, ViewError> {
-    let listener = std::net::TcpListener::bind(addr).map_err(|e| {
-        ViewError(if e.kind() == std::io::ErrorKind::AddrInUse {
-            format!(
-                "port {} on {} is in use: pick another with --port (0 picks a free one)",
-                addr.port(),
-                addr.ip()
-            )
+    let listener = std::net::TcpListener::bind(addr).map_err(|error| {
+        if error.kind() == std::io::ErrorKind::AddrInUse {
+            ViewError::PortInUse { addr }
         } else {
-            format!("cannot listen on {addr}: {e}; check --host and --port")
-        })
+            ViewError::Listen { addr, error }
+        }
     })?;
-    listener.set_nonblocking(true).map_err(|e| ViewError(e.to_string()))?;
+    listener.set_nonblocking(true).map_err(ViewError::Socket)?;
     Ok(listener)
 }
 
@@ -274,7 +324,7 @@ async fn run_server(
     ready: impl FnOnce(SocketAddr),
 ) -> Result<(), ViewError> {
     let deadline = Instant::now().checked_add(Duration::try_from_secs_f64(shared.duration_s).unwrap_or(Duration::MAX));
-    let listener = tokio::net::TcpListener::from_std(listener).map_err(|e| ViewError(e.to_string()))?;
+    let listener = tokio::net::TcpListener::from_std(listener).map_err(ViewError::Socket)?;
     ready(addr);
     let status = tokio::spawn(status_loop(shared.clone(), status_tx, stop.clone()));
     let (tx, rx) = watch::channel(false);
@@ -389,18 +439,10 @@ impl Shared {
 
 /// Stops the live session, if any, and keeps its statistics.
 fn end_session(shared: &Shared) -> Result<(), ViewError> {
-    let live = shared
-        .live
-        .lock()
-        .map_err(|_| ViewError("the session lock is poisoned".into()))?
-        .take();
+    let live = shared.live.lock().map_err(|_| ViewError::SessionLock)?.take();
     if let Some(live) = live {
         live.stop.store(true, Ordering::Relaxed);
-        let stats = live
-            .thread
-            .join()
-            .map_err(|_| ViewError("the session thread panicked".into()))?
-            .map_err(|e| ViewError(e.to_string()))?;
+        let stats = live.thread.join().map_err(|_| ViewError::SessionPanicked)??;
         if let Ok(mut t) = shared.timings.lock() {
             t.push(SessionTiming {
                 steps: stats.steps,
@@ -464,11 +506,8 @@ fn swap(shared: &Arc<Shared>, spaces: Vec<SpaceInput>, basis_path: Option<PathBu
     let thread = std::thread::Builder::new()
         .name("ves-session".into())
         .spawn(move || session::run_spaces_with(spaces, devices, &session_cfg, hooks))
-        .map_err(|e| ViewError(format!("cannot start the session: {e}")))?;
-    *shared
-        .live
-        .lock()
-        .map_err(|_| ViewError("the session lock is poisoned".into()))? = Some(Live { stop, thread });
+        .map_err(ViewError::SessionThread)?;
+    *shared.live.lock().map_err(|_| ViewError::SessionLock)? = Some(Live { stop, thread });
     if let Ok(mut g) = shared.generation.write() {
         *g = Arc::new(generation);
     }
@@ -481,9 +520,9 @@ const KEEPALIVE: Duration = Duration::from_millis(200);
 
 /// Runs one compute of the set-up panel in its own thread; its progress and its end go to every
 /// page; on success the session moves to the new basis.
-fn start_compute(shared: &Arc<Shared>, scene: serde_json::Value) -> Result<(), String> {
+fn start_compute(shared: &Arc<Shared>, scene: serde_json::Value) -> Result<(), ComputeError> {
     let Some(workshop) = shared.workshop.clone() else {
-        return Err("this viewer was opened on a basis: open a scene or a STEP file to set the part up".into());
+        return Err(ComputeError::NoWorkshop);
     };
     let Some(claim) = Claim::take(shared) else {
         // Under the lock the compute's end takes `queued` with: a request is either queued
@@ -495,7 +534,7 @@ fn start_compute(shared: &Arc<Shared>, scene: serde_json::Value) -> Result<(), S
             shared.cancel.store(true, Ordering::Relaxed);
             return Ok(());
         }
-        return Err("a compute is already running: wait for it or cancel it".into());
+        return Err(ComputeError::Running);
     };
     launch(claim, workshop, scene)
 }
@@ -526,7 +565,7 @@ impl Drop for Claim {
 }
 
 /// Starts a compute of `scene` in its own thread, in the slot `claim` holds.
-fn launch(mut claim: Claim, workshop: Arc<dyn Workshop>, scene: serde_json::Value) -> Result<(), String> {
+fn launch(mut claim: Claim, workshop: Arc<dyn Workshop>, scene: serde_json::Value) -> Result<(), ComputeError> {
     let shared = claim.shared.clone();
     shared.cancel.store(false, Ordering::Relaxed);
     shared.computes.fetch_add(1, Ordering::Relaxed);
@@ -542,7 +581,7 @@ fn launch(mut claim: Claim, workshop: Arc<dyn Workshop>, scene: serde_json::Valu
             claim.passed_on = true;
             Ok(())
         }
-        Err(e) => Err(format!("cannot start the compute: {e}")),
+        Err(e) => Err(ComputeError::Thread(e)),
     }
 }
 
@@ -570,13 +609,13 @@ fn run_compute(shared: &Arc<Shared>, workshop: &dyn Workshop, scene: &serde_json
         fraction: 0.0,
     });
     let mut swapped = false;
-    let mut ready = |c: &Computed| -> Result<(), String> {
+    let mut ready = |c: &Computed| -> Result<(), WorkshopError> {
         progress(Progress {
             stage: "loading".into(),
             fraction: 0.98,
         });
-        let spaces = crate::switching::load_spaces(&c.basis, None, true).map_err(|e| e.to_string())?;
-        swap(shared, spaces, Some(c.basis.clone())).map_err(|e| e.0)?;
+        let spaces = crate::switching::load_spaces(&c.basis, None, true).map_err(ViewError::Load)?;
+        swap(shared, spaces, Some(c.basis.clone()))?;
         swapped = true;
         shared.checking.store(true, Ordering::Release);
         note(
@@ -605,8 +644,8 @@ fn run_compute(shared: &Arc<Shared>, workshop: &dyn Workshop, scene: &serde_json
         ),
         Ok(_) => failed("the compute made no basis".into()),
         // The part is in use; only its checks did not finish.
-        Err(e) if swapped => note(shared, serde_json::json!({"type": "checked", "error": e})),
-        Err(e) => failed(e.into()),
+        Err(e) if swapped => note(shared, serde_json::json!({"type": "checked", "error": e.to_string()})),
+        Err(e) => failed(e.to_string().into()),
     }
 }
 
@@ -622,7 +661,10 @@ fn start_queued(shared: &Arc<Shared>) {
     if let Some(scene) = next
         && let Err(e) = start_compute(shared, scene)
     {
-        note(shared, serde_json::json!({"type": "compute_error", "message": e}));
+        note(
+            shared,
+            serde_json::json!({"type": "compute_error", "message": e.to_string()}),
+        );
     }
 }
 
@@ -691,17 +733,40 @@ async fn open_part(
     // The opening and the compute's start in one blocking task that owns the slot: a page
     // that goes away meanwhile cannot leave the slot taken or let another part in between.
     let opened = tokio::task::spawn_blocking(move || {
-        workshop
-            .open(&name, &bytes)
-            .map_err(|e| (StatusCode::UNPROCESSABLE_ENTITY, e))?;
+        workshop.open(&name, &bytes).map_err(OpenFailure::Refused)?;
         let scene = workshop.setup()["scene"].clone();
-        launch(claim, workshop, scene).map_err(|e| (StatusCode::INTERNAL_SERVER_ERROR, e))
+        launch(claim, workshop, scene).map_err(OpenFailure::NotStarted)
     })
     .await
-    .unwrap_or_else(|e| Err((StatusCode::INTERNAL_SERVER_ERROR, format!("opening failed: {e}"))));
+    .unwrap_or_else(|e| Err(OpenFailure::Panicked(e)));
     match opened {
         Ok(()) => answer(StatusCode::OK, serde_json::json!({"ok": true})),
-        Err((status, e)) => answer(status, serde_json::json!({"error": e})),
+        Err(e) => answer(e.status(), serde_json::json!({"error": e.to_string()})),
+    }
+}
+
+/// Why `POST /open` did not open the part, once its body was read.
+#[derive(Debug, thiserror::Error)]
+enum OpenFailure {
+    /// The workshop refused the part.
+    #[error(transparent)]
+    Refused(WorkshopError),
+    /// The part is open but its compute did not start.
+    #[error(transparent)]
+    NotStarted(ComputeError),
+    /// The opening task panicked.
+    #[error("opening failed: {0}")]
+    Panicked(tokio::task::JoinError),
+}
+
+impl OpenFailure {
+    /// The answer's status: a part the workshop refuses is the page's to change (422, whatever
+    /// the reason, a compute that started meanwhile included); the others are the server's.
+    fn status(&self) -> StatusCode {
+        match self {
+            OpenFailure::Refused(_) => StatusCode::UNPROCESSABLE_ENTITY,
+            OpenFailure::NotStarted(_) | OpenFailure::Panicked(_) => StatusCode::INTERNAL_SERVER_ERROR,
+        }
     }
 }
 
@@ -1061,7 +1126,7 @@ fn handle(shared: &Arc<Shared>, id: u64, text: &str) -> Reply {
         }
         Ok(ClientMessage::Compute { scene }) => match start_compute(shared, scene) {
             Ok(()) => Reply::None,
-            Err(message) => Reply::Note(serde_json::json!({"type": "compute_error", "message": message}).to_string()),
+            Err(e) => Reply::Note(serde_json::json!({"type": "compute_error", "message": e.to_string()}).to_string()),
         },
         Ok(ClientMessage::Cancel) => {
             shared.cancel.store(true, Ordering::Relaxed);
@@ -1087,19 +1152,18 @@ async fn load_case(shared: &Shared, space: usize, index: usize) -> Message {
     });
     let read = match found {
         // The basis changed between the request and now: the page gets the new hello anyway.
-        None => Err("the basis changed; choose the load case again".to_string()),
+        None => Err(loads::LoadsError::BasisChanged),
         Some((basis, name, nodes)) => tokio::task::spawn_blocking(move || {
             let case = loads::read(&basis, &name, nodes)?;
-            protocol::load_case(space, index, &basis, &case)
-                .ok_or_else(|| format!("load case {name:?} does not fit the basis served: the file changed"))
+            protocol::load_case(space, index, &basis, &case).ok_or(loads::LoadsError::DoesNotFit { name })
         })
         .await
-        .unwrap_or_else(|e| Err(format!("reading the load case failed: {e}"))),
+        .unwrap_or_else(|e| Err(loads::LoadsError::Failed(e))),
     };
     match read {
         Ok(b) => Message::Binary(Bytes::from(b)),
-        Err(message) => Message::Text(
-            serde_json::json!({"type": "load_error", "space": space, "index": index, "message": message})
+        Err(e) => Message::Text(
+            serde_json::json!({"type": "load_error", "space": space, "index": index, "message": e.to_string()})
                 .to_string()
                 .into(),
         ),
@@ -1107,7 +1171,7 @@ async fn load_case(shared: &Shared, space: usize, index: usize) -> Message {
 }
 
 /// Dropped messages are counted; the first few reasons go to stderr for whoever debugs a client.
-fn tracing_drop(id: u64, why: &str) {
+fn tracing_drop(id: u64, why: &protocol::MessageError) {
     static SHOWN: AtomicU32 = AtomicU32::new(0);
     if SHOWN.fetch_add(1, Ordering::Relaxed) < 5 {
         eprintln!("ves view: dropped a message from client {id}: {why}");

@@ -335,9 +335,62 @@ impl Extent {
     }
 }
 
+/// Why a client's text message was dropped.
+#[derive(Debug, thiserror::Error)]
+pub enum MessageError {
+    /// Longer than [`MAX_MESSAGE`].
+    #[error("{len} bytes (at most {MAX_MESSAGE})")]
+    TooLong {
+        /// Its length, bytes.
+        len: usize,
+    },
+    /// Not JSON, or not a message of the protocol (an unknown type or field, a missing one).
+    #[error("{0}")]
+    Malformed(serde_json::Error),
+    /// A hand beyond [`HANDS`].
+    #[error("hand {hand} (0 or 1)")]
+    NoHand {
+        /// The hand asked for.
+        hand: usize,
+    },
+    /// A hand message before any part is served.
+    #[error("no part to touch yet")]
+    NoPart,
+    /// A hand position that is not finite or lies beyond [`REACH`] diagonals from the part.
+    #[error("position {position:?} is not finite or is far from the part")]
+    FarAway {
+        /// The position asked for, m.
+        position: [f64; 3],
+    },
+    /// A mode of a space not served.
+    #[error("space {space} of {spaces}")]
+    NoSpace {
+        /// The space asked for.
+        space: usize,
+        /// Spaces served.
+        spaces: usize,
+    },
+    /// A load case of a space not served.
+    #[error("load case of space {space} of {spaces}")]
+    NoLoadSpace {
+        /// The space asked for.
+        space: usize,
+        /// Spaces served.
+        spaces: usize,
+    },
+    /// A load case the hello did not list for that space.
+    #[error("no load case {name:?} in space {space}")]
+    NoLoadCase {
+        /// The name asked for, its first 40 characters (a hostile page's name may be 32 kB).
+        name: String,
+        /// The space.
+        space: usize,
+    },
+}
+
 /// Parses and checks a text message; `Err` says why it was dropped. No space has load cases
 /// (see [`parse_with`]).
-pub fn parse(text: &str, spaces: usize, extent: Option<&Extent>) -> Result<ClientMessage, String> {
+pub fn parse(text: &str, spaces: usize, extent: Option<&Extent>) -> Result<ClientMessage, MessageError> {
     parse_with(text, spaces, extent, &[])
 }
 
@@ -348,11 +401,11 @@ pub fn parse_with(
     spaces: usize,
     extent: Option<&Extent>,
     loads: &[Vec<String>],
-) -> Result<ClientMessage, String> {
+) -> Result<ClientMessage, MessageError> {
     if text.len() > MAX_MESSAGE {
-        return Err(format!("{} bytes (at most {MAX_MESSAGE})", text.len()));
+        return Err(MessageError::TooLong { len: text.len() });
     }
-    let raw: Raw = serde_json::from_str(text).map_err(|e| e.to_string())?;
+    let raw: Raw = serde_json::from_str(text).map_err(MessageError::Malformed)?;
     match raw {
         Raw::Hand {
             hand,
@@ -362,15 +415,15 @@ pub fn parse_with(
             seq,
         } => {
             if hand >= HANDS {
-                return Err(format!("hand {hand} (0 or 1)"));
+                return Err(MessageError::NoHand { hand });
             }
             let Some(extent) = extent else {
-                return Err("no part to touch yet".into());
+                return Err(MessageError::NoPart);
             };
             let d2: f64 = (0..3).map(|k| (position[k] - extent.centre[k]).powi(2)).sum();
             // NaN is refused too.
             if d2.is_nan() || d2.sqrt() > REACH * extent.diagonal {
-                return Err(format!("position {position:?} is not finite or is far from the part"));
+                return Err(MessageError::FarAway { position });
             }
             Ok(ClientMessage::Hand(
                 hand,
@@ -383,17 +436,17 @@ pub fn parse_with(
             ))
         }
         Raw::Mode { space, index } if space < spaces => Ok(ClientMessage::Mode { space, index }),
-        Raw::Mode { space, .. } => Err(format!("space {space} of {spaces}")),
+        Raw::Mode { space, .. } => Err(MessageError::NoSpace { space, spaces }),
         Raw::Fields { stress } => Ok(ClientMessage::Fields { stress }),
         Raw::Reset {} => Ok(ClientMessage::Reset),
-        Raw::Load { space, .. } if space >= spaces => Err(format!("load case of space {space} of {spaces}")),
+        Raw::Load { space, .. } if space >= spaces => Err(MessageError::NoLoadSpace { space, spaces }),
         Raw::Load { space, name } => match loads.get(space).and_then(|l| l.iter().position(|n| *n == name)) {
             Some(index) => Ok(ClientMessage::Load { space, index }),
             // Not echoed whole: a hostile page's name may be 32 kB.
-            None => Err(format!(
-                "no load case {:?} in space {space}",
-                name.chars().take(40).collect::<String>()
-            )),
+            None => Err(MessageError::NoLoadCase {
+                name: name.chars().take(40).collect(),
+                space,
+            }),
         },
         Raw::Compute { scene } => Ok(ClientMessage::Compute { scene }),
         Raw::Cancel {} => Ok(ClientMessage::Cancel),
@@ -417,8 +470,8 @@ mod tests {
             Some(&E),
         );
         assert_eq!(
-            ok,
-            Ok(ClientMessage::Hand(
+            ok.ok(),
+            Some(ClientMessage::Hand(
                 1,
                 HandCommand {
                     position: [1.0, 0.05, 0.05],
@@ -429,14 +482,17 @@ mod tests {
             ))
         );
         assert_eq!(
-            parse(r#"{"type":"mode","space":0,"index":3}"#, 1, Some(&E)),
-            Ok(ClientMessage::Mode { space: 0, index: 3 })
+            parse(r#"{"type":"mode","space":0,"index":3}"#, 1, Some(&E)).ok(),
+            Some(ClientMessage::Mode { space: 0, index: 3 })
         );
         assert_eq!(
-            parse(r#"{"type":"fields","stress":true}"#, 1, Some(&E)),
-            Ok(ClientMessage::Fields { stress: true })
+            parse(r#"{"type":"fields","stress":true}"#, 1, Some(&E)).ok(),
+            Some(ClientMessage::Fields { stress: true })
         );
-        assert_eq!(parse(r#"{"type":"reset"}"#, 1, Some(&E)), Ok(ClientMessage::Reset));
+        assert_eq!(
+            parse(r#"{"type":"reset"}"#, 1, Some(&E)).ok(),
+            Some(ClientMessage::Reset)
+        );
         let bad = [
             r#"{"type":"hand","hand":2,"active":true,"button":true,"position":[1,0,0]}"#,
             r#"{"type":"hand","hand":0,"active":true,"button":true,"position":[1e300,0,0]}"#,
@@ -452,12 +508,12 @@ mod tests {
             assert!(parse(b, 1, Some(&E)).is_err(), "{b}");
         }
         let long = format!(r#"{{"type":"load","space":0,"name":"{}"}}"#, "x".repeat(40_000));
-        assert!(parse(&long, 1, Some(&E)).unwrap_err().contains("bytes"));
+        assert!(parse(&long, 1, Some(&E)).unwrap_err().to_string().contains("bytes"));
         let long = format!(
             r#"{{"type":"mode","space":0,"index":0,"pad":"{}"}}"#,
             "x".repeat(40_000)
         );
-        assert!(parse(&long, 1, Some(&E)).unwrap_err().contains("bytes"));
+        assert!(parse(&long, 1, Some(&E)).unwrap_err().to_string().contains("bytes"));
         // JSON has no NaN; a string in its place is refused by the parser.
         assert!(
             parse(
@@ -476,8 +532,8 @@ mod tests {
         let loads = vec![vec!["tip".to_string(), "gravity".to_string()], Vec::new()];
         let parse = |t: &str| parse_with(t, 2, Some(&E), &loads);
         assert_eq!(
-            parse(r#"{"type":"load","space":0,"name":"gravity"}"#),
-            Ok(ClientMessage::Load { space: 0, index: 1 })
+            parse(r#"{"type":"load","space":0,"name":"gravity"}"#).ok(),
+            Some(ClientMessage::Load { space: 0, index: 1 })
         );
         let bad = [
             r#"{"type":"load","space":0,"name":"nope"}"#,
@@ -499,7 +555,7 @@ mod tests {
         }
         // The reason quotes at most 40 characters of a long name.
         let long = format!(r#"{{"type":"load","space":0,"name":"{}"}}"#, "y".repeat(20_000));
-        let why = parse(&long).unwrap_err();
+        let why = parse(&long).unwrap_err().to_string();
         assert!(why.len() < 120, "{why}");
         // Without a list, no space has load cases.
         assert!(super::parse(r#"{"type":"load","space":0,"name":"tip"}"#, 2, Some(&E)).is_err());

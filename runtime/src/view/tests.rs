@@ -269,16 +269,16 @@ impl Workshop for Fake {
         _scene: &serde_json::Value,
         _progress: Arc<dyn Fn(Progress) + Send + Sync>,
         cancel: Arc<AtomicBool>,
-        _ready: &mut dyn FnMut(&Computed) -> Result<(), String>,
-    ) -> Result<Computed, String> {
+        _ready: &mut dyn FnMut(&Computed) -> Result<(), WorkshopError>,
+    ) -> Result<Computed, WorkshopError> {
         let part = self.part.lock().unwrap().clone();
         self.computed.lock().unwrap().push(part);
         while !cancel.load(Ordering::Relaxed) {
             std::thread::sleep(Duration::from_millis(10));
         }
-        Err("cancelled".into())
+        Err(WorkshopError::Cancelled { served: false })
     }
-    fn open(&self, name: &str, _bytes: &[u8]) -> Result<(), String> {
+    fn open(&self, name: &str, _bytes: &[u8]) -> Result<(), WorkshopError> {
         let ms = if name.starts_with('b') { 500 } else { 100 };
         std::thread::sleep(Duration::from_millis(ms));
         *self.part.lock().unwrap() = name.to_string();

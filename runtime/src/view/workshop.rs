@@ -7,6 +7,97 @@ use std::path::PathBuf;
 use std::sync::Arc;
 use std::sync::atomic::AtomicBool;
 
+/// Why a workshop could not compute a basis or open a part; each message is one line for the
+/// page. The server answers a refused part with 422 and shows a failed compute on every page.
+#[derive(Debug, thiserror::Error)]
+pub enum WorkshopError {
+    /// The page's scene is refused (malformed, or invalid as a scene): the scene checker's
+    /// message, naming the file "scene".
+    #[error("{message}")]
+    Scene {
+        /// What is wrong and what to change.
+        message: String,
+    },
+    /// The scene's geometry is a gmsh script, which the page may not run.
+    #[error("a .geo geometry is a gmsh script: open a STEP, IGES or BREP file")]
+    Script,
+    /// An uploaded `.geo` file.
+    #[error("{file}: a .geo file is a gmsh script and can run commands; export the part as STEP, IGES or BREP")]
+    GeoUpload {
+        /// The file's name, escaped for a terminal.
+        file: String,
+    },
+    /// An uploaded file whose extension is not a geometry's.
+    #[error("{file}: open a STEP (.step, .stp), IGES (.iges, .igs) or BREP (.brep) file")]
+    Extension {
+        /// The file's name, escaped for a terminal.
+        file: String,
+    },
+    /// An upload larger than [`MAX_UPLOAD`].
+    #[error("{file}: {bytes} bytes, more than the {} MiB a page may send", MAX_UPLOAD >> 20)]
+    TooLarge {
+        /// The file's name, escaped for a terminal.
+        file: String,
+        /// Its size.
+        bytes: usize,
+    },
+    /// An upload whose content is no STEP, IGES or BREP file.
+    #[error(
+        "{file}: not a STEP, IGES or BREP file (a STEP file starts with ISO-10303-21); export the part again from \
+         its CAD system"
+    )]
+    NotGeometry {
+        /// The file's name, escaped for a terminal.
+        file: String,
+    },
+    /// A part opened while a compute runs.
+    #[error("{file}: a compute is running: cancel it or wait, then open the part")]
+    Busy {
+        /// The file's name, escaped for a terminal.
+        file: String,
+    },
+    /// The uploaded part cannot be stored.
+    #[error("cannot keep the part: {0}")]
+    KeepPart(std::io::Error),
+    /// The basis computed cannot be kept (made private to its owner).
+    #[error("cannot keep the basis: {0}")]
+    KeepBasis(std::io::Error),
+    /// The compute's files cannot be written.
+    #[error("cannot start the compute: {0}")]
+    Start(std::io::Error),
+    /// The compute's process cannot be started.
+    #[error("cannot start the compute process {}: {error}", exe.display())]
+    StartProcess {
+        /// The program.
+        exe: PathBuf,
+        /// Why.
+        error: std::io::Error,
+    },
+    /// The pipeline failed: its error with the whole cause chain, on one line.
+    #[error("{message}")]
+    Failed {
+        /// The line.
+        message: String,
+    },
+    /// Cancelled from the page.
+    #[error("{}", if *served { "cancelled: the part shown stays, without its checks" } else { "cancelled: nothing was written" })]
+    Cancelled {
+        /// Whether the basis was already served (only its checks were cancelled).
+        served: bool,
+    },
+    /// The compute's process ended without a word about its outcome.
+    #[error("the compute process ended: {how}{}", if last_words.is_empty() { String::new() } else { format!(": {last_words}") })]
+    ProcessEnded {
+        /// How it ended (signal, status), in words.
+        how: String,
+        /// The last line it wrote to stderr, if any.
+        last_words: String,
+    },
+    /// The server could not serve the basis made (see the `ready` of [`Workshop::compute`]).
+    #[error(transparent)]
+    Serve(#[from] super::ViewError),
+}
+
 /// What a compute made.
 #[derive(Clone, Debug)]
 pub struct Computed {
@@ -39,18 +130,19 @@ pub trait Workshop: Send + Sync {
     /// `progress` is called at each stage; `cancel` set stops it at the next stage with an error.
     /// `ready` is called once, as soon as a basis the session can use is written; checks that
     /// leave its modes as they are (the error estimate) may follow and rewrite the same file.
-    /// An error from `ready` ends the compute with it. Returns what the compute finally made.
+    /// An error from `ready` ends the compute with it ([`WorkshopError::Serve`]). Returns what
+    /// the compute finally made.
     fn compute(
         &self,
         scene: &serde_json::Value,
         progress: Arc<dyn Fn(Progress) + Send + Sync>,
         cancel: Arc<AtomicBool>,
-        ready: &mut dyn FnMut(&Computed) -> Result<(), String>,
-    ) -> Result<Computed, String>;
+        ready: &mut dyn FnMut(&Computed) -> Result<(), WorkshopError>,
+    ) -> Result<Computed, WorkshopError>;
     /// Makes the geometry file `name` (as the page's user picked it; only its file name
     /// counts) with content `bytes` the part from now on, with a fresh starting scene. Only
     /// STEP, IGES and BREP are taken, checked by content, never a `.geo` script.
-    fn open(&self, name: &str, bytes: &[u8]) -> Result<(), String>;
+    fn open(&self, name: &str, bytes: &[u8]) -> Result<(), WorkshopError>;
 }
 
 /// Largest geometry file the page may send, bytes.
