@@ -11,7 +11,7 @@
 // estimate. Prints one JSON object.
 //
 // usage: node --experimental-websocket bench/setup.mjs URL
-import { KINDS, kindOf } from '../runtime/web/src/protocol.js';
+import { KINDS, kindOf } from '../view/web/src/protocol.js';
 
 const [url] = process.argv.slice(2);
 const origin = new URL(url).origin;

@@ -18,7 +18,7 @@ server=$!
 trap 'kill -INT $server 2>/dev/null || true' EXIT
 for _ in $(seq 100); do grep -q "http://" "$log" && break; sleep 0.1; done
 url=$(grep -o "http://[^ ]*" "$log")
-node bench/view.mjs "$url" "$server" runtime/web
+node bench/view.mjs "$url" "$server" view/web
 kill -INT $server
 wait $server || true
 trap - EXIT

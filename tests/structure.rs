@@ -124,7 +124,7 @@ fn find_cycle(graph: &BTreeMap<String, BTreeSet<String>>) -> Option<Vec<String>>
 fn no_import_cycles_between_modules() {
     let ffi = ffi_crates();
     assert!(ffi.len() >= 4, "ffi crates found: {ffi:?}");
-    for krate in ["numerics", "pipeline", "runtime", "format", "cli"]
+    for krate in ["numerics", "pipeline", "runtime", "view", "format", "cli"]
         .into_iter()
         .chain(ffi.iter().map(String::as_str))
     {
@@ -179,7 +179,7 @@ fn layer_violations(graph: &BTreeMap<String, BTreeSet<String>>, layer: &BTreeMap
 
 #[test]
 fn modules_import_only_from_their_layer_or_below() {
-    for (krate, least) in [("numerics", 8), ("pipeline", 20), ("runtime", 14)] {
+    for (krate, least) in [("numerics", 8), ("pipeline", 20), ("runtime", 13)] {
         let readme = std::fs::read_to_string(workspace().join(krate).join("README.md")).expect("README.md");
         let layer = stated_layers(&readme);
         assert!(
@@ -218,8 +218,8 @@ fn layer_check_finds_a_planted_upward_import() {
 }
 
 /// The library crates carry no application: no web server, terminal drawing or argument
-/// parsing among their dependencies, and the runtime's server feature turned on only by the
-/// `ves` binary's crate.
+/// parsing among their dependencies, optional or not (the server is ves-view, which only the
+/// `ves` binary's crate uses).
 #[test]
 fn libraries_carry_no_application_dependencies() {
     let root = workspace();
@@ -231,6 +231,7 @@ fn libraries_carry_no_application_dependencies() {
         "indicatif",
         "tracing-subscriber",
         "ves-cli",
+        "ves-view",
     ];
     let mut bad = Vec::new();
     let ffi = ffi_crates();
@@ -250,13 +251,9 @@ fn libraries_carry_no_application_dependencies() {
                 continue;
             }
             let name = line.split(['=', ' ']).next().unwrap_or("");
-            // The runtime's server stack is optional, behind its `view` feature.
-            let optional = line.contains("optional = true");
-            if application.contains(&name) && !optional {
+            // Optional or not: the web server is a crate of its own (ves-view).
+            if application.contains(&name) {
                 bad.push(format!("{krate}: {name}"));
-            }
-            if name.starts_with("ves-runtime") && line.contains("\"view\"") {
-                bad.push(format!("{krate}: ves-runtime's feature view"));
             }
         }
     }
@@ -298,7 +295,7 @@ fn readme_layout_names_every_folder() {
             missing.push(name);
         }
     }
-    for sub in ["numerics/src", "pipeline/src", "runtime/src", "cli/src"] {
+    for sub in ["numerics/src", "pipeline/src", "runtime/src", "view/src", "cli/src"] {
         for e in std::fs::read_dir(root.join(sub)).expect("src").flatten() {
             let name = e.file_name().to_string_lossy().into_owned();
             if e.path().is_dir() && !readme.contains(&format!("{name}/")) {
@@ -317,7 +314,7 @@ fn readme_layout_names_every_folder() {
 fn unsafe_code_lives_in_one_module_per_crate() {
     let root = workspace();
     let mut offenders = Vec::new();
-    for krate in ["format", "numerics", "pipeline", "runtime", "cli"] {
+    for krate in ["format", "numerics", "pipeline", "runtime", "view", "cli"] {
         let mut files = Vec::new();
         rust_files(&root.join(krate).join("src"), &mut files);
         for f in &files {
@@ -351,7 +348,7 @@ fn c_declarations_live_only_in_ffi() {
     let ffi = ffi_crates();
     let mut offenders = Vec::new();
     let crates = [
-        "format", "numerics", "pipeline", "runtime", "tests", "cli", "python", "fuzz",
+        "format", "numerics", "pipeline", "runtime", "view", "tests", "cli", "python", "fuzz",
     ]
     .into_iter()
     .chain(ffi.iter().map(String::as_str));

@@ -13,7 +13,7 @@ use std::sync::{Arc, OnceLock};
 use ves_pipeline::modes::SolverChoice;
 use ves_pipeline::precompute;
 use ves_pipeline::scene::{Scene, SceneOptions};
-use ves_runtime::view::{Computed, Progress, Workshop, WorkshopError};
+use ves_view::{Computed, Progress, Workshop, WorkshopError};
 
 /// A real material: name, Young's modulus (Pa), Poisson's ratio, density (kg/m³), yield
 /// strength (Pa; for brittle PMMA its tensile strength).
@@ -676,7 +676,7 @@ impl Workshop for PartWorkshop {
         if !["step", "stp", "iges", "igs", "brep"].contains(&ext.as_str()) {
             return Err(WorkshopError::Extension { file: shown });
         }
-        if bytes.len() > ves_runtime::view::workshop::MAX_UPLOAD {
+        if bytes.len() > ves_view::workshop::MAX_UPLOAD {
             return Err(WorkshopError::TooLarge {
                 file: shown,
                 bytes: bytes.len(),

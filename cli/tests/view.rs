@@ -1,5 +1,5 @@
 //! `ves view` end to end in a real headless Chromium (Debian's `chromium` with SwiftShader
-//! WebGL, driven by playwright-core from runtime/web's lockfile): the mouse pulls the
+//! WebGL, driven by playwright-core from view/web's lockfile): the mouse pulls the
 //! cantilever's tip, and what the page shows is checked against the basis's own static
 //! compliance and against `ves session` replaying the same hand motion.
 
@@ -188,7 +188,7 @@ fn the_mouse_pulls_the_tip_in_a_real_browser_and_the_page_shows_the_static_respo
 
     let (server, out, url) = serve(&basis, "0");
 
-    let web = Path::new(env!("CARGO_MANIFEST_DIR")).join("../runtime/web");
+    let web = Path::new(env!("CARGO_MANIFEST_DIR")).join("../view/web");
     let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/view/drag.mjs");
     let shot = dir.path().join("drag.png");
     let browser = Command::new("node")
@@ -431,7 +431,7 @@ fn a_load_case_is_chosen_in_the_page_and_drawn_from_the_file() {
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
 
     let (server, out, url) = serve(&basis, "0");
-    let web = Path::new(env!("CARGO_MANIFEST_DIR")).join("../runtime/web");
+    let web = Path::new(env!("CARGO_MANIFEST_DIR")).join("../view/web");
     let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/view/loads.mjs");
     let browser = Command::new("node")
         .arg(&script)
@@ -646,7 +646,7 @@ fn a_free_body_stays_put_at_any_scale_and_the_page_reconnects() {
         .expect("a port")
         .to_string();
 
-    let web = Path::new(env!("CARGO_MANIFEST_DIR")).join("../runtime/web");
+    let web = Path::new(env!("CARGO_MANIFEST_DIR")).join("../view/web");
     let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/view/free_body.mjs");
     let mut browser = Command::new("node")
         .arg(&script)
@@ -733,7 +733,7 @@ fn a_step_part_is_set_up_computed_and_pulled_in_the_page() {
     )
     .expect("copy the corpus part");
     let (server, out, url) = serve_for(&step, "0", "3600");
-    let web = Path::new(env!("CARGO_MANIFEST_DIR")).join("../runtime/web");
+    let web = Path::new(env!("CARGO_MANIFEST_DIR")).join("../view/web");
     let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/view/setup.mjs");
     let browser = Command::new("node")
         .arg(&script)

@@ -154,7 +154,7 @@ fn dist2(a: [f64; 3], b: [f64; 3]) -> f64 {
 }
 
 /// Axis-aligned bounding box (min, max corners) of some points.
-pub(crate) fn bounds<'a>(points: impl IntoIterator<Item = &'a [f64; 3]>) -> [[f64; 3]; 2] {
+pub fn bounds<'a>(points: impl IntoIterator<Item = &'a [f64; 3]>) -> [[f64; 3]; 2] {
     let (mut lo, mut hi) = ([f64::INFINITY; 3], [f64::NEG_INFINITY; 3]);
     for p in points {
         for c in 0..3 {

@@ -18,8 +18,6 @@ pub mod rigid_body;
 pub mod session;
 pub mod snapshot;
 pub mod switching;
-#[cfg(feature = "view")]
-pub mod view;
 pub mod visual;
 
 pub use basis::{Basis, LoadError, LoadOptions};

@@ -10,7 +10,7 @@ use std::path::PathBuf;
 use std::sync::Arc;
 use std::sync::atomic::AtomicBool;
 use ves_pipeline::scene::{Scene, SceneOptions};
-use ves_runtime::view::{self, ViewConfig, Workshop};
+use ves_view::{self as view, ViewConfig, Workshop};
 
 /// What `ves view` was given: a basis to serve, or a part to set up (first basis to come).
 type Opened = (

@@ -1,4 +1,4 @@
-// Debian's headless Chromium with software WebGL, driven by playwright-core from runtime/web's
+// Debian's headless Chromium with software WebGL, driven by playwright-core from view/web's
 // lockfile (no browser download): shared by the viewer's browser tests.
 import { pathToFileURL } from 'node:url';
 

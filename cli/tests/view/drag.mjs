@@ -1,5 +1,5 @@
 // End-to-end check of `ves view` in a real headless Chromium (Debian's, driven by playwright-core
-// from runtime/web's lockfile): open the page, grab the cantilever's tip with the mouse, pull it,
+// from view/web's lockfile): open the page, grab the cantilever's tip with the mouse, pull it,
 // hold, and report what the page itself shows. Then send malformed messages over the page's own
 // WebSocket and check that frames still arrive. Prints one JSON object; the Rust test asserts.
 //

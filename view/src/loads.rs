@@ -2,7 +2,7 @@
 //! docs/format.md): listed in the hello, and read from the file and sent to a page only when it
 //! asks for one (kind 4, [`super::protocol::load_case`]), since each carries a displacement and a stress per vertex.
 
-use crate::Basis;
+use ves_runtime::Basis;
 use std::path::PathBuf;
 use ves_format::read::LoadCase;
 use ves_format::{BasisReader, ReadError};

@@ -72,7 +72,7 @@ impl Guard {
     pub(crate) fn new(bound: SocketAddr) -> Guard {
         let any_ip = bound.ip().is_unspecified();
         let mut names = vec!["localhost".to_string()];
-        if any_ip && let Some(h) = crate::os::hostname() {
+        if any_ip && let Some(h) = ves_runtime::os::hostname() {
             names.push(format!("{h}.local"));
             names.push(h);
         }
@@ -387,7 +387,7 @@ mod tests {
                 "{ok}"
             );
         }
-        if let Some(h) = crate::os::hostname() {
+        if let Some(h) = ves_runtime::os::hostname() {
             assert_eq!(status(&g, &[("host", &format!("{h}:8765"))]), 200, "{h}");
         }
         for bad in ["attacker.example:8765", "192.168.1.7:80", "192.168.1.7"] {

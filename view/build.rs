@@ -1,18 +1,15 @@
-//! With feature `view`: bundles the page (runtime/web: three.js and the page's modules) into one
+//! Bundles the page (view/web: three.js and the page's modules) into one
 //! file with esbuild, so the binary embeds it and nothing is fetched at run time.
 //!
 //! The pinned packages are installed by `npm ci` into this build's `OUT_DIR`, never into the
 //! source tree: two builds at once (cargo and maturin, two profiles) each have their own, and
-//! an ordinary build leaves runtime/web untouched. The test drivers' copy in runtime/web is
+//! an ordinary build leaves view/web untouched. The test drivers' copy in view/web is
 //! installed by scripts/setup.
 
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
 fn main() {
-    if std::env::var_os("CARGO_FEATURE_VIEW").is_none() {
-        return;
-    }
     let web = Path::new(env!("CARGO_MANIFEST_DIR")).join("web");
     for f in ["package.json", "package-lock.json", "index.html", "src"] {
         println!("cargo:rerun-if-changed={}", web.join(f).display());
@@ -20,7 +17,7 @@ fn main() {
     let out = PathBuf::from(std::env::var("OUT_DIR").expect("cargo sets OUT_DIR"));
     let fail = |what: &str| -> ! {
         panic!(
-            "feature `view`: {what} (for {}); install Node.js and npm (Debian: apt-get install nodejs npm; scripts/setup does)",
+            "ves-view: {what} (for {}); install Node.js and npm (Debian: apt-get install nodejs npm; scripts/setup does)",
             web.display()
         )
     };

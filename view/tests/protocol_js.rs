@@ -10,7 +10,7 @@ use std::process::Command;
 use std::sync::atomic::{AtomicUsize, Ordering};
 use ves_format::read::LoadCase;
 use ves_runtime::Basis;
-use ves_runtime::view::protocol::{self, FrameHeader, Kind};
+use ves_view::protocol::{self, FrameHeader, Kind};
 
 /// A folder of its own under the system's temporary folder, removed when dropped.
 struct Scratch(PathBuf);

@@ -1,5 +1,5 @@
 // The viewer's binary messages, decoded: the layout of docs/view.md, "The WebSocket protocol"
-// (encoded by runtime/src/view/protocol.rs; runtime/tests/protocol_js.rs has this file decode
+// (encoded by view/src/protocol.rs; view/tests/protocol_js.rs has this file decode
 // what that one encodes). Little-endian; every offset below is in bytes from the message's start.
 
 /** "VESV" in ASCII, the first word of every binary message. */

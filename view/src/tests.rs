@@ -9,7 +9,7 @@ use std::net::TcpStream;
 fn tet() -> SpaceInput {
     let rest = vec![[0.0, 0.0, 0.0], [0.1, 0.0, 0.0], [0.0, 0.1, 0.0], [0.0, 0.0, 0.1]];
     let triangles = vec![[0, 2, 1], [0, 1, 3], [0, 3, 2], [1, 2, 3]];
-    let basis = crate::Basis::new(
+    let basis = ves_runtime::Basis::new(
         "tet",
         "global",
         rest,

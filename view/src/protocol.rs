@@ -25,8 +25,8 @@
 //! positions — is dropped and counted.
 
 use super::hands::HandCommand;
-use crate::basis::Basis;
 use ves_format::read::LoadCase;
+use ves_runtime::basis::Basis;
 
 /// Longest client message accepted, bytes (a hand message is ≈ 120, a scene to compute a few
 /// kB).
@@ -328,7 +328,7 @@ pub const REACH: f64 = 10.0;
 impl Extent {
     /// The bounding box of a basis's rest positions.
     pub fn of(basis: &Basis) -> Extent {
-        let [lo, hi] = crate::kdtree::bounds(&basis.rest);
+        let [lo, hi] = ves_runtime::kdtree::bounds(&basis.rest);
         let centre = [0, 1, 2].map(|k| 0.5 * (lo[k] + hi[k]));
         let diagonal = (0..3).map(|k| (hi[k] - lo[k]).powi(2)).sum::<f64>().sqrt();
         Extent { centre, diagonal }

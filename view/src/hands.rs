@@ -1,12 +1,12 @@
 //! The browser as a haptic device: a hand slot written by the client that owns it, read by the
 //! haptic thread through the same [`Device`] trait as every other device.
 
-use crate::device::{Device, DeviceFault, DeviceInfo, DeviceState};
-use crate::haptic::HandOutput;
-use crate::snapshot::Snapshot;
 use std::sync::Arc;
 use std::sync::Mutex;
 use std::sync::atomic::{AtomicU64, Ordering};
+use ves_runtime::device::{Device, DeviceFault, DeviceInfo, DeviceState};
+use ves_runtime::haptic::HandOutput;
+use ves_runtime::snapshot::Snapshot;
 
 /// Input layout in the snapshot: x, y, z, button, active, message sequence number.
 const INPUT: usize = 6;

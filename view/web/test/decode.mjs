@@ -1,7 +1,7 @@
 // Decodes binary viewer messages with the page's own protocol.js and prints them as one JSON
 // object: the layout constants, then each file's kind and decoded fields (typed arrays as
 // plain arrays; NaN and infinities as strings, which JSON lacks). Run by
-// runtime/tests/protocol_js.rs on messages encoded by runtime/src/view/protocol.rs.
+// view/tests/protocol_js.rs on messages encoded by view/src/protocol.rs.
 //
 // usage: node decode.mjs MESSAGE.bin…
 import { readFileSync } from 'node:fs';

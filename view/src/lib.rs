@@ -1,5 +1,5 @@
 //! `ves view`: a session whose device is a web page. One page and one WebSocket are served;
-//! the real session ([`crate::session::run_spaces_with`], the code `ves session` runs) steps the
+//! the real session ([`ves_runtime::session::run_spaces_with`], the code `ves session` runs) steps the
 //! haptic loop at its rate with one [`hands::WebHand`] per hand, and its visualization thread
 //! hands each drawn frame to the server, which keeps only the latest: a slow client skips
 //! frames instead of queueing them, and a vanished one costs nothing but its own task. Only
@@ -13,10 +13,6 @@ pub mod server;
 mod tests;
 pub mod workshop;
 
-use crate::device::Device;
-use crate::session::{self, Frame, FrameObserver, Hooks, SessionConfig, SessionStats};
-use crate::switching::SpaceInput;
-use crate::visual;
 use axum::body::Bytes;
 use axum::extract::State;
 use axum::extract::ws::{Message, WebSocket, WebSocketUpgrade};
@@ -32,9 +28,13 @@ use std::sync::atomic::{AtomicBool, AtomicU32, AtomicU64, AtomicUsize, Ordering}
 use std::sync::{Arc, Mutex, RwLock};
 use std::time::{Duration, Instant};
 use tokio::sync::{Semaphore, broadcast, watch};
+use ves_runtime::device::Device;
+use ves_runtime::session::{self, Frame, FrameObserver, Hooks, SessionConfig, SessionStats};
+use ves_runtime::switching::SpaceInput;
+use ves_runtime::visual;
 pub use workshop::{Computed, Progress, Workshop, WorkshopError};
 
-const INDEX_HTML: &str = include_str!("../../web/index.html");
+const INDEX_HTML: &str = include_str!("../web/index.html");
 const APP_JS: &str = include_str!(concat!(env!("OUT_DIR"), "/app.js"));
 
 /// How often the status goes out.
@@ -106,7 +106,7 @@ pub struct SessionTiming {
 pub enum ViewError {
     /// A session setting out of range.
     #[error(transparent)]
-    Setting(#[from] crate::haptic::InvalidSetting),
+    Setting(#[from] ves_runtime::haptic::InvalidSetting),
     /// The port asked for is taken.
     #[error("port {} on {} is in use: pick another with --port (0 picks a free one)", addr.port(), addr.ip())]
     PortInUse {
@@ -135,7 +135,7 @@ pub enum ViewError {
     Compute(#[from] ComputeError),
     /// The basis computed cannot be loaded.
     #[error(transparent)]
-    Load(#[from] crate::basis::LoadError),
+    Load(#[from] ves_runtime::basis::LoadError),
     /// A thread panicked holding the live session.
     #[error("the session lock is poisoned")]
     SessionLock,
@@ -169,7 +169,7 @@ pub enum ComputeError {
 struct Generation {
     hello: serde_json::Value,
     meshes: Vec<Bytes>,
-    bases: Vec<Arc<crate::Basis>>,
+    bases: Vec<Arc<ves_runtime::Basis>>,
     extent: Option<Extent>,
     basis_path: Option<PathBuf>,
     /// Each space's static load cases (listed in the hello; read on request).
@@ -468,7 +468,7 @@ fn swap(shared: &Arc<Shared>, spaces: Vec<SpaceInput>, basis_path: Option<PathBu
     for h in &shared.hands {
         h.release_any();
     }
-    let bases: Vec<Arc<crate::Basis>> = spaces.iter().map(|s| s.basis.clone()).collect();
+    let bases: Vec<Arc<ves_runtime::Basis>> = spaces.iter().map(|s| s.basis.clone()).collect();
     // The load cases are listed (and checked) now; their arrays are read again on request.
     let space_loads: Vec<loads::SpaceLoads> = bases.iter().map(|b| loads::list(b)).collect();
     for (b, l) in bases.iter().zip(&space_loads) {
@@ -614,7 +614,7 @@ fn run_compute(shared: &Arc<Shared>, workshop: &dyn Workshop, scene: &serde_json
             stage: "loading".into(),
             fraction: 0.98,
         });
-        let spaces = crate::switching::load_spaces(&c.basis, None, true).map_err(ViewError::Load)?;
+        let spaces = ves_runtime::switching::load_spaces(&c.basis, None, true).map_err(ViewError::Load)?;
         swap(shared, spaces, Some(c.basis.clone()))?;
         swapped = true;
         shared.checking.store(true, Ordering::Release);
@@ -794,7 +794,7 @@ async fn basis_file(State(shared): State<Arc<Shared>>) -> Response {
 }
 
 /// The visualization thread's hook: encodes each drawn frame and publishes it as the latest.
-fn frame_encoder(bases: &[Arc<crate::Basis>], hands: &[Arc<HandSlot>; HANDS], out: Published) -> FrameObserver {
+fn frame_encoder(bases: &[Arc<ves_runtime::Basis>], hands: &[Arc<HandSlot>; HANDS], out: Published) -> FrameObserver {
     let bases = bases.to_vec();
     let hands = hands.clone();
     let mut vm: Vec<Vec<f32>> = bases.iter().map(|b| vec![0.0; b.vertex_count()]).collect();
@@ -840,7 +840,7 @@ fn frame_encoder(bases: &[Arc<crate::Basis>], hands: &[Arc<HandSlot>; HANDS], ou
 }
 
 fn hello(
-    bases: &[Arc<crate::Basis>],
+    bases: &[Arc<ves_runtime::Basis>],
     space_loads: &[loads::SpaceLoads],
     cfg: &ViewConfig,
     workshop: Option<&dyn Workshop>,
