@@ -351,8 +351,18 @@ async fn run_server(
     status.abort();
     // Open connections are dropped; the WebSockets end with the runtime.
     let _ = tokio::time::timeout(Duration::from_secs(1), server).await;
+    // A compute still running was just cancelled (its process killed): its outcome is counted
+    // before the statistics are taken, not raced by them. Bounded: a compute that does not end
+    // within this time is reported as it stands.
+    let t = Instant::now();
+    while shared.computing.load(Ordering::Acquire) && t.elapsed() < COMPUTE_END_WAIT {
+        tokio::time::sleep(Duration::from_millis(20)).await;
+    }
     Ok(())
 }
+
+/// How long the server's end waits for a cancelled compute to end.
+const COMPUTE_END_WAIT: Duration = Duration::from_secs(5);
 
 impl Shared {
     /// The server's state before any session: no basis, no client.

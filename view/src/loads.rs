@@ -2,10 +2,10 @@
 //! docs/format.md): listed in the hello, and read from the file and sent to a page only when it
 //! asks for one (kind 4, [`super::protocol::load_case`]), since each carries a displacement and a stress per vertex.
 
-use ves_runtime::Basis;
 use std::path::PathBuf;
 use ves_format::read::LoadCase;
 use ves_format::{BasisReader, ReadError};
+use ves_runtime::Basis;
 
 /// Why a load case a page asked for cannot be sent.
 #[derive(Debug, thiserror::Error)]
