@@ -4,6 +4,7 @@
 use crate::fem;
 use crate::fem::Dofs;
 use crate::material::Material;
+use crate::modes::Model;
 use crate::mesh::{self, Mesh};
 use crate::rigid_motions::free_rigid_count;
 use crate::scene::{Scene, Voi};
@@ -11,18 +12,12 @@ use crate::supports;
 use anyhow::{Context, Result};
 use std::time::Instant;
 
-/// The assembled problem of one space, before the eigen-solve (also used by tests and checks).
+/// The assembled problem of one space, before the eigen-solve (also used by tests and checks):
+/// the numerics core's [`Model`] (mesh, DOFs, K and M, material, rigid motions; its fields read
+/// through `Deref`) and what making it cost.
 pub struct Discretized {
-    /// The mesh.
-    pub mesh: Mesh,
-    /// DOF numbering.
-    pub dofs: Dofs,
-    /// K, M and the node graph.
-    pub system: fem::Assembled,
-    /// Rigid motions left by the supports.
-    pub rigid: usize,
-    /// The material.
-    pub material: Material,
+    /// Mesh, DOFs, K and M, material, rigid motions left by the supports.
+    pub model: Model,
     /// Seconds spent meshing.
     pub mesh_s: f64,
     /// What making the mesh order 2 needed (repairs of curved tets).
@@ -31,16 +26,17 @@ pub struct Discretized {
     pub assemble_s: f64,
 }
 
-impl Discretized {
-    /// What the eigen-solvers take of it.
-    pub fn space(&self) -> crate::modes::Space<'_> {
-        crate::modes::Space {
-            mesh: &self.mesh,
-            dofs: &self.dofs,
-            system: &self.system,
-            material: self.material,
-            rigid: self.rigid,
-        }
+impl std::ops::Deref for Discretized {
+    type Target = Model;
+
+    fn deref(&self) -> &Model {
+        &self.model
+    }
+}
+
+impl std::ops::DerefMut for Discretized {
+    fn deref_mut(&mut self) -> &mut Model {
+        &mut self.model
     }
 }
 
@@ -153,11 +149,13 @@ impl Meshed {
         let t = Instant::now();
         let system = fem::assemble(&self.mesh, &self.material, &self.dofs)?;
         Ok(Discretized {
-            mesh: self.mesh,
-            dofs: self.dofs,
-            system,
-            rigid: self.rigid,
-            material: self.material,
+            model: Model {
+                mesh: self.mesh,
+                dofs: self.dofs,
+                system,
+                material: self.material,
+                rigid: self.rigid,
+            },
             mesh_s: self.mesh_s,
             meshing: self.meshing,
             assemble_s: self.assemble_s + t.elapsed().as_secs_f64(),
@@ -168,19 +166,12 @@ impl Meshed {
 impl Discretized {
     /// Assembles K and M on a given mesh and DOF numbering; stage times left at zero.
     pub fn assemble(mesh: Mesh, dofs: Dofs, material: Material) -> Result<Discretized> {
-        let rigid = free_rigid_count(&mesh.nodes, &dofs);
-        let meshed = Meshed {
-            mesh,
-            dofs,
-            rigid,
-            material,
+        Ok(Discretized {
+            model: Model::assemble(mesh, dofs, material)?,
             mesh_s: 0.0,
             meshing: mesh::Meshing::default(),
             assemble_s: 0.0,
-        };
-        let mut d = meshed.assemble()?;
-        d.assemble_s = 0.0;
-        Ok(d)
+        })
     }
 }
 
