@@ -4,8 +4,8 @@
 use crate::fem;
 use crate::fem::Dofs;
 use crate::material::Material;
-use crate::modes::Model;
 use crate::mesh::{self, Mesh};
+use crate::modes::Model;
 use crate::rigid_motions::free_rigid_count;
 use crate::scene::{Scene, Voi};
 use crate::supports;

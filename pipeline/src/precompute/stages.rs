@@ -383,7 +383,14 @@ fn store(name: String, voi: Option<&Voi>, solved: Solved, later: AfterSolve) -> 
         ordering_s,
     } = solved;
     let (mesh, dofs, system, meshing, mesh_s, assemble_s) = match problem {
-        Problem::Here(d) => (d.model.mesh, d.model.dofs, Some(d.model.system), d.meshing, d.mesh_s, d.assemble_s),
+        Problem::Here(d) => (
+            d.model.mesh,
+            d.model.dofs,
+            Some(d.model.system),
+            d.meshing,
+            d.mesh_s,
+            d.assemble_s,
+        ),
         Problem::OnRanks(m) => (m.mesh, m.dofs, None, m.meshing, m.mesh_s, m.assemble_s),
     };
     let timings = Timings {

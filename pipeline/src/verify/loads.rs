@@ -173,12 +173,5 @@ fn write_problem(path: &Path, d: &Discretized, scene: &Scene, loads: &[Vec<f64>]
         }
         Ok(())
     };
-    write().map_err(|source| VerifyError::WriteProblem {
-        path: path.to_path_buf(),
-        source,
-    })?;
-    crate::workdir::seal(path).map_err(|source| VerifyError::Write {
-        path: path.to_path_buf(),
-        source,
-    })
+    super::seal_problem(path, write)
 }

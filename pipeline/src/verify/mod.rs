@@ -494,6 +494,12 @@ fn write_problem(
         }
         Ok(())
     };
+    seal_problem(path, write)
+}
+
+/// Writes a problem file for the references with `write`, then seals it (0600); each failure
+/// named with the file.
+fn seal_problem(path: &Path, write: impl FnOnce() -> hdf5::Result<()>) -> Result<(), VerifyError> {
     write().map_err(|source| VerifyError::WriteProblem {
         path: path.to_path_buf(),
         source,
