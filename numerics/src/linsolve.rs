@@ -196,10 +196,13 @@ pub fn node_parts(graph: &NodeGraph, dofs: &Dofs, parts: usize) -> Vec<u32> {
 /// `adj`): the mesh cache keeps them beside its meshes and installs itself with
 /// [`keep_orderings_in`] (the solvers know nothing of meshing).
 pub trait OrderingStore: Send + Sync {
-    /// The node ordering stored for this graph: a permutation of its nodes, else None.
-    fn lookup(&self, xadj: &[i32], adj: &[i32]) -> Option<Vec<i32>>;
-    /// Keeps `order` for this graph.
-    fn store(&self, xadj: &[i32], adj: &[i32], order: &[i32]);
+    /// The graph's key in the store (a hash of it), or None when the store is off: computed
+    /// once per ordering, for the lookup and the store that may follow.
+    fn key(&self, xadj: &[i32], adj: &[i32]) -> Option<u64>;
+    /// The node ordering stored under `key`: a permutation of `0..n`, else None.
+    fn lookup(&self, key: u64, n: usize) -> Option<Vec<i32>>;
+    /// Keeps `order` under `key`.
+    fn store(&self, key: u64, order: &[i32]);
 }
 
 static ORDERINGS: std::sync::OnceLock<&'static dyn OrderingStore> = std::sync::OnceLock::new();
@@ -215,8 +218,8 @@ pub fn nested_dissection(graph: &NodeGraph, dofs: &Dofs) -> (Vec<usize>, Vec<usi
     let n = graph.col_ptr.len() - 1;
     let (xadj, adj) = adjacency(graph);
     let mut node_order: Vec<i32> = (0..n as i32).collect();
-    let store = ORDERINGS.get();
-    let cached = store.and_then(|s| s.lookup(&xadj, &adj)).filter(|o| o.len() == n);
+    let store = ORDERINGS.get().and_then(|s| Some((*s, s.key(&xadj, &adj)?)));
+    let cached = store.and_then(|(s, k)| s.lookup(k, n)).filter(|o| o.len() == n);
     if let Some(order) = cached {
         node_order = order;
     } else if n > 1 && !adj.is_empty() {
@@ -227,8 +230,8 @@ pub fn nested_dissection(graph: &NodeGraph, dofs: &Dofs) -> (Vec<usize>, Vec<usi
         // On failure the natural order is kept: slower, never wrong.
         if let Some(perm) = ves_metis::nested_dissection(&graph) {
             node_order = perm;
-            if let Some(s) = store {
-                s.store(&xadj, &adj, &node_order);
+            if let Some((s, k)) = store {
+                s.store(k, &node_order);
             }
         }
     }

@@ -275,18 +275,23 @@ fn write_atomically(key: &Path, body: impl FnOnce(&mut std::io::BufWriter<File>)
     }
 }
 
-/// Where the fill-reducing node ordering of a node graph (CSR `xadj`, `adj`) is cached: beside
-/// the meshes, keyed by the graph itself and the ordering code, so the same mesh with other
-/// supports (a batch of scenarios, a rerun) skips METIS. None when the cache is off.
-pub(crate) fn ordering_key(xadj: &[i32], adj: &[i32]) -> Option<PathBuf> {
-    let dir = dir()?;
+/// The key of a node graph's (CSR `xadj`, `adj`) fill-reducing ordering: the graph itself and
+/// the ordering code, so the same mesh with other supports (a batch of scenarios, a rerun) skips
+/// METIS. None when the cache is off.
+fn ordering_hash(xadj: &[i32], adj: &[i32]) -> Option<u64> {
+    dir()?;
     let bytes = |v: &[i32]| -> Vec<u8> { v.iter().flat_map(|x| x.to_le_bytes()).collect() };
     let mut h = crate::fingerprint::Fingerprint::default();
     h.field(env!("CARGO_PKG_VERSION").as_bytes())
         .field(include_str!("../../../numerics/src/linsolve.rs").as_bytes())
         .field(&bytes(xadj))
         .field(&bytes(adj));
-    Some(dir.join(format!("{:016x}.order", h.value())))
+    Some(h.value())
+}
+
+/// Where the ordering of key `hash` is cached: beside the meshes.
+fn ordering_path(hash: u64) -> Option<PathBuf> {
+    Some(dir()?.join(format!("{hash:016x}.order")))
 }
 
 /// The cached ordering under `key`: a permutation of 0..n, else None.
@@ -331,13 +336,17 @@ pub(crate) fn ordering_store(key: &std::path::Path, order: &[i32]) {
 pub(crate) struct Orderings;
 
 impl crate::linsolve::OrderingStore for Orderings {
-    fn lookup(&self, xadj: &[i32], adj: &[i32]) -> Option<Vec<i32>> {
-        ordering_lookup(&ordering_key(xadj, adj)?, xadj.len().saturating_sub(1))
+    fn key(&self, xadj: &[i32], adj: &[i32]) -> Option<u64> {
+        ordering_hash(xadj, adj)
     }
 
-    fn store(&self, xadj: &[i32], adj: &[i32], order: &[i32]) {
-        if let Some(k) = ordering_key(xadj, adj) {
-            ordering_store(&k, order);
+    fn lookup(&self, key: u64, n: usize) -> Option<Vec<i32>> {
+        ordering_lookup(&ordering_path(key)?, n)
+    }
+
+    fn store(&self, key: u64, order: &[i32]) {
+        if let Some(p) = ordering_path(key) {
+            ordering_store(&p, order);
         }
     }
 }
