@@ -122,29 +122,7 @@ fn serve_for(
     port: &str,
     seconds: &str,
 ) -> (std::process::Child, BufReader<std::process::ChildStdout>, String) {
-    let mut server = Command::new(env!("CARGO_BIN_EXE_ves"))
-        .args([
-            "view",
-            input.to_str().unwrap(),
-            "--port",
-            port,
-            "--duration",
-            seconds,
-            "--json",
-        ])
-        .stdout(Stdio::piped())
-        .stderr(Stdio::piped())
-        .spawn()
-        .expect("ves view starts");
-    let mut out = BufReader::new(server.stdout.take().expect("stdout"));
-    let mut line = String::new();
-    out.read_line(&mut line).expect("the URL line");
-    let url = line
-        .split_whitespace()
-        .find(|w| w.starts_with("http://127.0.0.1:"))
-        .unwrap_or_else(|| panic!("no loopback URL in {line:?}"))
-        .to_string();
-    (server, out, url)
+    start_view(input, port, seconds, &[], Stdio::piped())
 }
 
 /// After a browser script: ends the server with Ctrl-C, asserts that both ended well, and

@@ -2,7 +2,9 @@
 //! owner, removed when `ves view` gets SIGINT, SIGTERM or SIGHUP, and those a dead process left
 //! removed by the next start.
 
-use std::io::{BufRead, BufReader};
+mod common;
+
+use common::start_view;
 use std::os::unix::fs::MetadataExt;
 use std::os::unix::process::ExitStatusExt;
 use std::path::{Path, PathBuf};
@@ -50,19 +52,7 @@ fn ves_view_s_folder_is_private_gone_after_a_signal_and_stale_ones_are_removed_a
         let tmp = tempfile::tempdir().expect("tempdir");
         let dead = dead_pid();
         let stale = [stale(tmp.path(), "view", dead), stale(tmp.path(), "verify", dead)];
-        let mut server = Command::new(env!("CARGO_BIN_EXE_ves"))
-            .args(["view", step().to_str().unwrap(), "--port", "0", "--duration", "60"])
-            .env("TMPDIR", tmp.path())
-            .stdin(Stdio::null())
-            .stdout(Stdio::piped())
-            .stderr(Stdio::null())
-            .spawn()
-            .expect("ves view starts");
-        let mut line = String::new();
-        BufReader::new(server.stdout.take().expect("stdout"))
-            .read_line(&mut line)
-            .expect("the URL line");
-        assert!(line.contains("http://"), "{line:?}");
+        let (mut server, _out, _url) = start_view(&step(), "0", "60", &[("TMPDIR", tmp.path())], Stdio::null());
         let pid = server.id();
         let own: Vec<_> = owned_by(tmp.path(), pid)
             .into_iter()
@@ -137,31 +127,13 @@ fn page_status(port: u16) -> Option<u16> {
 #[test]
 fn a_compute_process_that_dies_fails_the_compute_and_the_server_stays_up() {
     let tmp = tempfile::tempdir().expect("tempdir");
-    let mut server = Command::new(env!("CARGO_BIN_EXE_ves"))
-        .args([
-            "view",
-            step().to_str().unwrap(),
-            "--port",
-            "0",
-            "--duration",
-            "60",
-            "--json",
-        ])
-        .env("TMPDIR", tmp.path())
-        .stdin(Stdio::null())
-        .stdout(Stdio::piped())
-        .stderr(Stdio::piped())
-        .spawn()
-        .expect("ves view starts");
-    let mut out = BufReader::new(server.stdout.take().expect("stdout"));
-    let mut line = String::new();
-    out.read_line(&mut line).expect("the URL line");
-    let port: u16 = line
-        .split("http://127.0.0.1:")
-        .nth(1)
-        .and_then(|r| r.split('/').next())
+    let (mut server, mut out, url) = start_view(&step(), "0", "60", &[("TMPDIR", tmp.path())], Stdio::piped());
+    let port: u16 = url
+        .trim_start_matches("http://127.0.0.1:")
+        .split('/')
+        .next()
         .and_then(|p| p.parse().ok())
-        .unwrap_or_else(|| panic!("no URL in {line:?}"));
+        .unwrap_or_else(|| panic!("no port in {url:?}"));
     let pid = server.id();
     // The first compute starts at once.
     let t0 = std::time::Instant::now();

@@ -160,3 +160,45 @@ pub fn mkfifo(path: &Path) {
         path.display()
     );
 }
+
+/// `ves view INPUT --port PORT --duration SECONDS --json`, its stdin closed, stdout piped, with
+/// `env` set: the process, its stdout after the URL line (the `--json` statistics come there at
+/// the end), and the loopback URL it printed.
+pub fn start_view(
+    input: &Path,
+    port: &str,
+    seconds: &str,
+    env: &[(&str, &Path)],
+    stderr: std::process::Stdio,
+) -> (
+    std::process::Child,
+    std::io::BufReader<std::process::ChildStdout>,
+    String,
+) {
+    use std::io::BufRead;
+    let mut server = Command::new(env!("CARGO_BIN_EXE_ves"))
+        .args([
+            "view",
+            input.to_str().expect("a UTF-8 test path"),
+            "--port",
+            port,
+            "--duration",
+            seconds,
+            "--json",
+        ])
+        .envs(env.iter().copied())
+        .stdin(std::process::Stdio::null())
+        .stdout(std::process::Stdio::piped())
+        .stderr(stderr)
+        .spawn()
+        .expect("ves view starts");
+    let mut out = std::io::BufReader::new(server.stdout.take().expect("stdout"));
+    let mut line = String::new();
+    out.read_line(&mut line).expect("the URL line");
+    let url = line
+        .split_whitespace()
+        .find(|w| w.starts_with("http://127.0.0.1:"))
+        .unwrap_or_else(|| panic!("no loopback URL in {line:?}"))
+        .to_string();
+    (server, out, url)
+}
