@@ -30,7 +30,8 @@ pub use write::{FileData, LoadData, SpaceData, WriteError, write_file};
 /// what to change, shown as `path: message`. The one error of the readers of files (a basis, a
 /// device script) in the format crate and the runtime.
 #[derive(Debug, Clone, thiserror::Error)]
-#[error("{path}: {message}")]
+// The path as given (a file name may hold terminal escapes): shown, not obeyed.
+#[error("{}: {message}", identifier::escape_for_terminal(path))]
 pub struct InputError {
     /// The input.
     pub path: String,

@@ -138,6 +138,12 @@ mod tests {
         }
         let e = open("script:/nonexistent.csv").err().expect("refused").to_string();
         assert!(e.contains("/nonexistent.csv"), "{e}");
+        // No file at all: said so, not an error about a file named "".
+        let e = open("script:").err().expect("refused").to_string();
+        assert!(e.contains("no file after `script:`"), "{e}");
+        // A file name that would drive the terminal is shown escaped.
+        let e = open("script:a\u{1b}[31mb.csv").err().expect("refused").to_string();
+        assert!(!e.contains('\u{1b}') && e.contains("a\\u{1b}[31mb.csv"), "{e:?}");
         let _ = std::fs::remove_dir_all(&dir);
     }
 }

@@ -9,7 +9,15 @@ pub(super) const KIND: Kind = Kind {
     name: "script",
     argument: "FILE.csv",
     about: "t, x, y, z[, button] in SI units",
-    open: |file| Ok(Box::new(ScriptedDevice::load(Path::new(file))?)),
+    open: |file| {
+        if file.is_empty() {
+            return Err(ScriptError {
+                path: "device \"script:\"".into(),
+                message: "no file after `script:`; give one, e.g. script:hand.csv".into(),
+            });
+        }
+        Ok(Box::new(ScriptedDevice::load(Path::new(file))?))
+    },
 };
 
 /// A trajectory read from CSV `t, x, y, z[, button]` (SI units, rows in increasing t; `#` lines,
