@@ -17,6 +17,7 @@ pub mod mpi_job;
 pub mod mpi_job;
 #[cfg(feature = "slepc")]
 pub mod slepc;
+pub mod warm;
 
 use crate::fem::Dofs;
 use crate::linsolve::{FactorError, nested_dissection, sym_matmul};

@@ -1,0 +1,461 @@
+//! Modes in a few block solves, from the modes of a nearby problem: the same mesh held by other
+//! faces, of another material, or asked for more modes. What a session needs the moment its
+//! supports change, while the converged solve follows.
+//!
+//! The space searched is a block Krylov space of T = (K − σM)⁻¹M started from the previous
+//! modes and from the static deflections under the six rigid motions' inertia loads (what a held
+//! part's lowest modes look like), with the rigid motions themselves: one factorisation and a
+//! few block solves, then a Rayleigh–Ritz. No restarts, no convergence loop beyond a fixed
+//! number of blocks: the error is not assumed small but bounded afterwards. For a Ritz pair
+//! (θ, x), ‖x‖_M = 1, and r = Kx − θMx, T's residual is −(K − σM)⁻¹r/(θ − σ), so by the
+//! residual theorem for the M-self-adjoint T some eigenvalue λ of the pencil has
+//! |λ − θ|/(λ − σ) ≤ ‖(K − σM)⁻¹r‖_M: one more block solve gives a rigorous first-order bound,
+//! and Kato–Temple with the Ritz values' gaps a (much smaller) quadratic estimate. Ritz values
+//! lie above the eigenvalues they approximate (Courant–Fischer), so the instant frequencies are
+//! never below the converged ones.
+
+use super::dense::self_adjoint_eigen_qr;
+use super::{EigenProblem, Modes, ModesError, Space, check, eigenpairs_wanted, factor_shifted};
+use crate::linsolve::{Cholesky, nested_dissection, sym_matmul};
+use crate::tall;
+use faer::{Accum, Mat, MatRef};
+use rayon::prelude::*;
+use std::time::Instant;
+
+/// Modes from [`warm_start`], with how far each may be from the converged solve on this mesh.
+pub struct Warm {
+    /// The modes (M-orthonormal, their residuals measured as any solve's).
+    pub modes: Modes,
+    /// Per mode, a rigorous bound on the relative error of its eigenvalue against the
+    /// discrete problem's: |λ̃ − λ|/λ ≤ bound for some eigenvalue λ.
+    pub bounds: Vec<f64>,
+    /// Per mode, the Kato–Temple estimate of the same error (the Ritz values' gaps standing in
+    /// for the exact ones): what the frequencies are expected to move by when the converged
+    /// modes arrive.
+    pub estimates: Vec<f64>,
+    /// Right-hand sides solved with the factor.
+    pub solves: usize,
+    /// Vectors in the space searched.
+    pub basis: usize,
+}
+
+/// Right-hand sides per call of the factor's solve (as the block Krylov–Schur solver's).
+const CHUNK: usize = 8;
+
+/// Directions of a block whose M-norm² falls below this fraction of the block's largest before
+/// its projection are already in the space (deflated): what is left of them is mostly
+/// round-off, and normalising it would put noise in the basis.
+const DEFLATE: f64 = 1e-20;
+
+/// In the second pass the columns are M-orthonormal: one that loses more than this share of
+/// its norm² to the basis again was round-off from the first pass, and is dropped (on the free
+/// bar, kept, such columns left the basis 2.8e-4 from M-orthonormal; dropped, 2.7e-15).
+const DEFLATE_AGAIN: f64 = 1e-10;
+
+/// A stage of the Krylov space is added until the wanted Ritz values move by less than this
+/// (relative) from one stage to the next, or `blocks` stages are in.
+const STEADY: f64 = 1e-7;
+
+/// The `count` lowest elastic modes of `space` (its `rigid` rigid motions dropped) from
+/// `start`, column-major `free × s` vectors on `space`'s free DOFs (modes of a nearby problem;
+/// may be empty), with at most `blocks` Krylov stages beyond the start.
+pub fn warm_start(space: Space<'_>, count: usize, start: &[f64], blocks: usize) -> Result<Warm, ModesError> {
+    let t0 = Instant::now();
+    let problem = EigenProblem::of(space.system);
+    let n = problem.size();
+    let rigid = space.rigid;
+    let nev = eigenpairs_wanted(n, count, rigid)?;
+    if !start.len().is_multiple_of(n.max(1)) {
+        return Err(ModesError::Block(format!(
+            "{} start values are no whole number of vectors of {n} unknowns",
+            start.len()
+        )));
+    }
+    let rigid_motions = rigid_columns(space);
+    let sigma = shift(&problem, rigid, start, n);
+    let ordering = nested_dissection(&space.system.graph, space.dofs);
+    let chol = factor_shifted(&problem, &ordering, sigma)?;
+    let factorize_s = t0.elapsed().as_secs_f64();
+    let t1 = Instant::now();
+    let mut solves = 0;
+    // The space: rigid motions (exact for the free ones), the start, and T of the inertia loads.
+    let mut space_v = Basis::new(n);
+    space_v.add(&problem, rigid_motions.clone());
+    let mut inertia = m_times(&problem, &rigid_motions);
+    solve(&chol, &mut inertia, 6);
+    solves += 6;
+    let mut block = start.to_vec();
+    block.extend_from_slice(&inertia);
+    let mut last = space_v.add(&problem, block);
+    let mut ritz = rayleigh_ritz(&problem, &space_v)?;
+    for _ in 0..blocks {
+        if last.is_empty() {
+            break;
+        }
+        let cols = last.len() / n;
+        let mut next = m_times(&problem, &last);
+        solve(&chol, &mut next, cols);
+        solves += cols;
+        last = space_v.add(&problem, next);
+        let previous = ritz.0[..nev.min(ritz.0.len())].to_vec();
+        ritz = rayleigh_ritz(&problem, &space_v)?;
+        let moved = previous
+            .iter()
+            .zip(&ritz.0)
+            .skip(rigid)
+            .map(|(a, b)| ((a - b) / b).abs())
+            .fold(0.0, f64::max);
+        if moved < STEADY {
+            break;
+        }
+    }
+    let (values, q) = ritz;
+    if values.len() < nev {
+        return Err(ModesError::Block(format!(
+            "the space searched has {} directions, fewer than the {nev} modes asked",
+            values.len()
+        )));
+    }
+    if rigid > 0 {
+        let rigid_max = values[..rigid].iter().fold(0.0f64, |a, v| a.max(v.abs()));
+        if values[rigid].is_nan() || values[rigid] <= 1e3 * rigid_max {
+            return Err(ModesError::RigidSeparation {
+                rigid,
+                values: values[..(rigid + 2).min(values.len())].to_vec(),
+            });
+        }
+    }
+    let m = space_v.cols();
+    let mut vectors = vec![0.0; n * count];
+    tall::times(
+        faer::MatMut::from_column_major_slice_mut(&mut vectors, n, count),
+        Accum::Replace,
+        MatRef::from_column_major_slice(&space_v.v, n, m),
+        q.as_ref().subcols(rigid, count),
+        1.0,
+    );
+    let eigenvalues = values[rigid..nev].to_vec();
+    let (residuals, orthonormality_error) = check(&problem, &mut vectors, &eigenvalues);
+    let eta = residual_norms(&problem, &chol, &vectors, &eigenvalues);
+    solves += count;
+    let elastic = &values[rigid..];
+    let (bounds, estimates) = eigenvalues
+        .iter()
+        .zip(&eta)
+        .enumerate()
+        .map(|(i, (&theta, &eta))| {
+            let scale = (theta - sigma) / theta;
+            let mu = 1.0 / (theta - sigma);
+            let gap = elastic
+                .iter()
+                .enumerate()
+                .filter(|&(j, _)| j != i)
+                .map(|(_, &l)| (mu - 1.0 / (l - sigma)).abs())
+                .fold(f64::INFINITY, f64::min);
+            let bound = eta * scale;
+            (bound, (eta * eta * mu / gap * scale).min(bound))
+        })
+        .unzip();
+    Ok(Warm {
+        modes: Modes {
+            eigenvalues,
+            vectors,
+            rigid_dropped: rigid,
+            residuals,
+            orthonormality_error,
+            sigma,
+            factorize_s,
+            eigensolve_s: t1.elapsed().as_secs_f64(),
+            symbolic: Some(chol.into_symbolic()),
+        },
+        bounds,
+        estimates,
+        solves,
+        basis: m,
+    })
+}
+
+/// The shift: 0 for a held part (K positive definite); below the spectrum for a part with
+/// rigid motions, a hundredth of the lowest Rayleigh quotient of the start (or of the mesh's
+/// stiffness scale without a start) so the rigid modes do not swamp the solves.
+fn shift(problem: &EigenProblem<'_>, rigid: usize, start: &[f64], n: usize) -> f64 {
+    if rigid == 0 {
+        return 0.0;
+    }
+    let cols = start.len() / n.max(1);
+    let (k, m) = (k_times(problem, start), m_times(problem, start));
+    let lowest = (0..cols)
+        .map(|j| {
+            let x = &start[j * n..(j + 1) * n];
+            let kx: f64 = x.iter().zip(&k[j * n..(j + 1) * n]).map(|(a, b)| a * b).sum();
+            let mx: f64 = x.iter().zip(&m[j * n..(j + 1) * n]).map(|(a, b)| a * b).sum();
+            kx / mx
+        })
+        .filter(|q| q.is_finite() && *q > 0.0)
+        .fold(f64::INFINITY, f64::min);
+    if lowest.is_finite() {
+        -0.01 * lowest
+    } else {
+        -1e-6 * problem.scales().stiffness()
+    }
+}
+
+/// The six rigid motions on the free DOFs, column-major `free × 6`.
+fn rigid_columns(space: Space<'_>) -> Vec<f64> {
+    let rows = crate::rigid_motions::on_free_dofs(&space.mesh.nodes, space.dofs);
+    let n = rows.len() / 6;
+    (0..6)
+        .flat_map(|c| (0..n).map(move |i| (c, i)))
+        .map(|(c, i)| rows[6 * i + c])
+        .collect()
+}
+
+fn m_times(problem: &EigenProblem<'_>, x: &[f64]) -> Vec<f64> {
+    let mut y = vec![0.0; x.len()];
+    sym_matmul(problem.pattern, problem.m, x, &mut y);
+    y
+}
+
+fn k_times(problem: &EigenProblem<'_>, x: &[f64]) -> Vec<f64> {
+    let mut y = vec![0.0; x.len()];
+    sym_matmul(problem.pattern, problem.k, x, &mut y);
+    y
+}
+
+/// X ← (K − σM)⁻¹X for `cols` column-major vectors, [`CHUNK`] at a time on every core.
+fn solve(chol: &Cholesky, x: &mut [f64], cols: usize) {
+    if cols == 0 {
+        return;
+    }
+    let n = x.len() / cols;
+    x.par_chunks_mut(n * CHUNK)
+        .for_each(|c| chol.solve_many_in_place(c, c.len() / n));
+}
+
+/// Per mode, ‖(K − σM)⁻¹(Kx − θMx)‖_M.
+fn residual_norms(problem: &EigenProblem<'_>, chol: &Cholesky, x: &[f64], theta: &[f64]) -> Vec<f64> {
+    let n = problem.size();
+    let mut r = k_times(problem, x);
+    let mx = m_times(problem, x);
+    for (j, &t) in theta.iter().enumerate() {
+        for (a, b) in r[j * n..(j + 1) * n].iter_mut().zip(&mx[j * n..(j + 1) * n]) {
+            *a -= t * b;
+        }
+    }
+    solve(chol, &mut r, theta.len());
+    let mz = m_times(problem, &r);
+    (0..theta.len())
+        .map(|j| {
+            r[j * n..(j + 1) * n]
+                .iter()
+                .zip(&mz[j * n..(j + 1) * n])
+                .map(|(a, b)| a * b)
+                .sum::<f64>()
+                .max(0.0)
+                .sqrt()
+        })
+        .collect()
+}
+
+/// The eigenvalues (ascending) and vectors of the pencil projected on `basis` (M-orthonormal,
+/// so a plain symmetric eigenproblem of VᵀKV).
+fn rayleigh_ritz(problem: &EigenProblem<'_>, basis: &Basis) -> Result<(Vec<f64>, Mat<f64>), ModesError> {
+    let (n, m) = (basis.n, basis.cols());
+    let kv = k_times(problem, &basis.v);
+    let mut h = tall::t_times(
+        MatRef::from_column_major_slice(&basis.v, n, m),
+        MatRef::from_column_major_slice(&kv, n, m),
+    );
+    for a in 0..m {
+        for b in 0..a {
+            let s = 0.5 * (h[(a, b)] + h[(b, a)]);
+            h[(a, b)] = s;
+            h[(b, a)] = s;
+        }
+    }
+    self_adjoint_eigen_qr(h.as_ref())
+}
+
+/// An M-orthonormal basis, column-major, with its M-image.
+struct Basis {
+    n: usize,
+    v: Vec<f64>,
+    mv: Vec<f64>,
+}
+
+impl Basis {
+    fn new(n: usize) -> Basis {
+        Basis {
+            n,
+            v: Vec::new(),
+            mv: Vec::new(),
+        }
+    }
+
+    fn cols(&self) -> usize {
+        self.v.len() / self.n.max(1)
+    }
+
+    /// Adds what of `block` (column-major) is not in the basis yet, M-orthonormal; returns the
+    /// directions added (column-major).
+    fn add(&mut self, problem: &EigenProblem<'_>, mut block: Vec<f64>) -> Vec<f64> {
+        let n = self.n;
+        if n == 0 || block.is_empty() {
+            return Vec::new();
+        }
+        let before = column_norms(problem, &block, n);
+        // Twice: one pass of classical Gram–Schmidt and SVQB leaves ε·κ along the basis.
+        for pass in 0..2 {
+            let cols = block.len() / n;
+            let m = self.cols();
+            if m > 0 {
+                let c = tall::t_times(
+                    MatRef::from_column_major_slice(&self.mv, n, m),
+                    MatRef::from_column_major_slice(&block, n, cols),
+                );
+                tall::times(
+                    faer::MatMut::from_column_major_slice_mut(&mut block, n, cols),
+                    Accum::Add,
+                    MatRef::from_column_major_slice(&self.v, n, m),
+                    c.as_ref(),
+                    -1.0,
+                );
+            }
+            // The second pass starts from M-orthonormal columns.
+            block = svqb(
+                problem,
+                &block,
+                n,
+                if pass == 0 { DEFLATE * before } else { DEFLATE_AGAIN },
+            );
+            if block.is_empty() {
+                return block;
+            }
+        }
+        let mb = m_times(problem, &block);
+        self.v.extend_from_slice(&block);
+        self.mv.extend_from_slice(&mb);
+        block
+    }
+}
+
+/// The largest M-norm² of the block's columns.
+fn column_norms(problem: &EigenProblem<'_>, block: &[f64], n: usize) -> f64 {
+    let mb = m_times(problem, block);
+    block
+        .chunks(n)
+        .zip(mb.chunks(n))
+        .map(|(x, y)| x.iter().zip(y).map(|(a, b)| a * b).sum::<f64>())
+        .fold(0.0, f64::max)
+}
+
+/// The block M-orthonormalised within itself (SVQB: the Gram matrix's eigenvectors scaled by
+/// its eigenvalues' inverse roots), directions whose M-norm² is at most `floor` dropped.
+fn svqb(problem: &EigenProblem<'_>, block: &[f64], n: usize, floor: f64) -> Vec<f64> {
+    let cols = block.len() / n;
+    let mb = m_times(problem, block);
+    let g = tall::t_times(
+        MatRef::from_column_major_slice(block, n, cols),
+        MatRef::from_column_major_slice(&mb, n, cols),
+    );
+    let g = Mat::<f64>::from_fn(cols, cols, |a, b| 0.5 * (g[(a, b)] + g[(b, a)]));
+    let Ok((s, u)) = self_adjoint_eigen_qr(g.as_ref()) else {
+        return Vec::new();
+    };
+    let keep: Vec<usize> = (0..cols).filter(|&j| s[j] > floor && s[j] > 0.0).collect();
+    let scale = Mat::<f64>::from_fn(cols, keep.len(), |a, k| u[(a, keep[k])] / s[keep[k]].sqrt());
+    let mut out = vec![0.0; n * keep.len()];
+    tall::times(
+        faer::MatMut::from_column_major_slice_mut(&mut out, n, keep.len()),
+        Accum::Replace,
+        MatRef::from_column_major_slice(block, n, cols),
+        scale.as_ref(),
+        1.0,
+    );
+    out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::fem::Dofs;
+    use crate::fem::element::Kind;
+    use crate::material::Material;
+    use crate::modes::{Model, SolverChoice, solve as exact};
+    use crate::tet_mesh::Mesh;
+
+    /// A 0.6 × 0.1 × 0.1 m steel bar, 10-node tets, held where `held` says.
+    fn bar(held: impl Fn([f64; 3]) -> bool) -> Model {
+        let mesh = Mesh::structured_box([12, 2, 2], 0.05, Kind::Tet10, |_, p| p);
+        let mask: Vec<bool> = mesh.nodes.iter().flat_map(|&p| [held(p); 3]).collect();
+        Model::assemble(mesh, Dofs::from_mask(&mask), Material::elastic(2e11, 0.3, 7800.0)).expect("assembles")
+    }
+
+    /// The previous modes of `from` on `to`'s free DOFs (zero where `to` holds what `from` did not).
+    fn carried(from: &Model, modes: &Modes, to: &Model) -> Vec<f64> {
+        let (nf, r) = (from.dofs.free_count(), modes.eigenvalues.len());
+        (0..r)
+            .flat_map(|j| {
+                to.dofs.free.iter().map(move |&g| match from.dofs.free_of[g as usize] {
+                    u32::MAX => 0.0,
+                    i => modes.vectors[j * nf + i as usize],
+                })
+            })
+            .collect()
+    }
+
+    /// Held by the other end, then free: the modes warm-started from the first support's
+    /// modes agree with the converged solve to 1e-3 in frequency (measured ≤ 4e-4 in eigenvalue), lie above it, and each error
+    /// is within its rigorous bound; where the error is above 1e-5 the Kato–Temple estimate is within
+    /// 100× of it (measured: 0.04–2.6×, mostly under).
+    #[test]
+    fn warm_modes_match_the_converged_solve_within_their_bounds() {
+        let left = bar(|p| p[0] < 1e-9);
+        let (from, _) = exact(left.space(), 10, SolverChoice::Arpack).expect("solves");
+        for to in [
+            bar(|p| p[0] > 0.6 - 1e-9),
+            bar(|p| p[0] < 1e-9 || p[0] > 0.6 - 1e-9),
+            bar(|_| false),
+        ] {
+            let start = carried(&left, &from, &to);
+            let (want, _) = exact(to.space(), 8, SolverChoice::Arpack).expect("solves");
+            let got = warm_start(to.space(), 8, &start, 3).expect("warm");
+            assert_eq!(got.modes.rigid_dropped, to.rigid);
+            for (i, (&w, &g)) in want.eigenvalues.iter().zip(&got.modes.eigenvalues).enumerate() {
+                let err = (g - w) / w;
+                assert!(err > -1e-9, "mode {i}: {g} below the converged {w}");
+                assert!(err < 2e-3, "mode {i}: relative eigenvalue error {err:.2e}");
+                assert!(
+                    err <= got.bounds[i] * (1.0 + 1e-6) + 1e-12,
+                    "mode {i}: {err:.2e} > bound {:.2e}",
+                    got.bounds[i]
+                );
+                assert!(got.estimates[i] <= got.bounds[i]);
+                if err > 1e-5 {
+                    assert!(
+                        got.estimates[i] > 0.01 * err && got.estimates[i] < 100.0 * err,
+                        "mode {i}: estimate {:.2e} against {err:.2e}",
+                        got.estimates[i]
+                    );
+                }
+            }
+            assert!(
+                got.modes.orthonormality_error < 1e-10,
+                "{:e}",
+                got.modes.orthonormality_error
+            );
+        }
+    }
+
+    /// With no start at all the space grows from the inertia loads alone and still finds the
+    /// lowest modes.
+    #[test]
+    fn a_cold_start_grows_from_the_inertia_loads() {
+        let to = bar(|p| p[0] < 1e-9);
+        let (want, _) = exact(to.space(), 6, SolverChoice::Arpack).expect("solves");
+        let got = warm_start(to.space(), 6, &[], 6).expect("warm");
+        for (i, (&w, &g)) in want.eigenvalues.iter().zip(&got.modes.eigenvalues).enumerate() {
+            assert!(((g - w) / w).abs() < 1e-3, "mode {i}: {g} against {w}");
+        }
+    }
+}
