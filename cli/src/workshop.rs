@@ -96,6 +96,8 @@ pub struct PartWorkshop {
     solver: SolverChoice,
     /// The compute's threads, below the session's in priority (see [`lower_priority`]).
     pool: rayon::ThreadPool,
+    /// The basis served last (an instant basis starts from it).
+    last: std::sync::Mutex<Option<PathBuf>>,
 }
 
 /// The part being set up: its geometry file and the scene the page starts from.
@@ -230,6 +232,7 @@ impl PartWorkshop {
             dir,
             computed: AtomicU64::new(0),
             solver,
+            last: std::sync::Mutex::new(None),
         })
     }
 
@@ -244,6 +247,10 @@ impl PartWorkshop {
                 let _ = std::fs::remove_file(path);
             }
         }
+    }
+
+    fn last(&self) -> std::sync::MutexGuard<'_, Option<PathBuf>> {
+        self.last.lock().unwrap_or_else(|p| p.into_inner())
     }
 
     fn part(&self) -> std::sync::MutexGuard<'_, Part> {
@@ -301,6 +308,43 @@ struct ComputeJob {
     solver: String,
     /// The parent's process id: the child ends at once if it already has another parent.
     parent: u32,
+    /// The basis the session serves: when only supports, material or modes changed, an instant
+    /// basis is made from it first.
+    #[serde(default)]
+    previous: Option<PathBuf>,
+}
+
+/// Where a compute writing `out` puts its instant basis (`basis-N-instant.h5`).
+fn instant_path(out: &Path) -> PathBuf {
+    let stem = out
+        .file_stem()
+        .map(|s| s.to_string_lossy().into_owned())
+        .unwrap_or_default();
+    out.with_file_name(format!("{stem}-instant.h5"))
+}
+
+/// The page's line for an instant basis: what it is, its bound, and that the converged one follows.
+fn instant_line(summary: &precompute::Summary, check: &precompute::instant::InstantCheck) -> String {
+    let bound = check.frequency_bound.iter().copied().fold(0.0, f64::max);
+    let expected = check.frequency_estimate.iter().copied().fold(0.0, f64::max);
+    format!(
+        "instant basis in {:.2} s (the previous mesh, {} solves): frequencies at most {:.2} % above the converged \
+         solve's (expected {:.3} %); {} · the converged basis follows",
+        summary.timings_s.total,
+        check.solves,
+        100.0 * bound,
+        100.0 * expected,
+        summary_line(summary)
+    )
+}
+
+/// By how much the converged frequencies differ from the instant ones, relative, the largest.
+fn moved(instant: &[f64], converged: &[f64]) -> Option<f64> {
+    instant
+        .iter()
+        .zip(converged)
+        .map(|(a, b)| (b - a) / b)
+        .max_by(|a, b| a.abs().total_cmp(&b.abs()))
 }
 
 /// What a compute process says, one JSON line each on its stdout.
@@ -308,10 +352,15 @@ struct ComputeJob {
 enum ChildNote {
     /// A stage began.
     Progress { stage: String, fraction: f64 },
+    /// An instant basis is written (beside the job's, [`instant_path`]); the converged compute
+    /// goes on.
+    Instant { summary: String, frequencies_hz: Vec<f64> },
     /// The basis is written, its checks to come: the child waits for `check` on its stdin.
     First {
         summary: String,
         estimated_error: Option<f64>,
+        #[serde(default)]
+        frequencies_hz: Vec<f64>,
     },
     /// The checks are written too.
     Done {
@@ -420,26 +469,60 @@ impl PartWorkshop {
         });
         let mut stdin = child.stdin.take();
         let (mut outcome, mut killed) = (None, false);
+        let mut instant: Option<Vec<f64>> = None;
         let computed = |summary: String, estimated_error: Option<f64>| Computed {
             basis: job.out.clone(),
             scene: saved.to_string(),
             summary,
             estimated_error,
+            instant: false,
         };
         loop {
             let note = notes.recv_timeout(std::time::Duration::from_millis(50));
             match note {
                 Ok(ChildNote::Progress { stage, fraction }) => progress(Progress { stage, fraction }),
+                Ok(ChildNote::Instant {
+                    summary,
+                    frequencies_hz,
+                }) => {
+                    let basis = instant_path(&job.out);
+                    let taken = seal_basis(&basis).map_err(WorkshopError::KeepBasis).and_then(|()| {
+                        ready(&Computed {
+                            basis: basis.clone(),
+                            scene: saved.to_string(),
+                            summary,
+                            estimated_error: None,
+                            instant: true,
+                        })
+                    });
+                    match taken {
+                        Ok(()) => {
+                            instant = Some(frequencies_hz);
+                            *self.last() = Some(basis);
+                        }
+                        // The converged basis may still be served.
+                        Err(e) => tracing::warn!("the instant basis was not served: {e}"),
+                    }
+                }
                 Ok(ChildNote::First {
                     summary,
                     estimated_error,
+                    frequencies_hz,
                 }) => {
+                    let summary = match instant.as_deref().and_then(|i| moved(i, &frequencies_hz)) {
+                        Some(m) => format!(
+                            "{summary} · converged basis live: its frequencies differ from the instant ones by at most {:+.3} %",
+                            100.0 * m
+                        ),
+                        None => summary,
+                    };
                     let taken = seal_basis(&job.out)
                         .map_err(WorkshopError::KeepBasis)
                         .and_then(|()| ready(&computed(summary, estimated_error)));
                     match taken {
                         Ok(()) => {
                             served.1 = true;
+                            *self.last() = Some(job.out.clone());
                             // The session serves this basis now: the ones before are of no more use.
                             self.remove_bases_but(&job.out);
                             if let Some(s) = stdin.as_mut() {
@@ -477,7 +560,9 @@ impl PartWorkshop {
         let last = last_words.join().unwrap_or_default();
         match outcome {
             Some(done) => done,
-            None if killed => Err(WorkshopError::Cancelled { served: served.1 }),
+            None if killed => Err(WorkshopError::Cancelled {
+                served: served.1 || instant.is_some(),
+            }),
             None => Err(WorkshopError::ProcessEnded {
                 how: describe(status),
                 last_words: last,
@@ -515,6 +600,21 @@ pub fn serve_compute(dir: &Path) -> anyhow::Result<()> {
         }
     };
     let _watch = ves_pipeline::progress::watch(Arc::new(ChildWatch(say)));
+    if let Some(previous) = &job.previous {
+        match precompute::instant::run(&parsed, previous, &instant_path(&job.out)) {
+            Ok(Some((summary, check))) => say(ChildNote::Instant {
+                summary: instant_line(&summary, &check),
+                frequencies_hz: summary
+                    .spaces
+                    .first()
+                    .map(|s| s.frequencies_hz.clone())
+                    .unwrap_or_default(),
+            }),
+            Ok(None) => {}
+            // The converged compute still runs; it says what is wrong with the scene, if anything.
+            Err(e) => tracing::info!("no instant basis: {}", message(e)),
+        }
+    }
     let first = match precompute::run_first(&parsed, &job.out, solver) {
         Ok(f) => f,
         Err(e) => {
@@ -525,6 +625,12 @@ pub fn serve_compute(dir: &Path) -> anyhow::Result<()> {
     say(ChildNote::First {
         summary: summary_line(&first.summary),
         estimated_error: worst_estimate(&first.summary),
+        frequencies_hz: first
+            .summary
+            .spaces
+            .first()
+            .map(|s| s.frequencies_hz.clone())
+            .unwrap_or_default(),
     });
     let mut go = String::new();
     let _ = std::io::stdin().lock().read_line(&mut go);
@@ -618,6 +724,7 @@ impl Workshop for PartWorkshop {
             scene: saved.clone(),
             summary: summary_line(summary),
             estimated_error: worst_estimate(summary),
+            instant: false,
         };
         if let Some(exe) = CHILD.get() {
             let job = ComputeJob {
@@ -626,6 +733,7 @@ impl Workshop for PartWorkshop {
                 out: out.clone(),
                 solver: self.solver.name().to_string(),
                 parent: std::process::id(),
+                previous: self.last().clone().filter(|p| p.exists()),
             };
             let dir = self.dir.path().join(format!("compute-{n}"));
             let done = self.compute_in_child(exe, &dir, &job, &saved, &progress, &cancel, ready);
@@ -699,6 +807,8 @@ impl Workshop for PartWorkshop {
             let _ = std::fs::remove_dir_all(&dir);
             return Err(WorkshopError::KeepPart(e));
         }
+        // Another part: no instant basis from the last one's.
+        *self.last() = None;
         let mut part = self.part();
         part.start = starting_scene(&path);
         let before = std::mem::replace(&mut part.geometry, path);

@@ -366,3 +366,54 @@ pub fn info(path: &Path) -> Result<BasisInfo> {
         spaces,
     })
 }
+
+/// A basis file's global space as stored ([`read_global`]).
+pub struct StoredSpace {
+    /// Its mesh.
+    pub mesh: crate::tet_mesh::Mesh,
+    /// Its material.
+    pub material: crate::material::Material,
+    /// The supported DOFs, ascending.
+    pub fixed: Vec<u32>,
+    /// The eigenvalues of the modes read.
+    pub eigenvalues: Vec<f64>,
+    /// The modes read at every DOF, row-major `3·nodes × r`.
+    pub rows: Vec<f64>,
+    /// Modes read.
+    pub r: usize,
+    /// The scene it was computed from.
+    pub scene_toml: Option<String>,
+}
+
+/// Reads a basis file's global space (its first `modes` modes, all without), the whole file
+/// checked first by the one reader: a damaged or crafted basis ends in its one-line message
+/// naming the file.
+pub fn read_global(path: &Path, modes: Option<usize>) -> Result<StoredSpace> {
+    let file = ves_format::BasisReader::open(path)?;
+    file.validate()?;
+    let material = crate::material::Material::from(&file.material()?);
+    let g = file.space(ves_format::names::GLOBAL_SPACE)?;
+    let n = g.node_count;
+    let lam = g.eigenvalues()?;
+    let r = modes.unwrap_or(lam.len()).min(lam.len());
+    let rows = g.basis_rows(0..3 * n, r)?;
+    let surface = g.surface_triangles()?;
+    let surface_faces = g.surface_faces()?.unwrap_or_else(|| vec![0; surface.len()]);
+    let mesh = crate::tet_mesh::Mesh {
+        nodes: g.nodes(n)?,
+        vertex_count: g.vertex_count,
+        kind: g.kind,
+        tets: g.tets()?,
+        surface,
+        surface_faces,
+    };
+    Ok(StoredSpace {
+        mesh,
+        material,
+        fixed: g.fixed_dofs()?,
+        eigenvalues: lam[..r].to_vec(),
+        rows,
+        r,
+        scene_toml: file.string(ves_format::names::root::SCENE_TOML),
+    })
+}

@@ -634,6 +634,7 @@ fn run_compute(shared: &Arc<Shared>, workshop: &dyn Workshop, scene: &serde_json
                 "type": "computed", "summary": c.summary, "scene": c.scene,
                 "seconds": t0.elapsed().as_secs_f64(),
                 "estimated_error": c.estimated_error,
+                "live": if c.instant { "instant" } else { "converged" },
             }),
         );
         Ok(())

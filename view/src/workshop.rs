@@ -109,6 +109,9 @@ pub struct Computed {
     pub summary: String,
     /// The largest estimated relative frequency error of the first space's modes, once known.
     pub estimated_error: Option<f64>,
+    /// Whether this is an instant basis (the previous basis's mesh, modes from a few block
+    /// solves, each frequency with a bound): the converged basis follows and replaces it.
+    pub instant: bool,
 }
 
 /// Where a compute stands, for the page's progress bar.

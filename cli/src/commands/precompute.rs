@@ -26,8 +26,22 @@ pub struct Args {
     /// No progress lines on stderr (they are shown only on a terminal anyway).
     #[arg(long, short)]
     quiet: bool,
+    /// Write an instant basis instead: the mesh and modes of this basis (same geometry and mesh
+    /// settings; only supports, material or mode count changed), modes from a few block solves,
+    /// each frequency with a bound (`instant` in the JSON). What `ves view` serves while the
+    /// converged compute runs.
+    #[arg(long, value_name = "BASIS")]
+    instant_from: Option<PathBuf>,
     #[command(flatten)]
     write: super::WriteFlags,
+}
+
+/// `--json` of an instant basis: the summary and how far it may be from the converged one.
+#[derive(serde::Serialize)]
+struct InstantJson {
+    #[serde(flatten)]
+    summary: precompute::Summary,
+    instant: precompute::instant::InstantCheck,
 }
 
 impl Args {
@@ -54,6 +68,40 @@ impl Args {
         let out = self
             .output
             .unwrap_or_else(|| scene.path.with_file_name(format!("{}.h5", scene.name)));
+        if let Some(previous) = &self.instant_from {
+            anyhow::ensure!(
+                !self.solver.is_slepc(),
+                "--instant-from runs on one process: leave out --solver {}",
+                self.solver.name()
+            );
+            let visible = !self.quiet && std::io::IsTerminal::is_terminal(&std::io::stderr());
+            let _watching = ves_pipeline::progress::watch(crate::terminal::Terminal::on_stderr(visible));
+            let Some((summary, instant)) = precompute::instant::run(&scene, previous, &out)? else {
+                let stored = ves_pipeline::store::read_global(previous, None)?;
+                let why = precompute::instant::applicable(&scene, stored.scene_toml.as_deref().unwrap_or_default())
+                    .err()
+                    .unwrap_or_default();
+                anyhow::bail!(
+                    "{}: no instant basis for {} ({why}): only supports, material and modes may change; run without \
+                     --instant-from",
+                    previous.display(),
+                    scene.path.display()
+                );
+            };
+            if self.json {
+                return super::print_json(&InstantJson { summary, instant });
+            }
+            let bound = instant.frequency_bound.iter().copied().fold(0.0, f64::max);
+            println!(
+                "instant basis: {} modes in {} solves, frequencies at most {:.3} % above the converged ones; wrote {} in {:.2} s",
+                instant.frequency_bound.len(),
+                instant.solves,
+                100.0 * bound,
+                summary.output,
+                summary.timings_s.total
+            );
+            return Ok(());
+        }
         let summary = {
             let visible = !self.quiet && mpi_job::rank() == 0 && std::io::IsTerminal::is_terminal(&std::io::stderr());
             let _watching = ves_pipeline::progress::watch(crate::terminal::Terminal::on_stderr(visible));

@@ -1,6 +1,7 @@
 //! `ves precompute`: scene → mesh → K, M → modes → HDF5, for the global space and each VOI.
 
 mod advice;
+pub mod instant;
 mod stages;
 
 pub use stages::{Checks, solve_space};

@@ -244,26 +244,16 @@ fn stress_compared_by(asked: &[&'static dyn Reference]) -> Result<(), VerifyErro
 /// material) and takes its stored modes. The whole file is checked first by the one reader, so a
 /// damaged or crafted basis ends in its one-line message naming the file, not in a solver's failure.
 pub fn discretize_basis(path: &Path, modes: Option<usize>) -> Result<(Discretized, Modes)> {
-    let file = ves_format::BasisReader::open(path)?;
-    file.validate()?;
-    let material = crate::material::Material::from(&file.material()?);
-    let g = file.space(ves_format::names::GLOBAL_SPACE)?;
-    let n = g.node_count;
-    let lam = g.eigenvalues()?;
-    let r = modes.unwrap_or(lam.len()).min(lam.len());
-    let basis = g.basis_rows(0..3 * n, r)?;
-    let fixed = g.fixed_dofs()?;
-    let surface = g.surface_triangles()?;
-    let surface_faces = g.surface_faces()?.unwrap_or_else(|| vec![0; surface.len()]);
-    let mesh = crate::tet_mesh::Mesh {
-        nodes: g.nodes(n)?,
-        vertex_count: g.vertex_count,
-        kind: g.kind,
-        tets: g.tets()?,
-        surface,
-        surface_faces,
-    };
-    let mut mask = vec![false; 3 * n];
+    let crate::store::StoredSpace {
+        mesh,
+        material,
+        fixed,
+        eigenvalues: lam,
+        rows: basis,
+        r,
+        ..
+    } = crate::store::read_global(path, modes)?;
+    let mut mask = vec![false; 3 * mesh.nodes.len()];
     for &f in &fixed {
         mask[f as usize] = true;
     }

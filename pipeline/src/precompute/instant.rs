@@ -1,0 +1,98 @@
+//! An instant basis: when only the supports, the material or the mode count change, the part's
+//! mesh is the one the previous basis holds, and its modes are a good start. No meshing, no
+//! refinement, no converged eigen-solve: the previous basis's mesh is read back, K and M
+//! assembled for the new supports, and the modes found in a few block solves from the previous
+//! ones ([`crate::modes::warm`]), each with a bound on its error. The converged compute follows
+//! and replaces it.
+
+use super::{Summary, stages, write_all};
+use crate::fem::Dofs;
+use crate::scene::Scene;
+use anyhow::{Context, Result};
+use serde::Serialize;
+use std::path::Path;
+use std::time::Instant;
+
+/// Krylov stages beyond the start (on a bar moved between supports, 3 gave eigenvalue errors
+/// ≤ 8.5e-4: numerics' warm tests).
+const BLOCKS: usize = 3;
+
+/// How an instant basis was made and how far it may be from the converged one.
+#[derive(Clone, Debug, Serialize)]
+pub struct InstantCheck {
+    /// The basis whose mesh and modes it started from.
+    pub from: String,
+    /// Per mode, a rigorous bound on the relative frequency error against the converged solve
+    /// on the same mesh (half the eigenvalue bound, to first order).
+    pub frequency_bound: Vec<f64>,
+    /// Per mode, the expected relative frequency change when the converged modes arrive
+    /// (Kato–Temple, the Ritz gaps standing in for the exact ones).
+    pub frequency_estimate: Vec<f64>,
+    /// Right-hand sides solved with the one factor.
+    pub solves: usize,
+    /// Vectors in the space searched.
+    pub basis: usize,
+}
+
+/// Why no instant basis: the scene changed more than supports, material or modes, or the
+/// previous basis cannot serve. Not an error: the converged compute runs as always.
+pub fn applicable(scene: &Scene, previous_scene: &str) -> Result<(), String> {
+    if !scene.voi.is_empty() {
+        return Err("the scene has volumes of interest".into());
+    }
+    let table = |text: &str| toml::from_str::<toml::Table>(text).map_err(|e| e.to_string());
+    let (now, before) = (table(&scene.toml)?, table(previous_scene)?);
+    for key in ["geometry", "mesh", "voi"] {
+        if now.get(key) != before.get(key) {
+            return Err(format!("[{key}] changed"));
+        }
+    }
+    Ok(())
+}
+
+/// Writes to `out` an instant basis of `scene` from the basis `previous` (same geometry and
+/// mesh settings: see [`applicable`]); None, with the reason in the log, when it cannot.
+pub fn run(scene: &Scene, previous: &Path, out: &Path) -> Result<Option<(Summary, InstantCheck)>> {
+    let start = Instant::now();
+    crate::output::check(out, &scene.inputs(), Default::default())?;
+    let stored = crate::store::read_global(previous, None)?;
+    tracing::info!(seconds = start.elapsed().as_secs_f64(), "instant: previous basis read");
+    let before = stored.scene_toml.as_deref().unwrap_or_default();
+    if let Err(why) = applicable(scene, before) {
+        tracing::info!("no instant basis: {why}");
+        return Ok(None);
+    }
+    crate::progress::stage("assembling on the previous mesh", 0.1)?;
+    let t = Instant::now();
+    let mesh = stored.mesh;
+    let dofs = crate::supports::select(&mesh, &scene.fixed)?;
+    let d = crate::problem::Discretized::assemble(mesh, dofs, scene.material)
+        .with_context(|| format!("{}: assembling on its mesh", previous.display()))?;
+    let assemble_s = t.elapsed().as_secs_f64();
+    let start_vectors = carried(&stored.rows, stored.r, &d.dofs);
+    crate::progress::stage("instant modes", 0.4)?;
+    let warm = crate::modes::warm::warm_start(d.space(), scene.modes.count, &start_vectors, BLOCKS)?;
+    drop(start_vectors);
+    let check = InstantCheck {
+        from: previous.display().to_string(),
+        frequency_bound: warm.bounds.iter().map(|b| 0.5 * b).collect(),
+        frequency_estimate: warm.estimates.iter().map(|e| 0.5 * e).collect(),
+        solves: warm.solves,
+        basis: warm.basis,
+    };
+    let mut d = d;
+    d.assemble_s = assemble_s;
+    tracing::info!(seconds = start.elapsed().as_secs_f64(), "instant: modes found");
+    let space = stages::space_from_modes(scene, d, warm.modes);
+    tracing::info!(seconds = start.elapsed().as_secs_f64(), "instant: patches and stress");
+    crate::progress::stage("writing", 0.9)?;
+    let summary = write_all(scene, out, std::slice::from_ref(&space), 0.0, start)?;
+    Ok(Some((summary, check)))
+}
+
+/// The stored modes (row-major `3·nodes × r`) on `dofs`' free DOFs, column-major.
+fn carried(rows: &[f64], r: usize, dofs: &Dofs) -> Vec<f64> {
+    (0..r)
+        .flat_map(|j| dofs.free.iter().map(move |&g| rows[g as usize * r + j]))
+        .collect()
+}
