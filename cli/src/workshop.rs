@@ -98,6 +98,8 @@ pub struct PartWorkshop {
     pool: rayon::ThreadPool,
     /// The basis served last (an instant basis starts from it).
     last: std::sync::Mutex<Option<PathBuf>>,
+    /// Whether an instant basis is served first when it can be (`ves view --instant`).
+    instant: bool,
 }
 
 /// The part being set up: its geometry file and the scene the page starts from.
@@ -233,6 +235,7 @@ impl PartWorkshop {
             computed: AtomicU64::new(0),
             solver,
             last: std::sync::Mutex::new(None),
+            instant: false,
         })
     }
 
@@ -247,6 +250,11 @@ impl PartWorkshop {
                 let _ = std::fs::remove_file(path);
             }
         }
+    }
+
+    /// Serve an instant basis first when only supports, material or modes changed.
+    pub fn instant(self, on: bool) -> PartWorkshop {
+        PartWorkshop { instant: on, ..self }
     }
 
     fn last(&self) -> std::sync::MutexGuard<'_, Option<PathBuf>> {
@@ -733,7 +741,7 @@ impl Workshop for PartWorkshop {
                 out: out.clone(),
                 solver: self.solver.name().to_string(),
                 parent: std::process::id(),
-                previous: self.last().clone().filter(|p| p.exists()),
+                previous: self.last().clone().filter(|p| self.instant && p.exists()),
             };
             let dir = self.dir.path().join(format!("compute-{n}"));
             let done = self.compute_in_child(exe, &dir, &job, &saved, &progress, &cancel, ready);

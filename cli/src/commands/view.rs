@@ -47,6 +47,11 @@ pub struct Args {
     /// At the end, print the statistics (session and server) as JSON.
     #[arg(long)]
     json: bool,
+    /// When only supports, material or modes change, serve an instant basis first (the
+    /// previous basis's mesh, modes from a few block solves, each frequency with a bound) while
+    /// the converged compute runs (docs/view.md says what it costs today).
+    #[arg(long)]
+    instant: bool,
 }
 
 impl Args {
@@ -122,11 +127,19 @@ impl Args {
                     allow_geo_scripts: self.allow_geo_scripts,
                 };
                 let scene = Scene::load_with(p, options)?;
-                Ok((None, Some(Arc::new(PartWorkshop::for_scene(&scene, options, solver)?))))
+                Ok((
+                    None,
+                    Some(Arc::new(
+                        PartWorkshop::for_scene(&scene, options, solver)?.instant(self.instant),
+                    )),
+                ))
             }
             "step" | "stp" | "iges" | "igs" | "brep" => {
                 ves_pipeline::input::open(p)?;
-                Ok((None, Some(Arc::new(PartWorkshop::for_geometry(p, solver)?))))
+                Ok((
+                    None,
+                    Some(Arc::new(PartWorkshop::for_geometry(p, solver)?.instant(self.instant))),
+                ))
             }
             "geo" => anyhow::bail!(
                 "{}: a .geo file is a gmsh script and can run shell commands; export the part as STEP, or name it in a scene and pass --allow-geo-scripts if you trust it",
