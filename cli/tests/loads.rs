@@ -118,6 +118,29 @@ fn cantilever_tip_force_agrees_with_beam_theory() {
     let loads = summary["spaces"][0]["loads"].as_array().expect("loads list");
     assert_eq!(loads.len(), 2);
     let j = loads.iter().find(|c| c["name"] == "tip").expect("tip");
+    // Per support (here the one clamp): the force and the moment about its centre that balance
+    // the load — the tip force's lever is L, the weight's L/2.
+    let weight_n = 7850.0 * 0.005 * 9.81;
+    for (case, force, moment) in [("tip", f, -f * l), ("gravity", weight_n, -weight_n * l / 2.0)] {
+        let c = loads.iter().find(|c| c["name"] == case).expect(case);
+        let r = &c["support_reactions"][0];
+        let v = |key: &str| -> Vec<f64> { r[key].as_array().unwrap().iter().map(|x| x.as_f64().unwrap()).collect() };
+        let (fr, mr, at) = (v("force_n"), v("moment_nm"), v("centre_m"));
+        assert!(
+            (at[0]).abs() < 1e-12 && (at[1] - 0.05).abs() < 1e-9 && (at[2] - 0.025).abs() < 1e-9,
+            "{case}: {r}"
+        );
+        assert!(
+            (fr[2] - force).abs() < 1e-6 * force && fr[0].abs() < 1e-6 * force,
+            "{case}: {r}"
+        );
+        assert!((mr[1] - moment).abs() < 1e-6 * moment.abs(), "{case}: {r}");
+        assert!(
+            mr[0].abs() < 1e-6 * moment.abs() && mr[2].abs() < 1e-6 * moment.abs(),
+            "{case}: {r}"
+        );
+        assert_eq!(c["support_reactions"].as_array().unwrap().len(), 1);
+    }
     let vm = j["max_von_mises_pa"].as_f64().unwrap();
     assert!((j["safety_factor"].as_f64().unwrap() - 2.5e8 / vm).abs() < 1e-9 * 2.5e8 / vm);
     // The stress against beam theory where it holds: on the top face between 0.2 and 0.8 m, more

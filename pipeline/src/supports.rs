@@ -248,12 +248,25 @@ pub fn region_triangles(mesh: &Mesh, key: &str, region: &Region) -> Result<Vec<u
 
 /// Applies the supports to the mesh's nodes (corner and mid-edge alike).
 pub fn select(mesh: &Mesh, supports: &[Support]) -> Result<Dofs, SupportError> {
+    let mut fixed_mask = vec![false; 3 * mesh.nodes.len()];
+    for held in held_by_each(mesh, supports)? {
+        for g in held {
+            fixed_mask[g as usize] = true;
+        }
+    }
+    Ok(Dofs::from_mask(&fixed_mask))
+}
+
+/// Per support, the DOFs it holds (ascending) that no support before it holds: each held DOF
+/// once, so the supports' reactions add up to the whole.
+pub fn held_by_each(mesh: &Mesh, supports: &[Support]) -> Result<Vec<Vec<u32>>, SupportError> {
     let n = mesh.nodes.len();
-    let mut fixed_mask = vec![false; 3 * n];
+    let mut taken = vec![false; 3 * n];
     let (lo, hi) = mesh.bounding_box();
     let default_tol = 1e-6 * mesh.diameter();
+    let mut each = Vec::with_capacity(supports.len());
     for (index, s) in supports.iter().enumerate() {
-        let mut any = false;
+        let mut nodes = vec![false; n];
         if let Region::Faces(tags) = &s.region {
             if let Some(message) = unknown_faces(mesh, tags) {
                 return Err(SupportError::UnknownFaces {
@@ -263,26 +276,31 @@ pub fn select(mesh: &Mesh, supports: &[Support]) -> Result<Dofs, SupportError> {
                 });
             }
             for i in face_nodes(mesh, tags) {
-                any = true;
-                for c in 0..3 {
-                    fixed_mask[3 * i as usize + c] |= s.components[c];
-                }
+                nodes[i as usize] = true;
             }
         }
         for (i, p) in mesh.nodes.iter().enumerate() {
             if selects(&s.region, *p, default_tol) {
-                any = true;
-                for c in 0..3 {
-                    fixed_mask[3 * i + c] |= s.components[c];
-                }
+                nodes[i] = true;
             }
         }
-        if !any {
+        if !nodes.iter().any(|&x| x) {
             let (what, hint) = describe(&s.region, lo, hi, default_tol);
             return Err(EmptySupport { index, what, hint }.into());
         }
+        let mut held = Vec::new();
+        for (i, _) in nodes.iter().enumerate().filter(|(_, x)| **x) {
+            for c in (0..3).filter(|&c| s.components[c]) {
+                let g = 3 * i + c;
+                if !taken[g] {
+                    taken[g] = true;
+                    held.push(g as u32);
+                }
+            }
+        }
+        each.push(held);
     }
-    Ok(Dofs::from_mask(&fixed_mask))
+    Ok(each)
 }
 
 #[cfg(test)]

@@ -39,6 +39,10 @@ pub struct Warm {
     pub basis: usize,
 }
 
+/// The wanted Ritz values moved by less than this (relative) when the last stage was added:
+/// no further stage.
+const STEADY: f64 = 1e-4;
+
 /// Right-hand sides per call of the factor's solve (as the block Krylov–Schur solver's).
 const CHUNK: usize = 8;
 
@@ -91,8 +95,10 @@ pub fn warm_start(space: Space<'_>, count: usize, start: &[f64], blocks: usize) 
     solves += guard;
     block.extend_from_slice(&guards);
     let mut last = space_v.add(&problem, block);
-    // One Rayleigh–Ritz at the end: on the mould one per stage cost more than the solves.
-    for _ in 0..blocks {
+    // A stage is added while the wanted Ritz values still move by more than
+    // STEADY: the move from one stage to the next is about the error left at the first.
+    let mut ritz = rayleigh_ritz(&space_v)?;
+    for stage in 0..blocks {
         if last.is_empty() {
             break;
         }
@@ -101,8 +107,28 @@ pub fn warm_start(space: Space<'_>, count: usize, start: &[f64], blocks: usize) 
         solve(&chol, &mut next, cols);
         solves += cols;
         last = space_v.add(&problem, next);
+        let before = std::mem::replace(&mut ritz, rayleigh_ritz(&space_v)?);
+        let moved = before
+            .0
+            .iter()
+            .zip(&ritz.0)
+            .take(nev)
+            .skip(rigid)
+            .map(|(a, b)| ((a - b) / b).abs())
+            .fold(0.0, f64::max);
+        tracing::debug!(stage, moved, basis = space_v.cols(), "warm: stage");
+        if moved < STEADY {
+            break;
+        }
     }
-    let (values, q) = rayleigh_ritz(&space_v)?;
+    tracing::debug!(
+        seconds = t1.elapsed().as_secs_f64(),
+        solves,
+        basis = space_v.cols(),
+        "warm: space grown"
+    );
+    let (values, q) = ritz;
+    tracing::debug!(seconds = t1.elapsed().as_secs_f64(), "warm: Rayleigh–Ritz");
     if values.len() < nev {
         return Err(ModesError::Block(format!(
             "the space searched has {} directions, fewer than the {nev} modes asked",
@@ -129,7 +155,9 @@ pub fn warm_start(space: Space<'_>, count: usize, start: &[f64], blocks: usize) 
     );
     let eigenvalues = values[rigid..nev].to_vec();
     let (residuals, orthonormality_error) = check(&problem, &mut vectors, &eigenvalues);
+    tracing::debug!(seconds = t1.elapsed().as_secs_f64(), "warm: modes checked");
     let eta = residual_norms(&problem, &chol, &vectors, &eigenvalues);
+    tracing::debug!(seconds = t1.elapsed().as_secs_f64(), "warm: bounds");
     solves += count;
     let elastic = &values[rigid..];
     let (bounds, estimates) = eigenvalues

@@ -32,6 +32,8 @@ pub struct LoadResult {
     pub von_mises: Vec<f64>,
     /// Total force the supports exert, N.
     pub reaction: [f64; 3],
+    /// What each `[[fixed]]` support carries, in the scene's order.
+    pub support_reactions: Vec<SupportReaction>,
     /// |reaction + applied| over the sum of the nodal loads' magnitudes: 0 in exact arithmetic.
     pub balance_residual: f64,
     /// Largest nodal displacement magnitude, m.
@@ -58,8 +60,64 @@ pub struct LoadSummary {
     pub total_force_n: [f64; 3],
     /// Total force the supports exert, N: −`total_force_n` at equilibrium.
     pub reaction_n: [f64; 3],
+    /// What each `[[fixed]]` support carries (scene order): force and moment about its centre
+    /// (the middle of its held nodes' bounding box).
+    pub support_reactions: Vec<SupportReaction>,
     /// |reaction + applied| over the sum of the nodal loads' magnitudes.
     pub balance_residual: f64,
+}
+
+/// The force and moment one support exerts on the part in a load case. A DOF held by two
+/// supports counts for the first: the supports' forces add up to `reaction_n`.
+#[derive(Clone, Debug, serde::Serialize)]
+pub struct SupportReaction {
+    /// The support, counted from 0 as `fixed[i]` in messages.
+    pub support: usize,
+    /// The middle of the bounding box of the nodes it holds, m: the point the moment is about.
+    pub centre_m: [f64; 3],
+    /// Force, N.
+    pub force_n: [f64; 3],
+    /// Moment about `centre_m`, N·m.
+    pub moment_nm: [f64; 3],
+}
+
+/// Each support's share of the reaction `k_u − f` (full-length vectors) of `mesh`'s nodes.
+fn support_reactions(mesh: &crate::tet_mesh::Mesh, held: &[Vec<u32>], k_u: &[f64], f: &[f64]) -> Vec<SupportReaction> {
+    held.iter()
+        .enumerate()
+        .map(|(support, dofs)| {
+            let mut nodes: Vec<usize> = dofs.iter().map(|&g| g as usize / 3).collect();
+            nodes.dedup();
+            // The middle of their bounding box: a face's centre, a bore's axis (a mean of the
+            // nodes would follow where the mesh happens to be finer).
+            let (mut lo, mut hi) = ([f64::INFINITY; 3], [f64::NEG_INFINITY; 3]);
+            for &i in &nodes {
+                for c in 0..3 {
+                    lo[c] = lo[c].min(mesh.nodes[i][c]);
+                    hi[c] = hi[c].max(mesh.nodes[i][c]);
+                }
+            }
+            let centre = [0, 1, 2].map(|c| if nodes.is_empty() { 0.0 } else { 0.5 * (lo[c] + hi[c]) });
+            let (mut force, mut moment) = ([0.0; 3], [0.0; 3]);
+            for &g in dofs {
+                let (i, c) = (g as usize / 3, g as usize % 3);
+                let r = k_u[g as usize] - f[g as usize];
+                force[c] += r;
+                let mut v = [0.0; 3];
+                v[c] = r;
+                let x = [0, 1, 2].map(|k| mesh.nodes[i][k] - centre[k]);
+                moment[0] += x[1] * v[2] - x[2] * v[1];
+                moment[1] += x[2] * v[0] - x[0] * v[2];
+                moment[2] += x[0] * v[1] - x[1] * v[0];
+            }
+            SupportReaction {
+                support,
+                centre_m: centre,
+                force_n: force,
+                moment_nm: moment,
+            }
+        })
+        .collect()
 }
 
 impl LoadResult {
@@ -75,6 +133,7 @@ impl LoadResult {
                 .map(|y| y / self.max_von_mises),
             total_force_n: self.total_force,
             reaction_n: self.reaction,
+            support_reactions: self.support_reactions.clone(),
             balance_residual: self.balance_residual,
         }
     }
@@ -172,6 +231,8 @@ pub fn solve_loads(scene: &Scene, d: &Discretized) -> Result<Vec<LoadResult>> {
     // Stress of all cases at once: fields side by side, as the modal stress is recovered.
     let fields: Vec<f64> = u.iter().flatten().copied().collect();
     let stress = crate::fem::stress::vertex_stress(&d.mesh, &lame, &fields, r);
+    let held =
+        crate::supports::held_by_each(&d.mesh, &scene.fixed).with_context(|| scene.path.display().to_string())?;
     scene
         .loads
         .iter()
@@ -179,7 +240,7 @@ pub fn solve_loads(scene: &Scene, d: &Discretized) -> Result<Vec<LoadResult>> {
         .map(|(j, case)| {
             let nv = d.mesh.vertex_count;
             let s: Vec<f64> = (0..6 * nv).map(|row| stress[row * r + j]).collect();
-            finish(d, &lame, case, &f[j], u[j].clone(), s)
+            finish(d, &lame, case, &f[j], u[j].clone(), s, &held)
         })
         .collect()
 }
@@ -192,6 +253,7 @@ fn finish(
     f: &[f64],
     u: Vec<f64>,
     stress: Vec<f64>,
+    held: &[Vec<u32>],
 ) -> Result<LoadResult> {
     let k_u = vector::internal_forces(&d.mesh, lame, &u)
         .map_err(|e| anyhow::anyhow!("an element is degenerate (det J = {:.3e})", e.det))?;
@@ -208,6 +270,7 @@ fn finish(
         magnitude += (node[0] * node[0] + node[1] * node[1] + node[2] * node[2]).sqrt();
     }
     let gap = (0..3).map(|c| (reaction[c] + total[c]).powi(2)).sum::<f64>().sqrt();
+    let support_reactions = support_reactions(&d.mesh, held, &k_u, f);
     let von_mises = nodal_von_mises(&d.mesh, &stress);
     let max_displacement = u
         .chunks_exact(3)
@@ -222,6 +285,7 @@ fn finish(
         stress,
         von_mises,
         reaction,
+        support_reactions,
         balance_residual: gap / magnitude.max(f64::MIN_POSITIVE),
         max_displacement,
         max_von_mises,
