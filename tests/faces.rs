@@ -84,6 +84,7 @@ fn the_end_face_by_tag_clamps_as_the_plane_does() {
     by_face.fixed = vec![Support {
         region: Region::Faces(end.clone()),
         components: [true; 3],
+        kind: ves_pipeline::scene::SupportKind::Held,
     }];
     let a = supports::select(&m, &plane.fixed).unwrap();
     let b = supports::select(&m, &by_face.fixed).unwrap();

@@ -68,17 +68,31 @@ pub fn on_free_dofs_in(nodes: &[[f64; 3]], dofs: &Dofs, (center, length): ([f64;
 /// restricted to the supported DOFs. 6 for a free body, 0 for a clamped one, 3 for a plate
 /// supported only out of plane.
 pub fn free_rigid_count(nodes: &[[f64; 3]], dofs: &Dofs) -> usize {
-    if dofs.fixed.is_empty() {
+    free_rigid_count_with(nodes, dofs, &[])
+}
+
+/// [`free_rigid_count`] with surface springs holding the part too: a rigid motion they stretch
+/// is held.
+pub fn free_rigid_count_with(nodes: &[[f64; 3]], dofs: &Dofs, springs: &[crate::fem::springs::NodeSpring]) -> usize {
+    if dofs.fixed.is_empty() && springs.is_empty() {
         return 6;
     }
     let modes = scaled_rigid_motions(nodes);
-    // Gram matrix of the restrictions to the fixed DOFs; its rank is the constrained count.
-    let gram = faer::Mat::<f64>::from_fn(6, 6, |a, b| {
+    let held = crate::fem::springs::rigid_gram(springs, &modes);
+    // Gram matrix of the restrictions to the fixed DOFs, plus the springs' energy of each pair,
+    // each scaled to a largest diagonal of 1; its rank is the constrained count.
+    let fixed = faer::Mat::<f64>::from_fn(6, 6, |a, b| {
         dofs.fixed
             .iter()
             .map(|&d| modes[a][d as usize] * modes[b][d as usize])
             .sum()
     });
+    let unit = |d: f64| if d > 0.0 { 1.0 / d } else { 0.0 };
+    let (sf, ss) = (
+        unit((0..6).map(|p| fixed[(p, p)]).fold(0.0f64, f64::max)),
+        unit((0..6).map(|p| held[p][p]).fold(0.0f64, f64::max)),
+    );
+    let gram = faer::Mat::<f64>::from_fn(6, 6, |a, b| sf * fixed[(a, b)] + ss * held[a][b]);
     let eig = match gram.self_adjoint_eigenvalues(faer::Side::Lower) {
         Ok(e) => e,
         Err(_) => return 6,

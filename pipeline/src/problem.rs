@@ -48,6 +48,8 @@ pub struct Meshed {
     pub mesh: Mesh,
     /// DOF numbering.
     pub dofs: Dofs,
+    /// The springs of the supports that hold by springs (sliding, bearing, elastic).
+    pub springs: Vec<crate::fem::springs::NodeSpring>,
     /// Rigid motions left by the supports.
     pub rigid: usize,
     /// The material.
@@ -131,10 +133,16 @@ pub fn mesh_with_supports(
     if !dofs.fixed.is_empty() {
         unheld_body(&mesh, &dofs).with_context(|| scene.path.display().to_string())?;
     }
-    let rigid = free_rigid_count(&mesh.nodes, &dofs);
+    let springs: Vec<_> = supports::springs(&mesh, &scene.fixed, scene.material.young)
+        .with_context(|| scene.path.display().to_string())?
+        .into_iter()
+        .flatten()
+        .collect();
+    let rigid = crate::rigid_motions::free_rigid_count_with(&mesh.nodes, &dofs, &springs);
     Ok(Meshed {
         mesh,
         dofs,
+        springs,
         rigid,
         material: scene.material,
         mesh_s,
@@ -147,7 +155,7 @@ impl Meshed {
     /// Assembles K, M and the mass on this process; its seconds join `assemble_s`.
     pub fn assemble(self) -> Result<Discretized, fem::assembly::AssemblyError> {
         let t = Instant::now();
-        let system = fem::assemble(&self.mesh, &self.material, &self.dofs)?;
+        let system = fem::assembly::assemble_with(&self.mesh, &self.material, &self.dofs, &self.springs)?;
         Ok(Discretized {
             model: Model {
                 mesh: self.mesh,

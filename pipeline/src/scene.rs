@@ -281,6 +281,8 @@ struct RawFixed {
     bbox: Option<BoxRegion>,
     faces: Option<Vec<u32>>,
     components: Option<Vec<String>>,
+    kind: Option<String>,
+    stiffness: Option<f64>,
 }
 
 #[derive(Debug, Deserialize)]
@@ -329,14 +331,40 @@ pub enum Region {
     Faces(Vec<u32>),
 }
 
-/// One supported region: the nodes it selects have `components` fixed to zero.
+/// One supported region: the nodes it selects have `components` fixed to zero (`kind` held),
+/// or its surface is held by springs (the other kinds).
 #[derive(Clone, Debug, PartialEq)]
 pub struct Support {
     /// Selected nodes.
     pub region: Region,
-    /// Fixed displacement components (x, y, z).
+    /// Fixed displacement components (x, y, z); for an elastic support, the directions its
+    /// springs act along.
     pub components: [bool; 3],
+    /// How it holds.
+    pub kind: SupportKind,
 }
+
+/// How a `[[fixed]]` region holds the part (`kind` in the scene, docs/scene.md).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum SupportKind {
+    /// `"clamped"` (the default): the selected nodes' `components` removed.
+    Held,
+    /// `"sliding"`: the surface held along its normal only, free to slide along it
+    /// (frictionless), by a stiff spring along each triangle's normal.
+    Sliding,
+    /// `"bearing"`: a cylindrical face held radially (the axis found from the face's normals),
+    /// free to turn about its axis, to tilt and to slide along it (a floating bearing), by stiff
+    /// springs. Holding the axial direction at every point of the ring would hold the tilt too.
+    Bearing,
+    /// `"elastic"`: springs of `stiffness` N/m³ (force per area per metre) along `components`.
+    Elastic {
+        /// N/m³.
+        stiffness: f64,
+    },
+}
+
+/// Largest elastic support stiffness accepted, N/m³ (steel's modulus over a micrometre).
+pub const MAX_STIFFNESS: f64 = 1e18;
 
 /// Modes to keep.
 #[derive(Clone, Copy, Debug, Deserialize)]
@@ -976,6 +1004,41 @@ fn support(i: usize, f: &RawFixed) -> Result<Support, String> {
         f.bbox.as_ref(),
         f.faces.as_ref(),
     )?;
+    let kind = match (f.kind.as_deref(), f.stiffness) {
+        (None | Some("clamped"), None) => SupportKind::Held,
+        (Some("sliding"), None) => SupportKind::Sliding,
+        (Some("bearing"), None) => SupportKind::Bearing,
+        (Some("elastic"), Some(k)) if k.is_finite() && k > 0.0 && k <= MAX_STIFFNESS => {
+            SupportKind::Elastic { stiffness: k }
+        }
+        (Some("elastic"), Some(k)) => {
+            return Err(format!(
+                "fixed[{i}].stiffness = {k:e}: must be positive and at most {MAX_STIFFNESS:e} N/m³ (force per area per metre, e.g. 1e9 for a rubber mount)"
+            ));
+        }
+        (Some("elastic"), None) => {
+            return Err(format!(
+                "fixed[{i}]: kind = \"elastic\" needs stiffness, in N/m³ (force per area per metre, e.g. 1e9 for a rubber mount)"
+            ));
+        }
+        (None | Some("clamped" | "sliding" | "bearing"), Some(_)) => {
+            return Err(format!(
+                "fixed[{i}].stiffness: only an elastic support has one; add kind = \"elastic\" or remove stiffness"
+            ));
+        }
+        (Some(other), _) => {
+            return Err(format!(
+                "fixed[{i}].kind = {:?}: must be \"clamped\", \"sliding\", \"bearing\" or \"elastic\"",
+                shorten(other, 24)
+            ));
+        }
+    };
+    if matches!(kind, SupportKind::Sliding | SupportKind::Bearing) && f.components.is_some() {
+        return Err(format!(
+            "fixed[{i}].components: a {} support holds its own directions; remove components",
+            f.kind.as_deref().unwrap_or_default()
+        ));
+    }
     let mut components = [false; 3];
     match &f.components {
         None => components = [true; 3],
@@ -990,7 +1053,11 @@ fn support(i: usize, f: &RawFixed) -> Result<Support, String> {
             }
         }
     }
-    Ok(Support { region, components })
+    Ok(Support {
+        region,
+        components,
+        kind,
+    })
 }
 
 /// The region of a `[[fixed]]` or `[[load]]` entry (`key`: `fixed[0]`, `load[2]`): exactly one

@@ -1,6 +1,7 @@
 //! Supported degrees of freedom: which DOFs the scene's `[[fixed]]` regions remove.
 
 use crate::fem::Dofs;
+use crate::fem::springs::{NodeSpring, face_springs, face_springs_along, triangle_frame};
 use crate::scene::{Region, Support};
 use crate::tet_mesh::Mesh;
 
@@ -289,7 +290,9 @@ pub fn held_by_each(mesh: &Mesh, supports: &[Support]) -> Result<Vec<Vec<u32>>, 
             return Err(EmptySupport { index, what, hint }.into());
         }
         let mut held = Vec::new();
-        for (i, _) in nodes.iter().enumerate().filter(|(_, x)| **x) {
+        // Springs hold the others: no DOF is removed.
+        let removes = s.kind == crate::scene::SupportKind::Held;
+        for (i, _) in nodes.iter().enumerate().filter(|(_, x)| **x && removes) {
             for c in (0..3).filter(|&c| s.components[c]) {
                 let g = 3 * i + c;
                 if !taken[g] {
@@ -301,6 +304,125 @@ pub fn held_by_each(mesh: &Mesh, supports: &[Support]) -> Result<Vec<Vec<u32>>, 
         each.push(held);
     }
     Ok(each)
+}
+
+/// Spring stiffness of a sliding support or a bearing per unit of the material's Young's
+/// modulus over the mean edge length of its triangles: stiff enough that the held direction
+/// moves ~1/PENALTY of what the part's own stiffness allows there, soft enough to leave the
+/// factorisation well conditioned (checked against removing the same DOFs on the cantilever:
+/// cli/tests/supports.rs).
+pub const PENALTY: f64 = 1e4;
+
+/// Per support, the springs it holds by (sliding, bearing, elastic; none for a support that
+/// removes DOFs), for `young` (Pa) the material's modulus.
+pub fn springs(mesh: &Mesh, supports: &[Support], young: f64) -> Result<Vec<Vec<NodeSpring>>, RegionError> {
+    use crate::scene::SupportKind;
+    let mut each = Vec::with_capacity(supports.len());
+    for (i, s) in supports.iter().enumerate() {
+        let mut out = Vec::new();
+        if s.kind == SupportKind::Held {
+            each.push(out);
+            continue;
+        }
+        let triangles = region_triangles(mesh, &format!("fixed[{i}]"), &s.region)?;
+        let edge = mean_edge(mesh, &triangles);
+        match s.kind {
+            SupportKind::Held => {}
+            SupportKind::Sliding => {
+                // Each node along the mean normal of its triangles in the region.
+                let mut normal: std::collections::HashMap<u32, [f64; 3]> = std::collections::HashMap::new();
+                let mids = crate::fem::springs::mid_nodes(mesh);
+                for &t in &triangles {
+                    let (n, _, area) = triangle_frame(mesh, t);
+                    for v in crate::fem::springs::triangle_nodes(&mids, mesh.surface[t]).0 {
+                        let e = normal.entry(v).or_insert([0.0; 3]);
+                        for k in 0..3 {
+                            e[k] += area * n[k];
+                        }
+                    }
+                }
+                out.extend(face_springs_along(mesh, &triangles, PENALTY * young / edge, |v| {
+                    unit(normal.get(&v).copied().unwrap_or_default())
+                }));
+            }
+            SupportKind::Bearing => {
+                let (axis, centre) = cylinder_axis(mesh, &triangles);
+                // Radial only, node by node: turning about the axis stretches no spring, and
+                // holding the axial direction at every point of the ring would hold the shaft's
+                // tilt too (a clamp, not a bearing).
+                out.extend(face_springs_along(mesh, &triangles, PENALTY * young / edge, |v| {
+                    let x = mesh.nodes[v as usize];
+                    let d = [0, 1, 2].map(|k| x[k] - centre[k]);
+                    let along = d[0] * axis[0] + d[1] * axis[1] + d[2] * axis[2];
+                    unit([0, 1, 2].map(|k| d[k] - along * axis[k]))
+                }));
+            }
+            SupportKind::Elastic { stiffness } => {
+                let p: [[f64; 3]; 3] =
+                    std::array::from_fn(|r| std::array::from_fn(|c| if r == c && s.components[r] { 1.0 } else { 0.0 }));
+                out.extend(face_springs(mesh, &triangles, stiffness, |_, _| p));
+            }
+        }
+        each.push(out);
+    }
+    Ok(each)
+}
+
+/// The mean edge length of surface triangles, m.
+fn mean_edge(mesh: &Mesh, triangles: &[usize]) -> f64 {
+    let mut sum = 0.0;
+    for &t in triangles {
+        let v = mesh.surface[t].map(|i| mesh.nodes[i as usize]);
+        for k in 0..3 {
+            let (a, b) = (v[k], v[(k + 1) % 3]);
+            sum += ((a[0] - b[0]).powi(2) + (a[1] - b[1]).powi(2) + (a[2] - b[2]).powi(2)).sqrt();
+        }
+    }
+    (sum / (3 * triangles.len()).max(1) as f64).max(f64::MIN_POSITIVE)
+}
+
+/// A fitted bearing axis within this angle of x, y or z is taken as that axis, radians.
+const AXIS_SNAP: f64 = 0.05;
+
+/// The axis of a cylindrical face and a point on it: the direction its normals are all
+/// perpendicular to (the eigenvector of Σ A n nᵀ of the smallest eigenvalue), and the point
+/// nearest, in least squares, to every triangle's normal line.
+fn cylinder_axis(mesh: &Mesh, triangles: &[usize]) -> ([f64; 3], [f64; 3]) {
+    use nalgebra::{Matrix3, Vector3};
+    let mut s = Matrix3::<f64>::zeros();
+    for &t in triangles {
+        let (n, _, area) = triangle_frame(mesh, t);
+        let n = Vector3::from(n);
+        s += area * n * n.transpose();
+    }
+    let e = nalgebra::SymmetricEigen::new(s);
+    let mut a: Vector3<f64> = e.eigenvectors.column(e.eigenvalues.imin()).into();
+    // A flat-faceted bore tilts the fitted axis by a little; two bearings of one shaft fitted
+    // apart would then bind it like a misaligned shaft (a spin and a slide of 2 and 35 Hz on
+    // the test shaft instead of free). A CAD bore along x, y or z is taken as that axis.
+    if let Some(k) = (0..3).find(|&k| a[k].abs() > AXIS_SNAP.cos()) {
+        a = Vector3::zeros();
+        a[k] = 1.0;
+    }
+    // Σ A (I − n̂n̂ᵀ)(c − x) = 0 in the plane across the axis; a aᵀ fixes c's axial part.
+    let (mut q, mut rhs) = (a * a.transpose(), Vector3::zeros());
+    for &t in triangles {
+        let (n, x, area) = triangle_frame(mesh, t);
+        let n = Vector3::from(n);
+        let radial = n - n.dot(&a) * a;
+        let Some(r) = radial.try_normalize(1e-12) else { continue };
+        let p = area * (Matrix3::identity() - r * r.transpose() - a * a.transpose());
+        q += p;
+        rhs += p * Vector3::from(x);
+    }
+    let c = q.lu().solve(&rhs).unwrap_or_else(Vector3::zeros);
+    ([a[0], a[1], a[2]], [c[0], c[1], c[2]])
+}
+
+/// A unit vector along `v` (zero for a zero vector).
+fn unit(v: [f64; 3]) -> [f64; 3] {
+    let n = (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt();
+    if n > 0.0 { v.map(|x| x / n) } else { [0.0; 3] }
 }
 
 #[cfg(test)]
@@ -345,6 +467,7 @@ mod rigid_motions_left {
         let plane = |axis, value, components| Support {
             region: Region::Plane { axis, value, tol: None },
             components,
+            kind: crate::scene::SupportKind::Held,
         };
         assert_eq!(count(&[]), 6);
         assert_eq!(count(&[plane(2, 0.0, [true; 3])]), 0);
@@ -357,6 +480,7 @@ mod rigid_motions_left {
                 max: [0.0, 2.0, 0.0],
             }),
             components: [true; 3],
+            kind: crate::scene::SupportKind::Held,
         };
         assert_eq!(count(&[edge]), 1);
     }

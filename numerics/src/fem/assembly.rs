@@ -220,7 +220,17 @@ fn accumulate<S: Shape>(
 
 /// Assembles K and M of the mesh for the material, on the free DOFs of `dofs`.
 pub fn assemble(mesh: &Mesh, material: &Material, dofs: &Dofs) -> Result<Assembled, AssemblyError> {
-    assemble_counting(mesh, material, dofs, mesh.tet_count()).map(|(a, _)| a)
+    assemble_with(mesh, material, dofs, &[])
+}
+
+/// [`assemble`] with surface springs added to K ([`super::springs`]).
+pub fn assemble_with(
+    mesh: &Mesh,
+    material: &Material,
+    dofs: &Dofs,
+    springs: &[super::springs::NodeSpring],
+) -> Result<Assembled, AssemblyError> {
+    assemble_inner(mesh, material, dofs, mesh.tet_count(), springs).map(|(a, _)| a)
 }
 
 /// [`assemble`], and the moments of the first `counted` elements only (a rank's share of a
@@ -231,6 +241,16 @@ pub fn assemble_counting(
     material: &Material,
     dofs: &Dofs,
     counted: usize,
+) -> Result<(Assembled, Moments), AssemblyError> {
+    assemble_inner(mesh, material, dofs, counted, &[])
+}
+
+fn assemble_inner(
+    mesh: &Mesh,
+    material: &Material,
+    dofs: &Dofs,
+    counted: usize,
+    springs: &[super::springs::NodeSpring],
 ) -> Result<(Assembled, Moments), AssemblyError> {
     let lame = Lame::of(material);
     let graph = node_graph(mesh);
@@ -254,6 +274,15 @@ pub fn assemble_counting(
         total.k.par_iter_mut().zip(&p.k).for_each(|(a, b)| *a += b);
         total.m.par_iter_mut().zip(&p.m).for_each(|(a, b)| *a += b);
         total.moments.add(&p.moments);
+    }
+    // Springs couple nodes of one surface triangle, which share a tet: their blocks exist.
+    for sp in springs {
+        let blk = graph.block(sp.a, sp.b);
+        for r in 0..3 {
+            for c in 0..3 {
+                total.k[9 * blk + 3 * r + c] += sp.block[r][c];
+            }
+        }
     }
     let moments = total.moments;
     let mass = moments.properties();

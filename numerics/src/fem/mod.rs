@@ -5,6 +5,7 @@ pub mod dofs;
 pub mod element;
 pub mod quadrature;
 pub mod share;
+pub mod springs;
 pub mod stress;
 
 pub use assembly::{Assembled, MassProperties, Moments, assemble};

@@ -677,8 +677,18 @@ impl Model {
         dofs: Dofs,
         material: crate::material::Material,
     ) -> Result<Model, crate::fem::assembly::AssemblyError> {
-        let system = crate::fem::assemble(&mesh, &material, &dofs)?;
-        let rigid = crate::rigid_motions::free_rigid_count(&mesh.nodes, &dofs);
+        Self::assemble_with(mesh, dofs, material, &[])
+    }
+
+    /// [`Model::assemble`] with surface springs holding the part too.
+    pub fn assemble_with(
+        mesh: crate::tet_mesh::Mesh,
+        dofs: Dofs,
+        material: crate::material::Material,
+        springs: &[crate::fem::springs::NodeSpring],
+    ) -> Result<Model, crate::fem::assembly::AssemblyError> {
+        let system = crate::fem::assembly::assemble_with(&mesh, &material, &dofs, springs)?;
+        let rigid = crate::rigid_motions::free_rigid_count_with(&mesh.nodes, &dofs, springs);
         Ok(Model {
             mesh,
             dofs,

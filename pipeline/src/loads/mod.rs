@@ -81,31 +81,52 @@ pub struct SupportReaction {
     pub moment_nm: [f64; 3],
 }
 
-/// Each support's share of the reaction `k_u − f` (full-length vectors) of `mesh`'s nodes.
-fn support_reactions(mesh: &crate::tet_mesh::Mesh, held: &[Vec<u32>], k_u: &[f64], f: &[f64]) -> Vec<SupportReaction> {
+/// Each support's share of the reaction: `k_u − f` at the DOFs it removes (`held`, full-length
+/// vectors), −K_s u of its springs (`springs`), of `mesh`'s nodes.
+fn support_reactions(
+    mesh: &crate::tet_mesh::Mesh,
+    held: &[Vec<u32>],
+    springs: &[Vec<crate::fem::springs::NodeSpring>],
+    u: &[f64],
+    k_u: &[f64],
+    f: &[f64],
+) -> Vec<SupportReaction> {
     held.iter()
+        .zip(springs)
         .enumerate()
-        .map(|(support, dofs)| {
-            let mut nodes: Vec<usize> = dofs.iter().map(|&g| g as usize / 3).collect();
-            nodes.dedup();
+        .map(|(support, (dofs, springs))| {
+            // Per node, the force this support exerts on it.
+            let mut at: std::collections::BTreeMap<usize, [f64; 3]> = std::collections::BTreeMap::new();
+            for &g in dofs {
+                at.entry(g as usize / 3).or_default()[g as usize % 3] += k_u[g as usize] - f[g as usize];
+            }
+            for sp in springs {
+                let (a, b) = (sp.a as usize, sp.b as usize);
+                for r in 0..3 {
+                    for c in 0..3 {
+                        at.entry(a).or_default()[r] -= sp.block[r][c] * u[3 * b + c];
+                        if a != b {
+                            at.entry(b).or_default()[c] -= sp.block[r][c] * u[3 * a + r];
+                        }
+                    }
+                }
+            }
             // The middle of their bounding box: a face's centre, a bore's axis (a mean of the
             // nodes would follow where the mesh happens to be finer).
             let (mut lo, mut hi) = ([f64::INFINITY; 3], [f64::NEG_INFINITY; 3]);
-            for &i in &nodes {
+            for &i in at.keys() {
                 for c in 0..3 {
                     lo[c] = lo[c].min(mesh.nodes[i][c]);
                     hi[c] = hi[c].max(mesh.nodes[i][c]);
                 }
             }
-            let centre = [0, 1, 2].map(|c| if nodes.is_empty() { 0.0 } else { 0.5 * (lo[c] + hi[c]) });
+            let centre = [0, 1, 2].map(|c| if at.is_empty() { 0.0 } else { 0.5 * (lo[c] + hi[c]) });
             let (mut force, mut moment) = ([0.0; 3], [0.0; 3]);
-            for &g in dofs {
-                let (i, c) = (g as usize / 3, g as usize % 3);
-                let r = k_u[g as usize] - f[g as usize];
-                force[c] += r;
-                let mut v = [0.0; 3];
-                v[c] = r;
+            for (&i, v) in &at {
                 let x = [0, 1, 2].map(|k| mesh.nodes[i][k] - centre[k]);
+                for c in 0..3 {
+                    force[c] += v[c];
+                }
                 moment[0] += x[1] * v[2] - x[2] * v[1];
                 moment[1] += x[2] * v[0] - x[0] * v[2];
                 moment[2] += x[0] * v[1] - x[1] * v[0];
@@ -233,6 +254,8 @@ pub fn solve_loads(scene: &Scene, d: &Discretized) -> Result<Vec<LoadResult>> {
     let stress = crate::fem::stress::vertex_stress(&d.mesh, &lame, &fields, r);
     let held =
         crate::supports::held_by_each(&d.mesh, &scene.fixed).with_context(|| scene.path.display().to_string())?;
+    let springs = crate::supports::springs(&d.mesh, &scene.fixed, scene.material.young)
+        .with_context(|| scene.path.display().to_string())?;
     scene
         .loads
         .iter()
@@ -240,7 +263,7 @@ pub fn solve_loads(scene: &Scene, d: &Discretized) -> Result<Vec<LoadResult>> {
         .map(|(j, case)| {
             let nv = d.mesh.vertex_count;
             let s: Vec<f64> = (0..6 * nv).map(|row| stress[row * r + j]).collect();
-            finish(d, &lame, case, &f[j], u[j].clone(), s, &held)
+            finish(d, &lame, case, &f[j], u[j].clone(), s, (&held, &springs))
         })
         .collect()
 }
@@ -253,14 +276,13 @@ fn finish(
     f: &[f64],
     u: Vec<f64>,
     stress: Vec<f64>,
-    held: &[Vec<u32>],
+    (held, springs): (&[Vec<u32>], &[Vec<crate::fem::springs::NodeSpring>]),
 ) -> Result<LoadResult> {
     let k_u = vector::internal_forces(&d.mesh, lame, &u)
         .map_err(|e| anyhow::anyhow!("an element is degenerate (det J = {:.3e})", e.det))?;
-    let mut reaction = [0.0; 3];
-    for &g in &d.dofs.fixed {
-        reaction[g as usize % 3] += k_u[g as usize] - f[g as usize];
-    }
+    let support_reactions = support_reactions(&d.mesh, held, springs, &u, &k_u, f);
+    // The supports' forces: at the DOFs they remove and in their springs.
+    let reaction = [0, 1, 2].map(|c| support_reactions.iter().map(|r| r.force_n[c]).sum::<f64>());
     let mut total = [0.0; 3];
     let mut magnitude = 0.0;
     for node in f.chunks_exact(3) {
@@ -270,7 +292,6 @@ fn finish(
         magnitude += (node[0] * node[0] + node[1] * node[1] + node[2] * node[2]).sqrt();
     }
     let gap = (0..3).map(|c| (reaction[c] + total[c]).powi(2)).sum::<f64>().sqrt();
-    let support_reactions = support_reactions(&d.mesh, held, &k_u, f);
     let von_mises = nodal_von_mises(&d.mesh, &stress);
     let max_displacement = u
         .chunks_exact(3)

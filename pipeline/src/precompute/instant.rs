@@ -66,8 +66,18 @@ pub fn run(scene: &Scene, previous: &Path, out: &Path) -> Result<Option<(Summary
     let t = Instant::now();
     let mesh = stored.mesh;
     let dofs = crate::supports::select(&mesh, &scene.fixed)?;
-    let d = crate::problem::Discretized::assemble(mesh, dofs, scene.material)
+    let springs: Vec<_> = crate::supports::springs(&mesh, &scene.fixed, scene.material.young)?
+        .into_iter()
+        .flatten()
+        .collect();
+    let model = crate::modes::Model::assemble_with(mesh, dofs, scene.material, &springs)
         .with_context(|| format!("{}: assembling on its mesh", previous.display()))?;
+    let d = crate::problem::Discretized {
+        model,
+        mesh_s: 0.0,
+        meshing: Default::default(),
+        assemble_s: 0.0,
+    };
     let assemble_s = t.elapsed().as_secs_f64();
     let start_vectors = carried(&stored.rows, stored.r, &d.dofs);
     crate::progress::stage("instant modes", 0.4)?;

@@ -246,7 +246,15 @@ fn refined(
 fn discretize(scene: &Scene, voi: Option<&Voi>, choice: SolverChoice) -> Result<Problem> {
     let problem = if choice.is_slepc() {
         // K and M are assembled on the ranks, each its rows, and stay there.
-        Problem::OnRanks(crate::problem::mesh_with_supports(scene, voi, None, false)?)
+        let m = crate::problem::mesh_with_supports(scene, voi, None, false)?;
+        // The ranks assemble their rows from the mesh and the removed DOFs only.
+        anyhow::ensure!(
+            m.springs.is_empty(),
+            "{}: sliding, bearing and elastic supports are not assembled on MPI ranks; use a clamped support or \
+             leave out --solver slepc",
+            scene.path.display()
+        );
+        Problem::OnRanks(m)
     } else {
         Problem::Here(crate::problem::discretize(scene, voi)?)
     };

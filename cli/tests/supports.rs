@@ -1,0 +1,122 @@
+//! Support kinds (`[[fixed]] kind`, docs/scene.md): a sliding face against removing the same
+//! component, a part on soft elastic mounts against its rigid-body frequencies on springs, and
+//! a shaft in two bearings against the pinned–pinned beam.
+
+mod common;
+
+use common::*;
+
+fn frequencies(v: &serde_json::Value) -> Vec<f64> {
+    v["spaces"][0]["frequencies_hz"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|x| x.as_f64().unwrap())
+        .collect()
+}
+
+/// The cantilever with 10-node tets held as `fixed` says, `count` modes.
+fn beam(fixed: &str, count: usize) -> String {
+    GOOD.replace(
+        "size = 0.05\norder = 1",
+        "size = 0.025\norder = 2\nerror_estimate = false",
+    )
+    .replace("[[fixed]]\nplane = { axis = \"x\", value = 0.0 }\n", fixed)
+    .replace("count = 4", &format!("count = {count}"))
+}
+
+/// Sliding on the root face (held along its normal by stiff springs) against the same face's x
+/// component removed: the same three rigid motions left, the same modes to 1e-3.
+#[test]
+fn a_sliding_face_holds_its_normal_as_removing_it_does() {
+    let (dir, exact) = workdir(&beam(
+        "[[fixed]]\nplane = { axis = \"x\", value = 0.0 }\ncomponents = [\"x\"]\n",
+        6,
+    ));
+    let sliding = write_file(
+        dir.path(),
+        "sliding.toml",
+        &beam(
+            "[[fixed]]\nplane = { axis = \"x\", value = 0.0 }\nkind = \"sliding\"\n",
+            6,
+        ),
+    );
+    let a = precompute_json(&exact, &dir.path().join("exact.h5"));
+    let b = precompute_json(&sliding, &dir.path().join("sliding.h5"));
+    assert_eq!(a["spaces"][0]["rigid_modes_dropped"], 3);
+    assert_eq!(b["spaces"][0]["rigid_modes_dropped"], 3);
+    for (i, (x, y)) in frequencies(&a).iter().zip(frequencies(&b)).enumerate() {
+        let rel = (y - x) / x;
+        println!("mode {i}: removed {x:.4} Hz, sliding {y:.4} Hz ({rel:+.2e})");
+        assert!(rel.abs() < 1e-3, "mode {i}: {x} against {y}");
+    }
+}
+
+/// The beam (1.0 × 0.1 × 0.05 m steel, 39.25 kg) on soft springs along z under its whole bottom
+/// face: x, y and the turn about z stay free (3 rigid motions); the first three modes are the
+/// rigid body on the springs, ω² = kA/m × b²/(b² + h²) (roll about x, about the centre of mass:
+/// the horizontal motion is free), × L²/(L² + h²) (pitch), × 1 (bounce).
+#[test]
+fn a_part_on_soft_mounts_rocks_and_bounces_at_the_rigid_body_frequencies() {
+    let (m, a, b, h, l) = (7850.0 * 0.005, 0.1, 0.1, 0.05, 1.0);
+    let k = 1e6; // N/m³: ~16 Hz, far below the free beam's first bending (~260 Hz).
+    let fixed = format!(
+        "[[fixed]]\nplane = {{ axis = \"z\", value = 0.0 }}\nkind = \"elastic\"\nstiffness = {k:e}\ncomponents = [\"z\"]\n"
+    );
+    let (dir, path) = workdir(&beam(&fixed, 3));
+    let got = precompute_json(&path, &dir.path().join("mounts.h5"));
+    assert_eq!(got["spaces"][0]["rigid_modes_dropped"], 3);
+    let w = |factor: f64| (k * a / m * factor).sqrt() / (2.0 * std::f64::consts::PI);
+    let want = [w(b * b / (b * b + h * h)), w(l * l / (l * l + h * h)), w(1.0)];
+    for (i, (g, x)) in frequencies(&got).iter().zip(want).enumerate() {
+        let rel = (g - x) / x;
+        println!("mode {i}: {g:.4} Hz against {x:.4} Hz ({rel:+.2e})");
+        assert!(rel.abs() < 5e-3, "mode {i}: {g} Hz against {x} Hz");
+    }
+}
+
+/// A steel shaft (0.5 m, 40 mm across) in two 10 mm bearings at its ends: two rigid motions
+/// left (the turn about its axis and the slide along it: floating bearings), and the first
+/// bending pair at the pinned–pinned beam's
+/// f = π/(2S²)·√(EI/ρA) over the span S between the bearings' middles (0.486 m).
+#[test]
+fn a_shaft_in_two_bearings_bends_as_a_pinned_beam() {
+    let dir = tempfile::tempdir().unwrap();
+    std::fs::write(
+        dir.path().join("shaft.geo"),
+        "SetFactory(\"OpenCASCADE\");\nCylinder(1) = {0, 0, 0, 500, 0, 0, 20};\n",
+    )
+    .unwrap();
+    let bearing = |x0: f64| {
+        format!(
+            "[[fixed]]\nbox = {{ min = [{x0}, -0.03, -0.03], max = [{}, 0.03, 0.03] }}\nkind = \"bearing\"\n",
+            x0 + 0.01
+        )
+    };
+    let scene = format!(
+        "name = \"shaft\"\n[geometry]\nstep = \"shaft.geo\"\nunit = \"mm\"\n[material]\nyoung = 2.1e11\npoisson = 0.3\n\
+         density = 7850.0\n[mesh]\nsize = 0.008\norder = 2\nerror_estimate = false\n{}{}[modes]\ncount = 2\n",
+        bearing(0.002),
+        bearing(0.488)
+    );
+    let path = write_file(dir.path(), "shaft.toml", &scene);
+    let out = dir.path().join("shaft.h5");
+    let o = ves(&[
+        "precompute",
+        path.to_str().unwrap(),
+        "-o",
+        out.to_str().unwrap(),
+        "--json",
+        "--allow-geo-scripts",
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let got = last_json(&o);
+    assert_eq!(got["spaces"][0]["rigid_modes_dropped"], 2, "{got}");
+    let (e, rho, d, span) = (2.1e11f64, 7850.0f64, 0.04f64, 0.486f64);
+    let want = std::f64::consts::PI / (2.0 * span * span) * (e / rho).sqrt() * d / 4.0;
+    for (i, g) in frequencies(&got).iter().enumerate() {
+        let rel = (g - want) / want;
+        println!("bending {i}: {g:.2} Hz against the pinned beam's {want:.2} Hz ({rel:+.2e})");
+        assert!((0.0..0.2).contains(&rel), "mode {i}: {g} Hz against {want} Hz");
+    }
+}
