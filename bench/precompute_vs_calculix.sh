@@ -46,7 +46,10 @@ done
 # CalculiX on the mesh of the last basis (the cached one: the same nodes and tets).
 VES_KEEP_VERIFY=1 "$ves" verify "$work/basis.h5" --against calculix --json > "$work/verify.json" 2> "$work/verify.err" || true
 dir=$(sed -n 's/^reference files kept in //p' "$work/verify.err")
-deck=$(find "$dir" -name modes.inp | head -1)
+# Into our own folder at once: another ves process on the machine removes the work folders of
+# processes that have ended, and the verify that kept this one has.
+[ -n "$dir" ] && cp -r "$dir" "$work/reference" && rm -rf "$dir"
+deck=$(find "$work/reference" -name modes.inp 2>/dev/null | head -1)
 [ -n "$deck" ] || { echo "no CalculiX deck: $(tail -3 "$work/verify.err")" >&2; exit 1; }
 cd "$(dirname "$deck")"
 rm -f modes.dat modes.frd
@@ -61,4 +64,3 @@ r = v["references"][0]
 print(json.dumps({"run": "calculix *FREQUENCY alone, 2 threads", "wall_s": round(wall, 2),
                   "max_rel_freq_diff_vs_ves": r["max_rel_freq_diff"], "min_mac": r["min_mac_isolated"]}))
 EOF
-rm -rf "$dir"

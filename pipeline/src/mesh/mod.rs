@@ -399,8 +399,10 @@ struct Rung {
 
 // No Frontal 3D rung (`Mesh.Algorithm3D` 4): Debian's libgmsh is built without Netgen, and
 // gmsh answers "Frontal algorithm requires Netgen" on every part. HXT (10) is not one either:
-// gmsh hands it the surface nodes ordered by memory address, so its mesh changes from run to run
-// (and, with address randomisation off, with the length of a path).
+// as gmsh calls it, its mesh changes from run to run (gmsh hands it the surface nodes ordered by
+// memory address); made reproducible, it was 2–10× slower than Delaunay on the corpus parts with
+// slivers (its optimiser) and failed where Delaunay fails (docs/benchmarks.md, "On the corpus").
+// R-tree (9) crashed; MMG3D (7) is not built in.
 const LADDER: [Rung; 5] = [
     Rung {
         name: "default",
@@ -758,9 +760,9 @@ fn attempt_once(
     }
     session.set_number("Mesh.MeshSizeMax", h).map_err(g)?;
     session.set_number("Mesh.MeshSizeMin", 0.0).map_err(g)?;
-    // Delaunay (1) gives the same mesh on every run; HXT (10) is ~2.7x faster on the mould
-    // but its result changes from run to run even on one thread (see LADDER), and a basis must
-    // be reproducible (regression numbers, batch up-to-date checks).
+    // Delaunay (1) gives the same mesh on every run; HXT (10) is faster on clean parts (the
+    // mould, the ribplate) but not reproducible as called here and slower on parts with slivers
+    // (see LADDER); a basis must be reproducible (regression numbers, batch up-to-date checks).
     session.set_number("Mesh.Algorithm", rung.surface).map_err(g)?;
     session.set_number("Mesh.Algorithm3D", rung.volume).map_err(g)?;
     session.set_number("Mesh.RandomSeed", 1.0).map_err(g)?;
