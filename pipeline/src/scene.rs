@@ -235,10 +235,10 @@ pub struct MeshSettings {
     pub size: f64,
     /// 1 = 4-node tets, 2 = 10-node tets.
     pub order: u8,
-    /// Estimate each mode's discretization error from two coarser meshes (on by default; they
-    /// cost about a third more than the mesh itself).
-    #[serde(default = "yes")]
-    pub error_estimate: bool,
+    /// Estimate each mode's discretization error (docs/accuracy.md): by default the recovery
+    /// estimate on the mesh itself, with two coarser meshes only where it is not vouched for.
+    #[serde(default)]
+    pub error_estimate: EstimateMode,
     /// Refine until every kept mode's estimated error is below this (relative), starting at
     /// `size`; then the basis of the last mesh is written.
     #[serde(default)]
@@ -249,6 +249,82 @@ pub struct MeshSettings {
     /// How `target_error` refines: everywhere alike (default) or where the error is.
     #[serde(default)]
     pub refinement: Refinement,
+}
+
+/// Which error estimate `[mesh] error_estimate` asks for (docs/accuracy.md).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum EstimateMode {
+    /// None (`false`, `"off"`).
+    Off,
+    /// The recovery estimate on the mesh itself decides; the two coarser meshes (Richardson)
+    /// are solved only when it does not vouch for a mode (`true`, `"recovery"`; the default).
+    #[default]
+    Recovery,
+    /// Both estimates on every mesh, the coarser meshes always solved (`"full"`): the estimate
+    /// before issue 42, for batch runs that want the independent check everywhere.
+    Full,
+}
+
+impl EstimateMode {
+    /// Whether any estimate is made.
+    pub fn on(self) -> bool {
+        self != EstimateMode::Off
+    }
+
+    /// As a scene or the command line writes it.
+    pub fn name(self) -> &'static str {
+        match self {
+            EstimateMode::Off => "off",
+            EstimateMode::Recovery => "recovery",
+            EstimateMode::Full => "full",
+        }
+    }
+}
+
+impl std::str::FromStr for EstimateMode {
+    type Err = String;
+
+    fn from_str(s: &str) -> std::result::Result<Self, String> {
+        match s {
+            "off" | "false" => Ok(EstimateMode::Off),
+            "recovery" | "true" => Ok(EstimateMode::Recovery),
+            "full" => Ok(EstimateMode::Full),
+            _ => Err(format!(
+                "{s:?}: one of \"recovery\", \"full\" or \"off\" (or true / false)"
+            )),
+        }
+    }
+}
+
+impl<'de> Deserialize<'de> for EstimateMode {
+    fn deserialize<D: serde::Deserializer<'de>>(d: D) -> std::result::Result<Self, D::Error> {
+        struct Visitor;
+        impl serde::de::Visitor<'_> for Visitor {
+            type Value = EstimateMode;
+            fn expecting(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+                f.write_str("true, false, \"recovery\", \"full\" or \"off\"")
+            }
+            fn visit_bool<E: serde::de::Error>(self, v: bool) -> std::result::Result<EstimateMode, E> {
+                Ok(if v { EstimateMode::Recovery } else { EstimateMode::Off })
+            }
+            fn visit_str<E: serde::de::Error>(self, v: &str) -> std::result::Result<EstimateMode, E> {
+                v.parse().map_err(E::custom)
+            }
+        }
+        d.deserialize_any(Visitor)
+    }
+}
+
+/// Written as it was before the modes existed (true / false) where it means the same, so a
+/// scene's echo in a basis changes only for `"full"`.
+impl serde::Serialize for EstimateMode {
+    fn serialize<S: serde::Serializer>(&self, s: S) -> std::result::Result<S::Ok, S::Error> {
+        match self {
+            EstimateMode::Off => s.serialize_bool(false),
+            EstimateMode::Recovery => s.serialize_bool(true),
+            EstimateMode::Full => s.serialize_str("full"),
+        }
+    }
 }
 
 /// How `[mesh] target_error` makes each next mesh.
@@ -267,10 +343,6 @@ pub enum Refinement {
 /// About 10 GB of memory with 10-node tets (6.6 GB measured at 684k unknowns on the ribplate).
 fn default_max_dofs() -> usize {
     1_000_000
-}
-
-fn yes() -> bool {
-    true
 }
 
 #[derive(Debug, Deserialize)]
@@ -635,7 +707,7 @@ impl Scene {
         if raw.mesh.size != 0.0 || raw.mesh.target_error.is_none() {
             element_size("mesh.size", raw.mesh.size).map_err(err)?;
         }
-        if raw.mesh.target_error.is_some() && !raw.mesh.error_estimate {
+        if raw.mesh.target_error.is_some() && !raw.mesh.error_estimate.on() {
             return Err(err(
                 "mesh.target_error needs the error estimate: remove error_estimate = false".into(),
             ));
@@ -1241,6 +1313,35 @@ force = [0.0, 0.0, -100.0]
 [gravity]
 acceleration = [0.0, 0.0, -9.81]
 "#;
+
+    /// `mesh.error_estimate` takes a bool (true: the default recovery estimate) or a mode's name,
+    /// and a scene echoes it as it was written before the modes (true / false) unless "full".
+    #[test]
+    fn error_estimate_takes_a_bool_or_a_mode() {
+        let dir = std::env::temp_dir().join(format!("ves-scene-estimate-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).expect("temp dir");
+        std::fs::write(dir.join("x.step"), "ISO-10303-21;").expect("geometry stub");
+        let path = dir.join("s.toml");
+        let with = |line: &str| Scene::parse(&path, &SCENE.replace("order = 2", &format!("order = 2\n{line}")));
+        for (line, mode, echo) in [
+            ("", EstimateMode::Recovery, "true"),
+            ("error_estimate = true", EstimateMode::Recovery, "true"),
+            ("error_estimate = \"recovery\"", EstimateMode::Recovery, "true"),
+            ("error_estimate = false", EstimateMode::Off, "false"),
+            ("error_estimate = \"off\"", EstimateMode::Off, "false"),
+            ("error_estimate = \"full\"", EstimateMode::Full, "\"full\""),
+        ] {
+            let s = with(line).unwrap_or_else(|e| panic!("{line}: {e}"));
+            assert_eq!(s.mesh.error_estimate, mode, "{line}");
+            assert_eq!(serde_json::to_string(&s.mesh.error_estimate).unwrap(), echo);
+            let back: EstimateMode = serde_json::from_str(echo).unwrap();
+            assert_eq!(back, mode);
+        }
+        for bad in ["error_estimate = \"fast\"", "error_estimate = 1"] {
+            let e = with(bad).expect_err(bad).to_string();
+            assert!(e.contains("error_estimate") && !e.contains('\n'), "{bad}: {e}");
+        }
+    }
 
     /// `faces` is a third region kind: sorted and each once; an empty list, tag 0, a negative
     /// tag or `faces` beside `plane` are refused in one line naming the key.

@@ -4,7 +4,7 @@ use anyhow::Result;
 use std::path::PathBuf;
 use ves_pipeline::modes::{SolverChoice, mpi_job};
 use ves_pipeline::precompute;
-use ves_pipeline::scene::Scene;
+use ves_pipeline::scene::{EstimateMode, Scene};
 
 /// Arguments.
 #[derive(clap::Args)]
@@ -23,6 +23,11 @@ pub struct Args {
     /// Elastic modes to keep (overrides the scene's modes.count).
     #[arg(long)]
     modes: Option<usize>,
+    /// The error estimate (overrides the scene's mesh.error_estimate): "recovery" decides on
+    /// the mesh itself and solves the two coarser meshes only where it is not vouched for;
+    /// "full" always solves them too; "off" makes none.
+    #[arg(long, value_parser = clap::builder::PossibleValuesParser::new(["recovery", "full", "off"]))]
+    estimate: Option<String>,
     /// No progress lines on stderr (they are shown only on a terminal anyway).
     #[arg(long, short)]
     quiet: bool,
@@ -64,6 +69,14 @@ impl Args {
         let mut scene = mpi_job::agree(Scene::load_with(&self.scene, self.write.scene()).map_err(Into::into))?;
         if let Some(m) = self.modes {
             scene.modes.count = m;
+        }
+        if let Some(e) = &self.estimate {
+            let mode: EstimateMode = e.parse().map_err(|e: String| anyhow::anyhow!("--estimate {e}"))?;
+            anyhow::ensure!(
+                mode.on() || scene.mesh.target_error.is_none(),
+                "--estimate off: the scene's mesh.target_error needs the error estimate"
+            );
+            scene.mesh.error_estimate = mode;
         }
         let out = self
             .output

@@ -13,7 +13,7 @@ pub mod richardson;
 use crate::mesh::field::SizeField;
 use crate::modes::{self, SolverChoice};
 use crate::problem::{Discretized, discretize_with};
-use crate::scene::{Scene, Voi};
+use crate::scene::{EstimateMode, Scene, Voi};
 use crate::transfer::{SpaceView, projections};
 use anyhow::Result;
 use richardson::ModeError;
@@ -77,13 +77,29 @@ pub enum Rule {
     LargerRichardson,
 }
 
+/// Why the coarser meshes of the Richardson estimate were solved, or not.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum CoarserMeshes {
+    /// `error_estimate = "full"`: always.
+    Always,
+    /// The recovery estimate did not vouch for a mode ([`vouched`]): solved as its guard.
+    RecoveryFlagged,
+    /// The recovery estimate vouched for every mode: none solved.
+    NotNeeded,
+}
+
 /// The estimate of a space.
 #[derive(Clone, Debug, serde::Serialize)]
 pub struct ErrorEstimate {
     /// Per kept mode.
     pub modes: Vec<ModeEstimate>,
-    /// The coarser meshes it came from, finest first.
+    /// The coarser meshes it came from, finest first (none when they were not needed).
     pub levels: Vec<Level>,
+    /// The scene's `mesh.error_estimate` it was made under: "recovery" or "full".
+    pub mode: &'static str,
+    /// Why the coarser meshes were solved or not.
+    pub coarser_meshes: CoarserMeshes,
 }
 
 impl ErrorEstimate {
@@ -181,9 +197,11 @@ pub fn combine(dofs: usize, frequencies_hz: &[f64], levels: &[Level], order: u8)
         .collect()
 }
 
-/// Meshes `fine`'s space [`LEVELS`] times coarser, solves each and estimates the error of each
-/// of `fine`'s modes. A coarser mesh that fails (a size too large for the part) ends the
-/// sequence: the estimate uses what was solved, and is None with no coarser mesh at all.
+/// Estimates the error of each of `fine`'s modes: the recovery estimate on `fine` itself and,
+/// when the scene's `mesh.error_estimate` is `"full"` or the recovery estimate does not vouch
+/// for every mode, the Richardson estimate from `fine`'s space meshed [`LEVELS`] times coarser
+/// and solved. A coarser mesh that fails (a size too large for the part) ends the sequence: the
+/// estimate uses what was solved. None with neither estimate (or with the estimate off).
 pub fn estimate(
     scene: &Scene,
     voi: Option<&Voi>,
@@ -192,32 +210,51 @@ pub fn estimate(
     fine_lambda: &[f64],
     choice: SolverChoice,
 ) -> Option<ErrorEstimate> {
-    let mut coarse = Vec::new();
-    for k in 1..=LEVELS {
-        if crate::progress::cancelled() {
-            return None;
-        }
-        let factor = COARSENING.powi(k as i32);
-        match Solved::at(scene, voi, field, factor, fine.r, choice, true) {
-            Ok(s) => coarse.push(s),
-            Err(e) => {
-                tracing::info!("error estimate: the mesh {factor}× coarser failed: {e:#}");
-                break;
-            }
-        }
+    if !scene.mesh.error_estimate.on() {
+        return None;
     }
     let t = Instant::now();
     let recovered = recovered(scene, fine, fine_lambda);
     tracing::info!(seconds = t.elapsed().as_secs_f64(), "error estimate: recovery");
-    let nearly_incompressible = scene.material.poisson > NEARLY_INCOMPRESSIBLE;
-    from_coarser(
-        scene.mesh.order,
-        fine,
-        fine_lambda,
-        coarse.iter(),
-        &recovered,
-        nearly_incompressible,
-    )
+    let trust = Trust::of(scene, fine);
+    let coarser_meshes = if scene.mesh.error_estimate == EstimateMode::Full {
+        CoarserMeshes::Always
+    } else if recovered.iter().all(|&c| c.is_finite() && vouched(c, trust)) && !recovered.is_empty() {
+        CoarserMeshes::NotNeeded
+    } else {
+        CoarserMeshes::RecoveryFlagged
+    };
+    let mut coarse = Vec::new();
+    if coarser_meshes != CoarserMeshes::NotNeeded {
+        for k in 1..=LEVELS {
+            if crate::progress::cancelled() {
+                return None;
+            }
+            let factor = COARSENING.powi(k as i32);
+            match Solved::at(scene, voi, field, factor, fine.r, choice, true) {
+                Ok(s) => coarse.push(s),
+                Err(e) => {
+                    tracing::info!("error estimate: the mesh {factor}× coarser failed: {e:#}");
+                    break;
+                }
+            }
+        }
+    }
+    let mut e = from_coarser(fine, fine_lambda, coarse.iter(), &recovered, trust)?;
+    e.mode = scene.mesh.error_estimate.name();
+    e.coarser_meshes = coarser_meshes;
+    Some(e)
+}
+
+/// Whether the coarser meshes of a space will be needed whatever its modes turn out to be: the
+/// estimate is `"full"`, or the recovery estimate cannot vouch for any mode (4-node tets, a
+/// nearly incompressible material). Then they are worth meshing beside the solve ([`Prefetch`]).
+pub fn coarser_meshes_expected(scene: &Scene) -> bool {
+    match scene.mesh.error_estimate {
+        EstimateMode::Off => false,
+        EstimateMode::Full => true,
+        EstimateMode::Recovery => scene.mesh.order < 2 || scene.material.poisson > NEARLY_INCOMPRESSIBLE,
+    }
 }
 
 /// The inputs of a mesh `factor` × coarser than the scene's (its VOI's and size field's too).
@@ -288,12 +325,11 @@ impl Drop for Prefetch {
 /// The estimate of `fine`'s modes from solved coarser meshes, finest first, and from the
 /// recovery estimate `recovered` on `fine` itself (None with neither).
 fn from_coarser<'a>(
-    order: u8,
     fine: &SpaceView<'_>,
     fine_lambda: &[f64],
     coarser: impl Iterator<Item = &'a Solved>,
     recovered: &[f64],
-    nearly_incompressible: bool,
+    trust: Trust,
 ) -> Option<ErrorEstimate> {
     let levels: Vec<Level> = coarser.map(|s| s.level(fine)).collect();
     let finite = |x: f64| x.is_finite().then_some(x);
@@ -304,22 +340,19 @@ fn from_coarser<'a>(
         .iter()
         .map(|l| l.max(0.0).sqrt() / (2.0 * std::f64::consts::PI))
         .collect();
-    let richardson = (!levels.is_empty()).then(|| combine(fine.dofs.free_count(), &fine_f, &levels, order));
-    // Walls one element thick stay one element thick on every coarser mesh: the error of that
-    // is invisible to the comparison (docs/accuracy.md).
-    let trust = Trust {
-        credited: max_rate(order),
-        order,
-        thin: fine.mesh.walls().spanning_fraction > crate::mesh::walls::ONE_ELEMENT_THICK,
-        nearly_incompressible,
-    };
+    let richardson = (!levels.is_empty()).then(|| combine(fine.dofs.free_count(), &fine_f, &levels, trust.order));
     let modes = (0..fine_lambda.len())
         .map(|i| {
             let rich = richardson.as_ref().and_then(|r| r.get(i)).copied();
             choose(rich, recovered.get(i).copied().and_then(finite), trust)
         })
         .collect();
-    Some(ErrorEstimate { modes, levels })
+    Some(ErrorEstimate {
+        modes,
+        levels,
+        mode: EstimateMode::Full.name(),
+        coarser_meshes: CoarserMeshes::Always,
+    })
 }
 
 /// How far the two estimates may differ before a mode is flagged: where the Richardson
@@ -351,6 +384,27 @@ pub struct Trust {
     pub nearly_incompressible: bool,
 }
 
+impl Trust {
+    /// Of `fine`'s mesh under `scene`'s element order and material.
+    pub fn of(scene: &Scene, fine: &SpaceView<'_>) -> Trust {
+        let order = scene.mesh.order;
+        Trust {
+            credited: max_rate(order),
+            order,
+            // Walls one element thick stay one element thick on every coarser mesh: the error
+            // of that is invisible to the comparison (docs/accuracy.md).
+            thin: fine.mesh.walls().spanning_fraction > crate::mesh::walls::ONE_ELEMENT_THICK,
+            nearly_incompressible: scene.material.poisson > NEARLY_INCOMPRESSIBLE,
+        }
+    }
+}
+
+/// Whether a recovery estimate `c` is vouched for on its own: 10-node tets, a material not
+/// nearly incompressible and a mesh not pre-asymptotic ([`PRE_ASYMPTOTIC`]).
+pub fn vouched(c: f64, trust: Trust) -> bool {
+    trust.order >= 2 && !trust.nearly_incompressible && c <= PRE_ASYMPTOTIC
+}
+
 /// One mode's number from its Richardson estimate `rich` and its recovery estimate `rec`. The
 /// rule (docs/accuracy.md): the recovery estimate, unless the Richardson one is asymptotic and
 /// larger, then that; reliable unless the two disagree by more than [`DISAGREE`], the mesh is
@@ -376,7 +430,7 @@ pub fn choose(rich: Option<ModeError>, rec: Option<f64>, trust: Trust) -> ModeEs
             ..base
         };
     };
-    let vouched = trust.order >= 2 && !trust.nearly_incompressible && c <= PRE_ASYMPTOTIC;
+    let vouched = vouched(c, trust);
     match richardson.filter(|&r| richardson_reliable && r > c) {
         Some(r) => ModeEstimate {
             relative: r,

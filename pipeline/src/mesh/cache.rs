@@ -14,7 +14,8 @@
 //! rebuild against another gmsh should start from an empty cache.
 //!
 //! The METIS node orderings of the meshes solved live beside them (`*.order`, keyed by the
-//! node graph): a rerun, or another support of the same mesh, skips METIS too.
+//! node graph): a rerun, or another support of the same mesh, skips METIS too; so does the mesh
+//! a `target_error` refinement chose (`*.chosen`, [`super::remembered`]).
 
 use super::{LADDER, Mesh, Meshing, Request, field, isolation};
 use std::fs::File;
@@ -42,7 +43,7 @@ struct Entry {
     order: u8,
 }
 
-fn dir() -> Option<PathBuf> {
+pub(super) fn dir() -> Option<PathBuf> {
     if std::env::var("VES_MESH_CACHE").is_ok_and(|v| v.eq_ignore_ascii_case("off") || v == "0") {
         return None;
     }
@@ -141,7 +142,7 @@ impl<W: Write> Write for Summed<W> {
 
 /// Opens the cache file `path` if it is a regular file: never through a symlink, and never
 /// blocking (a FIFO there would hang the run). Ok(None): nothing there.
-fn open_entry(path: &Path) -> Result<Option<(File, u64)>, String> {
+pub(super) fn open_entry(path: &Path) -> Result<Option<(File, u64)>, String> {
     // O_NOFOLLOW: a symlink is refused (ELOOP); O_NONBLOCK: opening a FIFO returns at once.
     // The type is then checked on the open file, so a swap after a check cannot slip through.
     let file = match std::fs::OpenOptions::new()
@@ -252,7 +253,7 @@ pub(super) fn store(key: &Path, mesh: &Mesh, meshing: &Meshing) {
 /// Writes `key` through the one atomic writer of every output (a fresh temporary created
 /// exclusively, never through a planted link, then renamed); temporaries that killed runs left
 /// beside it are removed first. A failure only costs the next run the work (logged).
-fn write_atomically(key: &Path, body: impl FnOnce(&mut std::io::BufWriter<File>) -> std::io::Result<()>) {
+pub(super) fn write_atomically(key: &Path, body: impl FnOnce(&mut std::io::BufWriter<File>) -> std::io::Result<()>) {
     let result = (|| -> anyhow::Result<()> {
         if let Some(d) = key.parent() {
             std::fs::create_dir_all(d)?;

@@ -5,6 +5,7 @@ use crate::scene::{LengthUnit, Scene, Voi};
 mod cache;
 pub mod field;
 mod isolation;
+pub mod remembered;
 use crate::fem::element::Kind;
 pub(crate) use crate::tet_mesh::signed_volume;
 // Element quality and wall thickness are the mesh type's own (the numerics core).

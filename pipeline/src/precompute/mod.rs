@@ -33,7 +33,7 @@ pub struct Timings {
     pub static_correction: f64,
     /// State-transfer matrices between spaces (VOI scenes).
     pub transfer: f64,
-    /// The coarser meshes of the error estimate.
+    /// The error estimate: the recovery estimate and, when solved, its coarser meshes.
     pub error_estimate: f64,
     /// Modal stress at the vertices (when the scene asks for it).
     pub stress: f64,
@@ -127,7 +127,10 @@ impl SolvedSpace {
 /// ranks that assembled them, and rank 0 never holds them whole; with them rank 0 assembles them
 /// after the solve.
 pub fn needs_whole_system(scene: &Scene) -> bool {
-    scene.mesh.error_estimate || scene.static_correction.is_some() || !scene.voi.is_empty() || !scene.loads.is_empty()
+    scene.mesh.error_estimate.on()
+        || scene.static_correction.is_some()
+        || !scene.voi.is_empty()
+        || !scene.loads.is_empty()
 }
 
 /// The `--json` summary (README, `--json`).
@@ -297,7 +300,7 @@ fn run_checked<'s>(
     }
     if distributed && needs_whole_system(scene) {
         let mut stages = Vec::new();
-        if scene.mesh.error_estimate {
+        if scene.mesh.error_estimate.on() {
             stages.push("the error estimate (set mesh.error_estimate = false)");
         }
         if scene.static_correction.is_some() {

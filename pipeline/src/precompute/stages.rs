@@ -116,9 +116,11 @@ pub(super) fn solve_space_checked(
             refined(scene, voi, choice, target)?
         }
         None => {
-            // The coarser meshes are made beside the fine one (each gmsh in its own process,
-            // one core each), so the fine solve later has both cores to itself.
-            let prefetch = (scene.mesh.error_estimate && !later).then(|| Prefetch::start(scene, voi, None));
+            // The coarser meshes, when they will be needed whatever the modes, are made beside
+            // the fine one (each gmsh in its own process, one core each), so the fine solve
+            // later has both cores to itself.
+            let prefetch =
+                (crate::accuracy::coarser_meshes_expected(scene) && !later).then(|| Prefetch::start(scene, voi, None));
             progress::stage("meshing and assembling", 0.0)?;
             let problem = discretize(scene, voi, choice)?;
             progress::stage("eigen-solving", 0.3)?;
@@ -133,7 +135,7 @@ pub(super) fn solve_space_checked(
             }
         }
     };
-    if scene.mesh.error_estimate && !later {
+    if scene.mesh.error_estimate.on() && !later {
         let size = solved.problem.meshing().size;
         advice::warn_about_error(scene, &name, solved.problem.mesh(), size, estimated.error.as_ref());
     }
@@ -190,7 +192,8 @@ pub(super) fn space_from_modes(scene: &Scene, d: crate::problem::Discretized, mo
 }
 
 /// The checks [`Checks::Later`] left out, on a solved space (K and M kept): the Sturm count
-/// and, when the scene asks for it, the error estimate from coarser meshes.
+/// and, when the scene asks for it, the error estimate (its coarser meshes, when needed, are
+/// solved here, after the part is pullable).
 pub(super) fn check_later(scene: &Scene, s: &mut SolvedSpace, choice: SolverChoice) -> Result<()> {
     let system = s
         .system
@@ -203,7 +206,7 @@ pub(super) fn check_later(scene: &Scene, s: &mut SolvedSpace, choice: SolverChoi
     }
     s.timings.sturm = sturm.map_or(0.0, |c| c.seconds);
     s.sturm = sturm;
-    if scene.mesh.error_estimate {
+    if scene.mesh.error_estimate.on() {
         progress::stage("estimating the error", 0.2)?;
         let t = Instant::now();
         let view = crate::transfer::SpaceView::of(&s.mesh, &s.dofs, system, &s.modes, usize::MAX);
@@ -313,8 +316,9 @@ fn sturm_check(solved: &Solved, choice: SolverChoice) -> Result<Option<SturmCoun
     }
 }
 
-/// Estimate: each mode's discretization error from the coarser meshes (made beside the solve
-/// by `prefetch`), when the scene asks for it.
+/// Estimate: each mode's discretization error, when the scene asks for it: the recovery estimate
+/// and, where needed, the coarser meshes (made beside the solve by `prefetch` when they were
+/// known to be needed).
 fn estimate(
     scene: &Scene,
     voi: Option<&Voi>,
@@ -326,7 +330,7 @@ fn estimate(
     if let Some(p) = prefetch {
         p.finish();
     }
-    let error = match (scene.mesh.error_estimate, solved.problem.here()) {
+    let error = match (scene.mesh.error_estimate.on(), solved.problem.here()) {
         (false, _) => None,
         (true, Some(d)) => {
             let view = crate::transfer::SpaceView::of(&d.mesh, &d.dofs, &d.system, &solved.modes, usize::MAX);

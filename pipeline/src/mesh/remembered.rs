@@ -1,0 +1,137 @@
+//! The mesh a `target_error` refinement chose for a geometry, kept beside the mesh cache: the
+//! next refinement of the same geometry at the same target, order and start starts from it
+//! instead of from the first size, whatever its supports, material, modes or loads (they change
+//! the error a little, and the refinement goes on from there when the target is not met).
+//!
+//! Key: the geometry file's bytes, unit, element order, `target_error`, `refinement`, the
+//! scene's `mesh.size` (the start), `max_dofs` and the space (the VOI's box and size), and the
+//! VES version. An entry is JSON; anything unreadable or implausible at its path is a miss.
+
+use super::cache;
+use super::field::SizeField;
+use crate::scene::{Scene, Voi};
+use std::io::Read;
+use std::path::PathBuf;
+
+/// What a refinement chose.
+#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct Chosen {
+    /// The uniform element size, m (the largest, with a size field).
+    pub size: f64,
+    /// The size field of a local refinement's last mesh.
+    pub field: Option<SizeField>,
+    /// Its free unknowns (with the supports of the run that chose it).
+    pub dofs: usize,
+    /// Its largest estimated error then.
+    pub estimated_error: f64,
+}
+
+/// Longest entry read (a size field of a million vertices is about 60 MB of JSON).
+const MAX_ENTRY: u64 = 256 << 20;
+
+/// Where the choice for `voi`'s space of `scene` lives; None with the cache off, without a
+/// target, for a `.geo` script (it may read other files) or an unreadable geometry.
+pub fn key(scene: &Scene, voi: Option<&Voi>) -> Option<PathBuf> {
+    let target = scene.mesh.target_error?;
+    let ext = scene.geometry.extension()?.to_str()?.to_ascii_lowercase();
+    if ext == "geo" {
+        return None;
+    }
+    let dir = cache::dir()?;
+    let geometry = crate::input::read(&scene.geometry).ok()?;
+    let shape = serde_json::to_string(&(
+        scene.unit,
+        scene.mesh.order,
+        target,
+        scene.mesh.refinement,
+        scene.mesh.size,
+        scene.mesh.max_dofs,
+        voi.map(|v| (v.bbox, v.size)),
+    ))
+    .ok()?;
+    let mut h = crate::fingerprint::Fingerprint::default();
+    h.field(b"chosen mesh")
+        .field(env!("CARGO_PKG_VERSION").as_bytes())
+        .field(shape.as_bytes())
+        .field(ext.as_bytes())
+        .field(&geometry);
+    Some(dir.join(format!("{:016x}.chosen", h.value())))
+}
+
+/// The choice stored under `key`, if a plausible one is there.
+pub fn lookup(key: &std::path::Path) -> Option<Chosen> {
+    let (file, size) = match cache::open_entry(key) {
+        Ok(Some(f)) => f,
+        Ok(None) => return None,
+        Err(why) => {
+            tracing::info!("{}: remembered refinement ignored ({why})", key.display());
+            return None;
+        }
+    };
+    if size > MAX_ENTRY {
+        return None;
+    }
+    let mut text = Vec::new();
+    file.take(size).read_to_end(&mut text).ok()?;
+    let c: Chosen = serde_json::from_slice(&text).ok()?;
+    let plausible = |x: f64| x.is_finite() && x > 0.0;
+    let field_ok = c.field.as_ref().is_none_or(|f| {
+        !f.points.is_empty()
+            && f.sizes.len() == f.points.len()
+            && f.sizes.iter().all(|&s| plausible(s))
+            && f.tets.iter().flatten().all(|&v| (v as usize) < f.points.len())
+    });
+    (plausible(c.size) && field_ok).then_some(c)
+}
+
+/// Stores `chosen` under `key`; a failure only costs the next run its refinement (logged).
+pub fn store(key: &std::path::Path, chosen: &Chosen) {
+    cache::write_atomically(key, |w| {
+        serde_json::to_writer(&mut *w, chosen).map_err(std::io::Error::other)
+    });
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A choice reads back as stored; an entry that is not one, or holds a size no mesh has,
+    /// is a miss.
+    #[test]
+    fn a_choice_reads_back_and_a_bad_entry_is_a_miss() {
+        let dir = std::env::temp_dir().join(format!("ves-remembered-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).expect("temp dir");
+        let key = dir.join("a.chosen");
+        let chosen = Chosen {
+            size: 0.0125,
+            field: None,
+            dofs: 32_787,
+            estimated_error: 0.0031,
+        };
+        store(&key, &chosen);
+        assert_eq!(lookup(&key), Some(chosen.clone()));
+        for bad in [
+            "{",
+            "{\"size\": -1.0, \"field\": null, \"dofs\": 3, \"estimated_error\": 0.1}",
+            "",
+        ] {
+            std::fs::write(&key, bad).expect("write");
+            assert_eq!(lookup(&key), None, "{bad}");
+        }
+        let field = SizeField {
+            points: vec![[0.0; 3]],
+            tets: vec![[0, 0, 0, 7]],
+            sizes: vec![0.01],
+        };
+        store(
+            &key,
+            &Chosen {
+                field: Some(field),
+                ..chosen
+            },
+        );
+        assert_eq!(lookup(&key), None, "a tet on a vertex the field does not have");
+        assert_eq!(lookup(&dir.join("absent.chosen")), None);
+        let _ = std::fs::remove_dir_all(&dir);
+    }
+}
