@@ -399,7 +399,15 @@ impl PartWorkshop {
             .stdout(std::process::Stdio::piped())
             .stderr(std::process::Stdio::piped());
         // Beside a live session: below every other process, and off the haptic thread's core.
-        ves_pipeline::os::start_idle(&mut command, &ves_runtime::realtime::compute_cores());
+        // With the threads of an unrestricted run all the same: the assembly's partition follows
+        // the thread count, and a rounding-level change can tip a target_error refinement, so
+        // that the saved scene's `ves precompute` would not reproduce the page's basis.
+        let cores = ves_runtime::realtime::compute_cores();
+        if !cores.is_empty() && std::env::var_os("RAYON_NUM_THREADS").is_none() {
+            let all = std::thread::available_parallelism().map_or(1, |n| n.get());
+            command.env("RAYON_NUM_THREADS", all.to_string());
+        }
+        ves_pipeline::os::start_idle(&mut command, &cores);
         let mut child = command.spawn().map_err(|error| WorkshopError::StartProcess {
             exe: exe.to_path_buf(),
             error,
