@@ -10,7 +10,7 @@ scene=${1:-cases/mould/scene.toml}
 cache=$(mktemp -d)
 trap 'rm -rf "$cache"' EXIT
 port=$(python3 -c 'import socket; s=socket.socket(); s.bind(("127.0.0.1", 0)); print(s.getsockname()[1])')
-XDG_CACHE_HOME=$cache target/release/ves view "$scene" --port "$port" --duration 900 --json > "$cache/server.out" &
+XDG_CACHE_HOME=$cache "${VES:-target/release/ves}" view "$scene" --port "$port" --duration 900 --json > "$cache/server.out" &
 server=$!
 sleep 1
 status=0

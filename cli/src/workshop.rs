@@ -395,6 +395,17 @@ fn describe(status: Option<std::process::ExitStatus>) -> String {
     }
 }
 
+/// Says once in the log when a compute process was refused SCHED_IDLE: it runs at nice 19
+/// then, the lowest weight of ordinary processes but not only in idle time.
+fn say_if_not_idle(pid: u32) {
+    static SAID: std::sync::Once = std::sync::Once::new();
+    if !ves_pipeline::os::is_idle(pid) {
+        SAID.call_once(|| {
+            tracing::warn!("the compute process was refused SCHED_IDLE: it runs at nice 19 instead");
+        });
+    }
+}
+
 /// Makes a basis and its XDMF sidecar (written beside it) readable by their owner only.
 fn seal_basis(out: &Path) -> std::io::Result<()> {
     let sidecar = out.with_extension("xdmf");
@@ -436,18 +447,29 @@ impl PartWorkshop {
         // serde_json's error as an io::Error keeps its message.
         let text = serde_json::to_string(job).map_err(|e| WorkshopError::Start(e.into()))?;
         ves_pipeline::workdir::write(&dir.join("job.json"), text.as_bytes()).map_err(WorkshopError::Start)?;
-        let mut child = std::process::Command::new(exe)
+        let mut command = std::process::Command::new(exe);
+        command
             .arg(COMPUTE_COMMAND)
             .arg(dir)
             .env("TMPDIR", dir)
             .stdin(std::process::Stdio::piped())
             .stdout(std::process::Stdio::piped())
-            .stderr(std::process::Stdio::piped())
-            .spawn()
-            .map_err(|error| WorkshopError::StartProcess {
-                exe: exe.to_path_buf(),
-                error,
-            })?;
+            .stderr(std::process::Stdio::piped());
+        // Beside a live session: below every other process, and off the haptic thread's core.
+        // With the threads of an unrestricted run all the same: the assembly's partition follows
+        // the thread count, and a rounding-level change can tip a target_error refinement, so
+        // that the saved scene's `ves precompute` would not reproduce the page's basis.
+        let cores = ves_runtime::realtime::compute_cores();
+        if !cores.is_empty() && std::env::var_os("RAYON_NUM_THREADS").is_none() {
+            let all = std::thread::available_parallelism().map_or(1, |n| n.get());
+            command.env("RAYON_NUM_THREADS", all.to_string());
+        }
+        ves_pipeline::os::start_idle(&mut command, &cores);
+        let mut child = command.spawn().map_err(|error| WorkshopError::StartProcess {
+            exe: exe.to_path_buf(),
+            error,
+        })?;
+        say_if_not_idle(child.id());
         let (tx, notes) = std::sync::mpsc::channel();
         let stdout = child.stdout.take();
         let reader = std::thread::spawn(move || {
@@ -588,7 +610,8 @@ pub fn serve_compute(dir: &Path) -> anyhow::Result<()> {
     let job: ComputeJob = ves_pipeline::workdir::child_job(dir, |j: &ComputeJob| j.parent)?;
     let file = dir.join("job.json");
     // Below the session in priority, the whole process (gmsh inherits it), as in-process
-    // computes' pool is.
+    // computes' pool is; started by a viewer, it is lower already (SCHED_IDLE or nice 19) and
+    // stays so.
     ves_pipeline::os::lower_process_priority();
     let say = |n: ChildNote| {
         if let Ok(line) = serde_json::to_string(&n) {

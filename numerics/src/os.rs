@@ -74,10 +74,66 @@ pub fn lower_thread_priority() {
     }
 }
 
-/// Lowers the scheduling priority (nice 10) of the whole process (its children inherit it).
+/// Lowers the scheduling priority of the whole process to nice 10 at least (its children
+/// inherit it): a process already lower (nice 19, or SCHED_IDLE, where nice does not count)
+/// stays as it is.
 pub fn lower_process_priority() {
-    // SAFETY: setpriority on this process, no memory involved.
-    unsafe { libc::setpriority(libc::PRIO_PROCESS, 0, 10) };
+    if is_idle(0) {
+        return;
+    }
+    // SAFETY: getpriority and setpriority on this process, no memory involved; errno is cleared
+    // first because -1 is also a valid nice value.
+    unsafe {
+        *libc::__errno_location() = 0;
+        let nice = libc::getpriority(libc::PRIO_PROCESS, 0);
+        if nice == -1 && *libc::__errno_location() != 0 || nice < 10 {
+            libc::setpriority(libc::PRIO_PROCESS, 0, 10);
+        }
+    }
+}
+
+/// Starts `command`'s process at the lowest priority from its first instruction: SCHED_IDLE
+/// (it gets a core only when nothing else wants it), or nice 19 where SCHED_IDLE is refused
+/// ([`is_idle`] on its id says which), and on `cores` only (empty: wherever its parent may run).
+/// Both are inherited by what it starts (gmsh's processes).
+pub fn start_idle(command: &mut std::process::Command, cores: &[usize]) {
+    use std::os::unix::process::CommandExt;
+    // The set is built here: the hook runs between fork and exec, where only async-signal-safe
+    // calls (system calls, no allocation) are allowed.
+    // SAFETY: a zeroed cpu_set_t is a valid empty set; CPU_SET writes within it (c is checked
+    // against its size).
+    let set = unsafe {
+        let mut set: libc::cpu_set_t = std::mem::zeroed();
+        for &c in cores.iter().filter(|&&c| c < libc::CPU_SETSIZE as usize) {
+            libc::CPU_SET(c, &mut set);
+        }
+        set
+    };
+    let pin = !cores.is_empty();
+    // SAFETY: the hook makes three system calls on the child itself (pid 0) with valid
+    // arguments; it allocates nothing and touches no lock.
+    unsafe {
+        command.pre_exec(move || {
+            if pin {
+                // Best effort: a refused set leaves the parent's cores.
+                libc::sched_setaffinity(0, std::mem::size_of::<libc::cpu_set_t>(), &set);
+            }
+            let param = libc::sched_param { sched_priority: 0 };
+            if libc::sched_setscheduler(0, libc::SCHED_IDLE, &param) != 0 {
+                libc::setpriority(libc::PRIO_PROCESS, 0, 19);
+            }
+            Ok(())
+        });
+    }
+}
+
+/// Whether process `pid` (0: the calling thread) runs under SCHED_IDLE.
+pub fn is_idle(pid: u32) -> bool {
+    let Ok(pid) = libc::pid_t::try_from(pid) else {
+        return false;
+    };
+    // SAFETY: sched_getscheduler only reads the policy of the process named.
+    unsafe { libc::sched_getscheduler(pid) == libc::SCHED_IDLE }
 }
 
 /// Makes a FIFO at `path` (mode 0600): the tests' stand-in for an input that would block a
@@ -90,4 +146,51 @@ pub fn make_fifo(path: &std::path::Path) -> std::io::Result<()> {
         return Err(std::io::Error::last_os_error());
     }
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The last core this thread may run on.
+    fn some_core() -> usize {
+        // SAFETY: a zeroed cpu_set_t is a valid empty set; sched_getaffinity fills it.
+        unsafe {
+            let mut set: libc::cpu_set_t = std::mem::zeroed();
+            assert_eq!(
+                libc::sched_getaffinity(0, std::mem::size_of::<libc::cpu_set_t>(), &mut set),
+                0
+            );
+            (0..libc::CPU_SETSIZE as usize)
+                .rev()
+                .find(|&c| libc::CPU_ISSET(c, &set))
+                .expect("a core")
+        }
+    }
+
+    /// A process started idle runs under SCHED_IDLE (or at nice 19 where refused) on the cores
+    /// given, and so do the processes it starts and theirs (a compute's gmsh processes).
+    #[test]
+    fn an_idle_child_and_its_descendants_are_idle_on_its_cores() {
+        let core = some_core();
+        // Each line: the allowed cores, then nice and policy (fields 19 and 41 of stat).
+        let show = "grep '^Cpus_allowed_list' /proc/self/status; cut -d' ' -f19,41 /proc/self/stat";
+        let mut command = std::process::Command::new("sh");
+        command.arg("-c").arg(format!("{show}; sh -c \"{show}\""));
+        start_idle(&mut command, &[core]);
+        let out = command.output().expect("sh runs");
+        let text = String::from_utf8_lossy(&out.stdout);
+        let lines: Vec<&str> = text.lines().collect();
+        assert_eq!(lines.len(), 4, "{text}");
+        for pair in lines.chunks(2) {
+            assert_eq!(
+                pair[0].split_whitespace().last(),
+                Some(core.to_string().as_str()),
+                "{text}"
+            );
+            // SCHED_IDLE is 5 (the nice value is the test's own); its fallback is nice 19
+            // under SCHED_OTHER (0).
+            assert!(pair[1].ends_with(" 5") || pair[1] == "19 0", "{text}");
+        }
+    }
 }

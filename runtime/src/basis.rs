@@ -18,6 +18,24 @@ pub struct LoadOptions {
     pub surface_only: bool,
 }
 
+/// The hand's contact patches as a basis holds them.
+#[derive(Clone, Debug)]
+pub enum Contact {
+    /// Each kept vertex's patch rows Σ wₐ φₐ, vertex-major f32 (`rows[3r·i + c·r + j]`): for
+    /// patches that reach beyond a vertex's surface neighbours (10-node tets, or a radius wider
+    /// than the elements), whose rows would need nodes the basis does not keep.
+    Rows(Vec<f32>),
+    /// The weight of each surface neighbour in the vertex's patch, aligned with
+    /// [`Basis::neighbours`], in units of 1/[`WEIGHT_UNIT`]; the vertex's own weight is the rest
+    /// to 1. The rows are summed from `phi` when a hand touches the vertex: kept for all, the
+    /// rows took as much memory as `phi` itself.
+    Weights(Vec<u16>),
+}
+
+/// The unit of [`Contact::Weights`]: a weight is held to ±0.5/65535 (its error moves a contact
+/// row by at most that times the difference between a neighbour's rows and the vertex's own).
+pub const WEIGHT_UNIT: f64 = 65535.0;
+
 /// A modal basis in memory.
 #[derive(Clone, Debug)]
 pub struct Basis {
@@ -55,10 +73,10 @@ pub struct Basis {
     pub compliance: Option<Vec<[[f64; 3]; 3]>>,
     /// The hand's contact patch radius, m (0: a point contact at the vertex).
     pub contact_radius: f64,
-    /// Per kept vertex, the modal rows the hand's force acts through and its displacement is
-    /// read with: the patch average Σ wₐ φₐ (`contact/` of the file), vertex-major f32,
-    /// `contact_rows[3r·i + c·r + j]`; `None`: each vertex's own rows (a point contact).
-    pub contact_rows: Option<Vec<f32>>,
+    /// Per kept vertex, what gives the modal rows the hand's force acts through and its
+    /// displacement is read with: the patch average Σ wₐ φₐ (`contact/` of the file); `None`:
+    /// each vertex's own rows (a point contact). See [`Basis::gather_contact_rows`].
+    pub contact: Option<Contact>,
     /// Bytes of basis data held in memory.
     pub bytes_loaded: usize,
     /// The volume of interest this space refines (min, max corners, m); `None` for "global".
@@ -161,7 +179,7 @@ impl Basis {
             rigid,
             compliance: None,
             contact_radius: 0.0,
-            contact_rows: None,
+            contact: None,
             bytes_loaded,
             voi: None,
             stress: None,
@@ -249,7 +267,7 @@ impl Basis {
         best
     }
 
-    /// Attaches the contact patches' modal rows (see [`Basis::contact_rows`]), checked finite.
+    /// Attaches the contact patches' modal rows (see [`Contact::Rows`]), checked finite.
     pub fn with_contact(mut self, radius: f64, rows: Vec<f32>) -> Result<Basis, LoadError> {
         let want = 3 * self.rest.len() * self.eigenvalues.len();
         if rows.len() != want || rows.iter().any(|v| !v.is_finite()) || !(radius.is_finite() && radius >= 0.0) {
@@ -263,18 +281,61 @@ impl Basis {
         }
         self.bytes_loaded += rows.len() * 4;
         self.contact_radius = radius;
-        self.contact_rows = Some(rows);
+        self.contact = Some(Contact::Rows(rows));
         Ok(self)
     }
 
-    /// The modal rows the hand acts through at kept vertex `i` (`out[c·r + j]`): its contact
-    /// patch's average, or the vertex's own rows for a point contact.
+    /// Attaches the contact patches as neighbour weights (see [`Contact::Weights`]), one per
+    /// entry of [`Basis::neighbours`], each vertex's summing to 1 at most.
+    pub fn with_contact_weights(mut self, radius: f64, weights: Vec<u16>) -> Result<Basis, LoadError> {
+        let over = (0..self.rest.len()).any(|i| {
+            let (lo, hi) = (self.neighbour_ptr[i] as usize, self.neighbour_ptr[i + 1] as usize);
+            weights
+                .get(lo..hi)
+                .is_some_and(|w| w.iter().map(|&q| f64::from(q)).sum::<f64>() > WEIGHT_UNIT + 0.5 * w.len() as f64)
+        });
+        if weights.len() != self.neighbours.len() || over || !(radius.is_finite() && radius >= 0.0) {
+            return Err(LoadError {
+                path: self.space.clone(),
+                message: format!(
+                    "contact patches: {} weights for {} neighbours, radius {radius}, or a patch over 1; the file is damaged",
+                    weights.len(),
+                    self.neighbours.len()
+                ),
+            });
+        }
+        self.bytes_loaded += weights.len() * 2;
+        self.contact_radius = radius;
+        self.contact = Some(Contact::Weights(weights));
+        Ok(self)
+    }
+
+    /// The modal rows the hand acts through at kept vertex `i` (`out[c·r + j]`, r = the mode
+    /// count): its contact patch's average, or the vertex's own rows for a point contact. With
+    /// [`Contact::Weights`] the rows are summed here, from the vertex's and its neighbours' rows
+    /// (3r values each): no allocation, bounded by the vertex's neighbour count.
     pub fn gather_contact_rows(&self, i: usize, out: &mut [f64]) {
-        match &self.contact_rows {
-            Some(rows) => {
+        match &self.contact {
+            Some(Contact::Rows(rows)) => {
                 let n = out.len();
                 for (o, v) in out.iter_mut().zip(&rows[n * i..n * (i + 1)]) {
                     *o = f64::from(*v);
+                }
+            }
+            Some(Contact::Weights(weights)) => {
+                let (lo, hi) = (self.neighbour_ptr[i] as usize, self.neighbour_ptr[i + 1] as usize);
+                let (neighbours, weights) = (&self.neighbours[lo..hi], &weights[lo..hi]);
+                let own = 1.0 - weights.iter().map(|&q| f64::from(q)).sum::<f64>() / WEIGHT_UNIT;
+                self.gather_rows(i, out);
+                out.iter_mut().for_each(|o| *o *= own);
+                let (m, r) = (3 * self.rest.len(), self.eigenvalues.len());
+                for (&k, &q) in neighbours.iter().zip(weights).filter(|(_, q)| **q != 0) {
+                    let w = f64::from(q) / WEIGHT_UNIT;
+                    for c in 0..3 {
+                        for j in 0..r {
+                            out[c * r + j] += w * f64::from(self.phi[j * m + 3 * k as usize + c]);
+                        }
+                    }
                 }
             }
             None => self.gather_rows(i, out),
@@ -299,11 +360,44 @@ impl Basis {
         if let Some(s) = &mut t.stress {
             s.truncate(r * 6 * n);
         }
-        // Vertex-major: keep the first r of each (vertex, component)'s `all` values.
-        if let Some(rows) = &mut t.contact_rows {
+        // Vertex-major: keep the first r of each (vertex, component)'s `all` values (weights
+        // do not depend on the modes).
+        if let Some(Contact::Rows(rows)) = &mut t.contact {
             *rows = rows.chunks_exact(all).flat_map(|c| &c[..r]).copied().collect();
         }
         t
+    }
+
+    /// The contact patches as neighbour weights ([`Contact::Weights`]), when every patch lies on
+    /// its vertex and the vertex's surface neighbours with weights in [0, 1] (4-node tets with a
+    /// radius within the elements); `None` otherwise. `slot[a]`: the kept vertex of node `a`
+    /// (`u32::MAX`: none); `patch(k)`: kept vertex k's patch, nodes and weights (`None`: a point
+    /// contact).
+    fn neighbour_weights<'a>(
+        &self,
+        slot: &[u32],
+        patch: impl Fn(usize) -> Option<(&'a [u32], &'a [f64])>,
+    ) -> Option<Vec<u16>> {
+        let mut q = vec![0u16; self.neighbours.len()];
+        for k in 0..self.rest.len() {
+            let Some((nodes, weights)) = patch(k) else {
+                continue;
+            };
+            let lo = self.neighbour_ptr[k] as usize;
+            let around = &self.neighbours[lo..self.neighbour_ptr[k + 1] as usize];
+            for (&a, &w) in nodes.iter().zip(weights) {
+                let ka = *slot.get(a as usize)?;
+                if !(0.0..=1.0).contains(&w) {
+                    return None;
+                }
+                if ka as usize != k {
+                    // Neighbours are sorted (surface_neighbours).
+                    let e = around.binary_search(&ka).ok()?;
+                    q[lo + e] = (w * WEIGHT_UNIT).round() as u16;
+                }
+            }
+        }
+        Some(q)
     }
 
     /// Kept vertices.
@@ -525,9 +619,10 @@ mod file {
         }
     }
 
-    /// Attaches the contact rows Σ wₐ φₐ of each kept vertex's patch (its own rows when it has
-    /// none). `rows`: the file's corner-vertex rows, `rows[(3v + c)·r + j]`; mid-edge nodes in a
-    /// patch are read here.
+    /// Attaches each kept vertex's patch (its own rows when it has none): as neighbour weights
+    /// where every patch lies on its vertex's surface neighbours, else as the rows Σ wₐ φₐ.
+    /// `rows`: the file's corner-vertex rows, `rows[(3v + c)·r + j]`; mid-edge nodes in a patch
+    /// are read here.
     fn with_contact_rows(
         basis: Basis,
         s: &ves_format::SpaceReader<'_>,
@@ -538,6 +633,13 @@ mod file {
     ) -> Result<Basis, LoadError> {
         let nv = rows.len() / (3 * r);
         let kept_centre = |v: u32| contact.centres.binary_search(&v).ok();
+        let mut slot = vec![u32::MAX; nv];
+        for (k, &v) in keep.iter().enumerate() {
+            slot[v as usize] = k as u32;
+        }
+        if let Some(w) = basis.neighbour_weights(&slot, |k| kept_centre(keep[k]).map(|c| contact.patch(c))) {
+            return basis.with_contact_weights(contact.radius, w);
+        }
         let mut extra: Vec<u32> = keep
             .iter()
             .filter_map(|&v| kept_centre(v))
@@ -568,7 +670,7 @@ mod file {
                 }
                 None => acc.copy_from_slice(row(v)),
             }
-            // File rows are (3v + c)·r + j: the same layout as `contact_rows`.
+            // File rows are (3v + c)·r + j: the same layout as `Contact::Rows`.
             for (o, x) in out[3 * r * k..3 * r * (k + 1)].iter_mut().zip(&acc) {
                 *o = *x as f32;
             }
@@ -579,3 +681,95 @@ mod file {
 
 #[cfg(feature = "hdf5")]
 pub use file::{load, load_space};
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The 3×3 grid with three modes of assorted values.
+    fn grid_with_modes() -> (Basis, Vec<f64>) {
+        let g = stretch_grid(1.0, 1.0, 0.0);
+        let n = g.rest.len();
+        let rows: Vec<f64> = (0..3 * n * 3).map(|k| ((k * 37 % 101) as f64 - 50.0) * 1e-3).collect();
+        let b = Basis::new(
+            "grid",
+            "global",
+            g.rest,
+            g.node_index,
+            g.triangles,
+            vec![1.0, 2.0, 3.0],
+            &rows,
+            (0.0, 0.0),
+            None,
+        )
+        .expect("grid basis");
+        (b, rows)
+    }
+
+    /// Neighbour weights give the patch rows Σ wₐ φₐ that rows kept for every vertex gave, to
+    /// the weights' rounding; a patch reaching past the neighbours keeps the rows.
+    #[test]
+    fn neighbour_weights_give_the_patch_rows() {
+        let (b, rows) = grid_with_modes();
+        let (n, r) = (b.rest.len(), 3);
+        // Each vertex's patch: 0.4 on itself, the rest shared by its neighbours unevenly; vertex
+        // 8 is a point contact.
+        let patches: Vec<(Vec<u32>, Vec<f64>)> = (0..n)
+            .map(|i| {
+                let around = &b.neighbours[b.neighbour_ptr[i] as usize..b.neighbour_ptr[i + 1] as usize];
+                let total: f64 = (1..=around.len()).map(|e| e as f64).sum();
+                let mut nodes = vec![i as u32];
+                let mut weights = vec![0.4];
+                for (e, &k) in around.iter().enumerate() {
+                    nodes.push(k);
+                    weights.push(0.6 * (e + 1) as f64 / total);
+                }
+                (nodes, weights)
+            })
+            .collect();
+        let slot: Vec<u32> = (0..n as u32).collect();
+        let patch = |k: usize| (k != 8).then(|| (patches[k].0.as_slice(), patches[k].1.as_slice()));
+        let weights = b.neighbour_weights(&slot, patch).expect("patches on neighbours");
+        let lazy = b.clone().with_contact_weights(0.005, weights).expect("weights");
+        let mut got = vec![0.0; 3 * r];
+        for i in 0..n {
+            let mut want = vec![0.0; 3 * r];
+            match patch(i) {
+                Some((nodes, ws)) => {
+                    for (&a, &w) in nodes.iter().zip(ws) {
+                        for (x, y) in want.iter_mut().zip(&rows[3 * r * a as usize..3 * r * (a as usize + 1)]) {
+                            *x += w * y;
+                        }
+                    }
+                }
+                None => want.copy_from_slice(&rows[3 * r * i..3 * r * (i + 1)]),
+            }
+            lazy.gather_contact_rows(i, &mut got);
+            for (e, (g, w)) in got.iter().zip(&want).enumerate() {
+                // The weights' rounding (0.5/65535 each, times a neighbour's difference from the
+                // vertex) and phi's f32.
+                let own = rows[3 * r * i + e];
+                let rounding: f64 = patch(i).map_or(0.0, |(nodes, _)| {
+                    nodes
+                        .iter()
+                        .map(|&a| 0.5 / WEIGHT_UNIT * (rows[3 * r * a as usize + e] - own).abs())
+                        .sum()
+                });
+                assert!(
+                    (g - w).abs() <= rounding + 1e-7 * 0.05,
+                    "vertex {i}: {got:?} against {want:?}"
+                );
+            }
+        }
+        // Vertex 0's patch reaching vertex 8 (not its neighbour): no weights.
+        let far = (vec![0u32, 8], vec![0.5, 0.5]);
+        let reaching = |k: usize| {
+            Some(if k == 0 {
+                (far.0.as_slice(), far.1.as_slice())
+            } else {
+                (patches[k].0.as_slice(), patches[k].1.as_slice())
+            })
+        };
+        assert!(b.neighbour_weights(&slot, reaching).is_none());
+    }
+}

@@ -73,6 +73,36 @@ fn step_ns(basis: Arc<Basis>, batches: usize, per_batch: usize, press: bool) -> 
     samples
 }
 
+/// Median and 99th percentile of the time of gathering a vertex's contact rows (what a hand
+/// touching a new vertex costs the haptic step once), ns: over the surface vertices, visited in
+/// a scattered order so that their rows are not already in the cache.
+pub fn contact_rows_ns(basis: &Basis) -> (f64, f64) {
+    let s = &basis.surface_vertices;
+    if s.is_empty() {
+        return (f64::NAN, f64::NAN);
+    }
+    let mut rows = vec![0.0; 3 * basis.mode_count()];
+    // A stride prime to the count visits every vertex once, far from the one before.
+    let stride = (7919..).find(|p| gcd(*p, s.len()) == 1).unwrap_or(1);
+    let samples: Vec<f64> = (0..s.len())
+        .map(|k| {
+            let v = s[k * stride % s.len()] as usize;
+            let t = Instant::now();
+            basis.gather_contact_rows(v, &mut rows);
+            std::hint::black_box(&rows);
+            t.elapsed().as_nanos() as f64
+        })
+        .collect();
+    let mut sorted = samples;
+    sorted.sort_by(f64::total_cmp);
+    let p99 = sorted[(sorted.len() * 99 / 100).min(sorted.len() - 1)];
+    (median(sorted), p99)
+}
+
+fn gcd(a: usize, b: usize) -> usize {
+    if b == 0 { a } else { gcd(b, a % b) }
+}
+
 /// A modal state to time the full-field updates with.
 fn some_state(basis: &Basis) -> Vec<f64> {
     (0..basis.mode_count()).map(|j| 1e-4 / (1.0 + j as f64)).collect()

@@ -15,6 +15,21 @@ pub fn allowed_cores() -> Vec<usize> {
     }
 }
 
+/// The cores this process's main thread may run on (empty if unknown): what the process was
+/// given, whichever thread asks (the haptic thread narrows its own).
+pub fn process_cores() -> Vec<usize> {
+    // SAFETY: as in allowed_cores; getpid names this process (its main thread).
+    unsafe {
+        let mut set: libc::cpu_set_t = std::mem::zeroed();
+        if libc::sched_getaffinity(libc::getpid(), std::mem::size_of::<libc::cpu_set_t>(), &mut set) != 0 {
+            return Vec::new();
+        }
+        (0..libc::CPU_SETSIZE as usize)
+            .filter(|&c| libc::CPU_ISSET(c, &set))
+            .collect()
+    }
+}
+
 /// Lets the calling thread run on `cores` only.
 pub fn set_cores(cores: &[usize]) -> std::io::Result<()> {
     // SAFETY: the set is initialised before use; 0 = the calling thread.

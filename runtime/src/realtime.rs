@@ -63,6 +63,18 @@ pub fn haptic_core() -> Option<usize> {
     (c.len() >= 2).then(|| c[c.len() - 1])
 }
 
+/// The cores a compute beside a session may use: the process's, but [`haptic_core`] when there
+/// are at least two (empty: no restriction). A compute on the haptic core can delay the haptic
+/// thread's wake-ups even under SCHED_FIFO (kernel work done for it, such as page faults or
+/// freeing its buffers, is not always preempted at once), and it shares the core's caches.
+pub fn compute_cores() -> Vec<usize> {
+    let c = crate::os::process_cores();
+    match c.split_last() {
+        Some((_, others)) if !others.is_empty() => others.to_vec(),
+        _ => Vec::new(),
+    }
+}
+
 /// Called from the haptic thread before its loop: FIFO, memory lock, pin to `core`.
 pub fn haptic_thread(core: Option<usize>) -> Realtime {
     let mut r = Realtime {
@@ -124,6 +136,8 @@ mod tests {
             if let Some(c) = r.haptic_core {
                 assert_eq!(allowed_cores(), [c], "pinned: {r:?}");
             }
+            let others = compute_cores();
+            assert!(r.haptic_core.is_none_or(|c| !others.contains(&c)), "{others:?}, {r:?}");
             restore(&r);
             assert!(!crate::os::is_fifo(), "{r:?}");
             assert_eq!(allowed_cores(), r.original_cores, "affinity restored");

@@ -44,8 +44,10 @@ fn allocations() -> u64 {
     ALLOCATIONS.with(Cell::get)
 }
 
-/// A flat 5 × 5 grid (1 cm spacing) with 3 bending-like modes and mass properties.
-fn grid() -> Arc<Basis> {
+/// A flat 5 × 5 grid (1 cm spacing) with 3 bending-like modes and mass properties; with
+/// `patches`, each vertex's contact patch shares half its weight among its neighbours (the rows
+/// are then summed when a hand touches a vertex).
+fn grid(patches: bool) -> Arc<Basis> {
     let n = 5u32;
     let rest: Vec<[f64; 3]> = (0..n * n)
         .map(|i| [0.01 * f64::from(i % n), 0.01 * f64::from(i / n), 0.0])
@@ -89,18 +91,35 @@ fn grid() -> Arc<Basis> {
     .with_stress(&stress)
     .expect("stress");
     basis.yield_strength = Some(10.0);
+    if patches {
+        let weights = (0..basis.vertex_count())
+            .flat_map(|i| {
+                let count = basis.neighbour_ptr[i + 1] - basis.neighbour_ptr[i];
+                (0..count).map(move |_| (0.5 * ves_runtime::basis::WEIGHT_UNIT / f64::from(count)) as u16)
+            })
+            .collect();
+        basis = basis.with_contact_weights(0.005, weights).expect("patches");
+    }
     Arc::new(basis)
 }
 
 #[test]
 fn haptic_steps_allocate_nothing() {
-    for (free, policy) in [
-        (false, StrainPolicy::Flag),
-        (false, StrainPolicy::Stiffen),
-        (false, StrainPolicy::Release),
-        (true, StrainPolicy::Stiffen),
+    for (free, policy, patches) in [
+        (false, StrainPolicy::Flag, false),
+        (false, StrainPolicy::Stiffen, false),
+        (false, StrainPolicy::Release, false),
+        (true, StrainPolicy::Stiffen, false),
+        (false, StrainPolicy::Flag, true),
+        (true, StrainPolicy::Stiffen, true),
     ] {
-        let mut h = Haptics::new(grid(), Coupling::critically_damped(500.0, 10.0), 1e-3, Scheme::Exact, 2);
+        let mut h = Haptics::new(
+            grid(patches),
+            Coupling::critically_damped(500.0, 10.0),
+            1e-3,
+            Scheme::Exact,
+            2,
+        );
         if free {
             h.set_free_body([0.0, 0.0, -9.81], 1.0).expect("free body");
         }
@@ -134,7 +153,7 @@ fn haptic_steps_allocate_nothing() {
         assert_eq!(
             allocations() - before,
             0,
-            "free body {free}, {policy:?}: the step allocated"
+            "free body {free}, {policy:?}, patches {patches}: the step allocated"
         );
         assert!(out.iter().all(|o| o.force.iter().all(|f| f.is_finite())));
         assert!(stressed, "the stress watch ran and tripped");

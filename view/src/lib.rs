@@ -99,6 +99,8 @@ pub struct SessionTiming {
     pub period_error_us_p999: f64,
     /// Largest period error, µs.
     pub period_error_us_max: f64,
+    /// Periods (wake-up to wake-up) longer than 1.1 ms.
+    pub periods_over_1_1_ms: u64,
 }
 
 /// The viewer could not start, or could not move its session to a new basis.
@@ -459,6 +461,7 @@ fn end_session(shared: &Shared) -> Result<(), ViewError> {
                 missed_deadlines: stats.missed_deadlines,
                 period_error_us_p999: stats.period_error_us_p999,
                 period_error_us_max: stats.period_error_us_max,
+                periods_over_1_1_ms: stats.periods_over_1_1_ms,
             });
         }
         if let Ok(mut s) = shared.last_stats.lock() {

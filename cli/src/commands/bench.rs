@@ -32,6 +32,9 @@ impl Args {
             let b = Arc::new(b);
             let ns = bench::haptic_step_ns(b.clone(), 201, 2000);
             report.insert(format!("haptic_step_ns_median_r{r}"), ns.into());
+            let (median, p99) = bench::contact_rows_ns(&b);
+            report.insert(format!("contact_rows_ns_median_r{r}"), median.into());
+            report.insert(format!("contact_rows_ns_p99_r{r}"), p99.into());
             let ns = bench::haptic_press_step_ns(b, 201, 2000);
             report.insert(format!("haptic_press_step_ns_median_r{r}"), ns.into());
         }

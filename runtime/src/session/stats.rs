@@ -25,6 +25,8 @@ pub struct SessionStats {
     pub period_error_us_max: f64,
     /// Steps that finished after the next deadline.
     pub missed_deadlines: u64,
+    /// Periods (wake-up to wake-up) longer than 1.1 ms.
+    pub periods_over_1_1_ms: u64,
     /// Full-field updates done.
     pub visual_updates: u64,
     /// Full-field updates per second.
@@ -238,6 +240,7 @@ pub(super) struct LoopTimings {
     pub period_error_ns: Timings,
     pub compute_ns: Timings,
     pub missed: u64,
+    pub long_periods: u64,
     pub steps: u64,
     pub wall_s: f64,
 }
@@ -249,6 +252,7 @@ impl LoopTimings {
             period_error_ns: Timings::new()?,
             compute_ns: Timings::new()?,
             missed: 0,
+            long_periods: 0,
             steps: 0,
             wall_s: 0.0,
         })
@@ -294,6 +298,7 @@ impl SessionStats {
             period_error_us_p999: t.period_error_ns.quantile(0.999) as f64 / 1e3,
             period_error_us_max: t.period_error_ns.max() as f64 / 1e3,
             missed_deadlines: t.missed,
+            periods_over_1_1_ms: t.long_periods,
             visual_updates: updates,
             visual_rate_hz: updates as f64 / d.wall_s.max(1e-9),
             peak_force_n: h.tally.peak_force,
