@@ -395,17 +395,6 @@ fn describe(status: Option<std::process::ExitStatus>) -> String {
     }
 }
 
-/// Says once in the log when a compute process was refused SCHED_IDLE: it runs at nice 19
-/// then, the lowest weight of ordinary processes but not only in idle time.
-fn say_if_not_idle(pid: u32) {
-    static SAID: std::sync::Once = std::sync::Once::new();
-    if !ves_pipeline::os::is_idle(pid) {
-        SAID.call_once(|| {
-            tracing::warn!("the compute process was refused SCHED_IDLE: it runs at nice 19 instead");
-        });
-    }
-}
-
 /// Makes a basis and its XDMF sidecar (written beside it) readable by their owner only.
 fn seal_basis(out: &Path) -> std::io::Result<()> {
     let sidecar = out.with_extension("xdmf");
@@ -469,7 +458,6 @@ impl PartWorkshop {
             exe: exe.to_path_buf(),
             error,
         })?;
-        say_if_not_idle(child.id());
         let (tx, notes) = std::sync::mpsc::channel();
         let stdout = child.stdout.take();
         let reader = std::thread::spawn(move || {
@@ -610,7 +598,7 @@ pub fn serve_compute(dir: &Path) -> anyhow::Result<()> {
     let job: ComputeJob = ves_pipeline::workdir::child_job(dir, |j: &ComputeJob| j.parent)?;
     let file = dir.join("job.json");
     // Below the session in priority, the whole process (gmsh inherits it), as in-process
-    // computes' pool is; started by a viewer, it is lower already (SCHED_IDLE or nice 19) and
+    // computes' pool is; started by a viewer, it is lower already (nice 19) and
     // stays so.
     ves_pipeline::os::lower_process_priority();
     let say = |n: ChildNote| {

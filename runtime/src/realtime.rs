@@ -63,17 +63,23 @@ pub fn haptic_core() -> Option<usize> {
     (c.len() >= 2).then(|| c[c.len() - 1])
 }
 
-/// The cores a compute beside a session may use: the process's, but [`haptic_core`] when there
-/// are at least two (empty: no restriction). A compute on the haptic core can delay the haptic
+/// The cores a compute beside a session may use: the process's, but [`haptic_core`] when
+/// [`MIN_COMPUTE_CORES`] others are left (empty: no restriction). A compute on the haptic core can delay the haptic
 /// thread's wake-ups even under SCHED_FIFO (kernel work done for it, such as page faults or
 /// freeing its buffers, is not always preempted at once), and it shares the core's caches.
 pub fn compute_cores() -> Vec<usize> {
     let c = crate::os::process_cores();
     match c.split_last() {
-        Some((_, others)) if !others.is_empty() => others.to_vec(),
+        // With fewer than three cores left the compute would lose too much: on the 2-core VM
+        // a page's compute on one core took twice as long to a pullable part. There the
+        // haptic thread's SCHED_FIFO is what keeps it first.
+        Some((_, others)) if others.len() >= MIN_COMPUTE_CORES => others.to_vec(),
         _ => Vec::new(),
     }
 }
+
+/// A compute is kept off the haptic core only when this many cores are left to it.
+pub const MIN_COMPUTE_CORES: usize = 3;
 
 /// Called from the haptic thread before its loop: FIFO, memory lock, pin to `core`.
 pub fn haptic_thread(core: Option<usize>) -> Realtime {
