@@ -453,7 +453,7 @@ impl PartWorkshop {
             let all = std::thread::available_parallelism().map_or(1, |n| n.get());
             command.env("RAYON_NUM_THREADS", all.to_string());
         }
-        ves_pipeline::os::start_idle(&mut command, &cores);
+        ves_pipeline::os::start_lowest(&mut command, &cores);
         let mut child = command.spawn().map_err(|error| WorkshopError::StartProcess {
             exe: exe.to_path_buf(),
             error,

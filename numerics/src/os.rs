@@ -98,7 +98,7 @@ pub fn lower_process_priority() {
 /// under it took 128 s to a pullable part instead of 17–38 s, and with two busy loops at nice −8
 /// (a browser's GPU process) it did not finish in 300 s; the haptic thread, under SCHED_FIFO,
 /// preempts a nice-19 process as it would an idle one.
-pub fn start_idle(command: &mut std::process::Command, cores: &[usize]) {
+pub fn start_lowest(command: &mut std::process::Command, cores: &[usize]) {
     use std::os::unix::process::CommandExt;
     // The set is built here: the hook runs between fork and exec, where only async-signal-safe
     // calls (system calls, no allocation) are allowed.
@@ -167,16 +167,16 @@ mod tests {
         }
     }
 
-    /// A process started idle runs at nice 19 on the cores given, and so do the processes it
+    /// A process started lowest runs at nice 19 on the cores given, and so do the processes it
     /// starts and theirs (a compute's gmsh processes).
     #[test]
-    fn an_idle_child_and_its_descendants_are_idle_on_its_cores() {
+    fn a_child_started_lowest_and_its_descendants_run_at_nice_19_on_its_cores() {
         let core = some_core();
         // Each line: the allowed cores, then nice and policy (fields 19 and 41 of stat).
         let show = "grep '^Cpus_allowed_list' /proc/self/status; cut -d' ' -f19,41 /proc/self/stat";
         let mut command = std::process::Command::new("sh");
         command.arg("-c").arg(format!("{show}; sh -c \"{show}\""));
-        start_idle(&mut command, &[core]);
+        start_lowest(&mut command, &[core]);
         let out = command.output().expect("sh runs");
         let text = String::from_utf8_lossy(&out.stdout);
         let lines: Vec<&str> = text.lines().collect();

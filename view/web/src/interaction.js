@@ -46,6 +46,21 @@ function nearestCorner(s, hit) {
   return vertex;
 }
 
+/** The largest (`sign` > 0) or smallest rest coordinate `k` over the vertices of CAD face `tag`
+ * of space `s`. @param {any} s @param {number} tag @param {number} k @param {number} sign */
+function outermost(s, tag, k, sign) {
+  const index = s.geom.index;
+  let best = sign > 0 ? -Infinity : Infinity;
+  for (let t = 0; t < s.faces.length; t++) {
+    if (s.faces[t] !== tag) continue;
+    for (let c = 0; c < 3; c++) {
+      const x = s.rest[3 * index.getX(3 * t + c) + k];
+      best = sign > 0 ? Math.max(best, x) : Math.min(best, x);
+    }
+  }
+  return Number.isFinite(best) ? best : null;
+}
+
 /** The vertex under the pointer (the nearest corner of the hit triangle), or null. */
 function pick(ev) {
   const s = state.spaces[state.active];
@@ -186,9 +201,15 @@ canvas.addEventListener('pointerdown', (ev) => {
     ev.stopImmediatePropagation();
     const done = picking;
     picking = null;
-    // The part frame's point: the rest position of the hit triangle's nearest corner.
+    // The part frame's point: the rest position of the hit triangle's nearest corner; and the
+    // CAD face hit, whose outermost point a plane pick snaps to.
     const v = nearestCorner(s, hit);
-    done({ point: new THREE.Vector3(s.rest[3 * v], s.rest[3 * v + 1], s.rest[3 * v + 2]), normal: hit.face.normal.clone() });
+    const tag = s.faces && state.active === 0 ? s.faces[hit.faceIndex] : null;
+    done({
+      point: new THREE.Vector3(s.rest[3 * v], s.rest[3 * v + 1], s.rest[3 * v + 2]),
+      normal: hit.face.normal.clone(),
+      outermost: (k, sign) => (tag == null ? null : outermost(s, tag, k, sign)),
+    });
     return;
   }
   // No hand while a static load case is shown (the drag orbits): its drawing is not the live part.

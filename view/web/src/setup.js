@@ -3,6 +3,7 @@
 // the basis is ready the live session moves to it and the page redraws the new mesh.
 import { $, el } from './dom.js';
 import { plain } from './units.js';
+import { state } from './state.js';
 
 const MM = 1e-3;
 // A preset is the material when its constants match to the fields' rounding.
@@ -118,12 +119,19 @@ export function setupPanel(send, pick, faceMode) {
   $('addplane').onclick = () => { (scene.fixed ||= []).push({ plane: { axis: 'x', value: 0 } }); drawSupports(); };
   $('pickplane').onclick = () => {
     $('setuperror').textContent = 'click a flat face of the part: the plane through it is held';
-    pick(({ point, normal }) => {
-      // The axis the face faces most; the plane through the clicked point along it.
-      const n = [normal.x, normal.y, normal.z].map(Math.abs);
+    pick(({ point, normal, outermost }) => {
+      // The axis the face faces most; the plane through the clicked point along it, or through
+      // the CAD face's outermost point when that is near: a face slightly domed (a corpus
+      // block's end bulges by 0.5 mm) or a click near a hole's rim would otherwise put the plane
+      // through whichever vertex is nearest, holding a ring of nodes instead of the face.
+      const m = [normal.x, normal.y, normal.z];
+      const n = m.map(Math.abs);
       const k = n.indexOf(Math.max(...n));
       const axis = 'xyz'[k];
-      (scene.fixed ||= []).push({ plane: { axis, value: [point.x, point.y, point.z][k] } });
+      let value = [point.x, point.y, point.z][k];
+      const out = outermost(k, Math.sign(m[k]));
+      if (out !== null && Math.abs(out - value) <= 0.05 * state.diag) value = out;
+      (scene.fixed ||= []).push({ plane: { axis, value } });
       $('setuperror').textContent = n[k] < 0.99 ? `that face is not square to ${axis}: the plane ${axis} = … through the point holds only what lies on it` : '';
       drawSupports();
     });
