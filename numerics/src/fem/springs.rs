@@ -78,45 +78,11 @@ pub fn face_springs(
     k: f64,
     projector: impl Fn([f64; 3], [f64; 3]) -> [[f64; 3]; 3],
 ) -> Vec<NodeSpring> {
-    let mids = if mesh.kind == Kind::Tet10 {
-        mid_nodes(mesh)
-    } else {
-        HashMap::new()
-    };
-    let mut sum: HashMap<(u32, u32), [[f64; 3]; 3]> = HashMap::new();
-    for &t in triangles {
-        let (n, c, area) = triangle_frame(mesh, t);
+    springs_of(mesh, triangles, k, |t| {
+        let (n, c, _) = triangle_frame(mesh, t);
         let p = projector(n, c);
-        let [v0, v1, v2] = mesh.surface[t];
-        let mid = |a: u32, b: u32| mids.get(&(a.min(b), a.max(b))).copied();
-        let (nodes, weights): (Vec<u32>, Vec<Vec<f64>>) = match (mid(v0, v1), mid(v1, v2), mid(v2, v0)) {
-            (Some(m01), Some(m12), Some(m20)) => {
-                (vec![v0, v1, v2, m01, m12, m20], T6.iter().map(|r| r.to_vec()).collect())
-            }
-            _ => (vec![v0, v1, v2], T3.iter().map(|r| r.to_vec()).collect()),
-        };
-        for (i, &a) in nodes.iter().enumerate() {
-            for (j, &b) in nodes.iter().enumerate() {
-                if a < b {
-                    continue;
-                }
-                let w = k * area * weights[i][j];
-                let block = sum.entry((a, b)).or_insert([[0.0; 3]; 3]);
-                for r in 0..3 {
-                    for s in 0..3 {
-                        block[r][s] += w * p[r][s];
-                    }
-                }
-            }
-        }
-    }
-    let mut out: Vec<NodeSpring> = sum
-        .into_iter()
-        .map(|((a, b), block)| NodeSpring { a, b, block })
-        .collect();
-    // A fixed order: the assembly's sums must not depend on a hash map's.
-    out.sort_by_key(|s| (s.b, s.a));
-    out
+        move |_: u32, _: u32| p
+    })
 }
 
 /// The springs of `triangles` holding each node along its own unit direction `dir(node)`
@@ -125,22 +91,40 @@ pub fn face_springs(
 /// face sliding along a curved surface) stretches no spring at all — a direction per triangle
 /// would, on a faceted surface.
 pub fn face_springs_along(mesh: &Mesh, triangles: &[usize], k: f64, dir: impl Fn(u32) -> [f64; 3]) -> Vec<NodeSpring> {
+    springs_of(mesh, triangles, k, |_| {
+        let dir = &dir;
+        move |a: u32, b: u32| {
+            let (da, db) = (dir(a), dir(b));
+            std::array::from_fn(|r| std::array::from_fn(|c| da[r] * db[c]))
+        }
+    })
+}
+
+/// k·A·∫NₐN_b dA/A · `direction(t)(a, b)` summed over `triangles` for every node pair (a ≥ b)
+/// of each: the one assembly of both kinds of spring.
+fn springs_of<F: Fn(u32, u32) -> [[f64; 3]; 3]>(
+    mesh: &Mesh,
+    triangles: &[usize],
+    k: f64,
+    direction: impl Fn(usize) -> F,
+) -> Vec<NodeSpring> {
     let mids = mid_nodes(mesh);
     let mut sum: HashMap<(u32, u32), [[f64; 3]; 3]> = HashMap::new();
     for &t in triangles {
         let (_, _, area) = triangle_frame(mesh, t);
         let (nodes, weights) = triangle_nodes(&mids, mesh.surface[t]);
+        let along = direction(t);
         for (i, &a) in nodes.iter().enumerate() {
             for (j, &b) in nodes.iter().enumerate() {
                 if a < b {
                     continue;
                 }
                 let w = k * area * weights[i][j];
-                let (da, db) = (dir(a), dir(b));
+                let p = along(a, b);
                 let block = sum.entry((a, b)).or_insert([[0.0; 3]; 3]);
                 for r in 0..3 {
                     for c in 0..3 {
-                        block[r][c] += w * da[r] * db[c];
+                        block[r][c] += w * p[r][c];
                     }
                 }
             }

@@ -356,21 +356,29 @@ fn shifted_spectrum(
     Ok((spectrum, sigma))
 }
 
+/// Refuses a spectrum (ascending) whose first elastic value is not clearly above its `rigid`
+/// rigid ones (1000× the largest of them, and positive).
+fn rigid_apart(vals: &[f64], rigid: usize) -> Result<(), ModesError> {
+    if rigid == 0 {
+        return Ok(());
+    }
+    let rigid_max = vals[..rigid].iter().fold(0.0f64, |a, v| a.max(v.abs()));
+    let first_elastic = vals[rigid];
+    if first_elastic.is_nan() || first_elastic <= 1e3 * rigid_max || first_elastic <= 0.0 {
+        return Err(ModesError::RigidSeparation {
+            rigid,
+            values: vals[..(rigid + 2).min(vals.len())].to_vec(),
+        });
+    }
+    Ok(())
+}
+
 /// The elastic eigenvalues and vectors (the rigid modes' vectors dropped in place: no second
 /// copy of the basis), once the rigid ones are clearly apart from the first elastic one and
 /// every elastic pair is finite and positive.
 fn drop_rigid(spectrum: &mut Spectrum, rigid: usize, n: usize) -> Result<(Vec<f64>, Vec<f64>), ModesError> {
     let vals = &spectrum.values;
-    if rigid > 0 {
-        let rigid_max = vals[..rigid].iter().fold(0.0f64, |a, v| a.max(v.abs()));
-        let first_elastic = vals[rigid];
-        if first_elastic.is_nan() || first_elastic <= 1e3 * rigid_max || first_elastic <= 0.0 {
-            return Err(ModesError::RigidSeparation {
-                rigid,
-                values: vals[..(rigid + 2).min(vals.len())].to_vec(),
-            });
-        }
-    }
+    rigid_apart(vals, rigid)?;
     let eigenvalues: Vec<f64> = vals[rigid..].to_vec();
     let mut vectors = std::mem::take(&mut spectrum.vectors);
     vectors.drain(..rigid * n);

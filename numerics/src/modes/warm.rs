@@ -15,7 +15,7 @@
 //! never below the converged ones.
 
 use super::dense::self_adjoint_eigen_qr;
-use super::{EigenProblem, Modes, ModesError, Space, check, eigenpairs_wanted, factor_shifted};
+use super::{EigenProblem, Modes, ModesError, Space, check, eigenpairs_wanted, factor_shifted, rigid_apart};
 use crate::linsolve::{Cholesky, nested_dissection, sym_matmul};
 use crate::tall;
 use faer::{Accum, Mat, MatRef};
@@ -72,6 +72,15 @@ pub fn warm_start(space: Space<'_>, count: usize, start: &[f64], blocks: usize) 
             start.len()
         )));
     }
+    // The space at its largest (the start's width comes from a file): the basis with its M and
+    // K images and one block in flight, asked for before anything is made.
+    let width = start.len() / n.max(1) + 6 + guard;
+    let columns = 6 + width * (1 + blocks);
+    crate::memory::ensure_fits(
+        "the instant modes' search space",
+        8 * (n * (3 * columns + 2 * width)) as u64,
+    )
+    .map_err(crate::linsolve::FactorError::from)?;
     let rigid_motions = rigid_columns(space);
     let sigma = shift(&problem, rigid, start, n);
     let ordering = nested_dissection(&space.system.graph, space.dofs);
@@ -135,15 +144,7 @@ pub fn warm_start(space: Space<'_>, count: usize, start: &[f64], blocks: usize) 
             values.len()
         )));
     }
-    if rigid > 0 {
-        let rigid_max = values[..rigid].iter().fold(0.0f64, |a, v| a.max(v.abs()));
-        if values[rigid].is_nan() || values[rigid] <= 1e3 * rigid_max {
-            return Err(ModesError::RigidSeparation {
-                rigid,
-                values: values[..(rigid + 2).min(values.len())].to_vec(),
-            });
-        }
-    }
+    rigid_apart(&values, rigid)?;
     let m = space_v.cols();
     let mut vectors = vec![0.0; n * count];
     tall::times(
