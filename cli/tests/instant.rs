@@ -46,22 +46,9 @@ fn instant_bases_match_the_converged_solve_within_their_bounds() {
         ]);
         assert!(o.status.success(), "{name}: {}", String::from_utf8_lossy(&o.stderr));
         let got = last_json(&o);
-        let f = |v: &serde_json::Value| -> Vec<f64> {
-            v["spaces"][0]["frequencies_hz"]
-                .as_array()
-                .unwrap()
-                .iter()
-                .map(|x| x.as_f64().unwrap())
-                .collect()
-        };
-        let (want, have) = (f(&exact), f(&got));
+        let (want, have) = (frequencies(&exact), frequencies(&got));
         assert_eq!(want.len(), have.len(), "{name}");
-        let bounds: Vec<f64> = got["instant"]["frequency_bound"]
-            .as_array()
-            .unwrap()
-            .iter()
-            .map(|x| x.as_f64().unwrap())
-            .collect();
+        let bounds = numbers(&got["instant"]["frequency_bound"]);
         for (i, ((w, h), b)) in want.iter().zip(&have).zip(&bounds).enumerate() {
             let err = (h - w) / w;
             assert!(err > -1e-8, "{name} mode {i}: {h} Hz below the converged {w} Hz");

@@ -124,8 +124,11 @@ fn cantilever_tip_force_agrees_with_beam_theory() {
     for (case, force, moment) in [("tip", f, -f * l), ("gravity", weight_n, -weight_n * l / 2.0)] {
         let c = loads.iter().find(|c| c["name"] == case).expect(case);
         let r = &c["support_reactions"][0];
-        let v = |key: &str| -> Vec<f64> { r[key].as_array().unwrap().iter().map(|x| x.as_f64().unwrap()).collect() };
-        let (fr, mr, at) = (v("force_n"), v("moment_nm"), v("centre_m"));
+        let (fr, mr, at) = (
+            numbers(&r["force_n"]),
+            numbers(&r["moment_nm"]),
+            numbers(&r["centre_m"]),
+        );
         assert!(
             (at[0]).abs() < 1e-12 && (at[1] - 0.05).abs() < 1e-9 && (at[2] - 0.025).abs() < 1e-9,
             "{case}: {r}"

@@ -6,15 +6,6 @@ mod common;
 
 use common::*;
 
-fn frequencies(v: &serde_json::Value) -> Vec<f64> {
-    v["spaces"][0]["frequencies_hz"]
-        .as_array()
-        .unwrap()
-        .iter()
-        .map(|x| x.as_f64().unwrap())
-        .collect()
-}
-
 /// The cantilever with 10-node tets held as `fixed` says, `count` modes.
 fn beam(fixed: &str, count: usize) -> String {
     GOOD.replace(

@@ -52,6 +52,20 @@ pub fn pvpython_json(script: &str, args: &[&std::ffi::OsStr]) -> serde_json::Val
     serde_json::from_str(String::from_utf8_lossy(&o.stdout).lines().last().expect("JSON line")).expect("JSON")
 }
 
+/// A JSON array of numbers.
+pub fn numbers(v: &serde_json::Value) -> Vec<f64> {
+    v.as_array()
+        .unwrap_or_else(|| panic!("not a list: {v}"))
+        .iter()
+        .map(|x| x.as_f64().unwrap_or_else(|| panic!("not a number: {x}")))
+        .collect()
+}
+
+/// The first space's frequencies in a `ves precompute --json` summary.
+pub fn frequencies(summary: &serde_json::Value) -> Vec<f64> {
+    numbers(&summary["spaces"][0]["frequencies_hz"])
+}
+
 /// `ves precompute SCENE -o OUT --json`, which must succeed; its JSON.
 pub fn precompute_json(scene: &Path, out: &Path) -> serde_json::Value {
     let o = ves(&[
