@@ -333,15 +333,11 @@ fn instant_path(out: &Path) -> PathBuf {
 
 /// The page's line for an instant basis: what it is, its bound, and that the converged one follows.
 fn instant_line(summary: &precompute::Summary, check: &precompute::instant::InstantCheck) -> String {
-    let bound = check.frequency_bound.iter().copied().fold(0.0, f64::max);
-    let expected = check.frequency_estimate.iter().copied().fold(0.0, f64::max);
     format!(
-        "instant basis in {:.2} s (the previous mesh, {} solves): frequencies at most {:.2} % above the converged \
-         solve's (expected {:.3} %); {} · the converged basis follows",
+        "instant basis in {:.2} s (the previous mesh, {} solves): {}; {} · the converged basis follows",
         summary.timings_s.total,
         check.solves,
-        100.0 * bound,
-        100.0 * expected,
+        check.text(),
         summary_line(summary)
     )
 }

@@ -104,12 +104,11 @@ impl Args {
             if self.json {
                 return super::print_json(&InstantJson { summary, instant });
             }
-            let bound = instant.frequency_bound.iter().copied().fold(0.0, f64::max);
             println!(
-                "instant basis: {} modes in {} solves, frequencies at most {:.3} % above the converged ones; wrote {} in {:.2} s",
+                "instant basis: {} modes in {} solves, {}; wrote {} in {:.2} s",
                 instant.frequency_bound.len(),
                 instant.solves,
-                100.0 * bound,
+                instant.text(),
                 summary.output,
                 summary.timings_s.total
             );

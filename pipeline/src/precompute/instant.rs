@@ -32,6 +32,26 @@ pub struct InstantCheck {
     pub solves: usize,
     /// Vectors in the space searched.
     pub basis: usize,
+    /// Whether the scene refines to a target error: the converged compute may then choose
+    /// another mesh, whose frequencies the bound does not cover.
+    pub mesh_may_change: bool,
+}
+
+impl InstantCheck {
+    /// What the bound says, in words, for a summary line.
+    pub fn text(&self) -> String {
+        let largest = |v: &[f64]| v.iter().copied().fold(0.0, f64::max);
+        format!(
+            "frequencies at most {:.3} % above the converged solve's on this mesh (expected {:.3} %){}",
+            100.0 * largest(&self.frequency_bound),
+            100.0 * largest(&self.frequency_estimate),
+            if self.mesh_may_change {
+                "; the converged compute refines to the target error and may choose a finer mesh, which the bound does not cover"
+            } else {
+                ""
+            }
+        )
+    }
 }
 
 /// Why no instant basis: the scene changed more than supports, material or modes, or the
@@ -89,6 +109,7 @@ pub fn run(scene: &Scene, previous: &Path, out: &Path) -> Result<Option<(Summary
         frequency_estimate: warm.estimates.iter().map(|e| 0.5 * e).collect(),
         solves: warm.solves,
         basis: warm.basis,
+        mesh_may_change: scene.mesh.target_error.is_some(),
     };
     let mut d = d;
     d.assemble_s = assemble_s;
