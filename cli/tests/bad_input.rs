@@ -265,13 +265,9 @@ fn a_trace_longer_than_its_limit_is_refused_before_anything_runs() {
 fn damaged(basis: &Path, name: &str, edit: impl FnOnce(&hdf5::Group)) -> std::path::PathBuf {
     let copy = basis.with_file_name(name);
     std::fs::copy(basis, &copy).unwrap();
-    // Closed strongly: with HDF5's default weak close the file (and its lock) can stay open after
-    // close() while an object is still referenced, and the `ves` run next fails to lock it
-    // (errno 11) — seen once in a full run.
-    let f = hdf5::File::with_options()
-        .with_fapl(|p| p.fclose_degree(hdf5::file::FileCloseDegree::Strong))
-        .open_rw(&copy)
-        .unwrap();
+    // As VES opens files: no HDF5 lock (a `ves` child started by another test while this is
+    // open would inherit it), strong close.
+    let f = ves_format::file::open_rw(&copy).unwrap();
     edit(&f.group("spaces/global").unwrap());
     f.close().unwrap();
     copy

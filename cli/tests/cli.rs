@@ -177,7 +177,10 @@ fn info_refuses_foreign_and_truncated_files() {
     assert!(String::from_utf8_lossy(&o.stderr).contains("not a readable HDF5 file"));
 
     let foreign = dir.path().join("foreign.h5");
-    hdf5::File::create(&foreign).unwrap().create_group("data").unwrap();
+    ves_format::file::create(&foreign, false)
+        .unwrap()
+        .create_group("data")
+        .unwrap();
     let o = ves(&["info", foreign.to_str().unwrap()]);
     assert!(!o.status.success());
     assert!(String::from_utf8_lossy(&o.stderr).contains("not a VES modal basis"));
@@ -505,7 +508,7 @@ fn basis_of_a_newer_version_or_missing_pieces_is_refused() {
     // A file that claims to be a basis of `version` and holds nothing else.
     let header_only = |name: &str, version: u32| {
         let path = dir.path().join(name);
-        let f = hdf5::File::create(&path).unwrap();
+        let f = ves_format::file::create(&path, false).unwrap();
         let v: hdf5::types::VarLenUnicode = "ves-modal-basis".parse().unwrap();
         f.new_attr::<hdf5::types::VarLenUnicode>()
             .create("format")
@@ -970,7 +973,7 @@ fn slepc_matches_arpack(solver: &str, error_estimate: bool) {
         "rank 0 alone reports: {stdout}"
     );
     let read = |p: &Path| -> (Vec<f64>, ndarray::Array2<f64>, Vec<f64>) {
-        let f = hdf5::File::open(p).expect("open");
+        let f = ves_format::file::open(p).expect("open");
         let g = f.group("spaces/global").expect("global");
         // A free body's mass, centre and inertia (none for the clamped one).
         let mut rigid = Vec::new();

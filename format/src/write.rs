@@ -397,7 +397,7 @@ mod tests {
         assert!(e.to_string().contains("2 face tags for 4 surface triangles"), "{e}");
         // A file whose dataset holds three tags for four triangles.
         {
-            let f = hdf5::File::open_rw(&older).unwrap();
+            let f = crate::file::open_rw(&older).unwrap();
             let g = f.group("spaces/global").unwrap();
             g.new_dataset_builder()
                 .with_data(&ndarray::Array1::from(vec![1u32, 2, 3]))
@@ -478,7 +478,7 @@ mod tests {
         ] {
             write_tet_with(&path, None, std::slice::from_ref(&load)).unwrap();
             {
-                let f = hdf5::File::open_rw(&path).unwrap();
+                let f = crate::file::open_rw(&path).unwrap();
                 let c = f.group("spaces/global/loads/tip").unwrap();
                 match what {
                     "nan" => {

@@ -10,7 +10,7 @@ fn main() -> anyhow::Result<()> {
     let path = std::env::args()
         .nth(1)
         .ok_or_else(|| anyhow::anyhow!("usage: solve_bench KM.h5"))?;
-    let f = hdf5::File::open(path)?;
+    let f = ves_format::file::open(std::path::Path::new(&path))?;
     let cp: Vec<u64> = f.dataset("col_ptr")?.read_raw()?;
     let ri: Vec<u64> = f.dataset("row_idx")?.read_raw()?;
     let k: Vec<f64> = f.dataset("k")?.read_raw()?;

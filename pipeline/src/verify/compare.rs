@@ -302,7 +302,7 @@ mod tests {
         let tol = Tolerances::same_discrete_problem(false);
         for (name, rows, freq) in [("short.h5", 3 * n - 3, 100.0), ("nan.h5", 3 * n, f64::NAN)] {
             let path = dir.path().join(name);
-            let f = hdf5::File::create(&path).expect("create");
+            let f = ves_format::file::create(&path, false).expect("create");
             f.new_dataset_builder()
                 .with_data(&Array1::from(vec![freq]))
                 .create("frequencies_hz")
