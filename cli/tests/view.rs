@@ -746,6 +746,28 @@ fn a_step_part_is_set_up_computed_and_pulled_in_the_page() {
     assert_eq!(axes, ["x", "x"], "{fixed:?}");
     let held = freqs(&page["held"]["f"]);
     assert_eq!(held.len(), 10, "{}", page["held"]);
+    // The instant basis came first (the free body's mesh), each frequency with its bound, then
+    // the converged one, saying how far the frequencies moved at the swap.
+    let computed: Vec<&serde_json::Value> = page["held"]["notes"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .filter(|n| n["type"] == "computed")
+        .collect();
+    let lives: Vec<&str> = computed.iter().filter_map(|n| n["live"].as_str()).collect();
+    assert!(lives.ends_with(&["instant", "converged"]), "{computed:?}");
+    let line = |n: &serde_json::Value| n["summary"].as_str().unwrap_or_default().to_string();
+    let [.., instant, converged] = computed[..] else {
+        unreachable!()
+    };
+    assert!(
+        line(instant).contains("above the converged solve's on this mesh"),
+        "{instant}"
+    );
+    assert!(
+        line(converged).contains("differ from the instant ones by at most"),
+        "{converged}"
+    );
     let stages: Vec<&str> = page["held"]["stages"]
         .as_array()
         .unwrap()
@@ -977,6 +999,7 @@ fn a_step_part_is_set_up_computed_and_pulled_in_the_page() {
         stats["computes"].as_u64() >= Some(4) && stats["computes_failed"].as_u64() >= Some(1),
         "{stats}"
     );
-    // Two swaps: to the two-face basis, then to the one-face basis (the first had none to replace).
-    assert_eq!(stats["swaps"].as_u64(), Some(2), "{stats}");
+    // Four swaps: to the two-face basis, instant then converged, and the same for the one-face
+    // basis (the first compute had none to replace, and none to start an instant basis from).
+    assert_eq!(stats["swaps"].as_u64(), Some(4), "{stats}");
 }

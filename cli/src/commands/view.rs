@@ -47,11 +47,12 @@ pub struct Args {
     /// At the end, print the statistics (session and server) as JSON.
     #[arg(long)]
     json: bool,
-    /// When only supports, material or modes change, serve an instant basis first (the
-    /// previous basis's mesh, modes from a few block solves, each frequency with a bound) while
-    /// the converged compute runs (docs/view.md says what it costs today).
+    /// Do not serve instant bases. By default, when only supports, material or modes change,
+    /// the page gets an instant basis first (the previous basis's mesh, modes from a few block
+    /// solves, each frequency with a bound) while the converged compute runs; this waits for
+    /// the converged one alone (docs/view.md).
     #[arg(long)]
-    instant: bool,
+    no_instant: bool,
 }
 
 impl Args {
@@ -130,7 +131,7 @@ impl Args {
                 Ok((
                     None,
                     Some(Arc::new(
-                        PartWorkshop::for_scene(&scene, options, solver)?.instant(self.instant),
+                        PartWorkshop::for_scene(&scene, options, solver)?.instant(!self.no_instant),
                     )),
                 ))
             }
@@ -138,7 +139,9 @@ impl Args {
                 ves_pipeline::input::open(p)?;
                 Ok((
                     None,
-                    Some(Arc::new(PartWorkshop::for_geometry(p, solver)?.instant(self.instant))),
+                    Some(Arc::new(
+                        PartWorkshop::for_geometry(p, solver)?.instant(!self.no_instant),
+                    )),
                 ))
             }
             "geo" => anyhow::bail!(
