@@ -111,3 +111,50 @@ fn a_shaft_in_two_bearings_bends_as_a_pinned_beam() {
         assert!((0.0..0.2).contains(&rel), "mode {i}: {g} Hz against {want} Hz");
     }
 }
+
+/// What each support carries while a hand pushes (`support_reactions` of `ves session --json`):
+/// a beam clamped at both ends, pressed at mid-span until it settles. By symmetry the two ends
+/// carry half each; together they carry the hand's force less what the modes left out carry
+/// (the static response's part outside the first 20 modes: 10 % here), and each end's moment
+/// about its face centre is the clamped–clamped beam's end moment F·L/8 (measured within 1 %;
+/// opposite signs at the two ends).
+#[test]
+fn the_supports_carry_the_hands_force_in_a_session() {
+    let ends = "[[fixed]]\nplane = { axis = \"x\", value = 0.0 }\n[[fixed]]\nplane = { axis = \"x\", value = 1.0 }\n";
+    let scene = beam(ends, 20).replace("[modes]", "[damping]\nalpha = 2000.0\n[modes]");
+    let (dir, path) = workdir(&scene);
+    let basis = dir.path().join("beam.h5");
+    precompute_json(&path, &basis);
+    let script = dir.path().join("press.csv");
+    std::fs::write(
+        &script,
+        "t,x,y,z,button\n0,0.5,0.05,0.05,1\n0.05,0.5,0.05,0.0495,1\n0.6,0.5,0.05,0.0495,1\n",
+    )
+    .unwrap();
+    let v = session_json_with(&basis, &script, &["--no-realtime"]);
+    let hand = numbers(&v["final_forces_n"][0]);
+    let supports = v["support_reactions"].as_array().expect("support_reactions");
+    assert_eq!(supports.len(), 2, "{v}");
+    let force = |k: usize| numbers(&supports[k]["final_force_n"]);
+    let moment = |k: usize| numbers(&supports[k]["final_moment_nm"]);
+    let (a, b) = (force(0), force(1));
+    // The force on the part from the hand is −(force on the device).
+    let pushed = -hand[2];
+    assert!(pushed < 0.0, "the hand pushes down: {hand:?}");
+    // 0.90 measured: the contact's local deformation is in the modes left out.
+    let carried = -(a[2] + b[2]) / pushed;
+    assert!(
+        (0.85..=1.001).contains(&carried),
+        "the ends carry {carried:.3} of the hand's force"
+    );
+    assert!((a[2] / b[2] - 1.0).abs() < 0.03, "ends {a:?} and {b:?}");
+    let fl8 = pushed.abs() * 1.0 / 8.0;
+    for (k, support) in supports.iter().enumerate() {
+        let m = moment(k)[1].abs();
+        assert!(
+            (m / fl8 - 1.0).abs() < 0.05,
+            "end {k}: |M_y| {m:.4} N·m against F·L/8 = {fl8:.4}"
+        );
+        assert!(support["force_max_n"].as_f64().unwrap() >= force(k)[2].abs() * 0.999);
+    }
+}

@@ -88,6 +88,13 @@ pub mod space {
     /// Optional f64 [6·nv, r]: row 6i+k = Voigt component k of the stress at corner vertex i,
     /// Pa per unit modal coordinate.
     pub const STRESS: &str = "modes/stress";
+    /// Optional f64 [6·s, r] (held parts): row 6k+c = component c (force x, y, z in N, then
+    /// moment x, y, z in N·m about [`SUPPORT_CENTRES`] row k) of what `[[fixed]]` support k
+    /// exerts on the part, per unit modal coordinate: the reactions of u = Φq are Σ_j q_j·column j.
+    pub const SUPPORT_REACTIONS: &str = "modes/support_reactions";
+    /// Optional f64 [s, 3], m: the point each support's moment is about (the middle of the
+    /// bounding box of the nodes it holds). Present exactly when [`SUPPORT_REACTIONS`] is.
+    pub const SUPPORT_CENTRES: &str = "modes/support_centres";
     /// String attribute of [`STRESS`]: the component order.
     pub const STRESS_COMPONENTS: &str = "components";
     /// Its value.

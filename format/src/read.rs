@@ -44,6 +44,13 @@ pub fn guarded<T, E: From<ReadError>>(path: &Path, f: impl FnOnce() -> Result<T,
 /// this many times the file's size has a damaged header.
 const MAX_COMPRESSION: u128 = 1100;
 
+/// Per support the point its moments are about, and the row-major [6·s, r] reactions per unit
+/// modal coordinate ([`sp::SUPPORT_REACTIONS`]).
+pub type SupportReactions = (Vec<[f64; 3]>, Vec<f64>);
+
+/// Supports a file may hold reactions for: far more than a scene of at most 64 KiB can name.
+const MAX_SUPPORTS: usize = 4096;
+
 /// Stored bytes one open file may read, in multiples of its size. Reading a whole basis once for
 /// its check and once more for use costs about 2; a file whose spaces share their data through
 /// links would cost one pass per link (2000 linked spaces took 31 s and 660 MB).
@@ -813,6 +820,47 @@ impl<'a> SpaceReader<'a> {
         })
     }
 
+    /// What each support carries per unit modal coordinate, when the file has it (held parts
+    /// written since issue 43): the points the moments are about ([s]) and the row-major
+    /// [6·s, r] reactions ([`sp::SUPPORT_REACTIONS`]); both checked for shape and finiteness.
+    pub fn support_reactions(&self) -> Result<Option<SupportReactions>, ReadError> {
+        self.guard(|| {
+            let (has, centred) = (
+                self.has_dataset(sp::SUPPORT_REACTIONS)?,
+                self.has_dataset(sp::SUPPORT_CENTRES)?,
+            );
+            if !has && !centred {
+                return Ok(None);
+            }
+            if has != centred {
+                return Err(self.err(format!(
+                    "{} and {} come together, and only one is there; the file is damaged",
+                    sp::SUPPORT_REACTIONS,
+                    sp::SUPPORT_CENTRES
+                )));
+            }
+            let shape = self.shape::<f64>(sp::SUPPORT_REACTIONS, 2)?;
+            let centres = self.shape::<f64>(sp::SUPPORT_CENTRES, 2)?;
+            let s = centres[0];
+            // A scene holds at most 64 KiB of text, so far fewer supports than this.
+            if shape != [6 * s, self.mode_count] || centres[1] != 3 || s > MAX_SUPPORTS {
+                return Err(self.err(format!(
+                    "{} is {shape:?} and {} {centres:?}: expected [6·s, {}] and [s, 3] with s ≤ {MAX_SUPPORTS}; \
+                     the file is damaged",
+                    sp::SUPPORT_REACTIONS,
+                    sp::SUPPORT_CENTRES,
+                    self.mode_count
+                )));
+            }
+            let per_mode = self.finite(sp::SUPPORT_REACTIONS, self.read_all(sp::SUPPORT_REACTIONS, 2)?)?;
+            let c = self.finite(sp::SUPPORT_CENTRES, self.read_all(sp::SUPPORT_CENTRES, 2)?)?;
+            Ok(Some((
+                c.chunks_exact(3).map(|p| [p[0], p[1], p[2]]).collect(),
+                per_mode,
+            )))
+        })
+    }
+
     /// Each mode's estimated relative discretization error, when the file has it: one
     /// non-negative value per mode (NaN where a mode had no estimate).
     pub fn estimated_relative_error(&self) -> Result<Option<Vec<f64>>, ReadError> {
@@ -1145,6 +1193,7 @@ impl<'a> SpaceReader<'a> {
         self.stress_rows(0..self.vertex_count, self.mode_count)?;
         self.fixed_mask()?;
         self.loads()?;
+        self.support_reactions()?;
         self.contact()?;
         self.check_transfers()?;
         Ok(())

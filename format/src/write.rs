@@ -73,6 +73,9 @@ pub struct SpaceData<'a> {
     pub contact: Option<&'a crate::Contact>,
     /// Transfer matrices from other spaces, row-major [r, r_from].
     pub transfers: &'a [(String, Vec<f64>)],
+    /// What each support carries per unit modal coordinate, with the points the moments are
+    /// about: (centres [s], row-major [6·s, r]); none for a free body.
+    pub support_reactions: Option<(&'a [[f64; 3]], &'a [f64])>,
     /// Static load cases (`loads/<name>/`); empty: none.
     pub loads: &'a [LoadData<'a>],
     /// Mass properties of a free body.
@@ -256,6 +259,18 @@ fn write_space(file: &hdf5::File, s: &SpaceData<'_>) -> Result<(), WriteError> {
         attr_str(&ds, sp::STRESS_COMPONENTS, sp::STRESS_COMPONENT_ORDER)?;
     }
     let r = s.eigenvalues.len();
+    if let Some((centres, per_mode)) = s.support_reactions {
+        let a = Array2::from_shape_vec((6 * centres.len(), r), per_mode.to_vec()).ctx(sp::SUPPORT_REACTIONS)?;
+        g.new_dataset_builder()
+            .with_data(&a)
+            .create(sp::SUPPORT_REACTIONS)
+            .ctx(sp::SUPPORT_REACTIONS)?;
+        let c = Array2::from_shape_fn((centres.len(), 3), |(k, c)| centres[k][c]);
+        g.new_dataset_builder()
+            .with_data(&c)
+            .create(sp::SUPPORT_CENTRES)
+            .ctx(sp::SUPPORT_CENTRES)?;
+    }
     let basis = Array2::from_shape_vec((3 * n, r), s.basis.to_vec()).ctx(sp::BASIS)?;
     // Chunks of whole rows of a few modes: the runtime reads vertex rows of the first r modes.
     g.new_dataset_builder()
@@ -358,6 +373,7 @@ mod tests {
                 compliance: None,
                 contact: None,
                 transfers: &[],
+                support_reactions: None,
                 loads,
                 rigid: None,
             }],
@@ -410,6 +426,63 @@ mod tests {
         for p in [path, older, temp("short")] {
             let _ = std::fs::remove_file(p);
         }
+    }
+
+    /// Support reactions are read back as stored; reactions without their centres, the wrong
+    /// shape or a non-finite value are refused (and by `validate`).
+    #[test]
+    fn support_reactions_are_read_back_and_checked() {
+        let path = temp("reactions");
+        let add = |reactions: Option<ndarray::Array2<f64>>, centres: Option<ndarray::Array2<f64>>| {
+            write_tet(&path, None).unwrap();
+            let f = crate::file::open_rw(&path).unwrap();
+            let g = f.group("spaces/global").unwrap();
+            if let Some(r) = reactions {
+                g.new_dataset_builder()
+                    .with_data(&r)
+                    .create(sp::SUPPORT_REACTIONS)
+                    .unwrap();
+            }
+            if let Some(c) = centres {
+                g.new_dataset_builder()
+                    .with_data(&c)
+                    .create(sp::SUPPORT_CENTRES)
+                    .unwrap();
+            }
+        };
+        let read = || {
+            BasisReader::open(&path)
+                .unwrap()
+                .space("global")
+                .unwrap()
+                .support_reactions()
+        };
+        let six = ndarray::Array2::from_shape_fn((6, 1), |(i, _)| i as f64);
+        let centre = ndarray::arr2(&[[0.5, 0.0, 0.0]]);
+        add(Some(six.clone()), Some(centre.clone()));
+        let (c, r) = read().unwrap().expect("stored");
+        assert_eq!((c, r), (vec![[0.5, 0.0, 0.0]], vec![0.0, 1.0, 2.0, 3.0, 4.0, 5.0]));
+        add(None, None);
+        assert!(read().unwrap().is_none());
+        let mut nan = six.clone();
+        nan[[3, 0]] = f64::NAN;
+        for (what, reactions, centres, says) in [
+            ("alone", Some(six.clone()), None, "come together"),
+            (
+                "short",
+                Some(ndarray::Array2::zeros((5, 1))),
+                Some(centre.clone()),
+                "expected [6·s, 1]",
+            ),
+            ("nan", Some(nan), Some(centre.clone()), "non-finite"),
+        ] {
+            add(reactions, centres);
+            let e = read().unwrap_err();
+            assert!(e.message.contains(says), "{what}: {e}");
+            let file = BasisReader::open(&path).unwrap();
+            assert!(file.space("global").unwrap().validate().is_err(), "{what}");
+        }
+        let _ = std::fs::remove_file(path);
     }
 
     /// Load cases and the `fixed` mask are written and read back as given; a file without them

@@ -40,6 +40,8 @@ pub struct Space<'a> {
     pub stress: Option<&'a [f64]>,
     /// The static load cases solved (none: empty).
     pub loads: &'a [crate::loads::LoadResult],
+    /// What each support carries per unit modal coordinate, if computed.
+    pub reactions: Option<&'a crate::loads::ModalReactions>,
 }
 
 impl Space<'_> {
@@ -65,6 +67,7 @@ impl Space<'_> {
             compliance: self.compliance.map(|c| (c.nodes.as_slice(), c.blocks.as_slice())),
             contact: self.contact,
             transfers: self.transfers,
+            support_reactions: self.reactions.map(|r| (r.centres.as_slice(), r.per_mode.as_slice())),
             loads,
             rigid: (self.modes.rigid_dropped > 0).then_some(ves_format::RigidProperties {
                 mass: self.mass.mass,

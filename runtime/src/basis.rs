@@ -36,6 +36,37 @@ pub enum Contact {
 /// row by at most that times the difference between a neighbour's rows and the vertex's own).
 pub const WEIGHT_UNIT: f64 = 65535.0;
 
+/// What each `[[fixed]]` support exerts on the part per unit modal coordinate (held parts'
+/// global space, files written since the support reactions were added).
+#[derive(Clone, Debug)]
+pub struct SupportReactions {
+    /// Per support, the point its moment is about, m.
+    pub centres: Vec<[f64; 3]>,
+    /// Row-major [6·s, r]: row 6k+c is component c (force x y z, N; moment x y z, N·m) of
+    /// support k per unit of each mode's coordinate.
+    pub per_mode: Vec<f64>,
+}
+
+impl SupportReactions {
+    /// Supports.
+    pub fn count(&self) -> usize {
+        self.centres.len()
+    }
+
+    /// The reactions of modal state `q` (its first `r` entries, r the basis's modes) into
+    /// `out`, one `[force x y z, moment x y z]` per support; allocation-free.
+    pub fn of(&self, q: &[f64], out: &mut [[f64; 6]]) {
+        let r = self.per_mode.len() / (6 * self.count()).max(1);
+        let q = &q[..r.min(q.len())];
+        for (k, o) in out.iter_mut().enumerate().take(self.count()) {
+            for (c, v) in o.iter_mut().enumerate() {
+                let row = &self.per_mode[(6 * k + c) * r..(6 * k + c + 1) * r];
+                *v = row.iter().zip(q).map(|(a, b)| a * b).sum();
+            }
+        }
+    }
+}
+
 /// A modal basis in memory.
 #[derive(Clone, Debug)]
 pub struct Basis {
@@ -95,6 +126,8 @@ pub struct Basis {
     /// The file this basis was loaded from (`None`: built in memory). The viewer reads the
     /// space's static load cases from it when a page asks for one.
     pub source: Option<std::path::PathBuf>,
+    /// What the supports carry per unit modal coordinate, when the file has it.
+    pub support_reactions: Option<SupportReactions>,
 }
 
 impl Basis {
@@ -187,6 +220,7 @@ impl Basis {
             elastic: None,
             fixed: vec![0; n],
             source: None,
+            support_reactions: None,
         })
     }
 
@@ -359,6 +393,9 @@ impl Basis {
         t.phi.truncate(r * 3 * n);
         if let Some(s) = &mut t.stress {
             s.truncate(r * 6 * n);
+        }
+        if let Some(sr) = &mut t.support_reactions {
+            sr.per_mode = sr.per_mode.chunks_exact(all).flat_map(|c| &c[..r]).copied().collect();
         }
         // Vertex-major: keep the first r of each (vertex, component)'s `all` values (weights
         // do not depend on the modes).
@@ -601,6 +638,12 @@ mod file {
                 kept.extend_from_slice(&all[6 * v as usize * r..6 * (v as usize + 1) * r]);
             }
             basis = basis.with_stress(&kept)?;
+        }
+        if let Some((centres, per_mode)) = s.support_reactions()? {
+            let all = s.mode_count;
+            let per_mode: Vec<f64> = per_mode.chunks_exact(all).flat_map(|c| &c[..r]).copied().collect();
+            basis.bytes_loaded += 8 * (per_mode.len() + 3 * centres.len());
+            basis.support_reactions = Some(SupportReactions { centres, per_mode });
         }
         if let Some(contact) = s.contact()? {
             basis = with_contact_rows(basis, &s, &contact, &keep, &rows, r)?;

@@ -141,6 +141,61 @@ fn support_reactions(
         .collect()
 }
 
+/// What each `[[fixed]]` support carries per unit of each mode's coordinate: the reactions of
+/// u = Φq are Σ_j q_j R_j, exactly those of the FE model in that displacement (K u at the DOFs
+/// a support removes, its springs' forces). How a session reports what the held faces carry.
+pub struct ModalReactions {
+    /// Per support, the point its moment is about (the middle of its held nodes' bounding box).
+    pub centres: Vec<[f64; 3]>,
+    /// Row-major [6·s, r]: row 6k+c is component c (force x y z, N; moment x y z, N·m) of
+    /// support k.
+    pub per_mode: Vec<f64>,
+}
+
+/// The modal reactions of `modes` (on `dofs`' free DOFs) for `scene`'s supports; none for a
+/// free body or without modes.
+pub fn modal_reactions(
+    scene: &Scene,
+    mesh: &crate::tet_mesh::Mesh,
+    dofs: &crate::fem::Dofs,
+    modes: &crate::modes::Modes,
+) -> Result<Option<ModalReactions>> {
+    use rayon::prelude::*;
+    let r = modes.eigenvalues.len();
+    if scene.fixed.is_empty() || r == 0 {
+        return Ok(None);
+    }
+    let path = || scene.path.display().to_string();
+    let held = crate::supports::held_by_each(mesh, &scene.fixed).with_context(path)?;
+    let springs = crate::supports::springs(mesh, &scene.fixed, scene.material.young).with_context(path)?;
+    let lame = Lame::of(&scene.material);
+    let nf = dofs.free_count();
+    let zero = vec![0.0; 3 * mesh.nodes.len()];
+    let each: Vec<Vec<SupportReaction>> = (0..r)
+        .into_par_iter()
+        .map(|j| {
+            let u = dofs.expand(&modes.vectors[j * nf..(j + 1) * nf]);
+            let k_u = vector::internal_forces(mesh, &lame, &u)
+                .map_err(|e| anyhow::anyhow!("an element is degenerate (det J = {:.3e})", e.det))?;
+            Ok(support_reactions(mesh, &held, &springs, &u, &k_u, &zero))
+        })
+        .collect::<Result<_>>()?;
+    let s = scene.fixed.len();
+    let mut per_mode = vec![0.0; 6 * s * r];
+    for (j, supports) in each.iter().enumerate() {
+        for (k, sr) in supports.iter().enumerate() {
+            for c in 0..3 {
+                per_mode[(6 * k + c) * r + j] = sr.force_n[c];
+                per_mode[(6 * k + 3 + c) * r + j] = sr.moment_nm[c];
+            }
+        }
+    }
+    Ok(Some(ModalReactions {
+        centres: each[0].iter().map(|sr| sr.centre_m).collect(),
+        per_mode,
+    }))
+}
+
 impl LoadResult {
     /// Its summary, with the safety factor against `yield_strength` (Pa) when there is one.
     pub fn summary(&self, yield_strength: Option<f64>) -> LoadSummary {

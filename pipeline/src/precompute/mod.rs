@@ -98,6 +98,8 @@ pub struct SolvedSpace {
     pub sturm: Option<modes::SturmCount>,
     /// The scene's static load cases solved on this space (none: empty).
     pub loads: Vec<crate::loads::LoadResult>,
+    /// What each support carries per unit modal coordinate (held parts' global space).
+    pub reactions: Option<crate::loads::ModalReactions>,
 }
 
 impl SolvedSpace {
@@ -117,6 +119,7 @@ impl SolvedSpace {
             estimated_relative_error: self.error.as_ref().map(|e| e.relative()),
             stress: self.stress.as_deref(),
             loads: &self.loads,
+            reactions: self.reactions.as_ref(),
         }
     }
 }

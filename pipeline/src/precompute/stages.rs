@@ -147,6 +147,7 @@ pub(super) fn solve_space_checked(
     progress::stage("service loads", 0.9)?;
     let (loads, loads_s) = timed(|| released(|| loads(scene, &solved)));
     let loads = loads?;
+    let reactions = reactions(scene, voi, &solved)?;
     if let Some(s) = &sturm {
         advice::report_sturm(&name, s);
     }
@@ -160,6 +161,7 @@ pub(super) fn solve_space_checked(
         stress_s,
         loads,
         loads_s,
+        reactions,
     };
     Ok(store(name, voi, solved, later))
 }
@@ -169,7 +171,11 @@ pub(super) fn solve_space_checked(
 /// load cases and no contact patches (the hand touches a point until the converged compute,
 /// which makes them, follows: on the mould, on a loaded machine, they took 6.2 s beside 10.7 s
 /// for the modes).
-pub(super) fn space_from_modes(scene: &Scene, d: crate::problem::Discretized, modes: modes::Modes) -> SolvedSpace {
+pub(super) fn space_from_modes(
+    scene: &Scene,
+    d: crate::problem::Discretized,
+    modes: modes::Modes,
+) -> Result<SolvedSpace> {
     let solved = Solved {
         mass: d.system.mass,
         problem: Problem::Here(d),
@@ -187,8 +193,9 @@ pub(super) fn space_from_modes(scene: &Scene, d: crate::problem::Discretized, mo
         stress_s,
         loads: Vec::new(),
         loads_s: 0.0,
+        reactions: reactions(scene, None, &solved)?,
     };
-    store("global".to_string(), None, solved, later)
+    Ok(store("global".to_string(), None, solved, later))
 }
 
 /// The checks [`Checks::Later`] left out, on a solved space (K and M kept): the Sturm count
@@ -388,6 +395,15 @@ fn stress(scene: &Scene, solved: &Solved) -> Option<Vec<f64>> {
     Some(crate::fem::stress::vertex_stress(solved.problem.mesh(), &lame, &u, r))
 }
 
+/// What each support carries per unit modal coordinate, for the global space of a held part
+/// (a volume of interest's mesh need not hold the supports).
+fn reactions(scene: &Scene, voi: Option<&Voi>, solved: &Solved) -> Result<Option<crate::loads::ModalReactions>> {
+    if voi.is_some() {
+        return Ok(None);
+    }
+    crate::loads::modal_reactions(scene, solved.problem.mesh(), solved.problem.dofs(), &solved.modes)
+}
+
 /// Loads: every static load case of the scene, solved on the full model (K factored once).
 fn loads(scene: &Scene, solved: &Solved) -> Result<Vec<crate::loads::LoadResult>> {
     if scene.loads.is_empty() {
@@ -411,6 +427,7 @@ struct AfterSolve {
     stress_s: f64,
     loads: Vec<crate::loads::LoadResult>,
     loads_s: f64,
+    reactions: Option<crate::loads::ModalReactions>,
 }
 
 /// Store: what the file writer and the summary need of the space.
@@ -462,6 +479,7 @@ fn store(name: String, voi: Option<&Voi>, solved: Solved, later: AfterSolve) -> 
         stress: later.stress,
         sturm: later.sturm,
         loads: later.loads,
+        reactions: later.reactions,
     }
 }
 

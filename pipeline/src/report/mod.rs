@@ -734,6 +734,7 @@ impl Sweep<'_> {
                 estimated_relative_error: None,
                 stress: None,
                 loads: &[],
+                reactions: None,
             }],
         )?;
         let file_bytes = std::fs::metadata(self.tmp).map(|m| m.len()).unwrap_or(0);

@@ -33,6 +33,8 @@ struct Buffers {
     u: Vec<f32>,
     /// σ = Σ q_j σ_j, 6 per vertex (empty without modal stress).
     sigma: Vec<f32>,
+    /// Per support, force and moment (empty without stored reactions).
+    reactions: Vec<[f64; 6]>,
 }
 
 impl Drawing {
@@ -48,6 +50,7 @@ impl Drawing {
             .map(|b| Buffers {
                 u: vec![0.0; 3 * b.vertex_count()],
                 sigma: vec![0.0; if b.stress.is_some() { 6 * b.vertex_count() } else { 0 }],
+                reactions: vec![[0.0; 6]; b.support_reactions.as_ref().map_or(0, |r| r.count())],
             })
             .collect();
         let start = Instant::now();
@@ -87,6 +90,16 @@ impl Drawing {
             self.part.alarm.store(below, Ordering::Relaxed);
             self.part.alarm_frames.fetch_add(u64::from(below), Ordering::Relaxed);
         }
+        let reactions = basis.support_reactions.as_ref().map(|r| {
+            r.of(q, &mut buf.reactions);
+            &buf.reactions[..]
+        });
+        // The peaks are the first space's supports (a volume of interest's space has none).
+        if i == 0 {
+            for (max, r) in self.part.support_force.iter().zip(reactions.unwrap_or_default()) {
+                max.raise((r[0] * r[0] + r[1] * r[1] + r[2] * r[2]).sqrt());
+            }
+        }
         if let Some(f) = self.observer.as_mut() {
             f(&Frame {
                 space: i,
@@ -96,6 +109,7 @@ impl Drawing {
                 stress: has_stress.then_some(&buf.sigma[..]),
                 alarm: below,
                 von_mises_max: peak,
+                reactions,
                 time,
             });
         }

@@ -135,6 +135,9 @@ pub struct Frame<'a> {
     pub alarm: bool,
     /// The part's largest von Mises stress (Pa) and its vertex, when the space has stress.
     pub von_mises_max: Option<(f64, usize)>,
+    /// What each `[[fixed]]` support exerts on the part in this state (force x y z, N; moment
+    /// x y z about its centre, N·m), when the basis stores it.
+    pub reactions: Option<&'a [[f64; 6]]>,
     /// Session time of the state, s.
     pub time: f64,
 }
@@ -198,7 +201,12 @@ pub fn run_spaces_with(
     let mut haptics = switcher(spaces, cfg, hands, bases[0].rigid.is_some())?;
     let r_max = bases.iter().map(|b| b.mode_count()).max().unwrap_or(0);
     let snapshot = Arc::new(Snapshot::for_state(&Published::new(r_max)));
-    let part = Arc::new(stats::PartRecord::default());
+    let part = Arc::new(stats::PartRecord {
+        support_force: (0..bases[0].support_reactions.as_ref().map_or(0, |r| r.count()))
+            .map(|_| stats::AtomicMax::default())
+            .collect(),
+        ..Default::default()
+    });
     let stop_drawing = Arc::new(AtomicBool::new(false));
     let drawing = drawing::Drawing {
         bases: bases.clone(),
@@ -256,8 +264,20 @@ pub fn run_spaces_with(
             has_stress: bases.iter().any(|b| b.stress.is_some()),
             yield_strength: bases[0].yield_strength,
             elastic: bases[0].elastic.is_some(),
+            final_reactions: final_reactions(&bases[0], &haptics),
         },
     ))
+}
+
+/// Per support of the first space, its centre and its reactions at the session's last state
+/// (none while another space is active at the end: its modal state is not the first's).
+fn final_reactions(first: &Basis, haptics: &crate::switching::Switcher) -> Vec<([f64; 3], [f64; 6])> {
+    let Some(r) = first.support_reactions.as_ref().filter(|_| haptics.active() == 0) else {
+        return Vec::new();
+    };
+    let mut out = vec![[0.0; 6]; r.count()];
+    r.of(&haptics.sim(0).state().q, &mut out);
+    r.centres.iter().copied().zip(out).collect()
 }
 
 /// A session's devices, closed when it ends: explicitly after the haptic loop, or when dropped

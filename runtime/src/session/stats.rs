@@ -79,6 +79,27 @@ pub struct SessionStats {
     pub device_fault: Option<DeviceFaultReport>,
     /// What real-time hygiene the session got (null when not asked for).
     pub realtime: Option<crate::realtime::Realtime>,
+    /// What each `[[fixed]]` support carried (empty: a free body, or a basis written before
+    /// supports' reactions were stored).
+    pub support_reactions: Vec<SupportReport>,
+}
+
+/// What one support exerted on the part during a session: the reactions of the modal state
+/// (u = Φq), exact for that displacement of the FE model. With few modes and no static
+/// correction the supports together carry less than a hand's static force (the modes left out
+/// carry the rest).
+#[derive(Clone, Debug, serde::Serialize)]
+pub struct SupportReport {
+    /// The support, counted from 0 as `fixed[i]` in the scene.
+    pub support: usize,
+    /// The point the moments are about (the middle of its held nodes' bounding box), m.
+    pub centre_m: [f64; 3],
+    /// Force at the session's last state, N.
+    pub final_force_n: [f64; 3],
+    /// Moment about `centre_m` at the last state, N·m.
+    pub final_moment_nm: [f64; 3],
+    /// The largest force magnitude over the frames drawn, N.
+    pub force_max_n: f64,
 }
 
 /// A device read that failed and ended the session: every device was sent zero force at that
@@ -202,6 +223,8 @@ pub(super) struct PartRecord {
     pub alarm: AtomicBool,
     /// Frames drawn with the alarm set.
     pub alarm_frames: AtomicU64,
+    /// Per support of the first space, the largest force magnitude drawn, N.
+    pub support_force: Vec<AtomicMax>,
 }
 
 /// The haptic thread's own tallies over the hands and the steps.
@@ -279,6 +302,8 @@ pub(super) struct DrawingSide<'a> {
     pub yield_strength: Option<f64>,
     /// The part's elastic constants are known (principal strain from stress).
     pub elastic: bool,
+    /// Per support: its centre and its force and moment at the last state.
+    pub final_reactions: Vec<([f64; 3], [f64; 6])>,
 }
 
 impl SessionStats {
@@ -326,6 +351,19 @@ impl SessionStats {
             hands: h.tally.hands.clone(),
             device_fault: h.device_fault,
             realtime: h.realtime,
+            support_reactions: d
+                .final_reactions
+                .iter()
+                .zip(&d.part.support_force)
+                .enumerate()
+                .map(|(support, ((centre, r), max))| SupportReport {
+                    support,
+                    centre_m: *centre,
+                    final_force_n: [r[0], r[1], r[2]],
+                    final_moment_nm: [r[3], r[4], r[5]],
+                    force_max_n: max.get(),
+                })
+                .collect(),
         }
     }
 }
