@@ -200,6 +200,19 @@ fn the_mouse_pulls_the_tip_in_a_real_browser_and_the_page_shows_the_static_respo
     let (rest_p, drawn) = (vec3(&held["rest"]), vec3(&held["position"]));
     let pulled = norm(sub(target, rest_p));
     assert!(pulled > 0.01, "the drag moved the hand only {pulled} m: {page}");
+    // The clamped root carries the pull back (less what the 20 modes leave out), and says so
+    // beside itself.
+    let supports = held["supports"].as_array().expect("supports in the status");
+    assert_eq!(supports.len(), 1, "{held}");
+    let root = vec3(&supports[0]["force_n"]);
+    let along = (0..3).map(|c| root[c] * (target[c] - rest_p[c])).sum::<f64>() / pulled;
+    let share = -along / norm(force);
+    assert!(
+        (0.5..=1.05).contains(&share),
+        "the root carries {root:?} N against the hand's {force:?} N"
+    );
+    let label = held["supportLabel"][0].as_str().unwrap_or_default();
+    assert!(label.starts_with("support 1 carries"), "{held}");
 
     // 0. Before the pull the legend said "at rest" (no colours spread over round-off), and the
     //    deformation scale is automatic.

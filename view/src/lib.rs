@@ -189,6 +189,9 @@ struct Published {
     drawn: Arc<AtomicU32>,
     active_space: Arc<AtomicU32>,
     alarm: Arc<AtomicBool>,
+    /// Per support of the drawn state, force x y z (N) and moment x y z (N·m); empty without
+    /// stored reactions.
+    reactions: Arc<std::sync::Mutex<Vec<[f64; 6]>>>,
 }
 
 /// The live session, replaced when a compute brings a new basis.
@@ -378,6 +381,7 @@ impl Shared {
             drawn: Arc::new(AtomicU32::new(0)),
             active_space: Arc::new(AtomicU32::new(0)),
             alarm: Arc::new(AtomicBool::new(false)),
+            reactions: Arc::default(),
         };
         let mut session_cfg = cfg.session;
         // The server keeps time; each session runs until it is replaced or the server stops.
@@ -850,6 +854,11 @@ fn frame_encoder(bases: &[Arc<ves_runtime::Basis>], hands: &[Arc<HandSlot>; HAND
         out.drawn.store(seq, Ordering::Relaxed);
         out.active_space.store(i as u32, Ordering::Relaxed);
         out.alarm.store(f.alarm, Ordering::Relaxed);
+        // The status loop reads it a few times a second: never waited for here.
+        if let Ok(mut r) = out.reactions.try_lock() {
+            r.clear();
+            r.extend_from_slice(f.reactions.unwrap_or_default());
+        }
     })
 }
 
@@ -897,6 +906,8 @@ fn hello(
         "center": first.and_then(|b| b.rigid.map(|r| r.center)),
         "gravity": s.free_body.map(|(g, _)| g),
         "spaces": spaces,
+        // Where each `[[fixed]]` support's moment is taken about (the status's `supports`).
+        "support_centres": first.and_then(|b| b.support_reactions.as_ref().map(|r| r.centres.clone())),
         "setup": workshop.map(|w| w.setup()),
     })
 }
@@ -918,6 +929,16 @@ async fn status_loop(shared: Arc<Shared>, tx: watch::Sender<String>, stop: Arc<A
             (t0, steps0, frames0) = (t, steps, frames);
         }
         let hands: Vec<HandStatus> = shared.hands.iter().map(|h| h.status()).collect();
+        let supports: Vec<serde_json::Value> = shared
+            .published
+            .reactions
+            .lock()
+            .map(|r| {
+                r.iter()
+                    .map(|v| serde_json::json!({"force_n": &v[..3], "moment_nm": &v[3..]}))
+                    .collect()
+            })
+            .unwrap_or_default();
         let status = serde_json::json!({
             "type": "status",
             "space": shared.published.active_space.load(Ordering::Relaxed),
@@ -929,6 +950,7 @@ async fn status_loop(shared: Arc<Shared>, tx: watch::Sender<String>, stop: Arc<A
             "computing": shared.computing.load(Ordering::Relaxed),
             "checking": shared.checking.load(Ordering::Relaxed),
             "hands": hands,
+            "supports": supports,
         });
         tx.send_replace(status.to_string());
     }

@@ -39,6 +39,9 @@ try {
     return {
       target: window.ves.lastTarget,
       hand: h,
+      // What the clamped root carries, from the same status, and its label beside the root.
+      supports: window.ves.status.supports,
+      supportLabel: [...document.querySelectorAll('.supportlabel')].filter((t) => t.style.display !== 'none').map((t) => t.textContent),
       rest: Array.from(s.rest.subarray(3 * v, 3 * v + 3)),
       // Read back as drawn: the true position (k = 1) and the magnified one.
       position: window.ves.trueOf(0, v),

@@ -56,6 +56,51 @@ export function showStatus(m) {
   }
   $('handinfo').textContent = lines.join(' · ');
   $('warn').textContent = warn.join(' · ');
+  showSupports(m);
+}
+
+// What each held face carries, beside its centre: the status's `supports` (force and moment of
+// the drawn state per `[[fixed]]` entry) at the hello's `support_centres`.
+const supportTags = [];
+const supportPoint = new THREE.Vector3();
+
+/** Writes each support's force and moment into its label (shown with the supports). */
+function showSupports(m) {
+  const centres = state.hello?.support_centres || [];
+  const list = (m.supports || []).slice(0, centres.length);
+  while (supportTags.length < list.length) {
+    const tag = el('div', { className: 'marker supportlabel' });
+    document.body.appendChild(tag);
+    supportTags.push(tag);
+  }
+  const shown = $('showsupports').checked;
+  supportTags.forEach((tag, k) => {
+    const on = shown && k < list.length;
+    tag.style.display = on ? 'block' : 'none';
+    tag.dataset.support = String(k);
+    if (!on) return;
+    const f = list[k].force_n, mo = list[k].moment_nm;
+    tag.textContent = `support ${k + 1} carries ${label(Math.hypot(...f), 'force', 'si')} · ${plain(Math.hypot(...mo))} N·m`;
+  });
+}
+
+const at = [0, 0];
+/** Moves the markers' labels to where their dots are drawn, and the supports' to their
+ * centres (after a render). */
+export function placeTags() {
+  for (const m of markers) {
+    if (!m.dot.visible) continue;
+    const [x, y] = screenOfPoint(m.dot.position, at);
+    m.tag.style.left = `${x + 8}px`; m.tag.style.top = `${y - 8}px`;
+  }
+  const centres = state.hello?.support_centres || [];
+  for (const tag of supportTags) {
+    const c = centres[Number(tag.dataset.support)];
+    if (tag.style.display === 'none' || !c) continue;
+    supportPoint.set(c[0], c[1], c[2]);
+    const [x, y] = screenOfPoint(supportPoint, at);
+    tag.style.left = `${x + 8}px`; tag.style.top = `${y + 8}px`;
+  }
 }
 
 /** The legend: its title, colour scale ('magnitude', 'signed', 'safety', 'neutral'), the three
@@ -100,15 +145,6 @@ export function placeMarkers(s, list) {
   });
 }
 
-const at = [0, 0];
-/** Moves the markers' labels to where their dots are drawn (after a render). */
-export function placeTags() {
-  for (const m of markers) {
-    if (!m.dot.visible) continue;
-    const [x, y] = screenOfPoint(m.dot.position, at);
-    m.tag.style.left = `${x + 8}px`; m.tag.style.top = `${y - 8}px`;
-  }
-}
 
 /** The probe: the coloured value at vertex `v` and where it is, beside the cursor (x, y). */
 export function showProbe(v, x, y) {
