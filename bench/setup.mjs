@@ -60,8 +60,11 @@ try {
     const ready = (Date.now() - t0) / 1000;
     await until(() => count('checked') > k0, 'estimate');
     const est = notes.filter((n) => n.type === 'checked').at(-1);
-    runs.push({ held: k % 2 ? 'clamped' : 'z only', request_to_pullable_s: ready, server_s: done.seconds, summary: done.summary,
-      request_to_estimate_s: (est.at - t0) / 1000, estimate: est.summary || est.error });
+    // With an instant basis first (ves view's default), the converged one follows.
+    const converged = notes.filter((n) => n.type === 'computed' && n.live !== 'instant' && n.at >= t0).at(0);
+    runs.push({ held: k % 2 ? 'clamped' : 'z only', first_live: done.live, request_to_pullable_s: ready, server_s: done.seconds,
+      summary: done.summary, request_to_converged_s: converged ? (converged.at - t0) / 1000 : null,
+      converged: converged ? converged.summary : null, request_to_estimate_s: (est.at - t0) / 1000, estimate: est.summary || est.error });
   }
   console.log(JSON.stringify({ cold: { server_s: first.seconds, summary: first.summary, estimate_s: firstChecked.seconds,
     estimate: firstChecked.summary || firstChecked.error }, supports_changed: runs }));

@@ -751,6 +751,17 @@ fn a_step_part_is_set_up_computed_and_pulled_in_the_page() {
             .collect()
     };
 
+    // The support kinds chosen in the panel go into the scene as its keys.
+    let kinds = &page["kinds"];
+    assert_eq!(kinds["elastic"]["kind"], "elastic", "{kinds}");
+    assert_eq!(kinds["elastic"]["stiffness"].as_f64(), Some(2e9), "{kinds}");
+    assert_eq!(kinds["bearing"]["kind"], "bearing", "{kinds}");
+    assert!(kinds["bearing"]["stiffness"].is_null(), "{kinds}");
+    assert!(
+        kinds["clamped"]["kind"].is_null() && kinds["clamped"]["components"].is_null(),
+        "{kinds}"
+    );
+
     // Opened as a free body, then held by the two faces clicked.
     assert_eq!(page["free"]["free"].as_bool(), Some(true), "{}", page["free"]);
     let fixed = page["asked"]["fixed"].as_array().expect("supports");

@@ -336,6 +336,32 @@ impl Haptics {
         Some(PyArray1::from_vec(py, vm))
     }
 
+    /// What each `[[fixed]]` support exerts on the part now: shape (s, 6), per support force
+    /// x y z (N) then moment x y z (N·m) about `support_centres`; None for a free body or a
+    /// basis without stored reactions (or while a volume of interest's space is active).
+    fn support_reactions<'py>(&self, py: Python<'py>) -> PyResult<Option<Bound<'py, PyArray2<f64>>>> {
+        let Some(r) = self.basis().support_reactions.as_ref() else {
+            return Ok(None);
+        };
+        let mut out = vec![[0.0; 6]; r.count()];
+        r.of(&self.sim().state().q, &mut out);
+        let flat: Vec<f64> = out.iter().flatten().copied().collect();
+        let a = Array2::from_shape_vec((r.count(), 6), flat).map_err(|e| PyValueError::new_err(e.to_string()))?;
+        Ok(Some(a.into_pyarray(py)))
+    }
+
+    /// The point each support's moment is about, m, shape (s, 3); None as for
+    /// `support_reactions()`.
+    #[getter]
+    fn support_centres<'py>(&self, py: Python<'py>) -> PyResult<Option<Bound<'py, PyArray2<f64>>>> {
+        let Some(r) = self.basis().support_reactions.as_ref() else {
+            return Ok(None);
+        };
+        let flat: Vec<f64> = r.centres.iter().flatten().copied().collect();
+        let a = Array2::from_shape_vec((r.count(), 3), flat).map_err(|e| PyValueError::new_err(e.to_string()))?;
+        Ok(Some(a.into_pyarray(py)))
+    }
+
     /// A free body's pose: centre of mass (m) then the unit quaternion (w, x, y, z) body →
     /// world, shape (7,); None for a supported part.
     #[getter]

@@ -41,6 +41,10 @@ def test_session_replays_a_script_as_the_cli_does(cli, cantilever, tmp_path):
     # Pulled up by the hand: the device is pulled back down, about k × lift.
     fz = stats["final_forces_n"][0][2]
     assert -2e4 * 1e-3 < fz < -0.9 * 2e4 * 1e-3
+    # What the clamped root carries: the CLI's, and pulling the part back down.
+    (root,) = stats["support_reactions"]
+    np.testing.assert_allclose(root["final_force_n"], expected["support_reactions"][0]["final_force_n"], rtol=1e-9)
+    assert root["final_force_n"][2] < 0 < -fz
     assert stats["realtime"] is None
 
 

@@ -196,6 +196,12 @@ class Haptics:
         """u = Φ q at the kept vertices, m, shape (nv, 3)."""
     def von_mises(self) -> Optional[npt.NDArray[np.float32]]:
         """Von Mises stress at the kept vertices, Pa, or None without modal stress."""
+    def support_reactions(self) -> Optional[npt.NDArray[np.float64]]:
+        """Per [[fixed]] support, force x y z (N) then moment x y z (N·m) about its centre,
+        shape (s, 6); None for a free body or a basis without stored reactions."""
+    @property
+    def support_centres(self) -> Optional[npt.NDArray[np.float64]]:
+        """The point each support's moment is about, m, shape (s, 3)."""
     @property
     def pose(self) -> Optional[npt.NDArray[np.float64]]:
         """Free body: centre of mass then quaternion (w, x, y, z); None when supported."""

@@ -41,6 +41,16 @@ try {
   };
   await holdFace('x');
   await holdFace('Shift+X');
+  // The support kinds: an elastic mount with its stiffness goes into the scene; back to clamped.
+  const holdBy = page.locator('#supportlist .support').first().locator('select').nth(1);
+  await holdBy.selectOption('elastic');
+  await page.locator('#supportlist .support').first().locator('input[type=number]').nth(1).fill('2e9');
+  await page.locator('#supportlist .support').first().locator('input[type=number]').nth(1).dispatchEvent('change');
+  const kinds = { elastic: await page.evaluate(() => window.ves.setup.scene().fixed[0]) };
+  await holdBy.selectOption('bearing');
+  kinds.bearing = await page.evaluate(() => window.ves.setup.scene().fixed[0]);
+  await holdBy.selectOption('x,y,z');
+  kinds.clamped = await page.evaluate(() => window.ves.setup.scene().fixed[0]);
   await page.selectOption('#material', { label: 'aluminium 6061-T6' });
   await page.fill('#modecount', '10');
   const asked = await page.evaluate(() => window.ves.setup.scene());
@@ -124,7 +134,7 @@ try {
   }
   const before = await page.evaluate(() => window.ves.frames);
   const alive = await until(page, (b) => window.ves.frames > b && window.ves.connected, before);
-  writeFileSync(`${out}/page.json`, JSON.stringify({ free, asked, held, grab, target, pulled, one, cancelled, opened, alive, errors }));
+  writeFileSync(`${out}/page.json`, JSON.stringify({ free, kinds, asked, held, grab, target, pulled, one, cancelled, opened, alive, errors }));
   console.log('done');
 } finally {
   await browser.close();

@@ -59,15 +59,31 @@ export function setupPanel(send, pick, faceMode) {
       } else if (f.faces) {
         row.textContent = `faces ${f.faces.join(', ')}`;
       }
-      const components = (f.components || ['x', 'y', 'z']).join(',');
-      const held = el('select', {}, ...[['x,y,z', 'clamped'], ['x', 'x only'], ['y', 'y only'], ['z', 'z only']]
-        .map(([v, t]) => el('option', { value: v, textContent: t, selected: components === v })));
-      held.onchange = () => { if (held.value === 'x,y,z') delete f.components; else f.components = held.value.split(','); };
+      // How it holds (docs/scene.md, support kinds): all components, one, or a kind with its own
+      // FE counterpart — sliding (the face's normal only), bearing (a cylindrical face: radial,
+      // free to turn), elastic (springs of a stiffness per area).
+      const how = f.kind && f.kind !== 'clamped' ? f.kind : (f.components || ['x', 'y', 'z']).join(',');
+      const held = el('select', {}, ...[['x,y,z', 'clamped'], ['x', 'x only'], ['y', 'y only'], ['z', 'z only'],
+        ['sliding', 'sliding (normal only)'], ['bearing', 'bearing (cylinder, turns)'], ['elastic', 'elastic mount']]
+        .map(([v, t]) => el('option', { value: v, textContent: t, selected: how === v })));
+      const stiffness = el('input', { type: 'number', step: 'any', min: '0', title: 'stiffness per area of the mount, N/m³',
+        value: plain(f.stiffness || 1e9) });
+      const unit = el('span', { textContent: ' N/m³' });
+      const showStiffness = () => { stiffness.style.display = unit.style.display = held.value === 'elastic' ? '' : 'none'; };
+      held.onchange = () => {
+        delete f.components; delete f.kind; delete f.stiffness;
+        if (['sliding', 'bearing', 'elastic'].includes(held.value)) f.kind = held.value;
+        else if (held.value !== 'x,y,z') f.components = held.value.split(',');
+        if (held.value === 'elastic') f.stiffness = Number(stiffness.value);
+        showStiffness();
+      };
+      stiffness.onchange = () => { f.stiffness = Number(stiffness.value); };
+      showStiffness();
       const del = document.createElement('button');
       del.textContent = '×';
       del.title = 'remove';
       del.onclick = () => { fixed.splice(i, 1); drawSupports(); };
-      row.append(' ', held, ' ', del);
+      row.append(' ', held, stiffness, unit, ' ', del);
       list.appendChild(row);
     });
   }
