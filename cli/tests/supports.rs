@@ -16,30 +16,34 @@ fn beam(fixed: &str, count: usize) -> String {
     .replace("count = 4", &format!("count = {count}"))
 }
 
-/// Sliding on the root face (held along its normal by stiff springs) against the same face's x
-/// component removed: the same three rigid motions left, the same modes to 1e-3.
+/// Sliding faces (held along their normals by stiff springs) against the same faces' normal
+/// components removed: the root face alone leaves three rigid motions; the root and the bottom
+/// face leave one (sliding along y: each face blocks the turns its normal motion would take),
+/// and the same modes to 1e-3.
 #[test]
 fn a_sliding_face_holds_its_normal_as_removing_it_does() {
-    let (dir, exact) = workdir(&beam(
-        "[[fixed]]\nplane = { axis = \"x\", value = 0.0 }\ncomponents = [\"x\"]\n",
-        6,
-    ));
-    let sliding = write_file(
-        dir.path(),
-        "sliding.toml",
-        &beam(
-            "[[fixed]]\nplane = { axis = \"x\", value = 0.0 }\nkind = \"sliding\"\n",
-            6,
+    let root = |how: &str| format!("[[fixed]]\nplane = {{ axis = \"x\", value = 0.0 }}\n{how}\n");
+    let bottom = |how: &str| format!("[[fixed]]\nplane = {{ axis = \"z\", value = 0.0 }}\n{how}\n");
+    for (name, removed, sliding, rigid) in [
+        ("root", root("components = [\"x\"]"), root("kind = \"sliding\""), 3),
+        (
+            "root and bottom",
+            root("components = [\"x\"]") + &bottom("components = [\"z\"]"),
+            root("kind = \"sliding\"") + &bottom("kind = \"sliding\""),
+            1,
         ),
-    );
-    let a = precompute_json(&exact, &dir.path().join("exact.h5"));
-    let b = precompute_json(&sliding, &dir.path().join("sliding.h5"));
-    assert_eq!(a["spaces"][0]["rigid_modes_dropped"], 3);
-    assert_eq!(b["spaces"][0]["rigid_modes_dropped"], 3);
-    for (i, (x, y)) in frequencies(&a).iter().zip(frequencies(&b)).enumerate() {
-        let rel = (y - x) / x;
-        println!("mode {i}: removed {x:.4} Hz, sliding {y:.4} Hz ({rel:+.2e})");
-        assert!(rel.abs() < 1e-3, "mode {i}: {x} against {y}");
+    ] {
+        let (dir, exact) = workdir(&beam(&removed, 6));
+        let slid = write_file(dir.path(), "sliding.toml", &beam(&sliding, 6));
+        let a = precompute_json(&exact, &dir.path().join("exact.h5"));
+        let b = precompute_json(&slid, &dir.path().join("sliding.h5"));
+        assert_eq!(a["spaces"][0]["rigid_modes_dropped"], rigid, "{name}");
+        assert_eq!(b["spaces"][0]["rigid_modes_dropped"], rigid, "{name}");
+        for (i, (x, y)) in frequencies(&a).iter().zip(frequencies(&b)).enumerate() {
+            let rel = (y - x) / x;
+            println!("{name}, mode {i}: removed {x:.4} Hz, sliding {y:.4} Hz ({rel:+.2e})");
+            assert!(rel.abs() < 1e-3, "{name}, mode {i}: {x} against {y}");
+        }
     }
 }
 
