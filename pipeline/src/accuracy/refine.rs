@@ -38,6 +38,24 @@ pub struct Step {
     /// ([`crate::mesh::remembered`]; absent when false).
     #[serde(skip_serializing_if = "std::ops::Not::not")]
     pub remembered: bool,
+    /// What the step before forecast for this one when it chose it (none for the first): set
+    /// beside `dofs`, `seconds` and `peak_rss_bytes` it says how good the forecasts that stop a
+    /// refinement are.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub forecast: Option<Forecast>,
+    /// This process's peak resident memory once the step was solved, bytes.
+    pub peak_rss_bytes: u64,
+}
+
+/// A refinement step's forecast of the next mesh.
+#[derive(Clone, Copy, Debug, serde::Serialize)]
+pub struct Forecast {
+    /// Free unknowns.
+    pub dofs: f64,
+    /// Seconds to mesh, assemble and solve it.
+    pub seconds: f64,
+    /// The process's peak memory with it, bytes.
+    pub peak_bytes: f64,
 }
 
 /// The last mesh of a refinement, and how it got there.
@@ -121,6 +139,7 @@ pub fn refine(scene: &Scene, voi: Option<&Voi>, choice: SolverChoice, target: f6
     let mut estimate = estimate_of(&scene, None, &current);
     let mut steps = Vec::new();
     let mut seen: Option<Seen> = None;
+    let mut forecast: Option<Forecast> = None;
     loop {
         let worst = estimate
             .as_ref()
@@ -135,6 +154,8 @@ pub fn refine(scene: &Scene, voi: Option<&Voi>, choice: SolverChoice, target: f6
             frequencies_hz: current.modes.frequencies_hz()[..kept.min(current.modes.eigenvalues.len())].to_vec(),
             max_estimated_error: worst,
             remembered: from_memory && steps.is_empty(),
+            forecast: forecast.take(),
+            peak_rss_bytes: crate::memory::peak_rss_bytes(),
         });
         tracing::info!(
             size = current.size,
@@ -164,6 +185,11 @@ pub fn refine(scene: &Scene, voi: Option<&Voi>, choice: SolverChoice, target: f6
         seen = estimate.as_ref().map(|e| Seen {
             dofs: current.d.dofs.free_count(),
             errors: e.relative(),
+        });
+        forecast = Some(Forecast {
+            dofs: next.unknowns,
+            seconds: next.cost.seconds,
+            peak_bytes: next.cost.bytes,
         });
         let next_size = next.size;
         match next.local {

@@ -77,7 +77,8 @@ export function setupPanel(send, pick, faceMode) {
         if (held.value === 'elastic') f.stiffness = Number(stiffness.value);
         showStiffness();
       };
-      stiffness.onchange = () => { f.stiffness = Number(stiffness.value); };
+      // Only an elastic mount has a stiffness (the input's change can come after the choice).
+      stiffness.onchange = () => { if (held.value === 'elastic') f.stiffness = Number(stiffness.value); };
       showStiffness();
       const del = document.createElement('button');
       del.textContent = '×';
