@@ -998,11 +998,7 @@ async fn client(mut socket: WebSocket, shared: Arc<Shared>) {
         tokio::select! {
             r = generations.changed() => {
                 if r.is_err() { break; }
-                generations.borrow_and_update();
-                ok = send_generation(&mut socket, &shared, id).await;
-                // A frame of the session before is not for these meshes.
-                frames.borrow_and_update();
-                gate.last_seq = None;
+                ok = next_generation(&mut socket, &shared, id, (&mut generations, &mut frames, &mut gate)).await;
             }
             m = socket.recv() => match m {
                 None | Some(Err(_)) | Some(Ok(Message::Close(_))) => break,
@@ -1043,7 +1039,16 @@ async fn client(mut socket: WebSocket, shared: Arc<Shared>) {
                 ok = send(&mut socket, Message::Text(s.into())).await;
             }
             r = notes.recv() => match r {
-                Ok(n) => ok = send(&mut socket, Message::Text(n.into())).await,
+                Ok(n) => {
+                    // A `computed` note follows its swap: the page gets the basis it names (the
+                    // new hello and meshes) before the note, never after (select! picks among
+                    // ready branches at random, and a page that took a note for the basis
+                    // shown read an instant basis's frequencies as the converged one's).
+                    if generations.has_changed().unwrap_or(false) {
+                        ok = next_generation(&mut socket, &shared, id, (&mut generations, &mut frames, &mut gate)).await;
+                    }
+                    ok = ok && send(&mut socket, Message::Text(n.into())).await;
+                }
                 // Progress lost to a slow page is no loss; the channel is large enough that the
                 // outcomes, few and far apart, are not.
                 Err(broadcast::error::RecvError::Lagged(_)) => {}
@@ -1104,6 +1109,21 @@ impl FrameGate {
 }
 
 /// Sends the basis being served (new at each compute): its hello, then its meshes.
+/// The generation that replaced the one a client was sent: its hello and meshes, and no frame of
+/// the session before (not for these meshes).
+async fn next_generation(
+    socket: &mut WebSocket,
+    shared: &Shared,
+    id: u64,
+    (generations, frames, gate): (&mut watch::Receiver<u64>, &mut watch::Receiver<Bytes>, &mut FrameGate),
+) -> bool {
+    generations.borrow_and_update();
+    let ok = send_generation(socket, shared, id).await;
+    frames.borrow_and_update();
+    gate.last_seq = None;
+    ok
+}
+
 async fn send_generation(socket: &mut WebSocket, shared: &Shared, id: u64) -> bool {
     let g = shared.generation.read().ok().map(|g| Arc::clone(&g));
     let Some(g) = g else { return false };
