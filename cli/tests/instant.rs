@@ -166,3 +166,29 @@ fn instant_bases_of_a_corpus_part_held_anew_match_the_exact_solve() {
         }
     }
 }
+
+/// Another material of the same Poisson's ratio on the same mesh and supports (steel to an
+/// aluminium of ν = 0.3): the previous modes scaled exactly (λ by E'/E·ρ/ρ', φ by √(ρ/ρ')), no
+/// solve at all, the frequencies those of the converged solve to 1e-9; another ν searches.
+#[test]
+fn a_new_material_rescales_the_modes_without_a_solve() {
+    let (dir, root) = workdir(&beam(ROOT));
+    let previous = dir.path().join("steel.h5");
+    precompute_json(&root, &previous);
+    let aluminium = beam(ROOT)
+        .replace("young = 2.1e11", "young = 7.0e10")
+        .replace("density = 7850.0", "density = 2700.0");
+    let scene = write_file(dir.path(), "aluminium.toml", &aluminium);
+    let exact = precompute_json(&scene, &dir.path().join("aluminium.h5"));
+    let out = dir.path().join("aluminium-instant.h5");
+    let got = instant_within_bounds("aluminium", &scene, &previous, &out, &exact, 1e-9);
+    assert_eq!(got["instant"]["solves"], 0, "{got}");
+    let other = write_file(
+        dir.path(),
+        "nu.toml",
+        &aluminium.replace("poisson = 0.3", "poisson = 0.33"),
+    );
+    let exact = precompute_json(&other, &dir.path().join("nu.h5"));
+    let got = instant_within_bounds("nu", &other, &previous, &dir.path().join("nu-instant.h5"), &exact, 1e-3);
+    assert!(got["instant"]["solves"].as_u64() > Some(0), "{got}");
+}

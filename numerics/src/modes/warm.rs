@@ -224,6 +224,42 @@ pub fn warm_start(space: Space<'_>, count: usize, start: &[f64], blocks: usize) 
     })
 }
 
+/// The modes of a problem whose K and M are a nearby problem's times constants (the same mesh
+/// and supports, another material of the same Poisson's ratio: K ∝ E, M ∝ ρ): its `eigenvalues`
+/// and `vectors` (column-major `free × r`) already scaled, checked against `space` as any
+/// solve's. No factorisation, no solve; the bounds are the modes' own relative residuals (what
+/// the solve that found them was accepted at).
+pub fn scaled(space: Space<'_>, eigenvalues: Vec<f64>, mut vectors: Vec<f64>) -> Result<Warm, ModesError> {
+    let t = Instant::now();
+    let problem = EigenProblem::of(space.system);
+    let r = eigenvalues.len();
+    if vectors.len() != r * problem.size() {
+        return Err(ModesError::Block(format!(
+            "{} values are not {r} vectors of {} unknowns",
+            vectors.len(),
+            problem.size()
+        )));
+    }
+    let (residuals, orthonormality_error) = check(&problem, &mut vectors, &eigenvalues);
+    Ok(Warm {
+        bounds: residuals.clone(),
+        estimates: residuals.clone(),
+        modes: Modes {
+            eigenvalues,
+            vectors,
+            rigid_dropped: space.rigid,
+            residuals,
+            orthonormality_error,
+            sigma: 0.0,
+            factorize_s: 0.0,
+            eigensolve_s: t.elapsed().as_secs_f64(),
+            symbolic: None,
+        },
+        solves: 0,
+        basis: r,
+    })
+}
+
 /// The shift: 0 for a held part (K positive definite); below the spectrum for a part with
 /// rigid motions, a hundredth of the lowest Rayleigh quotient of the start but no further down
 /// than the converged solve's first shift (1e-6 of the mesh's stiffness scale), so the rigid

@@ -41,6 +41,18 @@ impl InstantCheck {
     /// What the bound says, in words, for a summary line.
     pub fn text(&self) -> String {
         let largest = |v: &[f64]| v.iter().copied().fold(0.0, f64::max);
+        if self.solves == 0 {
+            return format!(
+                "the previous modes rescaled exactly to the new material (the same Poisson's ratio, mesh and supports): \
+                 no solve, frequencies within {:.1e} from the modes' residuals{}",
+                largest(&self.frequency_bound),
+                if self.mesh_may_change {
+                    "; the converged compute refines to the target error and may choose a finer mesh"
+                } else {
+                    ""
+                }
+            );
+        }
         format!(
             "frequencies at most {:.3} % above the converged solve's on this mesh (expected {:.3} %){}",
             100.0 * largest(&self.frequency_bound),
@@ -82,6 +94,7 @@ pub fn run(scene: &Scene, previous: &Path, out: &Path) -> Result<Option<(Summary
         tracing::info!("no instant basis: {why}");
         return Ok(None);
     }
+    let scale = material_scale(scene, before, &stored);
     crate::progress::stage("assembling on the previous mesh", 0.1)?;
     let t = Instant::now();
     let mesh = stored.mesh;
@@ -101,7 +114,17 @@ pub fn run(scene: &Scene, previous: &Path, out: &Path) -> Result<Option<(Summary
     let assemble_s = t.elapsed().as_secs_f64();
     let start_vectors = carried(&stored.rows, stored.r, &d.dofs);
     crate::progress::stage("instant modes", 0.4)?;
-    let warm = crate::modes::warm::warm_start(d.space(), scene.modes.count, &start_vectors, BLOCKS)?;
+    let warm = match scale {
+        Some((lambda, phi)) => {
+            // The same mesh, supports and Poisson's ratio: the previous modes, scaled, exactly.
+            let count = scene.modes.count;
+            let eigenvalues = stored.eigenvalues[..count].iter().map(|l| l * lambda).collect();
+            let n = d.dofs.free_count();
+            let vectors = start_vectors[..n * count].iter().map(|v| v * phi).collect();
+            crate::modes::warm::scaled(d.space(), eigenvalues, vectors)?
+        }
+        None => crate::modes::warm::warm_start(d.space(), scene.modes.count, &start_vectors, BLOCKS)?,
+    };
     drop(start_vectors);
     let check = InstantCheck {
         from: previous.display().to_string(),
@@ -119,6 +142,34 @@ pub fn run(scene: &Scene, previous: &Path, out: &Path) -> Result<Option<(Summary
     crate::progress::stage("writing", 0.9)?;
     let summary = write_all(scene, out, std::slice::from_ref(&space), 0.0, start)?;
     Ok(Some((summary, check)))
+}
+
+/// When `scene` differs from the previous basis's (`before`, its TOML) in its material's Young's
+/// modulus or density alone — the same supports (no elastic mount if E changed), the same
+/// Poisson's ratio, no more modes than stored — its modes are the stored ones scaled exactly (K ∝ E, M ∝ ρ): the factors of the
+/// eigenvalues, E'/E·ρ/ρ', and of the M-normalised vectors, √(ρ/ρ').
+fn material_scale(scene: &Scene, before: &str, stored: &crate::store::StoredSpace) -> Option<(f64, f64)> {
+    let (now, then) = (
+        toml::from_str::<toml::Table>(&scene.toml).ok()?,
+        toml::from_str::<toml::Table>(before).ok()?,
+    );
+    let (m, was) = (&scene.material, &stored.material);
+    // An elastic mount's springs are given in N/m³, not in E: K then scales with E no more.
+    let mounts = scene
+        .fixed
+        .iter()
+        .any(|f| matches!(f.kind, crate::scene::SupportKind::Elastic { .. }));
+    let same = now.get("fixed") == then.get("fixed")
+        && m.poisson == was.poisson
+        && (m.young == was.young || !mounts)
+        && scene.modes.count <= stored.r
+        && stored.eigenvalues.len() == stored.r;
+    same.then(|| {
+        (
+            (m.young / was.young) * (was.density / m.density),
+            (was.density / m.density).sqrt(),
+        )
+    })
 }
 
 /// The stored modes (row-major `3·nodes × r`) on `dofs`' free DOFs, column-major.
