@@ -171,11 +171,31 @@ pub fn modal_reactions(
     let lame = Lame::of(&scene.material);
     let nf = dofs.free_count();
     let zero = vec![0.0; 3 * mesh.nodes.len()];
+    // K u is wanted at the held DOFs only: the elements that touch a held node are all that
+    // contribute there (on the ribplate held on its base, the whole mesh took 0.86 s for 30 modes).
+    let mut held_node = vec![false; mesh.nodes.len()];
+    for &g in held.iter().flatten() {
+        held_node[g as usize / 3] = true;
+    }
+    let near = crate::tet_mesh::Mesh {
+        nodes: mesh.nodes.clone(),
+        vertex_count: mesh.vertex_count,
+        kind: mesh.kind,
+        tets: mesh
+            .tets
+            .chunks_exact(mesh.nodes_per_tet())
+            .filter(|t| t.iter().any(|&v| held_node[v as usize]))
+            .flatten()
+            .copied()
+            .collect(),
+        surface: Vec::new(),
+        surface_faces: Vec::new(),
+    };
     let each: Vec<Vec<SupportReaction>> = (0..r)
         .into_par_iter()
         .map(|j| {
             let u = dofs.expand(&modes.vectors[j * nf..(j + 1) * nf]);
-            let k_u = vector::internal_forces(mesh, &lame, &u)
+            let k_u = vector::internal_forces(&near, &lame, &u)
                 .map_err(|e| anyhow::anyhow!("an element is degenerate (det J = {:.3e})", e.det))?;
             Ok(support_reactions(mesh, &held, &springs, &u, &k_u, &zero))
         })

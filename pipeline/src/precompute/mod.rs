@@ -41,6 +41,10 @@ pub struct Timings {
     pub sturm: f64,
     /// The static load cases (when the scene has any).
     pub loads: f64,
+    /// The hand's contact patches of the surface vertices (with a contact radius).
+    pub contact: f64,
+    /// What each support carries per mode (held parts).
+    pub reactions: f64,
     /// Writing the file.
     pub write: f64,
     /// Everything.
@@ -58,6 +62,8 @@ impl Timings {
         self.stress += o.stress;
         self.sturm += o.sturm;
         self.loads += o.loads;
+        self.contact += o.contact;
+        self.reactions += o.reactions;
     }
 }
 

@@ -140,14 +140,15 @@ pub(super) fn solve_space_checked(
         advice::warn_about_error(scene, &name, solved.problem.mesh(), size, estimated.error.as_ref());
     }
     progress::stage("static correction and stress", 0.85)?;
-    let contact = contact_patches(scene, &solved);
+    let (contact, contact_s) = timed(|| contact_patches(scene, &solved));
     let (compliance, static_correction_s) = timed(|| compliance(scene, &solved, contact.as_ref()));
     let compliance = compliance?;
     let (stress, stress_s) = timed(|| stress(scene, &solved));
     progress::stage("service loads", 0.9)?;
     let (loads, loads_s) = timed(|| released(|| loads(scene, &solved)));
     let loads = loads?;
-    let reactions = reactions(scene, voi, &solved)?;
+    let (reactions, reactions_s) = timed(|| reactions(scene, voi, &solved));
+    let reactions = reactions?;
     if let Some(s) = &sturm {
         advice::report_sturm(&name, s);
     }
@@ -162,6 +163,8 @@ pub(super) fn solve_space_checked(
         loads,
         loads_s,
         reactions,
+        contact_s,
+        reactions_s,
     };
     Ok(store(name, voi, solved, later))
 }
@@ -183,6 +186,8 @@ pub(super) fn space_from_modes(
         ordering_s: 0.0,
     };
     let (stress, stress_s) = timed(|| stress(scene, &solved));
+    let (reactions, reactions_s) = timed(|| reactions(scene, None, &solved));
+    let reactions = reactions?;
     let later = AfterSolve {
         sturm: None,
         estimated: Estimated::default(),
@@ -193,7 +198,9 @@ pub(super) fn space_from_modes(
         stress_s,
         loads: Vec::new(),
         loads_s: 0.0,
-        reactions: reactions(scene, None, &solved)?,
+        reactions,
+        contact_s: 0.0,
+        reactions_s,
     };
     Ok(store("global".to_string(), None, solved, later))
 }
@@ -428,6 +435,8 @@ struct AfterSolve {
     loads: Vec<crate::loads::LoadResult>,
     loads_s: f64,
     reactions: Option<crate::loads::ModalReactions>,
+    contact_s: f64,
+    reactions_s: f64,
 }
 
 /// Store: what the file writer and the summary need of the space.
@@ -459,6 +468,8 @@ fn store(name: String, voi: Option<&Voi>, solved: Solved, later: AfterSolve) -> 
         stress: later.stress_s,
         sturm: later.sturm.map_or(0.0, |s| s.seconds),
         loads: later.loads_s,
+        contact: later.contact_s,
+        reactions: later.reactions_s,
         ..Timings::default()
     };
     SolvedSpace {
