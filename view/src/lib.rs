@@ -788,11 +788,35 @@ impl OpenFailure {
     }
 }
 
+/// The file name a downloaded basis is offered under: the part's name with anything but ASCII
+/// letters, digits, `.`, `-` and `_` made `_` (a name is not a path, nor a header), at most 100
+/// characters; "basis" for an empty one. Every download was "basis.h5" before, whatever the part.
+fn download_name(name: &str) -> String {
+    let clean: String = name
+        .chars()
+        .take(100)
+        .map(|c| {
+            if c.is_ascii_alphanumeric() || "._-".contains(c) {
+                c
+            } else {
+                '_'
+            }
+        })
+        .collect();
+    let clean = clean.trim_start_matches('.').to_string();
+    if clean.is_empty() { "basis".into() } else { clean }
+}
+
 /// GET /basis.h5: the basis being served, for "save basis" (only the server's own page may ask:
 /// the same `Host` and `Origin` rules as every request).
 async fn basis_file(State(shared): State<Arc<Shared>>) -> Response {
-    let path = shared.generation.read().ok().and_then(|g| g.basis_path.clone());
-    let Some(path) = path else {
+    let served = shared.generation.read().ok().and_then(|g| {
+        Some((
+            g.basis_path.clone()?,
+            download_name(g.hello["name"].as_str().unwrap_or_default()),
+        ))
+    });
+    let Some((path, name)) = served else {
         return (StatusCode::NOT_FOUND, "no basis computed here yet").into_response();
     };
     match tokio::task::spawn_blocking(move || std::fs::read(&path))
@@ -801,8 +825,11 @@ async fn basis_file(State(shared): State<Arc<Shared>>) -> Response {
     {
         Ok(bytes) => (
             [
-                (header::CONTENT_TYPE, "application/x-hdf5"),
-                (header::CONTENT_DISPOSITION, "attachment; filename=\"basis.h5\""),
+                (header::CONTENT_TYPE, "application/x-hdf5".to_string()),
+                (
+                    header::CONTENT_DISPOSITION,
+                    format!("attachment; filename=\"{name}.h5\""),
+                ),
             ],
             bytes,
         )
@@ -1075,6 +1102,14 @@ fn want_stress(shared: &Shared, on: bool) {
     }
 }
 
+/// Frames between `last` and `seq` a client did not get. A new session numbers its frames from 1
+/// again, and its first frames can reach a client before the swap's generation does: a number
+/// below the last is a restart, not 2³² − 1 − k skipped frames (the `frames_skipped:
+/// 4294966184` a user saw in `--json`).
+fn skipped(last: u32, seq: u32) -> u64 {
+    u64::from(seq.checked_sub(last).map_or(0, |d| d.saturating_sub(1)))
+}
+
 /// Which drawn frames one client is sent.
 #[derive(Default)]
 struct FrameGate {
@@ -1091,9 +1126,7 @@ impl FrameGate {
     fn pass(&mut self, shared: &Shared, f: Bytes) -> Option<Bytes> {
         let seq = protocol::frame_seq(&f)?;
         if let Some(l) = self.last_seq {
-            shared
-                .frames_skipped
-                .fetch_add(u64::from(seq.wrapping_sub(l).saturating_sub(1)), Ordering::Relaxed);
+            shared.frames_skipped.fetch_add(skipped(l, seq), Ordering::Relaxed);
         }
         self.last_seq = Some(seq);
         if self

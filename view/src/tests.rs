@@ -388,3 +388,23 @@ fn on_all_interfaces_a_page_of_another_host_is_refused() {
     assert_eq!(server.exchange(&websocket(&host, Some(&foreign))).0, 403);
     server.finish();
 }
+
+/// Frames a client skipped: the gap between two frame numbers, and nothing when a new session
+/// numbers its frames from 1 again (not 2³² − k).
+#[test]
+fn a_new_sessions_frame_numbers_are_no_skipped_frames() {
+    assert_eq!(super::skipped(10, 11), 0);
+    assert_eq!(super::skipped(10, 14), 3);
+    assert_eq!(super::skipped(1200, 3), 0);
+    assert_eq!(super::skipped(7, 7), 0);
+}
+
+/// A downloaded basis is offered under its part's name, made safe for a file name and a header.
+#[test]
+fn a_downloaded_basis_is_named_for_its_part() {
+    assert_eq!(super::download_name("pmi_block_2holes"), "pmi_block_2holes");
+    assert_eq!(super::download_name("a\"b\r\nc/../d"), "a_b__c_.._d");
+    assert_eq!(super::download_name("..hidden"), "hidden");
+    assert_eq!(super::download_name(""), "basis");
+    assert_eq!(super::download_name(&"x".repeat(500)).len(), 100);
+}
