@@ -6,7 +6,14 @@ use anyhow::{Context, Result};
 use ndarray::{Array1, Array2};
 use std::path::Path;
 
-/// Writes `col_ptr`, `row_idx`, `k`, `m` (lower-triangle CSC), `free_dofs`, `nodes`, `tets`.
+/// The file's `storage` attribute: how `k` and `m` are stored, in words a reader acts on.
+pub const STORAGE: &str = "k and m are symmetric and stored as their lower triangles only (diagonal included), \
+     compressed sparse columns over the free DOFs: column j holds row_idx[col_ptr[j]..col_ptr[j+1]]; \
+     the whole matrix is L + L^T - diag(L), e.g. in scipy: L = csc_matrix((k, row_idx, col_ptr)); \
+     K = L + L.T - diags(L.diagonal())";
+
+/// Writes `col_ptr`, `row_idx`, `k`, `m` (lower-triangle CSC), `free_dofs`, `nodes`, `tets`, and
+/// the attributes `rigid_modes` and `storage` (how to read them, [`STORAGE`]).
 /// The file is written atomically (the caller checked `out` with [`crate::output::check`]).
 pub fn write_matrices(out: &Path, d: &Discretized) -> Result<()> {
     Ok(crate::output::write_atomically(out, |tmp| write_to(tmp, d))?)
@@ -42,6 +49,12 @@ fn write_to(out: &Path, d: &Discretized) -> Result<()> {
     file.new_attr::<u32>()
         .create("rigid_modes")?
         .write_scalar(&(d.rigid as u32))?;
+    // The file says how to read it: a user who took `k` for a whole matrix solved with half of
+    // it (his first frequencies were 60× off), and nothing in the file told him otherwise.
+    let storage: hdf5::types::VarLenUnicode = STORAGE.parse().context("the storage note")?;
+    file.new_attr::<hdf5::types::VarLenUnicode>()
+        .create("storage")?
+        .write_scalar(&storage)?;
     // Errors of writes HDF5 deferred (metadata, cached raw data) surface here, not in a drop.
     file.flush().context("flushing the file")?;
     file.close().context("closing the file")?;
