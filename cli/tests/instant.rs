@@ -78,17 +78,7 @@ fn instant_within_bounds(
     exact: &serde_json::Value,
     within: f64,
 ) -> serde_json::Value {
-    let o = ves(&[
-        "precompute",
-        scene.to_str().unwrap(),
-        "-o",
-        out.to_str().unwrap(),
-        "--instant-from",
-        previous.to_str().unwrap(),
-        "--json",
-    ]);
-    assert!(o.status.success(), "{name}: {}", String::from_utf8_lossy(&o.stderr));
-    let got = last_json(&o);
+    let got = precompute_json_with(scene, out, &["--instant-from", previous.to_str().unwrap()]);
     let (want, have) = (frequencies(exact), frequencies(&got));
     assert_eq!(want.len(), have.len(), "{name}");
     let bounds = numbers(&got["instant"]["frequency_bound"]);

@@ -96,16 +96,7 @@ fn a_shaft_in_two_bearings_bends_as_a_pinned_beam() {
     );
     let path = write_file(dir.path(), "shaft.toml", &scene);
     let out = dir.path().join("shaft.h5");
-    let o = ves(&[
-        "precompute",
-        path.to_str().unwrap(),
-        "-o",
-        out.to_str().unwrap(),
-        "--json",
-        "--allow-geo-scripts",
-    ]);
-    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-    let got = last_json(&o);
+    let got = precompute_json_with(&path, &out, &["--allow-geo-scripts"]);
     assert_eq!(got["spaces"][0]["rigid_modes_dropped"], 2, "{got}");
     let (e, rho, d, span) = (2.1e11f64, 7850.0f64, 0.04f64, 0.486f64);
     let want = std::f64::consts::PI / (2.0 * span * span) * (e / rho).sqrt() * d / 4.0;

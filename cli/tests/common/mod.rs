@@ -68,14 +68,26 @@ pub fn frequencies(summary: &serde_json::Value) -> Vec<f64> {
 
 /// `ves precompute SCENE -o OUT --json`, which must succeed; its JSON.
 pub fn precompute_json(scene: &Path, out: &Path) -> serde_json::Value {
-    let o = ves(&[
+    precompute_json_with(scene, out, &[])
+}
+
+/// [`precompute_json`] with more flags.
+pub fn precompute_json_with(scene: &Path, out: &Path, extra: &[&str]) -> serde_json::Value {
+    let mut args = vec![
         "precompute",
         scene.to_str().unwrap(),
         "-o",
         out.to_str().unwrap(),
         "--json",
-    ]);
-    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    ];
+    args.extend_from_slice(extra);
+    let o = ves(&args);
+    assert!(
+        o.status.success(),
+        "{}: {}",
+        scene.display(),
+        String::from_utf8_lossy(&o.stderr)
+    );
     last_json(&o)
 }
 
