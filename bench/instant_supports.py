@@ -159,14 +159,15 @@ def points(b, held_faces):
     for k in range(3):
         np.add.at(normal, t[:, k], cross)
     normal /= np.maximum(np.linalg.norm(normal, axis=1), 1e-300)[:, None]
+    # Farthest-point picks: each the surface vertex farthest from the held nodes (a subsample of
+    # at most 200) and from the vertices picked before it.
+    held_sample = x[held_nodes][::max(1, len(held_nodes) // 200)]
+    nearest = np.min(np.linalg.norm(x[surface][:, None, :] - held_sample[None, :, :], axis=2), axis=1)
     chosen = []
-    reference = x[held_nodes]
     for _ in range(3):
-        d = np.min(np.linalg.norm(x[surface][:, None, :] - reference[None, ::max(1, len(reference) // 200), :],
-                                  axis=2), axis=1)
-        k = surface[int(np.argmax(d))]
-        chosen.append(k)
-        reference = np.vstack([reference, x[k][None, :]] * 50)
+        k = int(np.argmax(nearest))
+        chosen.append(surface[k])
+        nearest = np.minimum(nearest, np.linalg.norm(x[surface] - x[surface[k]], axis=1))
     return [(k, normal[k]) for k in chosen]
 
 
