@@ -526,7 +526,8 @@ impl PartWorkshop {
                     let summary = match instant.as_deref().and_then(|i| moved(i, &frequencies_hz)) {
                         Some(m) => format!(
                             "{summary} · converged basis live: its frequencies differ from the instant ones by at most {:+.3} %",
-                            100.0 * m
+                            // A move below the last digit shown is no move ("-0.000 %" read as one).
+                            if (100.0 * m).abs() < 5e-4 { 0.0 } else { 100.0 * m }
                         ),
                         None => summary,
                     };

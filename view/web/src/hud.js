@@ -75,7 +75,8 @@ function showSupports(m) {
   }
   const shown = $('showsupports').checked;
   supportTags.forEach((tag, k) => {
-    const on = shown && k < list.length;
+    // At rest every support carries exactly nothing: no label then.
+    const on = shown && k < list.length && [...list[k].force_n, ...list[k].moment_nm].some((v) => v !== 0);
     tag.style.display = on ? 'block' : 'none';
     tag.dataset.support = String(k);
     if (!on) return;

@@ -64,8 +64,11 @@ export function setupPanel(send, pick, faceMode) {
       // free to turn), elastic (springs of a stiffness per area).
       const how = f.kind && f.kind !== 'clamped' ? f.kind : (f.components || ['x', 'y', 'z']).join(',');
       const held = el('select', {}, ...[['x,y,z', 'clamped'], ['x', 'x only'], ['y', 'y only'], ['z', 'z only'],
-        ['sliding', 'sliding (normal only)'], ['bearing', 'bearing (cylinder, turns)'], ['elastic', 'elastic mount']]
+        ['sliding', 'sliding'], ['bearing', 'bearing'], ['elastic', 'elastic']]
         .map(([v, t]) => el('option', { value: v, textContent: t, selected: how === v })));
+      // Short names keep the row one line wide at 280 px; what each does is in the tooltip.
+      held.title = 'clamped: every component held · x/y/z only · sliding: the face\'s normal only · '
+        + 'bearing: a cylindrical face held radially, free to turn · elastic: a mount of the stiffness beside it (N/m³)';
       const stiffness = el('input', { type: 'number', step: 'any', min: '0', title: 'stiffness per area of the mount, N/m³',
         value: plain(f.stiffness || 1e9) });
       const unit = el('span', { textContent: ' N/m³' });
