@@ -11,6 +11,7 @@ pub mod batch;
 pub mod compliance;
 pub mod export;
 pub mod fingerprint;
+pub mod host;
 pub mod input;
 pub mod loads;
 pub mod matrices;

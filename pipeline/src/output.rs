@@ -169,9 +169,10 @@ pub fn check_as(out: &Path, inputs: &[&Path], policy: Overwrite, flag: &str) -> 
 }
 
 /// A new empty file beside `out` (same directory, so the rename is atomic), named
-/// `<out name>.tmp-<pid>.<random>` and created exclusively (`O_EXCL`: a planted file or link of
-/// that name is never opened). Removed when dropped unless persisted.
-fn temporary_beside(out: &Path) -> std::io::Result<tempfile::NamedTempFile> {
+/// `<out name>.tmp-@<host id>-<pid>.<random>` (the host id says where the pid means something:
+/// [`crate::host`]) and created exclusively (`O_EXCL`: a planted file or link of that name is
+/// never opened). Removed when dropped unless persisted.
+pub(crate) fn temporary_beside(out: &Path) -> std::io::Result<tempfile::NamedTempFile> {
     let name = out
         .file_name()
         .map(|n| n.to_string_lossy().into_owned())
@@ -180,7 +181,11 @@ fn temporary_beside(out: &Path) -> std::io::Result<tempfile::NamedTempFile> {
     // output private to its writer.
     use std::os::unix::fs::PermissionsExt;
     tempfile::Builder::new()
-        .prefix(&format!("{name}.tmp-{}.", std::process::id()))
+        .prefix(&format!(
+            "{name}.tmp-@{}-{}.",
+            crate::host::this().id,
+            std::process::id()
+        ))
         .rand_bytes(8)
         .permissions(std::fs::Permissions::from_mode(0o666))
         .tempfile_in(directory_of(out))
@@ -258,8 +263,31 @@ pub fn write_atomically(out: &Path, write: impl FnOnce(&Path) -> anyhow::Result<
     staging.commit()
 }
 
-/// Removes temporary files a killed run left beside `out` (their process is gone).
+/// A temporary of another host is removed only when it has not changed for this long: its
+/// writer's pid cannot be looked up here, and no write of one file lasts a day.
+const OTHER_HOST_TEMP_AGE: std::time::Duration = std::time::Duration::from_secs(24 * 3600);
+
+/// Removes temporary files a killed run left beside `out`: this host's whose process is gone,
+/// another host's (a shared file system) when untouched for a day.
 pub fn remove_stale_temps(out: &Path) {
+    remove_temps(out, |host, pid, meta| match host {
+        Some(h) if h != crate::host::this().id => meta
+            .modified()
+            .ok()
+            .and_then(|m| m.elapsed().ok())
+            .is_some_and(|age| age > OTHER_HOST_TEMP_AGE),
+        _ => !Path::new(&format!("/proc/{pid}")).exists(),
+    });
+}
+
+/// Removes the temporary files beside `out` of process `pid` of host `host_id`, known to be gone
+/// (a batch took its claim over).
+pub fn remove_temps_of(out: &Path, host_id: &str, pid: u32) {
+    remove_temps(out, |host, p, _| host == Some(host_id) && p == pid);
+}
+
+/// Removes the temporaries beside `out` for which `stale(host id, pid, metadata)` holds.
+fn remove_temps(out: &Path, stale: impl Fn(Option<&str>, u32, &std::fs::Metadata) -> bool) {
     let Some(name) = out.file_name() else {
         return;
     };
@@ -272,14 +300,16 @@ pub fn remove_stale_temps(out: &Path) {
         let Some(rest) = file.strip_prefix(&prefix) else {
             continue;
         };
-        // `<pid>.<random>`, or `<tag>-<pid>` and `<pid>` from earlier versions.
+        // `@<host>-<pid>.<random>`, or `<pid>.<random>`, `<tag>-<pid>` and `<pid>` from earlier
+        // versions (this host's).
         let stem = rest.split('.').next().unwrap_or(rest);
-        let pid = stem.rsplit('-').next().and_then(|p| p.parse::<u32>().ok());
-        let is_file = e.file_type().is_ok_and(|t| t.is_file() || t.is_symlink());
-        if let Some(pid) = pid
-            && is_file
-            && !Path::new(&format!("/proc/{pid}")).exists()
-        {
+        let (host, pid) = stem.rsplit_once('-').unwrap_or(("", stem));
+        let Ok(pid) = pid.parse::<u32>() else { continue };
+        let Ok(meta) = e.path().symlink_metadata() else {
+            continue;
+        };
+        let is_file = meta.file_type().is_file() || meta.file_type().is_symlink();
+        if is_file && stale(host.strip_prefix('@'), pid, &meta) {
             tracing::info!(file, "removing a temporary file left by a killed run");
             let _ = std::fs::remove_file(e.path());
         }
@@ -482,5 +512,33 @@ mod tests {
         }
         remove_stale_temps(&out);
         assert!(!dead.exists() && !old_style.exists() && !older_style.exists() && alive.exists());
+        // Named with the host: this host's by its pid; another host's (a shared folder, where
+        // that pid means nothing here) only when untouched for a day.
+        let me = &crate::host::this().id;
+        let dead_here = dir.path().join(format!("out.h5.tmp-@{me}-4999997.Ab3dEf9h"));
+        let alive_here = dir
+            .path()
+            .join(format!("out.h5.tmp-@{me}-{}.Ab3dEf9h", std::process::id()));
+        let elsewhere = dir.path().join("out.h5.tmp-@00000000deadbeef-4999997.Ab3dEf9h");
+        let old_elsewhere = dir.path().join("out.h5.tmp-@00000000deadbeef-4999996.Ab3dEf9h");
+        for f in [&dead_here, &alive_here, &elsewhere, &old_elsewhere] {
+            std::fs::write(f, "x").expect("write");
+        }
+        let two_days_ago = std::time::SystemTime::now() - std::time::Duration::from_secs(2 * 86400);
+        std::fs::File::options()
+            .write(true)
+            .open(&old_elsewhere)
+            .and_then(|f| f.set_modified(two_days_ago))
+            .expect("set mtime");
+        remove_stale_temps(&out);
+        assert!(!dead_here.exists() && alive_here.exists());
+        assert!(elsewhere.exists() && !old_elsewhere.exists());
+        // The temporaries made now are named with this host.
+        let t = temporary_beside(&out).expect("temporary");
+        let name = t.path().file_name().expect("name").to_string_lossy().into_owned();
+        assert!(
+            name.starts_with(&format!("out.h5.tmp-@{me}-{}.", std::process::id())),
+            "{name}"
+        );
     }
 }

@@ -26,6 +26,22 @@ pub struct Args {
     /// Accept .geo geometries (gmsh scripts, which can run shell commands): only for scenes you trust.
     #[arg(long)]
     allow_geo_scripts: bool,
+    /// Take shard K of N (`2/8`) of the scenes, split by expected cost the same way on every
+    /// node; `auto` reads a Slurm job array's task (SLURM_ARRAY_TASK_ID, _COUNT, _MIN, _STEP).
+    #[arg(long, value_name = "K/N|auto")]
+    shard: Option<String>,
+    /// Seconds a claim of this process outlives its silence: another host takes a scene over
+    /// when its owner has not renewed the claim for this long (renewed every quarter of it).
+    #[arg(long, default_value_t = ves_pipeline::batch::claim::DEFAULT_LEASE_S, value_name = "S")]
+    lease: f64,
+    /// Do not wait at the end for scenes other processes had claimed (they are reported as
+    /// claimed-elsewhere).
+    #[arg(long)]
+    no_wait: bool,
+    /// Report what is done, being computed and left, across all shards and processes that
+    /// share the outputs; computes nothing.
+    #[arg(long)]
+    status: bool,
     /// Print the outcomes as JSON (last line of stdout).
     #[arg(long)]
     json: bool,
@@ -42,16 +58,30 @@ impl Args {
             !self.solver.is_slepc(),
             "--solver slepc: not available in ves batch (MPI runs one scene at a time); use `mpirun ves precompute` per scene"
         );
+        let (lo, hi) = batch::claim::LEASE_RANGE_S;
+        anyhow::ensure!(
+            (lo..=hi).contains(&self.lease),
+            "--lease {}: give {lo} to {hi} seconds (a claim is renewed every quarter of it)",
+            self.lease
+        );
+        let shard = self.shard.as_deref().map(batch::Shard::parse).transpose()?;
         let scenes = batch::collect(&self.inputs)?;
         let opts = BatchOptions {
             jobs: self.jobs,
             out: self.out,
             solver: self.solver,
             allow_geo_scripts: self.allow_geo_scripts,
+            shard,
+            lease_s: self.lease,
+            wait: !self.no_wait,
         };
+        if self.status {
+            return report_status(&batch::status(&scenes, &opts), self.json);
+        }
         let outcomes = batch::run(&scenes, &opts)?;
         let count = |s: Status| outcomes.iter().filter(|o| o.status == s).count();
         let (done, fresh, failed) = (count(Status::Done), count(Status::UpToDate), count(Status::Failed));
+        let elsewhere = count(Status::ClaimedElsewhere);
         if self.json {
             super::print_json(&outcomes)?;
         } else {
@@ -60,10 +90,19 @@ impl Args {
                     Status::Done => format!("done in {:.1} s", o.seconds),
                     Status::UpToDate => "up to date".into(),
                     Status::Failed => format!("FAILED: {}", o.error.as_deref().unwrap_or("")),
+                    Status::ClaimedElsewhere => {
+                        format!("claimed by {}", o.claimed_by.as_deref().unwrap_or("another process"))
+                    }
                 };
                 println!("{}: {what}", o.scene);
             }
-            println!("{done} done, {fresh} up to date, {failed} failed");
+            let shard = shard.map(|s| format!("shard {s}: ")).unwrap_or_default();
+            let elsewhere = if elsewhere > 0 {
+                format!(", {elsewhere} claimed elsewhere (not waited for)")
+            } else {
+                String::new()
+            };
+            println!("{shard}{done} done, {fresh} up to date, {failed} failed{elsewhere}");
         }
         if failed > 0 {
             let names: Vec<&str> = outcomes
@@ -75,4 +114,41 @@ impl Args {
         }
         Ok(())
     }
+}
+
+/// `ves batch --status`: one line per scene and a count of each state.
+fn report_status(states: &[batch::SceneState], json: bool) -> Result<()> {
+    let count = |s: &str| states.iter().filter(|x| x.state == s).count();
+    if json {
+        return super::print_json(&serde_json::json!({
+            "scenes": states,
+            "up_to_date": count("up-to-date"),
+            "claimed": count("claimed"),
+            "left": count("left"),
+            "unreadable": count("unreadable"),
+        }));
+    }
+    let sharded = states.iter().any(|s| s.shard > 1);
+    for s in states {
+        let shard = if sharded {
+            format!(" [shard {}]", s.shard)
+        } else {
+            String::new()
+        };
+        let who = match (&s.claimed_by, s.owner_alive) {
+            (Some(o), Some(true)) => format!(" (claimed by {o})"),
+            (Some(o), _) => format!(" (a stale claim of {o}, gone: the next batch takes it over)"),
+            _ => String::new(),
+        };
+        let why = s.error.as_deref().map(|e| format!(": {e}")).unwrap_or_default();
+        println!("{}{shard}: {}{who}{why}", s.scene, s.state);
+    }
+    println!(
+        "{} up to date, {} being computed, {} left, {} unreadable",
+        count("up-to-date"),
+        count("claimed"),
+        count("left"),
+        count("unreadable")
+    );
+    Ok(())
 }

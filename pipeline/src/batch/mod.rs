@@ -1,0 +1,353 @@
+//! `ves batch`: precompute many scenes unattended. Scenes whose output is up to date (same
+//! content hash of tool version, scene, mode count and geometry) are skipped, a bad scene is
+//! reported and the batch goes on, and because every output is written to a temporary name and
+//! renamed, an interrupted batch resumes where it stopped (stale temporary files are removed).
+//!
+//! Many processes may share one batch: shards of a job array ([`shard`]) each take their share
+//! of the same ordered list, and every process claims a scene in the output folder before
+//! computing it ([`claim`]), so shards and whole batches started at once compute each scene once.
+
+pub mod claim;
+pub mod shard;
+mod walk;
+
+pub use shard::Shard;
+pub use walk::collect;
+
+use crate::modes::SolverChoice;
+use crate::precompute;
+use crate::scene::Scene;
+use crate::store;
+use anyhow::{Result, bail};
+use serde::Serialize;
+use std::path::{Path, PathBuf};
+use std::sync::Mutex;
+use std::sync::atomic::{AtomicUsize, Ordering};
+use std::time::Instant;
+
+/// Batch settings.
+#[derive(Clone, Debug)]
+pub struct BatchOptions {
+    /// Scenes precomputed at once.
+    pub jobs: usize,
+    /// Output directory (default: beside each scene).
+    pub out: Option<PathBuf>,
+    /// Eigen-solver.
+    pub solver: SolverChoice,
+    /// Accept .geo geometries (gmsh scripts).
+    pub allow_geo_scripts: bool,
+    /// This process's share of the batch (all of it when `None`).
+    pub shard: Option<Shard>,
+    /// How long a claim of this process outlives its silence, s ([`claim`]).
+    pub lease_s: f64,
+    /// At the end, wait for this process's scenes that others had claimed: until they are done,
+    /// or their owner is gone and this process computes them.
+    pub wait: bool,
+}
+
+impl Default for BatchOptions {
+    fn default() -> Self {
+        BatchOptions {
+            jobs: 1,
+            out: None,
+            solver: SolverChoice::Auto,
+            allow_geo_scripts: false,
+            shard: None,
+            lease_s: claim::DEFAULT_LEASE_S,
+            wait: true,
+        }
+    }
+}
+
+/// What happened to one scene.
+#[derive(Clone, Copy, Debug, Serialize, PartialEq, Eq)]
+#[serde(rename_all = "kebab-case")]
+pub enum Status {
+    /// Precomputed now.
+    Done,
+    /// Its output was up to date (possibly made meanwhile by another process).
+    UpToDate,
+    /// Another process, alive, holds its claim (see `claimed_by`); it was left to it.
+    ClaimedElsewhere,
+    /// It failed; see the error.
+    Failed,
+}
+
+/// One scene's outcome.
+#[derive(Clone, Debug, Serialize)]
+pub struct Outcome {
+    /// Scene file.
+    pub scene: String,
+    /// Output file (when one could be named).
+    pub output: Option<String>,
+    /// What happened.
+    pub status: Status,
+    /// The one-line error of a failed scene.
+    pub error: Option<String>,
+    /// Who held the claim, for a scene claimed elsewhere: "host pid N (shard K/N), for S s".
+    pub claimed_by: Option<String>,
+    /// Seconds spent.
+    pub seconds: f64,
+}
+
+/// One scene of a batch before it is computed: its output, expected cost and shard.
+#[derive(Clone, Debug, Serialize)]
+pub struct Planned {
+    /// Scene file.
+    pub scene: PathBuf,
+    /// Its output (None when the scene does not load).
+    pub output: Option<PathBuf>,
+    /// Expected cost ([`shard::expected_cost`]; 0 for a scene that does not load).
+    pub cost: f64,
+    /// Its shard (1-based; 1 without sharding).
+    pub shard: usize,
+}
+
+/// Orders the scenes the same way on every node (by output name, then scene path) and assigns
+/// each to a shard by expected cost. A scene that does not load goes to a shard too, which
+/// reports it as failed.
+pub fn plan(scenes: &[PathBuf], opts: &BatchOptions) -> Vec<Planned> {
+    let mut items: Vec<Planned> = scenes
+        .iter()
+        .map(|path| {
+            let scene = load(path, opts).ok();
+            Planned {
+                scene: path.clone(),
+                output: scene.as_ref().map(|s| output_of(s, opts)),
+                cost: scene.as_ref().map_or(0.0, shard::expected_cost),
+                shard: 1,
+            }
+        })
+        .collect();
+    let name = |p: &Planned| p.output.as_ref().and_then(|o| o.file_name()).map(|n| n.to_os_string());
+    items.sort_by(|a, b| name(a).cmp(&name(b)).then_with(|| a.scene.cmp(&b.scene)));
+    if let Some(s) = opts.shard {
+        let costs: Vec<f64> = items.iter().map(|p| p.cost).collect();
+        for (p, k) in items.iter_mut().zip(shard::split(&costs, s.count)) {
+            p.shard = k;
+        }
+    }
+    items
+}
+
+fn load(path: &Path, opts: &BatchOptions) -> Result<Scene, crate::scene::SceneError> {
+    Scene::load_with(
+        path,
+        crate::scene::SceneOptions {
+            allow_geo_scripts: opts.allow_geo_scripts,
+        },
+    )
+}
+
+/// Where a scene's basis goes.
+fn output_of(scene: &Scene, opts: &BatchOptions) -> PathBuf {
+    match &opts.out {
+        Some(dir) => dir.join(format!("{}.h5", scene.name)),
+        None => scene.path.with_file_name(format!("{}.h5", scene.name)),
+    }
+}
+
+/// Precomputes every scene of this process's share; never stops at a failed one. Without a
+/// shard the scenes are done in the order given; a shard does its share costliest first.
+pub fn run(scenes: &[PathBuf], opts: &BatchOptions) -> Result<Vec<Outcome>> {
+    if let Some(dir) = &opts.out {
+        std::fs::create_dir_all(dir)
+            .map_err(|e| anyhow::anyhow!("{}: cannot create the output directory: {e}", dir.display()))?;
+    }
+    let mine: Vec<PathBuf> = match opts.shard {
+        None => scenes.to_vec(),
+        Some(s) => {
+            let mut share: Vec<Planned> = plan(scenes, opts).into_iter().filter(|p| p.shard == s.index).collect();
+            share.sort_by(|a, b| b.cost.total_cmp(&a.cost));
+            tracing::info!("shard {s}: {} of {} scenes", share.len(), scenes.len());
+            share.into_iter().map(|p| p.scene).collect()
+        }
+    };
+    let outer = crate::progress::innermost();
+    let note = |line: String| {
+        if let Some(w) = &outer {
+            w.note(&line);
+        }
+    };
+    let bar = crate::progress::count(mine.len() as u64, "scenes");
+    // The scenes' own stages and counts are not drawn: the batch's count is.
+    let _quiet = outer
+        .clone()
+        .map(|w| crate::progress::watch(std::sync::Arc::new(crate::progress::Quiet(w))));
+    // Outputs named so far: two scenes may not write one file.
+    let named: Mutex<Vec<(PathBuf, String)>> = Mutex::new(Vec::new());
+    let mut results: Vec<Option<Outcome>> = vec![None; mine.len()];
+    let mut todo: Vec<usize> = (0..mine.len()).collect();
+    let poll = std::time::Duration::from_secs_f64((opts.lease_s / 4.0).clamp(0.25, 5.0));
+    loop {
+        let next = AtomicUsize::new(0);
+        let done: Mutex<Vec<(usize, Outcome)>> = Mutex::new(Vec::new());
+        std::thread::scope(|s| {
+            for _ in 0..opts.jobs.clamp(1, 64) {
+                s.spawn(|| {
+                    while let Some(&i) = todo.get(next.fetch_add(1, Ordering::Relaxed)) {
+                        bar.message(&mine[i].display().to_string());
+                        let o = one(&mine[i], opts, &named);
+                        // Told as it happens (the terminal prints it above the batch's bar).
+                        match &o.status {
+                            Status::Failed => {
+                                note(format!("failed: {}: {}", o.scene, o.error.as_deref().unwrap_or("")))
+                            }
+                            Status::Done => note(format!("done: {} → {}", o.scene, o.output.as_deref().unwrap_or(""))),
+                            Status::UpToDate | Status::ClaimedElsewhere => {}
+                        }
+                        if o.status != Status::ClaimedElsewhere {
+                            bar.inc(1);
+                        }
+                        done.lock().unwrap_or_else(|p| p.into_inner()).push((i, o));
+                    }
+                });
+            }
+        });
+        for (i, o) in done.into_inner().unwrap_or_else(|p| p.into_inner()) {
+            results[i] = Some(o);
+        }
+        todo.retain(|&i| {
+            results[i]
+                .as_ref()
+                .is_some_and(|o| o.status == Status::ClaimedElsewhere)
+        });
+        if todo.is_empty() || !opts.wait {
+            break;
+        }
+        note(format!(
+            "waiting for {} scene(s) claimed by other processes (until done, or their owner is gone)",
+            todo.len()
+        ));
+        std::thread::sleep(poll);
+    }
+    Ok(results.into_iter().flatten().collect())
+}
+
+fn one(path: &Path, opts: &BatchOptions, named: &Mutex<Vec<(PathBuf, String)>>) -> Outcome {
+    let start = Instant::now();
+    let mut outcome = Outcome {
+        scene: path.display().to_string(),
+        output: None,
+        status: Status::Failed,
+        error: None,
+        claimed_by: None,
+        seconds: 0.0,
+    };
+    let result = (|| -> Result<Status> {
+        let scene = load(path, opts)?;
+        let out = output_of(&scene, opts);
+        outcome.output = Some(out.display().to_string());
+        {
+            let mut n = named.lock().unwrap_or_else(|p| p.into_inner());
+            let key = std::path::absolute(&out).unwrap_or(out.clone());
+            match n.iter().find(|(o, _)| *o == key) {
+                Some((_, other)) if *other != outcome.scene => bail!(
+                    "output {} is also written by {other}; give one of the scenes another `name`",
+                    out.display()
+                ),
+                Some(_) => {}
+                None => n.push((key, outcome.scene.clone())),
+            }
+        }
+        let hash = store::source_hash(&scene)?;
+        let up_to_date = || out.is_file() && store::stored_source_hash(&out).as_deref() == Some(hash.as_str());
+        if up_to_date() {
+            if store::repair_sidecar(&out)? {
+                tracing::warn!(output = %out.display(), "the XDMF sidecar did not match its basis; rewritten");
+            }
+            return Ok(Status::UpToDate);
+        }
+        let shard = opts.shard.map(|s| s.to_string());
+        let claim = match claim::acquire(&out, opts.lease_s, shard)? {
+            claim::Acquired::Held(owner) => {
+                outcome.claimed_by = Some(owner.describe());
+                return Ok(Status::ClaimedElsewhere);
+            }
+            claim::Acquired::Mine(c) => c,
+        };
+        // Another process may have finished it between the check and the claim.
+        if up_to_date() {
+            return Ok(Status::UpToDate);
+        }
+        // Temporaries of an earlier owner that was killed (the claim says none is at work).
+        if let Some(gone) = claim.took_over() {
+            crate::output::remove_temps_of(&out, &gone.host_id, gone.pid);
+        }
+        crate::output::remove_stale_temps(&out);
+        precompute::run(&scene, &out, opts.solver)?;
+        if claim.lost() {
+            tracing::warn!(output = %out.display(), "this process lost its claim while computing (it was silent past its lease): another process may have computed the scene too");
+        }
+        Ok(Status::Done)
+    })();
+    match result {
+        Ok(s) => outcome.status = s,
+        Err(e) => outcome.error = Some(format!("{e:#}").replace('\n', " ")),
+    }
+    outcome.seconds = start.elapsed().as_secs_f64();
+    outcome
+}
+
+/// One scene's state in the output folder, for `ves batch --status`.
+#[derive(Clone, Debug, Serialize)]
+pub struct SceneState {
+    /// Scene file.
+    pub scene: String,
+    /// Its output, when the scene loads.
+    pub output: Option<String>,
+    /// Its shard (1 without sharding).
+    pub shard: usize,
+    /// "up-to-date", "claimed" (an owner at work), "left" (no up-to-date output, no live
+    /// claim: a stale claim is counted here) or "unreadable" (the scene does not load).
+    pub state: &'static str,
+    /// The claim's owner, when there is a claim.
+    pub claimed_by: Option<String>,
+    /// Whether that owner is at work (false: gone; the next batch takes the scene over).
+    pub owner_alive: Option<bool>,
+    /// Why an unreadable scene does not load.
+    pub error: Option<String>,
+}
+
+/// What is done and what is left across all shards and processes: read from the output folder
+/// (outputs and claims), nothing computed or changed.
+pub fn status(scenes: &[PathBuf], opts: &BatchOptions) -> Vec<SceneState> {
+    plan(scenes, opts)
+        .into_iter()
+        .map(|p| {
+            let mut s = SceneState {
+                scene: p.scene.display().to_string(),
+                output: p.output.as_ref().map(|o| o.display().to_string()),
+                shard: p.shard,
+                state: "left",
+                claimed_by: None,
+                owner_alive: None,
+                error: None,
+            };
+            let loaded = load(&p.scene, opts);
+            let (scene, out) = match (loaded, p.output) {
+                (Ok(scene), Some(out)) => (scene, out),
+                (Err(e), _) => {
+                    s.state = "unreadable";
+                    s.error = Some(e.to_string().replace('\n', " "));
+                    return s;
+                }
+                (Ok(_), None) => return s,
+            };
+            let fresh = store::source_hash(&scene)
+                .is_ok_and(|h| out.is_file() && store::stored_source_hash(&out).as_deref() == Some(h.as_str()));
+            if let Some(owner) = claim::holder(&out) {
+                s.owner_alive = Some(owner.alive());
+                s.claimed_by = Some(owner.describe());
+            }
+            s.state = if fresh {
+                "up-to-date"
+            } else if s.owner_alive == Some(true) {
+                "claimed"
+            } else {
+                "left"
+            };
+            s
+        })
+        .collect()
+}
