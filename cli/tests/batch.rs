@@ -120,7 +120,14 @@ fn three_shards_and_two_whole_batches_at_once_compute_each_scene_once() {
             if status == "done" {
                 *done.entry(output.clone()).or_default() += 1;
             }
-            share.push(output);
+            // A shard lists its share, and the other shards' scenes it took and computed.
+            match (shard, o["shard"].as_u64()) {
+                (Some(k), Some(of)) if of != k => {
+                    assert_eq!(status, "done", "a scene taken is reported when done: {o}")
+                }
+                (Some(_), None) => panic!("a shard's outcome names its shard: {o}"),
+                _ => share.push(output),
+            }
         }
         match shard {
             Some(_) => shares.push(share),
@@ -301,14 +308,55 @@ fn shard_and_lease_values_are_checked() {
             .expect("run");
         assert_refused(&o, expect);
     }
-    // Task 7 of an array 5-7 is shard 3/3; with one scene the first shard has it, so this one
-    // computes nothing.
-    let o = batch(&dir, &out, &["--shard", "auto"])
-        .env("SLURM_ARRAY_TASK_ID", "7")
-        .env("SLURM_ARRAY_TASK_COUNT", "3")
-        .env("SLURM_ARRAY_TASK_MIN", "5")
-        .output()
-        .expect("run");
+    // Task 7 of an array 5-7 is shard 3/3; with one scene the first shard has it: kept to its
+    // share, this one computes nothing; by default it takes the scene shard 1 has not claimed.
+    let task7 = |extra: &[&str]| {
+        batch(&dir, &out, &[&["--shard", "auto"], extra].concat())
+            .env("SLURM_ARRAY_TASK_ID", "7")
+            .env("SLURM_ARRAY_TASK_COUNT", "3")
+            .env("SLURM_ARRAY_TASK_MIN", "5")
+            .output()
+            .expect("run")
+    };
+    let o = task7(&["--no-steal"]);
     assert!(last_json(&o).as_array().expect("outcomes").is_empty(), "{o:?}");
     assert!(!out.join("a.h5").exists());
+    let o = task7(&[]);
+    let v = last_json(&o).as_array().expect("outcomes").clone();
+    assert_eq!(
+        (v.len(), v[0]["status"].as_str(), v[0]["shard"].as_u64()),
+        (1, Some("done"), Some(1)),
+        "{v:?}"
+    );
+    assert!(out.join("a.h5").exists());
+}
+
+/// Two scenes naming one output, on two shards: the first in the agreed order writes it, the
+/// other fails on its shard with the reason (before, the later shard overwrote the first's
+/// output).
+#[test]
+fn scenes_naming_one_output_are_refused_alike_on_every_shard() {
+    let (_keep, dir) = scenes(&[("a.toml", light("same", 4)), ("b.toml", light("same", 5))]);
+    let out = dir.join("../out");
+    let mut all = Vec::new();
+    for k in ["1/2", "2/2"] {
+        let o = batch(&dir, &out, &["--shard", k, "--no-steal"]).output().expect("run");
+        let stdout = String::from_utf8_lossy(&o.stdout);
+        let line = stdout.lines().last().unwrap_or("[]");
+        all.extend(serde_json::from_str::<Vec<serde_json::Value>>(line).expect("outcomes"));
+    }
+    assert_eq!(all.len(), 2, "{all:?}");
+    let of = |scene: &str| {
+        all.iter()
+            .find(|o| o["scene"].as_str().is_some_and(|s| s.ends_with(scene)))
+            .expect("scene")
+    };
+    assert_eq!(of("a.toml")["status"], "done", "{all:?}");
+    assert_eq!(of("b.toml")["status"], "failed", "{all:?}");
+    assert!(
+        of("b.toml")["error"].as_str().unwrap_or("").contains("also written by"),
+        "{all:?}"
+    );
+    let info = ves(&["info", out.join("same.h5").to_str().unwrap(), "--json"]);
+    assert_eq!(frequencies(&last_json(&info)).len(), 4, "a.toml's 4 modes");
 }

@@ -38,6 +38,10 @@ pub struct Args {
     /// claimed-elsewhere).
     #[arg(long)]
     no_wait: bool,
+    /// With --shard: keep to this shard's share (by default a shard done with its share takes
+    /// the scenes of other shards that nobody has claimed yet, from the end of their lists).
+    #[arg(long)]
+    no_steal: bool,
     /// Report what is done, being computed and left, across all shards and processes that
     /// share the outputs; computes nothing.
     #[arg(long)]
@@ -74,6 +78,7 @@ impl Args {
             shard,
             lease_s: self.lease,
             wait: !self.no_wait,
+            steal: !self.no_steal,
         };
         if self.status {
             return report_status(&batch::status(&scenes, &opts), self.json);
@@ -94,7 +99,11 @@ impl Args {
                         format!("claimed by {}", o.claimed_by.as_deref().unwrap_or("another process"))
                     }
                 };
-                println!("{}: {what}", o.scene);
+                let from = match (o.shard, shard) {
+                    (Some(k), Some(s)) if k != s.index => format!(" (taken from shard {k})"),
+                    _ => String::new(),
+                };
+                println!("{}{from}: {what}", o.scene);
             }
             let shard = shard.map(|s| format!("shard {s}: ")).unwrap_or_default();
             let elsewhere = if elsewhere > 0 {

@@ -43,6 +43,8 @@ pub struct BatchOptions {
     /// At the end, wait for this process's scenes that others had claimed: until they are done,
     /// or their owner is gone and this process computes them.
     pub wait: bool,
+    /// A shard done with its share takes the other shards' unclaimed scenes.
+    pub steal: bool,
 }
 
 impl Default for BatchOptions {
@@ -55,6 +57,7 @@ impl Default for BatchOptions {
             shard: None,
             lease_s: claim::DEFAULT_LEASE_S,
             wait: true,
+            steal: true,
         }
     }
 }
@@ -86,6 +89,9 @@ pub struct Outcome {
     pub error: Option<String>,
     /// Who held the claim, for a scene claimed elsewhere: "host pid N (shard K/N), for S s".
     pub claimed_by: Option<String>,
+    /// The scene's shard, when sharding (another than this process's for a scene it took from
+    /// a shard that had not reached it).
+    pub shard: Option<usize>,
     /// Seconds spent.
     pub seconds: f64,
 }
@@ -147,56 +153,127 @@ fn output_of(scene: &Scene, opts: &BatchOptions) -> PathBuf {
     }
 }
 
+/// One scene to do: its file, its shard (when sharding) and whether it is another shard's.
+struct Item {
+    path: PathBuf,
+    shard: Option<usize>,
+    taken: bool,
+}
+
 /// Precomputes every scene of this process's share; never stops at a failed one. Without a
-/// shard the scenes are done in the order given; a shard does its share costliest first.
+/// shard the scenes are done in the order given. A shard does its share costliest first, then
+/// (unless `steal` is off) takes the other shards' scenes nobody has claimed yet, the last
+/// each would reach first, then waits for its own scenes that others had claimed.
 pub fn run(scenes: &[PathBuf], opts: &BatchOptions) -> Result<Vec<Outcome>> {
     if let Some(dir) = &opts.out {
         std::fs::create_dir_all(dir)
             .map_err(|e| anyhow::anyhow!("{}: cannot create the output directory: {e}", dir.display()))?;
     }
-    let mine: Vec<PathBuf> = match opts.shard {
-        None => scenes.to_vec(),
+    // Outputs named so far: two scenes may not write one file. A shard knows the whole batch:
+    // of scenes naming one output, the first in the agreed order writes it, on every shard alike.
+    let mut named: Vec<(PathBuf, String)> = Vec::new();
+    let items: Vec<Item> = match opts.shard {
+        None => scenes
+            .iter()
+            .map(|p| Item {
+                path: p.clone(),
+                shard: None,
+                taken: false,
+            })
+            .collect(),
         Some(s) => {
-            let mut share: Vec<Planned> = plan(scenes, opts).into_iter().filter(|p| p.shard == s.index).collect();
-            share.sort_by(|a, b| b.cost.total_cmp(&a.cost));
-            tracing::info!("shard {s}: {} of {} scenes", share.len(), scenes.len());
-            share.into_iter().map(|p| p.scene).collect()
+            let planned = plan(scenes, opts);
+            for p in &planned {
+                if let Some(out) = &p.output {
+                    let key = std::path::absolute(out).unwrap_or(out.clone());
+                    if !named.iter().any(|(o, _)| *o == key) {
+                        named.push((key, p.scene.display().to_string()));
+                    }
+                }
+            }
+            // Each shard's list as it does it: costliest first.
+            let mut lists: Vec<Vec<Planned>> = vec![Vec::new(); s.count];
+            for p in planned {
+                lists[p.shard - 1].push(p);
+            }
+            for l in &mut lists {
+                l.sort_by(|a, b| b.cost.total_cmp(&a.cost));
+            }
+            let item = |p: &Planned, taken: bool| Item {
+                path: p.scene.clone(),
+                shard: Some(p.shard),
+                taken,
+            };
+            let mut items: Vec<Item> = lists[s.index - 1].iter().map(|p| item(p, false)).collect();
+            if opts.steal {
+                // The others' last scenes first, round by round.
+                let longest = lists.iter().map(Vec::len).max().unwrap_or(0);
+                for back in 1..=longest {
+                    for (k, l) in lists.iter().enumerate() {
+                        if k + 1 != s.index && back <= l.len() {
+                            items.push(item(&l[l.len() - back], true));
+                        }
+                    }
+                }
+            }
+            items
         }
     };
+    let own = items.iter().filter(|i| !i.taken).count();
+    let named = Mutex::new(named);
     let outer = crate::progress::innermost();
     let note = |line: String| {
         if let Some(w) = &outer {
             w.note(&line);
         }
     };
-    let bar = crate::progress::count(mine.len() as u64, "scenes");
+    if let Some(s) = opts.shard {
+        note(format!(
+            "shard {s}: {own} of {} scenes, the costliest first",
+            scenes.len()
+        ));
+    }
+    let bar = crate::progress::count(own as u64, "scenes");
     // The scenes' own stages and counts are not drawn: the batch's count is.
     let _quiet = outer
         .clone()
         .map(|w| crate::progress::watch(std::sync::Arc::new(crate::progress::Quiet(w))));
-    // Outputs named so far: two scenes may not write one file.
-    let named: Mutex<Vec<(PathBuf, String)>> = Mutex::new(Vec::new());
-    let mut results: Vec<Option<Outcome>> = vec![None; mine.len()];
-    let mut todo: Vec<usize> = (0..mine.len()).collect();
-    let poll = std::time::Duration::from_secs_f64((opts.lease_s / 4.0).clamp(0.25, 5.0));
-    loop {
+    // One pass over some items, `jobs` at a time.
+    let pass = |todo: &[usize], first: bool| -> Vec<(usize, Outcome)> {
         let next = AtomicUsize::new(0);
         let done: Mutex<Vec<(usize, Outcome)>> = Mutex::new(Vec::new());
         std::thread::scope(|s| {
             for _ in 0..opts.jobs.clamp(1, 64) {
                 s.spawn(|| {
                     while let Some(&i) = todo.get(next.fetch_add(1, Ordering::Relaxed)) {
-                        bar.message(&mine[i].display().to_string());
-                        let o = one(&mine[i], opts, &named);
+                        let item = &items[i];
+                        bar.message(&item.path.display().to_string());
+                        let mut o = one(&item.path, opts, &named);
+                        o.shard = item.shard;
+                        let from = match (item.taken, item.shard) {
+                            (true, Some(k)) => format!(" (taken from shard {k})"),
+                            _ => String::new(),
+                        };
                         // Told as it happens (the terminal prints it above the batch's bar).
                         match &o.status {
-                            Status::Failed => {
-                                note(format!("failed: {}: {}", o.scene, o.error.as_deref().unwrap_or("")))
-                            }
-                            Status::Done => note(format!("done: {} → {}", o.scene, o.output.as_deref().unwrap_or(""))),
+                            Status::Failed => note(format!(
+                                "failed: {}{from}: {}",
+                                o.scene,
+                                o.error.as_deref().unwrap_or("")
+                            )),
+                            Status::Done => note(format!(
+                                "done: {}{from} → {}",
+                                o.scene,
+                                o.output.as_deref().unwrap_or("")
+                            )),
+                            Status::ClaimedElsewhere if first && !item.taken => note(format!(
+                                "claimed elsewhere: {} (by {}), left to it",
+                                o.scene,
+                                o.claimed_by.as_deref().unwrap_or("another process")
+                            )),
                             Status::UpToDate | Status::ClaimedElsewhere => {}
                         }
-                        if o.status != Status::ClaimedElsewhere {
+                        if o.status != Status::ClaimedElsewhere && !item.taken {
                             bar.inc(1);
                         }
                         done.lock().unwrap_or_else(|p| p.into_inner()).push((i, o));
@@ -204,22 +281,39 @@ pub fn run(scenes: &[PathBuf], opts: &BatchOptions) -> Result<Vec<Outcome>> {
                 });
             }
         });
-        for (i, o) in done.into_inner().unwrap_or_else(|p| p.into_inner()) {
+        done.into_inner().unwrap_or_else(|p| p.into_inner())
+    };
+    let mut results: Vec<Option<Outcome>> = vec![None; items.len()];
+    for (i, o) in pass(&(0..own).collect::<Vec<_>>(), true) {
+        results[i] = Some(o);
+    }
+    // Another shard's scene is reported only when this process computed (or failed) it.
+    for (i, o) in pass(&(own..items.len()).collect::<Vec<_>>(), false) {
+        if matches!(o.status, Status::Done | Status::Failed) {
             results[i] = Some(o);
         }
-        todo.retain(|&i| {
-            results[i]
-                .as_ref()
-                .is_some_and(|o| o.status == Status::ClaimedElsewhere)
-        });
-        if todo.is_empty() || !opts.wait {
-            break;
+    }
+    let claimed = |r: &[Option<Outcome>]| -> Vec<usize> {
+        (0..own)
+            .filter(|&i| r[i].as_ref().is_some_and(|o| o.status == Status::ClaimedElsewhere))
+            .collect()
+    };
+    let poll = std::time::Duration::from_secs_f64((opts.lease_s / 4.0).clamp(0.25, 5.0));
+    let mut waiting = None;
+    let mut todo = claimed(&results);
+    while opts.wait && !todo.is_empty() {
+        if waiting != Some(todo.len()) {
+            waiting = Some(todo.len());
+            note(format!(
+                "waiting for {} scene(s) claimed by other processes (until done, or their owner is gone)",
+                todo.len()
+            ));
         }
-        note(format!(
-            "waiting for {} scene(s) claimed by other processes (until done, or their owner is gone)",
-            todo.len()
-        ));
         std::thread::sleep(poll);
+        for (i, o) in pass(&todo, false) {
+            results[i] = Some(o);
+        }
+        todo = claimed(&results);
     }
     Ok(results.into_iter().flatten().collect())
 }
@@ -232,6 +326,7 @@ fn one(path: &Path, opts: &BatchOptions, named: &Mutex<Vec<(PathBuf, String)>>) 
         status: Status::Failed,
         error: None,
         claimed_by: None,
+        shard: None,
         seconds: 0.0,
     };
     let result = (|| -> Result<Status> {
@@ -298,6 +393,8 @@ pub struct SceneState {
     pub output: Option<String>,
     /// Its shard (1 without sharding).
     pub shard: usize,
+    /// Its expected cost, the split's weight ([`shard::expected_cost`], arbitrary units).
+    pub expected_cost: f64,
     /// "up-to-date", "claimed" (an owner at work), "left" (no up-to-date output, no live
     /// claim: a stale claim is counted here) or "unreadable" (the scene does not load).
     pub state: &'static str,
@@ -319,6 +416,7 @@ pub fn status(scenes: &[PathBuf], opts: &BatchOptions) -> Vec<SceneState> {
                 scene: p.scene.display().to_string(),
                 output: p.output.as_ref().map(|o| o.display().to_string()),
                 shard: p.shard,
+                expected_cost: p.cost,
                 state: "left",
                 claimed_by: None,
                 owner_alive: None,
