@@ -10,8 +10,10 @@ empty mesh cache (`ves batch -j 1 --json`, each scene's `seconds`). Then, for ea
 N, the shards `ves batch --status --shard 1/N --json` assigns (the split by expected cost every
 node computes alike) are set beside a split by count (every N-th scene in the agreed order) and
 the ideal (the larger of the total over N and the longest scene): the time each split's slowest
-shard would take, from the measured scene times. Also the rank correlation of the expected
-costs with the measured times.
+shard would take, from the measured scene times. "With taking" simulates what `ves batch` does
+by default — a shard done with its share takes the scenes other shards have not started, the
+last of their lists first — as if every shard had a node of its own. Also the rank correlation
+of the expected costs with the measured times, and each scene's cost and time.
 """
 import argparse
 import json
@@ -44,6 +46,33 @@ def spearman(a, b):
     return 1 - 6 * sum((x - y) ** 2 for x, y in zip(ra, rb)) / (n * (n * n - 1))
 
 
+def with_taking(t, cost, shard, n):
+    """Makespan when each shard does its list (costliest first), then takes others' unstarted
+    scenes from the ends of their lists, round by round."""
+    lists = [sorted([i for i in range(len(t)) if shard[i] == k + 1], key=lambda i: -cost[i]) for k in range(n)]
+    started, clock = set(), [0.0] * n
+    while len(started) < len(t):
+        k = min(range(n), key=lambda j: clock[j])
+        own = [i for i in lists[k] if i not in started]
+        if own:
+            pick = own[0]
+        else:
+            pick = None
+            for back in range(1, max(len(l) for l in lists) + 1):
+                for j in range(n):
+                    if j != k and back <= len(lists[j]) and lists[j][-back] not in started:
+                        pick = lists[j][-back]
+                        break
+                if pick is not None:
+                    break
+        if pick is None:
+            clock[k] = float("inf")
+            continue
+        started.add(pick)
+        clock[k] += t[pick]
+    return max(c for c in clock if c != float("inf"))
+
+
 def main():
     ap = argparse.ArgumentParser()
     ap.add_argument("--shards", default="2,3,4")
@@ -67,9 +96,9 @@ def main():
                              capture_output=True, text=True, env=env)
         outcomes = json.loads(run.stdout.strip().splitlines()[-1])
         seconds = {os.path.basename(o["scene"]): o["seconds"] for o in outcomes if o["status"] == "done"}
-        failed = [os.path.basename(o["scene"]) for o in outcomes if o["status"] != "done"]
-        if failed:
-            print(f"not timed (failed): {failed}", file=sys.stderr)
+        for o in outcomes:
+            if o["status"] != "done":
+                print(f"not timed: {os.path.basename(o['scene'])}: {o['error']}", file=sys.stderr)
         rows = []
         corr = None
         for n in [int(x) for x in a.shards.split(",")]:
@@ -83,13 +112,18 @@ def main():
             by_cost = [sum(x for x, s in zip(t, states) if s["shard"] == k) for k in range(1, n + 1)]
             by_count = [sum(x for i, x in enumerate(t) if i % n == k) for k in range(n)]
             ideal = max(sum(t) / n, max(t))
-            rows.append((n, len(t), sum(t), max(by_cost), max(by_count), ideal))
+            taking = with_taking(t, cost, [s["shard"] for s in states], n)
+            rows.append((n, len(t), sum(t), max(by_cost), taking, max(by_count), ideal))
+            detail = [(os.path.basename(s["scene"])[:-5], c, x) for s, c, x in zip(states, cost, t)]
     print(f"{len(seconds)} scenes timed one at a time, {sum(seconds.values()):.1f} s in all; "
           f"rank correlation of expected cost with time: {corr:.2f}; load average {os.getloadavg()[0]:.1f}\n")
-    print("| shards | slowest shard, split by expected cost (s) | split by count (s) | ideal (s) | cost split / ideal |")
-    print("|---|---|---|---|---|")
-    for n, k, total, c, cnt, ideal in rows:
-        print(f"| {n} | {c:.1f} | {cnt:.1f} | {ideal:.1f} | {c / ideal:.2f} |")
+    print("| shards | slowest shard: split by expected cost (s) | the same, with taking (s) | split by count (s) | ideal (s) | with taking / ideal |")
+    print("|---|---|---|---|---|---|")
+    for n, k, total, c, take, cnt, ideal in rows:
+        print(f"| {n} | {c:.1f} | {take:.1f} | {cnt:.1f} | {ideal:.1f} | {take / ideal:.2f} |")
+    print("\n| scene | expected cost | seconds |\n|---|---|---|")
+    for name, c, x in sorted(detail, key=lambda d: -d[1]):
+        print(f"| {name} | {c:.3g} | {x:.1f} |")
 
 
 if __name__ == "__main__":

@@ -79,12 +79,13 @@ impl Shard {
 }
 
 /// A scene's expected precompute cost, in arbitrary units proportional to time: what matters
-/// is how scenes compare. From the part's extent (STEP: the bounding box of its points, in its
+/// is how scenes compare. From the part's extent (STEP: the bounding box of its vertices, in its
 /// own unit) and the scene's settings: the unknowns of the first mesh (size, order), grown to
 /// what `target_error` would need (the eigenvalue error falls as h^(2p)), capped by `max_dofs`;
 /// a sparse factorisation's time grows about as unknowns^1.5; more modes, the error estimate,
-/// static correction and loads add their share. A part whose extent cannot be read (IGES, BREP,
-/// a `.geo` script) counts as a mid-sized part.
+/// static correction and loads add their share; reading and meshing add a share that grows with
+/// the geometry file. A part whose extent cannot be read (IGES, BREP, a `.geo` script) counts as
+/// a mid-sized part.
 pub fn expected_cost(scene: &Scene) -> f64 {
     let p = f64::from(scene.mesh.order.clamp(1, 2));
     // Nodes per h³ of a tet mesh of edge h: about 1.5 vertices, 12 with the edges' midpoints.
@@ -119,8 +120,12 @@ pub fn expected_cost(scene: &Scene) -> f64 {
         factor += 0.5;
     }
     factor += 0.1 * scene.loads.len() as f64 + 0.5 * scene.voi.len() as f64;
-    // Reading and meshing: a floor that a tiny part still costs.
-    dofs.powf(1.5) * factor + 1.0e6
+    // Reading and meshing grow with the part's detail more than with its mesh: a constant and
+    // a term per megabyte of geometry. Both weights fitted by least squares to 25 scenes of the
+    // corpus (bench/batch_shards.py: about 2.4 s + 2.7 s per MB against 3.4e-7 s per unit of
+    // the solve term).
+    let megabytes = std::fs::metadata(&scene.geometry).map_or(0.3, |m| m.len() as f64 / 1e6);
+    dofs.powf(1.5) * factor + 7.0e6 + 8.0e6 * megabytes
 }
 
 /// The extents of a STEP part (x, y, z), m: the bounding box of its B-rep's vertices
