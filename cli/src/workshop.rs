@@ -142,7 +142,7 @@ fn starting_scene(geometry: &Path) -> serde_json::Value {
     let steel = &MATERIALS[0];
     serde_json::json!({
         "name": name,
-        "geometry": { "step": "", "unit": "mm" },
+        "geometry": { "step": "" },
         "material": { "young": steel.young, "poisson": steel.poisson, "density": steel.density,
                       "yield_strength": steel.yield_strength },
         "mesh": { "order": 2, "target_error": 0.05 },
@@ -278,13 +278,25 @@ impl PartWorkshop {
         let toml::Value::Table(geometry) = geometry else {
             return Err(refused(&"geometry must be a table"));
         };
+        let file_ext = |f: &str| {
+            Path::new(f)
+                .extension()
+                .map(|e| e.to_string_lossy().to_ascii_lowercase())
+                .unwrap_or_default()
+        };
         let file = if absolute {
             file.display().to_string()
         } else {
             file.file_name()
                 .map_or(String::new(), |n| n.to_string_lossy().into_owned())
         };
+        let ext = file_ext(&file);
         geometry.insert("step".into(), toml::Value::String(file));
+        // A STEP or IGES file carries its unit: a `unit` beside it would be ignored (and warned
+        // about when it differs), so the scene the page saves leaves it out.
+        if matches!(ext.as_str(), "step" | "stp" | "iges" | "igs") {
+            geometry.remove("unit");
+        }
         toml::to_string(&table).map_err(|e| refused(&e))
     }
 }
@@ -908,6 +920,25 @@ mod tests {
 
     /// The page's scene is checked by the scene parser, exact shapes included: a force of four
     /// numbers from the page was read as its first three and computed.
+    /// A STEP part's scene, as the page saves it, carries no `unit` (the file's own applies; a
+    /// "mm" beside a part in metres drew a warning from the CLI); a BREP part's keeps it.
+    #[test]
+    fn the_saved_scene_of_a_step_part_leaves_the_unit_to_the_file() {
+        let page = serde_json::json!({ "name": "p", "geometry": { "step": "", "unit": "mm" } });
+        let saved = |file: &str| PartWorkshop::text(Path::new(file), &page, false).expect("scene text");
+        for file in ["/parts/lever.step", "/parts/lever.STP", "/parts/lever.igs"] {
+            let text = saved(file);
+            assert!(!text.contains("unit"), "{file}: {text}");
+        }
+        assert!(saved("/parts/lever.brep").contains("unit = \"mm\""));
+        // The page's starting scene says none either.
+        assert!(
+            starting_scene(Path::new("lever.step"))["geometry"]
+                .get("unit")
+                .is_none()
+        );
+    }
+
     #[test]
     fn the_page_s_scene_is_refused_with_a_fourth_number() {
         let dir = tempfile::tempdir().expect("temp dir");

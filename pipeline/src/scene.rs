@@ -183,10 +183,12 @@ pub enum CorrectionRegion {
 #[serde(deny_unknown_fields)]
 struct RawGeometry {
     step: PathBuf,
-    unit: LengthUnit,
+    #[serde(default)]
+    unit: Option<LengthUnit>,
 }
 
-/// Unit of the geometry file's coordinates.
+/// Unit of the geometry file's coordinates (BREP, gmsh scripts; a STEP or IGES file carries its
+/// own, which is what is used).
 #[derive(Clone, Copy, Debug, Deserialize, serde::Serialize, PartialEq, Eq)]
 pub enum LengthUnit {
     /// Metres.
@@ -484,6 +486,8 @@ pub struct Scene {
     pub geometry: PathBuf,
     /// Unit of the geometry file's coordinates.
     pub unit: LengthUnit,
+    /// Whether the scene said `unit` (optional for STEP and IGES, which carry their own).
+    pub unit_given: bool,
     /// Material.
     pub material: Material,
     /// Mesh settings.
@@ -612,6 +616,9 @@ impl Scene {
         let Some(file_unit) = crate::step_units::length_unit(&String::from_utf8_lossy(&bytes)) else {
             return;
         };
+        if !self.unit_given {
+            return;
+        }
         let said = self.unit.to_metres();
         if (file_unit.metres - said).abs() > 1e-9 * said {
             tracing::warn!(
@@ -769,6 +776,18 @@ impl Scene {
         if !supported {
             return Err(unsupported());
         }
+        // STEP and IGES files carry their unit (OpenCASCADE applies it): `unit` is optional
+        // there, and ignored. BREP and gmsh scripts are bare numbers: it is needed.
+        let carries_unit = matches!(ext.as_str(), "step" | "stp" | "iges" | "igs");
+        let unit = match (raw.geometry.unit, carries_unit) {
+            (Some(u), _) => u,
+            (None, true) => LengthUnit::Millimetre,
+            (None, false) => {
+                return Err(err(format!(
+                    "geometry.unit: missing; a .{ext} file's coordinates carry no unit: add unit = \"mm\" or unit = \"m\" under [geometry]"
+                )));
+            }
+        };
 
         let mut fixed = Vec::with_capacity(raw.fixed.len());
         for (i, f) in raw.fixed.iter().enumerate() {
@@ -824,7 +843,8 @@ impl Scene {
             path: path.to_path_buf(),
             toml: text.to_string(),
             geometry,
-            unit: raw.geometry.unit,
+            unit,
+            unit_given: raw.geometry.unit.is_some(),
             material: m,
             mesh: raw.mesh,
             fixed,
@@ -1313,6 +1333,27 @@ force = [0.0, 0.0, -100.0]
 [gravity]
 acceleration = [0.0, 0.0, -9.81]
 "#;
+
+    /// `geometry.unit` is optional for a STEP or IGES file (which carries its own unit) and
+    /// required, with advice, for bare-number geometry (BREP).
+    #[test]
+    fn unit_is_optional_where_the_file_carries_its_own() {
+        let dir = tempfile::tempdir().expect("tempdir");
+        let dir = dir.path();
+        std::fs::write(dir.join("x.step"), "ISO-10303-21;").expect("geometry stub");
+        std::fs::write(dir.join("x.brep"), "DBRep_DrawableShape").expect("geometry stub");
+        let path = dir.join("scene.toml");
+        let without = SCENE.replace("unit = \"mm\"\n", "");
+        let s = Scene::parse(&path, &without).expect("a STEP scene without unit");
+        assert!(!s.unit_given);
+        assert!(Scene::parse(&path, SCENE).expect("with unit").unit_given);
+        let e = Scene::parse(&path, &without.replace("x.step", "x.brep")).expect_err("a BREP needs its unit");
+        assert!(
+            e.to_string().contains("unit = \"mm\"") && e.to_string().contains(".brep"),
+            "{e}"
+        );
+        Scene::parse(&path, &SCENE.replace("x.step", "x.brep")).expect("a BREP with its unit");
+    }
 
     /// `mesh.error_estimate` takes a bool (true: the default recovery estimate) or a mode's name,
     /// and a scene echoes it as it was written before the modes (true / false) unless "full".
