@@ -15,7 +15,17 @@ fn main() -> ExitCode {
         .with_writer(terminal::LogWriter)
         // Colour codes only for a terminal, not in logs and pipes.
         .with_ansi(std::io::IsTerminal::is_terminal(&std::io::stderr()))
-        .with_env_filter(tracing_subscriber::EnvFilter::try_from_env("VES_LOG").unwrap_or_else(|_| "warn".into()))
+        // Without a terminal (a batch job, a CI log), the stages of a long run are log lines
+        // (terminal::PROGRESS_TARGET); VES_LOG replaces this default.
+        .with_env_filter(
+            tracing_subscriber::EnvFilter::try_from_env("VES_LOG").unwrap_or_else(|_| {
+                if std::io::IsTerminal::is_terminal(&std::io::stderr()) {
+                    "warn".into()
+                } else {
+                    format!("warn,{}=info", terminal::PROGRESS_TARGET).into()
+                }
+            }),
+        )
         .init();
     // A panic is a bug, but the user still gets one line (set VES_LOG=debug for the default
     // report with its location).

@@ -1,6 +1,8 @@
 //! Progress on the terminal: the stages of a long computation as lines with the seconds since
 //! the start, above a spinner showing the current one; each count as a bar; log lines written
-//! with the bars lifted. Nothing is drawn when stderr is not a terminal.
+//! with the bars lifted. When stderr is not a terminal (a batch job, a CI log, `nohup`) nothing
+//! is drawn: each stage is one log line (target `ves::progress`, level INFO) with the seconds
+//! since the start, and a stage that lasts is told again every [`STILL_EVERY`].
 
 use indicatif::{MultiProgress, ProgressBar, ProgressStyle};
 use ves_pipeline::progress::{Count, Watcher};
@@ -11,12 +13,33 @@ fn bars() -> &'static MultiProgress {
     BARS.get_or_init(MultiProgress::new)
 }
 
+/// How often a stage that lasts is told again in a log (`VES_PROGRESS_EVERY` seconds replaces it).
+pub const STILL_EVERY: std::time::Duration = std::time::Duration::from_secs(30);
+
+/// [`STILL_EVERY`], or `VES_PROGRESS_EVERY` (seconds, 1 to 86400) when set.
+fn still_every() -> std::time::Duration {
+    std::env::var("VES_PROGRESS_EVERY")
+        .ok()
+        .and_then(|v| v.trim().parse::<f64>().ok())
+        .filter(|s| (1.0..=86_400.0).contains(s))
+        .map_or(STILL_EVERY, std::time::Duration::from_secs_f64)
+}
+
+/// The log target of progress lines (shown at INFO by default when stderr is not a terminal).
+pub const PROGRESS_TARGET: &str = "ves::progress";
+
 /// The terminal as a watcher of the library's computations.
 pub struct Terminal {
     visible: bool,
+    /// Stages as log lines (stderr is not a terminal).
+    logged: bool,
     /// Drawn from the first stage on (a command that tells no stage shows no spinner).
     spinner: std::sync::OnceLock<ProgressBar>,
     start: std::time::Instant,
+    /// The stage going on and when it began (for the lines of a stage that lasts).
+    current: std::sync::Arc<std::sync::Mutex<Option<(String, std::time::Instant)>>>,
+    /// Stops the thread that tells a lasting stage again (dropped with the terminal).
+    ticker: std::sync::OnceLock<std::sync::mpsc::Sender<()>>,
 }
 
 impl Terminal {
@@ -24,9 +47,40 @@ impl Terminal {
     pub fn new(visible: bool) -> Terminal {
         Terminal {
             visible,
+            logged: false,
             spinner: std::sync::OnceLock::new(),
             start: std::time::Instant::now(),
+            current: Default::default(),
+            ticker: std::sync::OnceLock::new(),
         }
+    }
+
+    /// Stages logged as lines (when `wanted`: not `--quiet`, rank 0 under MPI).
+    pub fn logged(wanted: bool) -> Terminal {
+        let mut t = Terminal::new(false);
+        t.logged = wanted;
+        t
+    }
+
+    /// Starts the thread that tells a stage again every [`STILL_EVERY`] while it lasts.
+    fn tick(&self) {
+        self.ticker.get_or_init(|| {
+            let (stop, stopped) = std::sync::mpsc::channel::<()>();
+            let (current, start, every) = (self.current.clone(), self.start, still_every());
+            let _ = std::thread::Builder::new().name("ves-progress".into()).spawn(move || {
+                while let Err(std::sync::mpsc::RecvTimeoutError::Timeout) = stopped.recv_timeout(every / 6) {
+                    let mut c = current.lock().unwrap_or_else(|p| p.into_inner());
+                    if let Some((name, since)) = c.as_mut()
+                        && since.elapsed() >= every
+                    {
+                        let t = start.elapsed().as_secs_f64();
+                        tracing::info!(target: PROGRESS_TARGET, "{t:.1} s  {name} (still)");
+                        *since = std::time::Instant::now();
+                    }
+                }
+            });
+            stop
+        });
     }
 
     fn spinner(&self) -> &ProgressBar {
@@ -43,17 +97,27 @@ impl Terminal {
         })
     }
 
-    /// Shown when stderr is a terminal and `wanted` (not `--quiet`, rank 0 under MPI).
+    /// Drawn when stderr is a terminal and `wanted` (not `--quiet`, rank 0 under MPI); logged
+    /// as lines when stderr is not a terminal and `wanted`.
     pub fn on_stderr(wanted: bool) -> std::sync::Arc<Terminal> {
-        std::sync::Arc::new(Terminal::new(
-            wanted && std::io::IsTerminal::is_terminal(&std::io::stderr()),
-        ))
+        std::sync::Arc::new(if std::io::IsTerminal::is_terminal(&std::io::stderr()) {
+            Terminal::new(wanted)
+        } else {
+            Terminal::logged(wanted)
+        })
     }
 }
 
 impl Watcher for Terminal {
     fn stage(&self, name: &str, fraction: f64) {
         let t = self.start.elapsed().as_secs_f64();
+        if self.logged {
+            tracing::info!(target: PROGRESS_TARGET, "{t:.1} s  {name} ({:.0} %)", 100.0 * fraction);
+            *self.current.lock().unwrap_or_else(|p| p.into_inner()) =
+                Some((name.to_string(), std::time::Instant::now()));
+            self.tick();
+            return;
+        }
         let spinner = self.spinner();
         spinner.println(format!("{t:7.1} s  {name}"));
         spinner.set_message(format!("{name} ({:.0} %)", 100.0 * fraction));

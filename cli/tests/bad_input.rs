@@ -7,10 +7,6 @@ mod common;
 use common::*;
 use std::path::Path;
 
-fn stderr(o: &std::process::Output) -> String {
-    String::from_utf8_lossy(&o.stderr).into_owned()
-}
-
 /// LAPACK printed `On entry to DLASCL parameter number 4 had an illegal value` and the process
 /// exited 0 with no output.
 #[test]

@@ -18,7 +18,7 @@ fn good_scene_writes_a_basis_and_json_summary() {
         out.to_str().unwrap(),
         "--json",
     ]);
-    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    assert!(o.status.success(), "{}", stderr(&o));
     let v = last_json(&o);
     assert_eq!(v["output"], out.to_str().unwrap());
     let space = &v["spaces"][0];
@@ -52,7 +52,7 @@ fn good_scene_writes_a_basis_and_json_summary() {
         errors.iter().all(|e| e.as_f64().is_some_and(|e| e > 0.05)),
         "{errors:?}"
     );
-    let err = String::from_utf8_lossy(&o.stderr);
+    let err = stderr(&o);
     assert_eq!(err.matches("use mesh.order = 2").count(), 1, "{err}");
     // 50 mm tets in a 50 mm-thick beam: one element through it, which the estimate cannot see.
     assert_eq!(err.matches("walls one element thick").count(), 1, "{err}");
@@ -68,7 +68,7 @@ fn good_scene_writes_a_basis_and_json_summary() {
 
     // The STEP file is in millimetres: a scene saying metres is told once that its unit is
     // ignored, and the result is the same part.
-    assert!(!String::from_utf8_lossy(&o.stderr).contains("is ignored"));
+    assert!(!stderr(&o).contains("is ignored"));
     let metres = write_file(dir.path(), "m.toml", &GOOD.replace("unit = \"mm\"", "unit = \"m\""));
     let out_m = dir.path().join("m.h5");
     let o = ves(&[
@@ -78,7 +78,7 @@ fn good_scene_writes_a_basis_and_json_summary() {
         out_m.to_str().unwrap(),
         "--json",
     ]);
-    let err = String::from_utf8_lossy(&o.stderr);
+    let err = stderr(&o);
     assert!(o.status.success(), "{err}");
     assert_eq!(err.matches("is ignored").count(), 1, "{err}");
     assert!(
@@ -102,7 +102,7 @@ fn good_scene_writes_a_basis_and_json_summary() {
 fn missing_scene_file() {
     let o = ves(&["precompute", "/nonexistent/scene.toml"]);
     assert!(!o.status.success());
-    assert!(String::from_utf8_lossy(&o.stderr).contains("/nonexistent/scene.toml"));
+    assert!(stderr(&o).contains("/nonexistent/scene.toml"));
 }
 
 #[test]
@@ -158,12 +158,12 @@ fn broken_step_file() {
     .unwrap();
     let out = dir.path().join("out.h5");
     let o = ves(&["precompute", path.to_str().unwrap(), "-o", out.to_str().unwrap()]);
-    let stderr = String::from_utf8_lossy(&o.stderr);
+    let err = stderr(&o);
     assert!(!o.status.success());
-    assert_eq!(stderr.lines().filter(|l| !l.trim().is_empty()).count(), 1, "{stderr}");
-    assert!(stderr.contains("broken.step"), "{stderr}");
+    assert_eq!(err.lines().filter(|l| !l.trim().is_empty()).count(), 1, "{err}");
+    assert!(err.contains("broken.step"), "{err}");
     // It is not a file of surfaces: say what it is.
-    assert!(!stderr.contains("surfaces"), "{stderr}");
+    assert!(!err.contains("surfaces"), "{err}");
     assert!(!out.exists());
 }
 
@@ -174,7 +174,7 @@ fn info_refuses_foreign_and_truncated_files() {
     std::fs::write(&text, "not hdf5").unwrap();
     let o = ves(&["info", text.to_str().unwrap()]);
     assert!(!o.status.success());
-    assert!(String::from_utf8_lossy(&o.stderr).contains("not a readable HDF5 file"));
+    assert!(stderr(&o).contains("not a readable HDF5 file"));
 
     let foreign = dir.path().join("foreign.h5");
     ves_format::file::create(&foreign, false)
@@ -183,7 +183,7 @@ fn info_refuses_foreign_and_truncated_files() {
         .unwrap();
     let o = ves(&["info", foreign.to_str().unwrap()]);
     assert!(!o.status.success());
-    assert!(String::from_utf8_lossy(&o.stderr).contains("not a VES modal basis"));
+    assert!(stderr(&o).contains("not a VES modal basis"));
 
     let (wd, path) = workdir(GOOD);
     let good = wd.path().join("beam.h5");
@@ -197,7 +197,7 @@ fn info_refuses_foreign_and_truncated_files() {
     std::fs::write(&cut, &bytes[..bytes.len() / 2]).unwrap();
     let o = ves(&["info", cut.to_str().unwrap()]);
     assert!(!o.status.success(), "a truncated file must not read as a basis");
-    assert_eq!(String::from_utf8_lossy(&o.stderr).lines().count(), 1);
+    assert_eq!(stderr(&o).lines().count(), 1);
 }
 
 #[test]
@@ -234,7 +234,7 @@ fn session_and_bench_report_json() {
     assert!(v["peak_force_n"].as_f64().unwrap() > 0.0);
 
     let o = ves(&["bench", basis.to_str().unwrap(), "--json"]);
-    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    assert!(o.status.success(), "{}", stderr(&o));
     let v: serde_json::Value = serde_json::from_slice(&o.stdout).expect("bench JSON");
     // Only 4 modes in this basis: r = 30 and 100 cannot be measured, the 4 it has are.
     for key in [
@@ -260,7 +260,7 @@ fn session_and_bench_report_json() {
         "script:/nonexistent.csv",
     ]);
     assert!(!bad.status.success());
-    assert!(String::from_utf8_lossy(&bad.stderr).contains("/nonexistent.csv"));
+    assert!(stderr(&bad).contains("/nonexistent.csv"));
 }
 
 /// A hand that grabs 0.46 mm from the beam's tip corner and moves 1 mm further along the
@@ -325,8 +325,8 @@ fn verify_against_scikit_fem_and_calculix_passes_and_tolerances_bite() {
         "--stress",
         "--json",
     ]);
-    let stderr = String::from_utf8_lossy(&o.stderr);
-    assert!(o.status.success(), "verify failed: {stderr}");
+    let err = stderr(&o);
+    assert!(o.status.success(), "verify failed: {err}");
     let v: serde_json::Value = serde_json::from_slice(&o.stdout).expect("verify JSON");
     let refs = v["references"].as_array().expect("references");
     // scikit-fem and CalculiX always; FEniCSx too where it is installed.
@@ -339,7 +339,7 @@ fn verify_against_scikit_fem_and_calculix_passes_and_tolerances_bite() {
     let with_fenicsx = refs
         .iter()
         .any(|r| r["solver"].as_str().is_some_and(|s| s.contains("FEniCSx")));
-    assert_eq!(!with_fenicsx, stderr.contains("FEniCSx is not installed"), "{stderr}");
+    assert_eq!(!with_fenicsx, err.contains("FEniCSx is not installed"), "{err}");
     // ... and lists it in the report, with how to install it.
     let skipped = v["skipped"].as_array().expect("skipped");
     assert_eq!(
@@ -351,7 +351,7 @@ fn verify_against_scikit_fem_and_calculix_passes_and_tolerances_bite() {
         "{skipped:?}"
     );
     // The progress lines (solver, size, expected time) are for a terminal only.
-    assert!(!stderr.contains("unknowns, expected about"), "{stderr}");
+    assert!(!err.contains("unknowns, expected about"), "{err}");
     let skfem = find("scikit-fem");
     assert!(skfem["max_rel_freq_diff"].as_f64().unwrap() < 1e-6);
     assert!(skfem["min_mac_isolated"].as_f64().unwrap() > 0.999);
@@ -379,7 +379,7 @@ fn verify_against_scikit_fem_and_calculix_passes_and_tolerances_bite() {
         "--tol-freq",
         "1e-12",
     ]);
-    assert_eq!(o.status.code(), Some(2), "{}", String::from_utf8_lossy(&o.stderr));
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
     let o = ves(&[
         "verify",
         path.to_str().unwrap(),
@@ -389,7 +389,7 @@ fn verify_against_scikit_fem_and_calculix_passes_and_tolerances_bite() {
         "--tol-stress",
         "1e-9",
     ]);
-    assert_eq!(o.status.code(), Some(2), "{}", String::from_utf8_lossy(&o.stderr));
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
     drop(dir);
 }
 
@@ -499,7 +499,7 @@ fn output_into_a_missing_directory_is_refused_before_work() {
     let (_dir, path) = workdir(GOOD);
     let o = ves(&["precompute", path.to_str().unwrap(), "-o", "/nonexistent/dir/out.h5"]);
     assert!(!o.status.success());
-    assert!(String::from_utf8_lossy(&o.stderr).contains("/nonexistent/dir"));
+    assert!(stderr(&o).contains("/nonexistent/dir"));
 }
 
 #[test]
@@ -525,16 +525,12 @@ fn basis_of_a_newer_version_or_missing_pieces_is_refused() {
     let newer = header_only("newer.h5", 2);
     let o = ves(&["info", newer.to_str().unwrap()]);
     assert!(!o.status.success());
-    assert!(String::from_utf8_lossy(&o.stderr).contains("newer"));
+    assert!(stderr(&o).contains("newer"));
     let hollow = header_only("hollow.h5", 1);
     for cmd in ["info", "bench"] {
         let o = ves(&[cmd, hollow.to_str().unwrap()]);
         assert!(!o.status.success(), "{cmd} accepted a hollow file");
-        assert!(
-            String::from_utf8_lossy(&o.stderr).contains("hollow.h5"),
-            "{cmd}: {}",
-            String::from_utf8_lossy(&o.stderr)
-        );
+        assert!(stderr(&o).contains("hollow.h5"), "{cmd}: {}", stderr(&o));
     }
 }
 
@@ -551,7 +547,7 @@ fn bad_device_scripts_and_session_settings_are_refused() {
         let p = dir.path().join(name);
         std::fs::write(&p, text).unwrap();
         let o = ves(&["session", b, "--device", &format!("script:{}", p.display())]);
-        let err = String::from_utf8_lossy(&o.stderr);
+        let err = stderr(&o);
         assert!(
             !o.status.success() && err.contains(name) && err.contains(expect),
             "{name}: {err}"
@@ -561,9 +557,9 @@ fn bad_device_scripts_and_session_settings_are_refused() {
     std::fs::write(&ok, "0,1,0.05,0.05\n").unwrap();
     let dev = format!("script:{}", ok.display());
     let o = ves(&["session", b, "--device", &dev, "--rate", "50000"]);
-    assert!(!o.status.success() && String::from_utf8_lossy(&o.stderr).contains("--rate"));
+    assert!(!o.status.success() && stderr(&o).contains("--rate"));
     let o = ves(&["session", b, "--device", "mouse:0"]);
-    assert!(!o.status.success() && String::from_utf8_lossy(&o.stderr).contains("script:"));
+    assert!(!o.status.success() && stderr(&o).contains("script:"));
 }
 
 /// A small `ves report` (CI): every output is written, the static correction makes the probe
@@ -595,8 +591,8 @@ fn report_sweeps_meshes_and_modes_and_writes_plots() {
         "0.1",
         "--json",
     ]);
-    let stderr = String::from_utf8_lossy(&o.stderr);
-    assert!(o.status.success(), "{stderr}");
+    let err = stderr(&o);
+    assert!(o.status.success(), "{err}");
     for f in [
         "report.md",
         "report.json",
@@ -751,7 +747,7 @@ fn report_without_sizes_on_a_target_error_scene_sweeps_the_refinements_sizes() {
         "0.05",
         "--json",
     ]);
-    let err = String::from_utf8_lossy(&o.stderr);
+    let err = stderr(&o);
     assert!(o.status.success(), "{err}");
     assert!(
         err.contains("target_error") && err.contains("1/15") && err.contains("--sizes"),
@@ -773,6 +769,56 @@ fn report_without_sizes_on_a_target_error_scene_sweeps_the_refinements_sizes() {
     assert_eq!(r["meshes"].as_array().map(Vec::len), Some(3));
     let md = std::fs::read_to_string(out.join("report.md")).expect("report.md");
     assert!(md.contains("target_error"), "{md}");
+}
+
+/// Without a terminal (stderr piped, as in a batch job's log), a precompute logs each stage as
+/// one line with the seconds since the start, and a stage that lasts again every
+/// `VES_PROGRESS_EVERY` seconds; `--quiet` and `VES_LOG=warn` silence them. (A 25-minute run
+/// printed nothing to a log before.)
+#[test]
+fn progress_is_logged_without_a_terminal() {
+    let scene = GOOD
+        .replace("order = 1", "order = 2")
+        .replace("size = 0.05", "size = 0.012")
+        .replace("count = 4", "count = 60");
+    let (dir, path) = workdir(&scene);
+    let out = dir.path().join("b.h5");
+    let run = |extra: &[&str], env: &[(&str, &str)]| {
+        let mut c = Command::new(env!("CARGO_BIN_EXE_ves"));
+        c.args([
+            "precompute",
+            path.to_str().unwrap(),
+            "-o",
+            out.to_str().unwrap(),
+            "--force",
+        ])
+        .args(extra)
+        .env_remove("VES_LOG");
+        for (k, v) in env {
+            c.env(k, v);
+        }
+        c.output().expect("ves runs")
+    };
+    let o = run(&[], &[("VES_PROGRESS_EVERY", "1")]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let all = String::from_utf8_lossy(&o.stderr).into_owned();
+    let lines: Vec<&str> = all.lines().filter(|l| l.contains(" INFO ves::progress: ")).collect();
+    let seconds: Vec<f64> = lines.iter().map(|l| number_after(l, "ves::progress: ")).collect();
+    assert!(lines.iter().any(|l| l.contains("meshing")), "{all}");
+    assert!(lines.iter().any(|l| l.contains("eigen-solving")), "{all}");
+    assert!(lines.iter().any(|l| l.contains("writing")), "{all}");
+    assert!(
+        seconds.windows(2).all(|w| w[1] >= w[0]),
+        "seconds since the start, in order: {all}"
+    );
+    // The eigen-solve of 60 modes lasts seconds here: told again at least once.
+    assert!(lines.iter().any(|l| l.ends_with("(still)")), "{all}");
+    for (extra, env) in [(vec!["--quiet"], vec![]), (vec![], vec![("VES_LOG", "warn")])] {
+        let o = run(&extra, &env);
+        assert!(o.status.success());
+        let all = String::from_utf8_lossy(&o.stderr);
+        assert!(!all.contains("ves::progress"), "{extra:?} {env:?}: {all}");
+    }
 }
 
 /// `ves batch`: good scenes done, a broken one named, a second run does nothing, a changed
@@ -805,8 +851,8 @@ fn batch_skips_up_to_date_survives_a_bad_scene_and_resumes() {
         Some(1),
         "a failed scene makes the batch fail at the end"
     );
-    let stderr = String::from_utf8_lossy(&o.stderr);
-    assert!(stderr.contains("broken.toml") && stderr.contains("poisson"), "{stderr}");
+    let err = stderr(&o);
+    assert!(err.contains("broken.toml") && err.contains("poisson"), "{err}");
     let v = parse(&o);
     assert_eq!(
         (status(&v, "a.toml"), status(&v, "b.toml"), status(&v, "broken.toml")),
@@ -948,7 +994,7 @@ fn slepc_matches_arpack(solver: &str, error_estimate: bool) {
         "--solver",
         "arpack",
     ]);
-    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    assert!(o.status.success(), "{}", stderr(&o));
     let o = Command::new("mpirun")
         .env("OMPI_ALLOW_RUN_AS_ROOT", "1")
         .env("OMPI_ALLOW_RUN_AS_ROOT_CONFIRM", "1")
@@ -966,7 +1012,7 @@ fn slepc_matches_arpack(solver: &str, error_estimate: bool) {
         .output()
         .expect("mpirun runs (apt-get install openmpi-bin)");
     let stdout = String::from_utf8_lossy(&o.stdout);
-    assert!(o.status.success(), "{}\n{stdout}", String::from_utf8_lossy(&o.stderr));
+    assert!(o.status.success(), "{}\n{stdout}", stderr(&o));
     assert_eq!(
         stdout.lines().filter(|l| l.starts_with('{')).count(),
         1,
@@ -1027,7 +1073,7 @@ fn session_switches_between_voi_spaces() {
     std::fs::write(&path, scene).expect("scene");
     let basis = dir.path().join("voi.h5");
     let o = ves(&["precompute", path.to_str().unwrap(), "-o", basis.to_str().unwrap()]);
-    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    assert!(o.status.success(), "{}", stderr(&o));
     let v = session_json(&basis, &cases.join("pull_rib3.csv"));
     assert_eq!(v["spaces"], 2, "{v}");
     // The grab pulls rib 3 out of its box and keeps its space while held (the switcher
@@ -1092,7 +1138,7 @@ fn cantilever_case_json_cached(
         .env("VES_CACHE_DIR", cache)
         .output()
         .expect("ves runs");
-    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    assert!(o.status.success(), "{}", stderr(&o));
     (dir, last_json(&o))
 }
 
@@ -1299,7 +1345,7 @@ fn modal_stress_under_a_static_tip_load_matches_beam_theory() {
     let path = write_file(dir.path(), "scene.toml", &scene);
     let out = dir.path().join("b.h5");
     let o = ves(&["precompute", path.to_str().unwrap(), "-o", out.to_str().unwrap()]);
-    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    assert!(o.status.success(), "{}", stderr(&o));
     let file = ves_format::BasisReader::open(&out).unwrap();
     let s = file.space("global").unwrap();
     let (nv, r) = (s.vertex_count, s.mode_count);
@@ -1341,7 +1387,7 @@ fn xdmf_sidecar_shows_the_basis_to_paraview() {
     let (dir, path) = workdir(&scene);
     let out = dir.path().join("beam.h5");
     let o = ves(&["precompute", path.to_str().unwrap(), "-o", out.to_str().unwrap()]);
-    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    assert!(o.status.success(), "{}", stderr(&o));
     let sidecar = dir.path().join("beam.xdmf");
     let xml = std::fs::read_to_string(&sidecar).expect("sidecar written beside the basis");
     assert!(xml.contains("beam.h5:/spaces/global/modes/basis") && xml.contains("Tetrahedron_10"));
@@ -1350,7 +1396,7 @@ fn xdmf_sidecar_shows_the_basis_to_paraview() {
     // `ves export --vtu` for tools that want VTK files: meshio reads exactly the basis.
     let vtu = dir.path().join("vtu");
     let o = ves(&["export", out.to_str().unwrap(), "--vtu", vtu.to_str().unwrap()]);
-    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    assert!(o.status.success(), "{}", stderr(&o));
     let check = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/vtk/vtu_check.py");
     let o = Command::new("python3")
         .args([check.to_str().unwrap(), vtu.to_str().unwrap(), out.to_str().unwrap()])
@@ -1359,7 +1405,7 @@ fn xdmf_sidecar_shows_the_basis_to_paraview() {
     assert!(
         o.status.success() && String::from_utf8_lossy(&o.stdout).contains("ok"),
         "{}",
-        String::from_utf8_lossy(&o.stderr)
+        stderr(&o)
     );
     let seen = pvpython_json("sidecar_dump.py", &[sidecar.as_os_str()]);
     let file = ves_format::BasisReader::open(&out).unwrap();
@@ -1448,7 +1494,7 @@ fn session_reports_von_mises_and_the_safety_factor() {
     let (dir, path) = workdir(&scene);
     let basis = dir.path().join("beam.h5");
     let o = ves(&["precompute", path.to_str().unwrap(), "-o", basis.to_str().unwrap()]);
-    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    assert!(o.status.success(), "{}", stderr(&o));
     let script = dir.path().join("hand.csv");
     // Pull the tip 5 mm down over 0.2 s, then hold.
     std::fs::write(
@@ -1532,7 +1578,7 @@ fn session_reports_von_mises_and_the_safety_factor() {
     assert_eq!(v["stress_exceeded_steps"], 0);
     // `ves bench` times the stress update on a basis that has it.
     let o = ves(&["bench", basis.to_str().unwrap(), "--json"]);
-    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    assert!(o.status.success(), "{}", stderr(&o));
     let b = last_json(&o);
     assert!(
         num(&b, "full_field_stress_ms_median") > 0.0 && num(&b, "von_mises_ms_median") > 0.0,
@@ -1548,7 +1594,7 @@ fn session_reports_von_mises_and_the_safety_factor() {
         ves(&args)
     };
     let o = session(&["--min-safety-factor", "1e7", "--strain-policy", "release", "--json"]);
-    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    assert!(o.status.success(), "{}", stderr(&o));
     let w = last_json(&o);
     assert!(w["stress_exceeded_steps"].as_u64().unwrap() > 0, "{w}");
     assert!(num(&w, "peak_force_n") < num(&v, "peak_force_n"), "released: {w}");
@@ -1573,7 +1619,7 @@ fn session_reports_von_mises_and_the_safety_factor() {
         "stiffen",
         "--json",
     ]);
-    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    assert!(o.status.success(), "{}", stderr(&o));
     let s = last_json(&o);
     assert!(s["safety_factor_below_min_frames"].as_u64().unwrap() > 0, "{s}");
     assert!(s["stress_exceeded_steps"].as_u64().unwrap() > 0, "{s}");
@@ -1600,8 +1646,8 @@ fn a_second_scenario_of_the_same_part_reuses_its_meshes() {
             c.env(k, v);
         }
         let o = c.output().expect("ves runs");
-        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-        let hits = String::from_utf8_lossy(&o.stderr).matches("mesh cache hit").count();
+        assert!(o.status.success(), "{}", stderr(&o));
+        let hits = stderr(&o).matches("mesh cache hit").count();
         let f: Vec<f64> = last_json(&o)["spaces"][0]["frequencies_hz"]
             .as_array()
             .unwrap()
@@ -1664,11 +1710,11 @@ fn a_cached_mesh_says_its_warnings_once() {
             .env("VES_LOG", log)
             .output()
             .expect("ves runs");
-        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        assert!(o.status.success(), "{}", stderr(&o));
         let cached = last_json(&o)["spaces"][0]["meshing"]["cached"]
             .as_bool()
             .expect("meshing.cached");
-        (String::from_utf8_lossy(&o.stderr).into_owned(), cached)
+        (stderr(&o), cached)
     };
     let full = "were made straight-sided (their faces are flat there";
     let (made, cached) = run("warn");
@@ -1707,8 +1753,8 @@ fn a_cached_mesh_carries_the_tags_of_a_fresh_one_into_the_basis_and_the_runtime(
             .env("VES_LOG", "info")
             .output()
             .expect("ves runs");
-        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-        String::from_utf8_lossy(&o.stderr).matches("mesh cache hit").count()
+        assert!(o.status.success(), "{}", stderr(&o));
+        stderr(&o).matches("mesh cache hit").count()
     };
     assert_eq!(run("fresh.h5"), 0);
     assert_eq!(run("cached.h5"), 1);

@@ -9,7 +9,7 @@
 
 mod common;
 
-use common::{number_after, ves};
+use common::{number_after, stderr, ves};
 use std::path::{Path, PathBuf};
 use ves_pipeline::mesh::quality::min_scaled_jacobian;
 use ves_pipeline::scene::Scene;
@@ -70,7 +70,7 @@ fn check_part(step: &Path, dir: &Path, verify: bool) -> Result<String, String> {
     ]);
     let seconds = t.elapsed().as_secs_f64();
     if !o.status.success() {
-        return Err(format!("{name}: {}", String::from_utf8_lossy(&o.stderr).trim()));
+        return Err(format!("{name}: {}", stderr(&o).trim()));
     }
     let stdout = String::from_utf8_lossy(&o.stdout);
     let v: serde_json::Value = serde_json::from_str(stdout.lines().last().unwrap_or("")).map_err(|e| e.to_string())?;
@@ -111,7 +111,7 @@ fn check_part(step: &Path, dir: &Path, verify: bool) -> Result<String, String> {
         if !o.status.success() {
             return Err(format!(
                 "{name}: scikit-fem disagrees or failed: {}\n{row}",
-                String::from_utf8_lossy(&o.stderr).trim()
+                stderr(&o).trim()
             ));
         }
     }
@@ -181,7 +181,7 @@ fn a_part_no_rung_can_mesh_gets_advice_that_works() {
     // 1/8 of the cover's 161 mm extent.
     let coarse = scene(0.020166);
     let o = ves(&["precompute", coarse.to_str().unwrap()]);
-    let err = String::from_utf8_lossy(&o.stderr);
+    let err = stderr(&o);
     assert_eq!(o.status.code(), Some(1), "{err}");
     assert_eq!(err.lines().count(), 1, "{err}");
     assert!(err.contains("any of its 5 strategies") && err.contains("PLC"), "{err}");
@@ -198,11 +198,7 @@ fn a_part_no_rung_can_mesh_gets_advice_that_works() {
         out.to_str().unwrap(),
         "--json",
     ]);
-    assert!(
-        o.status.success(),
-        "following the advice: {}",
-        String::from_utf8_lossy(&o.stderr)
-    );
+    assert!(o.status.success(), "following the advice: {}", stderr(&o));
     let stdout = String::from_utf8_lossy(&o.stdout);
     let v: serde_json::Value = serde_json::from_str(stdout.lines().last().unwrap_or("")).expect("JSON");
     let strategy = v["spaces"][0]["meshing"]["strategy"]

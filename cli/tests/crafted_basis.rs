@@ -9,10 +9,6 @@ use common::*;
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
-fn stderr(o: &std::process::Output) -> String {
-    String::from_utf8_lossy(&o.stderr).into_owned()
-}
-
 /// The good scene with exact static compliance stored (the blocks the runtime feels).
 fn basis_with_compliance() -> (tempfile::TempDir, PathBuf) {
     let scene = GOOD.replace("[modes]", "[static_correction]\nregion = \"surface\"\n[modes]");

@@ -53,7 +53,7 @@ fn a_full_disk_leaves_the_old_basis_and_sidecar_and_fails() {
     let sidecar = dir.path().join("beam.xdmf");
     let (s, o) = (scene.to_str().unwrap(), out.to_str().unwrap());
     let first = run(&["precompute", s, "-o", o], &cache);
-    assert!(first.status.success(), "{}", String::from_utf8_lossy(&first.stderr));
+    assert!(first.status.success(), "{}", stderr(&first));
     let (old_basis, old_sidecar) = (
         std::fs::read(&out).expect("basis"),
         std::fs::read(&sidecar).expect("xdmf"),
@@ -64,13 +64,13 @@ fn a_full_disk_leaves_the_old_basis_and_sidecar_and_fails() {
     std::fs::write(&scene, GOOD.replace("count = 4", "count = 3")).expect("scene");
     let elsewhere = dir.path().join("cache").join("new.h5");
     let r = run(&["precompute", s, "-o", elsewhere.to_str().unwrap()], &cache);
-    assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
+    assert!(r.status.success(), "{}", stderr(&r));
     let size = std::fs::metadata(&elsewhere).expect("new basis").len();
     let fractions = [0.25, 0.4, 0.5, 0.55, 0.6, 0.65, 0.7, 0.8, 0.9, 0.95, 0.99];
     let limits = [0, 4096].into_iter().chain(fractions.map(|f| (f * size as f64) as u64));
     for limit in limits {
         let e = ves_limited(&["precompute", s, "-o", o], limit, &cache);
-        let err = String::from_utf8_lossy(&e.stderr);
+        let err = stderr(&e);
         assert!(!e.status.success(), "limit {limit} B: exit 0 ({err})");
         // One line (warnings aside) that names the output and the cause.
         let errors: Vec<&str> = err
@@ -95,9 +95,9 @@ fn a_full_disk_leaves_the_old_basis_and_sidecar_and_fails() {
     }
     // With room enough, the same run replaces both.
     let e = ves_limited(&["precompute", s, "-o", o], size + 4096, &cache);
-    assert!(e.status.success(), "{}", String::from_utf8_lossy(&e.stderr));
+    assert!(e.status.success(), "{}", stderr(&e));
     let info = run(&["info", o, "--json"], &cache);
-    assert!(info.status.success(), "{}", String::from_utf8_lossy(&info.stderr));
+    assert!(info.status.success(), "{}", stderr(&info));
     let v: serde_json::Value = serde_json::from_slice(&info.stdout).expect("info JSON");
     assert_eq!(v["spaces"][0]["modes"], 3);
     assert_ne!(
@@ -114,17 +114,13 @@ fn a_full_disk_during_matrices_fails_and_keeps_the_old_file() {
     let out = dir.path().join("km.h5");
     let (s, o) = (scene.to_str().unwrap(), out.to_str().unwrap());
     let first = run(&["matrices", s, "-o", o], &cache);
-    assert!(first.status.success(), "{}", String::from_utf8_lossy(&first.stderr));
+    assert!(first.status.success(), "{}", stderr(&first));
     let old = std::fs::read(&out).expect("matrices");
     std::fs::write(&scene, GOOD.replace("young = 2.1e11", "young = 7.0e10")).expect("scene");
     let limits = [0.1, 0.3, 0.5, 0.6, 0.7, 0.8, 0.9, 0.99].map(|f| (f * old.len() as f64) as u64);
     for limit in limits {
         let e = ves_limited(&["matrices", s, "-o", o], limit, &cache);
-        assert!(
-            !e.status.success(),
-            "limit {limit} B: exit 0 ({})",
-            String::from_utf8_lossy(&e.stderr)
-        );
+        assert!(!e.status.success(), "limit {limit} B: exit 0 ({})", stderr(&e));
         assert_eq!(std::fs::read(&out).expect("matrices"), old, "limit {limit} B: replaced");
     }
 }
@@ -158,7 +154,7 @@ fn scene_names_that_are_paths_or_hide_characters_are_refused() {
             vec!["precompute", scene.to_str().unwrap()],
         ] {
             let o = ves(&args);
-            let err = String::from_utf8_lossy(&o.stderr);
+            let err = stderr(&o);
             assert!(!o.status.success(), "{args:?} with name {name:?}: exit 0 ({err})");
             assert!(err.contains("name"), "{name:?}: the error does not name the key: {err}");
             assert!(!err.contains('\u{202E}'), "the bidi override is printed raw: {err}");
@@ -182,6 +178,6 @@ fn scene_names_that_are_paths_or_hide_characters_are_refused() {
         "-o",
         out.join("x.h5").to_str().unwrap(),
     ]);
-    let err = String::from_utf8_lossy(&o.stderr);
+    let err = stderr(&o);
     assert!(!o.status.success() && err.contains("set name"), "{err}");
 }

@@ -42,11 +42,7 @@ fn instant_bases_match_the_converged_solve_within_their_bounds() {
         );
         // The file is a basis like any other: `ves info` reads and checks it whole.
         let info = ves(&["info", out.to_str().unwrap(), "--json"]);
-        assert!(
-            info.status.success(),
-            "{name}: {}",
-            String::from_utf8_lossy(&info.stderr)
-        );
+        assert!(info.status.success(), "{name}: {}", stderr(&info));
     }
     // Another mesh size: no instant basis, said in one line, nothing written.
     let finer = write_file(

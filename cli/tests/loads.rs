@@ -171,7 +171,7 @@ fn cantilever_tip_force_agrees_with_beam_theory() {
 /// `ves verify --against calculix --json` of a scene; its load cases.
 fn verify_loads(scene: &Path) -> Vec<serde_json::Value> {
     let o = ves(&["verify", scene.to_str().unwrap(), "--against", "calculix", "--json"]);
-    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    assert!(o.status.success(), "{}", stderr(&o));
     last_json(&o)["loads"].as_array().expect("loads compared").clone()
 }
 

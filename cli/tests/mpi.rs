@@ -108,15 +108,15 @@ fn an_error_on_every_rank_ends_the_job_with_one_message() {
     let out = dir.path().join("missing/out.h5");
     let child = mpirun(&[app(2, &scene, &out)]).spawn().expect("mpirun runs");
     let (o, took) = finish(child, "output refused on every rank");
-    let stderr = String::from_utf8_lossy(&o.stderr);
-    assert!(!o.status.success(), "{stderr}");
-    let errors = error_lines(&stderr);
-    assert_eq!(errors.len(), 1, "one message: {stderr}");
+    let err = stderr(&o);
+    assert!(!o.status.success(), "{err}");
+    let errors = error_lines(&err);
+    assert_eq!(errors.len(), 1, "one message: {err}");
     assert!(
         errors[0].contains("missing") && errors[0].contains("output directory does not exist"),
-        "{stderr}"
+        "{err}"
     );
-    assert!(!stderr.contains("MPI_ABORT"), "{stderr}");
+    assert!(!err.contains("MPI_ABORT"), "{err}");
     eprintln!("ended in {took:?}");
 }
 
@@ -132,16 +132,16 @@ fn an_error_on_one_rank_ends_every_rank() {
         .spawn()
         .expect("mpirun runs");
     let (o, _) = finish(child, "scene missing on rank 1");
-    let stderr = String::from_utf8_lossy(&o.stderr);
-    assert!(!o.status.success(), "{stderr}");
-    let errors = error_lines(&stderr);
-    assert_eq!(errors.len(), 1, "one message: {stderr}");
+    let err = stderr(&o);
+    assert!(!o.status.success(), "{err}");
+    let errors = error_lines(&err);
+    assert_eq!(errors.len(), 1, "one message: {err}");
     assert!(
         errors[0].contains("MPI rank 1") && errors[0].contains("nowhere.toml"),
-        "{stderr}"
+        "{err}"
     );
     // A clean end agreed by the ranks, not MPI_Abort killing them.
-    assert!(!stderr.contains("MPI_ABORT"), "{stderr}");
+    assert!(!err.contains("MPI_ABORT"), "{err}");
     assert!(!out.exists(), "nothing written");
 }
 
@@ -156,13 +156,13 @@ fn an_error_on_rank_0_while_the_others_serve_ends_the_job_with_one_message() {
     let out = dir.path().join("out.h5");
     let child = mpirun(&[app(2, &path, &out)]).spawn().expect("mpirun runs");
     let (o, _) = finish(child, "support beside the part");
-    let stderr = String::from_utf8_lossy(&o.stderr);
-    assert!(!o.status.success(), "{stderr}");
-    let errors = error_lines(&stderr);
-    assert_eq!(errors.len(), 1, "one message: {stderr}");
-    assert!(errors[0].contains("fixed"), "{stderr}");
-    assert!(!errors[0].contains("MPI rank"), "rank 0's own error: {stderr}");
-    assert!(!stderr.contains("MPI_ABORT"), "{stderr}");
+    let err = stderr(&o);
+    assert!(!o.status.success(), "{err}");
+    let errors = error_lines(&err);
+    assert_eq!(errors.len(), 1, "one message: {err}");
+    assert!(errors[0].contains("fixed"), "{err}");
+    assert!(!errors[0].contains("MPI rank"), "rank 0's own error: {err}");
+    assert!(!err.contains("MPI_ABORT"), "{err}");
     assert!(!out.exists(), "nothing written");
 }
 
@@ -184,11 +184,11 @@ fn a_killed_rank_ends_the_job_and_leaves_no_process() {
     job.env("VES_LOG", "ves_numerics::modes::slepc=debug");
     let mut child = job.spawn().expect("mpirun runs");
     let launcher = child.id();
-    let stderr = child.stderr.take().expect("stderr piped");
+    let piped = child.stderr.take().expect("stderr piped");
     let (tx, rx) = std::sync::mpsc::channel();
     // Reads to the end (the job must not block on a full pipe); `finish` then sees no stderr.
     std::thread::spawn(move || {
-        for line in std::io::BufRead::lines(std::io::BufReader::new(stderr)).map_while(Result::ok) {
+        for line in std::io::BufRead::lines(std::io::BufReader::new(piped)).map_while(Result::ok) {
             if line.contains("operators assembled") {
                 let _ = tx.send(line);
             }
@@ -219,7 +219,7 @@ fn a_killed_rank_ends_the_job_and_leaves_no_process() {
         .expect("kill");
     assert!(status.success());
     let (o, took) = finish(child, "rank 1 killed");
-    assert!(!o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    assert!(!o.status.success(), "{}", stderr(&o));
     for p in &ranks {
         assert!(
             !Path::new(&format!("/proc/{p}")).exists()

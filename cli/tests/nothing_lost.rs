@@ -9,10 +9,6 @@ use std::path::Path;
 use std::process::{Command, Output, Stdio};
 use std::time::{Duration, Instant};
 
-fn stderr(o: &Output) -> String {
-    String::from_utf8_lossy(&o.stderr).into_owned()
-}
-
 /// `ves ARGS`, killed (and the test failed) when it runs longer than `seconds`.
 fn ves_within(args: &[&str], seconds: u64) -> Output {
     let mut child = Command::new(env!("CARGO_BIN_EXE_ves"))

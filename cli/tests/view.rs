@@ -140,7 +140,7 @@ fn finish(
     assert!(
         browser.status.success(),
         "browser script failed: {}\n{}\nserver: {err}",
-        String::from_utf8_lossy(&browser.stderr),
+        stderr(browser),
         String::from_utf8_lossy(&browser.stdout)
     );
     assert!(status.success(), "ves view after Ctrl-C: {status:?}: {err}");
@@ -162,7 +162,7 @@ fn the_mouse_pulls_the_tip_in_a_real_browser_and_the_page_shows_the_static_respo
     let (dir, scene) = workdir(&scene());
     let basis = dir.path().join("beam.h5");
     let o = ves(&["precompute", scene.to_str().unwrap(), "-o", basis.to_str().unwrap()]);
-    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    assert!(o.status.success(), "{}", stderr(&o));
 
     let (server, out, url) = serve(&basis, "0");
 
@@ -312,7 +312,7 @@ fn the_mouse_pulls_the_tip_in_a_real_browser_and_the_page_shows_the_static_respo
     let csv_path = write_file(dir.path(), "drag.csv", &csv);
     let device = format!("script:{}", csv_path.display());
     let o = ves(&["session", basis.to_str().unwrap(), "--device", &device, "--json"]);
-    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    assert!(o.status.success(), "{}", stderr(&o));
     let session = last_json(&o);
     let f_session = vec3(&session["final_forces_n"][0]);
     let gap = norm(sub(force, f_session)) / norm(f_session);
@@ -419,7 +419,7 @@ fn a_load_case_is_chosen_in_the_page_and_drawn_from_the_file() {
     let scene = write_file(dir.path(), "loads.toml", &scene);
     let basis = dir.path().join("loads.h5");
     let o = ves(&["precompute", scene.to_str().unwrap(), "-o", basis.to_str().unwrap()]);
-    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    assert!(o.status.success(), "{}", stderr(&o));
 
     let (server, out, url) = serve(&basis, "0");
     let web = Path::new(env!("CARGO_MANIFEST_DIR")).join("../view/web");
@@ -580,11 +580,7 @@ fn a_port_in_use_is_a_one_line_error() {
     let port = taken.local_addr().unwrap().port().to_string();
     let o = ves(&["view", basis.to_str().unwrap(), "--port", &port, "--duration", "1"]);
     assert_refused(&o, &format!("port {port}"));
-    assert!(
-        String::from_utf8_lossy(&o.stderr).contains("--port"),
-        "{}",
-        String::from_utf8_lossy(&o.stderr)
-    );
+    assert!(stderr(&o).contains("--port"), "{}", stderr(&o));
 }
 
 /// Bad input to `ves view`: a missing basis, a duration that is not a positive time, a
@@ -607,7 +603,7 @@ fn bad_view_input_is_one_line_and_a_public_host_is_warned_about() {
         );
     }
     let o = ves(&["view", b, "--host", "0.0.0.0", "--port", "0", "--duration", "0.3"]);
-    let err = String::from_utf8_lossy(&o.stderr);
+    let err = stderr(&o);
     assert!(o.status.success(), "{err}");
     assert_eq!(err.matches("reachable from other machines").count(), 1, "{err}");
     assert!(
@@ -628,7 +624,7 @@ fn a_free_body_stays_put_at_any_scale_and_the_page_reconnects() {
     let (dir, scene) = workdir(&free.replace("count = 4", "count = 8"));
     let basis = dir.path().join("beam.h5");
     let o = ves(&["precompute", scene.to_str().unwrap(), "-o", basis.to_str().unwrap()]);
-    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    assert!(o.status.success(), "{}", stderr(&o));
     let (mut server, _out, url) = serve(&basis, "0");
     let port = url
         .trim_end_matches('/')
@@ -856,7 +852,7 @@ fn a_step_part_is_set_up_computed_and_pulled_in_the_page() {
         basis.to_str().unwrap(),
         "--json",
     ]);
-    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    assert!(o.status.success(), "{}", stderr(&o));
     let again = freqs(&last_json(&o)["spaces"][0]["frequencies_hz"]);
     for (a, b) in held.iter().zip(&again) {
         assert!(
@@ -945,7 +941,7 @@ fn a_step_part_is_set_up_computed_and_pulled_in_the_page() {
     let csv_path = write_file(dir.path(), "pull.csv", &csv);
     let device = format!("script:{}", csv_path.display());
     let o = ves(&["session", basis.to_str().unwrap(), "--device", &device, "--json"]);
-    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    assert!(o.status.success(), "{}", stderr(&o));
     let f_session = vec3(&last_json(&o)["final_forces_n"][0]);
     let gap = norm(sub(force, f_session)) / norm(f_session);
     assert!(gap < 0.01, "page {force:?} N vs ves session {f_session:?} N");

@@ -87,7 +87,7 @@ impl Args {
                 "--instant-from runs on one process: leave out --solver {}",
                 self.solver.name()
             );
-            let visible = !self.quiet && std::io::IsTerminal::is_terminal(&std::io::stderr());
+            let visible = !self.quiet;
             let _watching = ves_pipeline::progress::watch(crate::terminal::Terminal::on_stderr(visible));
             let Some((summary, instant)) = precompute::instant::run(&scene, previous, &out)? else {
                 let stored = ves_pipeline::store::read_global(previous, None)?;
@@ -115,7 +115,7 @@ impl Args {
             return Ok(());
         }
         let summary = {
-            let visible = !self.quiet && mpi_job::rank() == 0 && std::io::IsTerminal::is_terminal(&std::io::stderr());
+            let visible = !self.quiet && mpi_job::rank() == 0;
             let _watching = ves_pipeline::progress::watch(crate::terminal::Terminal::on_stderr(visible));
             precompute::run_with(&scene, &out, self.solver, self.write.overwrite())?
         };

@@ -60,7 +60,7 @@ impl Args {
         };
         // Each step and reference solver is announced with its size and expected time, above a
         // spinner with the elapsed time (a reference can take many minutes on a fine mesh).
-        let visible = !self.quiet && std::io::IsTerminal::is_terminal(&std::io::stderr());
+        let visible = !self.quiet;
         let report = {
             let _watching = ves_pipeline::progress::watch(crate::terminal::Terminal::on_stderr(visible));
             verify::verify_input(&self.input, self.against, self.modes, &tol, self.stress)?

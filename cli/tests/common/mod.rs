@@ -30,6 +30,16 @@ pub fn ves(args: &[&str]) -> Output {
         .expect("ves runs")
 }
 
+/// What a run said on stderr, without the progress lines a run without a terminal logs
+/// (`ves::progress` at INFO): the errors and warnings a test checks.
+pub fn stderr(o: &Output) -> String {
+    String::from_utf8_lossy(&o.stderr)
+        .lines()
+        .filter(|l| !l.contains(" ves::progress: "))
+        .map(|l| format!("{l}\n"))
+        .collect()
+}
+
 /// The JSON object on the last line of stdout (the `--json` contract).
 pub fn last_json(o: &Output) -> serde_json::Value {
     let stdout = String::from_utf8_lossy(&o.stdout);
@@ -131,7 +141,7 @@ pub fn fails(scene: &str, expect: &[&str]) {
     let out = dir.path().join("out.h5");
     std::fs::write(&out, b"previous result").expect("sentinel");
     let o = ves(&["precompute", path.to_str().unwrap(), "-o", out.to_str().unwrap()]);
-    let stderr = String::from_utf8_lossy(&o.stderr);
+    let stderr = stderr(&o);
     assert!(!o.status.success(), "should fail: {stderr}");
     let lines: Vec<&str> = stderr.lines().filter(|l| !l.trim().is_empty()).collect();
     assert_eq!(lines.len(), 1, "one line expected, got: {stderr}");
@@ -153,7 +163,7 @@ pub fn fails(scene: &str, expect: &[&str]) {
 
 /// Asserts that a run failed and that its message mentions `what`.
 pub fn assert_refused(o: &Output, what: &str) {
-    let e = String::from_utf8_lossy(&o.stderr);
+    let e = stderr(o);
     assert!(
         !o.status.success() && e.contains(what),
         "expected a refusal mentioning {what:?}: {e}"
