@@ -771,6 +771,71 @@ fn report_without_sizes_on_a_target_error_scene_sweeps_the_refinements_sizes() {
     assert!(md.contains("target_error"), "{md}");
 }
 
+/// `ves faces`: each CAD face with its kind, against the CAD itself — the cantilever's six
+/// planes (areas of the 1000 × 100 × 50 mm box), and on two public parts every cylinder's radius
+/// one of the radii the STEP file's CYLINDRICAL_SURFACEs state, the block's bores concave.
+#[test]
+fn faces_are_listed_as_the_cad_states_them() {
+    let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("..");
+    let faces = |file: &Path| -> Vec<serde_json::Value> {
+        let o = ves(&["faces", file.to_str().unwrap(), "--json"]);
+        last_json(&o).as_array().expect("a list of faces").clone()
+    };
+    let box_faces = faces(&root.join("cases/cantilever/cantilever.step"));
+    assert_eq!(box_faces.len(), 6);
+    let mut areas: Vec<f64> = box_faces.iter().map(|f| f["area_m2"].as_f64().expect("area")).collect();
+    areas.sort_by(f64::total_cmp);
+    for (got, want) in areas.iter().zip([0.005, 0.005, 0.05, 0.05, 0.1, 0.1]) {
+        assert!((got - want).abs() < 1e-9 * want, "{areas:?}");
+    }
+    assert!(
+        box_faces
+            .iter()
+            .all(|f| f["kind"] == "plane" && numbers(&f["normal"]).iter().filter(|c| c.abs() == 1.0).count() == 1)
+    );
+    for (part, concave) in [
+        ("pmi_block_2holes.step", vec![2, 3, 24, 25, 27, 28, 29, 30]),
+        ("crankshaft.step", vec![]),
+    ] {
+        let step = root.join("cases/corpus").join(part);
+        let text = std::fs::read_to_string(&step).expect("step");
+        // The radii the file states, mm: CYLINDRICAL_SURFACE('…',#placement,radius).
+        let stated: Vec<f64> = text
+            .split("CYLINDRICAL_SURFACE(")
+            .skip(1)
+            .filter_map(|s| s.split(')').next()?.rsplit(',').next()?.trim().parse().ok())
+            .collect();
+        assert!(!stated.is_empty());
+        let listed = faces(&step);
+        let cylinders: Vec<&serde_json::Value> = listed.iter().filter(|f| f["kind"] == "cylinder").collect();
+        assert!(cylinders.len() >= 8, "{part}: {} cylinders", cylinders.len());
+        for c in &cylinders {
+            let r = 1e3 * c["radius_m"].as_f64().expect("radius");
+            assert!(
+                stated.iter().any(|s| (r - s).abs() < 1e-3 * s),
+                "{part}: face {} r = {r} mm, stated {stated:?}",
+                c["tag"]
+            );
+        }
+        for tag in concave {
+            let f = listed.iter().find(|f| f["tag"] == tag).expect("face");
+            assert_eq!(
+                (f["kind"].as_str(), f["concave"].as_bool()),
+                (Some("cylinder"), Some(true)),
+                "{f}"
+            );
+        }
+    }
+    let o = ves(&[
+        "faces",
+        root.join("cases/cantilever/scene.toml")
+            .with_extension("txt")
+            .to_str()
+            .unwrap(),
+    ]);
+    assert_refused(&o, "give a STEP or IGES file");
+}
+
 /// Without a terminal (stderr piped, as in a batch job's log), a precompute logs each stage as
 /// one line with the seconds since the start, and a stage that lasts again every
 /// `VES_PROGRESS_EVERY` seconds; `--quiet` and `VES_LOG=warn` silence them. (A 25-minute run

@@ -10,6 +10,7 @@ pub mod accuracy;
 pub mod batch;
 pub mod compliance;
 pub mod export;
+pub mod faces;
 pub mod fingerprint;
 pub mod host;
 pub mod input;

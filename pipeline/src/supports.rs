@@ -387,7 +387,7 @@ const AXIS_SNAP: f64 = 0.05;
 /// The axis of a cylindrical face and a point on it: the direction its normals are all
 /// perpendicular to (the eigenvector of Σ A n nᵀ of the smallest eigenvalue), and its centre
 /// (a circle fitted through the face's nodes).
-fn cylinder_axis(mesh: &Mesh, triangles: &[usize]) -> ([f64; 3], [f64; 3]) {
+pub(crate) fn cylinder_axis(mesh: &Mesh, triangles: &[usize]) -> ([f64; 3], [f64; 3]) {
     use nalgebra::{Matrix3, Vector3};
     let mut s = Matrix3::<f64>::zeros();
     for &t in triangles {

@@ -32,6 +32,7 @@ fn _native(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(pipeline::precompute, m)?)?;
     m.add_function(wrap_pyfunction!(pipeline::_matrices, m)?)?;
     m.add_function(wrap_pyfunction!(pipeline::verify, m)?)?;
+    m.add_function(wrap_pyfunction!(pipeline::faces, m)?)?;
     m.add_function(wrap_pyfunction!(session::session, m)?)?;
     m.add_function(wrap_pyfunction!(pipeline::_isolate_meshing, m)?)?;
     m.add_function(wrap_pyfunction!(pipeline::_serve_mesh_rung, m)?)?;

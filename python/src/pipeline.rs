@@ -407,6 +407,25 @@ pub fn verify<'py>(
     py.import("json")?.call_method1("loads", (report,))
 }
 
+/// A part's CAD faces, as `ves faces --json`: a list of dicts (tag — what a scene's
+/// `faces = [...]` names —, kind "plane" / "cylinder" / "other", area_m2, centroid_m, normal of a
+/// plane; axis, axis_point_m, radius_m and concave of a cylinder). `path`: a STEP or IGES part,
+/// or a scene (.toml).
+#[pyfunction]
+#[pyo3(signature = (path, *, progress=true, allow_geo_scripts=false))]
+pub fn faces<'py>(
+    py: Python<'py>,
+    path: PathBuf,
+    progress: bool,
+    allow_geo_scripts: bool,
+) -> PyResult<Bound<'py, PyAny>> {
+    let what = format!("faces of {}", path.display());
+    let listed = run_long(py, progress, &what, None, move || {
+        Ok(serde_json::to_string(&ves_pipeline::faces::list(&path, allow_geo_scripts)?)?)
+    })?;
+    py.import("json")?.call_method1("loads", (listed,))
+}
+
 /// Makes meshing run in child processes started from `worker` (`worker mesh-worker DIR`), so
 /// that nothing gmsh does can end the interpreter.
 #[pyfunction]

@@ -216,3 +216,21 @@ def test_verify_against_scikit_fem_passes_on_the_package_basis(cantilever):
         ves.verify(cantilever, "abaqus")
     with pytest.raises(ves.BasisError):
         ves.verify("/nonexistent/basis.h5", "scikit-fem", progress=False)
+
+
+def test_faces_are_the_cli_s(cli):
+    """``ves.faces`` lists what ``ves faces --json`` lists: the corpus block's bores as concave
+    cylinders of the radii its STEP file states (3.25 mm and 1.7 mm)."""
+    import json
+
+    from conftest import REPO
+
+    step = REPO / "cases" / "corpus" / "pmi_block_2holes.step"
+    listed = ves.faces(step, progress=False)
+    out = subprocess.run([str(cli), "faces", str(step), "--json"], capture_output=True, text=True, check=True)
+    assert listed == json.loads(out.stdout.strip().splitlines()[-1])
+    bores = {f["tag"]: f for f in listed if f["kind"] == "cylinder" and f["concave"]}
+    assert sorted(bores) == [2, 3, 24, 25, 27, 28, 29, 30]
+    assert {round(1e3 * f["radius_m"], 6) for f in bores.values()} == {1.7, 3.25}
+    with pytest.raises(ves.Error, match="STEP or IGES"):
+        ves.faces(REPO / "README.md", progress=False)

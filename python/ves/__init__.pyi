@@ -20,6 +20,7 @@ from ._native import (
     Space as Space,
     SupportError as SupportError,
     VerifyError as VerifyError,
+    faces as faces,
     precompute as precompute,
     session as session,
     verify as verify,

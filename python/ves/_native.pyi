@@ -227,6 +227,14 @@ def precompute(
 ) -> Basis:
     """Meshes the scene, computes its lowest modes, writes the basis (default beside the scene, <name>.h5) and opens it."""
 
+def faces(
+    path: Union[str, os.PathLike],
+    *,
+    progress: bool = True,
+    allow_geo_scripts: bool = False,
+) -> list:
+    """``ves faces --json`` as a call: the part's CAD faces as dicts (tag, kind "plane" / "cylinder" / "other", area_m2, centroid_m; normal; axis, axis_point_m, radius_m, concave)."""
+
 def verify(
     input: Union[str, os.PathLike, Basis],
     against: str = "all",

@@ -4,6 +4,7 @@
 pub mod batch;
 pub mod bench;
 pub mod export;
+pub mod faces;
 pub mod info;
 pub mod matrices;
 pub mod precompute;
@@ -55,6 +56,9 @@ enum Command {
     /// Write a basis as VTK files (`--vtu DIR`: one .vtu per space, and one of its corner
     /// vertices with the modal stress) for tools that do not read the XDMF sidecar.
     Export(export::Args),
+    /// List a part's CAD faces: tag (what a scene's `faces = [...]` names), kind (plane with its
+    /// normal, cylinder with axis, radius and whether it is a hole, other), area and centroid.
+    Faces(faces::Args),
     /// Internal: mesh one rung of the meshing ladder for a parent `ves` (gmsh in its own process).
     #[command(name = "mesh-worker", hide = true)]
     MeshWorker {
@@ -108,6 +112,7 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
         Command::Report(a) => a.run(),
         Command::Info(a) => a.run(),
         Command::Export(a) => a.run(),
+        Command::Faces(a) => a.run(),
     }
 }
 
@@ -166,6 +171,15 @@ pub fn rank() -> usize {
 
 /// Prints `value` as one JSON line (the last line of stdout, README `--json`).
 fn print_json<T: serde::Serialize>(value: &T) -> anyhow::Result<()> {
-    println!("{}", serde_json::to_string(value)?);
-    Ok(())
+    print_text(&format!("{}\n", serde_json::to_string(value)?))
+}
+
+/// Writes `text` to stdout: a closed pipe or a full disk is an error of one line (println!
+/// panics on them, after the work was done).
+fn print_text(text: &str) -> anyhow::Result<()> {
+    use std::io::Write;
+    let mut out = std::io::stdout().lock();
+    out.write_all(text.as_bytes())
+        .and_then(|()| out.flush())
+        .map_err(|e| anyhow::anyhow!("cannot write to stdout: {e}"))
 }
