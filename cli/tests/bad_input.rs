@@ -115,7 +115,10 @@ fn precompute_removes_temporaries_of_killed_runs() {
     let (dir, scene) = workdir(GOOD);
     let out = dir.path().join("beam.h5");
     // pid_max is at most 2^22 on Linux: no process has this one.
-    let stale = dir.path().join("beam.h5.tmp-4999999");
+    let stale = dir.path().join(format!(
+        "beam.h5.tmp-@{}-4999999.Ab3dEf9h",
+        ves_pipeline::host::this().id
+    ));
     std::fs::write(&stale, "half a basis").unwrap();
     let o = ves(&["precompute", scene.to_str().unwrap(), "-o", out.to_str().unwrap()]);
     assert!(o.status.success(), "{}", stderr(&o));

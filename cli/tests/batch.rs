@@ -360,3 +360,95 @@ fn scenes_naming_one_output_are_refused_alike_on_every_shard() {
     let info = ves(&["info", out.join("same.h5").to_str().unwrap(), "--json"]);
     assert_eq!(frequencies(&last_json(&info)).len(), 4, "a.toml's 4 modes");
 }
+
+/// A scene that fails on two shards that take each other's scenes: only its own shard reports
+/// it (and exits 1); the other computes the rest and exits 0; the failure is recorded beside the
+/// output, `--status` says it, and a later batch tries it again.
+#[test]
+fn a_failing_scene_is_reported_by_its_own_shard_only() {
+    let failing = light("bad", 4).replace("value = 0.0 }", "value = 9.0 }");
+    let (_keep, dir) = scenes(&[
+        ("a.toml", light("a", 4)),
+        ("b.toml", light("b", 5)),
+        ("c.toml", light("c", 6)),
+        ("bad.toml", failing),
+    ]);
+    let out = dir.join("../out");
+    let shards: Vec<_> = ["1/2", "2/2"]
+        .iter()
+        .map(|k| batch(&dir, &out, &["--shard", k]).spawn().expect("spawn"))
+        .collect();
+    let mut reported = 0;
+    let mut exits = Vec::new();
+    for child in shards {
+        let o = child.wait_with_output().expect("wait");
+        let stdout = String::from_utf8_lossy(&o.stdout);
+        let v: Vec<serde_json::Value> = serde_json::from_str(stdout.lines().last().unwrap_or("[]")).expect("outcomes");
+        let failed: Vec<_> = v.iter().filter(|o| o["status"] == "failed").collect();
+        assert!(
+            failed
+                .iter()
+                .all(|o| o["scene"].as_str().unwrap_or("").ends_with("bad.toml")),
+            "{v:?}"
+        );
+        reported += failed.len();
+        exits.push((o.status.code(), failed.len()));
+    }
+    assert_eq!(reported, 1, "reported once: {exits:?}");
+    assert!(
+        exits.iter().all(|(code, n)| *code == Some(if *n > 0 { 1 } else { 0 })),
+        "{exits:?}"
+    );
+    for name in ["a", "b", "c"] {
+        assert!(out.join(format!("{name}.h5")).exists());
+    }
+    let s = status_json(&dir, &out);
+    assert_eq!(
+        (s["up_to_date"].as_u64(), s["failed"].as_u64()),
+        (Some(3), Some(1)),
+        "{s}"
+    );
+    let bad = s["scenes"]
+        .as_array()
+        .expect("scenes")
+        .iter()
+        .find(|x| x["state"] == "failed")
+        .expect("failed")
+        .clone();
+    assert!(bad["error"].as_str().unwrap_or("").contains("fixed[0]"), "{bad}");
+    // A whole batch tries it again (and fails again, saying why).
+    let o = batch(&dir, &out, &[]).output().expect("batch");
+    assert_eq!(o.status.code(), Some(1));
+    assert!(stderr(&o).contains("bad.toml"), "{}", stderr(&o));
+    assert!(leftovers(&out).is_empty(), "left: {:?}", leftovers(&out));
+}
+
+/// Slurm's time limit and scancel end a task with SIGTERM: its claim is released on the way out,
+/// so a requeue on another node need not wait out the lease.
+#[test]
+fn a_terminated_batch_releases_its_claim() {
+    let (_keep, dir) = scenes(&[("b.toml", heavy("b"))]);
+    let out = dir.join("../out");
+    let child = batch(&dir, &out, &[]).spawn().expect("spawn");
+    let claim = out.join("b.h5.claim");
+    assert!(appears(&claim, Duration::from_secs(120)), "never claimed");
+    signal(child.id(), libc::SIGTERM);
+    let o = child.wait_with_output().expect("wait");
+    assert!(!o.status.success());
+    assert!(!out.join("b.h5").exists(), "terminated while b ran");
+    assert!(!claim.exists(), "the claim outlived a SIGTERM");
+}
+
+/// A scene may be named like a temporary of another's output (`b.h5.tmp-4999999`): its finished
+/// output (`b.h5.tmp-4999999.h5`) was removed as a dead process's leftover by the next batch that
+/// wrote `b.h5`.
+#[test]
+fn outputs_named_like_temporaries_are_kept() {
+    let (_keep, dir) = scenes(&[("a.toml", light("b.h5.tmp-4999999", 4)), ("b.toml", light("b", 4))]);
+    let out = dir.join("../out");
+    let o = batch(&dir, &out, &[]).output().expect("batch");
+    assert!(o.status.success(), "{}", stderr(&o));
+    let v = outcomes(batch(&dir, &out, &[]).spawn().expect("again"));
+    assert!(v.iter().all(|o| o["status"] == "up-to-date"), "{v:?}");
+    assert!(out.join("b.h5.tmp-4999999.h5").exists() && out.join("b.h5.tmp-4999999.xdmf").exists());
+}

@@ -1002,7 +1002,7 @@ fn batch_skips_up_to_date_survives_a_bad_scene_and_resumes() {
     );
     let ta = mtime("beam.h5");
     // A temporary file of a dead run, as a kill mid-write leaves it.
-    std::fs::write(out.join("beam2.h5.tmp-999999999"), b"half").expect("stale");
+    std::fs::write(out.join("beam2.h5.tmp-4999999.Ab3dEf9h"), b"half").expect("stale");
     let v = parse(&run());
     assert_eq!(status(&v, "a.toml"), "up-to-date", "finished work is not redone");
     assert_eq!(mtime("beam.h5"), ta, "finished output not rewritten");
@@ -1012,7 +1012,7 @@ fn batch_skips_up_to_date_survives_a_bad_scene_and_resumes() {
         "the interrupted scene is done by the rerun"
     );
     assert!(
-        !out.join("beam2.h5.tmp-999999999").exists(),
+        !out.join("beam2.h5.tmp-4999999.Ab3dEf9h").exists(),
         "stale temporary file removed"
     );
     assert!(ves(&["info", out.join("beam2.h5").to_str().unwrap()]).status.success());

@@ -286,6 +286,25 @@ pub fn remove_temps_of(out: &Path, host_id: &str, pid: u32) {
     remove_temps(out, |host, p, _| host == Some(host_id) && p == pid);
 }
 
+/// The host id and pid of a temporary's name after `<out name>.tmp-` (see
+/// [`temporary_beside`]), if it is one.
+fn temp_owner(rest: &str) -> Option<(Option<&str>, u32)> {
+    let (stem, random) = rest.split_once('.')?;
+    if random.len() != 8 || !random.chars().all(|c| c.is_ascii_alphanumeric()) {
+        return None;
+    }
+    let digits = |s: &str| !s.is_empty() && s.len() <= 10 && s.chars().all(|c| c.is_ascii_digit());
+    match stem.strip_prefix('@') {
+        Some(owner) => {
+            let (host, pid) = owner.split_once('-')?;
+            (host.len() == 16 && host.chars().all(|c| c.is_ascii_hexdigit()) && digits(pid))
+                .then(|| Some((Some(host), pid.parse().ok()?)))
+                .flatten()
+        }
+        None => digits(stem).then(|| Some((None, stem.parse().ok()?))).flatten(),
+    }
+}
+
 /// Removes the temporaries beside `out` for which `stale(host id, pid, metadata)` holds.
 fn remove_temps(out: &Path, stale: impl Fn(Option<&str>, u32, &std::fs::Metadata) -> bool) {
     let Some(name) = out.file_name() else {
@@ -300,16 +319,15 @@ fn remove_temps(out: &Path, stale: impl Fn(Option<&str>, u32, &std::fs::Metadata
         let Some(rest) = file.strip_prefix(&prefix) else {
             continue;
         };
-        // `@<host>-<pid>.<random>`, or `<pid>.<random>`, `<tag>-<pid>` and `<pid>` from earlier
-        // versions (this host's).
-        let stem = rest.split('.').next().unwrap_or(rest);
-        let (host, pid) = stem.rsplit_once('-').unwrap_or(("", stem));
-        let Ok(pid) = pid.parse::<u32>() else { continue };
+        // Exactly `@<16 hex digits>-<pid>.<8 random>`, or `<pid>.<8 random>` from an earlier
+        // version (this host's). Nothing else: a scene may be named `x.h5.tmp-5` and its
+        // finished output is `x.h5.tmp-5.h5`; a user's `x.h5.tmp-2024.bak` is no temporary.
+        let Some((host, pid)) = temp_owner(rest) else { continue };
         let Ok(meta) = e.path().symlink_metadata() else {
             continue;
         };
         let is_file = meta.file_type().is_file() || meta.file_type().is_symlink();
-        if is_file && stale(host.strip_prefix('@'), pid, &meta) {
+        if is_file && stale(host, pid, &meta) {
             tracing::info!(file, "removing a temporary file left by a killed run");
             let _ = std::fs::remove_file(e.path());
         }
@@ -504,14 +522,26 @@ mod tests {
         let out = dir.path().join("out.h5");
         // pid_max on Linux is at most 2^22: this process cannot exist.
         let dead = dir.path().join("out.h5.tmp-4999997.Ab3dEf9h");
-        let old_style = dir.path().join("out.h5.tmp-w-4999999");
-        let older_style = dir.path().join("out.h5.tmp-4999998");
         let alive = dir.path().join(format!("out.h5.tmp-{}.Zz9yXx8w", std::process::id()));
-        for f in [&dead, &old_style, &older_style, &alive] {
+        // Not temporaries, whatever their dead-looking numbers: another scene's finished output
+        // (a scene named `out.h5.tmp-4999999`), a user's files.
+        let others = [
+            "out.h5.tmp-4999999.h5",
+            "out.h5.tmp-4999999.xdmf",
+            "out.h5.tmp-2024.bak",
+            "out.h5.tmp-notes-2024",
+            "out.h5.tmp-4999998",
+            "out.h5.tmp-@xyz-4999998.Ab3dEf9h",
+        ]
+        .map(|n| dir.path().join(n));
+        for f in others.iter().chain([&dead, &alive]) {
             std::fs::write(f, "x").expect("write");
         }
         remove_stale_temps(&out);
-        assert!(!dead.exists() && !old_style.exists() && !older_style.exists() && alive.exists());
+        assert!(!dead.exists() && alive.exists());
+        for f in &others {
+            assert!(f.exists(), "{} removed", f.display());
+        }
         // Named with the host: this host's by its pid; another host's (a shared folder, where
         // that pid means nothing here) only when untouched for a day.
         let me = &crate::host::this().id;

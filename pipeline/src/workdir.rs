@@ -155,6 +155,35 @@ pub fn remove_all() {
     }
 }
 
+/// Cleanups to run when a signal ends the process (see [`at_signal`]), by id.
+type Cleanup = Box<dyn Fn() + Send>;
+static AT_SIGNAL: Mutex<Vec<(u64, Cleanup)>> = Mutex::new(Vec::new());
+
+/// While the returned guard lives, `cleanup` runs if SIGINT, SIGTERM or SIGHUP ends the process
+/// (with [`remove_on_signals`] installed): a batch's claims are released when Slurm's time
+/// limit or scancel ends it, so a requeued task elsewhere need not wait out their lease.
+pub fn at_signal(cleanup: impl Fn() + Send + 'static) -> SignalGuard {
+    static NEXT: std::sync::atomic::AtomicU64 = std::sync::atomic::AtomicU64::new(0);
+    let id = NEXT.fetch_add(1, Ordering::Relaxed);
+    AT_SIGNAL
+        .lock()
+        .unwrap_or_else(|p| p.into_inner())
+        .push((id, Box::new(cleanup)));
+    SignalGuard(id)
+}
+
+/// Keeps a cleanup of [`at_signal`] registered; dropping it removes it.
+pub struct SignalGuard(u64);
+
+impl Drop for SignalGuard {
+    fn drop(&mut self) {
+        AT_SIGNAL
+            .lock()
+            .unwrap_or_else(|p| p.into_inner())
+            .retain(|(id, _)| *id != self.0);
+    }
+}
+
 /// Set by [`stop_on_interrupt`]: SIGINT asks this process to stop rather than ends it.
 static GRACEFUL: Mutex<Option<Arc<AtomicBool>>> = Mutex::new(None);
 
@@ -164,7 +193,8 @@ pub fn stop_on_interrupt(stop: Arc<AtomicBool>) {
     *GRACEFUL.lock().unwrap_or_else(|p| p.into_inner()) = Some(stop);
 }
 
-/// On SIGINT, SIGTERM or SIGHUP, removes every live work folder, then ends the process as the
+/// On SIGINT, SIGTERM or SIGHUP, runs the [`at_signal`] cleanups and removes every live work
+/// folder, then ends the process as the
 /// signal would have (a SIGINT with a [`stop_on_interrupt`] flag asks it to stop instead). In
 /// a thread of its own (signal-hook's self-pipe): removing folders is no work for a signal
 /// handler. For programs that own their process (the `ves` binary calls it first thing), never
@@ -184,6 +214,9 @@ pub fn remove_on_signals() {
                 {
                     stop.store(true, Ordering::Relaxed);
                     continue;
+                }
+                for (_, cleanup) in AT_SIGNAL.lock().unwrap_or_else(|p| p.into_inner()).iter() {
+                    cleanup();
                 }
                 remove_all();
                 let _ = signal_hook::low_level::emulate_default_handler(signal);

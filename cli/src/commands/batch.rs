@@ -28,11 +28,11 @@ pub struct Args {
     allow_geo_scripts: bool,
     /// Take shard K of N (`2/8`) of the scenes, split by expected cost the same way on every
     /// node; `auto` reads a Slurm job array's task (SLURM_ARRAY_TASK_ID, _COUNT, _MIN, _STEP).
-    #[arg(long, value_name = "K/N|auto")]
+    #[arg(long, value_name = "K/N|auto", allow_hyphen_values = true)]
     shard: Option<String>,
     /// Seconds a claim of this process outlives its silence: another host takes a scene over
     /// when its owner has not renewed the claim for this long (renewed every quarter of it).
-    #[arg(long, default_value_t = ves_pipeline::batch::claim::DEFAULT_LEASE_S, value_name = "S")]
+    #[arg(long, default_value_t = ves_pipeline::batch::claim::DEFAULT_LEASE_S, value_name = "S", allow_hyphen_values = true, value_parser = lease_seconds)]
     lease: f64,
     /// Do not wait at the end for scenes other processes had claimed (they are reported as
     /// claimed-elsewhere).
@@ -62,12 +62,6 @@ impl Args {
             !self.solver.is_slepc(),
             "--solver slepc: not available in ves batch (MPI runs one scene at a time); use `mpirun ves precompute` per scene"
         );
-        let (lo, hi) = batch::claim::LEASE_RANGE_S;
-        anyhow::ensure!(
-            (lo..=hi).contains(&self.lease),
-            "--lease {}: give {lo} to {hi} seconds (a claim is renewed every quarter of it)",
-            self.lease
-        );
         let shard = self.shard.as_deref().map(batch::Shard::parse).transpose()?;
         let scenes = batch::collect(&self.inputs)?;
         let opts = BatchOptions {
@@ -90,6 +84,7 @@ impl Args {
         if self.json {
             super::print_json(&outcomes)?;
         } else {
+            let mut text = String::new();
             for o in &outcomes {
                 let what = match o.status {
                     Status::Done => format!("done in {:.1} s", o.seconds),
@@ -103,7 +98,7 @@ impl Args {
                     (Some(k), Some(s)) if k != s.index => format!(" (taken from shard {k})"),
                     _ => String::new(),
                 };
-                println!("{}{from}: {what}", o.scene);
+                text.push_str(&format!("{}{from}: {what}\n", o.scene));
             }
             let shard = shard.map(|s| format!("shard {s}: ")).unwrap_or_default();
             let elsewhere = if elsewhere > 0 {
@@ -111,7 +106,10 @@ impl Args {
             } else {
                 String::new()
             };
-            println!("{shard}{done} done, {fresh} up to date, {failed} failed{elsewhere}");
+            text.push_str(&format!(
+                "{shard}{done} done, {fresh} up to date, {failed} failed{elsewhere}\n"
+            ));
+            super::print_text(&text)?;
         }
         if failed > 0 {
             let names: Vec<&str> = outcomes
@@ -134,10 +132,12 @@ fn report_status(states: &[batch::SceneState], json: bool) -> Result<()> {
             "up_to_date": count("up-to-date"),
             "claimed": count("claimed"),
             "left": count("left"),
+            "failed": count("failed"),
             "unreadable": count("unreadable"),
         }));
     }
     let sharded = states.iter().any(|s| s.shard > 1);
+    let mut text = String::new();
     for s in states {
         let shard = if sharded {
             format!(" [shard {}]", s.shard)
@@ -150,14 +150,27 @@ fn report_status(states: &[batch::SceneState], json: bool) -> Result<()> {
             _ => String::new(),
         };
         let why = s.error.as_deref().map(|e| format!(": {e}")).unwrap_or_default();
-        println!("{}{shard}: {}{who}{why}", s.scene, s.state);
+        text.push_str(&format!("{}{shard}: {}{who}{why}\n", s.scene, s.state));
     }
-    println!(
-        "{} up to date, {} being computed, {} left, {} unreadable",
+    text.push_str(&format!(
+        "{} up to date, {} being computed, {} failed, {} left, {} unreadable\n",
         count("up-to-date"),
         count("claimed"),
+        count("failed"),
         count("left"),
         count("unreadable")
-    );
-    Ok(())
+    ));
+    super::print_text(&text)
+}
+
+/// `--lease`: seconds within [`batch::claim::LEASE_RANGE_S`].
+fn lease_seconds(text: &str) -> Result<f64, String> {
+    let (lo, hi) = batch::claim::LEASE_RANGE_S;
+    match text.trim().parse::<f64>() {
+        Ok(s) if (lo..=hi).contains(&s) => Ok(s),
+        _ => Err(format!(
+            "{:?}: give {lo} to {hi} seconds (a claim is renewed every quarter of it)",
+            text.chars().take(40).collect::<String>()
+        )),
+    }
 }

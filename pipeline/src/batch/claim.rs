@@ -78,11 +78,33 @@ impl Owner {
         }
     }
 
-    /// In words: "node7 pid 4242 (shard 2/3), since 12 s".
+    /// In words: "node7 pid 4242 (shard 2/3), for 12 s" (what the file says, escaped for a
+    /// terminal and cut short: the file may be anyone's).
     pub fn describe(&self) -> String {
-        let shard = self.shard.as_ref().map(|s| format!(" (shard {s})")).unwrap_or_default();
-        let since = (host::unix_now() - self.started_unix).max(0.0);
-        format!("{} pid {}{shard}, for {since:.0} s", self.host, self.pid)
+        let text = |s: &str| ves_format::names::escape_for_terminal(&s.chars().take(64).collect::<String>());
+        let shard = self
+            .shard
+            .as_ref()
+            .map(|s| format!(" (shard {})", text(s)))
+            .unwrap_or_default();
+        let since = (host::unix_now() - self.started_unix).clamp(0.0, 1e9);
+        format!("{} pid {}{shard}, for {since:.0} s", text(&self.host), self.pid)
+    }
+
+    /// Whether the record is one an owner could have written: a lease in range, times finite
+    /// and not ahead of this host's clock by more than the allowance (a planted or damaged
+    /// claim with a lease of 1e308 s, or renewed in the year 3000, would hold a scene forever).
+    fn plausible(&self) -> bool {
+        let (lo, hi) = LEASE_RANGE_S;
+        let ahead = host::unix_now() + CLOCK_SKEW_S.min(self.lease_s);
+        (lo..=hi).contains(&self.lease_s)
+            && self.started_unix.is_finite()
+            && self.renewed_unix.is_finite()
+            && self.renewed_unix <= ahead
+            && self.started_unix <= self.renewed_unix
+            && self.host.len() <= 255
+            && self.host_id.len() <= 64
+            && self.token.len() <= 256
     }
 }
 
@@ -91,6 +113,14 @@ pub fn path_of(out: &Path) -> PathBuf {
     let mut name = out.as_os_str().to_os_string();
     name.push(".claim");
     PathBuf::from(name)
+}
+
+/// What is at a claim's path if it cannot be a claim (a directory, a FIFO, a device): a batch
+/// could neither read nor replace it.
+pub fn not_a_claim(path: &Path) -> Option<&'static str> {
+    let meta = std::fs::symlink_metadata(path).ok()?;
+    let t = meta.file_type();
+    (!t.is_file() && !t.is_symlink()).then(|| crate::input::kind(&meta).unwrap_or("not a file"))
 }
 
 /// Who holds the claim of `out`, if anyone (alive or not).
@@ -114,6 +144,8 @@ pub struct Claim {
     stop: Option<mpsc::Sender<()>>,
     renewer: Option<std::thread::JoinHandle<()>>,
     took_over: Option<Owner>,
+    /// Releases the claim if a signal ends the process.
+    _on_signal: crate::workdir::SignalGuard,
 }
 
 impl Claim {
@@ -135,15 +167,26 @@ impl Drop for Claim {
             let _ = t.join();
         }
         let token = self.owner.lock().unwrap_or_else(|p| p.into_inner()).token.clone();
-        if read(&self.path).is_some_and(|o| o.token == token) {
-            let _ = std::fs::remove_file(&self.path);
-        }
+        release(&self.path, &token);
+    }
+}
+
+/// Removes the claim at `path` if it is still the one of `token`.
+fn release(path: &Path, token: &str) {
+    if read(path).is_some_and(|o| o.token == token) {
+        let _ = std::fs::remove_file(path);
     }
 }
 
 /// Claims `out` for this process, taking over the claim of an owner that is gone.
 pub fn acquire(out: &Path, lease_s: f64, shard: Option<String>) -> Result<Acquired> {
     let path = path_of(out);
+    if let Some(what) = not_a_claim(&path) {
+        anyhow::bail!(
+            "{}: {what}, not a claim file; remove it (a batch claims a scene by creating this file)",
+            path.display()
+        );
+    }
     // Temporaries of a claimant killed between writing and linking.
     crate::output::remove_stale_temps(&path);
     static COUNTER: AtomicU64 = AtomicU64::new(0);
@@ -245,8 +288,9 @@ fn take_over(path: &Path, gone: &Owner) -> Result<bool> {
     Ok(removed)
 }
 
-/// The owner recorded in a claim file; an unreadable one (damaged, planted, not a file) is
-/// treated as held by an unknown owner on another host, renewed when the file last changed.
+/// The owner recorded in a claim file; an unreadable or implausible one (damaged, planted, a
+/// link) is treated as held by an unknown owner on another host, renewed when the file last
+/// changed, with the default lease.
 fn read(path: &Path) -> Option<Owner> {
     use std::os::unix::fs::OpenOptionsExt;
     let file = std::fs::File::options()
@@ -257,7 +301,7 @@ fn read(path: &Path) -> Option<Owner> {
     let mut text = Vec::new();
     let parsed = file.ok().filter(|_| meta.is_file()).and_then(|f| {
         f.take(MAX_CLAIM_BYTES).read_to_end(&mut text).ok()?;
-        serde_json::from_slice::<Owner>(&text).ok()
+        serde_json::from_slice::<Owner>(&text).ok().filter(Owner::plausible)
     });
     Some(parsed.unwrap_or_else(|| {
         let changed = meta
@@ -266,7 +310,8 @@ fn read(path: &Path) -> Option<Owner> {
             .and_then(|m| m.duration_since(std::time::UNIX_EPOCH).ok())
             .map_or(0.0, |d| d.as_secs_f64());
         Owner {
-            host: "unknown (an unreadable claim)".into(),
+            // No file name here: the record is compared after a rename (see `take_over`).
+            host: "unknown (an unreadable claim file)".into(),
             host_id: String::new(),
             pid: 0,
             pid_start: 0,
@@ -303,6 +348,13 @@ fn start(path: PathBuf, owner: Owner, took_over: Option<Owner>) -> Claim {
     if renewer.is_none() {
         tracing::warn!(claim = %path.display(), "no thread to renew the claim: another host may take it over after its lease");
     }
+    let on_signal = {
+        let (path, token) = (
+            path.clone(),
+            owner.lock().unwrap_or_else(|p| p.into_inner()).token.clone(),
+        );
+        crate::workdir::at_signal(move || release(&path, &token))
+    };
     Claim {
         path,
         owner,
@@ -310,6 +362,7 @@ fn start(path: PathBuf, owner: Owner, took_over: Option<Owner>) -> Claim {
         stop: Some(stop),
         renewer,
         took_over,
+        _on_signal: on_signal,
     }
 }
 
@@ -397,6 +450,35 @@ mod tests {
         // A damaged claim counts as held until it has not changed for a lease.
         std::fs::write(path_of(&out), b"{not json").expect("plant");
         assert!(matches!(acquire(&out, 5.0, None).expect("claim"), Acquired::Held(_)));
+        // So does an implausible one — a lease of 1e308 s, a renewal in the year 33658 — which
+        // it would otherwise hold forever: once untouched for the default lease, it is taken.
+        let an_hour_ago = std::time::SystemTime::now() - Duration::from_secs(3600);
+        for (lease, renewed) in [(1e308, now), (10.0, 1e12), (f64::NAN, now)] {
+            let mut o = record("00000000deadbeef", 7, now);
+            (o.lease_s, o.renewed_unix) = (lease, renewed);
+            let text = serde_json::to_string(&o).expect("json").replace("null", "1e999");
+            std::fs::write(path_of(&out), text).expect("plant");
+            assert!(
+                matches!(acquire(&out, 5.0, None).expect("claim"), Acquired::Held(_)),
+                "{lease} {renewed}"
+            );
+            std::fs::File::options()
+                .write(true)
+                .open(path_of(&out))
+                .and_then(|f| f.set_modified(an_hour_ago))
+                .expect("mtime");
+            assert!(
+                matches!(acquire(&out, 5.0, None).expect("claim"), Acquired::Mine(_)),
+                "{lease} {renewed}"
+            );
+        }
+        // A directory where the claim goes can be neither read nor replaced: said, with what to do.
+        std::fs::create_dir(path_of(&out)).expect("mkdir");
+        let e = acquire(&out, 5.0, None).err().expect("refused");
+        assert!(
+            e.to_string().contains("a directory, not a claim file; remove it"),
+            "{e}"
+        );
     }
 
     /// Sixteen threads race for one scene, twenty times: exactly one wins each time.

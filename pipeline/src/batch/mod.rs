@@ -210,7 +210,8 @@ pub fn run(scenes: &[PathBuf], opts: &BatchOptions) -> Result<Vec<Outcome>> {
                 let longest = lists.iter().map(Vec::len).max().unwrap_or(0);
                 for back in 1..=longest {
                     for (k, l) in lists.iter().enumerate() {
-                        if k + 1 != s.index && back <= l.len() {
+                        // A scene that does not load is its own shard's to report.
+                        if k + 1 != s.index && back <= l.len() && l[l.len() - back].output.is_some() {
                             items.push(item(&l[l.len() - back], true));
                         }
                     }
@@ -248,7 +249,7 @@ pub fn run(scenes: &[PathBuf], opts: &BatchOptions) -> Result<Vec<Outcome>> {
                     while let Some(&i) = todo.get(next.fetch_add(1, Ordering::Relaxed)) {
                         let item = &items[i];
                         bar.message(&item.path.display().to_string());
-                        let mut o = one(&item.path, opts, &named);
+                        let mut o = one(&item.path, opts, &named, item.taken);
                         o.shard = item.shard;
                         let from = match (item.taken, item.shard) {
                             (true, Some(k)) => format!(" (taken from shard {k})"),
@@ -256,11 +257,9 @@ pub fn run(scenes: &[PathBuf], opts: &BatchOptions) -> Result<Vec<Outcome>> {
                         };
                         // Told as it happens (the terminal prints it above the batch's bar).
                         match &o.status {
-                            Status::Failed => note(format!(
-                                "failed: {}{from}: {}",
-                                o.scene,
-                                o.error.as_deref().unwrap_or("")
-                            )),
+                            Status::Failed if !item.taken => {
+                                note(format!("failed: {}: {}", o.scene, o.error.as_deref().unwrap_or("")))
+                            }
                             Status::Done => note(format!(
                                 "done: {}{from} → {}",
                                 o.scene,
@@ -271,7 +270,7 @@ pub fn run(scenes: &[PathBuf], opts: &BatchOptions) -> Result<Vec<Outcome>> {
                                 o.scene,
                                 o.claimed_by.as_deref().unwrap_or("another process")
                             )),
-                            Status::UpToDate | Status::ClaimedElsewhere => {}
+                            Status::UpToDate | Status::ClaimedElsewhere | Status::Failed => {}
                         }
                         if o.status != Status::ClaimedElsewhere && !item.taken {
                             bar.inc(1);
@@ -287,9 +286,10 @@ pub fn run(scenes: &[PathBuf], opts: &BatchOptions) -> Result<Vec<Outcome>> {
     for (i, o) in pass(&(0..own).collect::<Vec<_>>(), true) {
         results[i] = Some(o);
     }
-    // Another shard's scene is reported only when this process computed (or failed) it.
+    // Another shard's scene is reported only when this process computed it: a failure is its
+    // own shard's to report (recorded beside the output, where that shard tries it once more).
     for (i, o) in pass(&(own..items.len()).collect::<Vec<_>>(), false) {
-        if matches!(o.status, Status::Done | Status::Failed) {
+        if o.status == Status::Done {
             results[i] = Some(o);
         }
     }
@@ -318,7 +318,33 @@ pub fn run(scenes: &[PathBuf], opts: &BatchOptions) -> Result<Vec<Outcome>> {
     Ok(results.into_iter().flatten().collect())
 }
 
-fn one(path: &Path, opts: &BatchOptions, named: &Mutex<Vec<(PathBuf, String)>>) -> Outcome {
+/// The record a failed scene leaves beside its output (`<output>.failed`): which source failed
+/// and why, so that other shards do not take the same failure up again and `--status` can say
+/// it. Its own shard (or a whole batch) still tries the scene again; a success removes it.
+#[derive(Serialize, serde::Deserialize)]
+struct Failure {
+    source_hash: String,
+    error: String,
+    host: String,
+    pid: u32,
+    at_unix: f64,
+}
+
+fn failure_path(out: &Path) -> PathBuf {
+    let mut name = out.as_os_str().to_os_string();
+    name.push(".failed");
+    PathBuf::from(name)
+}
+
+/// The failure recorded for `out`, if it is of the source `hash`.
+fn failure_of(out: &Path, hash: &str) -> Option<String> {
+    let bytes = crate::input::read_scene(&failure_path(out)).ok()?;
+    let f: Failure = serde_json::from_str(&bytes).ok()?;
+    (f.source_hash == hash)
+        .then(|| ves_format::names::escape_for_terminal(&f.error.chars().take(400).collect::<String>()))
+}
+
+fn one(path: &Path, opts: &BatchOptions, named: &Mutex<Vec<(PathBuf, String)>>, taken: bool) -> Outcome {
     let start = Instant::now();
     let mut outcome = Outcome {
         scene: path.display().to_string(),
@@ -348,10 +374,22 @@ fn one(path: &Path, opts: &BatchOptions, named: &Mutex<Vec<(PathBuf, String)>>) 
         let hash = store::source_hash(&scene)?;
         let up_to_date = || out.is_file() && store::stored_source_hash(&out).as_deref() == Some(hash.as_str());
         if up_to_date() {
-            if store::repair_sidecar(&out)? {
-                tracing::warn!(output = %out.display(), "the XDMF sidecar did not match its basis; rewritten");
+            // The basis is whole: a sidecar that cannot be rewritten (a read-only folder) is a
+            // warning, not a failed scene.
+            match store::repair_sidecar(&out) {
+                Ok(true) => {
+                    tracing::warn!(output = %out.display(), "the XDMF sidecar did not match its basis; rewritten")
+                }
+                Ok(false) => {}
+                Err(e) => {
+                    tracing::warn!(output = %out.display(), "the XDMF sidecar does not match its basis and cannot be rewritten: {e:#}")
+                }
             }
             return Ok(Status::UpToDate);
+        }
+        // Another shard's scene that failed already is left to its own shard.
+        if taken && let Some(e) = failure_of(&out, &hash) {
+            bail!("failed before: {e}");
         }
         let shard = opts.shard.map(|s| s.to_string());
         let claim = match claim::acquire(&out, opts.lease_s, shard)? {
@@ -370,7 +408,21 @@ fn one(path: &Path, opts: &BatchOptions, named: &Mutex<Vec<(PathBuf, String)>>) 
             crate::output::remove_temps_of(&out, &gone.host_id, gone.pid);
         }
         crate::output::remove_stale_temps(&out);
-        precompute::run(&scene, &out, opts.solver)?;
+        if let Err(e) = precompute::run(&scene, &out, opts.solver) {
+            let record = Failure {
+                source_hash: hash.clone(),
+                error: format!("{e:#}").replace('\n', " "),
+                host: crate::host::this().name.clone(),
+                pid: std::process::id(),
+                at_unix: crate::host::unix_now(),
+            };
+            let text = serde_json::to_vec(&record)?;
+            if let Err(w) = crate::output::write_atomically(&failure_path(&out), |p| Ok(std::fs::write(p, &text)?)) {
+                tracing::warn!("cannot record the failure beside the output: {w}");
+            }
+            return Err(e);
+        }
+        let _ = std::fs::remove_file(failure_path(&out));
         if claim.lost() {
             tracing::warn!(output = %out.display(), "this process lost its claim while computing (it was silent past its lease): another process may have computed the scene too");
         }
@@ -395,20 +447,24 @@ pub struct SceneState {
     pub shard: usize,
     /// Its expected cost, the split's weight ([`shard::expected_cost`], arbitrary units).
     pub expected_cost: f64,
-    /// "up-to-date", "claimed" (an owner at work), "left" (no up-to-date output, no live
-    /// claim: a stale claim is counted here) or "unreadable" (the scene does not load).
+    /// "up-to-date", "claimed" (an owner at work), "failed" (its last attempt failed: `error`;
+    /// the next batch tries it again), "left" (no up-to-date output, no live claim: a stale
+    /// claim is counted here) or "unreadable" (the scene does not load, or names the output of
+    /// another scene).
     pub state: &'static str,
     /// The claim's owner, when there is a claim.
     pub claimed_by: Option<String>,
     /// Whether that owner is at work (false: gone; the next batch takes the scene over).
     pub owner_alive: Option<bool>,
-    /// Why an unreadable scene does not load.
+    /// Why an unreadable scene does not load, or why its last attempt failed.
     pub error: Option<String>,
 }
 
 /// What is done and what is left across all shards and processes: read from the output folder
 /// (outputs and claims), nothing computed or changed.
 pub fn status(scenes: &[PathBuf], opts: &BatchOptions) -> Vec<SceneState> {
+    // Of scenes naming one output, the first in the agreed order writes it (as in `run`).
+    let mut writers: Vec<(PathBuf, String)> = Vec::new();
     plan(scenes, opts)
         .into_iter()
         .map(|p| {
@@ -432,16 +488,40 @@ pub fn status(scenes: &[PathBuf], opts: &BatchOptions) -> Vec<SceneState> {
                 }
                 (Ok(_), None) => return s,
             };
-            let fresh = store::source_hash(&scene)
-                .is_ok_and(|h| out.is_file() && store::stored_source_hash(&out).as_deref() == Some(h.as_str()));
-            if let Some(owner) = claim::holder(&out) {
+            let key = std::path::absolute(&out).unwrap_or(out.clone());
+            match writers.iter().find(|(o, _)| *o == key) {
+                Some((_, first)) => {
+                    s.state = "unreadable";
+                    s.error = Some(format!(
+                        "output {} is also written by {first}; give one of the scenes another `name`",
+                        out.display()
+                    ));
+                    return s;
+                }
+                None => writers.push((key, s.scene.clone())),
+            }
+            let hash = store::source_hash(&scene).ok();
+            let fresh = hash
+                .as_deref()
+                .is_some_and(|h| out.is_file() && store::stored_source_hash(&out).as_deref() == Some(h));
+            if let Some(what) = claim::not_a_claim(&claim::path_of(&out)) {
+                s.claimed_by = Some(format!(
+                    "{} is {what}, not a claim: remove it",
+                    claim::path_of(&out).display()
+                ));
+                s.owner_alive = Some(false);
+            } else if let Some(owner) = claim::holder(&out) {
                 s.owner_alive = Some(owner.alive());
                 s.claimed_by = Some(owner.describe());
             }
+            let failed = hash.as_deref().and_then(|h| failure_of(&out, h));
             s.state = if fresh {
                 "up-to-date"
             } else if s.owner_alive == Some(true) {
                 "claimed"
+            } else if let Some(e) = failed {
+                s.error = Some(e);
+                "failed"
             } else {
                 "left"
             };

@@ -58,20 +58,32 @@ impl Shard {
                     .map_err(|_| anyhow::anyhow!("--shard auto: {k}={v:?} is not a whole number")),
             }
         };
-        let (Some(id), Some(count)) = (num("SLURM_ARRAY_TASK_ID")?, num("SLURM_ARRAY_TASK_COUNT")?) else {
-            bail!(
-                "--shard auto: SLURM_ARRAY_TASK_ID and SLURM_ARRAY_TASK_COUNT are not set (not a Slurm job array); give --shard K/N"
-            );
+        let (id, count) = match (num("SLURM_ARRAY_TASK_ID")?, num("SLURM_ARRAY_TASK_COUNT")?) {
+            (Some(id), Some(count)) => (id, count),
+            (id, count) => {
+                let missing: Vec<&str> = [("SLURM_ARRAY_TASK_ID", id), ("SLURM_ARRAY_TASK_COUNT", count)]
+                    .iter()
+                    .filter(|(_, v)| v.is_none())
+                    .map(|(k, _)| *k)
+                    .collect();
+                bail!(
+                    "--shard auto: {} not set (not a Slurm job array); give --shard K/N",
+                    missing.join(" and ") + if missing.len() > 1 { " are" } else { " is" }
+                );
+            }
         };
-        let min = num("SLURM_ARRAY_TASK_MIN")?.unwrap_or(0).min(id);
-        let step = num("SLURM_ARRAY_TASK_STEP")?.unwrap_or(1).max(1);
-        if (id - min) % step != 0 {
-            bail!("--shard auto: task {id} is not on the array's step {step} from {min}; give --shard K/N");
+        let min = num("SLURM_ARRAY_TASK_MIN")?.unwrap_or(0);
+        let step = num("SLURM_ARRAY_TASK_STEP")?.unwrap_or(1);
+        if step == 0 {
+            bail!("--shard auto: SLURM_ARRAY_TASK_STEP=0 is no step; give --shard K/N");
+        }
+        if id < min || (id - min) % step != 0 {
+            bail!("--shard auto: task {id} is not in the array from {min} by steps of {step}; give --shard K/N");
         }
         let index = (id - min) / step + 1;
-        if count == 0 || index > count || count > MAX_SHARDS {
+        if count == 0 || count > MAX_SHARDS || index > count {
             bail!(
-                "--shard auto: task {id} is number {index} of an array of {count} tasks (min {min}, step {step}); give --shard K/N"
+                "--shard auto: task {id} is number {index} of an array of {count} tasks (from {min} by {step}; at most {MAX_SHARDS}); give --shard K/N"
             );
         }
         Ok(Shard { index, count })
@@ -234,6 +246,33 @@ mod tests {
         assert_eq!(s.expect("slurm"), Shard { index: 3, count: 3 });
         let e = Shard::from_env(&env(&[])).expect_err("no array");
         assert!(e.to_string().contains("--shard K/N"), "{e}");
+        let e = Shard::from_env(&env(&[("SLURM_ARRAY_TASK_ID", "2")])).expect_err("no count");
+        assert!(e.to_string().contains("SLURM_ARRAY_TASK_COUNT is not set"), "{e}");
+        // Below the array's first task, a step of 0, more tasks than shards allowed: refused.
+        for bad in [
+            [
+                ("SLURM_ARRAY_TASK_ID", "2"),
+                ("SLURM_ARRAY_TASK_COUNT", "3"),
+                ("SLURM_ARRAY_TASK_MIN", "5"),
+                ("SLURM_ARRAY_TASK_STEP", "1"),
+            ],
+            [
+                ("SLURM_ARRAY_TASK_ID", "2"),
+                ("SLURM_ARRAY_TASK_COUNT", "3"),
+                ("SLURM_ARRAY_TASK_MIN", "1"),
+                ("SLURM_ARRAY_TASK_STEP", "0"),
+            ],
+            [
+                ("SLURM_ARRAY_TASK_ID", "2"),
+                ("SLURM_ARRAY_TASK_COUNT", "200000"),
+                ("SLURM_ARRAY_TASK_MIN", "0"),
+                ("SLURM_ARRAY_TASK_STEP", "1"),
+            ],
+        ] {
+            let pairs: &'static [(&str, &str)] = Box::leak(Box::new(bad));
+            let e = Shard::from_env(&env(pairs)).expect_err("refused");
+            assert!(e.to_string().contains("give --shard K/N"), "{e}");
+        }
     }
 
     /// The vertex box of real parts against their extents from gmsh (the corpus's SOURCES.md):
