@@ -235,8 +235,14 @@ pub fn acquire(out: &Path, lease_s: f64, shard: Option<String>) -> Result<Acquir
 
 /// Links a new claim into place: true when this process now holds it, false when a claim exists.
 fn create(path: &Path, owner: &Owner) -> Result<bool> {
-    let mut tmp = crate::output::temporary_beside(path)
-        .with_context(|| format!("{}: cannot write a claim beside the output", path.display()))?;
+    let mut tmp = crate::output::temporary_beside(path).map_err(|e| {
+        let dir = path.parent().filter(|d| !d.as_os_str().is_empty()).unwrap_or(Path::new("."));
+        anyhow::anyhow!(
+            "{}: cannot claim the scene: cannot write in {} ({e}); choose another --out (a batch writes its claims and outputs there)",
+            path.display(),
+            dir.display()
+        )
+    })?;
     let text = serde_json::to_vec(owner)?;
     tmp.write_all(&text)
         .and_then(|()| tmp.as_file().sync_all())
