@@ -10,22 +10,29 @@ use clap::Parser;
 use std::process::ExitCode;
 
 fn main() -> ExitCode {
-    tracing_subscriber::fmt()
-        // On stderr, with the progress bars lifted while a line is written.
-        .with_writer(terminal::LogWriter)
-        // Colour codes only for a terminal, not in logs and pipes.
-        .with_ansi(std::io::IsTerminal::is_terminal(&std::io::stderr()))
-        // Without a terminal (a batch job, a CI log), the stages of a long run are log lines
-        // (terminal::PROGRESS_TARGET); VES_LOG replaces this default.
-        .with_env_filter(
-            tracing_subscriber::EnvFilter::try_from_env("VES_LOG").unwrap_or_else(|_| {
-                if std::io::IsTerminal::is_terminal(&std::io::stderr()) {
-                    "warn".into()
-                } else {
-                    format!("warn,{}=info", terminal::PROGRESS_TARGET).into()
-                }
-            }),
+    use tracing_subscriber::Layer as _;
+    use tracing_subscriber::layer::SubscriberExt;
+    use tracing_subscriber::util::SubscriberInitExt;
+    // Without a terminal (a batch job, a CI log), the stages of a long run are log lines
+    // (terminal::PROGRESS_TARGET); VES_LOG replaces this default.
+    let filter = tracing_subscriber::EnvFilter::try_from_env("VES_LOG").unwrap_or_else(|_| {
+        if std::io::IsTerminal::is_terminal(&std::io::stderr()) {
+            "warn".into()
+        } else {
+            format!("warn,{}=info", terminal::PROGRESS_TARGET).into()
+        }
+    });
+    tracing_subscriber::registry()
+        .with(
+            tracing_subscriber::fmt::layer()
+                // On stderr, with the progress bars lifted while a line is written.
+                .with_writer(terminal::LogWriter)
+                // Colour codes only for a terminal, not in logs and pipes.
+                .with_ansi(std::io::IsTerminal::is_terminal(&std::io::stderr()))
+                .with_filter(filter),
         )
+        // Warnings also go to `--json` (whatever VES_LOG shows).
+        .with(terminal::Notices)
         .init();
     // A panic is a bug, but the user still gets one line (set VES_LOG=debug for the default
     // report with its location).

@@ -209,3 +209,15 @@ impl Drop for LogLine {
         });
     }
 }
+
+/// Hands each WARN or ERROR event to the pipeline's collections ([`ves_pipeline::notices`]):
+/// `--json`'s `warnings`.
+pub struct Notices;
+
+impl<S: tracing::Subscriber> tracing_subscriber::Layer<S> for Notices {
+    fn on_event(&self, event: &tracing::Event<'_>, _ctx: tracing_subscriber::layer::Context<'_, S>) {
+        if *event.metadata().level() <= tracing::Level::WARN && ves_pipeline::notices::collecting() {
+            ves_pipeline::notices::record(ves_pipeline::notices::line(event));
+        }
+    }
+}

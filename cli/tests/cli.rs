@@ -836,6 +836,46 @@ fn faces_are_listed_as_the_cad_states_them() {
     assert_refused(&o, "give a STEP or IGES file");
 }
 
+/// `--json` carries every warning of the run, one line each, whatever VES_LOG shows on stderr
+/// (a unit the STEP file overrides, a 4-node mesh far too stiff in bending).
+#[test]
+fn json_lists_the_warnings_of_the_run() {
+    let (dir, path) = workdir(&GOOD.replace("unit = \"mm\"", "unit = \"m\""));
+    let out = dir.path().join("b.h5");
+    let o = Command::new(env!("CARGO_BIN_EXE_ves"))
+        .args([
+            "precompute",
+            path.to_str().unwrap(),
+            "-o",
+            out.to_str().unwrap(),
+            "--json",
+        ])
+        .env("VES_LOG", "error")
+        .output()
+        .expect("ves runs");
+    let v = last_json(&o);
+    let warnings: Vec<&str> = v["warnings"]
+        .as_array()
+        .expect("warnings")
+        .iter()
+        .filter_map(|w| w.as_str())
+        .collect();
+    assert!(
+        warnings.iter().any(|w| w.contains("geometry.unit = \"m\" is ignored")),
+        "{warnings:?}"
+    );
+    assert!(
+        warnings.iter().any(|w| w.contains("far too stiff in bending")),
+        "{warnings:?}"
+    );
+    assert!(warnings.iter().all(|w| !w.contains('\n')));
+    assert!(
+        !stderr(&o).contains("WARN"),
+        "VES_LOG=error shows none on stderr: {}",
+        stderr(&o)
+    );
+}
+
 /// Without a terminal (stderr piped, as in a batch job's log), a precompute logs each stage as
 /// one line with the seconds since the start, and a stage that lasts again every
 /// `VES_PROGRESS_EVERY` seconds; `--quiet` and `VES_LOG=warn` silence them. (A 25-minute run

@@ -4,6 +4,7 @@
 use pyo3::PyErr;
 use pyo3::create_exception;
 use pyo3::exceptions::PyException;
+use pyo3::prelude::*;
 
 create_exception!(
     ves,
@@ -16,6 +17,12 @@ create_exception!(
     SceneError,
     Error,
     "The scene is malformed or asks for something invalid."
+);
+create_exception!(
+    ves,
+    VesWarning,
+    pyo3::exceptions::PyUserWarning,
+    "A warning of the pipeline (the line the `ves` CLI prints): a mesh too coarse for the error asked, a unit ignored, curved tets straightened. Also listed in the summary's `warnings`."
 );
 create_exception!(ves, MeshError, Error, "The geometry could not be read or meshed.");
 create_exception!(
@@ -136,4 +143,15 @@ pub fn from_anyhow(e: &anyhow::Error) -> PyErr {
 /// A basis file that could not be read.
 pub fn basis(e: impl std::fmt::Display) -> PyErr {
     BasisError::new_err(e.to_string())
+}
+
+/// Gives each of `warnings` to Python's `warnings` machinery as a [`VesWarning`], pointing at
+/// the caller's line.
+pub fn warn_all(py: Python<'_>, warnings: &[String]) -> PyResult<()> {
+    let kind = py.get_type::<VesWarning>();
+    for w in warnings {
+        let text = std::ffi::CString::new(w.replace('\0', " ")).unwrap_or_default();
+        PyErr::warn(py, &kind, &text, 1)?;
+    }
+    Ok(())
 }

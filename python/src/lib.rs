@@ -17,6 +17,7 @@ use pyo3::prelude::*;
 #[pymodule]
 fn _native(m: &Bound<'_, PyModule>) -> PyResult<()> {
     let py = m.py();
+    logging();
     m.add("Error", py.get_type::<errors::Error>())?;
     m.add("SceneError", py.get_type::<errors::SceneError>())?;
     m.add("MeshError", py.get_type::<errors::MeshError>())?;
@@ -26,6 +27,7 @@ fn _native(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add("BasisError", py.get_type::<errors::BasisError>())?;
     m.add("OutputError", py.get_type::<errors::OutputError>())?;
     m.add("VerifyError", py.get_type::<errors::VerifyError>())?;
+    m.add("VesWarning", py.get_type::<errors::VesWarning>())?;
     m.add_class::<basis::Basis>()?;
     m.add_class::<basis::Space>()?;
     m.add_class::<haptics::Haptics>()?;
@@ -39,4 +41,11 @@ fn _native(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(haptics::_rust_step_ns, m)?)?;
     m.add("__version__", env!("CARGO_PKG_VERSION"))?;
     Ok(())
+}
+
+/// The pipeline's warnings are collected for each call (and become `VesWarning`s); with
+/// `VES_LOG` set to a level (`warn`, `info`, …), its log lines go to stderr.
+fn logging() {
+    // Another extension may have set one first: then its own rules apply.
+    let _ = tracing::subscriber::set_global_default(ves_pipeline::notices::Collector::from_env());
 }

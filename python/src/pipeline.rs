@@ -280,7 +280,8 @@ pub fn precompute(
     allow_geo_scripts: bool,
 ) -> PyResult<Basis> {
     let choice = solver_choice(solver)?;
-    let mut scene = scene_from(scene, allow_geo_scripts)?;
+    let (loaded, mut warnings) = ves_pipeline::notices::collect(|| scene_from(scene, allow_geo_scripts));
+    let mut scene = loaded?;
     if let Some(m) = modes {
         if !(1..=2000).contains(&m) {
             return Err(PyValueError::new_err(format!("modes={m}: must be between 1 and 2000")));
@@ -292,10 +293,17 @@ pub fn precompute(
     let what = format!("precompute {}", scene.name);
     let summary = run_long(py, progress, &what, None, move || {
         let overwrite = ves_pipeline::output::Overwrite { force };
-        let summary = ves_pipeline::precompute::run_with(&scene, &target, choice, overwrite)?;
+        let (done, more) =
+            ves_pipeline::notices::collect(|| ves_pipeline::precompute::run_with(&scene, &target, choice, overwrite));
+        let mut summary = done?;
+        warnings.extend(more);
+        summary.warnings = warnings;
         Ok(serde_json::to_string(&summary)?)
     })?;
-    let summary = py.import("json")?.call_method1("loads", (summary,))?.unbind();
+    let summary = py.import("json")?.call_method1("loads", (summary,))?;
+    let listed: Vec<String> = summary.get_item("warnings")?.extract()?;
+    errors::warn_all(py, &listed)?;
+    let summary = summary.unbind();
     Basis::read(py, out, Some(summary))
 }
 
@@ -421,7 +429,10 @@ pub fn faces<'py>(
 ) -> PyResult<Bound<'py, PyAny>> {
     let what = format!("faces of {}", path.display());
     let listed = run_long(py, progress, &what, None, move || {
-        Ok(serde_json::to_string(&ves_pipeline::faces::list(&path, allow_geo_scripts)?)?)
+        Ok(serde_json::to_string(&ves_pipeline::faces::list(
+            &path,
+            allow_geo_scripts,
+        )?)?)
     })?;
     py.import("json")?.call_method1("loads", (listed,))
 }

@@ -234,3 +234,28 @@ def test_faces_are_the_cli_s(cli):
     assert {round(1e3 * f["radius_m"], 6) for f in bores.values()} == {1.7, 3.25}
     with pytest.raises(ves.Error, match="STEP or IGES"):
         ves.faces(REPO / "README.md", progress=False)
+
+
+def test_warnings_are_ves_warnings_and_in_the_summary(cli, tmp_path):
+    """The pipeline's warnings reach Python (they reached nobody: the package printed none, and
+    VES_LOG had no effect there): each a ``ves.VesWarning`` at the caller's line, all listed in
+    ``summary["warnings"]`` — the same as ``ves precompute --json`` lists."""
+    import json
+    import warnings as pywarnings
+
+    text = GOOD.replace('unit = "mm"', 'unit = "m"')
+    scene = scene_copy(tmp_path, text)
+    with pytest.warns(ves.VesWarning, match="is ignored") as caught:
+        basis = ves.precompute(scene, tmp_path / "py.h5", progress=False)
+    listed = basis.summary["warnings"]
+    assert any("is ignored" in w for w in listed), listed
+    assert [str(w.message) for w in caught if issubclass(w.category, ves.VesWarning)] == listed
+    assert all(w.filename == __file__ for w in caught), [w.filename for w in caught]
+    run = subprocess.run([str(cli), "precompute", str(scene), "-o", str(tmp_path / "cli.h5"), "--json"],
+                         capture_output=True, text=True, check=True)
+    assert json.loads(run.stdout.strip().splitlines()[-1])["warnings"] == listed
+    # An error filter turns them into exceptions, as for any Python warning.
+    with pywarnings.catch_warnings():
+        pywarnings.simplefilter("error", ves.VesWarning)
+        with pytest.raises(ves.VesWarning):
+            ves.precompute(scene, tmp_path / "py2.h5", progress=False)

@@ -20,6 +20,7 @@ from ._native import (
     Space as Space,
     SupportError as SupportError,
     VerifyError as VerifyError,
+    VesWarning as VesWarning,
     faces as faces,
     precompute as precompute,
     session as session,

@@ -39,6 +39,9 @@ class OutputError(Error):
 class VerifyError(Error):
     """A reference solver is missing, not applicable, or failed."""
 
+class VesWarning(UserWarning):
+    """A warning of the pipeline (the line the CLI prints); also listed in ``Basis.summary["warnings"]``."""
+
 class Space:
     """One space of a basis: the global mesh, or the finer mesh of one volume of interest."""
 

@@ -3,6 +3,7 @@
 use anyhow::Result;
 use std::path::PathBuf;
 use ves_pipeline::modes::{SolverChoice, mpi_job};
+use ves_pipeline::notices;
 use ves_pipeline::precompute;
 use ves_pipeline::scene::{EstimateMode, Scene};
 
@@ -66,7 +67,8 @@ impl Args {
     fn solve(self) -> Result<()> {
         // A scene one rank cannot read (an MPMD launch, a file system that differs between
         // nodes) stops every rank here, not in the eigen-solver's collective calls.
-        let mut scene = mpi_job::agree(Scene::load_with(&self.scene, self.write.scene()).map_err(Into::into))?;
+        let (loaded, mut warnings) = notices::collect(|| Scene::load_with(&self.scene, self.write.scene()));
+        let mut scene = mpi_job::agree(loaded.map_err(Into::into))?;
         if let Some(m) = self.modes {
             scene.modes.count = m;
         }
@@ -89,7 +91,9 @@ impl Args {
             );
             let visible = !self.quiet;
             let _watching = ves_pipeline::progress::watch(crate::terminal::Terminal::on_stderr(visible));
-            let Some((summary, instant)) = precompute::instant::run(&scene, previous, &out)? else {
+            let (instant_run, more) = notices::collect(|| precompute::instant::run(&scene, previous, &out));
+            warnings.extend(more);
+            let Some((mut summary, instant)) = instant_run? else {
                 let stored = ves_pipeline::store::read_global(previous, None)?;
                 let why = precompute::instant::applicable(&scene, stored.scene_toml.as_deref().unwrap_or_default())
                     .err()
@@ -102,6 +106,7 @@ impl Args {
                 );
             };
             if self.json {
+                summary.warnings = warnings;
                 return super::print_json(&InstantJson { summary, instant });
             }
             println!(
@@ -114,11 +119,15 @@ impl Args {
             );
             return Ok(());
         }
-        let summary = {
+        let mut summary = {
             let visible = !self.quiet && mpi_job::rank() == 0;
             let _watching = ves_pipeline::progress::watch(crate::terminal::Terminal::on_stderr(visible));
-            precompute::run_with(&scene, &out, self.solver, self.write.overwrite())?
+            let (done, more) =
+                notices::collect(|| precompute::run_with(&scene, &out, self.solver, self.write.overwrite()));
+            warnings.extend(more);
+            done?
         };
+        summary.warnings = warnings;
         if mpi_job::rank() != 0 {
             return Ok(());
         }

@@ -153,6 +153,10 @@ pub struct Summary {
     pub timings_s: Timings,
     /// Peak resident memory of this process so far, bytes (Linux `VmHWM`; 0 where unknown).
     pub peak_rss_bytes: u64,
+    /// The warnings given while reading the scene and computing, one line each, in order
+    /// (gathered by a front end that collects them, [`crate::notices`]: `ves precompute
+    /// --json`, Python; empty otherwise).
+    pub warnings: Vec<String>,
 }
 
 /// One space in the summary.
@@ -303,6 +307,7 @@ fn run_checked<'s>(
                 spaces: Vec::new(),
                 timings_s: Timings::default(),
                 peak_rss_bytes: crate::memory::peak_rss_bytes(),
+                warnings: Vec::new(),
             },
             later: None,
         });
@@ -432,6 +437,7 @@ fn write_all(scene: &Scene, out: &Path, spaces: &[SolvedSpace], transfer_s: f64,
             .collect(),
         timings_s: timings,
         peak_rss_bytes: crate::memory::peak_rss_bytes(),
+        warnings: Vec::new(),
     })
 }
 
