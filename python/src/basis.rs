@@ -38,6 +38,7 @@ struct SpaceData {
     estimated_error: Option<Vec<f64>>,
     compliance: Option<ves_format::Compliance>,
     rigid: Option<ves_format::RigidProperties>,
+    loads: Vec<ves_format::read::LoadCase>,
     runtime: Arc<ves_runtime::Basis>,
 }
 
@@ -88,6 +89,7 @@ fn read_file(path: &Path) -> Result<FileData, ReadError> {
         let estimated_error = s.estimated_relative_error()?;
         let compliance = s.compliance()?;
         let rigid = s.rigid()?;
+        let loads = s.loads()?;
         let runtime = ves_runtime::basis::load_space(
             &file,
             &LoadOptions {
@@ -119,6 +121,7 @@ fn read_file(path: &Path) -> Result<FileData, ReadError> {
             estimated_error,
             compliance,
             rigid,
+            loads,
             runtime: Arc::new(runtime),
         });
     }
@@ -207,6 +210,7 @@ pub struct Space {
     estimated_relative_error: Option<Py<PyArray1<f64>>>,
     compliance: Option<ComplianceArrays>,
     rigid: Option<ves_format::RigidProperties>,
+    loads: Vec<ves_format::read::LoadCase>,
     pub(crate) runtime: Arc<ves_runtime::Basis>,
 }
 
@@ -250,6 +254,7 @@ impl Space {
             estimated_relative_error: d.estimated_error.map(|e| vector(py, e)).transpose()?,
             compliance,
             rigid: d.rigid,
+            loads: d.loads,
             runtime: d.runtime,
         })
     }
@@ -317,6 +322,40 @@ impl Space {
     #[getter]
     fn stress(&self, py: Python<'_>) -> Option<Py<PyArray2<f64>>> {
         self.stress.as_ref().map(|a| a.clone_ref(py))
+    }
+
+    /// The names of the space's static load cases (`[[load]]`, `[gravity]`), in the file's
+    /// order; empty when the scene had none.
+    #[getter]
+    fn load_cases(&self) -> Vec<String> {
+        self.loads.iter().map(|l| l.name.clone()).collect()
+    }
+
+    /// One static load case as a dict: `kind` ("force", "pressure", "gravity"), `displacement`
+    /// (n, 3) m, `von_mises` (n,) Pa at every node, `stress` (nv, 6) Pa at the corner vertices
+    /// (Voigt xx yy zz yz xz xy), `total_force` and `reaction` (3,) N, `balance_residual`,
+    /// `max_displacement` m, `max_von_mises` Pa. KeyError naming the cases there are.
+    fn load<'py>(&self, py: Python<'py>, name: &str) -> PyResult<Bound<'py, PyDict>> {
+        let Some(l) = self.loads.iter().find(|l| l.name == name) else {
+            return Err(pyo3::exceptions::PyKeyError::new_err(format!(
+                "no load case {name:?} in space {:?}; it has {:?}",
+                self.name,
+                self.load_cases()
+            )));
+        };
+        let n = l.von_mises.len();
+        let d = PyDict::new(py);
+        d.set_item("name", &l.name)?;
+        d.set_item("kind", &l.kind)?;
+        d.set_item("displacement", matrix(py, l.displacement.clone(), n, 3)?)?;
+        d.set_item("von_mises", vector(py, l.von_mises.clone())?)?;
+        d.set_item("stress", matrix(py, l.stress.clone(), l.stress.len() / 6, 6)?)?;
+        d.set_item("total_force", l.total_force.to_vec())?;
+        d.set_item("reaction", l.reaction.to_vec())?;
+        d.set_item("balance_residual", l.balance_residual)?;
+        d.set_item("max_displacement", l.max_displacement)?;
+        d.set_item("max_von_mises", l.max_von_mises)?;
+        Ok(d)
     }
 
     /// Each mode's estimated relative discretization error, shape (r,); None when not stored.
@@ -547,6 +586,17 @@ impl Basis {
     #[getter]
     fn fixed_dofs(&self, py: Python<'_>) -> PyResult<Py<PyArray1<u32>>> {
         Ok(self.default(py)?.fixed_dofs(py))
+    }
+
+    /// The default space's static load cases, by name.
+    #[getter]
+    fn load_cases(&self, py: Python<'_>) -> PyResult<Vec<String>> {
+        Ok(self.default(py)?.load_cases())
+    }
+
+    /// One static load case of the default space (see `Space.load`).
+    fn load<'py>(&self, py: Python<'py>, name: &str) -> PyResult<Bound<'py, PyDict>> {
+        self.default(py)?.load(py, name)
     }
 
     /// Modal stress of the default space, shape (6·nv, r), or None.

@@ -259,3 +259,41 @@ def test_warnings_are_ves_warnings_and_in_the_summary(cli, tmp_path):
         pywarnings.simplefilter("error", ves.VesWarning)
         with pytest.raises(ves.VesWarning):
             ves.precompute(scene, tmp_path / "py2.h5", progress=False)
+
+
+def test_load_cases_are_read_from_python(cli, tmp_path):
+    """``Basis.load_cases`` / ``Basis.load(name)``: a tip force and gravity on the cantilever —
+    reactions balancing the loads, the largest displacement and von Mises the file's own, the
+    tip's deflection that of ``ves info --json`` and within 3 % of beam theory (PL³/3EI)."""
+    import json
+
+    text = GOOD + (
+        '\n[[load]]\nname = "tip"\nbox = { min = [0.999, -1.0, -1.0], max = [1.001, 1.0, 1.0] }\n'
+        "force = [0.0, 0.0, -1000.0]\n[gravity]\nacceleration = [0.0, 0.0, -9.81]\n"
+    )
+    scene = scene_copy(tmp_path, text)
+    basis = ves.precompute(scene, tmp_path / "b.h5", progress=False)
+    assert basis.load_cases == ["tip", "gravity"]
+    tip = basis.load("tip")
+    nodes = basis.space("global").nodes
+    assert tip["kind"] == "force" and tip["displacement"].shape == nodes.shape
+    assert tip["stress"].shape == (basis.space("global").vertex_count, 6)
+    for case in ("tip", "gravity"):
+        c = basis.load(case)
+        scale = np.abs(c["total_force"]).max()
+        np.testing.assert_allclose(np.array(c["reaction"]), -np.array(c["total_force"]), rtol=0, atol=1e-9 * scale)
+        assert np.linalg.norm(c["displacement"], axis=1).max() == pytest.approx(c["max_displacement"], rel=1e-12)
+        assert c["von_mises"][: basis.space("global").vertex_count].max() == pytest.approx(c["max_von_mises"], rel=1e-12)
+    mass = 7850.0 * 1.0 * 0.1 * 0.05
+    assert basis.load("gravity")["total_force"][2] == pytest.approx(-9.81 * mass, rel=1e-9)
+    # The tip face's mean deflection against Euler–Bernoulli (E 2.1e11, I = b h³/12, bending about y).
+    at_tip = np.abs(nodes[:, 0] - 1.0) < 1e-9
+    w = tip["displacement"][at_tip, 2].mean()
+    beam = -1000.0 * 1.0**3 / (3 * 2.1e11 * 0.1 * 0.05**3 / 12)
+    assert w == pytest.approx(beam, rel=0.03)
+    info = subprocess.run([str(cli), "info", str(tmp_path / "b.h5"), "--json"], capture_output=True, text=True, check=True)
+    listed = json.loads(info.stdout.strip().splitlines()[-1])["spaces"][0]["loads"]
+    assert [c["name"] for c in listed] == basis.load_cases
+    assert listed[0]["max_displacement_m"] == pytest.approx(tip["max_displacement"], rel=1e-12)
+    with pytest.raises(KeyError, match="tip"):
+        basis.load("wind")

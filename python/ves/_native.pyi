@@ -83,6 +83,11 @@ class Space:
     def stress(self) -> Optional[npt.NDArray[np.float64]]:
         """Modal stress at corner vertices, Pa per unit q, shape (6·nv, r) (Voigt xx yy zz yz xz xy), or None."""
     @property
+    def load_cases(self) -> List[str]:
+        """The static load cases' names ([[load]], [gravity]), in the file's order."""
+    def load(self, name: str) -> dict:
+        """One load case: kind, displacement (n, 3) m, von_mises (n,) Pa, stress (nv, 6) Pa, total_force, reaction (3,) N, balance_residual, max_displacement, max_von_mises."""
+    @property
     def estimated_relative_error(self) -> Optional[npt.NDArray[np.float64]]:
         """Each mode's estimated relative discretization error, shape (r,), or None."""
     @property
@@ -135,6 +140,9 @@ class Basis:
     def fixed_dofs(self) -> npt.NDArray[np.uint32]: ...
     @property
     def stress(self) -> Optional[npt.NDArray[np.float64]]: ...
+    @property
+    def load_cases(self) -> List[str]: ...
+    def load(self, name: str) -> dict: ...
     @property
     def estimated_relative_error(self) -> Optional[npt.NDArray[np.float64]]: ...
     @property
