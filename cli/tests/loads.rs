@@ -417,6 +417,30 @@ fn paraview_reads_a_load_case_by_name() {
     paraview_reads_the_cases(dir.path(), &path, &["tip"]);
 }
 
+/// `ves export --vtu` writes each load case's stress tensor on the vertices file (there even
+/// without modal stress), read by meshio equal to the file (h5py). Four modes: meshio misreads a
+/// file whose field data arrays hold one value each (ParaView reads it).
+#[test]
+fn vtu_export_carries_the_load_stress() {
+    let (dir, path) = workdir(&(GOOD.to_string() + TIP + GRAVITY));
+    let out = dir.path().join("basis.h5");
+    precompute_json(&path, &out);
+    let vtu = dir.path().join("vtu");
+    let o = ves(&["export", out.to_str().unwrap(), "--vtu", vtu.to_str().unwrap()]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(vtu.join("global_vertices.vtu").exists());
+    let check = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/vtk/vtu_check.py");
+    let o = std::process::Command::new("python3")
+        .args([check.to_str().unwrap(), vtu.to_str().unwrap(), out.to_str().unwrap()])
+        .output()
+        .expect("python3");
+    assert!(
+        o.status.success() && String::from_utf8_lossy(&o.stdout).contains("ok"),
+        "{}",
+        stderr(&o)
+    );
+}
+
 /// Precomputes `scene` into `dir`, opens its XDMF sidecar with pvpython and checks that each of
 /// `cases`' `load_<name>_displacement` and `load_<name>_von_mises`, the `fixed` array and the
 /// frequencies (field data) are there by their plain names and equal to the file.
@@ -425,7 +449,13 @@ fn paraview_reads_the_cases(dir: &Path, scene: &Path, cases: &[&str]) {
     precompute_json(scene, &out);
     let names: Vec<String> = cases
         .iter()
-        .flat_map(|c| [format!("load_{c}_displacement"), format!("load_{c}_von_mises")])
+        .flat_map(|c| {
+            [
+                format!("load_{c}_displacement"),
+                format!("load_{c}_von_mises"),
+                format!("load_{c}_stress"),
+            ]
+        })
         .collect();
     let sidecar = dir.join("basis.xdmf");
     let mut args = vec![sidecar.as_os_str()];
@@ -454,6 +484,19 @@ fn paraview_reads_the_cases(dir: &Path, scene: &Path, cases: &[&str]) {
                 assert!(same(num(&u[i][c]), *want), "{case}: node {i}");
             }
             assert!(same(num(&vm[i][0]), stored.von_mises[i]), "{case}: node {i}");
+        }
+        // The stress tensor at the corner vertices: ParaView reads the Tensor6 as the whole
+        // symmetric tensor, row by row, from the file's Voigt order (xx yy zz yz xz xy).
+        let t = seen["arrays"][format!("load_{case}_stress")].as_array().unwrap();
+        assert_eq!(t.len(), s.vertex_count);
+        for (i, row) in t.iter().enumerate() {
+            assert_eq!(row.as_array().map(Vec::len), Some(9));
+            for (c, k) in [0, 5, 4, 5, 1, 3, 4, 3, 2].into_iter().enumerate() {
+                assert!(
+                    same(num(&row[c]), stored.stress[6 * i + k]),
+                    "{case}: vertex {i} component {c}"
+                );
+            }
         }
     }
     let f = s.frequencies_hz().unwrap();

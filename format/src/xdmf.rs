@@ -113,7 +113,7 @@ fn space_grids(x: &mut String, h5: &str, s: &XdmfSpace<'_>) {
     }
     point_fields(x, s, &data);
     let _ = writeln!(x, "  </Grid>");
-    if !s.stress {
+    if !s.stress && s.loads.is_empty() {
         return;
     }
     // Corner vertices only: linear tets on the first four columns, the first nv nodes.
@@ -126,6 +126,30 @@ fn space_grids(x: &mut String, h5: &str, s: &XdmfSpace<'_>) {
     let _ = writeln!(x, "    {}", slab(s.tets, 4, (0, 0), (1, 1), &tets));
     geometry(x, &slab(s.vertices, 3, (0, 0), (1, 1), &nodes));
     frequencies(x, r, &data(sp::FREQUENCIES_HZ));
+    // Each load case's stress tensor, [nv, 6] Voigt: its columns in XDMF's order.
+    for name in s.loads {
+        let item = hdf(
+            s.vertices,
+            6,
+            F64,
+            &data(&format!("{}/{name}/{}", sp::LOADS, crate::names::load::STRESS)),
+        );
+        let _ = writeln!(
+            x,
+            r#"   <Attribute Name="{}" AttributeType="Tensor6" Center="Node">"#,
+            escape(&load_array(name, "stress"))
+        );
+        let components: Vec<String> = VOIGT_TO_TENSOR6
+            .iter()
+            .map(|&k| slab(s.vertices, 1, (0, k), (1, 1), &item))
+            .collect();
+        join(x, &format!("{} 6", s.vertices), &components);
+        let _ = writeln!(x, "   </Attribute>");
+    }
+    if !s.stress {
+        let _ = writeln!(x, "  </Grid>");
+        return;
+    }
     let stress = hdf(6 * s.vertices, r, F64, &data(sp::STRESS));
     for j in 0..r {
         let _ = writeln!(

@@ -70,9 +70,11 @@ pub fn export(basis: &Path, dir: &Path, overwrite: Overwrite) -> Result<Vec<Path
         // The name becomes a file name: it must stay one name in `dir`.
         ves_format::check_identifier("space name", &name)
             .map_err(|e| anyhow::anyhow!("{}: {e}; precompute the basis again", basis.display()))?;
-        // One vertex of one mode says whether the space has stress.
+        // One vertex of one mode says whether the space has modal stress; load cases carry a
+        // stress tensor at the vertices too.
         let s = file.space(&name)?;
-        let stress = s.stress_rows(0..s.vertex_count.min(1), s.mode_count.min(1))?.is_some();
+        let stress =
+            s.stress_rows(0..s.vertex_count.min(1), s.mode_count.min(1))?.is_some() || !s.load_names()?.is_empty();
         let grid = dir.join(format!("{name}.vtu"));
         let vertices = stress.then(|| dir.join(format!("{name}_vertices.vtu")));
         plan.push((name, grid, vertices));
@@ -114,29 +116,37 @@ pub fn export(basis: &Path, dir: &Path, overwrite: Overwrite) -> Result<Vec<Path
         let field = [("frequencies_hz".to_string(), frequencies.clone())];
         write_grid(grid, &nodes, &cells, per, s.kind.vtk_cell_type(), &shapes, &field)?;
         written.push(grid.clone());
-        if let Some(path) = vertices
-            && let Some(stress) = s.stress_rows(0..nv, r)?
-        {
+        if let Some(path) = vertices {
             let peaks = peak_displacements(&rows, n, r);
             let scales: Vec<f64> = peaks.iter().map(|&p| per_mm_scale(p)).collect();
-            let mut fields: Vec<(String, usize, Vec<f64>)> = (0..r)
-                .map(|j| {
+            let mut fields: Vec<(String, usize, Vec<f64>)> = Vec::new();
+            if let Some(stress) = s.stress_rows(0..nv, r)? {
+                fields.extend((0..r).map(|j| {
                     let v = (0..nv)
                         .flat_map(|i| VOIGT_TO_VTK.map(|k| stress[(6 * i + k) * r + j]))
                         .collect();
                     (mode_array(j, r, "stress"), 6, v)
-                })
-                .collect();
-            for (j, &c) in scales.iter().enumerate() {
-                let tensor: Vec<f64> = fields[j].2.iter().map(|x| x * c).collect();
-                let von_mises = (0..nv)
-                    .map(|i| {
-                        let voigt: Vec<f64> = (0..6).map(|k| c * stress[(6 * i + k) * r + j]).collect();
-                        crate::loads::von_mises(&voigt)
-                    })
+                }));
+                for (j, &c) in scales.iter().enumerate() {
+                    let tensor: Vec<f64> = fields[j].2.iter().map(|x| x * c).collect();
+                    let von_mises = (0..nv)
+                        .map(|i| {
+                            let voigt: Vec<f64> = (0..6).map(|k| c * stress[(6 * i + k) * r + j]).collect();
+                            crate::loads::von_mises(&voigt)
+                        })
+                        .collect();
+                    fields.push((mode_array(j, r, "stress_per_mm"), 6, tensor));
+                    fields.push((mode_array(j, r, "von_mises_per_mm"), 1, von_mises));
+                }
+            }
+            // Each load case's stress tensor at the vertices, Pa (VTK's component order).
+            for l in s.loads()? {
+                let v = l
+                    .stress
+                    .chunks_exact(6)
+                    .flat_map(|t| VOIGT_TO_VTK.map(|k| t[k]))
                     .collect();
-                fields.push((mode_array(j, r, "stress_per_mm"), 6, tensor));
-                fields.push((mode_array(j, r, "von_mises_per_mm"), 1, von_mises));
+                fields.push((load_array(&l.name, "stress"), 6, v));
             }
             let corners: Vec<i64> = tets
                 .chunks_exact(per)

@@ -30,6 +30,9 @@ with h5py.File(h5, "r") as f:
         for load, c in g.get("loads", {}).items():
             assert np.array_equal(m.point_data["load_%s_displacement" % load], c["displacement"][:]), load
             assert np.array_equal(m.point_data["load_%s_von_mises" % load].ravel(), c["von_mises"][:]), load
+            # The stress tensor on the vertices file, VTK order xx yy zz xy yz xz.
+            v = meshio.read(f"{out}/{name}_vertices.vtu")
+            assert np.array_equal(v.point_data["load_%s_stress" % load], c["stress"][:][:, [0, 1, 2, 5, 3, 4]]), load
         if "stress" in g["modes"]:
             nv = g["mesh"].attrs["vertex_count"]
             v = meshio.read(f"{out}/{name}_vertices.vtu")
