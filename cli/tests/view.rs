@@ -696,6 +696,17 @@ fn a_free_body_stays_put_at_any_scale_and_the_page_reconnects() {
         page["after"]["conn"].as_str() == Some("connected"),
         "after the restart: {page}"
     );
+    // Reconnected: "the server is gone" no longer stands beside "connected"; the browser's tab
+    // names the part served.
+    let after = &page["after"];
+    assert!(
+        !after["warn"].as_str().unwrap_or("").contains("server is gone"),
+        "{after}"
+    );
+    assert!(
+        after["tab"].as_str().is_some_and(|t| t.ends_with(" — VES view")),
+        "{after}"
+    );
     let visible = page["narrow"]["visible"].as_array().expect("probes");
     assert!(
         visible.iter().all(|v| v.as_bool() == Some(true)),
@@ -799,7 +810,8 @@ fn a_step_part_is_set_up_computed_and_pulled_in_the_page() {
         "{stages:?}"
     );
 
-    // The saved scene is the scene this test set up, key by key, against values written here:
+    // The saved scene is the scene this test set up, key by key, against values written here
+    // (no `unit`: a STEP file carries its own):
     // aluminium 6061-T6 at its handbook values (the frequencies cannot tell it from steel:
     // √(E/ρ) differs by 2.4 %), the page's starting mesh (10-node tets to a 5 % error
     // estimate), 10 modes, stress and damping as the page started; and held by the planes
@@ -812,7 +824,6 @@ fn a_step_part_is_set_up_computed_and_pulled_in_the_page() {
         name = "pmi_block_2holes"
         [geometry]
         step = "pmi_block_2holes.step"
-        unit = "mm"
         [material]
         young = 6.89e10
         poisson = 0.33

@@ -60,7 +60,7 @@ try {
   await page.waitForFunction(() => !window.ves.connected, null, { timeout: 20000 });
   const down = await page.evaluate(() => document.getElementById('conn').textContent);
   await page.waitForFunction((n) => window.ves.reconnects > n && window.ves.ready, before, { timeout: 60000 });
-  const after = await page.evaluate(() => ({ reconnects: window.ves.reconnects, conn: document.getElementById('conn').textContent, frames: window.ves.frames }));
+  const after = await page.evaluate(() => ({ reconnects: window.ves.reconnects, conn: document.getElementById('conn').textContent, frames: window.ves.frames, warn: document.getElementById('warn').textContent, tab: document.title }));
 
   // A 420 px wide window: the panels fold and the middle of the part is not under any of them.
   const small = await newPage(browser, errors, { width: 420, height: 760 });

@@ -6,6 +6,9 @@ import { $ } from './dom.js';
 import { ProtocolError, decode, helloMismatch } from './protocol.js';
 import { state } from './state.js';
 
+/** What the page says while the server is away. */
+const GONE = 'the server is gone: what you see is no longer live';
+
 /** @type {WebSocket|null} */
 let ws = null;
 let retry = 0;
@@ -30,7 +33,11 @@ export function connect(h) {
 function open() {
   ws = new WebSocket(`ws://${location.host}/ws`);
   ws.binaryType = 'arraybuffer';
-  ws.onopen = () => { state.connected = true; retry = 0; $('conn').textContent = 'connected'; };
+  ws.onopen = () => {
+    state.connected = true; retry = 0; $('conn').textContent = 'connected';
+    // No longer true: said beside "connected · computing", it contradicted the status line.
+    if ($('warn').textContent === GONE) $('warn').textContent = '';
+  };
   ws.onclose = () => {
     state.connected = false; state.ready = false; state.meshesIn = false;
     if (state.refused) return; // the server speaks another protocol: a reload, not a retry
@@ -38,7 +45,7 @@ function open() {
     // Back off to one try every 5 s: a restarted server is found again without a reload.
     document.body.classList.add('stale');
     $('handinfo').textContent = '';
-    $('warn').textContent = 'the server is gone: what you see is no longer live';
+    $('warn').textContent = GONE;
     const wait = Math.min(5000, 250 * 2 ** retry++);
     $('conn').textContent = `disconnected — trying again in ${(wait / 1000).toFixed(1)} s`;
     setTimeout(open, wait);

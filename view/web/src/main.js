@@ -40,6 +40,8 @@ function onHello(msg) {
   state.episodePeak = 0;
   state.framesAtHello = state.frames;
   $('title').textContent = `VES view — ${msg.name}`;
+  // The browser's tab follows the part served (it kept "VES view" whatever was open).
+  document.title = `${msg.name} — VES view`;
   showLimit();
   if (msg.spaces.length) listModes(msg.spaces[0]); else $('modes').textContent = '';
   hideLoad();

@@ -213,12 +213,14 @@ export function setupPanel(send, pick, faceMode) {
     /** Compute progress, its end, or why it failed. */
     note(msg) {
       if (msg.type === 'progress') {
-        if (msg.stage === 'starting') ready = null;
+        // A new compute: the last one's error or "cancelled" no longer stands under it.
+        if (msg.stage === 'starting') { ready = null; $('setuperror').textContent = ''; }
         $('progressbar').style.width = `${(100 * msg.fraction).toFixed(0)}%`;
         // After the swap the part is in use while its error estimate is made.
         $('progresstext').textContent = (ready ? `ready: ${ready} · ` : '') + `${msg.stage} — ${(100 * msg.fraction).toFixed(0)} %`;
       } else if (msg.type === 'computed') {
         ready = msg.summary;
+        $('setuperror').textContent = '';
         $('progressbar').style.width = '100%';
         $('progresstext').textContent = `computed: ${msg.summary}`;
         saved = msg.scene;
