@@ -1011,6 +1011,28 @@ fn a_step_part_is_set_up_computed_and_pulled_in_the_page() {
         page["one"]
     );
     assert!(one[0] < held[0], "one face {one:?} vs two {held:?}");
+    // Hovered, the +x end face is named with what it is, as `ves faces` lists it (this block's
+    // end is a convex cylinder of 25 mm), and its area.
+    let tip = page["one"]["tip"].as_str().unwrap_or("");
+    let listed = last_json(&ves(&["faces", step.to_str().unwrap(), "--json"]));
+    let face = listed
+        .as_array()
+        .and_then(|l| l.iter().find(|f| f["tag"].as_u64() == Some(tag)))
+        .unwrap_or_else(|| panic!("face {tag} not listed: {listed}"));
+    let kind = face["kind"].as_str().unwrap_or("");
+    assert!(
+        tip.starts_with(&format!("face {tag} · {kind}")) && tip.contains('²'),
+        "{tip} / {face}"
+    );
+    if kind == "cylinder" {
+        // "cylinder r 25.0 mm": the radius as the page writes it (in mm for a part this size).
+        let r_mm = 1e3 * face["radius_m"].as_f64().unwrap_or(0.0);
+        let shown = number_after(tip, "cylinder r ");
+        assert!(
+            tip.contains(" mm") && (shown - r_mm).abs() <= 5e-3 * r_mm,
+            "{tip} / {face}"
+        );
+    }
     // Cancelled: an error note that says so; the part shown is still the one-face basis.
     let last = &page["cancelled"]["last"];
     assert_eq!(last["type"].as_str(), Some("compute_error"), "{last}");

@@ -79,6 +79,20 @@ pub fn list(input: &Path, allow_geo_scripts: bool) -> Result<Vec<Face>> {
     Ok(of_mesh(&mesh))
 }
 
+/// The faces of a bare surface (a basis's: its corner vertices, triangles and each triangle's
+/// face tag), as [`of_mesh`] finds them.
+pub fn of_surface(vertices: &[[f64; 3]], triangles: &[[u32; 3]], faces: &[u32]) -> Vec<Face> {
+    let mesh = Mesh {
+        nodes: vertices.to_vec(),
+        vertex_count: vertices.len(),
+        kind: ves_format::ElementKind::Tet4,
+        tets: Vec::new(),
+        surface: triangles.to_vec(),
+        surface_faces: faces.to_vec(),
+    };
+    of_mesh(&mesh)
+}
+
 /// The faces of a mesh's surface, by tag (triangles of no known face are left out).
 pub fn of_mesh(mesh: &Mesh) -> Vec<Face> {
     let mut by_tag: std::collections::BTreeMap<u32, Vec<usize>> = std::collections::BTreeMap::new();

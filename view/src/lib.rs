@@ -54,7 +54,14 @@ pub struct ViewConfig {
     pub name: String,
     /// Connection limits (header timeout, connections and clients at once).
     pub limits: Limits,
+    /// What each CAD face of a basis's surface is (plane, cylinder …), as JSON for the page's
+    /// hover: given by the program that has the pipeline (the `ves` binary); none without.
+    pub face_kinds: Option<FaceKinds>,
 }
+
+/// [`ViewConfig::face_kinds`]: from a space's surface (corner vertices, triangles, face tags)
+/// to a JSON list the page shows on hover.
+pub type FaceKinds = fn(&[[f64; 3]], &[[u32; 3]], &[u32]) -> serde_json::Value;
 
 /// What a viewer run measured.
 #[derive(Clone, Debug, Default, serde::Serialize)]
@@ -912,6 +919,9 @@ fn hello(
                 "frequencies_hz": b.eigenvalues.iter().map(|l| l.sqrt() / (2.0 * std::f64::consts::PI)).collect::<Vec<_>>(),
                 "loads": l.map(|l| l.cases.clone()).unwrap_or_default(),
                 "loads_error": l.and_then(|l| l.error.clone()),
+                "faces": cfg.face_kinds.zip(b.surface_faces.as_ref()).map(|(kinds, faces)| {
+                    kinds(&b.rest[..b.vertex_count()], &b.triangles, faces)
+                }),
             })
         })
         .collect();

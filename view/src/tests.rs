@@ -50,6 +50,7 @@ impl Running {
             },
             name: "tet".into(),
             limits,
+            face_kinds: None,
         };
         let (tx, rx) = std::sync::mpsc::channel();
         let stop = Arc::new(AtomicBool::new(false));

@@ -85,6 +85,7 @@ impl Args {
             session: cfg,
             name,
             limits: view::Limits::default(),
+            face_kinds: Some(face_kinds),
         };
         let stop = Arc::new(AtomicBool::new(false));
         // Ctrl-C ends the session and prints the statistics; SIGTERM and SIGHUP end the
@@ -151,4 +152,9 @@ impl Args {
             _ => Ok((Some(self.settings.spaces(p)?), None)),
         }
     }
+}
+
+/// What each CAD face of a surface is, for the page's hover ([`ves_pipeline::faces`]).
+fn face_kinds(vertices: &[[f64; 3]], triangles: &[[u32; 3]], faces: &[u32]) -> serde_json::Value {
+    serde_json::to_value(ves_pipeline::faces::of_surface(vertices, triangles, faces)).unwrap_or_default()
 }

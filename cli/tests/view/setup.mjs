@@ -103,6 +103,8 @@ try {
   await page.mouse.move((fx0 + fx1) / 2, (fy0 + fy1) / 2);
   await until(page, () => window.ves.hoverFace != null, null, 10000);
   const hovered = await page.evaluate(() => window.ves.hoverFace);
+  // The tip under the cursor says what the face is, as `ves faces` does.
+  const tip = await page.evaluate(() => document.getElementById('probe').textContent);
   await page.mouse.click((fx0 + fx1) / 2, (fy0 + fy1) / 2);
   await page.click('#pickfaces');
   const faced = await page.evaluate(() => window.ves.setup.scene().fixed);
@@ -112,7 +114,7 @@ try {
   await waitEnd(page, n);
   await page.waitForFunction(() => window.ves.ready, null, { timeout: 60000 });
   const one = await page.evaluate(() => ({ f: window.ves.hello.spaces[0].frequencies_hz, fixed: window.ves.setup.scene().fixed.length, last: window.ves.notes.at(-1) }));
-  one.hovered = hovered; one.faced = faced;
+  one.hovered = hovered; one.faced = faced; one.tip = tip;
   await page.screenshot({ path: `${out}/setup_face_held.png` });
 
   // Cancel: the compute stops at its next stage; the part shown stays. 4-node tets: a change

@@ -9,6 +9,7 @@ import * as THREE from 'three';
 import { hideProbe, showProbe, showTip } from './hud.js';
 import { HELD, HOVER, lightFaces } from './spaces.js';
 import { state } from './state.js';
+import { label } from './units.js';
 import { sendTarget } from './connection.js';
 import { camera, canvas, controls, ndc } from './viewport.js';
 
@@ -147,6 +148,21 @@ export function requestPick(done) { picking = done; }
 // Faces: while the set-up panel picks them, the face under the cursor is lit and a click calls
 // the panel back with its tag.
 let facePick = null;
+/** What the page knows of face `tag` (the hello's `faces`, as `ves faces` lists them):
+ * "face 24 · cylinder r 3.25 mm, concave · 34.6 mm²". */
+export function faceWords(tag) {
+  const space = state.hello && state.hello.spaces[state.active];
+  const f = space && Array.isArray(space.faces) ? space.faces.find((x) => x.tag === tag) : null;
+  if (!f) return `face ${tag}`;
+  const u = state.units;
+  const a = f.area_m2;
+  const area = u === 'mm' ? `${(a * 1e6).toPrecision(3)} mm²` : `${a < 1e-2 ? a.toExponential(2) : a.toPrecision(3)} m²`;
+  const kind = f.kind === 'cylinder'
+    ? `cylinder r ${label(f.radius_m, 'length', u)}${f.concave ? ', concave' : ''}`
+    : f.kind;
+  return `face ${tag} · ${kind} · ${area}`;
+}
+
 /** Face picking on (`onClick(tag)` for each click on a face) or off; `held`: the faces held. */
 export function faceMode(on, onClick, held) {
   facePick = on ? onClick : null;
@@ -176,7 +192,7 @@ function hoverNow() {
   if (facePick) {
     const tag = faceAt(ev);
     if (tag !== state.hoverFace) { state.hoverFace = tag; lightFaces('hover', tag === null ? [] : [tag], HOVER); }
-    showTip(tag === null ? null : `face ${tag}`, ev.clientX, ev.clientY);
+    showTip(tag === null ? null : faceWords(tag), ev.clientX, ev.clientY);
     return;
   }
   if (drags.size || !state.ready || state.mode) return;
