@@ -408,11 +408,8 @@ fn one(path: &Path, opts: &BatchOptions, named: &Mutex<Vec<(PathBuf, String)>>, 
             crate::output::remove_temps_of(&out, &gone.host_id, gone.pid);
         }
         crate::output::remove_stale_temps(&out);
-        // Said with the batch's own option (the precompute would name `-o` and `--force`).
-        let run = crate::output::check_as(&out, &scene.inputs(), Default::default(), "--out")
-            .map_err(anyhow::Error::from)
-            .and_then(|()| precompute::run(&scene, &out, opts.solver).map(|_| ()));
-        if let Err(e) = run {
+        // A refused output path is said with the batch's own option (not `-o` and `--force`).
+        if let Err(e) = precompute::run_for(&scene, &out, opts.solver, "--out") {
             let record = Failure {
                 source_hash: hash.clone(),
                 error: format!("{e:#}").replace('\n', " "),

@@ -214,7 +214,13 @@ pub fn run(scene: &Scene, out: &Path, choice: SolverChoice) -> Result<Summary> {
 
 /// [`run`], saying what the output may replace.
 pub fn run_with(scene: &Scene, out: &Path, choice: SolverChoice, overwrite: Overwrite) -> Result<Summary> {
-    Ok(run_checked(scene, out, choice, overwrite, Checks::WithSolve)?.summary)
+    Ok(run_checked(scene, out, choice, overwrite, Checks::WithSolve, "-o")?.summary)
+}
+
+/// [`run`] of an output a command names by option `flag` (`ves batch`'s `--out`): a refused
+/// output path's advice names that option.
+pub fn run_for(scene: &Scene, out: &Path, choice: SolverChoice, flag: &str) -> Result<Summary> {
+    Ok(run_checked(scene, out, choice, Overwrite::default(), Checks::WithSolve, flag)?.summary)
 }
 
 /// [`run`] for someone waiting to use the basis (the viewer): when the scene's mesh size is fixed
@@ -228,7 +234,7 @@ pub fn run_first<'s>(scene: &'s Scene, out: &Path, choice: SolverChoice) -> Resu
     } else {
         Checks::WithSolve
     };
-    run_checked(scene, out, choice, Overwrite::default(), checks)
+    run_checked(scene, out, choice, Overwrite::default(), checks, "-o")
 }
 
 /// A basis written, its checks made or still to come ([`run_first`]).
@@ -278,6 +284,7 @@ fn run_checked<'s>(
     choice: SolverChoice,
     overwrite: Overwrite,
     checks: Checks,
+    flag: &str,
 ) -> Result<Written<'s>> {
     let start = Instant::now();
     // Under MPI rank 0 runs the pipeline and the other ranks serve its eigen-solves. Every rank
@@ -286,17 +293,18 @@ fn run_checked<'s>(
     let root = modes::mpi_job::rank() == 0;
     let distributed = choice.is_slepc() && modes::mpi_job::ranks() > 1;
     modes::mpi_job::agree((|| {
-        crate::output::check(out, &scene.inputs(), overwrite)?;
+        crate::output::check_as(out, &scene.inputs(), overwrite, flag)?;
         if store::sidecar_path(out) == out {
             anyhow::bail!(
                 "{}: the basis is an HDF5 file and its XDMF sidecar takes the .xdmf name; name the output .h5",
                 out.display()
             );
         }
-        Ok(crate::output::check(
+        Ok(crate::output::check_as(
             &store::sidecar_path(out),
             &scene.inputs(),
             overwrite,
+            flag,
         )?)
     })())?;
     if distributed && !root {
