@@ -13,18 +13,22 @@ pub struct StepUnit {
     pub metres: f64,
 }
 
+/// The `#12 = BODY` statements of STEP text's DATA section: each entity's id and body (none
+/// without a DATA section).
+pub fn statements(text: &str) -> impl Iterator<Item = (u64, &str)> {
+    let data = text.find("DATA;").map_or("", |i| &text[i..]);
+    data.split(';').filter_map(|statement| {
+        let (id, body) = statement.trim().strip_prefix('#')?.split_once('=')?;
+        Some((id.trim().parse().ok()?, body))
+    })
+}
+
 /// The length unit of the representation contexts in STEP text (Part 21), when all of them
 /// agree on one; `None` when the file names none, several, or one this cannot resolve.
 pub fn length_unit(text: &str) -> Option<StepUnit> {
-    let data = &text[text.find("DATA;")?..];
-    // `#12 = ( … ) ;` statements: only those a unit needs are kept.
+    // Only the statements a unit needs are kept.
     let mut entities: HashMap<u64, String> = HashMap::new();
-    for statement in data.split(';') {
-        let statement = statement.trim();
-        let Some((id, body)) = statement.strip_prefix('#').and_then(|s| s.split_once('=')) else {
-            continue;
-        };
-        let Ok(id) = id.trim().parse::<u64>() else { continue };
+    for (id, body) in statements(text) {
         if body.contains("UNIT") {
             entities.insert(id, body.split_whitespace().collect::<Vec<_>>().concat());
         }

@@ -153,19 +153,17 @@ fn extent_m(scene: &Scene) -> Option<[f64; 3]> {
     let bytes = crate::input::read(&scene.geometry).ok()?;
     let text = String::from_utf8_lossy(&bytes);
     let metres = crate::step_units::length_unit(&text).map_or(scene.unit.to_metres(), |u| u.metres);
-    let data = &text[text.find("DATA;")?..];
     let mut points: std::collections::HashMap<u64, [f64; 3]> = std::collections::HashMap::new();
     let mut vertices: Vec<u64> = Vec::new();
-    for statement in data.split(';') {
-        let Some((id, body)) = statement.trim().strip_prefix('#').and_then(|s| s.split_once('=')) else {
-            continue;
-        };
+    for (id, body) in crate::step_units::statements(&text) {
         let body = body.trim_start();
         if body.starts_with("CARTESIAN_POINT") {
             // `('name',(x,y,z))`: the last parenthesis opened.
-            let inner = body[body.rfind('(')? + 1..].split(')').next().unwrap_or("");
+            let inner = body
+                .rfind('(')
+                .map_or("", |i| body[i + 1..].split(')').next().unwrap_or(""));
             let xyz: Vec<f64> = inner.split(',').filter_map(|v| v.trim().parse().ok()).collect();
-            if let (Ok(id), &[x, y, z]) = (id.trim().parse::<u64>(), xyz.as_slice()) {
+            if let &[x, y, z] = xyz.as_slice() {
                 points.insert(id, [x, y, z]);
             }
         } else if body.starts_with("VERTEX_POINT")
