@@ -96,11 +96,14 @@ pub struct Outcome {
     pub seconds: f64,
 }
 
-/// One scene of a batch before it is computed: its output, expected cost and shard.
-#[derive(Clone, Debug, Serialize)]
+/// One scene of a batch before it is computed: the scene as loaded, its output, expected cost
+/// and shard.
+#[derive(Clone, Debug)]
 pub struct Planned {
     /// Scene file.
     pub scene: PathBuf,
+    /// The scene, or why it does not load (one line).
+    pub loaded: std::result::Result<Scene, String>,
     /// Its output (None when the scene does not load).
     pub output: Option<PathBuf>,
     /// Expected cost ([`shard::expected_cost`]; 0 for a scene that does not load).
@@ -116,11 +119,12 @@ pub fn plan(scenes: &[PathBuf], opts: &BatchOptions) -> Vec<Planned> {
     let mut items: Vec<Planned> = scenes
         .iter()
         .map(|path| {
-            let scene = load(path, opts).ok();
+            let loaded = load(path, opts).map_err(|e| e.to_string().replace('\n', " "));
             Planned {
                 scene: path.clone(),
-                output: scene.as_ref().map(|s| output_of(s, opts)),
-                cost: scene.as_ref().map_or(0.0, shard::expected_cost),
+                output: loaded.as_ref().ok().map(|s| output_of(s, opts)),
+                cost: loaded.as_ref().map_or(0.0, shard::expected_cost),
+                loaded,
                 shard: 1,
             }
         })
@@ -142,6 +146,29 @@ fn load(path: &Path, opts: &BatchOptions) -> Result<Scene, crate::scene::SceneEr
         crate::scene::SceneOptions {
             allow_geo_scripts: opts.allow_geo_scripts,
         },
+    )
+}
+
+/// Each output and the scene that writes it: of scenes naming one output, the first in the
+/// agreed order (the others are refused).
+fn writers(planned: &[Planned]) -> Vec<(PathBuf, String)> {
+    let mut named: Vec<(PathBuf, String)> = Vec::new();
+    for p in planned {
+        if let Some(out) = &p.output {
+            let key = std::path::absolute(out).unwrap_or(out.clone());
+            if !named.iter().any(|(o, _)| *o == key) {
+                named.push((key, p.scene.display().to_string()));
+            }
+        }
+    }
+    named
+}
+
+/// Why a scene is refused whose output `first` writes.
+fn clash(out: &Path, first: &str) -> String {
+    format!(
+        "output {} is also written by {first}; give one of the scenes another `name`",
+        out.display()
     )
 }
 
@@ -183,14 +210,7 @@ pub fn run(scenes: &[PathBuf], opts: &BatchOptions) -> Result<Vec<Outcome>> {
             .collect(),
         Some(s) => {
             let planned = plan(scenes, opts);
-            for p in &planned {
-                if let Some(out) = &p.output {
-                    let key = std::path::absolute(out).unwrap_or(out.clone());
-                    if !named.iter().any(|(o, _)| *o == key) {
-                        named.push((key, p.scene.display().to_string()));
-                    }
-                }
-            }
+            named = writers(&planned);
             // Each shard's list as it does it: costliest first.
             let mut lists: Vec<Vec<Planned>> = vec![Vec::new(); s.count];
             for p in planned {
@@ -363,10 +383,7 @@ fn one(path: &Path, opts: &BatchOptions, named: &Mutex<Vec<(PathBuf, String)>>, 
             let mut n = named.lock().unwrap_or_else(|p| p.into_inner());
             let key = std::path::absolute(&out).unwrap_or(out.clone());
             match n.iter().find(|(o, _)| *o == key) {
-                Some((_, other)) if *other != outcome.scene => bail!(
-                    "output {} is also written by {other}; give one of the scenes another `name`",
-                    out.display()
-                ),
+                Some((_, other)) if *other != outcome.scene => bail!("{}", clash(&out, other)),
                 Some(_) => {}
                 None => n.push((key, outcome.scene.clone())),
             }
@@ -464,9 +481,9 @@ pub struct SceneState {
 /// What is done and what is left across all shards and processes: read from the output folder
 /// (outputs and claims), nothing computed or changed.
 pub fn status(scenes: &[PathBuf], opts: &BatchOptions) -> Vec<SceneState> {
-    // Of scenes naming one output, the first in the agreed order writes it (as in `run`).
-    let mut writers: Vec<(PathBuf, String)> = Vec::new();
-    plan(scenes, opts)
+    let planned = plan(scenes, opts);
+    let writers = writers(&planned);
+    planned
         .into_iter()
         .map(|p| {
             let mut s = SceneState {
@@ -479,27 +496,20 @@ pub fn status(scenes: &[PathBuf], opts: &BatchOptions) -> Vec<SceneState> {
                 owner_alive: None,
                 error: None,
             };
-            let loaded = load(&p.scene, opts);
-            let (scene, out) = match (loaded, p.output) {
+            let (scene, out) = match (p.loaded, p.output) {
                 (Ok(scene), Some(out)) => (scene, out),
                 (Err(e), _) => {
                     s.state = "unreadable";
-                    s.error = Some(e.to_string().replace('\n', " "));
+                    s.error = Some(e);
                     return s;
                 }
                 (Ok(_), None) => return s,
             };
             let key = std::path::absolute(&out).unwrap_or(out.clone());
-            match writers.iter().find(|(o, _)| *o == key) {
-                Some((_, first)) => {
-                    s.state = "unreadable";
-                    s.error = Some(format!(
-                        "output {} is also written by {first}; give one of the scenes another `name`",
-                        out.display()
-                    ));
-                    return s;
-                }
-                None => writers.push((key, s.scene.clone())),
+            if let Some((_, first)) = writers.iter().find(|(o, w)| *o == key && *w != s.scene) {
+                s.state = "unreadable";
+                s.error = Some(clash(&out, first));
+                return s;
             }
             let hash = store::source_hash(&scene).ok();
             let fresh = hash
