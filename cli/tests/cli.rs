@@ -1499,19 +1499,7 @@ fn xdmf_sidecar_shows_the_basis_to_paraview() {
     assert_eq!(xml.matches(r#"AttributeType="Vector""#).count(), 4);
     assert_eq!(xml.matches(r#"AttributeType="Tensor6""#).count(), 4);
     // `ves export --vtu` for tools that want VTK files: meshio reads exactly the basis.
-    let vtu = dir.path().join("vtu");
-    let o = ves(&["export", out.to_str().unwrap(), "--vtu", vtu.to_str().unwrap()]);
-    assert!(o.status.success(), "{}", stderr(&o));
-    let check = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/vtk/vtu_check.py");
-    let o = Command::new("python3")
-        .args([check.to_str().unwrap(), vtu.to_str().unwrap(), out.to_str().unwrap()])
-        .output()
-        .expect("python3");
-    assert!(
-        o.status.success() && String::from_utf8_lossy(&o.stdout).contains("ok"),
-        "{}",
-        stderr(&o)
-    );
+    export_vtu_and_check(&out, &dir.path().join("vtu"));
     let seen = pvpython_json("sidecar_dump.py", &[sidecar.as_os_str()]);
     let file = ves_format::BasisReader::open(&out).unwrap();
     let s = file.space("global").unwrap();

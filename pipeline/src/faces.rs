@@ -105,9 +105,12 @@ pub fn of_mesh(mesh: &Mesh) -> Vec<Face> {
 }
 
 fn face(mesh: &Mesh, tag: u32, tris: &[usize]) -> Face {
+    let frames: Vec<_> = tris
+        .iter()
+        .map(|&t| ves_numerics::fem::springs::triangle_frame(mesh, t))
+        .collect();
     let (mut area, mut centroid, mut mean_n, mut s) = (0.0, Vector3::zeros(), Vector3::zeros(), Matrix3::zeros());
-    for &t in tris {
-        let (n, c, a) = ves_numerics::fem::springs::triangle_frame(mesh, t);
+    for &(n, c, a) in &frames {
         let n = Vector3::from(n);
         area += a;
         centroid += a * Vector3::from(c);
@@ -161,10 +164,9 @@ fn face(mesh: &Mesh, tag: u32, tris: &[usize]) -> Face {
     let spread = radii.iter().fold(0.0f64, |m, x| m.max((x - r).abs()));
     if r > 0.0 && spread <= RADIUS_TOL * r {
         // A concave face's outward normals point at its axis.
-        let outward: f64 = tris
+        let outward: f64 = frames
             .iter()
-            .map(|&t| {
-                let (n, c, a_t) = ves_numerics::fem::springs::triangle_frame(mesh, t);
+            .map(|&(n, c, a_t)| {
                 let d = Vector3::from(c) - p;
                 a_t * Vector3::from(n).dot(&(d - d.dot(&a) * a))
             })

@@ -238,3 +238,20 @@ pub fn start_view(
         .to_string();
     (server, out, url)
 }
+
+/// `ves export BASIS --vtu DIR`, then meshio reads the files against the basis (h5py):
+/// `tests/vtk/vtu_check.py` must print "ok".
+pub fn export_vtu_and_check(basis: &Path, dir: &Path) {
+    let o = ves(&["export", basis.to_str().unwrap(), "--vtu", dir.to_str().unwrap()]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let check = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/vtk/vtu_check.py");
+    let o = Command::new("python3")
+        .args([check.to_str().unwrap(), dir.to_str().unwrap(), basis.to_str().unwrap()])
+        .output()
+        .expect("python3");
+    assert!(
+        o.status.success() && String::from_utf8_lossy(&o.stdout).contains("ok"),
+        "{}",
+        stderr(&o)
+    );
+}
