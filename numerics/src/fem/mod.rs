@@ -7,6 +7,7 @@ pub mod quadrature;
 pub mod share;
 pub mod springs;
 pub mod stress;
+pub mod stvk;
 
 pub use assembly::{Assembled, MassProperties, Moments, assemble};
 pub use dofs::Dofs;

@@ -10,6 +10,7 @@
 pub mod arpack;
 pub mod block;
 pub mod dense;
+pub mod derivatives;
 #[cfg(feature = "slepc")]
 pub mod mpi_job;
 #[cfg(not(feature = "slepc"))]
