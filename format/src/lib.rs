@@ -22,9 +22,9 @@ pub use element::ElementKind;
 pub use identifier::{IdentifierError, check_identifier};
 pub use names::{FORMAT, VERSION};
 #[cfg(feature = "hdf5")]
-pub use read::{BasisReader, ReadError, SpaceReader, guarded};
+pub use read::{BasisReader, Nonlinear, ReadError, SpaceReader, guarded};
 #[cfg(feature = "hdf5")]
-pub use write::{FileData, LoadData, SpaceData, WriteError, write_file};
+pub use write::{FileData, LoadData, NonlinearData, SpaceData, WriteError, write_file};
 
 /// An input that cannot be used: the file (or other input) it came from and what is wrong and
 /// what to change, shown as `path: message`. The one error of the readers of files (a basis, a

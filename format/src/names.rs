@@ -107,6 +107,23 @@ pub mod space {
     pub const CENTER_OF_MASS: &str = "center_of_mass";
     /// f64[3, 3] attribute, kg·m² about the centre of mass.
     pub const INERTIA: &str = "inertia";
+    /// Optional group (a nonlinear model, `[model] kind = "nonlinear"`): the reduced St.
+    /// Venant–Kirchhoff energy W(q) = ½ Σ λᵢ qᵢ² + qᵀ T s + ½ sᵀ H s of u = Φq, s the
+    /// r(r+1)/2 products q_k q_l (k ≤ l, ordered (0,0), (0,1), …, (1,1), …). Attributes
+    /// [`NONLINEAR_MODEL`], [`EIGENMODES`], [`DERIVATIVES_OF`].
+    pub const NONLINEAR: &str = "nonlinear";
+    /// String attribute of [`NONLINEAR`]: `"stvk"`.
+    pub const NONLINEAR_MODEL: &str = "model";
+    /// u32 attribute of [`NONLINEAR`]: the first columns of the basis that are eigenmodes; the
+    /// rest are modal derivatives made M-orthonormal and K-orthogonal (their eigenvalues are
+    /// Rayleigh quotients, and they have no error estimate).
+    pub const EIGENMODES: &str = "eigenmodes";
+    /// u32 attribute of [`NONLINEAR`]: how many lowest modes' pairwise derivatives were added.
+    pub const DERIVATIVES_OF: &str = "derivatives_of";
+    /// f64 [r, r(r+1)/2]: T, the cubic energy's coefficients.
+    pub const NONLINEAR_CUBIC: &str = "nonlinear/cubic";
+    /// f64 [r(r+1)/2, r(r+1)/2]: H, the quartic energy's (symmetric).
+    pub const NONLINEAR_QUARTIC: &str = "nonlinear/quartic";
     /// Optional group: exact static compliance.
     pub const COMPLIANCE: &str = "compliance";
     /// u32 [p].
@@ -166,6 +183,10 @@ pub mod load {
     /// Most load cases a space may hold (counted before any is read).
     pub const MAX_LOADS: usize = 64;
 }
+
+/// Largest basis of a nonlinear model (modes and derivatives): its quartic coefficients are
+/// (r(r+1)/2)² values, 11 MB at 48, and each haptic step reads them.
+pub const MAX_NONLINEAR_BASIS: usize = 48;
 
 /// Most spaces a file may hold: "global" and one per volume of interest. A file listing more is
 /// refused before any space is read, so a crafted file cannot multiply the reading work.

@@ -417,6 +417,19 @@ fn f64_array_attr(loc: &hdf5::Location, name: &str, len: usize) -> Option<Vec<f6
     (v.len() == len && v.iter().all(|x| x.is_finite())).then_some(v)
 }
 
+/// A space's reduced St. Venant–Kirchhoff model, as stored ([`sp::NONLINEAR`]).
+#[derive(Clone, Debug)]
+pub struct Nonlinear {
+    /// The first basis columns that are eigenmodes.
+    pub eigenmodes: usize,
+    /// How many lowest modes' pairwise derivatives were added.
+    pub derivatives_of: usize,
+    /// T, row-major [r, P], P = r(r+1)/2.
+    pub cubic: Vec<f64>,
+    /// H, row-major [P, P].
+    pub quartic: Vec<f64>,
+}
+
 /// One space of an open basis file, its header checked; its arrays are read on demand.
 pub struct SpaceReader<'a> {
     file: &'a BasisReader,
@@ -1074,6 +1087,70 @@ impl<'a> SpaceReader<'a> {
         })
     }
 
+    /// The reduced nonlinear model ([`sp::NONLINEAR`]), when the space has one: the model's
+    /// name checked, eigenmodes ≤ r ≤ [`names::MAX_NONLINEAR_BASIS`], both coefficient arrays of
+    /// their exact shapes (checked before they are read), finite, H symmetric.
+    pub fn nonlinear(&self) -> Result<Option<Nonlinear>, ReadError> {
+        self.guard(|| {
+            let Some(g) = self.optional_group(sp::NONLINEAR)? else {
+                return Ok(None);
+            };
+            let r = self.mode_count;
+            let model = crate::strings::read(&g, sp::NONLINEAR_MODEL);
+            if model.as_deref() != Some("stvk") {
+                return Err(self.err(format!(
+                    "{}/{} is {model:?}; this reader knows \"stvk\" (a newer VES may have written it)",
+                    sp::NONLINEAR,
+                    sp::NONLINEAR_MODEL
+                )));
+            }
+            let m = scalar_attr::<u32>(&g, sp::EIGENMODES).map(|m| m as usize);
+            let d = scalar_attr::<u32>(&g, sp::DERIVATIVES_OF).map(|d| d as usize);
+            let (Some(m), Some(d)) = (m, d) else {
+                return Err(self.err(format!(
+                    "{} lacks its u32 attributes {} and {}; the file is damaged",
+                    sp::NONLINEAR,
+                    sp::EIGENMODES,
+                    sp::DERIVATIVES_OF
+                )));
+            };
+            if m == 0 || m > r || d > m || r > names::MAX_NONLINEAR_BASIS {
+                return Err(self.err(format!(
+                    "{}: {m} eigenmodes, derivatives of {d}, {r} vectors: expected 0 < derivatives ≤ eigenmodes ≤ \
+                     vectors ≤ {}; the file is damaged",
+                    sp::NONLINEAR,
+                    names::MAX_NONLINEAR_BASIS
+                )));
+            }
+            let np = r * (r + 1) / 2;
+            for (name, want) in [(sp::NONLINEAR_CUBIC, [r, np]), (sp::NONLINEAR_QUARTIC, [np, np])] {
+                let shape = self.shape::<f64>(name, 2)?;
+                if shape != want {
+                    return Err(self.err(format!("{name} has shape {shape:?}, expected {want:?} (r = {r})")));
+                }
+            }
+            let cubic = self.finite(sp::NONLINEAR_CUBIC, self.read_all(sp::NONLINEAR_CUBIC, 2)?)?;
+            let quartic = self.finite(sp::NONLINEAR_QUARTIC, self.read_all(sp::NONLINEAR_QUARTIC, 2)?)?;
+            let scale = quartic.iter().fold(0.0f64, |a, v| a.max(v.abs()));
+            for i in 0..np {
+                for j in 0..i {
+                    if (quartic[i * np + j] - quartic[j * np + i]).abs() > 1e-9 * scale {
+                        return Err(self.err(format!(
+                            "{} is not symmetric at ({i}, {j}); the file is damaged",
+                            sp::NONLINEAR_QUARTIC
+                        )));
+                    }
+                }
+            }
+            Ok(Some(Nonlinear {
+                eigenmodes: m,
+                derivatives_of: d,
+                cubic,
+                quartic,
+            }))
+        })
+    }
+
     /// The state-transfer matrix from space `from`, its first `r_to × r_from` block row-major,
     /// when the file holds one: finite, each entry at most [`checks::MAX_TRANSFER`] in magnitude.
     pub fn transfer(&self, from: &str, r_to: usize, r_from: usize) -> Result<Option<Vec<f64>>, ReadError> {
@@ -1196,6 +1273,7 @@ impl<'a> SpaceReader<'a> {
         self.support_reactions()?;
         self.contact()?;
         self.check_transfers()?;
+        self.nonlinear()?;
         Ok(())
     }
 }

@@ -78,8 +78,23 @@ pub struct SpaceData<'a> {
     pub support_reactions: Option<(&'a [[f64; 3]], &'a [f64])>,
     /// Static load cases (`loads/<name>/`); empty: none.
     pub loads: &'a [LoadData<'a>],
+    /// The reduced nonlinear model, if any.
+    pub nonlinear: Option<NonlinearData<'a>>,
     /// Mass properties of a free body.
     pub rigid: Option<RigidProperties>,
+}
+
+/// A space's reduced St. Venant–Kirchhoff model ([`sp::NONLINEAR`]).
+#[derive(Clone, Copy, Debug)]
+pub struct NonlinearData<'a> {
+    /// The first basis columns that are eigenmodes.
+    pub eigenmodes: usize,
+    /// How many lowest modes' pairwise derivatives were added.
+    pub derivatives_of: usize,
+    /// T, row-major [r, P], P = r(r+1)/2.
+    pub cubic: &'a [f64],
+    /// H, row-major [P, P].
+    pub quartic: &'a [f64],
 }
 
 trait Ctx<T> {
@@ -278,6 +293,23 @@ fn write_space(file: &hdf5::File, s: &SpaceData<'_>) -> Result<(), WriteError> {
         .chunk(((3 * n).clamp(1, 3 * 4096), r.clamp(1, 16)))
         .create(sp::BASIS)
         .ctx(sp::BASIS)?;
+    if let Some(nl) = s.nonlinear {
+        let ng = g.create_group(sp::NONLINEAR).ctx(sp::NONLINEAR)?;
+        attr_str(&ng, sp::NONLINEAR_MODEL, "stvk")?;
+        attr_u32(&ng, sp::EIGENMODES, nl.eigenmodes as u32)?;
+        attr_u32(&ng, sp::DERIVATIVES_OF, nl.derivatives_of as u32)?;
+        let np = r * (r + 1) / 2;
+        let t = Array2::from_shape_vec((r, np), nl.cubic.to_vec()).ctx(sp::NONLINEAR_CUBIC)?;
+        g.new_dataset_builder()
+            .with_data(&t)
+            .create(sp::NONLINEAR_CUBIC)
+            .ctx(sp::NONLINEAR_CUBIC)?;
+        let h = Array2::from_shape_vec((np, np), nl.quartic.to_vec()).ctx(sp::NONLINEAR_QUARTIC)?;
+        g.new_dataset_builder()
+            .with_data(&h)
+            .create(sp::NONLINEAR_QUARTIC)
+            .ctx(sp::NONLINEAR_QUARTIC)?;
+    }
     if let Some((nodes, blocks)) = s.compliance {
         g.create_group(sp::COMPLIANCE).ctx(sp::COMPLIANCE)?;
         vector(&g, sp::COMPLIANCE_NODES, nodes)?;
@@ -374,6 +406,7 @@ mod tests {
                 contact: None,
                 transfers: &[],
                 support_reactions: None,
+                nonlinear: None,
                 loads,
                 rigid: None,
             }],

@@ -17,6 +17,7 @@ pub mod input;
 pub mod loads;
 pub mod matrices;
 pub mod mesh;
+pub mod nonlinear;
 pub mod notices;
 pub mod output;
 pub mod precompute;

@@ -31,6 +31,7 @@ struct RawScene {
     #[serde(default)]
     voi: Vec<Voi>,
     static_correction: Option<StaticCorrection>,
+    model: Option<ModelSettings>,
     contact: Option<ContactSettings>,
     #[serde(default)]
     probe: Vec<Probe>,
@@ -161,6 +162,41 @@ pub struct Probe {
 pub struct StaticCorrection {
     /// Which vertices: `"surface"` (every corner vertex on the boundary).
     pub region: CorrectionRegion,
+}
+
+/// Optional `[model]` table (a compatible v1 extension): the part's mechanics.
+#[derive(Clone, Copy, Debug, Default, Deserialize, PartialEq, Eq)]
+#[serde(deny_unknown_fields)]
+pub struct ModelSettings {
+    /// `"linear"` (default) or `"nonlinear"`.
+    #[serde(default)]
+    pub kind: ModelKind,
+    /// Nonlinear: the pairwise derivatives of this many lowest modes enrich the basis (default
+    /// [`DEFAULT_DERIVATIVES`], at most `modes.count`).
+    pub derivatives: Option<usize>,
+}
+
+/// Linear or geometrically nonlinear.
+#[derive(Clone, Copy, Debug, Default, Deserialize, PartialEq, Eq)]
+pub enum ModelKind {
+    /// u = Φq, small displacements (the default).
+    #[default]
+    #[serde(rename = "linear")]
+    Linear,
+    /// Reduced St. Venant–Kirchhoff: large displacements and rotations, small strains.
+    #[serde(rename = "nonlinear")]
+    Nonlinear,
+}
+
+/// Lowest modes whose derivatives a nonlinear model adds by default: 4 give 10 vectors, which
+/// bring a soft cantilever to within 1 % of the elastica at PL²/EI = 3 (docs/nonlinear.md).
+pub const DEFAULT_DERIVATIVES: usize = 4;
+
+/// A nonlinear model as the scene sets it.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Nonlinear {
+    /// Lowest modes whose pairwise derivatives enrich the basis.
+    pub derivatives: usize,
 }
 
 /// Optional `[contact]` table (a compatible v1 extension): the hand's contact patch.
@@ -511,6 +547,8 @@ pub struct Scene {
     pub probes: Vec<Probe>,
     /// Service load cases (`[[load]]`, then `[gravity]`), each solved statically.
     pub loads: Vec<LoadCase>,
+    /// A geometrically nonlinear model (`[model] kind = "nonlinear"`); `None`: linear.
+    pub nonlinear: Option<Nonlinear>,
 }
 
 /// One static load case of the scene.
@@ -820,6 +858,7 @@ impl Scene {
             point(&format!("probe[{i}].at"), p.at).map_err(err)?;
             force(&format!("probe[{i}].force"), p.force).map_err(err)?;
         }
+        let nonlinear = nonlinear_model(&raw, fixed.is_empty()).map_err(err)?;
         // The name becomes the output's file name (`<name>.h5`, in `ves batch --out DIR` too):
         // an identifier, never a path.
         let name = match raw.name {
@@ -856,8 +895,51 @@ impl Scene {
             stress: raw.stress.is_some_and(|s| s.enabled),
             probes: raw.probe,
             loads: load_cases(&raw.load, raw.gravity.as_ref(), !fixed_empty).map_err(err)?,
+            nonlinear,
         })
     }
+}
+
+/// The `[model]` table checked against the rest of the scene.
+fn nonlinear_model(raw: &RawScene, free_body: bool) -> Result<Option<Nonlinear>, String> {
+    let Some(m) = raw.model.filter(|m| m.kind == ModelKind::Nonlinear) else {
+        if raw.model.is_some_and(|m| m.derivatives.is_some()) {
+            return Err("model.derivatives is for model.kind = \"nonlinear\": remove it or set the kind".into());
+        }
+        return Ok(None);
+    };
+    let count = raw.modes.count;
+    let d = m.derivatives.unwrap_or(DEFAULT_DERIVATIVES.min(count));
+    if d == 0 || d > count {
+        return Err(format!(
+            "model.derivatives = {d}: the derivatives of 1 to modes.count = {count} lowest modes; use {}",
+            DEFAULT_DERIVATIVES.min(count)
+        ));
+    }
+    let r = count + d * (d + 1) / 2;
+    let max = ves_format::names::MAX_NONLINEAR_BASIS;
+    if r > max {
+        return Err(format!(
+            "modes.count = {count} with model.derivatives = {d} makes a nonlinear basis of {r} vectors, over {max} \
+             (the haptic step's cost grows as r⁴): lower modes.count or model.derivatives"
+        ));
+    }
+    if free_body {
+        return Err(
+            "model.kind = \"nonlinear\" needs a held part: add a [[fixed]] support, or use kind = \"linear\"".into(),
+        );
+    }
+    if !raw.voi.is_empty() {
+        return Err(
+            "model.kind = \"nonlinear\" has one space: remove the [[voi]] entries, or use kind = \"linear\"".into(),
+        );
+    }
+    if raw.static_correction.is_some() {
+        return Err(
+            "[static_correction] is a linear correction: remove it from a model.kind = \"nonlinear\" scene".into(),
+        );
+    }
+    Ok(Some(Nonlinear { derivatives: d }))
 }
 
 /// Default radius of the hand's contact patch, m: a fingertip pressed on a part touches a disk

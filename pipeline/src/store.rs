@@ -42,6 +42,8 @@ pub struct Space<'a> {
     pub loads: &'a [crate::loads::LoadResult],
     /// What each support carries per unit modal coordinate, if computed.
     pub reactions: Option<&'a crate::loads::ModalReactions>,
+    /// The nonlinear model, if any.
+    pub nonlinear: Option<&'a crate::nonlinear::NonlinearModel>,
 }
 
 impl Space<'_> {
@@ -69,6 +71,12 @@ impl Space<'_> {
             transfers: self.transfers,
             support_reactions: self.reactions.map(|r| (r.centres.as_slice(), r.per_mode.as_slice())),
             loads,
+            nonlinear: self.nonlinear.map(|n| ves_format::NonlinearData {
+                eigenmodes: n.eigenmodes,
+                derivatives_of: n.derivatives_of,
+                cubic: &n.reduced.t,
+                quartic: &n.reduced.h,
+            }),
             rigid: (self.modes.rigid_dropped > 0).then_some(ves_format::RigidProperties {
                 mass: self.mass.mass,
                 center: self.mass.center,
@@ -272,8 +280,11 @@ pub struct SpaceInfo {
     pub modes: usize,
     /// Their frequencies.
     pub frequencies_hz: Vec<f64>,
-    /// Largest stored relative residual.
+    /// Largest stored relative residual (of the eigenmodes, in a nonlinear model's basis).
     pub max_relative_residual: f64,
+    /// The nonlinear model, when the file has one.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub nonlinear: Option<crate::nonlinear::Summary>,
     /// Rigid modes dropped.
     pub rigid_modes_dropped: u32,
     /// Vertices with a static-correction block (0: none stored).
@@ -332,6 +343,12 @@ pub fn info(path: &Path) -> Result<BasisInfo> {
     for name in file.space_names()? {
         let s = file.space(&name)?;
         let res = s.relative_residuals()?;
+        let nonlinear = s.nonlinear()?.map(|n| crate::nonlinear::Summary {
+            eigenmodes: n.eigenmodes,
+            derivatives_of: n.derivatives_of,
+            derivatives: s.mode_count - n.eigenmodes,
+            coupling: None,
+        });
         spaces.push(SpaceInfo {
             name: name.clone(),
             nodes: s.node_count,
@@ -340,7 +357,8 @@ pub fn info(path: &Path) -> Result<BasisInfo> {
             element_order: u32::from(s.kind.order()),
             modes: s.mode_count,
             frequencies_hz: s.frequencies_hz()?,
-            max_relative_residual: res.iter().fold(0.0, |a: f64, &b| a.max(b)),
+            max_relative_residual: crate::nonlinear::max_residual(&res, nonlinear.as_ref().map(|n| n.eigenmodes)),
+            nonlinear,
             rigid_modes_dropped: s.rigid_modes_dropped,
             static_correction_vertices: s.compliance()?.map_or(0, |(n, _)| n.len()),
             contact_radius_m: s.contact()?.map_or(0.0, |c| c.radius),

@@ -35,7 +35,8 @@ impl Args {
                 .meshing_strategy
                 .as_deref()
                 .map_or(String::new(), |m| format!(", meshed by strategy \"{}\"", esc(m)));
-            let error = ves_pipeline::accuracy::summary_text(s.estimated_relative_error.as_deref());
+            let error = ves_pipeline::accuracy::summary_text(s.estimated_relative_error.as_deref())
+                + &s.nonlinear.map_or(String::new(), |n| n.text());
             println!(
                 "  {}: {} nodes ({} vertices), {} tets of order {}, {} modes {:.4}..{:.4} Hz, max residual {:.1e}, {} rigid dropped{correction}{meshing}{error}",
                 esc(&s.name),

@@ -137,7 +137,7 @@ impl Args {
         for s in &summary.spaces {
             let f: Vec<String> = s.frequencies_hz.iter().take(6).map(|f| format!("{f:.4}")).collect();
             println!(
-                "{}: {} nodes, {} tets, {} dofs, {} modes (first: {} Hz), max residual {:.1e}{}",
+                "{}: {} nodes, {} tets, {} dofs, {} modes (first: {} Hz), max residual {:.1e}{}{}",
                 s.name,
                 s.nodes,
                 s.tets,
@@ -145,7 +145,8 @@ impl Args {
                 s.frequencies_hz.len(),
                 f.join(", "),
                 s.max_relative_residual,
-                ves_pipeline::accuracy::summary_text(s.estimated_relative_error.as_deref())
+                ves_pipeline::accuracy::summary_text(s.estimated_relative_error.as_deref()),
+                s.nonlinear.map_or(String::new(), |n| n.text())
             );
         }
         println!("wrote {} in {:.2} s", summary.output, summary.timings_s.total);

@@ -20,6 +20,16 @@ pub fn vertex_stress(mesh: &Mesh, mat: &Lame, u: &[f64], r: usize) -> Vec<f64> {
     vertex_stress_averaged(mesh, mat, u, r, Averaging::Volume)
 }
 
+/// The Cauchy stress of one displacement field `u` (3n) taken as large (St. Venant–Kirchhoff:
+/// σ = F S Fᵀ / det F, S = λ tr(E) I + 2μE), at every corner vertex, row-major [6·nv]: what a
+/// nonlinear model's load case reports. Corners where det F ≤ 0 are left out of the average.
+pub fn vertex_stress_cauchy(mesh: &Mesh, mat: &Lame, u: &[f64]) -> Vec<f64> {
+    match mesh.kind {
+        Kind::Tet4 => accumulate_with::<Tet4>(mesh, mat, u, 1, Averaging::Volume, true),
+        Kind::Tet10 => accumulate_with::<Tet10>(mesh, mat, u, 1, Averaging::Volume, true),
+    }
+}
+
 /// How the corner values of the elements at a vertex are averaged.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Averaging {
@@ -40,6 +50,10 @@ pub fn vertex_stress_averaged(mesh: &Mesh, mat: &Lame, u: &[f64], r: usize, how:
 }
 
 fn accumulate<S: Shape>(mesh: &Mesh, mat: &Lame, u: &[f64], r: usize, how: Averaging) -> Vec<f64> {
+    accumulate_with::<S>(mesh, mat, u, r, how, false)
+}
+
+fn accumulate_with<S: Shape>(mesh: &Mesh, mat: &Lame, u: &[f64], r: usize, how: Averaging, large: bool) -> Vec<f64> {
     let nv = mesh.vertex_count;
     let threads = rayon::current_num_threads().max(1);
     let tets = mesh.tet_count();
@@ -48,7 +62,11 @@ fn accumulate<S: Shape>(mesh: &Mesh, mat: &Lame, u: &[f64], r: usize, how: Avera
         .into_par_iter()
         .with_min_len(tets.div_ceil(threads).max(1))
         .fold(
-            || (vec![0.0; 6 * nv * r], vec![0.0; nv], Corners::<S>::new(r)),
+            || {
+                let mut c = Corners::<S>::new(r);
+                c.large = large;
+                (vec![0.0; 6 * nv * r], vec![0.0; nv], c)
+            },
             |(mut sum, mut weight, mut corners), e| {
                 let volume = match how {
                     Averaging::Volume => mesh.corner_volume(e),
@@ -93,6 +111,8 @@ pub struct Corners<S: Shape> {
     grad: Vec<[f64; 3]>,
     /// [corner][field][component], Voigt order.
     stress: Vec<[f64; 6]>,
+    /// Cauchy stress of large displacements instead of the linear stress.
+    large: bool,
     shape: std::marker::PhantomData<fn() -> S>,
 }
 
@@ -104,6 +124,7 @@ impl<S: Shape> Corners<S> {
             gl: vec![[0.0; 4]; S::NODES],
             grad: vec![[0.0; 3]; S::NODES],
             stress: vec![[0.0; 6]; 4 * r],
+            large: false,
             shape: std::marker::PhantomData,
         }
     }
@@ -134,8 +155,18 @@ impl<S: Shape> Corners<S> {
                         Vector3::new(uj[3 * n], uj[3 * n + 1], uj[3 * n + 2]) * Vector3::from(*g).transpose()
                     })
                     .sum();
-                let eps = 0.5 * (h + h.transpose());
-                let s = Matrix3::identity() * (mat.lambda * eps.trace()) + eps * (2.0 * mat.mu);
+                let s = if self.large {
+                    match super::stvk::cauchy(mat, &h) {
+                        Some(s) => s,
+                        None => {
+                            *ok = false;
+                            break;
+                        }
+                    }
+                } else {
+                    let eps = 0.5 * (h + h.transpose());
+                    Matrix3::identity() * (mat.lambda * eps.trace()) + eps * (2.0 * mat.mu)
+                };
                 self.stress[corner * self.r + j] = [s[(0, 0)], s[(1, 1)], s[(2, 2)], s[(1, 2)], s[(0, 2)], s[(0, 1)]];
             }
         }

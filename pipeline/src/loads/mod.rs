@@ -313,24 +313,47 @@ pub fn solve_static(d: &Discretized, loads: &[Vec<f64>]) -> Result<Vec<Vec<f64>>
         .collect())
 }
 
-/// The load stage: every load case of the scene solved on `d` (none: an empty list).
-pub fn solve_loads(scene: &Scene, d: &Discretized) -> Result<Vec<LoadResult>> {
+/// The load stage: every load case of the scene solved on `d` (none: an empty list): K u = f
+/// for a linear model; for a nonlinear one ([`crate::nonlinear`]) the static equilibrium of
+/// the reduced model the runtime uses, with the Cauchy stress of its displacement.
+pub fn solve_loads(
+    scene: &Scene,
+    d: &Discretized,
+    nonlinear: Option<(&crate::nonlinear::NonlinearModel, &crate::modes::Modes)>,
+) -> Result<Vec<LoadResult>> {
     if scene.loads.is_empty() {
         return Ok(Vec::new());
     }
     require_supported(scene, d)?;
     let f = load_vectors(scene, d)?;
-    let u = solve_static(d, &f)?;
     let m = &scene.material;
     let lame = Lame::of(m);
-    let r = f.len();
-    // Stress of all cases at once: fields side by side, as the modal stress is recovered.
-    let fields: Vec<f64> = u.iter().flatten().copied().collect();
-    let stress = crate::fem::stress::vertex_stress(&d.mesh, &lame, &fields, r);
     let held =
         crate::supports::held_by_each(&d.mesh, &scene.fixed).with_context(|| scene.path.display().to_string())?;
     let springs = crate::supports::springs(&d.mesh, &scene.fixed, scene.material.young)
         .with_context(|| scene.path.display().to_string())?;
+    let degenerate =
+        |e: crate::fem::element::BadJacobian| anyhow::anyhow!("an element is degenerate (det J = {:.3e})", e.det);
+    if let Some((model, modes)) = nonlinear {
+        let basis = crate::nonlinear::full_columns(d, modes);
+        let points = crate::fem::stvk::Points::of(&d.mesh)?;
+        return scene
+            .loads
+            .iter()
+            .zip(&f)
+            .map(|(case, f)| {
+                let (u, internal, _) = crate::nonlinear::static_response(d, model, &basis, f, &points)
+                    .with_context(|| format!("load case {}", case.name))?;
+                let s = crate::fem::stress::vertex_stress_cauchy(&d.mesh, &lame, &u);
+                finish(d, case, f, (u, internal), s, (&held, &springs))
+            })
+            .collect();
+    }
+    let u = solve_static(d, &f)?;
+    let r = f.len();
+    // Stress of all cases at once: fields side by side, as the modal stress is recovered.
+    let fields: Vec<f64> = u.iter().flatten().copied().collect();
+    let stress = crate::fem::stress::vertex_stress(&d.mesh, &lame, &fields, r);
     scene
         .loads
         .iter()
@@ -338,23 +361,22 @@ pub fn solve_loads(scene: &Scene, d: &Discretized) -> Result<Vec<LoadResult>> {
         .map(|(j, case)| {
             let nv = d.mesh.vertex_count;
             let s: Vec<f64> = (0..6 * nv).map(|row| stress[row * r + j]).collect();
-            finish(d, &lame, case, &f[j], u[j].clone(), s, (&held, &springs))
+            let k_u = vector::internal_forces(&d.mesh, &lame, &u[j]).map_err(degenerate)?;
+            finish(d, case, &f[j], (u[j].clone(), k_u), s, (&held, &springs))
         })
         .collect()
 }
 
 /// One case's summary: reaction and balance, von Mises at every node, the largest values.
+/// `(u, k_u)`: the displacement and the internal force it makes (K u for a linear model).
 fn finish(
     d: &Discretized,
-    lame: &Lame,
     case: &crate::scene::LoadCase,
     f: &[f64],
-    u: Vec<f64>,
+    (u, k_u): (Vec<f64>, Vec<f64>),
     stress: Vec<f64>,
     (held, springs): (&[Vec<u32>], &[Vec<crate::fem::springs::NodeSpring>]),
 ) -> Result<LoadResult> {
-    let k_u = vector::internal_forces(&d.mesh, lame, &u)
-        .map_err(|e| anyhow::anyhow!("an element is degenerate (det J = {:.3e})", e.det))?;
     let support_reactions = support_reactions(&d.mesh, held, springs, &u, &k_u, f);
     // The supports' forces: at the DOFs they remove and in their springs.
     let reaction = [0, 1, 2].map(|c| support_reactions.iter().map(|r| r.force_n[c]).sum::<f64>());

@@ -45,6 +45,8 @@ pub struct Timings {
     pub contact: f64,
     /// What each support carries per mode (held parts).
     pub reactions: f64,
+    /// The nonlinear model: modal derivatives and the reduced energy's coefficients.
+    pub nonlinear: f64,
     /// Writing the file.
     pub write: f64,
     /// Everything.
@@ -64,6 +66,7 @@ impl Timings {
         self.loads += o.loads;
         self.contact += o.contact;
         self.reactions += o.reactions;
+        self.nonlinear += o.nonlinear;
     }
 }
 
@@ -106,6 +109,9 @@ pub struct SolvedSpace {
     pub loads: Vec<crate::loads::LoadResult>,
     /// What each support carries per unit modal coordinate (held parts' global space).
     pub reactions: Option<crate::loads::ModalReactions>,
+    /// The nonlinear model (`[model] kind = "nonlinear"`): `modes` then holds the derivatives
+    /// after the eigenmodes.
+    pub nonlinear: Option<crate::nonlinear::NonlinearModel>,
 }
 
 impl SolvedSpace {
@@ -122,10 +128,16 @@ impl SolvedSpace {
             contact: self.contact.as_ref(),
             meshing_strategy: Some(self.meshing.strategy),
             transfers: &self.transfers,
-            estimated_relative_error: self.error.as_ref().map(|e| e.relative()),
+            estimated_relative_error: self.error.as_ref().map(|e| {
+                // The derivatives after the eigenmodes have no estimate (NaN).
+                let mut v = e.relative();
+                v.resize(self.modes.eigenvalues.len(), f64::NAN);
+                v
+            }),
             stress: self.stress.as_deref(),
             loads: &self.loads,
             reactions: self.reactions.as_ref(),
+            nonlinear: self.nonlinear.as_ref(),
         }
     }
 }
@@ -138,6 +150,7 @@ impl SolvedSpace {
 pub fn needs_whole_system(scene: &Scene) -> bool {
     scene.mesh.error_estimate.on()
         || scene.static_correction.is_some()
+        || scene.nonlinear.is_some()
         || !scene.voi.is_empty()
         || !scene.loads.is_empty()
 }
@@ -172,8 +185,11 @@ pub struct SpaceSummary {
     pub dofs: usize,
     /// Elastic frequencies.
     pub frequencies_hz: Vec<f64>,
-    /// Largest relative residual.
+    /// Largest relative residual (of the eigenmodes, when a nonlinear model adds derivatives).
     pub max_relative_residual: f64,
+    /// The nonlinear model, if the scene asks for one.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub nonlinear: Option<crate::nonlinear::Summary>,
     /// max |ΦᵀMΦ − I|.
     pub orthonormality_error: f64,
     /// Rigid modes dropped.
@@ -421,7 +437,16 @@ fn write_all(scene: &Scene, out: &Path, spaces: &[SolvedSpace], transfer_s: f64,
                 tets: s.mesh.tet_count(),
                 dofs: s.dofs.free_count(),
                 frequencies_hz: s.modes.frequencies_hz(),
-                max_relative_residual: s.modes.residuals.iter().fold(0.0, |a: f64, &b| a.max(b)),
+                max_relative_residual: crate::nonlinear::max_residual(
+                    &s.modes.residuals,
+                    s.nonlinear.as_ref().map(|n| n.eigenmodes),
+                ),
+                nonlinear: s.nonlinear.as_ref().map(|n| crate::nonlinear::Summary {
+                    eigenmodes: n.eigenmodes,
+                    derivatives_of: n.derivatives_of,
+                    derivatives: n.reduced.r - n.eigenmodes,
+                    coupling: Some(n.coupling),
+                }),
                 orthonormality_error: s.modes.orthonormality_error,
                 rigid_modes_dropped: s.modes.rigid_dropped,
                 min_tet_quality: s.mesh.worst_quality().0,

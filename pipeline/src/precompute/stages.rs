@@ -110,7 +110,7 @@ pub(super) fn solve_space_checked(
     // `run_first` asks for them later only on a fixed mesh size (a refinement needs them).
     let later = checks == Checks::Later;
     debug_assert!(!later || scene.mesh.target_error.is_none());
-    let (solved, sturm, estimated) = match scene.mesh.target_error {
+    let (mut solved, sturm, estimated) = match scene.mesh.target_error {
         Some(target) => {
             progress::stage("meshing and solving until the estimate meets target_error", 0.0)?;
             refined(scene, voi, choice, target)?
@@ -139,13 +139,15 @@ pub(super) fn solve_space_checked(
         let size = solved.problem.meshing().size;
         advice::warn_about_error(scene, &name, solved.problem.mesh(), size, estimated.error.as_ref());
     }
+    let (nonlinear, nonlinear_s) = timed(|| nonlinear(scene, &mut solved));
+    let nonlinear = nonlinear?;
     progress::stage("static correction and stress", 0.85)?;
     let (contact, contact_s) = timed(|| contact_patches(scene, &solved));
     let (compliance, static_correction_s) = timed(|| compliance(scene, &solved, contact.as_ref()));
     let compliance = compliance?;
     let (stress, stress_s) = timed(|| stress(scene, &solved));
     progress::stage("service loads", 0.9)?;
-    let (loads, loads_s) = timed(|| released(|| loads(scene, &solved)));
+    let (loads, loads_s) = timed(|| released(|| loads(scene, &solved, nonlinear.as_ref())));
     let loads = loads?;
     let (reactions, reactions_s) = timed(|| reactions(scene, voi, &solved));
     let reactions = reactions?;
@@ -165,6 +167,8 @@ pub(super) fn solve_space_checked(
         reactions,
         contact_s,
         reactions_s,
+        nonlinear,
+        nonlinear_s,
     };
     Ok(store(name, voi, solved, later))
 }
@@ -201,6 +205,8 @@ pub(super) fn space_from_modes(
         reactions,
         contact_s: 0.0,
         reactions_s,
+        nonlinear: None,
+        nonlinear_s: 0.0,
     };
     Ok(store("global".to_string(), None, solved, later))
 }
@@ -411,8 +417,26 @@ fn reactions(scene: &Scene, voi: Option<&Voi>, solved: &Solved) -> Result<Option
     crate::loads::modal_reactions(scene, solved.problem.mesh(), solved.problem.dofs(), &solved.modes)
 }
 
-/// Loads: every static load case of the scene, solved on the full model (K factored once).
-fn loads(scene: &Scene, solved: &Solved) -> Result<Vec<crate::loads::LoadResult>> {
+/// The nonlinear model's basis and energy, when the scene asks for one: the modes get their
+/// derivatives appended.
+fn nonlinear(scene: &Scene, solved: &mut Solved) -> Result<Option<crate::nonlinear::NonlinearModel>> {
+    let Some(n) = scene.nonlinear else { return Ok(None) };
+    progress::stage("modal derivatives and the nonlinear model", 0.8)?;
+    let Solved { problem, modes, .. } = solved;
+    let d = problem
+        .here()
+        .context("the nonlinear model needs K, which was left on the MPI ranks")?;
+    let model = crate::nonlinear::enrich(d, modes, n.derivatives).with_context(|| scene.path.display().to_string())?;
+    Ok(Some(model))
+}
+
+/// Loads: every static load case of the scene, solved on the full model (K factored once), or
+/// as equilibria of the nonlinear model.
+fn loads(
+    scene: &Scene,
+    solved: &Solved,
+    nonlinear: Option<&crate::nonlinear::NonlinearModel>,
+) -> Result<Vec<crate::loads::LoadResult>> {
     if scene.loads.is_empty() {
         return Ok(Vec::new());
     }
@@ -420,7 +444,7 @@ fn loads(scene: &Scene, solved: &Solved) -> Result<Vec<crate::loads::LoadResult>
         .problem
         .here()
         .context("the load cases need K, which was left on the MPI ranks")?;
-    crate::loads::solve_loads(scene, d)
+    crate::loads::solve_loads(scene, d, nonlinear.map(|m| (m, &solved.modes)))
 }
 
 /// What the stages after the solve made.
@@ -437,6 +461,8 @@ struct AfterSolve {
     reactions: Option<crate::loads::ModalReactions>,
     contact_s: f64,
     reactions_s: f64,
+    nonlinear: Option<crate::nonlinear::NonlinearModel>,
+    nonlinear_s: f64,
 }
 
 /// Store: what the file writer and the summary need of the space.
@@ -470,6 +496,7 @@ fn store(name: String, voi: Option<&Voi>, solved: Solved, later: AfterSolve) -> 
         loads: later.loads_s,
         contact: later.contact_s,
         reactions: later.reactions_s,
+        nonlinear: later.nonlinear_s,
         ..Timings::default()
     };
     SolvedSpace {
@@ -491,6 +518,7 @@ fn store(name: String, voi: Option<&Voi>, solved: Solved, later: AfterSolve) -> 
         sturm: later.sturm,
         loads: later.loads,
         reactions: later.reactions,
+        nonlinear: later.nonlinear,
     }
 }
 

@@ -735,6 +735,7 @@ impl Sweep<'_> {
                 stress: None,
                 loads: &[],
                 reactions: None,
+                nonlinear: None,
             }],
         )?;
         let file_bytes = std::fs::metadata(self.tmp).map(|m| m.len()).unwrap_or(0);
