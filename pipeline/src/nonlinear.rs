@@ -4,7 +4,7 @@
 //! static equilibria of this same reduced model, so that they show what the hand would feel.
 
 use crate::fem::element::Lame;
-use crate::fem::stvk::{self, Points, Reduced};
+use crate::fem::stvk::{self, Points, Polynomial};
 use crate::linsolve::sym_matvec;
 use crate::modes::{Modes, derivatives};
 use crate::problem::Discretized;
@@ -22,7 +22,7 @@ pub struct NonlinearModel {
     /// Largest coupling through K between the modes and the added vectors (0: exact).
     pub coupling: f64,
     /// The reduced energy of the whole basis; its linear part diagonal, the eigenvalues.
-    pub reduced: Reduced,
+    pub reduced: Polynomial,
 }
 
 /// What `--json` and `ves info` say of a nonlinear model.
@@ -84,7 +84,7 @@ pub fn enrich(d: &Discretized, modes: &mut Modes, of: usize) -> Result<Nonlinear
     let r = modes.eigenvalues.len();
     let full = full_columns(d, modes);
     let points = Points::of(&d.mesh).context("the nonlinear model")?;
-    let mut reduced = Reduced::build(&points, &d.mesh, &Lame::of(&d.material), &full, r);
+    let mut reduced = stvk::reduce(&points, &d.mesh, &Lame::of(&d.material), &full, r);
     // Its linear part is Φᵀ K Φ = Λ up to the modes' residuals: the runtime integrates the
     // linear part mode by mode with the eigenvalues, so the stored model uses them too.
     let off = (0..r)

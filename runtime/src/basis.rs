@@ -128,6 +128,9 @@ pub struct Basis {
     pub source: Option<std::path::PathBuf>,
     /// What the supports carry per unit modal coordinate, when the file has it.
     pub support_reactions: Option<SupportReactions>,
+    /// The reduced nonlinear model (`[model] kind = "nonlinear"`), on the modes kept; its
+    /// linear part is diag(eigenvalues).
+    pub nonlinear: Option<std::sync::Arc<crate::nonlinear::Polynomial>>,
 }
 
 impl Basis {
@@ -221,6 +224,7 @@ impl Basis {
             fixed: vec![0; n],
             source: None,
             support_reactions: None,
+            nonlinear: None,
         })
     }
 
@@ -396,6 +400,9 @@ impl Basis {
         }
         if let Some(sr) = &mut t.support_reactions {
             sr.per_mode = sr.per_mode.chunks_exact(all).flat_map(|c| &c[..r]).copied().collect();
+        }
+        if let Some(p) = &mut t.nonlinear {
+            *p = std::sync::Arc::new(p.first(r));
         }
         // Vertex-major: keep the first r of each (vertex, component)'s `all` values (weights
         // do not depend on the modes).
@@ -644,6 +651,12 @@ mod file {
             let per_mode: Vec<f64> = per_mode.chunks_exact(all).flat_map(|c| &c[..r]).copied().collect();
             basis.bytes_loaded += 8 * (per_mode.len() + 3 * centres.len());
             basis.support_reactions = Some(SupportReactions { centres, per_mode });
+        }
+        if let Some(n) = s.nonlinear()? {
+            let all = crate::nonlinear::Polynomial::of_file(&lam, n.cubic, n.quartic);
+            let p = all.first(r);
+            basis.bytes_loaded += 8 * (p.k.len() + p.t.len() + p.h.len());
+            basis.nonlinear = Some(std::sync::Arc::new(p));
         }
         if let Some(contact) = s.contact()? {
             basis = with_contact_rows(basis, &s, &contact, &keep, &rows, r)?;

@@ -10,6 +10,7 @@
 use crate::basis::Basis;
 use crate::integrator::{ModalState, Scheme};
 use crate::kdtree::{KdTree, Neighbourhood};
+use crate::nonlinear::dot;
 use crate::rigid_body::{M3, RigidBody, V3, m3};
 
 /// Virtual coupling between the haptic interaction point (HIP) and the part.
@@ -247,6 +248,21 @@ pub struct Haptics {
     /// The whole part's safety factor is below the watch's minimum (set by whoever computes the
     /// full stress field, e.g. the drawing thread): the hands' stress criterion is then met too.
     part_alarm: bool,
+    /// The nonlinear model's implicit step, when the basis has one.
+    nonlinear: Option<NonlinearStep>,
+}
+
+/// A nonlinear basis's step ([`crate::nonlinear::Stepper`]) and its scratch.
+struct NonlinearStep {
+    model: std::sync::Arc<crate::nonlinear::Polynomial>,
+    stepper: crate::nonlinear::Stepper,
+    /// One right-hand side (r).
+    col: Vec<f64>,
+    /// The acceleration before the step (a rollback restores it).
+    saved_accel: Vec<f64>,
+    /// Scratch of [`Haptics::energy`] (a `&self` method the haptic loop calls every step: no
+    /// allocation there; never contended).
+    energy_scratch: std::sync::Mutex<crate::nonlinear::Scratch>,
 }
 
 /// One hand's device state in the part (body) frame.
@@ -300,6 +316,16 @@ impl Haptics {
         let pts: Vec<[f64; 3]> = basis.surface_vertices.iter().map(|&v| basis.rest[v as usize]).collect();
         let tree = KdTree::new(&pts, &basis.surface_vertices);
         let state = ModalState::new(&basis.eigenvalues, basis.alpha, basis.beta, dt, scheme);
+        let nonlinear = basis.nonlinear.clone().map(|model| {
+            let c: Vec<f64> = basis.eigenvalues.iter().map(|l| basis.alpha + basis.beta * l).collect();
+            NonlinearStep {
+                stepper: crate::nonlinear::Stepper::new(&model, &c, dt),
+                energy_scratch: std::sync::Mutex::new(model.scratch()),
+                model,
+                col: vec![0.0; r],
+                saved_accel: vec![0.0; r],
+            }
+        });
         let hands = (0..hands)
             .map(|_| Hand {
                 vertex: None,
@@ -335,6 +361,7 @@ impl Haptics {
             watch: ValidityWatch::default(),
             quarantined: 0,
             part_alarm: false,
+            nonlinear,
         }
     }
 
@@ -513,6 +540,9 @@ impl Haptics {
     pub fn reset(&mut self) {
         self.state.q.fill(0.0);
         self.state.v.fill(0.0);
+        if let Some(nl) = &mut self.nonlinear {
+            nl.stepper.reset();
+        }
         self.rigid = self.initial_rigid;
         for h in &mut self.hands {
             h.vertex = None;
@@ -524,6 +554,30 @@ impl Haptics {
             h.alarm_force = None;
             h.latched = false;
         }
+    }
+
+    /// The part's elastic and kinetic energy, J (mass-normalised modes): ½|v|² + W(q), with the
+    /// nonlinear model's strain energy when the basis has one. No allocation.
+    pub fn energy(&self) -> f64 {
+        match &self.nonlinear {
+            None => self.state.energy(),
+            Some(nl) => {
+                let kinetic: f64 = self.state.v.iter().map(|v| 0.5 * v * v).sum();
+                let mut w = nl
+                    .energy_scratch
+                    .lock()
+                    .unwrap_or_else(std::sync::PoisonError::into_inner);
+                kinetic + nl.model.energy(&self.state.q, &mut w)
+            }
+        }
+    }
+
+    /// The nonlinear step's counters: Newton iterations, steps with an indefinite tangent (None
+    /// for a linear basis).
+    pub fn nonlinear_counts(&self) -> Option<(u64, u64)> {
+        self.nonlinear
+            .as_ref()
+            .map(|nl| (nl.stepper.iterations, nl.stepper.indefinite))
     }
 
     /// The vertex hand `k` holds by a grab, if it does.
@@ -544,6 +598,10 @@ impl Haptics {
             rb.step(V3::zeros(), V3::zeros(), self.state.dt());
             rb
         });
+        // The nonlinear model's free motion over the step (Newton, A factored for the hands).
+        if let Some(nl) = &mut self.nonlinear {
+            nl.stepper.free(&nl.model, &self.state.q, &self.state.v);
+        }
         for (k, world) in inputs.iter().enumerate().take(self.hands.len()) {
             let out = &mut outputs[k];
             *out = HandOutput::default();
@@ -595,7 +653,10 @@ impl Haptics {
     }
 
     /// Stage 3: the vertex's free motion over the step and its step compliance.
-    fn predict(&self, k: usize, vertex: u32) -> Prediction {
+    fn predict(&mut self, k: usize, vertex: u32) -> Prediction {
+        if self.nonlinear.is_some() {
+            return self.predict_nonlinear(k, vertex);
+        }
         let hd = &self.hands[k];
         let r = self.state.q.len();
         let rest = V3::from(self.basis.rest[vertex as usize]);
@@ -612,6 +673,34 @@ impl Haptics {
             free_end: free_end + shift,
             now: now + shift,
             compliance: hd.g + hd.residual,
+        }
+    }
+
+    /// Stage 3 for a nonlinear basis: the free end from the Newton solve, and the step compliance
+    /// Φᵥ A⁻¹ Φᵥᵀ from its factor (three solves).
+    fn predict_nonlinear(&mut self, k: usize, vertex: u32) -> Prediction {
+        let r = self.state.q.len();
+        let rest = V3::from(self.basis.rest[vertex as usize]);
+        let (hd, nl) = (&self.hands[k], self.nonlinear.as_mut().expect("a nonlinear basis"));
+        let phi = |q: &[f64]| {
+            V3::new(
+                dot(&hd.rows[..r], q),
+                dot(&hd.rows[r..2 * r], q),
+                dot(&hd.rows[2 * r..], q),
+            )
+        };
+        let free_end = rest + phi(nl.stepper.free_motion());
+        let now = rest + phi(&self.state.q);
+        let mut compliance = M3::zeros();
+        for c in 0..3 {
+            nl.col.copy_from_slice(&hd.rows[c * r..(c + 1) * r]);
+            nl.stepper.solve(&mut nl.col);
+            compliance.set_column(c, &phi(&nl.col));
+        }
+        Prediction {
+            free_end,
+            now,
+            compliance,
         }
     }
 
@@ -775,7 +864,13 @@ impl Haptics {
         self.saved.0.copy_from_slice(&self.state.q);
         self.saved.1.copy_from_slice(&self.state.v);
         self.saved_rigid = self.rigid;
-        self.state.step(&self.f);
+        match &mut self.nonlinear {
+            Some(nl) => {
+                nl.saved_accel.copy_from_slice(nl.stepper.acceleration());
+                nl.stepper.finish(&mut self.state.q, &mut self.state.v, &self.f);
+            }
+            None => self.state.step(&self.f),
+        }
         let dt = self.state.dt();
         if let Some(rb) = &mut self.rigid {
             rb.step(wrench.force, wrench.torque, dt);
@@ -786,6 +881,9 @@ impl Haptics {
             self.state.q.copy_from_slice(&self.saved.0);
             self.state.v.copy_from_slice(&self.saved.1);
             self.rigid = self.saved_rigid;
+            if let Some(nl) = &mut self.nonlinear {
+                nl.stepper.set_acceleration(&nl.saved_accel);
+            }
             for o in outputs.iter_mut() {
                 o.force = [0.0; 3];
             }

@@ -12,6 +12,7 @@ pub mod device;
 pub mod haptic;
 pub mod integrator;
 pub mod kdtree;
+pub mod nonlinear;
 pub mod os;
 pub mod realtime;
 pub mod rigid_body;

@@ -1,7 +1,7 @@
 //! St. Venant–Kirchhoff elasticity: large displacements and rotations with a linear material
 //! (S = λ tr(E) I + 2μ E, E = ½(Fᵀ F − I)). The internal force of a displacement, its second
 //! derivative at rest (the right-hand side of a modal derivative), and the reduced model of a
-//! basis U ([`Reduced`]): the strain energy of u = U q is a quartic polynomial in q whose
+//! basis U ([`reduce`], evaluated by the runtime's [`Polynomial`]): the strain energy of u = U q is a quartic polynomial in q whose
 //! coefficients are integrated once, so that its force and tangent stiffness cost a fixed
 //! number of operations, whatever the mesh (Barbič & James 2005).
 //!
@@ -11,7 +11,8 @@
 use super::element::{BadJacobian, Kind, Lame, Shape, physical_gradients, tet4::Tet4, tet10::Tet10};
 use crate::tet_mesh::Mesh;
 use faer::{Accum, Mat, MatRef, Par};
-use nalgebra::{DMatrix, DVector, Matrix3};
+use nalgebra::{DMatrix, Matrix3};
+pub use ves_runtime::nonlinear::{Equilibrium, NotConverged, Polynomial};
 
 /// The quadrature points of a mesh, each with its element, weight (w · det J) and the physical
 /// gradients of its element's shape functions.
@@ -152,348 +153,97 @@ pub fn second_derivative(points: &Points, mesh: &Mesh, mat: &Lame, a: &[f64], b:
     f
 }
 
-/// Index of the pair (k, l), k ≤ l, among the r(r+1)/2 pairs ordered (0,0), (0,1), …, (1,1), …:
-/// rows 0..k hold r, r−1, …, r−k+1 pairs.
-#[inline(always)]
-fn pair_index(r: usize, k: usize, l: usize) -> usize {
-    k * r - k * k.saturating_sub(1) / 2 + (l - k)
-}
-
-/// The reduced St. Venant–Kirchhoff model of a basis U (n × r): for u = U q the strain energy
-/// is W(q) = ½ qᵀ K q + qᵀ T s + ½ sᵀ H s with s the r(r+1)/2 products q_k q_l (k ≤ l). K, T, H
-/// are integrated over every quadrature point once ([`Reduced::build`]); the force ∂W/∂q and
-/// the tangent ∂²W/∂q² then cost O(P²) and O(P r²), P = r(r+1)/2.
-#[derive(Clone, Debug)]
-pub struct Reduced {
-    /// Basis size r.
-    pub r: usize,
-    /// Uᵀ K U, r × r row-major.
-    pub k: Vec<f64>,
-    /// Cubic-energy coefficients, r × P row-major.
-    pub t: Vec<f64>,
-    /// Quartic-energy coefficients, P × P row-major (symmetric positive semi-definite).
-    pub h: Vec<f64>,
-}
-
-/// Work space of [`Reduced`]'s evaluations (no allocation once made).
-#[derive(Clone, Debug)]
-pub struct Scratch {
-    s: Vec<f64>,
-    u: Vec<f64>,
-    hj: Vec<f64>,
-    row: Vec<f64>,
-}
-
-impl Reduced {
-    /// Number of pairs P = r(r+1)/2.
-    pub fn pairs(&self) -> usize {
-        self.r * (self.r + 1) / 2
-    }
-
-    /// Integrates K, T and H of the basis `u` (column-major, `mesh.nodes.len()·3 × r`, zero at
-    /// supported DOFs) over `points`. Work O(points · P²), in blocks of points.
-    pub fn build(points: &Points, mesh: &Mesh, mat: &Lame, u: &[f64], r: usize) -> Reduced {
-        let n3 = 3 * mesh.nodes.len();
-        let np = r * (r + 1) / 2;
-        // C = L Lᵀ in engineering Voigt order (xx yy zz yz xz xy): ε·Cη = (Lᵀε)·(Lᵀη).
-        let mut c = DMatrix::<f64>::zeros(6, 6);
-        for i in 0..3 {
-            for j in 0..3 {
-                c[(i, j)] = mat.lambda + if i == j { 2.0 * mat.mu } else { 0.0 };
-            }
-            c[(3 + i, 3 + i)] = mat.mu;
+/// The reduced model of the basis `u` (column-major, `mesh.nodes.len()·3 × r`, zero at
+/// supported DOFs) over `points`. Work O(points · P²), in blocks of points.
+pub fn reduce(points: &Points, mesh: &Mesh, mat: &Lame, u: &[f64], r: usize) -> Polynomial {
+    let n3 = 3 * mesh.nodes.len();
+    let np = r * (r + 1) / 2;
+    // C = L Lᵀ in engineering Voigt order (xx yy zz yz xz xy): ε·Cη = (Lᵀε)·(Lᵀη).
+    let mut c = DMatrix::<f64>::zeros(6, 6);
+    for i in 0..3 {
+        for j in 0..3 {
+            c[(i, j)] = mat.lambda + if i == j { 2.0 * mat.mu } else { 0.0 };
         }
-        let lt = c
-            .cholesky()
-            .map_or_else(|| DMatrix::zeros(6, 6), |ch| ch.l().transpose());
-        let voigt = |y: &Matrix3<f64>| {
-            [
-                y[(0, 0)],
-                y[(1, 1)],
-                y[(2, 2)],
-                2.0 * y[(1, 2)],
-                2.0 * y[(0, 2)],
-                2.0 * y[(0, 1)],
-            ]
-        };
-        let block = 256usize;
-        let mut kk = Mat::<f64>::zeros(r, r);
-        let mut tt = Mat::<f64>::zeros(r, np);
-        let mut hh = Mat::<f64>::zeros(np, np);
-        let mut d = vec![Matrix3::<f64>::zeros(); r];
-        for start in (0..points.len()).step_by(block) {
-            let end = (start + block).min(points.len());
-            let rows = 6 * (end - start);
-            let mut a = Mat::<f64>::zeros(rows, r);
-            let mut b = Mat::<f64>::zeros(rows, np);
-            for g in start..end {
-                let t = mesh.tet(points.element[g] as usize);
-                for (k, dk) in d.iter_mut().enumerate() {
-                    *dk = Matrix3::zeros();
-                    let col = &u[k * n3..(k + 1) * n3];
-                    for (&n, gr) in t.iter().zip(points.grads(g)) {
-                        let n = n as usize;
-                        for i in 0..3 {
-                            for j in 0..3 {
-                                dk[(i, j)] += col[3 * n + i] * gr[j];
-                            }
+        c[(3 + i, 3 + i)] = mat.mu;
+    }
+    let lt = c
+        .cholesky()
+        .map_or_else(|| DMatrix::zeros(6, 6), |ch| ch.l().transpose());
+    let voigt = |y: &Matrix3<f64>| {
+        [
+            y[(0, 0)],
+            y[(1, 1)],
+            y[(2, 2)],
+            2.0 * y[(1, 2)],
+            2.0 * y[(0, 2)],
+            2.0 * y[(0, 1)],
+        ]
+    };
+    let block = 256usize;
+    let mut kk = Mat::<f64>::zeros(r, r);
+    let mut tt = Mat::<f64>::zeros(r, np);
+    let mut hh = Mat::<f64>::zeros(np, np);
+    let mut d = vec![Matrix3::<f64>::zeros(); r];
+    for start in (0..points.len()).step_by(block) {
+        let end = (start + block).min(points.len());
+        let rows = 6 * (end - start);
+        let mut a = Mat::<f64>::zeros(rows, r);
+        let mut b = Mat::<f64>::zeros(rows, np);
+        for g in start..end {
+            let t = mesh.tet(points.element[g] as usize);
+            for (k, dk) in d.iter_mut().enumerate() {
+                *dk = Matrix3::zeros();
+                let col = &u[k * n3..(k + 1) * n3];
+                for (&n, gr) in t.iter().zip(points.grads(g)) {
+                    let n = n as usize;
+                    for i in 0..3 {
+                        for j in 0..3 {
+                            dk[(i, j)] += col[3 * n + i] * gr[j];
                         }
                     }
                 }
-                let sw = points.weight[g].max(0.0).sqrt();
-                let row0 = 6 * (g - start);
-                let put = |m: &mut Mat<f64>, col: usize, y: &Matrix3<f64>| {
-                    let v = voigt(y);
-                    for i in 0..6 {
-                        let mut s = 0.0;
-                        for j in i..6 {
-                            s += lt[(i, j)] * v[j];
-                        }
-                        m[(row0 + i, col)] = sw * s;
+            }
+            let sw = points.weight[g].max(0.0).sqrt();
+            let row0 = 6 * (g - start);
+            let put = |m: &mut Mat<f64>, col: usize, y: &Matrix3<f64>| {
+                let v = voigt(y);
+                for i in 0..6 {
+                    let mut s = 0.0;
+                    for j in i..6 {
+                        s += lt[(i, j)] * v[j];
                     }
-                };
-                for (k, dk) in d.iter().enumerate() {
-                    put(&mut a, k, &(0.5 * (dk + dk.transpose())));
+                    m[(row0 + i, col)] = sw * s;
                 }
-                let mut p = 0;
-                for k in 0..r {
-                    for l in k..r {
-                        let x = d[k].transpose() * d[l];
-                        let y = if k == l { 0.5 * x } else { 0.5 * (x + x.transpose()) };
-                        put(&mut b, p, &y);
-                        p += 1;
-                    }
-                }
+            };
+            for (k, dk) in d.iter().enumerate() {
+                put(&mut a, k, &(0.5 * (dk + dk.transpose())));
             }
-            let par = Par::rayon(0);
-            faer::linalg::matmul::matmul(kk.as_mut(), Accum::Add, a.transpose(), a.as_ref(), 1.0, par);
-            faer::linalg::matmul::matmul(tt.as_mut(), Accum::Add, a.transpose(), b.as_ref(), 1.0, par);
-            faer::linalg::matmul::matmul(hh.as_mut(), Accum::Add, b.transpose(), b.as_ref(), 1.0, par);
-        }
-        let rows = |m: MatRef<'_, f64>| {
-            (0..m.nrows())
-                .flat_map(|i| (0..m.ncols()).map(move |j| m[(i, j)]))
-                .collect::<Vec<f64>>()
-        };
-        Reduced {
-            r,
-            k: rows(kk.as_ref()),
-            t: rows(tt.as_ref()),
-            h: rows(hh.as_ref()),
-        }
-    }
-
-    /// Work space for this model.
-    pub fn scratch(&self) -> Scratch {
-        let np = self.pairs();
-        Scratch {
-            s: vec![0.0; np],
-            u: vec![0.0; np],
-            hj: vec![0.0; np * self.r],
-            row: vec![0.0; self.r],
-        }
-    }
-
-    /// s = (q_k q_l)_{k ≤ l}.
-    fn products(&self, q: &[f64], s: &mut [f64]) {
-        let mut p = 0;
-        for k in 0..self.r {
-            for l in k..self.r {
-                s[p] = q[k] * q[l];
-                p += 1;
-            }
-        }
-    }
-
-    /// out += Jᵀ v, J = ∂s/∂q: (Jᵀ v)_i = Σ_{l≠i} v_(il) q_l + 2 v_(ii) q_i.
-    fn add_jt(&self, v: &[f64], q: &[f64], out: &mut [f64]) {
-        let mut p = 0;
-        for k in 0..self.r {
-            out[k] += 2.0 * v[p] * q[k];
-            p += 1;
-            for l in k + 1..self.r {
-                out[k] += v[p] * q[l];
-                out[l] += v[p] * q[k];
-                p += 1;
-            }
-        }
-    }
-
-    /// The strain energy W(q).
-    pub fn energy(&self, q: &[f64], w: &mut Scratch) -> f64 {
-        let (r, np) = (self.r, self.pairs());
-        self.products(q, &mut w.s);
-        let mut e = 0.0;
-        for i in 0..r {
-            let ki = &self.k[i * r..(i + 1) * r];
-            let ti = &self.t[i * np..(i + 1) * np];
-            e += q[i] * (0.5 * dot(ki, q) + dot(ti, &w.s));
-        }
-        for p in 0..np {
-            e += 0.5 * w.s[p] * dot(&self.h[p * np..(p + 1) * np], &w.s);
-        }
-        e
-    }
-
-    /// The reduced internal force f = ∂W/∂q = K q + T s + Jᵀ (Tᵀ q + H s) into `f`.
-    pub fn force(&self, q: &[f64], f: &mut [f64], w: &mut Scratch) {
-        let (r, np) = (self.r, self.pairs());
-        self.products(q, &mut w.s);
-        // u = Tᵀ q + H s.
-        for p in 0..np {
-            w.u[p] = dot(&self.h[p * np..(p + 1) * np], &w.s);
-        }
-        for i in 0..r {
-            let ti = &self.t[i * np..(i + 1) * np];
-            f[i] = dot(&self.k[i * r..(i + 1) * r], q) + dot(ti, &w.s);
-            for (u, t) in w.u.iter_mut().zip(ti) {
-                *u += t * q[i];
-            }
-        }
-        self.add_jt(&w.u, q, f);
-    }
-
-    /// The force (as [`Reduced::force`]) and the tangent stiffness ∂f/∂q, r × r row-major:
-    /// K + T J + (T J)ᵀ + A(Tᵀ q + H s) + Jᵀ H J, with A(v) q = Jᵀ v.
-    pub fn force_and_tangent(&self, q: &[f64], f: &mut [f64], kt: &mut [f64], w: &mut Scratch) {
-        let (r, np) = (self.r, self.pairs());
-        self.force(q, f, w);
-        kt.copy_from_slice(&self.k);
-        // A(u): u_(kl) off the diagonal, 2 u_(kk) on it (w.u holds Tᵀq + Hs from force).
-        let mut p = 0;
-        for k in 0..r {
-            kt[k * r + k] += 2.0 * w.u[p];
-            p += 1;
-            for l in k + 1..r {
-                kt[k * r + l] += w.u[p];
-                kt[l * r + k] += w.u[p];
-                p += 1;
-            }
-        }
-        // T J: row i is Jᵀ T_i; added with its transpose.
-        for i in 0..r {
-            w.row.fill(0.0);
-            self.add_jt(&self.t[i * np..(i + 1) * np], q, &mut w.row);
-            for m in 0..r {
-                kt[i * r + m] += w.row[m];
-                kt[m * r + i] += w.row[m];
-            }
-        }
-        // H J column by column (column m: Σ_l H[:, (m l)] q_l, twice for l = m; H symmetric, so
-        // row (m l) is read), then Jᵀ of it.
-        for m in 0..r {
-            let col = &mut w.hj[m * np..(m + 1) * np];
-            col.fill(0.0);
-            for (l, &ql) in q.iter().enumerate() {
-                let c = if l == m { 2.0 * ql } else { ql };
-                if c == 0.0 {
-                    continue;
-                }
-                let pl = pair_index(r, m.min(l), m.max(l));
-                for (x, h) in col.iter_mut().zip(&self.h[pl * np..(pl + 1) * np]) {
-                    *x += c * h;
+            let mut p = 0;
+            for k in 0..r {
+                for l in k..r {
+                    let x = d[k].transpose() * d[l];
+                    let y = if k == l { 0.5 * x } else { 0.5 * (x + x.transpose()) };
+                    put(&mut b, p, &y);
+                    p += 1;
                 }
             }
         }
-        for m in 0..r {
-            w.row.fill(0.0);
-            self.add_jt(&w.hj[m * np..(m + 1) * np], q, &mut w.row);
-            for i in 0..r {
-                kt[i * r + m] += w.row[i];
-            }
-        }
+        let par = Par::rayon(0);
+        faer::linalg::matmul::matmul(kk.as_mut(), Accum::Add, a.transpose(), a.as_ref(), 1.0, par);
+        faer::linalg::matmul::matmul(tt.as_mut(), Accum::Add, a.transpose(), b.as_ref(), 1.0, par);
+        faer::linalg::matmul::matmul(hh.as_mut(), Accum::Add, b.transpose(), b.as_ref(), 1.0, par);
     }
-
-    /// The static equilibrium f(q) = g of the reduced model for the modal load `g`, reached in
-    /// `steps` equal load increments, each by Newton's method with a backtracking line search on
-    /// the energy W(q) − λ gᵀq. Fails (with the last residual) when an increment does not
-    /// converge: a load past a limit point or a basis that cannot carry it.
-    pub fn equilibrium(&self, g: &[f64], steps: usize) -> Result<Equilibrium, NotConverged> {
-        let r = self.r;
-        let mut w = self.scratch();
-        let mut q = vec![0.0; r];
-        let (mut f, mut kt) = (vec![0.0; r], vec![0.0; r * r]);
-        let gnorm = norm(g).max(f64::MIN_POSITIVE);
-        let mut iterations = 0;
-        let mut residual = 0.0;
-        for step in 1..=steps.max(1) {
-            let scale = step as f64 / steps.max(1) as f64;
-            let potential = |q: &[f64], w: &mut Scratch| self.energy(q, w) - scale * dot(g, q);
-            let mut converged = false;
-            for _ in 0..50 {
-                iterations += 1;
-                self.force_and_tangent(&q, &mut f, &mut kt, &mut w);
-                let res: Vec<f64> = (0..r).map(|i| scale * g[i] - f[i]).collect();
-                residual = norm(&res) / gnorm;
-                if residual < 1e-10 {
-                    converged = true;
-                    break;
-                }
-                let a = DMatrix::from_row_slice(r, r, &kt);
-                let dq = match a.clone().cholesky() {
-                    Some(c) => c.solve(&DVector::from_vec(res.clone())),
-                    None => match a.lu().solve(&DVector::from_vec(res.clone())) {
-                        Some(x) => x,
-                        None => return Err(NotConverged { residual, scale }),
-                    },
-                };
-                let p0 = potential(&q, &mut w);
-                let mut t = 1.0;
-                loop {
-                    let trial: Vec<f64> = q.iter().zip(dq.iter()).map(|(a, b)| a + t * b).collect();
-                    if potential(&trial, &mut w) <= p0 + 1e-12 * p0.abs() || t < 1e-3 {
-                        q = trial;
-                        break;
-                    }
-                    t *= 0.5;
-                }
-                if q.iter().any(|v| !v.is_finite()) {
-                    return Err(NotConverged { residual, scale });
-                }
-            }
-            if !converged {
-                return Err(NotConverged { residual, scale });
-            }
-        }
-        Ok(Equilibrium {
-            q,
-            iterations,
-            residual,
-        })
+    let rows = |m: MatRef<'_, f64>| {
+        (0..m.nrows())
+            .flat_map(|i| (0..m.ncols()).map(move |j| m[(i, j)]))
+            .collect::<Vec<f64>>()
+    };
+    Polynomial {
+        r,
+        k: rows(kk.as_ref()),
+        t: rows(tt.as_ref()),
+        h: rows(hh.as_ref()),
     }
-}
-
-/// A static equilibrium of the reduced model.
-#[derive(Clone, Debug)]
-pub struct Equilibrium {
-    /// The reduced coordinates.
-    pub q: Vec<f64>,
-    /// Newton iterations over all increments.
-    pub iterations: usize,
-    /// ‖g − f(q)‖ / ‖g‖ at the end.
-    pub residual: f64,
-}
-
-/// An increment of a reduced static solve that did not converge.
-#[derive(Clone, Copy, Debug, thiserror::Error)]
-#[error(
-    "the nonlinear static solve did not converge at {:.0} % of the load (residual {residual:.1e}); \
-     lower the load or add modes (mesh.modes) so the basis can carry it",
-    scale * 100.0
-)]
-pub struct NotConverged {
-    /// Relative residual of the last iteration.
-    pub residual: f64,
-    /// Fraction of the load reached.
-    pub scale: f64,
-}
-
-fn dot(a: &[f64], b: &[f64]) -> f64 {
-    a.iter().zip(b).map(|(x, y)| x * y).sum()
-}
-
-fn norm(a: &[f64]) -> f64 {
-    dot(a, a).sqrt()
 }
 
 #[cfg(test)]
@@ -517,22 +267,18 @@ mod tests {
         (mesh, u)
     }
 
+    fn dot(a: &[f64], b: &[f64]) -> f64 {
+        a.iter().zip(b).map(|(x, y)| x * y).sum()
+    }
+
+    fn norm(a: &[f64]) -> f64 {
+        dot(a, a).sqrt()
+    }
+
     fn combine(u: &[f64], q: &[f64], n3: usize) -> Vec<f64> {
         (0..n3)
             .map(|i| q.iter().enumerate().map(|(k, qk)| qk * u[k * n3 + i]).sum())
             .collect()
-    }
-
-    #[test]
-    fn pairs_are_numbered_as_the_products_are_ordered() {
-        let r = 7;
-        let mut p = 0;
-        for k in 0..r {
-            for l in k..r {
-                assert_eq!(pair_index(r, k, l), p, "({k}, {l})");
-                p += 1;
-            }
-        }
     }
 
     /// The reduced force is the full St. Venant–Kirchhoff force projected on the basis, at
@@ -544,7 +290,7 @@ mod tests {
         let n3 = 3 * mesh.nodes.len();
         let mat = Lame::new(1.0e6, 0.3, 1000.0);
         let points = Points::of(&mesh).expect("valid mesh");
-        let model = Reduced::build(&points, &mesh, &mat, &u, r);
+        let model = reduce(&points, &mesh, &mat, &u, r);
         let mut w = model.scratch();
         for q in [[0.3, -0.2, 0.5, 0.1], [1.5, 0.7, -1.1, 2.0]] {
             let full = internal_force(&points, &mesh, &mat, &combine(&u, &q, n3));
@@ -570,7 +316,7 @@ mod tests {
         let (mesh, u) = beam_and_fields(r);
         let mat = Lame::new(2.0e6, 0.35, 1000.0);
         let points = Points::of(&mesh).expect("valid mesh");
-        let model = Reduced::build(&points, &mesh, &mat, &u, r);
+        let model = reduce(&points, &mesh, &mat, &u, r);
         let mut w = model.scratch();
         let q = [0.4, -0.3, 0.8, 0.2, -0.6];
         let (mut f, mut kt) = (vec![0.0; r], vec![0.0; r * r]);

@@ -225,7 +225,7 @@ mod tests {
             .collect();
         let lame = Lame::of(&model.material);
         let points = Points::of(&model.mesh).expect("valid");
-        let reduced = stvk::Reduced::build(&points, &model.mesh, &lame, &full, r);
+        let reduced = stvk::reduce(&points, &model.mesh, &lame, &full, r);
         // Uᵀ K U is diagonal with the eigenvalues and Ritz values.
         let lam: Vec<f64> = modes.eigenvalues.iter().chain(&extra.ritz_values).copied().collect();
         for i in 0..r {

@@ -178,7 +178,7 @@ impl HapticLoop<'_> {
             let active = self.haptics.sim(self.haptics.active());
             active.publish_into(self.haptics.active(), &mut published);
             self.snapshot.publish_state(&published, t);
-            tally.max_energy = tally.max_energy.max(active.state().energy());
+            tally.max_energy = tally.max_energy.max(active.energy());
             let done = Instant::now();
             timings.step_ns.record(done.duration_since(woke).as_nanos() as u64);
             pacer.next += pacer.period;

@@ -329,7 +329,7 @@ impl SessionStats {
             peak_force_n: h.tally.peak_force,
             clamped_steps: h.tally.clamped,
             max_energy_j: h.tally.max_energy,
-            final_energy_j: s.sim(s.active()).state().energy(),
+            final_energy_j: s.sim(s.active()).energy(),
             quarantined: s.sims().iter().map(|sim| sim.quarantined).sum(),
             spaces: s.sims().len(),
             switches: s.switches,

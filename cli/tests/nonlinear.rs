@@ -1,0 +1,140 @@
+//! The geometrically nonlinear model (`[model] kind = "nonlinear"`, docs/nonlinear.md): the soft
+//! cantilever's load cases against the elastica, and a hand pulling its tip through a third of
+//! its length and back in the runtime.
+
+mod common;
+
+use common::*;
+use std::path::Path;
+use std::sync::Arc;
+use ves_runtime::haptic::{Coupling, HandInput, HandOutput, Haptics};
+use ves_runtime::integrator::Scheme;
+
+/// The soft cantilever case (E = 1 MPa, 1.0 × 0.1 × 0.05 m, clamped at x = 0) precomputed.
+fn soft_cantilever() -> (tempfile::TempDir, std::path::PathBuf, serde_json::Value) {
+    let dir = tempfile::tempdir().expect("temp dir");
+    let scene = Path::new(env!("CARGO_MANIFEST_DIR")).join("../cases/soft_cantilever/scene.toml");
+    let out = dir.path().join("soft.h5");
+    let summary = precompute_json(&scene, &out);
+    (dir, out, summary)
+}
+
+/// Tip loads of PL²/EI = 0.5, 1, 2, 3 on the scene's own mesh: the tip's deflection and axial
+/// shortening (mean over the end face) against the elastica (Bisshopp & Drucker 1945; the
+/// numerics crate's shooting solution reproduces these to 2e-4).
+#[test]
+fn soft_cantilever_load_cases_follow_the_elastica() {
+    let (_dir, out, summary) = soft_cantilever();
+    let space = &summary["spaces"][0];
+    assert_eq!(space["nonlinear"]["eigenmodes"], 6, "{space}");
+    assert!(space["max_relative_residual"].as_f64().unwrap() < 1e-6);
+    let file = ves_format::BasisReader::open(&out).expect("opens");
+    let s = file.space("global").expect("global space");
+    let nodes = s.nodes(s.node_count).expect("nodes");
+    let end: Vec<usize> = (0..nodes.len()).filter(|&n| (nodes[n][0] - 1.0).abs() < 1e-9).collect();
+    assert!(end.len() > 10);
+    let loads = s.loads().expect("load cases");
+    let elastica = [
+        ("alpha_0_5", 0.1621, 0.0159),
+        ("alpha_1", 0.3017, 0.0564),
+        ("alpha_2", 0.4935, 0.1606),
+        ("alpha_3", 0.6033, 0.2544),
+    ];
+    for (name, w_ref, s_ref) in elastica {
+        let case = loads.iter().find(|l| l.name == name).expect("case stored");
+        let mean = |c: usize| end.iter().map(|&n| case.displacement[3 * n + c]).sum::<f64>() / end.len() as f64;
+        let (w, short) = (-mean(2), -mean(0));
+        eprintln!(
+            "{name}: deflection/L {w:.4} ({:+.2} %), shortening/L {short:.4} ({:+.2} %)",
+            100.0 * (w / w_ref - 1.0),
+            100.0 * (short / s_ref - 1.0)
+        );
+        assert!((w / w_ref - 1.0).abs() < 0.02, "{name}: deflection {w} vs {w_ref}");
+        assert!(
+            (short / s_ref - 1.0).abs() < 0.03,
+            "{name}: shortening {short} vs {s_ref}"
+        );
+        assert!(case.max_von_mises.is_finite() && case.max_von_mises > 0.0);
+    }
+}
+
+/// A hand grabs the tip and pulls it down by 0.3 m (30 % of the length) and back, then lets go:
+/// the tip moves on an arc (it comes in along x as it goes down, which a linear basis cannot
+/// do), no step is rolled back, and the free, undamped part's energy does not grow.
+#[test]
+fn a_hand_pulls_the_soft_tip_through_a_third_of_its_length_and_back() {
+    let (_dir, out, _) = soft_cantilever();
+    let basis = Arc::new(ves_runtime::basis::load(&out, &Default::default()).expect("loads"));
+    assert!(basis.nonlinear.is_some());
+    let tip = (0..basis.vertex_count())
+        .min_by(|&a, &b| {
+            let d = |i: usize| {
+                let p = basis.rest[i];
+                (p[0] - 1.0).powi(2) + (p[1] - 0.05).powi(2) + (p[2] - 0.025).powi(2)
+            };
+            d(a).total_cmp(&d(b))
+        })
+        .expect("a vertex");
+    let start = basis.rest[tip];
+    let mut h = Haptics::new(basis.clone(), Coupling::default(), 1e-3, Scheme::Exact, 1);
+    let mut out = [HandOutput::default()];
+    let (ramp, hold) = (1500usize, 500usize);
+    let target = |k: usize| -> (f64, f64) {
+        let s = if k < ramp {
+            k as f64 / ramp as f64
+        } else if k < ramp + hold {
+            1.0
+        } else if k < 2 * ramp + hold {
+            1.0 - (k - ramp - hold) as f64 / ramp as f64
+        } else {
+            0.0
+        };
+        let rate = if k < ramp {
+            1.0
+        } else if (ramp + hold..2 * ramp + hold).contains(&k) {
+            -1.0
+        } else {
+            0.0
+        };
+        (-0.3 * s, -0.3 * rate / (ramp as f64 * 1e-3))
+    };
+    let mut deepest = [0.0f64; 3];
+    for k in 0..2 * ramp + hold {
+        let (dz, vz) = target(k);
+        let input = HandInput {
+            position: [start[0], start[1], start[2] + dz],
+            velocity: [0.0, 0.0, vz],
+            button: true,
+        };
+        h.step(&[input], &mut out);
+        assert!(out[0].force.iter().all(|f| f.is_finite()), "step {k}");
+        if k == ramp + hold - 1 {
+            deepest = h.displacement(tip);
+        }
+    }
+    eprintln!("tip at the deepest pull: {deepest:?}; energy {:.4e}", h.energy());
+    assert!(deepest[2] < -0.25, "the tip followed the hand down: {deepest:?}");
+    // The elastica at a deflection of 0.3 L has the tip come in by about 0.05 L.
+    assert!(deepest[0] < -0.03, "the tip moved on an arc: {deepest:?}");
+    assert_eq!(h.quarantined, 0);
+    // Let go, then leave the undamped part alone for 3 s.
+    let release = HandInput {
+        position: [start[0] + 1.0, start[1], start[2]],
+        velocity: [0.0; 3],
+        button: false,
+    };
+    h.step(&[release], &mut out);
+    let e0 = h.energy();
+    let mut top = e0;
+    for _ in 0..3000 {
+        h.step(&[release], &mut out);
+        top = top.max(h.energy());
+        assert!(h.state().q.iter().all(|q| q.is_finite()));
+    }
+    let (iterations, indefinite) = h.nonlinear_counts().expect("a nonlinear basis");
+    eprintln!(
+        "energy after release {e0:.4e}, largest later {top:.4e}; {iterations} Newton iterations, {indefinite} indefinite"
+    );
+    assert!(top <= e0 * 1.01 + 1e-12, "energy grew from {e0} to {top}");
+    assert_eq!(h.quarantined, 0);
+}

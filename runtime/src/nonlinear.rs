@@ -1,0 +1,495 @@
+//! The geometrically nonlinear reduced model (`[model] kind = "nonlinear"`, docs/nonlinear.md):
+//! reduced St. Venant–Kirchhoff on the modes and their modal derivatives. [`Polynomial`] is
+//! the strain energy of u = Φq, a quartic in q whose coefficients the basis file stores
+//! (`spaces/X/nonlinear`); [`Stepper`] advances it by implicit Newmark (average acceleration)
+//! with Newton iterations warm-started from the last step, allocation-free, and gives the hand
+//! its step compliance from the same factor, so the coupling stays implicit.
+
+use nalgebra::{DMatrix, DVector};
+
+/// Index of the pair (k, l), k ≤ l, among the r(r+1)/2 pairs ordered (0,0), (0,1), …, (1,1), …:
+/// rows 0..k hold r, r−1, …, r−k+1 pairs.
+#[inline(always)]
+fn pair_index(r: usize, k: usize, l: usize) -> usize {
+    k * r - k * k.saturating_sub(1) / 2 + (l - k)
+}
+
+/// The reduced St. Venant–Kirchhoff model of a basis U (n × r): for u = U q the strain energy
+/// is W(q) = ½ qᵀ K q + qᵀ T s + ½ sᵀ H s with s the r(r+1)/2 products q_k q_l (k ≤ l). K, T, H
+/// are integrated over the mesh once (`ves_numerics::fem::stvk::reduce`); the force ∂W/∂q and
+/// the tangent ∂²W/∂q² then cost O(P²) and O(P r²), P = r(r+1)/2.
+#[derive(Clone, Debug)]
+pub struct Polynomial {
+    /// Basis size r.
+    pub r: usize,
+    /// Uᵀ K U, r × r row-major.
+    pub k: Vec<f64>,
+    /// Cubic-energy coefficients, r × P row-major.
+    pub t: Vec<f64>,
+    /// Quartic-energy coefficients, P × P row-major (symmetric positive semi-definite).
+    pub h: Vec<f64>,
+}
+
+/// Work space of [`Polynomial`]'s evaluations (no allocation once made).
+#[derive(Clone, Debug)]
+pub struct Scratch {
+    s: Vec<f64>,
+    u: Vec<f64>,
+    hj: Vec<f64>,
+    row: Vec<f64>,
+}
+
+impl Polynomial {
+    /// Number of pairs P = r(r+1)/2.
+    pub fn pairs(&self) -> usize {
+        self.r * (self.r + 1) / 2
+    }
+
+    /// The model a basis file stores: linear part diag(λ), cubic T [r, P] and quartic H [P, P]
+    /// row-major (shapes checked by the reader).
+    pub fn of_file(eigenvalues: &[f64], cubic: Vec<f64>, quartic: Vec<f64>) -> Polynomial {
+        let r = eigenvalues.len();
+        let mut k = vec![0.0; r * r];
+        for (i, l) in eigenvalues.iter().enumerate() {
+            k[i * r + i] = *l;
+        }
+        Polynomial {
+            r,
+            k,
+            t: cubic,
+            h: quartic,
+        }
+    }
+
+    /// The model of the first `r` vectors alone: the energy restricted to q_j = 0 for j ≥ r,
+    /// which keeps exactly the coefficients of those vectors' products.
+    pub fn first(&self, r: usize) -> Polynomial {
+        let (all, np_all) = (self.r, self.pairs());
+        let r = r.min(all);
+        let pairs: Vec<usize> = (0..r)
+            .flat_map(|k| (k..r).map(move |l| pair_index(all, k, l)))
+            .collect();
+        let k = (0..r)
+            .flat_map(|i| (0..r).map(move |j| (i, j)))
+            .map(|(i, j)| self.k[i * all + j])
+            .collect();
+        let t = (0..r)
+            .flat_map(|i| pairs.iter().map(move |&p| self.t[i * np_all + p]))
+            .collect();
+        let h = pairs
+            .iter()
+            .flat_map(|&a| pairs.iter().map(move |&b| self.h[a * np_all + b]))
+            .collect();
+        Polynomial { r, k, t, h }
+    }
+
+    /// Work space for this model.
+    pub fn scratch(&self) -> Scratch {
+        let np = self.pairs();
+        Scratch {
+            s: vec![0.0; np],
+            u: vec![0.0; np],
+            hj: vec![0.0; np * self.r],
+            row: vec![0.0; self.r],
+        }
+    }
+
+    /// s = (q_k q_l)_{k ≤ l}.
+    fn products(&self, q: &[f64], s: &mut [f64]) {
+        let mut p = 0;
+        for k in 0..self.r {
+            for l in k..self.r {
+                s[p] = q[k] * q[l];
+                p += 1;
+            }
+        }
+    }
+
+    /// out += Jᵀ v, J = ∂s/∂q: (Jᵀ v)_i = Σ_{l≠i} v_(il) q_l + 2 v_(ii) q_i.
+    fn add_jt(&self, v: &[f64], q: &[f64], out: &mut [f64]) {
+        let mut p = 0;
+        for k in 0..self.r {
+            out[k] += 2.0 * v[p] * q[k];
+            p += 1;
+            for l in k + 1..self.r {
+                out[k] += v[p] * q[l];
+                out[l] += v[p] * q[k];
+                p += 1;
+            }
+        }
+    }
+
+    /// The strain energy W(q).
+    pub fn energy(&self, q: &[f64], w: &mut Scratch) -> f64 {
+        let (r, np) = (self.r, self.pairs());
+        self.products(q, &mut w.s);
+        let mut e = 0.0;
+        for i in 0..r {
+            let ki = &self.k[i * r..(i + 1) * r];
+            let ti = &self.t[i * np..(i + 1) * np];
+            e += q[i] * (0.5 * dot(ki, q) + dot(ti, &w.s));
+        }
+        for p in 0..np {
+            e += 0.5 * w.s[p] * dot(&self.h[p * np..(p + 1) * np], &w.s);
+        }
+        e
+    }
+
+    /// The reduced internal force f = ∂W/∂q = K q + T s + Jᵀ (Tᵀ q + H s) into `f`.
+    pub fn force(&self, q: &[f64], f: &mut [f64], w: &mut Scratch) {
+        let (r, np) = (self.r, self.pairs());
+        self.products(q, &mut w.s);
+        // u = Tᵀ q + H s.
+        for p in 0..np {
+            w.u[p] = dot(&self.h[p * np..(p + 1) * np], &w.s);
+        }
+        for i in 0..r {
+            let ti = &self.t[i * np..(i + 1) * np];
+            f[i] = dot(&self.k[i * r..(i + 1) * r], q) + dot(ti, &w.s);
+            for (u, t) in w.u.iter_mut().zip(ti) {
+                *u += t * q[i];
+            }
+        }
+        self.add_jt(&w.u, q, f);
+    }
+
+    /// The force (as [`Polynomial::force`]) and the tangent stiffness ∂f/∂q, r × r row-major:
+    /// K + T J + (T J)ᵀ + A(Tᵀ q + H s) + Jᵀ H J, with A(v) q = Jᵀ v.
+    pub fn force_and_tangent(&self, q: &[f64], f: &mut [f64], kt: &mut [f64], w: &mut Scratch) {
+        let (r, np) = (self.r, self.pairs());
+        self.force(q, f, w);
+        kt.copy_from_slice(&self.k);
+        // A(u): u_(kl) off the diagonal, 2 u_(kk) on it (w.u holds Tᵀq + Hs from force).
+        let mut p = 0;
+        for k in 0..r {
+            kt[k * r + k] += 2.0 * w.u[p];
+            p += 1;
+            for l in k + 1..r {
+                kt[k * r + l] += w.u[p];
+                kt[l * r + k] += w.u[p];
+                p += 1;
+            }
+        }
+        // T J: row i is Jᵀ T_i; added with its transpose.
+        for i in 0..r {
+            w.row.fill(0.0);
+            self.add_jt(&self.t[i * np..(i + 1) * np], q, &mut w.row);
+            for m in 0..r {
+                kt[i * r + m] += w.row[m];
+                kt[m * r + i] += w.row[m];
+            }
+        }
+        // H J column by column (column m: Σ_l H[:, (m l)] q_l, twice for l = m; H symmetric, so
+        // row (m l) is read), then Jᵀ of it.
+        for m in 0..r {
+            let col = &mut w.hj[m * np..(m + 1) * np];
+            col.fill(0.0);
+            for (l, &ql) in q.iter().enumerate() {
+                let c = if l == m { 2.0 * ql } else { ql };
+                if c == 0.0 {
+                    continue;
+                }
+                let pl = pair_index(r, m.min(l), m.max(l));
+                for (x, h) in col.iter_mut().zip(&self.h[pl * np..(pl + 1) * np]) {
+                    *x += c * h;
+                }
+            }
+        }
+        for m in 0..r {
+            w.row.fill(0.0);
+            self.add_jt(&w.hj[m * np..(m + 1) * np], q, &mut w.row);
+            for i in 0..r {
+                kt[i * r + m] += w.row[i];
+            }
+        }
+    }
+
+    /// The static equilibrium f(q) = g of the reduced model for the modal load `g`, reached in
+    /// `steps` equal load increments, each by Newton's method with a backtracking line search on
+    /// the energy W(q) − λ gᵀq. Fails (with the last residual) when an increment does not
+    /// converge: a load past a limit point or a basis that cannot carry it.
+    pub fn equilibrium(&self, g: &[f64], steps: usize) -> Result<Equilibrium, NotConverged> {
+        let r = self.r;
+        let mut w = self.scratch();
+        let mut q = vec![0.0; r];
+        let (mut f, mut kt) = (vec![0.0; r], vec![0.0; r * r]);
+        let gnorm = norm(g).max(f64::MIN_POSITIVE);
+        let mut iterations = 0;
+        let mut residual = 0.0;
+        for step in 1..=steps.max(1) {
+            let scale = step as f64 / steps.max(1) as f64;
+            let potential = |q: &[f64], w: &mut Scratch| self.energy(q, w) - scale * dot(g, q);
+            let mut converged = false;
+            for _ in 0..50 {
+                iterations += 1;
+                self.force_and_tangent(&q, &mut f, &mut kt, &mut w);
+                let res: Vec<f64> = (0..r).map(|i| scale * g[i] - f[i]).collect();
+                residual = norm(&res) / gnorm;
+                if residual < 1e-10 {
+                    converged = true;
+                    break;
+                }
+                let a = DMatrix::from_row_slice(r, r, &kt);
+                let dq = match a.clone().cholesky() {
+                    Some(c) => c.solve(&DVector::from_vec(res.clone())),
+                    None => match a.lu().solve(&DVector::from_vec(res.clone())) {
+                        Some(x) => x,
+                        None => return Err(NotConverged { residual, scale }),
+                    },
+                };
+                let p0 = potential(&q, &mut w);
+                let mut t = 1.0;
+                loop {
+                    let trial: Vec<f64> = q.iter().zip(dq.iter()).map(|(a, b)| a + t * b).collect();
+                    if potential(&trial, &mut w) <= p0 + 1e-12 * p0.abs() || t < 1e-3 {
+                        q = trial;
+                        break;
+                    }
+                    t *= 0.5;
+                }
+                if q.iter().any(|v| !v.is_finite()) {
+                    return Err(NotConverged { residual, scale });
+                }
+            }
+            if !converged {
+                return Err(NotConverged { residual, scale });
+            }
+        }
+        Ok(Equilibrium {
+            q,
+            iterations,
+            residual,
+        })
+    }
+}
+
+/// A static equilibrium of the reduced model.
+#[derive(Clone, Debug)]
+pub struct Equilibrium {
+    /// The reduced coordinates.
+    pub q: Vec<f64>,
+    /// Newton iterations over all increments.
+    pub iterations: usize,
+    /// ‖g − f(q)‖ / ‖g‖ at the end.
+    pub residual: f64,
+}
+
+/// An increment of a reduced static solve that did not converge.
+#[derive(Clone, Copy, Debug, thiserror::Error)]
+#[error(
+    "the nonlinear static solve did not converge at {:.0} % of the load (residual {residual:.1e}); \
+     lower the load or add modes (mesh.modes) so the basis can carry it",
+    scale * 100.0
+)]
+pub struct NotConverged {
+    /// Relative residual of the last iteration.
+    pub residual: f64,
+    /// Fraction of the load reached.
+    pub scale: f64,
+}
+
+/// Σ aᵢ bᵢ.
+pub(crate) fn dot(a: &[f64], b: &[f64]) -> f64 {
+    a.iter().zip(b).map(|(x, y)| x * y).sum()
+}
+
+fn norm(a: &[f64]) -> f64 {
+    dot(a, a).sqrt()
+}
+
+/// Most Newton iterations of one haptic step's free motion.
+pub const STEP_ITERATIONS: usize = 3;
+
+/// Implicit Newmark (β = ¼, γ = ½) for M q̈ + C q̇ + f(q) = g with M = I (mass-orthonormal
+/// basis) and C = diag(α + βλᵢ): the step's residual
+/// R(q₁) = (4/dt² + 2C/dt)(q₁ − q₀) − (4/dt + C) v₀ − a₀ + f(q₁) − g, its Jacobian
+/// A = 4/dt² + 2C/dt + K_t(q₁). A step is [`Stepper::free`] (Newton on R = 0 with g = 0,
+/// leaving A factored), then any number of [`Stepper::solve`] (the hands' compliance
+/// Φᵥ A⁻¹ Φᵥᵀ), then [`Stepper::finish`] with the hands' modal force (q₁ = q_free + A⁻¹ g, the
+/// linearisation the coupling used). No allocation after [`Stepper::new`].
+#[derive(Clone, Debug)]
+pub struct Stepper {
+    dt: f64,
+    /// (4/dt² + 2cᵢ/dt), the inertia and damping part of A.
+    diag: Vec<f64>,
+    c: Vec<f64>,
+    /// Acceleration of the last step.
+    accel: Vec<f64>,
+    q_free: Vec<f64>,
+    f: Vec<f64>,
+    res: Vec<f64>,
+    /// A, then its Cholesky factor L (lower, row-major).
+    a: Vec<f64>,
+    /// The linear part of A, the fallback where the tangent is not positive definite.
+    linear: Vec<f64>,
+    work: Scratch,
+    /// Newton iterations taken, over all steps.
+    pub iterations: u64,
+    /// Steps whose tangent was not positive definite (the linear stiffness stood in).
+    pub indefinite: u64,
+    /// Relative residual ‖R‖/‖f(q)‖ after the last free step's iterations.
+    pub last_residual: f64,
+}
+
+impl Stepper {
+    /// At rest, for the model `p`, damping coefficients `c` (one per vector) and step `dt`.
+    pub fn new(p: &Polynomial, c: &[f64], dt: f64) -> Stepper {
+        let r = p.r;
+        let diag: Vec<f64> = c.iter().map(|ci| 4.0 / (dt * dt) + 2.0 * ci / dt).collect();
+        let mut linear = p.k.clone();
+        for i in 0..r {
+            linear[i * r + i] += diag[i];
+        }
+        Stepper {
+            dt,
+            diag,
+            c: c.to_vec(),
+            accel: vec![0.0; r],
+            q_free: vec![0.0; r],
+            f: vec![0.0; r],
+            res: vec![0.0; r],
+            a: vec![0.0; r * r],
+            linear,
+            work: p.scratch(),
+            iterations: 0,
+            indefinite: 0,
+            last_residual: 0.0,
+        }
+    }
+
+    /// Back to rest (accelerations zero).
+    pub fn reset(&mut self) {
+        self.accel.fill(0.0);
+    }
+
+    /// The free motion over the step from (q₀, v₀): Newton on R(q₁) = 0 without the hands'
+    /// force, from the constant-acceleration predictor; A is left factored at the last iterate.
+    /// Returns q at the end of the step without the hands.
+    pub fn free(&mut self, p: &Polynomial, q0: &[f64], v0: &[f64]) -> &[f64] {
+        let (r, dt) = (p.r, self.dt);
+        for i in 0..r {
+            self.q_free[i] = q0[i] + dt * v0[i] + 0.25 * dt * dt * self.accel[i];
+        }
+        for it in 0..STEP_ITERATIONS {
+            p.force_and_tangent(&self.q_free, &mut self.f, &mut self.a, &mut self.work);
+            let mut rn = 0.0;
+            let mut fnorm = 0.0;
+            for i in 0..r {
+                let inertia = self.diag[i] * (self.q_free[i] - q0[i]) - (4.0 / dt + self.c[i]) * v0[i] - self.accel[i];
+                self.res[i] = -(inertia + self.f[i]);
+                rn += self.res[i] * self.res[i];
+                fnorm += self.f[i] * self.f[i] + inertia * inertia;
+                self.a[i * r + i] += self.diag[i];
+            }
+            if !cholesky_in_place(&mut self.a, r) {
+                self.indefinite += 1;
+                self.a.copy_from_slice(&self.linear);
+                cholesky_in_place(&mut self.a, r);
+            }
+            self.last_residual = (rn / fnorm.max(f64::MIN_POSITIVE)).sqrt();
+            if it > 0 && self.last_residual < 1e-9 {
+                break;
+            }
+            self.iterations += 1;
+            cholesky_solve(&self.a, r, &mut self.res);
+            for i in 0..r {
+                self.q_free[i] += self.res[i];
+            }
+        }
+        &self.q_free
+    }
+
+    /// q at the end of the step without the hands (the last [`Stepper::free`]).
+    pub fn free_motion(&self) -> &[f64] {
+        &self.q_free
+    }
+
+    /// x ← A⁻¹ x with the factor of the last [`Stepper::free`].
+    pub fn solve(&self, x: &mut [f64]) {
+        cholesky_solve(&self.a, x.len(), x);
+    }
+
+    /// Ends the step under the modal force `g`: q₁ = q_free + A⁻¹ g, then a₁ and v₁ by
+    /// Newmark's formulas; `q` and `v` hold (q₀, v₀) and get (q₁, v₁).
+    pub fn finish(&mut self, q: &mut [f64], v: &mut [f64], g: &[f64]) {
+        let (r, dt) = (q.len(), self.dt);
+        self.res.copy_from_slice(g);
+        cholesky_solve(&self.a, r, &mut self.res);
+        for i in 0..r {
+            let q1 = self.q_free[i] + self.res[i];
+            let a1 = 4.0 / (dt * dt) * (q1 - q[i] - dt * v[i]) - self.accel[i];
+            v[i] += 0.5 * dt * (self.accel[i] + a1);
+            q[i] = q1;
+            self.accel[i] = a1;
+        }
+    }
+
+    /// The acceleration state (for a rollback).
+    pub fn acceleration(&self) -> &[f64] {
+        &self.accel
+    }
+
+    /// Sets the acceleration state (a rollback).
+    pub fn set_acceleration(&mut self, a: &[f64]) {
+        self.accel.copy_from_slice(a);
+    }
+}
+
+/// In-place Cholesky A = L Lᵀ of a row-major r × r matrix (lower triangle written); false when a
+/// pivot is not positive. Hand-written: the haptic step cannot allocate, and r ≤ 48.
+fn cholesky_in_place(a: &mut [f64], r: usize) -> bool {
+    for j in 0..r {
+        let mut d = a[j * r + j];
+        for k in 0..j {
+            d -= a[j * r + k] * a[j * r + k];
+        }
+        if !(d > 0.0 && d.is_finite()) {
+            return false;
+        }
+        let d = d.sqrt();
+        a[j * r + j] = d;
+        for i in j + 1..r {
+            let mut s = a[i * r + j];
+            for k in 0..j {
+                s -= a[i * r + k] * a[j * r + k];
+            }
+            a[i * r + j] = s / d;
+        }
+    }
+    true
+}
+
+/// x ← (L Lᵀ)⁻¹ x.
+fn cholesky_solve(l: &[f64], r: usize, x: &mut [f64]) {
+    for i in 0..r {
+        let mut s = x[i];
+        for k in 0..i {
+            s -= l[i * r + k] * x[k];
+        }
+        x[i] = s / l[i * r + i];
+    }
+    for i in (0..r).rev() {
+        let mut s = x[i];
+        for k in i + 1..r {
+            s -= l[k * r + i] * x[k];
+        }
+        x[i] = s / l[i * r + i];
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn pairs_are_numbered_as_the_products_are_ordered() {
+        let r = 7;
+        let mut p = 0;
+        for k in 0..r {
+            for l in k..r {
+                assert_eq!(pair_index(r, k, l), p, "({k}, {l})");
+                p += 1;
+            }
+        }
+    }
+}
