@@ -211,6 +211,10 @@ struct Hand {
     last_force: V3,
     /// Per surface neighbour k: the modal row of the edge strain, (φ_k − φ_i)·d / |d|².
     edge_rows: Vec<f64>,
+    /// A nonlinear basis: each edge's relative displacement rows, [edge][component][mode], and
+    /// its rest vector, for its Green strain (rotation-free) instead of the linear one.
+    edge_vectors: Vec<f64>,
+    edge_rest: [V3; STRAIN_NEIGHBOURS],
     /// Neighbours in `edge_rows`.
     edges: usize,
     /// Per neighbour: static edge strain per newton at the vertex, Σ_j edge_j φ_j / λ_j.
@@ -337,6 +341,15 @@ impl Haptics {
                 residual: M3::zeros(),
                 last_force: V3::zeros(),
                 edge_rows: vec![0.0; STRAIN_NEIGHBOURS * r],
+                edge_vectors: vec![
+                    0.0;
+                    if basis.nonlinear.is_some() {
+                        STRAIN_NEIGHBOURS * 3 * r
+                    } else {
+                        0
+                    }
+                ],
+                edge_rest: [V3::zeros(); STRAIN_NEIGHBOURS],
                 edges: 0,
                 strain_per_newton: [V3::zeros(); STRAIN_NEIGHBOURS],
                 capped: false,
@@ -482,6 +495,15 @@ impl Haptics {
                     .sum::<f64>()
                     / l2.max(f64::MIN_POSITIVE);
             }
+            if !hd.edge_vectors.is_empty() {
+                hd.edge_rest[e] = V3::from(d);
+                for c in 0..3 {
+                    for j in 0..r {
+                        let col = &basis.phi[j * n3..(j + 1) * n3];
+                        hd.edge_vectors[(3 * e + c) * r + j] = f64::from(col[3 * k + c]) - f64::from(col[3 * i + c]);
+                    }
+                }
+            }
             let edge = &hd.edge_rows[e * r..(e + 1) * r];
             hd.strain_per_newton[e] = V3::from_fn(|a, _| {
                 (0..r)
@@ -519,10 +541,22 @@ impl Haptics {
         Some(s)
     }
 
-    /// Largest |edge strain| at hand `k`'s vertex for the current modal state.
+    /// Largest |edge strain| at hand `k`'s vertex for the current modal state: the linear axial
+    /// strain, or with a nonlinear basis the Green strain ((|d + Δu|² − |d|²) / 2|d|², blind to
+    /// rotation, the strain St. Venant–Kirchhoff is linear in).
     fn edge_strain(&self, k: usize) -> f64 {
         let hd = &self.hands[k];
         let r = self.state.q.len();
+        if !hd.edge_vectors.is_empty() {
+            let q = &self.state.q;
+            return (0..hd.edges)
+                .map(|e| {
+                    let du = V3::from_fn(|c, _| dot(&hd.edge_vectors[(3 * e + c) * r..(3 * e + c + 1) * r], q));
+                    let d = hd.edge_rest[e];
+                    ((d + du).norm_squared() - d.norm_squared()).abs() / (2.0 * d.norm_squared()).max(f64::MIN_POSITIVE)
+                })
+                .fold(0.0, f64::max);
+        }
         (0..hd.edges)
             .map(|e| {
                 hd.edge_rows[e * r..(e + 1) * r]

@@ -16,12 +16,18 @@ impl Args {
         // Loading all modes once checks the file and says how many there are.
         let all = basis::load(&self.file.basis, &LoadOptions::default())?;
         let available = all.mode_count();
-        // r = 30 and 100 where the file has them; otherwise every mode it has.
-        let mut counts: Vec<usize> = [30usize, 100].into_iter().filter(|&r| r <= available).collect();
+        // r = 30 and 100 where the file has them (20 and 30 for a nonlinear model, whose step
+        // costs O(r⁴)); otherwise every mode it has.
+        let nonlinear = all.nonlinear.is_some();
+        let sizes = if nonlinear { [20usize, 30] } else { [30, 100] };
+        let mut counts: Vec<usize> = sizes.into_iter().filter(|&r| r <= available).collect();
         if counts.is_empty() {
             counts.push(available);
         }
         let mut report = serde_json::Map::new();
+        report.insert("nonlinear".into(), nonlinear.into());
+        // Steps per timed batch: a nonlinear step is ~100× a linear one.
+        let per_batch = if nonlinear { 200 } else { 2000 };
         for r in counts {
             let opts = LoadOptions {
                 modes: Some(r),
@@ -30,12 +36,12 @@ impl Args {
             };
             let b = basis::load(&self.file.basis, &opts).with_context(|| format!("haptic benchmark with {r} modes"))?;
             let b = Arc::new(b);
-            let ns = bench::haptic_step_ns(b.clone(), 201, 2000);
+            let ns = bench::haptic_step_ns(b.clone(), 201, per_batch);
             report.insert(format!("haptic_step_ns_median_r{r}"), ns.into());
             let (median, p99) = bench::contact_rows_ns(&b);
             report.insert(format!("contact_rows_ns_median_r{r}"), median.into());
             report.insert(format!("contact_rows_ns_p99_r{r}"), p99.into());
-            let ns = bench::haptic_press_step_ns(b, 201, 2000);
+            let ns = bench::haptic_press_step_ns(b, 201, per_batch);
             report.insert(format!("haptic_press_step_ns_median_r{r}"), ns.into());
         }
         let field = if available >= 30 {
