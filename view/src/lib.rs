@@ -916,6 +916,8 @@ fn hello(
                 "triangles": b.triangles.len(),
                 "voi": b.voi,
                 "has_stress": b.stress.is_some(),
+                // A nonlinear model moves visibly and its shape is only right at true size.
+                "nonlinear": b.nonlinear.is_some(),
                 "frequencies_hz": b.eigenvalues.iter().map(|l| l.sqrt() / (2.0 * std::f64::consts::PI)).collect::<Vec<_>>(),
                 "loads": l.map(|l| l.cases.clone()).unwrap_or_default(),
                 "loads_error": l.and_then(|l| l.error.clone()),

@@ -24,6 +24,9 @@ export function nice(k) {
 /** The automatic scale at rest: the device's full force at the most compliant surface point
  * would draw AUTO_FRACTION of the part's size. */
 export function autoScale() {
+  // A nonlinear part is drawn at true size: its motion is visible, and a magnified large
+  // deformation (rotations scaled up) would be a shape the part cannot take.
+  if (state.hello.spaces[0].nonlinear) return 1;
   const c = state.hello.spaces[0].largest_compliance;
   return nice((AUTO_FRACTION * state.diag) / (state.hello.max_force * c));
 }
@@ -43,7 +46,10 @@ export function drawScale(s) {
   if (!(umax > restLevel(s))) state.episodePeak = 0;
   else state.episodePeak = Math.max(state.episodePeak || 0, umax);
   let k = state.scale;
-  if (state.scaleAuto) {
+  if (state.scaleAuto && state.hello.spaces[state.active].nonlinear) {
+    k = 1;
+    $('scale').value = '1';
+  } else if (state.scaleAuto) {
     k = state.episodePeak > 0 ? Math.min(AUTO_CAP * state.autoScale, nice((AUTO_FRACTION * s.size) / state.episodePeak)) : state.autoScale;
     $('scale').value = String(k);
   }
