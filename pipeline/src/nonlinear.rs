@@ -57,12 +57,13 @@ pub fn max_residual(residuals: &[f64], eigenmodes: Option<usize>) -> f64 {
     residuals[..m].iter().fold(0.0, |a: f64, &b| a.max(b))
 }
 
-/// Appends the derivatives of the lowest `of` modes to `modes` (their Rayleigh quotients as
-/// eigenvalues, their true residuals ‖Kv − θMv‖/‖Kv‖) and integrates the reduced energy of the
-/// whole basis.
-pub fn enrich(d: &Discretized, modes: &mut Modes, of: usize) -> Result<NonlinearModel> {
+/// Appends the derivatives of the lowest `of` modes to `modes`, and for each of the scene's
+/// load cases (`loads`, nodal forces) its linear response and that response's derivative
+/// (their Rayleigh quotients as eigenvalues, their true residuals ‖Kv − θMv‖/‖Kv‖), and
+/// integrates the reduced energy of the whole basis.
+pub fn enrich(d: &Discretized, modes: &mut Modes, of: usize, loads: &[Vec<f64>]) -> Result<NonlinearModel> {
     let m = modes.eigenvalues.len();
-    let extra = derivatives::enrich(&d.space(), modes, of)?;
+    let extra = derivatives::enrich(&d.space(), modes, of, loads)?;
     let nf = d.dofs.free_count();
     let sys = &d.system;
     let (mut kv, mut mv) = (vec![0.0; nf], vec![0.0; nf]);

@@ -916,12 +916,16 @@ fn nonlinear_model(raw: &RawScene, free_body: bool) -> Result<Option<Nonlinear>,
             DEFAULT_DERIVATIVES.min(count)
         ));
     }
-    let r = count + d * (d + 1) / 2;
+    // Each load case adds its linear response and that response's derivative.
+    let loads = 2 * (raw.load.len() + usize::from(raw.gravity.is_some()));
+    let r = count + d * (d + 1) / 2 + loads;
     let max = ves_format::names::MAX_NONLINEAR_BASIS;
     if r > max {
         return Err(format!(
-            "modes.count = {count} with model.derivatives = {d} makes a nonlinear basis of {r} vectors, over {max} \
-             (the haptic step's cost grows as r⁴): lower modes.count or model.derivatives"
+            "modes.count = {count} with model.derivatives = {d} and {} load case(s) (2 vectors each) makes a \
+             nonlinear basis of {r} vectors, over {max} (the haptic step's cost grows as r⁴): lower modes.count or \
+             model.derivatives, or move load cases to another scene",
+            loads / 2
         ));
     }
     if free_body {

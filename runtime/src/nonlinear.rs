@@ -439,10 +439,10 @@ impl Stepper {
             self.iterations += 1;
             cholesky_solve(&self.a, r, &mut self.res);
             let (mut dn, mut sn) = (0.0, 0.0);
-            for i in 0..r {
-                self.q_free[i] += self.res[i];
-                dn += self.res[i] * self.res[i];
-                sn += (self.q_free[i] - q0[i]).powi(2);
+            for ((qf, d), q) in self.q_free.iter_mut().zip(&self.res).zip(q0) {
+                *qf += d;
+                dn += d * d;
+                sn += (*qf - q).powi(2);
             }
             // A correction that small leaves a residual smaller still (Newton converges at
             // least linearly here): no force is evaluated just to confirm it.

@@ -51,9 +51,12 @@ pub enum DerivativeError {
     },
 }
 
-/// The derivatives of each pair of the lowest `of` modes of `modes` on `space`, orthogonalised
-/// against all of `modes` and each other. One factorisation of K, all right-hand sides at once.
-pub fn enrich(space: &Space<'_>, modes: &Modes, of: usize) -> Result<Enrichment, DerivativeError> {
+/// The derivatives of each pair of the lowest `of` modes of `modes` on `space`, and for each
+/// load in `loads` (nodal forces, all 3n DOFs) its linear static response K⁻¹f and that
+/// response's own derivative (a load the modes carry poorly, such as a block pressed along its
+/// stiff axis, is then carried to second order); orthogonalised against all of `modes` and each
+/// other. One factorisation of K, all right-hand sides at once.
+pub fn enrich(space: &Space<'_>, modes: &Modes, of: usize, loads: &[Vec<f64>]) -> Result<Enrichment, DerivativeError> {
     if space.rigid > 0 {
         return Err(DerivativeError::FreeBody(space.rigid));
     }
@@ -69,20 +72,45 @@ pub fn enrich(space: &Space<'_>, modes: &Modes, of: usize) -> Result<Enrichment,
         .map(|j| dofs.expand(&modes.vectors[j * nf..(j + 1) * nf]))
         .collect();
     let pairs: Vec<(usize, usize)> = (0..of).flat_map(|i| (i..of).map(move |j| (i, j))).collect();
-    let mut x = vec![0.0; nf * pairs.len()];
-    for (c, &(i, j)) in pairs.iter().enumerate() {
-        let d = stvk::second_derivative(&points, space.mesh, &lame, &full[i], &full[j]);
+    let chol = factor_stiffness(sys, dofs)?;
+    // The loads' linear responses first (their derivatives need them).
+    let nl = loads.len();
+    let mut responses = vec![0.0; nf * nl];
+    for (c, f) in loads.iter().enumerate() {
+        for (k, &g) in dofs.free.iter().enumerate() {
+            responses[c * nf + k] = f[g as usize];
+        }
+    }
+    if nl > 0 {
+        chol.solve_many_in_place(&mut responses, nl);
+    }
+    let responses_full: Vec<Vec<f64>> = (0..nl).map(|c| dofs.expand(&responses[c * nf..(c + 1) * nf])).collect();
+    let count = pairs.len() + nl;
+    let mut x = vec![0.0; nf * count];
+    let directions = pairs
+        .iter()
+        .map(|&(i, j)| (&full[i], &full[j]))
+        .chain(responses_full.iter().map(|u| (u, u)));
+    for (c, (a, b)) in directions.enumerate() {
+        let d = stvk::second_derivative(&points, space.mesh, &lame, a, b);
         for (k, &g) in dofs.free.iter().enumerate() {
             x[c * nf + k] = -d[g as usize];
         }
     }
-    let chol = factor_stiffness(sys, dofs)?;
-    chol.solve_many_in_place(&mut x, pairs.len());
+    if count > 0 {
+        chol.solve_many_in_place(&mut x, count);
+    }
+    // The candidates in order: mode-pair derivatives, load responses, their derivatives.
+    let mut candidates = x[..nf * pairs.len()].to_vec();
+    candidates.extend_from_slice(&responses);
+    candidates.extend_from_slice(&x[nf * pairs.len()..]);
+    let x = candidates;
+    let total = pairs.len() + 2 * nl;
     // M-Gram–Schmidt (twice) against the modes and the derivatives kept so far.
     let mut kept: Vec<Vec<f64>> = Vec::new();
     let mut mv = vec![0.0; nf];
     let mut dropped = 0;
-    for c in 0..pairs.len() {
+    for c in 0..total {
         let mut v = x[c * nf..(c + 1) * nf].to_vec();
         sym_matvec(&sys.pattern, &sys.m, &v, &mut mv);
         let before = dot(&v, &mv).max(0.0).sqrt();
@@ -216,7 +244,7 @@ mod tests {
         let model = Model::assemble(mesh, dofs, Material::elastic(1.0e6, 0.3, 1000.0)).expect("assembles");
         let space = model.space();
         let (modes, _) = crate::modes::solve(model.space(), 6, SolverChoice::Auto).expect("modes");
-        let extra = enrich(&space, &modes, 4).expect("derivatives");
+        let extra = enrich(&space, &modes, 4, &[]).expect("derivatives");
         let nf = model.dofs.free_count();
         let r = modes.eigenvalues.len() + extra.ritz_values.len();
         let cols: Vec<f64> = modes.vectors.iter().chain(&extra.vectors).copied().collect();

@@ -418,7 +418,7 @@ fn reactions(scene: &Scene, voi: Option<&Voi>, solved: &Solved) -> Result<Option
 }
 
 /// The nonlinear model's basis and energy, when the scene asks for one: the modes get their
-/// derivatives appended.
+/// derivatives, and the load cases' responses and theirs, appended.
 fn nonlinear(scene: &Scene, solved: &mut Solved) -> Result<Option<crate::nonlinear::NonlinearModel>> {
     let Some(n) = scene.nonlinear else { return Ok(None) };
     progress::stage("modal derivatives and the nonlinear model", 0.8)?;
@@ -426,7 +426,9 @@ fn nonlinear(scene: &Scene, solved: &mut Solved) -> Result<Option<crate::nonline
     let d = problem
         .here()
         .context("the nonlinear model needs K, which was left on the MPI ranks")?;
-    let model = crate::nonlinear::enrich(d, modes, n.derivatives).with_context(|| scene.path.display().to_string())?;
+    let loads = crate::loads::load_vectors(scene, d)?;
+    let model =
+        crate::nonlinear::enrich(d, modes, n.derivatives, &loads).with_context(|| scene.path.display().to_string())?;
     Ok(Some(model))
 }
 

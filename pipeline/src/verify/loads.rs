@@ -122,7 +122,8 @@ pub fn compare_loads(
 
 /// A nonlinear scene's load cases are compared with the reference's geometrically nonlinear
 /// solve (CalculiX `*STEP, NLGEOM`): the reduced model differs from the full one by what its
-/// basis leaves out, 0.8–2 % on the soft cantilever up to PL²/EI = 3.
+/// basis leaves out: on the soft cantilever up to PL²/EI = 3 at most 0.71 %, on the soft block
+/// pressed by 12 % 0.23 % (max-norm displacement).
 pub const NONLINEAR_TOLERANCE: f64 = 0.03;
 
 /// The nonlinear model's response to each load (as `ves precompute` makes it: modes,
@@ -134,7 +135,7 @@ fn nonlinear_responses(
     f: &[Vec<f64>],
 ) -> Result<Vec<(Vec<f64>, Vec<f64>)>> {
     let (mut modes, _) = crate::modes::solve(d.space(), scene.modes.count, crate::modes::SolverChoice::Auto)?;
-    let model = crate::nonlinear::enrich(d, &mut modes, derivatives)?;
+    let model = crate::nonlinear::enrich(d, &mut modes, derivatives, f)?;
     let basis = crate::nonlinear::full_columns(d, &modes);
     let points = crate::fem::stvk::Points::of(&d.mesh)?;
     f.iter()
