@@ -143,6 +143,16 @@ fn a_hand_pulls_the_soft_tip_through_a_third_of_its_length_and_back() {
     assert_eq!(h.quarantined, 0);
 }
 
+/// `ves verify --against calculix --json` of `scene`: its `cases` load comparisons.
+fn against_nlgeom(scene: &Path, cases: usize) -> Vec<serde_json::Value> {
+    let o = ves(&["verify", scene.to_str().unwrap(), "--against", "calculix", "--json"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let v = last_json(&o);
+    let loads = v["loads"].as_array().cloned().unwrap_or_default();
+    assert_eq!(loads.len(), cases, "{v}");
+    loads
+}
+
 /// `ves verify --against calculix` solves a nonlinear scene's load cases with `*STEP, NLGEOM`
 /// on the same mesh and nodal loads: the reduced model is within 3 % of the full one (on the
 /// case's own mesh, 0.007 % at PL²/EI = 0.5 to 0.71 % at 3: docs/nonlinear.md). A coarser mesh
@@ -159,12 +169,7 @@ fn nonlinear_load_cases_match_calculix_nlgeom() {
         + "[[load]]\nname = \"alpha_1\"\nplane = { axis = \"x\", value = 1.0 }\nforce = [0.0, 0.0, -1.04167]\n"
         + "[[load]]\nname = \"alpha_3\"\nplane = { axis = \"x\", value = 1.0 }\nforce = [0.0, 0.0, -3.125]\n";
     let (_dir, path) = workdir(&scene);
-    let o = ves(&["verify", path.to_str().unwrap(), "--against", "calculix", "--json"]);
-    assert!(o.status.success(), "{}", stderr(&o));
-    let v = last_json(&o);
-    let loads = v["loads"].as_array().expect("load comparisons");
-    assert_eq!(loads.len(), 2, "{v}");
-    for l in loads {
+    for l in against_nlgeom(&path, 2) {
         let diff = l["displacement_rel_diff"].as_f64().unwrap();
         eprintln!("{}: {diff:.2e} of CalculiX NLGEOM", l["name"]);
         assert!(diff < 0.03 && l["pass"] == true, "{l}");
@@ -183,13 +188,7 @@ fn soft_block_compression_matches_calculix_nlgeom() {
     let case = Path::new(env!("CARGO_MANIFEST_DIR")).join("../cases/soft_block");
     std::fs::copy(case.join("block.step"), dir.path().join("block.step")).expect("copy");
     std::fs::copy(case.join("scene.toml"), dir.path().join("scene.toml")).expect("copy");
-    let scene = dir.path().join("scene.toml");
-    let o = ves(&["verify", scene.to_str().unwrap(), "--against", "calculix", "--json"]);
-    assert!(o.status.success(), "{}", stderr(&o));
-    let v = last_json(&o);
-    let loads = v["loads"].as_array().expect("load comparisons");
-    assert_eq!(loads.len(), 2, "{v}");
-    for l in loads {
+    for l in against_nlgeom(&dir.path().join("scene.toml"), 2) {
         let diff = l["displacement_rel_diff"].as_f64().unwrap();
         let top = l["max_displacement_m"].as_f64().unwrap();
         eprintln!(
