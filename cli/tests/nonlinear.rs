@@ -199,3 +199,40 @@ fn soft_block_compression_matches_calculix_nlgeom() {
         assert!(diff < 0.01 && l["pass"] == true, "{l}");
     }
 }
+
+/// A `[model]` table that cannot be made is refused in one line naming the key and what to do,
+/// nothing written.
+#[test]
+fn bad_model_tables_are_refused_in_one_line() {
+    let nl = "[model]\nkind = \"nonlinear\"\n";
+    fails(
+        &(GOOD.to_string() + "[model]\nkind = \"plastic\"\n"),
+        &["plastic", "expected `linear` or `nonlinear`"],
+    );
+    fails(
+        &(GOOD.to_string() + "[model]\nderivatives = 2\n"),
+        &["model.derivatives", "nonlinear"],
+    );
+    fails(
+        &(GOOD.to_string() + nl + "derivatives = 5\n"),
+        &["model.derivatives = 5", "modes.count = 4"],
+    );
+    fails(
+        &(GOOD.to_string() + nl + "derivatives = 0\n"),
+        &["model.derivatives = 0"],
+    );
+    let free = GOOD.replace("[[fixed]]\nplane = { axis = \"x\", value = 0.0 }\n", "");
+    fails(&(free + nl), &["needs a held part", "[[fixed]]"]);
+    let many = GOOD.replace("count = 4", "count = 40") + nl + "derivatives = 6\n";
+    fails(&many, &["48", "modes.count"]);
+    fails(
+        &(GOOD.to_string() + nl + "[static_correction]\nregion = \"surface\"\n"),
+        &["[static_correction]", "nonlinear"],
+    );
+    fails(
+        &(GOOD.to_string()
+            + nl
+            + "[[voi]]\nname = \"tip\"\nsize = 0.02\nbox = { min = [0.8, 0.0, 0.0], max = [1.0, 0.1, 0.05] }\n"),
+        &["[[voi]]", "nonlinear"],
+    );
+}
