@@ -154,3 +154,32 @@ pub fn full_field_stress_ms(basis: &Basis, repeats: usize) -> Option<(f64, f64)>
     });
     Some((update, von_mises))
 }
+
+/// A nonlinear basis's kernels, each timed alone at rest-like q (a small deflection of every
+/// coordinate): the median of one force evaluation and of one force-and-tangent evaluation, ns
+/// (`None` for a linear basis).
+pub fn nonlinear_kernels_ns(basis: &Basis, batches: usize, per_batch: usize) -> Option<(f64, f64)> {
+    let p = basis.nonlinear.as_ref()?;
+    let r = p.r;
+    let q: Vec<f64> = (0..r).map(|j| 1e-3 / (1.0 + j as f64)).collect();
+    let mut w = p.scratch();
+    let (mut f, mut kt) = (vec![0.0; r], vec![0.0; r * r]);
+    let mut time = |tangent: bool| {
+        let samples = (0..batches)
+            .map(|_| {
+                let t = Instant::now();
+                for _ in 0..per_batch {
+                    if tangent {
+                        p.force_and_tangent(&q, &mut f, &mut kt, &mut w);
+                    } else {
+                        p.force(&q, &mut f, &mut w);
+                    }
+                }
+                t.elapsed().as_nanos() as f64 / per_batch as f64
+            })
+            .collect();
+        median(samples)
+    };
+    let force = time(false);
+    Some((force, time(true)))
+}

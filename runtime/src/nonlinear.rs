@@ -26,8 +26,13 @@ pub struct Polynomial {
     pub k: Vec<f64>,
     /// Cubic-energy coefficients, r × P row-major.
     pub t: Vec<f64>,
-    /// Quartic-energy coefficients, P × P row-major (symmetric positive semi-definite).
+    /// Quartic-energy coefficients, P × P row-major (symmetric positive semi-definite); empty
+    /// once [`Polynomial::single_precision`] moved them to `h32`.
     pub h: Vec<f64>,
+    /// H in single precision (the runtime's copy: half the bytes the haptic step reads; the
+    /// quartic energy then carries a relative rounding of about 1e-7, far below the model's own
+    /// error). Empty: H is in `h`.
+    pub h32: Vec<f32>,
 }
 
 /// Work space of [`Polynomial`]'s evaluations (no allocation once made).
@@ -58,6 +63,7 @@ impl Polynomial {
             k,
             t: cubic,
             h: quartic,
+            h32: Vec::new(),
         }
     }
 
@@ -76,11 +82,60 @@ impl Polynomial {
         let t = (0..r)
             .flat_map(|i| pairs.iter().map(move |&p| self.t[i * np_all + p]))
             .collect();
-        let h = pairs
-            .iter()
-            .flat_map(|&a| pairs.iter().map(move |&b| self.h[a * np_all + b]))
-            .collect();
-        Polynomial { r, k, t, h }
+        let pick = |h: &[f64]| -> Vec<f64> {
+            pairs
+                .iter()
+                .flat_map(|&a| pairs.iter().map(move |&b| h[a * np_all + b]))
+                .collect()
+        };
+        let pick32 = |h: &[f32]| -> Vec<f32> {
+            pairs
+                .iter()
+                .flat_map(|&a| pairs.iter().map(move |&b| h[a * np_all + b]))
+                .collect()
+        };
+        Polynomial {
+            r,
+            k,
+            t,
+            h: if self.h.is_empty() { Vec::new() } else { pick(&self.h) },
+            h32: if self.h32.is_empty() {
+                Vec::new()
+            } else {
+                pick32(&self.h32)
+            },
+        }
+    }
+
+    /// The same model with H held in single precision (`h32`), as the runtime keeps it.
+    pub fn single_precision(mut self) -> Polynomial {
+        if self.h32.is_empty() {
+            self.h32 = self.h.iter().map(|&v| v as f32).collect();
+            self.h = Vec::new();
+        }
+        self
+    }
+
+    /// Row `p` of H dotted with `x`.
+    #[inline]
+    fn quartic_dot(&self, p: usize, x: &[f64]) -> f64 {
+        let np = self.pairs();
+        if self.h32.is_empty() {
+            dot(&self.h[p * np..(p + 1) * np], x)
+        } else {
+            dot32(&self.h32[p * np..(p + 1) * np], x)
+        }
+    }
+
+    /// y += c · row `p` of H.
+    #[inline]
+    fn quartic_axpy(&self, c: f64, p: usize, y: &mut [f64]) {
+        let np = self.pairs();
+        if self.h32.is_empty() {
+            axpy(c, &self.h[p * np..(p + 1) * np], y);
+        } else {
+            axpy32(c, &self.h32[p * np..(p + 1) * np], y);
+        }
     }
 
     /// Work space for this model.
@@ -130,7 +185,7 @@ impl Polynomial {
             e += q[i] * (0.5 * dot(ki, q) + dot(ti, &w.s));
         }
         for p in 0..np {
-            e += 0.5 * w.s[p] * dot(&self.h[p * np..(p + 1) * np], &w.s);
+            e += 0.5 * w.s[p] * self.quartic_dot(p, &w.s);
         }
         e
     }
@@ -141,7 +196,7 @@ impl Polynomial {
         self.products(q, &mut w.s);
         // u = Tᵀ q + H s.
         for p in 0..np {
-            w.u[p] = dot(&self.h[p * np..(p + 1) * np], &w.s);
+            w.u[p] = self.quartic_dot(p, &w.s);
         }
         for i in 0..r {
             let ti = &self.t[i * np..(i + 1) * np];
@@ -190,7 +245,7 @@ impl Polynomial {
                     continue;
                 }
                 let pl = pair_index(r, m.min(l), m.max(l));
-                axpy(c, &self.h[pl * np..(pl + 1) * np], col);
+                self.quartic_axpy(c, pl, col);
             }
         }
         for m in 0..r {
@@ -307,6 +362,35 @@ pub(crate) fn dot(a: &[f64], b: &[f64]) -> f64 {
     acc.iter().sum::<f64>() + tail
 }
 
+/// Σ aᵢ bᵢ with `a` in single precision (summed in double).
+pub(crate) fn dot32(a: &[f32], b: &[f64]) -> f64 {
+    if let Some(d) = crate::os::dot32_simd(a, b) {
+        return d;
+    }
+    let n = a.len().min(b.len());
+    let (a, b) = (&a[..n], &b[..n]);
+    let mut acc = [0.0f64; 8];
+    let (ca, cb) = (a.chunks_exact(8), b.chunks_exact(8));
+    let (ra, rb) = (ca.remainder(), cb.remainder());
+    for (x, y) in ca.zip(cb) {
+        for k in 0..8 {
+            acc[k] += f64::from(x[k]) * y[k];
+        }
+    }
+    let tail: f64 = ra.iter().zip(rb).map(|(x, y)| f64::from(*x) * y).sum();
+    acc.iter().sum::<f64>() + tail
+}
+
+/// y += c x with `x` in single precision.
+fn axpy32(c: f64, x: &[f32], y: &mut [f64]) {
+    if crate::os::axpy32_simd(c, x, y) {
+        return;
+    }
+    for (yi, xi) in y.iter_mut().zip(x) {
+        *yi += c * f64::from(*xi);
+    }
+}
+
 /// y += c x, the kernel of the tangent's quartic part.
 fn axpy(c: f64, x: &[f64], y: &mut [f64]) {
     if crate::os::axpy_simd(c, x, y) {
@@ -324,8 +408,9 @@ fn norm(a: &[f64]) -> f64 {
 /// Most Newton iterations of one haptic step's free motion.
 pub const STEP_ITERATIONS: usize = 3;
 
-/// Relative residual at which a haptic step's Newton iterations stop: the force it leaves out
-/// is a millionth of the forces at play, below any device's resolution.
+/// A haptic step's Newton iterations stop at a correction this small against the step's motion
+/// (each evaluation is followed by its correction, so a linear model takes Newmark's step
+/// exactly).
 pub const STEP_TOLERANCE: f64 = 1e-6;
 
 /// Steps between refreshes of the tangent stiffness in the haptic step (4 ms at 1 kHz: the hand
@@ -361,7 +446,7 @@ pub struct Stepper {
     pub iterations: u64,
     /// Steps whose tangent was not positive definite (the linear stiffness stood in).
     pub indefinite: u64,
-    /// Relative residual ‖R‖/‖f(q)‖ after the last free step's iterations.
+    /// Relative residual ‖R‖/‖(f, inertia)‖ at the last free step's last evaluation.
     pub last_residual: f64,
 }
 
@@ -433,9 +518,11 @@ impl Stepper {
                 fnorm += self.f[i] * self.f[i] + inertia * inertia;
             }
             self.last_residual = (rn / fnorm.max(f64::MIN_POSITIVE)).sqrt();
-            if self.last_residual < STEP_TOLERANCE {
+            if rn == 0.0 {
                 break;
             }
+            // Every evaluation is followed by its correction (a solve costs r², an evaluation
+            // r⁴); a correction that small ends the step without evaluating again.
             self.iterations += 1;
             cholesky_solve(&self.a, r, &mut self.res);
             let (mut dn, mut sn) = (0.0, 0.0);
@@ -444,8 +531,6 @@ impl Stepper {
                 dn += d * d;
                 sn += (*qf - q).powi(2);
             }
-            // A correction that small leaves a residual smaller still (Newton converges at
-            // least linearly here): no force is evaluated just to confirm it.
             if dn <= STEP_TOLERANCE * STEP_TOLERANCE * sn {
                 break;
             }
@@ -535,6 +620,111 @@ fn cholesky_solve(l: &[f64], r: usize, x: &mut [f64]) {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// A made-up model of r vectors: diagonal K, smooth T and a symmetric H.
+    fn model(r: usize) -> Polynomial {
+        let np = r * (r + 1) / 2;
+        let mut k = vec![0.0; r * r];
+        for i in 0..r {
+            k[i * r + i] = 10.0 * (1.0 + i as f64);
+        }
+        let t = (0..r * np).map(|i| ((i * 7919) % 101) as f64 * 1e-2 - 0.5).collect();
+        let h = (0..np * np)
+            .map(|i| {
+                let (a, b) = (i / np, i % np);
+                ((a.min(b) * 31 + a.max(b) * 17) % 97) as f64 * 1e-2 + if a == b { 5.0 } else { 0.0 }
+            })
+            .collect();
+        Polynomial {
+            r,
+            k,
+            t,
+            h,
+            h32: Vec::new(),
+        }
+    }
+
+    #[test]
+    fn the_first_vectors_keep_their_energy_and_single_precision_only_rounds() {
+        let full = model(7);
+        let first = full.first(4);
+        let q = [0.3, -0.2, 0.5, 0.1];
+        let mut padded = q.to_vec();
+        padded.resize(7, 0.0);
+        let (e4, e7) = (
+            first.energy(&q, &mut first.scratch()),
+            full.energy(&padded, &mut full.scratch()),
+        );
+        assert!((e4 - e7).abs() < 1e-12 * e7.abs(), "{e4} vs {e7}");
+        let single = full.clone().single_precision();
+        assert!(single.h.is_empty() && single.h32.len() == 28 * 28);
+        let (mut f, mut g) = (vec![0.0; 7], vec![0.0; 7]);
+        let q7 = [0.3, -0.2, 0.5, 0.1, 0.7, -0.4, 0.2];
+        full.force(&q7, &mut f, &mut full.scratch());
+        single.force(&q7, &mut g, &mut single.scratch());
+        let scale = f.iter().fold(0.0f64, |a, v| a.max(v.abs()));
+        for (a, b) in f.iter().zip(&g) {
+            assert!((a - b).abs() < 1e-6 * scale, "{a} vs {b}");
+        }
+        // Its sub-model is the same sub-model, in single precision.
+        let sub = single.first(4);
+        assert!(sub.h.is_empty() && sub.h32.len() == 10 * 10);
+        assert!((sub.energy(&q, &mut sub.scratch()) - e4).abs() < 1e-6 * e4.abs());
+    }
+
+    /// Without cubic and quartic terms the implicit step is Newmark's average acceleration on
+    /// each mode: the linear runtime's `Transition::newmark`, step for step.
+    #[test]
+    fn a_linear_polynomial_steps_as_newmark() {
+        let r = 3;
+        let lambda = [4.0, 900.0, 1e6];
+        let mut k = vec![0.0; r * r];
+        for i in 0..r {
+            k[i * r + i] = lambda[i];
+        }
+        let p = Polynomial {
+            r,
+            k,
+            t: vec![0.0; r * 6],
+            h: vec![0.0; 36],
+            h32: Vec::new(),
+        };
+        let (alpha, beta, dt) = (0.5, 1e-4, 1e-3);
+        let c: Vec<f64> = lambda.iter().map(|l| alpha + beta * l).collect();
+        let mut stepper = Stepper::new(&p, &c, dt);
+        let trans: Vec<_> = lambda
+            .iter()
+            .zip(&c)
+            .map(|(l, ci)| crate::integrator::Transition::newmark(*l, *ci, dt))
+            .collect();
+        let (mut q, mut v) = (vec![0.01, -0.02, 1e-5], vec![0.0, 0.3, -0.1]);
+        let (mut qr, mut vr) = (q.clone(), v.clone());
+        // The linear scheme starts from the acceleration of the equation of motion.
+        let g = [0.5, -1.0, 2.0];
+        let a0: Vec<f64> = (0..r).map(|i| g[i] - c[i] * v[i] - lambda[i] * q[i]).collect();
+        stepper.set_acceleration(&a0);
+        for _ in 0..500 {
+            stepper.free(&p, &q, &v);
+            stepper.finish(&mut q, &mut v, &g);
+            for i in 0..r {
+                (qr[i], vr[i]) = trans[i].step(qr[i], vr[i], g[i]);
+            }
+        }
+        for i in 0..r {
+            assert!(
+                (q[i] - qr[i]).abs() < 1e-9 * qr[i].abs().max(1e-6),
+                "q{i}: {} vs {}",
+                q[i],
+                qr[i]
+            );
+            assert!(
+                (v[i] - vr[i]).abs() < 1e-7 * vr[i].abs().max(1e-3),
+                "v{i}: {} vs {}",
+                v[i],
+                vr[i]
+            );
+        }
+    }
 
     #[test]
     fn pairs_are_numbered_as_the_products_are_ordered() {

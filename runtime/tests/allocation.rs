@@ -180,3 +180,55 @@ fn device_reads_allocate_nothing() {
     assert!(moved > 0.0);
     assert_eq!(fault, Err(DeviceFault::Disconnected));
 }
+
+/// With a nonlinear basis the step (Newton on the reduced St. Venant–Kirchhoff model, its
+/// tangent refreshed every few steps, the hands' compliance from its factor, the Green strain
+/// watch) and the energy the haptic loop reads every step allocate nothing either.
+#[test]
+fn nonlinear_haptic_steps_allocate_nothing() {
+    let mut basis = Arc::unwrap_or_clone(grid(false));
+    let r = basis.mode_count();
+    let np = r * (r + 1) / 2;
+    let mut k = vec![0.0; r * r];
+    for (i, l) in basis.eigenvalues.iter().enumerate() {
+        k[i * r + i] = *l;
+    }
+    let t = (0..r * np).map(|i| 1e3 * ((i % 5) as f64 - 2.0)).collect();
+    let h = (0..np * np)
+        .map(|i| if i % (np + 1) == 0 { 1e6 } else { 1e4 })
+        .collect();
+    let model = ves_runtime::nonlinear::Polynomial {
+        r,
+        k,
+        t,
+        h,
+        h32: Vec::new(),
+    };
+    basis.nonlinear = Some(Arc::new(model.single_precision()));
+    let mut h = Haptics::new(
+        Arc::new(basis),
+        Coupling::critically_damped(500.0, 10.0),
+        1e-3,
+        Scheme::Exact,
+        2,
+    );
+    let mut out = [HandOutput::default(); 2];
+    let input = |t: f64, button: bool, x: f64| HandInput {
+        position: [x, 0.02, 0.001 - 0.01 * t],
+        velocity: [0.0, 0.0, -0.01],
+        button,
+    };
+    h.step(&[input(0.0, false, 0.0), input(0.0, true, 0.04)], &mut out);
+    let before = allocations();
+    let mut energy = 0.0f64;
+    for k in 0..2000 {
+        let t = f64::from(k) * 1e-3;
+        let inputs = [input(t, false, 0.01 * (k % 5) as f64), input(t, k % 700 < 500, 0.04)];
+        h.step(&inputs, &mut out);
+        energy = energy.max(h.energy());
+    }
+    assert_eq!(allocations() - before, 0, "the nonlinear step allocated");
+    assert!(energy > 0.0 && energy.is_finite());
+    let (iterations, _) = h.nonlinear_counts().expect("nonlinear");
+    assert!(iterations > 0);
+}

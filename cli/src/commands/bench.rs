@@ -41,6 +41,10 @@ impl Args {
             let (median, p99) = bench::contact_rows_ns(&b);
             report.insert(format!("contact_rows_ns_median_r{r}"), median.into());
             report.insert(format!("contact_rows_ns_p99_r{r}"), p99.into());
+            if let Some((force, tangent)) = bench::nonlinear_kernels_ns(&b, 51, 100) {
+                report.insert(format!("nonlinear_force_ns_median_r{r}"), force.into());
+                report.insert(format!("nonlinear_force_and_tangent_ns_median_r{r}"), tangent.into());
+            }
             let ns = bench::haptic_press_step_ns(b, 201, per_batch);
             report.insert(format!("haptic_press_step_ns_median_r{r}"), ns.into());
         }

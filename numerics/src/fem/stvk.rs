@@ -243,6 +243,7 @@ pub fn reduce(points: &Points, mesh: &Mesh, mat: &Lame, u: &[f64], r: usize) -> 
         k: rows(kk.as_ref()),
         t: rows(tt.as_ref()),
         h: rows(hh.as_ref()),
+        h32: Vec::new(),
     }
 }
 
