@@ -123,7 +123,7 @@ impl Polynomial {
         if self.h32.is_empty() {
             dot(&self.h[p * np..(p + 1) * np], x)
         } else {
-            dot32(&self.h32[p * np..(p + 1) * np], x)
+            dot(&self.h32[p * np..(p + 1) * np], x)
         }
     }
 
@@ -134,7 +134,7 @@ impl Polynomial {
         if self.h32.is_empty() {
             axpy(c, &self.h[p * np..(p + 1) * np], y);
         } else {
-            axpy32(c, &self.h32[p * np..(p + 1) * np], y);
+            axpy(c, &self.h32[p * np..(p + 1) * np], y);
         }
     }
 
@@ -341,10 +341,11 @@ pub struct NotConverged {
     pub scale: f64,
 }
 
-/// Σ aᵢ bᵢ: AVX2 + FMA where the processor has them (`os::dot_simd`; the step at r = 30 took
-/// 173 µs without, 120 µs with), else in eight independent sums (one running sum is bound by the
-/// adder's latency, and the compiler may not reorder it).
-pub(crate) fn dot(a: &[f64], b: &[f64]) -> f64 {
+/// Σ aᵢ bᵢ (a in double or single precision, summed in double): AVX2 + FMA where the processor
+/// has them (`os::dot_simd`; the step at r = 30 took 173 µs without, 120 µs with), else in eight
+/// independent sums (one running sum is bound by the adder's latency, and the compiler may not
+/// reorder it).
+pub(crate) fn dot<T: crate::os::Coefficient>(a: &[T], b: &[f64]) -> f64 {
     if let Some(d) = crate::os::dot_simd(a, b) {
         return d;
     }
@@ -355,49 +356,20 @@ pub(crate) fn dot(a: &[f64], b: &[f64]) -> f64 {
     let (ra, rb) = (ca.remainder(), cb.remainder());
     for (x, y) in ca.zip(cb) {
         for k in 0..8 {
-            acc[k] += x[k] * y[k];
+            acc[k] += x[k].into() * y[k];
         }
     }
-    let tail: f64 = ra.iter().zip(rb).map(|(x, y)| x * y).sum();
+    let tail: f64 = ra.iter().zip(rb).map(|(x, y)| (*x).into() * y).sum();
     acc.iter().sum::<f64>() + tail
 }
 
-/// Σ aᵢ bᵢ with `a` in single precision (summed in double).
-pub(crate) fn dot32(a: &[f32], b: &[f64]) -> f64 {
-    if let Some(d) = crate::os::dot32_simd(a, b) {
-        return d;
-    }
-    let n = a.len().min(b.len());
-    let (a, b) = (&a[..n], &b[..n]);
-    let mut acc = [0.0f64; 8];
-    let (ca, cb) = (a.chunks_exact(8), b.chunks_exact(8));
-    let (ra, rb) = (ca.remainder(), cb.remainder());
-    for (x, y) in ca.zip(cb) {
-        for k in 0..8 {
-            acc[k] += f64::from(x[k]) * y[k];
-        }
-    }
-    let tail: f64 = ra.iter().zip(rb).map(|(x, y)| f64::from(*x) * y).sum();
-    acc.iter().sum::<f64>() + tail
-}
-
-/// y += c x with `x` in single precision.
-fn axpy32(c: f64, x: &[f32], y: &mut [f64]) {
-    if crate::os::axpy32_simd(c, x, y) {
-        return;
-    }
-    for (yi, xi) in y.iter_mut().zip(x) {
-        *yi += c * f64::from(*xi);
-    }
-}
-
-/// y += c x, the kernel of the tangent's quartic part.
-fn axpy(c: f64, x: &[f64], y: &mut [f64]) {
+/// y += c x (x in double or single precision), the kernel of the tangent's quartic part.
+fn axpy<T: crate::os::Coefficient>(c: f64, x: &[T], y: &mut [f64]) {
     if crate::os::axpy_simd(c, x, y) {
         return;
     }
     for (yi, xi) in y.iter_mut().zip(x) {
-        *yi += c * xi;
+        *yi += c * (*xi).into();
     }
 }
 

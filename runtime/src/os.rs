@@ -104,10 +104,39 @@ pub fn hostname() -> Option<String> {
         .map(str::to_ascii_lowercase)
 }
 
+/// A coefficient the AVX2 kernels read: `f64`, or `f32` widened as it is loaded.
+pub trait Coefficient: Copy + Into<f64> {
+    /// Four values from `p` as four doubles.
+    ///
+    /// # Safety
+    /// `p..p + 4` must be readable, and the processor must have AVX2.
+    #[cfg(target_arch = "x86_64")]
+    unsafe fn load4(p: *const Self) -> std::arch::x86_64::__m256d;
+}
+
+impl Coefficient for f64 {
+    #[cfg(target_arch = "x86_64")]
+    #[inline(always)]
+    unsafe fn load4(p: *const f64) -> std::arch::x86_64::__m256d {
+        // SAFETY: the caller's contract.
+        unsafe { std::arch::x86_64::_mm256_loadu_pd(p) }
+    }
+}
+
+impl Coefficient for f32 {
+    #[cfg(target_arch = "x86_64")]
+    #[inline(always)]
+    unsafe fn load4(p: *const f32) -> std::arch::x86_64::__m256d {
+        use std::arch::x86_64::*;
+        // SAFETY: the caller's contract.
+        unsafe { _mm256_cvtps_pd(_mm_loadu_ps(p)) }
+    }
+}
+
 /// Σ aᵢ bᵢ with AVX2 + FMA when the processor has them (`None` otherwise: the caller's portable
 /// loop). The crate is built for plain x86-64, so the check is at run time, once.
 #[inline]
-pub fn dot_simd(a: &[f64], b: &[f64]) -> Option<f64> {
+pub fn dot_simd<T: Coefficient>(a: &[T], b: &[f64]) -> Option<f64> {
     #[cfg(target_arch = "x86_64")]
     if simd::available() {
         // SAFETY: the processor has AVX2 and FMA (checked just above).
@@ -119,37 +148,11 @@ pub fn dot_simd(a: &[f64], b: &[f64]) -> Option<f64> {
 
 /// y += c x with AVX2 + FMA when the processor has them; false otherwise (nothing done).
 #[inline]
-pub fn axpy_simd(c: f64, x: &[f64], y: &mut [f64]) -> bool {
+pub fn axpy_simd<T: Coefficient>(c: f64, x: &[T], y: &mut [f64]) -> bool {
     #[cfg(target_arch = "x86_64")]
     if simd::available() {
         // SAFETY: as in `dot_simd`.
         unsafe { simd::axpy(c, x, y) };
-        return true;
-    }
-    let _ = (c, x, y);
-    false
-}
-
-/// Σ aᵢ bᵢ (a in single precision) with AVX2 + FMA when the processor has them.
-#[inline]
-pub fn dot32_simd(a: &[f32], b: &[f64]) -> Option<f64> {
-    #[cfg(target_arch = "x86_64")]
-    if simd::available() {
-        // SAFETY: the processor has AVX2 and FMA (checked just above).
-        return Some(unsafe { simd::dot32(a, b) });
-    }
-    let _ = (a, b);
-    None
-}
-
-/// y += c x (x in single precision) with AVX2 + FMA when the processor has them; false
-/// otherwise (nothing done).
-#[inline]
-pub fn axpy32_simd(c: f64, x: &[f32], y: &mut [f64]) -> bool {
-    #[cfg(target_arch = "x86_64")]
-    if simd::available() {
-        // SAFETY: as in `dot32_simd`.
-        unsafe { simd::axpy32(c, x, y) };
         return true;
     }
     let _ = (c, x, y);
@@ -179,17 +182,18 @@ mod simd {
 
     /// Four 4-wide FMA chains (16 products in flight: the FMA latency is hidden).
     #[target_feature(enable = "avx2,fma")]
-    pub unsafe fn dot(a: &[f64], b: &[f64]) -> f64 {
+    pub unsafe fn dot<T: super::Coefficient>(a: &[T], b: &[f64]) -> f64 {
         use std::arch::x86_64::*;
         let n = a.len().min(b.len());
         let (pa, pb) = (a.as_ptr(), b.as_ptr());
         let mut acc = [_mm256_setzero_pd(); 4];
         let mut i = 0;
-        // SAFETY: every load reads a[i..i + 16] and b[i..i + 16] with i + 16 ≤ n.
+        // SAFETY: every load reads a[i..i + 16] and b[i..i + 16] with i + 16 ≤ n; AVX2 is there
+        // (this function's feature).
         unsafe {
             while i + 16 <= n {
                 for (k, lane) in acc.iter_mut().enumerate() {
-                    let x = _mm256_loadu_pd(pa.add(i + 4 * k));
+                    let x = T::load4(pa.add(i + 4 * k));
                     let y = _mm256_loadu_pd(pb.add(i + 4 * k));
                     *lane = _mm256_fmadd_pd(x, y, *lane);
                 }
@@ -198,50 +202,16 @@ mod simd {
             let s = _mm256_add_pd(_mm256_add_pd(acc[0], acc[1]), _mm256_add_pd(acc[2], acc[3]));
             let mut lanes = [0.0f64; 4];
             _mm256_storeu_pd(lanes.as_mut_ptr(), s);
-            let tail: f64 = a[i..n].iter().zip(&b[i..n]).map(|(x, y)| x * y).sum();
+            let tail: f64 = a[i..n].iter().zip(&b[i..n]).map(|(x, y)| (*x).into() * y).sum();
             lanes.iter().sum::<f64>() + tail
-        }
-    }
-
-    /// Σ aᵢ bᵢ, a widened from single precision 4 at a time, four FMA chains.
-    #[target_feature(enable = "avx2,fma")]
-    pub unsafe fn dot32(a: &[f32], b: &[f64]) -> f64 {
-        use std::arch::x86_64::*;
-        let n = a.len().min(b.len());
-        let (pa, pb) = (a.as_ptr(), b.as_ptr());
-        let mut acc = [_mm256_setzero_pd(); 4];
-        let mut i = 0;
-        // SAFETY: every load reads a[i..i + 16] and b[i..i + 16] with i + 16 ≤ n.
-        unsafe {
-            while i + 16 <= n {
-                for (k, lane) in acc.iter_mut().enumerate() {
-                    let x = _mm256_cvtps_pd(_mm_loadu_ps(pa.add(i + 4 * k)));
-                    let y = _mm256_loadu_pd(pb.add(i + 4 * k));
-                    *lane = _mm256_fmadd_pd(x, y, *lane);
-                }
-                i += 16;
-            }
-            let s = _mm256_add_pd(_mm256_add_pd(acc[0], acc[1]), _mm256_add_pd(acc[2], acc[3]));
-            let mut lanes = [0.0f64; 4];
-            _mm256_storeu_pd(lanes.as_mut_ptr(), s);
-            let tail: f64 = a[i..n].iter().zip(&b[i..n]).map(|(x, y)| f64::from(*x) * y).sum();
-            lanes.iter().sum::<f64>() + tail
-        }
-    }
-
-    /// y += c x (x in single precision), compiled for AVX2 + FMA.
-    #[target_feature(enable = "avx2,fma")]
-    pub unsafe fn axpy32(c: f64, x: &[f32], y: &mut [f64]) {
-        for (yi, xi) in y.iter_mut().zip(x) {
-            *yi = c.mul_add(f64::from(*xi), *yi);
         }
     }
 
     /// y += c x, compiled for AVX2 + FMA (the compiler vectorises it).
     #[target_feature(enable = "avx2,fma")]
-    pub unsafe fn axpy(c: f64, x: &[f64], y: &mut [f64]) {
+    pub unsafe fn axpy<T: super::Coefficient>(c: f64, x: &[T], y: &mut [f64]) {
         for (yi, xi) in y.iter_mut().zip(x) {
-            *yi = c.mul_add(*xi, *yi);
+            *yi = c.mul_add((*xi).into(), *yi);
         }
     }
 }

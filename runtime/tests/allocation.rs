@@ -103,6 +103,15 @@ fn grid(patches: bool) -> Arc<Basis> {
     Arc::new(basis)
 }
 
+/// A hand at time `t` over the grid at `x`, going down through it, its button as given.
+fn input(t: f64, button: bool, x: f64) -> HandInput {
+    HandInput {
+        position: [x, 0.02, 0.001 - 0.01 * t],
+        velocity: [0.0, 0.0, -0.01],
+        button,
+    }
+}
+
 #[test]
 fn haptic_steps_allocate_nothing() {
     for (free, policy, patches) in [
@@ -129,11 +138,6 @@ fn haptic_steps_allocate_nothing() {
             ..ValidityWatch::default()
         });
         let mut out = [HandOutput::default(); 2];
-        let input = |t: f64, button: bool, x: f64| HandInput {
-            position: [x, 0.02, 0.001 - 0.01 * t],
-            velocity: [0.0, 0.0, -0.01],
-            button,
-        };
         // Warm-up: the first picks settle (nothing is sized lazily, but be fair to one-offs).
         h.step(&[input(0.0, false, 0.0), input(0.0, true, 0.04)], &mut out);
         let before = allocations();
@@ -213,11 +217,6 @@ fn nonlinear_haptic_steps_allocate_nothing() {
         2,
     );
     let mut out = [HandOutput::default(); 2];
-    let input = |t: f64, button: bool, x: f64| HandInput {
-        position: [x, 0.02, 0.001 - 0.01 * t],
-        velocity: [0.0, 0.0, -0.01],
-        button,
-    };
     h.step(&[input(0.0, false, 0.0), input(0.0, true, 0.04)], &mut out);
     let before = allocations();
     let mut energy = 0.0f64;
