@@ -230,6 +230,10 @@ fn bad_model_tables_are_refused_in_one_line() {
         &["[static_correction]", "nonlinear"],
     );
     fails(
+        &(GOOD.to_string() + nl + "[stress]\nenabled = true\n"),
+        &["[stress] enabled", "Cauchy"],
+    );
+    fails(
         &(GOOD.to_string()
             + nl
             + "[[voi]]\nname = \"tip\"\nsize = 0.02\nbox = { min = [0.8, 0.0, 0.0], max = [1.0, 0.1, 0.05] }\n"),

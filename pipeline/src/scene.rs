@@ -943,6 +943,13 @@ fn nonlinear_model(raw: &RawScene, free_body: bool) -> Result<Option<Nonlinear>,
             "[static_correction] is a linear correction: remove it from a model.kind = \"nonlinear\" scene".into(),
         );
     }
+    if raw.stress.as_ref().is_some_and(|s| s.enabled) {
+        return Err(
+            "[stress] enabled stores each mode's linear stress, which reads a large rotation as stress: remove it \
+             from a model.kind = \"nonlinear\" scene (its load cases carry their true Cauchy stress)"
+                .into(),
+        );
+    }
     Ok(Some(Nonlinear { derivatives: d }))
 }
 
