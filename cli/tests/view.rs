@@ -1056,3 +1056,58 @@ fn a_step_part_is_set_up_computed_and_pulled_in_the_page() {
     // basis (the first compute had none to replace, and none to start an instant basis from).
     assert_eq!(stats["swaps"].as_u64(), Some(4), "{stats}");
 }
+
+/// A nonlinear part in the page (docs/nonlinear.md): drawn at true size under the automatic
+/// scale, and a hand carrying the soft cantilever's tip 0.25 m down draws it down and in.
+#[test]
+fn a_nonlinear_part_is_drawn_at_true_size_and_bends_on_an_arc() {
+    let dir = tempfile::tempdir().expect("temp dir");
+    let basis = dir.path().join("soft.h5");
+    let scene = Path::new(env!("CARGO_MANIFEST_DIR")).join("../cases/soft_cantilever/scene.toml");
+    let o = ves(&["precompute", scene.to_str().unwrap(), "-o", basis.to_str().unwrap()]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let (server, out, url) = serve(&basis, "0");
+    let web = Path::new(env!("CARGO_MANIFEST_DIR")).join("../view/web");
+    let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/view/nonlinear.mjs");
+    let browser = Command::new("node")
+        .arg(&script)
+        .arg(&url)
+        .arg(&web)
+        .arg(dir.path())
+        .output()
+        .expect("node runs (scripts/setup installs it)");
+    let rest = finish(server, out, &browser);
+    let last = String::from_utf8_lossy(&browser.stdout)
+        .lines()
+        .last()
+        .unwrap_or("")
+        .to_string();
+    let page: serde_json::Value = serde_json::from_str(&last).unwrap_or_else(|_| panic!("the page's JSON: {last}"));
+    assert_eq!(page["errors"].as_array().map(Vec::len), Some(0), "page errors: {page}");
+    if let Ok(keep) = std::env::var("VES_VIEW_SCREENSHOTS") {
+        std::fs::copy(
+            dir.path().join("nonlinear_pull.png"),
+            Path::new(&keep).join("nonlinear_pull.png"),
+        )
+        .expect("copy a screenshot");
+    }
+    let at_rest = &page["atRest"];
+    assert_eq!(at_rest["nonlinear"], true, "{page}");
+    assert_eq!(at_rest["scale"].as_f64(), Some(1.0), "{page}");
+    assert_eq!(at_rest["auto"], true, "{page}");
+    let pulled = &page["pulled"];
+    let (drawn, truth, start) = (vec3(&pulled["drawn"]), vec3(&pulled["true"]), vec3(&pulled["rest"]));
+    assert_eq!(pulled["scale"].as_f64(), Some(1.0), "{page}");
+    // At true size the drawn tip is where the model puts it.
+    assert!(norm(sub(drawn, truth)) < 1e-4, "{page}");
+    let d = sub(truth, start);
+    eprintln!("tip drawn at {d:?} from rest");
+    assert!(
+        d[2] < -0.2 && d[0] < -0.01,
+        "the tip went down and in along the beam: {d:?}"
+    );
+    assert!(
+        rest.contains("\"quarantined\":0") || !rest.contains("quarantined"),
+        "{rest}"
+    );
+}
