@@ -147,6 +147,20 @@ fn finish(
     rest
 }
 
+/// Runs browser script `tests/view/SCRIPT` on `url` (arguments: the URL, the page's sources, the
+/// screenshot folder `dir`, then `extra`) to its end.
+fn browse(script: &str, url: &str, dir: &Path, extra: &[&str]) -> std::process::Output {
+    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+    Command::new("node")
+        .arg(root.join("tests/view").join(script))
+        .arg(url)
+        .arg(root.join("../view/web"))
+        .arg(dir)
+        .args(extra)
+        .output()
+        .expect("node runs (scripts/setup installs it)")
+}
+
 /// Ends a server with Ctrl-C (it prints its statistics and exits 0).
 fn interrupt(server: &mut std::process::Child) -> std::process::ExitStatus {
     let _ = Command::new("kill").args(["-INT", &server.id().to_string()]).status();
@@ -422,16 +436,7 @@ fn a_load_case_is_chosen_in_the_page_and_drawn_from_the_file() {
     assert!(o.status.success(), "{}", stderr(&o));
 
     let (server, out, url) = serve(&basis, "0");
-    let web = Path::new(env!("CARGO_MANIFEST_DIR")).join("../view/web");
-    let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/view/loads.mjs");
-    let browser = Command::new("node")
-        .arg(&script)
-        .arg(&url)
-        .arg(&web)
-        .arg(dir.path())
-        .arg("tip")
-        .output()
-        .expect("node runs (scripts/setup installs it)");
+    let browser = browse("loads.mjs", &url, dir.path(), &["tip"]);
     let rest = finish(server, out, &browser);
     if let Ok(keep) = std::env::var("VES_VIEW_SCREENSHOTS") {
         std::fs::copy(dir.path().join("load_case.png"), Path::new(&keep).join("load_case.png"))
@@ -1067,15 +1072,7 @@ fn a_nonlinear_part_is_drawn_at_true_size_and_bends_on_an_arc() {
     let o = ves(&["precompute", scene.to_str().unwrap(), "-o", basis.to_str().unwrap()]);
     assert!(o.status.success(), "{}", stderr(&o));
     let (server, out, url) = serve(&basis, "0");
-    let web = Path::new(env!("CARGO_MANIFEST_DIR")).join("../view/web");
-    let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/view/nonlinear.mjs");
-    let browser = Command::new("node")
-        .arg(&script)
-        .arg(&url)
-        .arg(&web)
-        .arg(dir.path())
-        .output()
-        .expect("node runs (scripts/setup installs it)");
+    let browser = browse("nonlinear.mjs", &url, dir.path(), &[]);
     let rest = finish(server, out, &browser);
     let last = String::from_utf8_lossy(&browser.stdout)
         .lines()
