@@ -10,8 +10,10 @@
 
 use super::element::{BadJacobian, Kind, Lame, Shape, physical_gradients, tet4::Tet4, tet10::Tet10};
 use crate::tet_mesh::Mesh;
+use faer::linalg::matmul::matmul;
 use faer::{Accum, Mat, MatRef, Par};
 use nalgebra::{DMatrix, Matrix3};
+use rayon::prelude::*;
 pub use ves_runtime::nonlinear::{Equilibrium, NotConverged, Polynomial};
 
 /// The quadrature points of a mesh, each with its element, weight (w · det J) and the physical
@@ -179,60 +181,72 @@ pub fn reduce(points: &Points, mesh: &Mesh, mat: &Lame, u: &[f64], r: usize) -> 
             2.0 * y[(0, 1)],
         ]
     };
-    let block = 256usize;
-    let mut kk = Mat::<f64>::zeros(r, r);
-    let mut tt = Mat::<f64>::zeros(r, np);
-    let mut hh = Mat::<f64>::zeros(np, np);
-    let mut d = vec![Matrix3::<f64>::zeros(); r];
-    for start in (0..points.len()).step_by(block) {
-        let end = (start + block).min(points.len());
-        let rows = 6 * (end - start);
-        let mut a = Mat::<f64>::zeros(rows, r);
-        let mut b = Mat::<f64>::zeros(rows, np);
-        for g in start..end {
-            let t = mesh.tet(points.element[g] as usize);
-            for (k, dk) in d.iter_mut().enumerate() {
-                *dk = Matrix3::zeros();
-                let col = &u[k * n3..(k + 1) * n3];
-                for (&n, gr) in t.iter().zip(points.grads(g)) {
-                    let n = n as usize;
-                    for i in 0..3 {
-                        for j in 0..3 {
-                            dk[(i, j)] += col[3 * n + i] * gr[j];
+    // Blocks of points in parallel, each product on one thread (faer's own parallel GEMM
+    // synchronises with spinning barriers, which stall when anything else shares the cores:
+    // tall.rs), summed over the threads at the end.
+    const BLOCK: usize = 256;
+    let starts: Vec<usize> = (0..points.len()).step_by(BLOCK).collect();
+    let zero = || {
+        (
+            Mat::<f64>::zeros(r, r),
+            Mat::<f64>::zeros(r, np),
+            Mat::<f64>::zeros(np, np),
+        )
+    };
+    let (kk, tt, hh) = starts
+        .par_iter()
+        .fold(zero, |(mut kk, mut tt, mut hh), &start| {
+            let end = (start + BLOCK).min(points.len());
+            let rows = 6 * (end - start);
+            let mut a = Mat::<f64>::zeros(rows, r);
+            let mut b = Mat::<f64>::zeros(rows, np);
+            let mut d = vec![Matrix3::<f64>::zeros(); r];
+            for g in start..end {
+                let t = mesh.tet(points.element[g] as usize);
+                for (k, dk) in d.iter_mut().enumerate() {
+                    *dk = Matrix3::zeros();
+                    let col = &u[k * n3..(k + 1) * n3];
+                    for (&n, gr) in t.iter().zip(points.grads(g)) {
+                        let n = n as usize;
+                        for i in 0..3 {
+                            for j in 0..3 {
+                                dk[(i, j)] += col[3 * n + i] * gr[j];
+                            }
                         }
                     }
                 }
-            }
-            let sw = points.weight[g].max(0.0).sqrt();
-            let row0 = 6 * (g - start);
-            let put = |m: &mut Mat<f64>, col: usize, y: &Matrix3<f64>| {
-                let v = voigt(y);
-                for i in 0..6 {
-                    let mut s = 0.0;
-                    for j in i..6 {
-                        s += lt[(i, j)] * v[j];
+                let sw = points.weight[g].max(0.0).sqrt();
+                let row0 = 6 * (g - start);
+                let put = |m: &mut Mat<f64>, col: usize, y: &Matrix3<f64>| {
+                    let v = voigt(y);
+                    for i in 0..6 {
+                        let mut s = 0.0;
+                        for j in i..6 {
+                            s += lt[(i, j)] * v[j];
+                        }
+                        m[(row0 + i, col)] = sw * s;
                     }
-                    m[(row0 + i, col)] = sw * s;
+                };
+                for (k, dk) in d.iter().enumerate() {
+                    put(&mut a, k, &(0.5 * (dk + dk.transpose())));
                 }
-            };
-            for (k, dk) in d.iter().enumerate() {
-                put(&mut a, k, &(0.5 * (dk + dk.transpose())));
-            }
-            let mut p = 0;
-            for k in 0..r {
-                for l in k..r {
-                    let x = d[k].transpose() * d[l];
-                    let y = if k == l { 0.5 * x } else { 0.5 * (x + x.transpose()) };
-                    put(&mut b, p, &y);
-                    p += 1;
+                let mut p = 0;
+                for k in 0..r {
+                    for l in k..r {
+                        let x = d[k].transpose() * d[l];
+                        let y = if k == l { 0.5 * x } else { 0.5 * (x + x.transpose()) };
+                        put(&mut b, p, &y);
+                        p += 1;
+                    }
                 }
             }
-        }
-        let par = Par::rayon(0);
-        faer::linalg::matmul::matmul(kk.as_mut(), Accum::Add, a.transpose(), a.as_ref(), 1.0, par);
-        faer::linalg::matmul::matmul(tt.as_mut(), Accum::Add, a.transpose(), b.as_ref(), 1.0, par);
-        faer::linalg::matmul::matmul(hh.as_mut(), Accum::Add, b.transpose(), b.as_ref(), 1.0, par);
-    }
+            let seq = Par::Seq;
+            matmul(kk.as_mut(), Accum::Add, a.transpose(), a.as_ref(), 1.0, seq);
+            matmul(tt.as_mut(), Accum::Add, a.transpose(), b.as_ref(), 1.0, seq);
+            matmul(hh.as_mut(), Accum::Add, b.transpose(), b.as_ref(), 1.0, seq);
+            (kk, tt, hh)
+        })
+        .reduce(zero, |(k1, t1, h1), (k2, t2, h2)| (k1 + k2, t1 + t2, h1 + h2));
     let rows = |m: MatRef<'_, f64>| {
         (0..m.nrows())
             .flat_map(|i| (0..m.ncols()).map(move |j| m[(i, j)]))
