@@ -653,6 +653,16 @@ mod file {
             basis.support_reactions = Some(SupportReactions { centres, per_mode });
         }
         if let Some(n) = s.nonlinear()? {
+            // Held in f32: a finite f64 beyond f32's range would become infinite (as for φ).
+            if n.quartic.iter().any(|v| v.abs() > f64::from(f32::MAX)) {
+                return Err(LoadError {
+                    path: p,
+                    message: format!(
+                        "space {space:?}: nonlinear/quartic holds values beyond single precision (> 3.4e38): \
+                         the file is damaged"
+                    ),
+                });
+            }
             let all = crate::nonlinear::Polynomial::of_file(&lam, n.cubic, n.quartic);
             // H in single precision: the step at r = 30 took 96 µs against 112–120 µs in double
             // (docs/nonlinear.md), and the basis half the bytes.
