@@ -110,8 +110,8 @@ fn a_hand_pulls_the_soft_tip_through_a_third_of_its_length_and_back() {
         assert!(out[0].force.iter().all(|f| f.is_finite()), "step {k}");
         if k == ramp + hold - 1 {
             deepest = h.displacement(tip);
-            // The tip turns by about 25° but hardly strains: the watch's Green strain says so
-            // (a linear strain would read the rotation as some 9 % stretch).
+            // The tip turns but hardly strains: the watch's Green strain says so (a linear strain
+            // reads a rotation θ as a stretch of about θ²/2).
             eprintln!("edge strain at the tip {:.2e}", out[0].strain);
             assert!(out[0].strain < 0.01, "strain {}", out[0].strain);
         }

@@ -1073,7 +1073,7 @@ fn a_nonlinear_part_is_drawn_at_true_size_and_bends_on_an_arc() {
     assert!(o.status.success(), "{}", stderr(&o));
     let (server, out, url) = serve(&basis, "0");
     let browser = browse("nonlinear.mjs", &url, dir.path(), &[]);
-    let rest = finish(server, out, &browser);
+    finish(server, out, &browser);
     let last = String::from_utf8_lossy(&browser.stdout)
         .lines()
         .last()
@@ -1102,9 +1102,5 @@ fn a_nonlinear_part_is_drawn_at_true_size_and_bends_on_an_arc() {
     assert!(
         d[2] < -0.2 && d[0] < -0.01,
         "the tip went down and in along the beam: {d:?}"
-    );
-    assert!(
-        rest.contains("\"quarantined\":0") || !rest.contains("quarantined"),
-        "{rest}"
     );
 }
