@@ -264,9 +264,9 @@ struct NonlinearStep {
     col: Vec<f64>,
     /// The acceleration before the step (a rollback restores it).
     saved_accel: Vec<f64>,
-    /// Scratch of [`Haptics::energy`] (a `&self` method the haptic loop calls every step): a
-    /// cell, neither an allocation nor a lock there.
-    energy_scratch: std::cell::RefCell<crate::nonlinear::Scratch>,
+    /// Scratch of [`Haptics::energy`] (a `&self` method the haptic loop calls every step: no
+    /// allocation there; never contended).
+    energy_scratch: std::sync::Mutex<crate::nonlinear::Scratch>,
 }
 
 /// One hand's device state in the part (body) frame.
@@ -324,7 +324,7 @@ impl Haptics {
             let c: Vec<f64> = basis.eigenvalues.iter().map(|l| basis.alpha + basis.beta * l).collect();
             NonlinearStep {
                 stepper: crate::nonlinear::Stepper::new(&model, &c, dt),
-                energy_scratch: std::cell::RefCell::new(model.scratch()),
+                energy_scratch: std::sync::Mutex::new(model.scratch()),
                 model,
                 col: vec![0.0; r],
                 saved_accel: vec![0.0; r],
@@ -591,13 +591,17 @@ impl Haptics {
     }
 
     /// The part's elastic and kinetic energy, J (mass-normalised modes): ½|v|² + W(q), with the
-    /// nonlinear model's strain energy when the basis has one. No allocation, no lock.
+    /// nonlinear model's strain energy when the basis has one. No allocation.
     pub fn energy(&self) -> f64 {
         match &self.nonlinear {
             None => self.state.energy(),
             Some(nl) => {
                 let kinetic: f64 = self.state.v.iter().map(|v| 0.5 * v * v).sum();
-                kinetic + nl.model.energy(&self.state.q, &mut nl.energy_scratch.borrow_mut())
+                let mut w = nl
+                    .energy_scratch
+                    .lock()
+                    .unwrap_or_else(std::sync::PoisonError::into_inner);
+                kinetic + nl.model.energy(&self.state.q, &mut w)
             }
         }
     }
