@@ -168,6 +168,11 @@ pub fn write(out: &Path, scene: &Scene, spaces: &[Space<'_>]) -> Result<()> {
     staging
         .stage(&sidecar, |tmp| Ok(std::fs::write(tmp, sidecar_text.as_bytes())?))
         .with_context(|| format!("{}: writing the XDMF sidecar failed", sidecar.display()))?;
+    // The last moment a stop asked for while the file was written can still leave nothing:
+    // the staged files are removed when `staging` drops.
+    if crate::progress::cancelled() {
+        anyhow::bail!("cancelled while writing: nothing was written");
+    }
     Ok(staging.commit()?)
 }
 

@@ -17,8 +17,12 @@ use ves_pipeline::scene::{Scene, SceneError, SceneOptions};
 /// One long computation at a time: the pipeline's progress watcher is process-wide.
 static LONG_CALL: Mutex<()> = Mutex::new(());
 
-/// How often the waiting thread looks at signals and progress.
-const POLL: Duration = Duration::from_millis(100);
+/// How often the waiting thread looks at signals: a Ctrl-C reaches the pipeline at most this
+/// late, so a run that ends within it may still write its output.
+const POLL: Duration = Duration::from_millis(10);
+
+/// How often the progress bar is redrawn.
+const REDRAW: Duration = Duration::from_millis(100);
 
 /// Told each stage by the pipeline; asked whether to stop.
 #[derive(Default)]
@@ -84,6 +88,7 @@ pub(crate) fn run_long<T: Send + 'static>(
         .map_err(|e| errors::Error::new_err(format!("cannot start the pipeline thread: {e}")))?;
     let bar = progress_bar(py, progress, what);
     let mut interrupt: Option<PyErr> = None;
+    let mut drawn = std::time::Instant::now();
     while !handle.is_finished() {
         py.detach(|| std::thread::sleep(POLL));
         if interrupt.is_none()
@@ -95,7 +100,8 @@ pub(crate) fn run_long<T: Send + 'static>(
             }
             interrupt = Some(e);
         }
-        if let Some(bar) = &bar {
+        if let Some(bar) = bar.as_ref().filter(|_| drawn.elapsed() >= REDRAW) {
+            drawn = std::time::Instant::now();
             let stage = watch.stage.lock().ok().and_then(|s| s.clone());
             if let Some((name, fraction)) = stage {
                 show(bar, &name, fraction)?;
