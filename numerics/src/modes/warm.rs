@@ -101,6 +101,7 @@ pub fn warm_start(space: Space<'_>, count: usize, start: &[f64], blocks: usize) 
     let chol = factor_shifted(&problem, &ordering, sigma)?;
     let factorize_s = t0.elapsed().as_secs_f64();
     let t1 = Instant::now();
+    tracing::debug!(factorize_s, "warm: factorised");
     let mut solves = 0;
     // The space: rigid motions (exact for the free ones), the start, and T of the inertia loads.
     let mut space_v = Basis::new(n);
@@ -130,6 +131,11 @@ pub fn warm_start(space: Space<'_>, count: usize, start: &[f64], blocks: usize) 
         cycles += 1;
         let mut last = space_v.add(&problem, block);
         ritz = rayleigh_ritz(&space_v)?;
+        tracing::debug!(
+            cycle = cycles,
+            seconds = t1.elapsed().as_secs_f64(),
+            "warm: cycle started"
+        );
         let mut steady = false;
         for stage in 0..blocks {
             if last.is_empty() {
