@@ -142,6 +142,10 @@ impl Default for ValidityWatch {
 /// Surface neighbours of the active vertex used for its strain estimate.
 const STRAIN_NEIGHBOURS: usize = 16;
 
+/// The products q_k q_l of the largest nonlinear basis a file may hold: [`Haptics::energy`]
+/// keeps them on the stack (9.4 kB).
+const MAX_PAIRS: usize = ves_format::names::MAX_NONLINEAR_BASIS * (ves_format::names::MAX_NONLINEAR_BASIS + 1) / 2;
+
 /// What one hand's device reports.
 #[derive(Clone, Copy, Debug, Default)]
 pub struct HandInput {
@@ -264,9 +268,6 @@ struct NonlinearStep {
     col: Vec<f64>,
     /// The acceleration before the step (a rollback restores it).
     saved_accel: Vec<f64>,
-    /// Scratch of [`Haptics::energy`] (a `&self` method the haptic loop calls every step: no
-    /// allocation there; never contended).
-    energy_scratch: std::sync::Mutex<crate::nonlinear::Scratch>,
 }
 
 /// One hand's device state in the part (body) frame.
@@ -324,7 +325,6 @@ impl Haptics {
             let c: Vec<f64> = basis.eigenvalues.iter().map(|l| basis.alpha + basis.beta * l).collect();
             NonlinearStep {
                 stepper: crate::nonlinear::Stepper::new(&model, &c, dt),
-                energy_scratch: std::sync::Mutex::new(model.scratch()),
                 model,
                 col: vec![0.0; r],
                 saved_accel: vec![0.0; r],
@@ -597,11 +597,17 @@ impl Haptics {
             None => self.state.energy(),
             Some(nl) => {
                 let kinetic: f64 = self.state.v.iter().map(|v| 0.5 * v * v).sum();
-                let mut w = nl
-                    .energy_scratch
-                    .lock()
-                    .unwrap_or_else(std::sync::PoisonError::into_inner);
-                kinetic + nl.model.energy(&self.state.q, &mut w)
+                // The products q_k q_l on this thread's stack: no lock, no allocation for any
+                // basis a file can hold (its vectors are bounded); a larger model built in code
+                // takes a buffer from the heap.
+                let mut stack = [0.0; MAX_PAIRS];
+                let np = nl.model.pairs();
+                let w = if np <= MAX_PAIRS {
+                    nl.model.energy_in(&self.state.q, &mut stack)
+                } else {
+                    nl.model.energy_in(&self.state.q, &mut vec![0.0; np])
+                };
+                kinetic + w
             }
         }
     }

@@ -176,16 +176,23 @@ impl Polynomial {
 
     /// The strain energy W(q).
     pub fn energy(&self, q: &[f64], w: &mut Scratch) -> f64 {
+        self.energy_in(q, &mut w.s)
+    }
+
+    /// The strain energy W(q), with `s` (at least [`Polynomial::pairs`] long) as the only work
+    /// space: a caller without a [`Scratch`] at hand gives a buffer on its stack.
+    pub fn energy_in(&self, q: &[f64], s: &mut [f64]) -> f64 {
         let (r, np) = (self.r, self.pairs());
-        self.products(q, &mut w.s);
+        let s = &mut s[..np];
+        self.products(q, s);
         let mut e = 0.0;
         for i in 0..r {
             let ki = &self.k[i * r..(i + 1) * r];
             let ti = &self.t[i * np..(i + 1) * np];
-            e += q[i] * (0.5 * dot(ki, q) + dot(ti, &w.s));
+            e += q[i] * (0.5 * dot(ki, q) + dot(ti, s));
         }
         for p in 0..np {
-            e += 0.5 * w.s[p] * self.quartic_dot(p, &w.s);
+            e += 0.5 * s[p] * self.quartic_dot(p, s);
         }
         e
     }
