@@ -138,12 +138,18 @@ fn nonlinear_responses(
     let model = crate::nonlinear::enrich(d, &mut modes, derivatives, f)?;
     let basis = crate::nonlinear::full_columns(d, &modes);
     let points = crate::fem::stvk::Points::of(&d.mesh)?;
+    // The reactions as `ves precompute` reports them: after one Newton step of the full model.
+    let chol = crate::linsolve::factor_stiffness(&d.system, &d.dofs)?;
+    let springs = crate::supports::springs(&d.mesh, &scene.fixed, scene.material.young)?;
+    let lame = crate::fem::element::Lame::of(&scene.material);
     f.iter()
         .zip(&scene.loads)
         .map(|(f, case)| {
             let (u, internal, _) = crate::nonlinear::static_response(d, &model, &basis, f, &points)
                 .map_err(|e| e.context(format!("load case {}", case.name)))?;
-            Ok((u, internal))
+            let (_, reacting) = crate::loads::one_newton_step(d, &lame, &chol, &springs, f, &u, &internal)
+                .map_err(|e| anyhow::anyhow!("an element is degenerate (det J = {:.3e})", e.det))?;
+            Ok((u, reacting))
         })
         .collect()
 }
