@@ -347,9 +347,7 @@ pub fn solve_loads(
                     .with_context(|| format!("load case {}", case.name))?;
                 let reacting = one_newton_step(d, &lame, &chol, &springs, f, &u, &internal).map_err(degenerate)?;
                 let s = crate::fem::stress::vertex_stress_cauchy(&d.mesh, &lame, &u);
-                let mut result = finish(d, case, f, (u, internal), s, (&held, &springs))?;
-                result.set_reactions(&d.mesh, (&held, &springs), f, reacting);
-                Ok(result)
+                finish(d, case, f, u, (&reacting.0, &reacting.1), s, (&held, &springs))
             })
             .collect();
     }
@@ -366,7 +364,7 @@ pub fn solve_loads(
             let nv = d.mesh.vertex_count;
             let s: Vec<f64> = (0..6 * nv).map(|row| stress[row * r + j]).collect();
             let k_u = vector::internal_forces(&d.mesh, &lame, &u[j]).map_err(degenerate)?;
-            finish(d, case, &f[j], (u[j].clone(), k_u), s, (&held, &springs))
+            finish(d, case, &f[j], u[j].clone(), (&u[j], &k_u), s, (&held, &springs))
         })
         .collect()
 }
@@ -410,21 +408,6 @@ pub(crate) fn one_newton_step(
     ))
 }
 
-impl LoadResult {
-    /// The supports' reactions and the balance read from the state `(u, k_u)` (a displacement
-    /// and its internal force) instead of the case's own displacement.
-    fn set_reactions(
-        &mut self,
-        mesh: &crate::tet_mesh::Mesh,
-        (held, springs): (&[Vec<u32>], &[Vec<crate::fem::springs::NodeSpring>]),
-        f: &[f64],
-        (u, k_u): (Vec<f64>, Vec<f64>),
-    ) {
-        self.support_reactions = support_reactions(mesh, held, springs, &u, &k_u, f);
-        (self.reaction, self.balance_residual) = balance(&self.support_reactions, f);
-    }
-}
-
 /// The supports' summed force and its gap to the applied load `f`, over the sum of the nodal
 /// loads' magnitudes (0 in exact arithmetic).
 fn balance(support_reactions: &[SupportReaction], f: &[f64]) -> ([f64; 3], f64) {
@@ -441,17 +424,20 @@ fn balance(support_reactions: &[SupportReaction], f: &[f64]) -> ([f64; 3], f64) 
     (reaction, gap / magnitude.max(f64::MIN_POSITIVE))
 }
 
-/// One case's summary: reaction and balance, von Mises at every node, the largest values.
-/// `(u, k_u)`: the displacement and the internal force it makes (K u for a linear model).
+/// One case's summary: reaction and balance, von Mises at every node, the largest values, for
+/// the displacement `u`. `(reacting, k_u)`: the state the supports' reactions are read from and
+/// the internal force it makes (u and K u for a linear model; [`one_newton_step`]'s for a
+/// nonlinear one).
 fn finish(
     d: &Discretized,
     case: &crate::scene::LoadCase,
     f: &[f64],
-    (u, k_u): (Vec<f64>, Vec<f64>),
+    u: Vec<f64>,
+    (reacting, k_u): (&[f64], &[f64]),
     stress: Vec<f64>,
     (held, springs): (&[Vec<u32>], &[Vec<crate::fem::springs::NodeSpring>]),
 ) -> Result<LoadResult> {
-    let support_reactions = support_reactions(&d.mesh, held, springs, &u, &k_u, f);
+    let support_reactions = support_reactions(&d.mesh, held, springs, reacting, k_u, f);
     // The supports' forces: at the DOFs they remove and in their springs.
     let (reaction, balance_residual) = balance(&support_reactions, f);
     let total = [0, 1, 2].map(|c| f.iter().skip(c).step_by(3).sum::<f64>());
