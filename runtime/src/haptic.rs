@@ -591,7 +591,9 @@ impl Haptics {
     }
 
     /// The part's elastic and kinetic energy, J (mass-normalised modes): ½|v|² + W(q), with the
-    /// nonlinear model's strain energy when the basis has one. No allocation.
+    /// nonlinear model's strain energy when the basis has one. No lock; no allocation for any
+    /// basis a file holds (a nonlinear model of more than 48 vectors, built in code, allocates
+    /// its products).
     pub fn energy(&self) -> f64 {
         match &self.nonlinear {
             None => self.state.energy(),

@@ -179,8 +179,9 @@ impl Polynomial {
         self.energy_in(q, &mut w.s)
     }
 
-    /// The strain energy W(q), with `s` (at least [`Polynomial::pairs`] long) as the only work
-    /// space: a caller without a [`Scratch`] at hand gives a buffer on its stack.
+    /// The strain energy W(q), with `s` as the only work space: a caller without a [`Scratch`]
+    /// at hand gives a buffer on its stack. Panics if `s` is shorter than
+    /// [`Polynomial::pairs`].
     pub fn energy_in(&self, q: &[f64], s: &mut [f64]) -> f64 {
         let (r, np) = (self.r, self.pairs());
         let s = &mut s[..np];

@@ -120,9 +120,10 @@ pub fn warm_start(space: Space<'_>, count: usize, start: &[f64], blocks: usize) 
     block.extend_from_slice(&guards);
     // Cycles of `blocks` stages: a stage is added while the error the wanted Ritz values are
     // expected to have left is above STEADY (the move from one stage to the next is about the
-    // error left at the first); a cycle that ends still moving restarts from its best Ritz vectors (the memory
-    // stays that of one cycle). Far support changes need them: a block held by one face from
-    // its free modes was 12 % off in frequency after one cycle of three stages.
+    // error left at the first); a cycle that ends short of it restarts from its best Ritz
+    // vectors (the memory stays that of one cycle). Far support changes need them: a block
+    // held by one face from its free modes was 12 % off in frequency after one cycle of three
+    // stages.
     let keep = nev + guard + 6;
     let mut ritz;
     let mut cycles = 0;

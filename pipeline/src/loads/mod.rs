@@ -81,6 +81,27 @@ pub struct SupportReaction {
     pub moment_nm: [f64; 3],
 }
 
+/// The springs' restoring force K_s u, told DOF by DOF to `add` (a DOF may be told several
+/// times): each block couples node `a`'s row with node `b`'s column, and the other way round.
+fn spring_forces(springs: &[crate::fem::springs::NodeSpring], u: &[f64], mut add: impl FnMut(usize, f64)) {
+    for sp in springs {
+        let (a, b) = (sp.a as usize, sp.b as usize);
+        for r in 0..3 {
+            for c in 0..3 {
+                add(3 * a + r, sp.block[r][c] * u[3 * b + c]);
+                if a != b {
+                    add(3 * b + c, sp.block[r][c] * u[3 * a + r]);
+                }
+            }
+        }
+    }
+}
+
+/// An element whose Jacobian is not positive, as the load stage says it.
+pub(crate) fn degenerate(e: crate::fem::element::BadJacobian) -> anyhow::Error {
+    anyhow::anyhow!("an element is degenerate (det J = {:.3e})", e.det)
+}
+
 /// Each support's share of the reaction: `k_u − f` at the DOFs it removes (`held`, full-length
 /// vectors), −K_s u of its springs (`springs`), of `mesh`'s nodes.
 fn support_reactions(
@@ -100,17 +121,7 @@ fn support_reactions(
             for &g in dofs {
                 at.entry(g as usize / 3).or_default()[g as usize % 3] += k_u[g as usize] - f[g as usize];
             }
-            for sp in springs {
-                let (a, b) = (sp.a as usize, sp.b as usize);
-                for r in 0..3 {
-                    for c in 0..3 {
-                        at.entry(a).or_default()[r] -= sp.block[r][c] * u[3 * b + c];
-                        if a != b {
-                            at.entry(b).or_default()[c] -= sp.block[r][c] * u[3 * a + r];
-                        }
-                    }
-                }
-            }
+            spring_forces(springs, u, |g, v| at.entry(g / 3).or_default()[g % 3] -= v);
             // The middle of their bounding box: a face's centre, a bore's axis (a mean of the
             // nodes would follow where the mesh happens to be finer).
             let (mut lo, mut hi) = ([f64::INFINITY; 3], [f64::NEG_INFINITY; 3]);
@@ -195,8 +206,7 @@ pub fn modal_reactions(
         .into_par_iter()
         .map(|j| {
             let u = dofs.expand(&modes.vectors[j * nf..(j + 1) * nf]);
-            let k_u = vector::internal_forces(&near, &lame, &u)
-                .map_err(|e| anyhow::anyhow!("an element is degenerate (det J = {:.3e})", e.det))?;
+            let k_u = vector::internal_forces(&near, &lame, &u).map_err(degenerate)?;
             Ok(support_reactions(mesh, &held, &springs, &u, &k_u, &zero))
         })
         .collect::<Result<_>>()?;
@@ -332,8 +342,6 @@ pub fn solve_loads(
         crate::supports::held_by_each(&d.mesh, &scene.fixed).with_context(|| scene.path.display().to_string())?;
     let springs = crate::supports::springs(&d.mesh, &scene.fixed, scene.material.young)
         .with_context(|| scene.path.display().to_string())?;
-    let degenerate =
-        |e: crate::fem::element::BadJacobian| anyhow::anyhow!("an element is degenerate (det J = {:.3e})", e.det);
     if let Some((model, modes)) = nonlinear {
         let basis = crate::nonlinear::full_columns(d, modes);
         let points = crate::fem::stvk::Points::of(&d.mesh)?;
@@ -345,7 +353,7 @@ pub fn solve_loads(
             .map(|(case, f)| {
                 let (u, internal, _) = crate::nonlinear::static_response(d, model, &basis, f, &points)
                     .with_context(|| format!("load case {}", case.name))?;
-                let reacting = one_newton_step(d, &lame, &chol, &springs, f, &u, &internal).map_err(degenerate)?;
+                let reacting = one_newton_step(d, &lame, &chol, &springs, f, &u, &internal)?;
                 let s = crate::fem::stress::vertex_stress_cauchy(&d.mesh, &lame, &u);
                 finish(d, case, f, u, (&reacting.0, &reacting.1), s, (&held, &springs))
             })
@@ -385,23 +393,15 @@ pub(crate) fn one_newton_step(
     f: &[f64],
     u: &[f64],
     internal: &[f64],
-) -> Result<(Vec<f64>, Vec<f64>), crate::fem::element::BadJacobian> {
+) -> Result<(Vec<f64>, Vec<f64>)> {
     let mut total = internal.to_vec();
-    for sp in springs.iter().flatten() {
-        let (a, b) = (sp.a as usize, sp.b as usize);
-        for r in 0..3 {
-            for c in 0..3 {
-                total[3 * a + r] += sp.block[r][c] * u[3 * b + c];
-                if a != b {
-                    total[3 * b + c] += sp.block[r][c] * u[3 * a + r];
-                }
-            }
-        }
+    for s in springs {
+        spring_forces(s, u, |g, v| total[g] += v);
     }
     let mut residual: Vec<f64> = d.dofs.free.iter().map(|&g| f[g as usize] - total[g as usize]).collect();
     chol.solve_many_in_place(&mut residual, 1);
     let delta = d.dofs.expand(&residual);
-    let k_delta = vector::internal_forces(&d.mesh, lame, &delta)?;
+    let k_delta = vector::internal_forces(&d.mesh, lame, &delta).map_err(degenerate)?;
     Ok((
         u.iter().zip(&delta).map(|(a, b)| a + b).collect(),
         internal.iter().zip(&k_delta).map(|(a, b)| a + b).collect(),

@@ -147,8 +147,7 @@ fn nonlinear_responses(
         .map(|(f, case)| {
             let (u, internal, _) = crate::nonlinear::static_response(d, &model, &basis, f, &points)
                 .map_err(|e| e.context(format!("load case {}", case.name)))?;
-            let (_, reacting) = crate::loads::one_newton_step(d, &lame, &chol, &springs, f, &u, &internal)
-                .map_err(|e| anyhow::anyhow!("an element is degenerate (det J = {:.3e})", e.det))?;
+            let (_, reacting) = crate::loads::one_newton_step(d, &lame, &chol, &springs, f, &u, &internal)?;
             Ok((u, reacting))
         })
         .collect()
