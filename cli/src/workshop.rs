@@ -252,6 +252,12 @@ impl PartWorkshop {
         }
     }
 
+    /// Starts from `basis` (a project's, served again): instant bases are made from it.
+    pub fn resume(self, basis: &Path) -> PartWorkshop {
+        *self.last() = Some(basis.to_path_buf());
+        self
+    }
+
     /// Serve an instant basis first when only supports, material or modes changed.
     pub fn instant(self, on: bool) -> PartWorkshop {
         PartWorkshop { instant: on, ..self }

@@ -1104,3 +1104,89 @@ fn a_nonlinear_part_is_drawn_at_true_size_and_bends_on_an_arc() {
         "the tip went down and in along the beam: {d:?}"
     );
 }
+
+/// Issue 44, one set-up owned by the server: `ves view PART.step` keeps its project beside the
+/// part. In one page a user types two edits (6 modes, E = 70 GPa); a second page and that page
+/// reloaded show them, marked as not computed; undo (a real click) returns the first edit in
+/// every page; Compute serves it, and the history names what changed. A server restarted on the
+/// same part serves that basis at once (no compute) with the same set-up and history.
+#[test]
+fn a_second_page_a_reload_and_a_restart_show_the_set_up_the_server_keeps() {
+    let dir = tempfile::tempdir().expect("a temporary directory");
+    let step = dir.path().join("cantilever.step");
+    std::fs::copy(
+        Path::new(env!("CARGO_MANIFEST_DIR")).join("../cases/cantilever/cantilever.step"),
+        &step,
+    )
+    .expect("copy the part");
+    let run = |phase: &str| -> (serde_json::Value, serde_json::Value, String) {
+        let (mut server, mut out, url) = start_view(&step, "0", "900", &[], Stdio::piped());
+        let browser = browse("studio.mjs", &url, dir.path(), &[phase]);
+        let mut err = String::new();
+        let status = interrupt(&mut server);
+        server.stderr.take().map(|mut e| e.read_to_string(&mut err));
+        let mut rest = String::new();
+        out.read_to_string(&mut rest).expect("server output");
+        assert!(status.success(), "ves view after Ctrl-C: {status:?}: {err}");
+        assert!(browser.status.success(), "browser: {}", stderr(&browser));
+        let page: serde_json::Value = serde_json::from_slice(
+            browser
+                .stdout
+                .split(|&b| b == b'\n')
+                .find(|l| l.starts_with(b"{"))
+                .unwrap_or_default(),
+        )
+        .unwrap_or_else(|e| panic!("the page's JSON: {e}: {}", String::from_utf8_lossy(&browser.stdout)));
+        let stats: serde_json::Value = serde_json::from_str(rest.lines().last().unwrap_or_default())
+            .unwrap_or_else(|e| panic!("--json: {e}: {rest}"));
+        assert!(page["failure"].is_null(), "{page}\nserver: {err}");
+        assert_eq!(page["errors"], serde_json::json!([]), "{page}");
+        (page, stats, err)
+    };
+
+    let (page, _, err) = run("first");
+    let project = dir.path().join("cantilever.ves");
+    assert!(err.contains(&format!("project {}: new", project.display())), "{err}");
+    for k in ["servedA", "edit1", "edit2", "toldB", "undone", "toldReload", "computed"] {
+        assert_eq!(page[k], true, "{k}: {page}");
+    }
+    let shows = |p: &serde_json::Value, modes: &str, young: &str, edited: bool| {
+        assert_eq!(
+            (p["modes"].as_str(), p["young"].as_str()),
+            (Some(modes), Some(young)),
+            "{p}"
+        );
+        assert_eq!(p["edited"], edited, "{p}");
+    };
+    shows(&page["start"], "12", "210", false);
+    shows(&page["afterEdits"], "6", "70", true);
+    // The second page: the server's set-up, not the part's starting scene.
+    shows(&page["b"], "6", "70", true);
+    // Undo after two edits: the first.
+    shows(&page["bUndone"], "6", "210", true);
+    shows(&page["bReloaded"], "6", "210", true);
+    shows(&page["afterCompute"], "6", "210", false);
+    shows(&page["bAfterCompute"], "6", "210", false);
+    assert_eq!(page["afterCompute"]["served"]["modes"], 6, "{page}");
+    let history = &page["afterCompute"]["history"];
+    assert_eq!(history[0]["changed"], serde_json::json!([]), "{history}");
+    assert_eq!(history[1]["changed"], serde_json::json!(["modes.count"]), "{history}");
+    assert!(project.join("project.json").is_file() && project.join("basis.h5").is_file());
+    if let Ok(keep) = std::env::var("VES_VIEW_SCREENSHOTS") {
+        std::fs::copy(
+            dir.path().join("studio_edited.png"),
+            Path::new(&keep).join("studio_edited.png"),
+        )
+        .expect("copy a screenshot");
+    }
+
+    let (page, stats, err) = run("resumed");
+    assert!(err.contains("resumed (2 computes before)"), "{err}");
+    assert_eq!(
+        stats["computes"], 0,
+        "the project's basis is served, not computed: {stats}"
+    );
+    shows(&page["start"], "6", "210", false);
+    assert_eq!(page["start"]["history"].as_array().map(Vec::len), Some(2), "{page}");
+    assert_eq!(page["start"]["served"]["modes"], 6, "{page}");
+}

@@ -7,8 +7,10 @@
 
 pub mod hands;
 pub mod loads;
+pub mod project;
 pub mod protocol;
 pub mod server;
+pub mod setup;
 #[cfg(test)]
 mod tests;
 pub mod workshop;
@@ -20,8 +22,10 @@ use axum::http::{StatusCode, header};
 use axum::response::{IntoResponse, Response};
 use axum::routing::get;
 use hands::{HandSlot, HandStatus, WebHand};
+pub use project::Project;
 use protocol::{ClientMessage, Extent, FrameHeader, HANDS};
 pub use server::Limits;
+pub use setup::SetUp;
 use std::net::SocketAddr;
 use std::path::PathBuf;
 use std::sync::atomic::{AtomicBool, AtomicU32, AtomicU64, AtomicUsize, Ordering};
@@ -250,6 +254,65 @@ struct Shared {
     computes: AtomicU64,
     computes_failed: AtomicU64,
     swaps: AtomicU64,
+    /// The set-up every page shows (with a workshop), and where it is kept.
+    setup: Mutex<SetUp>,
+    /// Its message as last sent (empty without a workshop): a watch, since only the latest
+    /// state matters and a page that lagged must still get it.
+    setup_tx: watch::Sender<String>,
+    /// The project on disk, if any; let go when the page opens another part.
+    project: Mutex<Option<Keeper>>,
+}
+
+/// A project and the thread that writes its set-up: edits come from the server's own thread,
+/// which must not wait on a disk; the thread writes the latest state it has.
+struct Keeper {
+    project: Arc<Project>,
+    tx: std::sync::mpsc::Sender<SetUp>,
+    thread: std::thread::JoinHandle<()>,
+}
+
+impl Keeper {
+    fn start(project: Project) -> Keeper {
+        let project = Arc::new(project);
+        let (tx, rx) = std::sync::mpsc::channel::<SetUp>();
+        let thread = std::thread::spawn({
+            let project = project.clone();
+            move || {
+                let mut warned = false;
+                while let Ok(mut s) = rx.recv() {
+                    while let Ok(newer) = rx.try_recv() {
+                        s = newer;
+                    }
+                    if let Err(e) = project.save(&s)
+                        && !std::mem::replace(&mut warned, true)
+                    {
+                        eprintln!(
+                            "ves view: {}: cannot keep the set-up: {e}",
+                            project.dir().join(project::STATE).display()
+                        );
+                    }
+                }
+            }
+        });
+        Keeper { project, tx, thread }
+    }
+
+    /// Writes what is queued and ends the thread.
+    fn finish(self) {
+        drop(self.tx);
+        let _ = self.thread.join();
+    }
+}
+
+/// What the set-up panel computes with and keeps: the workshop, the project on disk and the
+/// set-up it resumes.
+pub struct Studio {
+    /// Makes bases from the page's scenes.
+    pub workshop: Arc<dyn Workshop>,
+    /// Where the set-up and the basis served are kept, if anywhere.
+    pub project: Option<Project>,
+    /// The set-up to start from (a project's); the workshop's starting scene without.
+    pub setup: Option<SetUp>,
 }
 
 /// Serves the viewer on `spaces` until the session ends (its duration, Ctrl-C, or `stop`).
@@ -272,18 +335,46 @@ pub fn serve_with(
     stop: Arc<AtomicBool>,
     ready: impl FnOnce(SocketAddr),
 ) -> Result<ViewStats, ViewError> {
+    let studio = workshop.map(|workshop| Studio {
+        workshop,
+        project: None,
+        setup: None,
+    });
+    serve_studio(spaces, studio, cfg, stop, ready)
+}
+
+/// [`serve_with`] with a project: `spaces` (the project's basis, when it had one) are served
+/// under `studio.setup`, and every change of the set-up is kept in `studio.project`.
+pub fn serve_studio(
+    spaces: Option<Vec<SpaceInput>>,
+    studio: Option<Studio>,
+    cfg: &ViewConfig,
+    stop: Arc<AtomicBool>,
+    ready: impl FnOnce(SocketAddr),
+) -> Result<ViewStats, ViewError> {
     cfg.session.validate()?;
     let listener = listen(cfg.addr)?;
     let addr = listener.local_addr().map_err(ViewError::Socket)?;
     let (status_tx, status_rx) = watch::channel(String::new());
-    let shared = Arc::new(Shared::new(cfg, workshop, status_rx));
+    let shared = Arc::new(Shared::new(cfg, studio, status_rx));
+    // A project's basis is downloadable as a computed one is.
+    let basis_path = spaces
+        .as_ref()
+        .and_then(|s| s.first())
+        .and_then(|s| s.basis.source.clone())
+        .filter(|_| shared.workshop.is_some());
     match (spaces, &shared.workshop) {
-        (Some(spaces), _) => swap(&shared, spaces, None)?,
-        // A part without a basis yet: its first compute starts at once, from the scene the
-        // workshop starts with, and the pages show its progress.
-        (None, Some(w)) => start_compute(&shared, w.setup()["scene"].clone())?,
+        (Some(spaces), _) => swap(&shared, spaces, basis_path)?,
+        // A part without a basis yet: its first compute starts at once, from the scene served
+        // last (a project's whose basis is gone) or the one the workshop starts with, and the
+        // pages show its progress.
+        (None, Some(w)) => {
+            let served = lock(&shared.setup).served.clone();
+            start_compute(&shared, served.unwrap_or_else(|| w.setup()["scene"].clone()))?;
+        }
         (None, None) => return Err(ViewError::NothingToServe),
     }
+    publish_setup(&shared);
     let rt = tokio::runtime::Builder::new_multi_thread()
         .worker_threads(1)
         .enable_all()
@@ -291,6 +382,10 @@ pub fn serve_with(
         .map_err(ViewError::Runtime)?;
     rt.block_on(run_server(&shared, listener, addr, status_tx, &stop, ready))?;
     rt.shutdown_timeout(Duration::from_millis(200));
+    // The set-up's last state on disk before the server's end is reported.
+    if let Some(k) = lock(&shared.project).take() {
+        k.finish();
+    }
     end_session(&shared)?;
     Ok(shared.view_stats())
 }
@@ -378,7 +473,16 @@ const COMPUTE_END_WAIT: Duration = Duration::from_secs(5);
 
 impl Shared {
     /// The server's state before any session: no basis, no client.
-    fn new(cfg: &ViewConfig, workshop: Option<Arc<dyn Workshop>>, status: watch::Receiver<String>) -> Shared {
+    fn new(cfg: &ViewConfig, studio: Option<Studio>, status: watch::Receiver<String>) -> Shared {
+        let (workshop, project, setup) = match studio {
+            Some(s) => {
+                let setup = s
+                    .setup
+                    .unwrap_or_else(|| SetUp::new(s.workshop.setup()["scene"].clone()));
+                (Some(s.workshop), s.project, setup)
+            }
+            None => (None, None, SetUp::default()),
+        };
         let (frame_tx, frames) = watch::channel(Bytes::new());
         let (stress_tx, stress_frames) = watch::channel(Bytes::new());
         let published = Published {
@@ -437,6 +541,9 @@ impl Shared {
             computes: AtomicU64::new(0),
             computes_failed: AtomicU64::new(0),
             swaps: AtomicU64::new(0),
+            setup: Mutex::new(setup),
+            setup_tx: watch::channel(String::new()).0,
+            project: Mutex::new(project.map(Keeper::start)),
         }
     }
 
@@ -632,6 +739,7 @@ fn run_compute(shared: &Arc<Shared>, workshop: &dyn Workshop, scene: &serde_json
         stage: "starting".into(),
         fraction: 0.0,
     });
+    let before = lock(&shared.setup).served.clone();
     let mut swapped = false;
     let mut ready = |c: &Computed| -> Result<(), WorkshopError> {
         progress(Progress {
@@ -642,6 +750,13 @@ fn run_compute(shared: &Arc<Shared>, workshop: &dyn Workshop, scene: &serde_json
         swap(shared, spaces, Some(c.basis.clone()))?;
         swapped = true;
         shared.checking.store(true, Ordering::Release);
+        change_setup(shared, |s| {
+            s.serve(scene.clone(), c.scene.clone(), c.summary.clone());
+            true
+        });
+        if !c.instant {
+            keep_basis(shared, &c.basis);
+        }
         note(
             shared,
             serde_json::json!({
@@ -654,6 +769,38 @@ fn run_compute(shared: &Arc<Shared>, workshop: &dyn Workshop, scene: &serde_json
         Ok(())
     };
     let done = workshop.compute(scene, progress.clone(), shared.cancel.clone(), &mut ready);
+    let record = |outcome: &str, summary: String| {
+        let entry = setup::Entry {
+            unix_time: std::time::SystemTime::now()
+                .duration_since(std::time::UNIX_EPOCH)
+                .map_or(0, |d| d.as_secs()),
+            changed: before.as_ref().map(|b| setup::changes(b, scene)).unwrap_or_default(),
+            outcome: outcome.into(),
+            summary,
+            seconds: t0.elapsed().as_secs_f64(),
+        };
+        change_setup(shared, |s| {
+            if outcome == "computed" {
+                s.summary = Some(entry.summary.clone());
+            }
+            s.record(entry);
+            true
+        });
+    };
+    match &done {
+        Ok(c) if swapped => {
+            // The checks wrote the file again.
+            keep_basis(shared, &c.basis);
+            record("computed", c.summary.clone());
+        }
+        Err(e) if swapped => {
+            let summary = lock(&shared.setup).summary.clone().unwrap_or_default();
+            record("computed", format!("{summary}; its checks did not finish: {e}"));
+        }
+        Err(e @ WorkshopError::Cancelled { .. }) => record("cancelled", e.to_string()),
+        Err(e) => record("failed", e.to_string()),
+        Ok(_) => record("failed", "the compute made no basis".into()),
+    }
     let failed = |message: serde_json::Value| {
         shared.computes_failed.fetch_add(1, Ordering::Relaxed);
         note(shared, serde_json::json!({"type": "compute_error", "message": message}));
@@ -690,6 +837,46 @@ fn start_queued(shared: &Arc<Shared>) {
             shared,
             serde_json::json!({"type": "compute_error", "message": e.to_string()}),
         );
+    }
+}
+
+/// A mutex's guard; a thread that panicked while holding it left a state still worth using.
+fn lock<T>(m: &Mutex<T>) -> std::sync::MutexGuard<'_, T> {
+    m.lock().unwrap_or_else(|p| p.into_inner())
+}
+
+/// Copies the basis served into the project, if there is one (best effort: said once).
+fn keep_basis(shared: &Shared, basis: &std::path::Path) {
+    let project = lock(&shared.project).as_ref().map(|k| k.project.clone());
+    if let Some(p) = project
+        && let Err(e) = p.keep_basis(basis)
+    {
+        eprintln!(
+            "ves view: {}: cannot keep the basis: {e}",
+            p.dir().join(project::BASIS).display()
+        );
+    }
+}
+
+/// Sends the set-up to every page and queues it for the project.
+fn publish_setup(shared: &Shared) {
+    if shared.workshop.is_none() {
+        return;
+    }
+    let s = lock(&shared.setup);
+    let project = lock(&shared.project);
+    let folder = project.as_ref().map(|k| k.project.dir().display().to_string());
+    if let Some(k) = project.as_ref() {
+        let _ = k.tx.send(s.clone());
+    }
+    shared.setup_tx.send_replace(s.message(folder.as_deref()).to_string());
+}
+
+/// Applies `f` to the set-up and, if it says it changed it, publishes it.
+fn change_setup(shared: &Shared, f: impl FnOnce(&mut SetUp) -> bool) {
+    let changed = f(&mut lock(&shared.setup));
+    if changed {
+        publish_setup(shared);
     }
 }
 
@@ -757,9 +944,17 @@ async fn open_part(
     };
     // The opening and the compute's start in one blocking task that owns the slot: a page
     // that goes away meanwhile cannot leave the slot taken or let another part in between.
+    let shared_open = shared.clone();
     let opened = tokio::task::spawn_blocking(move || {
         workshop.open(&name, &bytes).map_err(OpenFailure::Refused)?;
         let scene = workshop.setup()["scene"].clone();
+        // Another part: a set-up of its own, and the project (the part ves view was given)
+        // stays as it was left.
+        if let Some(k) = lock(&shared_open.project).take() {
+            k.finish();
+        }
+        *lock(&shared_open.setup) = SetUp::new(scene.clone());
+        publish_setup(&shared_open);
         launch(claim, workshop, scene).map_err(OpenFailure::NotStarted)
     })
     .await
@@ -1028,11 +1223,18 @@ async fn client(mut socket: WebSocket, shared: Arc<Shared>) {
     let (mut frames, mut status) = (shared.frames.clone(), shared.status.clone());
     let mut stress = shared.stress_frames.clone();
     let mut notes = shared.notes.subscribe();
+    let mut setup = shared.setup_tx.subscribe();
     let mut wants_stress = false;
     let mut gate = FrameGate::default();
     // The hello and meshes first: nothing else means anything to the page before them.
     let mut ok = send_generation(&mut socket, &shared, id).await;
     generations.borrow_and_update();
+    // Then the set-up every page shows.
+    let mut acked = 0u32;
+    let first = setup.borrow_and_update().clone();
+    if ok && !first.is_empty() {
+        ok = send(&mut socket, Message::Text(with_ack(&first, acked).into())).await;
+    }
     while ok {
         tokio::select! {
             r = generations.changed() => {
@@ -1044,6 +1246,12 @@ async fn client(mut socket: WebSocket, shared: Arc<Shared>) {
                 Some(Ok(Message::Text(t))) => match handle(&shared, id, t.as_str()) {
                     Reply::Send(reply) => ok = send(&mut socket, Message::Binary(reply)).await,
                     Reply::Note(text) => ok = send(&mut socket, Message::Text(text.into())).await,
+                    Reply::Edited(seq, note) => {
+                        acked = seq;
+                        if let Some(text) = note {
+                            ok = send(&mut socket, Message::Text(text.into())).await;
+                        }
+                    }
                     Reply::Load(space, index) => {
                         let reply = load_case(&shared, space, index).await;
                         ok = send(&mut socket, reply).await;
@@ -1071,6 +1279,11 @@ async fn client(mut socket: WebSocket, shared: Arc<Shared>) {
                 if r.is_err() { break; }
                 let f = stress.borrow_and_update().clone();
                 ok = send(&mut socket, Message::Binary(f)).await;
+            }
+            r = setup.changed() => {
+                if r.is_err() { break; }
+                let s = with_ack(&setup.borrow_and_update(), acked);
+                ok = send(&mut socket, Message::Text(s.into())).await;
             }
             r = status.changed() => {
                 if r.is_err() { break; }
@@ -1102,6 +1315,11 @@ async fn client(mut socket: WebSocket, shared: Arc<Shared>) {
         want_stress(&shared, false);
     }
     shared.clients.fetch_sub(1, Ordering::Relaxed);
+}
+
+/// A set-up message (a JSON object's text) with this connection's `ack` first.
+fn with_ack(message: &str, acked: u32) -> String {
+    format!("{{\"ack\":{acked},{}", message.strip_prefix('{').unwrap_or(message))
 }
 
 /// Counts a client that starts (or stops) colouring by stress: the drawing thread makes the
@@ -1185,6 +1403,8 @@ async fn send_generation(socket: &mut WebSocket, shared: &Shared, id: u64) -> bo
 enum Reply {
     /// Nothing.
     None,
+    /// An edit of the set-up (its `seq`) applied, and a note for this page if any.
+    Edited(u32, Option<String>),
     /// Send these bytes (a mode shape).
     Send(Bytes),
     /// Send this text to this page only (why its compute did not start).
@@ -1225,14 +1445,50 @@ fn handle(shared: &Arc<Shared>, id: u64, text: &str) -> Reply {
             shared.reset.store(true, Ordering::Relaxed);
             Reply::None
         }
-        Ok(ClientMessage::Compute { scene }) => match start_compute(shared, scene) {
+        Ok(ClientMessage::Compute { scene, seq }) if shared.workshop.is_some() => {
+            // Sent back even when unchanged: the page waits for its edits' echo.
+            change_setup(shared, |s| {
+                s.edit(scene.clone());
+                true
+            });
+            match start_compute(shared, scene) {
+                Ok(()) => Reply::Edited(seq, None),
+                Err(e) => Reply::Edited(
+                    seq,
+                    Some(serde_json::json!({"type": "compute_error", "message": e.to_string()}).to_string()),
+                ),
+            }
+        }
+        Ok(ClientMessage::Compute { scene, .. }) => match start_compute(shared, scene) {
             Ok(()) => Reply::None,
             Err(e) => Reply::Note(serde_json::json!({"type": "compute_error", "message": e.to_string()}).to_string()),
         },
         Ok(ClientMessage::Cancel) => {
             shared.cancel.store(true, Ordering::Relaxed);
+            // The panel back to the scene served (undo brings the edits back).
+            change_setup(shared, SetUp::revert);
             Reply::None
         }
+        Ok(ClientMessage::Edit { scene, seq }) if shared.workshop.is_some() => {
+            change_setup(shared, |s| {
+                s.edit(scene);
+                true
+            });
+            Reply::Edited(seq, None)
+        }
+        Ok(ClientMessage::Undo) if shared.workshop.is_some() => {
+            change_setup(shared, SetUp::undo);
+            Reply::None
+        }
+        Ok(ClientMessage::Redo) if shared.workshop.is_some() => {
+            change_setup(shared, SetUp::redo);
+            Reply::None
+        }
+        Ok(ClientMessage::Revert) if shared.workshop.is_some() => {
+            change_setup(shared, SetUp::revert);
+            Reply::None
+        }
+        Ok(ClientMessage::Edit { .. } | ClientMessage::Undo | ClientMessage::Redo | ClientMessage::Revert) => dropped(),
         Err(e) => {
             tracing_drop(id, &e);
             dropped()

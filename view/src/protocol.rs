@@ -16,7 +16,13 @@
 //! `{"type":"load","space":s,"name":"…"}` (send load case `name` of space s once, as kind 4: it
 //! must be one the hello listed for that space) and
 //! `{"type":"reset"}` (the part back to rest, every hand let go), `{"type":"compute","scene":
-//! {…the scene's TOML tables as JSON…}}` and `{"type":"cancel"}` (the set-up panel, when the viewer has a workshop).
+//! {…the scene's TOML tables as JSON…}}`, `{"type":"cancel"}` (also returns the set-up to the
+//! scene served), `{"type":"edit","scene":{…},"seq":n}`, `{"type":"undo"}`, `{"type":"redo"}` and
+//! `{"type":"revert"}` (the set-up panel, when the viewer has a workshop).
+//! Server → page, text, the set-up every page shows (after the first hello, and at each change):
+//! `{"ack","type":"setup","draft","served","summary","edited","undo","redo","history","project"}`
+//! (`SetUp::message` in `setup.rs`; `ack`: the `seq` of the last `edit` or `compute` of this
+//! connection the server had applied).
 //! Server → page, text, about a compute: `{"type":"progress","stage","fraction"}`,
 //! `{"type":"computed","summary","scene","seconds"}`, `{"type":"compute_error","message"}`; a
 //! new basis then comes as a new hello and its meshes. About a load case the file could not give
@@ -274,8 +280,18 @@ enum Raw {
     },
     Compute {
         scene: serde_json::Value,
+        #[serde(default)]
+        seq: u32,
     },
     Cancel {},
+    Edit {
+        scene: serde_json::Value,
+        #[serde(default)]
+        seq: u32,
+    },
+    Undo {},
+    Redo {},
+    Revert {},
 }
 
 /// A checked message from the page.
@@ -308,9 +324,26 @@ pub enum ClientMessage {
     Compute {
         /// The scene: its TOML tables and keys as JSON.
         scene: serde_json::Value,
+        /// The page's number for this edit of the set-up (see `Edit`).
+        seq: u32,
     },
-    /// Stop the running compute.
+    /// Stop the running compute (and bring the set-up back to the scene served).
     Cancel,
+    /// The set-up panel's scene was edited: it is the draft every page shows from now on.
+    Edit {
+        /// The scene: its TOML tables and keys as JSON.
+        scene: serde_json::Value,
+        /// The page's number for it, counted from 1 on each connection: the set-up messages this
+        /// connection gets after it carry `"ack": seq`, so a page knows which of its edits the
+        /// state it is shown already holds.
+        seq: u32,
+    },
+    /// The set-up as it was before the last edit.
+    Undo,
+    /// The edit last undone, again.
+    Redo,
+    /// The set-up back to the scene served (an edit: undo brings the edits back).
+    Revert,
 }
 
 /// Where the part is: positions further than `REACH` diagonals from its centre are refused.
@@ -448,8 +481,12 @@ pub fn parse_with(
                 space,
             }),
         },
-        Raw::Compute { scene } => Ok(ClientMessage::Compute { scene }),
+        Raw::Compute { scene, seq } => Ok(ClientMessage::Compute { scene, seq }),
         Raw::Cancel {} => Ok(ClientMessage::Cancel),
+        Raw::Edit { scene, seq } => Ok(ClientMessage::Edit { scene, seq }),
+        Raw::Undo {} => Ok(ClientMessage::Undo),
+        Raw::Redo {} => Ok(ClientMessage::Redo),
+        Raw::Revert {} => Ok(ClientMessage::Revert),
     }
 }
 

@@ -10,13 +10,11 @@ use std::path::PathBuf;
 use std::sync::Arc;
 use std::sync::atomic::AtomicBool;
 use ves_pipeline::scene::{Scene, SceneOptions};
-use ves_view::{self as view, ViewConfig, Workshop};
+use ves_view::{self as view, ViewConfig};
 
-/// What `ves view` was given: a basis to serve, or a part to set up (first basis to come).
-type Opened = (
-    Option<Vec<ves_runtime::switching::SpaceInput>>,
-    Option<Arc<dyn Workshop>>,
-);
+/// What `ves view` was given: a basis to serve, or a part to set up (its project's basis, if
+/// it had one; else the first basis to come).
+type Opened = (Option<Vec<ves_runtime::switching::SpaceInput>>, Option<view::Studio>);
 
 /// Arguments.
 #[derive(clap::Args)]
@@ -53,6 +51,14 @@ pub struct Args {
     /// the converged one alone (docs/view.md).
     #[arg(long)]
     no_instant: bool,
+    /// Where the set-up is kept (the scene served, edits, undo, the history of computes, the
+    /// basis served last): a part opened again resumes there. Default for a geometry file:
+    /// PART.ves beside it; a scene keeps a project only when given one.
+    #[arg(long, conflicts_with = "no_project")]
+    project: Option<PathBuf>,
+    /// Keep no project: the set-up lives as long as the server.
+    #[arg(long)]
+    no_project: bool,
 }
 
 impl Args {
@@ -69,7 +75,7 @@ impl Args {
         if let Some((g, _)) = cfg.free_body.as_mut() {
             *g = [0.0, 0.0, -self.gravity];
         }
-        let (spaces, workshop) = self.open()?;
+        let (spaces, studio) = self.open()?;
         if !self.host.is_loopback() {
             tracing::warn!(
                 "--host {}: the viewer is reachable from other machines, and anyone who opens it can drive the session",
@@ -91,7 +97,7 @@ impl Args {
         // Ctrl-C ends the session and prints the statistics; SIGTERM and SIGHUP end the
         // process at once, its work folder removed (ves_pipeline::workdir).
         ves_pipeline::workdir::stop_on_interrupt(stop.clone());
-        let stats = view::serve_with(spaces, workshop, &cfg, stop, |addr| {
+        let stats = view::serve_studio(spaces, studio, &cfg, stop, |addr| {
             // The URL on stdout, flushed: scripts and tests wait for this line.
             let host = if addr.ip().is_unspecified() {
                 "127.0.0.1".to_string()
@@ -129,21 +135,15 @@ impl Args {
                     allow_geo_scripts: self.allow_geo_scripts,
                 };
                 let scene = Scene::load_with(p, options)?;
-                Ok((
-                    None,
-                    Some(Arc::new(
-                        PartWorkshop::for_scene(&scene, options, solver)?.instant(!self.no_instant),
-                    )),
-                ))
+                let workshop = PartWorkshop::for_scene(&scene, options, solver)?.instant(!self.no_instant);
+                let key = [scene.toml.as_bytes(), &read_part(&scene.geometry)?];
+                self.studio(workshop, &scene.geometry, &key, self.project.clone())
             }
             "step" | "stp" | "iges" | "igs" | "brep" => {
                 ves_pipeline::input::open(p)?;
-                Ok((
-                    None,
-                    Some(Arc::new(
-                        PartWorkshop::for_geometry(p, solver)?.instant(!self.no_instant),
-                    )),
-                ))
+                let workshop = PartWorkshop::for_geometry(p, solver)?.instant(!self.no_instant);
+                let beside = std::path::absolute(p)?.with_extension("ves");
+                self.studio(workshop, p, &[&read_part(p)?], self.project.clone().or(Some(beside)))
             }
             "geo" => anyhow::bail!(
                 "{}: a .geo file is a gmsh script and can run shell commands; export the part as STEP, or name it in a scene and pass --allow-geo-scripts if you trust it",
@@ -152,6 +152,86 @@ impl Args {
             _ => Ok((Some(self.settings.spaces(p)?), None)),
         }
     }
+}
+
+impl Args {
+    /// The studio of `workshop`: its project in `dir` (unless --no-project), keyed by the
+    /// fingerprint of `key` (the part's bytes, and the scene's text for a scene), resumed with
+    /// its basis when it had one.
+    fn studio(
+        &self,
+        workshop: PartWorkshop,
+        part: &std::path::Path,
+        key: &[&[u8]],
+        dir: Option<PathBuf>,
+    ) -> Result<Opened> {
+        let none = |workshop: PartWorkshop| {
+            let studio = view::Studio {
+                workshop: Arc::new(workshop),
+                project: None,
+                setup: None,
+            };
+            Ok((None, Some(studio)))
+        };
+        let Some(dir) = dir.filter(|_| !self.no_project) else {
+            return none(workshop);
+        };
+        let dir = std::path::absolute(&dir)?;
+        let mut f = ves_pipeline::fingerprint::Fingerprint::default();
+        for k in key {
+            f.field(k);
+        }
+        let name = part
+            .file_name()
+            .map(|n| n.to_string_lossy().into_owned())
+            .unwrap_or_default();
+        let opened = match view::Project::open(&dir, &name, &format!("{:016x}", f.value())) {
+            Ok(o) => o,
+            // A folder that cannot be written (a read-only share): the part is still set up.
+            Err(e) => {
+                tracing::warn!("{e}");
+                return none(workshop);
+            }
+        };
+        if let Some(n) = &opened.notice {
+            tracing::warn!("{n}");
+        }
+        let (setup, basis) = match opened.resumed {
+            Some(r) => (Some(r.setup), r.basis),
+            None => (None, None),
+        };
+        // The basis served last, served again at once; one that cannot be read is computed again.
+        let spaces = basis.as_ref().and_then(|b| {
+            ves_runtime::switching::load_spaces(b, None, true)
+                .map_err(|e| tracing::warn!("{}: {e}; its scene is computed again", b.display()))
+                .ok()
+        });
+        let workshop = match (&spaces, &basis) {
+            (Some(_), Some(b)) => workshop.resume(b),
+            _ => workshop,
+        };
+        // Said on every start: which folder holds the set-up, and whether it was resumed.
+        eprintln!(
+            "ves view: project {}: {}",
+            dir.display(),
+            match (&setup, &spaces) {
+                (Some(s), Some(_)) => format!("resumed ({} computes before)", s.history.len()),
+                (Some(_), None) => "its set-up resumed; its scene is computed again".into(),
+                _ => "new".into(),
+            }
+        );
+        let studio = view::Studio {
+            workshop: Arc::new(workshop),
+            project: Some(opened.project),
+            setup,
+        };
+        Ok((spaces, Some(studio)))
+    }
+}
+
+/// The part's bytes, for its project's key.
+fn read_part(p: &std::path::Path) -> Result<Vec<u8>> {
+    std::fs::read(p).with_context(|| format!("{}: cannot read the part", p.display()))
 }
 
 /// What each CAD face of a surface is, for the page's hover ([`ves_pipeline::faces`]).

@@ -81,6 +81,6 @@ export function facade(setup) {
     /** A fixed deformation scale, or 'auto'. */
     setScale,
     /** The set-up panel: `scene()`, the scene as edited. */
-    setup: Object.freeze({ scene: () => setup.scene() }),
+    setup: Object.freeze({ scene: () => setup.scene(), state: () => setup.last() }),
   });
 }

@@ -58,6 +58,8 @@ function onText(msg) {
     // Hands are drawn on a part: none before a basis is served.
     if (state.hello.spaces[msg.space]) showHands(msg.hands);
     showStatus(msg);
+  } else if (msg.type === 'setup') {
+    setup.state(msg);
   } else if (msg.type === 'load_error') {
     if (state.loadWanted) hideLoad();
     $('loadnote').textContent = `the load case could not be read: ${msg.message}`;

@@ -1,6 +1,8 @@
-// The set-up panel: the part's material, mesh, modes and supports. Compute sends the scene to the
-// server, which runs the pipeline (meshing in its own process) and reports its stages here; when
-// the basis is ready the live session moves to it and the page redraws the new mesh.
+// The set-up panel: the part's material, mesh, modes and supports. The server owns the set-up:
+// each edit goes to it and comes back to every page (a reload or a second tab shows the same
+// set-up), with undo, redo and the history of computes. Compute sends the scene to the server,
+// which runs the pipeline (meshing in its own process) and reports its stages here; when the
+// basis is ready the live session moves to it and the page redraws the new mesh.
 import { $, el } from './dom.js';
 import { plain } from './units.js';
 import { state } from './state.js';
@@ -9,6 +11,10 @@ const MM = 1e-3;
 // A preset is the material when its constants match to the fields' rounding.
 const close = (a, b) => Math.abs(a - b) <= 1e-6 * Math.abs(b);
 const isPreset = (p, m) => close(m.young, p.young) && close(m.poisson, p.poisson) && close(m.density, p.density);
+// JSON with its keys sorted: the server's scenes come back in its order, not the page's.
+const canon = (v) => JSON.stringify(v, (k, x) => (x && typeof x === 'object' && !Array.isArray(x)
+  ? Object.fromEntries(Object.keys(x).sort().map((key) => [key, x[key]])) : x));
+const when = (t) => new Date(1000 * t).toLocaleString([], { month: 'short', day: 'numeric', hour: '2-digit', minute: '2-digit' });
 
 /** Wires the panel to `send` (a JSON message to the server) and `pick` (asks for one click on
  * the part: calls back with {point, normal}). Returns handlers for the server's messages. */
@@ -18,7 +24,27 @@ export function setupPanel(send, pick, faceMode) {
   let materials = [];
   let saved = null; // the TOML of the last basis computed
   let ready = null; // the summary of the basis in use while its checks run
+  let sent = null; // the last scene sent or received (canonical JSON)
+  // This page's edits are numbered on each connection; the server's set-up messages say the last
+  // it had applied (`ack`): while a later one is on its way, a message does not refill the
+  // panel over it (its own message follows).
+  let seq = 0;
+  let client = null;
+  let told = false; // the server has said what the set-up is
+  let busy = false; // a compute runs
+  let last = null; // the server's last set-up message
   const panel = $('setup');
+
+  // An edit: the scene as the fields say goes to the server, which sends it to every page.
+  function edit() {
+    if (!scene) return;
+    const now = read();
+    const text = canon(now);
+    if (text === sent) return;
+    sent = text;
+    seq += 1;
+    send({ type: 'edit', scene: now, seq });
+  }
 
   function fill() {
     const m = scene.material || {};
@@ -86,7 +112,7 @@ export function setupPanel(send, pick, faceMode) {
       const del = document.createElement('button');
       del.textContent = '×';
       del.title = 'remove';
-      del.onclick = () => { fixed.splice(i, 1); drawSupports(); };
+      del.onclick = () => { fixed.splice(i, 1); drawSupports(); edit(); };
       row.append(' ', held, stiffness, unit, ' ', del);
       list.appendChild(row);
     });
@@ -105,7 +131,10 @@ export function setupPanel(send, pick, faceMode) {
     scene.mesh = mesh;
     scene.modes = { ...(scene.modes || {}), count: Math.round(num('modecount')) };
     scene.stress = { enabled: $('stressfield').checked };
-    scene.geometry = { ...(scene.geometry || {}), unit: $('unit').value };
+    // Only a BREP file's numbers need a unit: a STEP or IGES file states its own.
+    const g = { ...(scene.geometry || {}) };
+    if (/\.brep$/i.test(geometry || '')) g.unit = $('unit').value; else delete g.unit;
+    scene.geometry = g;
     return scene;
   }
 
@@ -128,6 +157,7 @@ export function setupPanel(send, pick, faceMode) {
     if (i >= 0) entry.faces.splice(i, 1); else entry.faces.push(tag);
     if (!entry.faces.length) fixed.splice(fixed.indexOf(entry), 1);
     drawSupports();
+    edit();
     faceMode(true, toggleFace, heldFaces());
   };
   $('pickfaces').onclick = () => {
@@ -136,7 +166,7 @@ export function setupPanel(send, pick, faceMode) {
     $('setuperror').textContent = picking ? 'click the faces that are held (again to let one go), then done' : '';
     faceMode(picking, toggleFace, heldFaces());
   };
-  $('addplane').onclick = () => { (scene.fixed ||= []).push({ plane: { axis: 'x', value: 0 } }); drawSupports(); };
+  $('addplane').onclick = () => { (scene.fixed ||= []).push({ plane: { axis: 'x', value: 0 } }); drawSupports(); edit(); };
   $('pickplane').onclick = () => {
     $('setuperror').textContent = 'click a flat face of the part: the plane through it is held';
     pick(({ point, normal, outermost }) => {
@@ -154,13 +184,55 @@ export function setupPanel(send, pick, faceMode) {
       (scene.fixed ||= []).push({ plane: { axis, value } });
       $('setuperror').textContent = n[k] < 0.99 ? `that face is not square to ${axis}: the plane ${axis} = … through the point holds only what lies on it` : '';
       drawSupports();
+      edit();
     });
   };
   $('compute').onclick = () => {
     $('setuperror').textContent = '';
-    send({ type: 'compute', scene: read() });
+    const now = read();
+    sent = canon(now);
+    seq += 1;
+    send({ type: 'compute', scene: now, seq });
   };
+  // Cancel stops the compute and the server returns the set-up to the scene served.
   $('cancel').onclick = () => send({ type: 'cancel' });
+  // Any field or choice changed (its own handler has run at the target first).
+  panel.addEventListener('change', (e) => { if (e.target.id !== 'partfile') edit(); });
+  $('undo').onclick = () => send({ type: 'undo' });
+  $('redo').onclick = () => send({ type: 'redo' });
+  $('revert').onclick = () => send({ type: 'revert' });
+  // Ctrl+Z, Ctrl+Y and Ctrl+Shift+Z, outside a text field (where they edit the text).
+  window.addEventListener('keydown', (e) => {
+    if (panel.hidden || !(e.ctrlKey || e.metaKey) || /^(INPUT|SELECT|TEXTAREA)$/.test(document.activeElement?.tagName || '')) return;
+    const k = e.key.toLowerCase();
+    if (k === 'z' && !e.shiftKey) send({ type: 'undo' });
+    else if (k === 'y' || (k === 'z' && e.shiftKey)) send({ type: 'redo' });
+    else return;
+    e.preventDefault();
+  });
+
+  // What the panel says about the set-up: edits not computed, undo and redo, the history.
+  function showState() {
+    if (!last) return;
+    const m = last;
+    $('undo').disabled = m.undo === 0;
+    $('redo').disabled = m.redo === 0;
+    $('undo').title = `undo (Ctrl+Z): ${m.undo} step${m.undo === 1 ? '' : 's'}`;
+    $('redo').title = `redo (Ctrl+Y): ${m.redo} step${m.redo === 1 ? '' : 's'}`;
+    $('revert').disabled = !(m.edited && m.served);
+    const edited = m.edited && m.served;
+    $('edited').hidden = !edited;
+    $('edited').textContent = busy ? 'edited since the part shown: being computed'
+      : 'edited since the part shown, not computed: Compute applies the edits, revert drops them';
+    panel.classList.toggle('edited', Boolean(edited));
+    $('project').textContent = m.project ? `kept in ${m.project}` : 'not kept on disk';
+    const h = m.history || [];
+    $('historycount').textContent = String(h.length);
+    $('historylist').replaceChildren(...h.slice().reverse().map((e) => el('div', {
+      className: `entry ${e.outcome}`,
+      textContent: `${when(e.unix_time)} · ${e.outcome}${e.changed.length ? ` (${e.changed.join(', ')})` : ''} · ${e.seconds.toFixed(1)} s${e.summary ? ` · ${e.summary}` : ''}`,
+    })));
+  }
   $('openpart').onclick = () => $('partfile').click();
   $('partfile').onchange = async (e) => {
     const file = e.target.files[0];
@@ -189,18 +261,22 @@ export function setupPanel(send, pick, faceMode) {
     /** A hello: the panel shows when the server can compute; the fields are filled once per part. */
     hello(msg) {
       const s = msg.setup;
+      // A new connection numbers its edits from 1 again.
+      if (msg.client !== client) { client = msg.client; seq = 0; }
       panel.hidden = !s;
       if (!s) return;
       materials = s.materials;
       $('material').replaceChildren(...materials.map((m, i) => el('option', { value: String(i), textContent: m.name })),
         el('option', { value: 'custom', textContent: 'custom' }));
+      // The set-up itself comes from the server's `setup` message; the starting scene only
+      // until it does.
       if (geometry !== s.geometry || !scene) {
         geometry = s.geometry;
-        scene = JSON.parse(JSON.stringify(s.scene));
         $('geomname').textContent = geometry || '';
-        saved = null;
-        $('savescene').disabled = true;
-        fill();
+        if (!told || !scene) {
+          scene = JSON.parse(JSON.stringify(s.scene));
+          fill();
+        }
       } else {
         read();
         const m = scene.material;
@@ -209,6 +285,25 @@ export function setupPanel(send, pick, faceMode) {
       }
       $('savebasis').download = `${scene.name || 'part'}.h5`;
       $('savebasis').hidden = msg.spaces.length === 0;
+    },
+    /** The set-up every page shows: the draft fills the panel unless it is this page's own
+     * edit coming back; the scene served is what "save scene" gives. */
+    state(msg) {
+      told = true;
+      last = msg;
+      const text = canon(msg.draft);
+      if ((msg.ack || 0) >= seq) {
+        if (!scene || canon(read()) !== text) {
+          scene = JSON.parse(JSON.stringify(msg.draft));
+          fill();
+        }
+        sent = text;
+      }
+      saved = msg.served_toml || null;
+      $('savescene').disabled = !saved;
+      // A page opened (or reloaded) after the compute: what is served, not an empty line.
+      if (msg.summary && !$('progresstext').textContent) $('progresstext').textContent = `computed: ${msg.summary}`;
+      showState();
     },
     /** Compute progress, its end, or why it failed. */
     note(msg) {
@@ -240,11 +335,14 @@ export function setupPanel(send, pick, faceMode) {
     computing(on, checking) {
       $('compute').disabled = on && !checking;
       $('cancel').disabled = !on;
+      if (busy !== (on && !checking)) { busy = on && !checking; showState(); }
     },
     /** The faces held (tags), for drawing them. */
     heldFaces: () => (scene ? heldFaces() : []),
     /** The scene being edited (tests and the console). */
     scene: () => read(),
     saved: () => saved,
+    /** The server's last set-up message. */
+    last: () => last,
   };
 }
