@@ -273,6 +273,8 @@ export function setupPanel(send, pick, faceMode) {
       if (geometry !== s.geometry || !scene) {
         geometry = s.geometry;
         $('geomname').textContent = geometry || '';
+        // A STEP or IGES file states its unit: the choice is only for a BREP file.
+        $('unitrow').hidden = !/\.brep$/i.test(geometry || '');
         if (!told || !scene) {
           scene = JSON.parse(JSON.stringify(s.scene));
           fill();
