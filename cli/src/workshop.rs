@@ -383,11 +383,17 @@ enum ChildNote {
         estimated_error: Option<f64>,
         #[serde(default)]
         frequencies_hz: Vec<f64>,
+        /// The warnings so far.
+        #[serde(default)]
+        warnings: Vec<String>,
     },
     /// The checks are written too.
     Done {
         summary: String,
         estimated_error: Option<f64>,
+        /// Every warning of the compute.
+        #[serde(default)]
+        warnings: Vec<String>,
     },
     /// The compute failed (one line).
     Error(String),
@@ -502,12 +508,13 @@ impl PartWorkshop {
         let mut stdin = child.stdin.take();
         let (mut outcome, mut killed) = (None, false);
         let mut instant: Option<Vec<f64>> = None;
-        let computed = |summary: String, estimated_error: Option<f64>| Computed {
+        let computed = |summary: String, estimated_error: Option<f64>, warnings: Vec<String>| Computed {
             basis: job.out.clone(),
             scene: saved.to_string(),
             summary,
             estimated_error,
             instant: false,
+            warnings,
         };
         loop {
             let note = notes.recv_timeout(std::time::Duration::from_millis(50));
@@ -525,6 +532,7 @@ impl PartWorkshop {
                             summary,
                             estimated_error: None,
                             instant: true,
+                            warnings: Vec::new(),
                         })
                     });
                     match taken {
@@ -540,6 +548,7 @@ impl PartWorkshop {
                     summary,
                     estimated_error,
                     frequencies_hz,
+                    warnings,
                 }) => {
                     let summary = match instant.as_deref().and_then(|i| moved(i, &frequencies_hz)) {
                         Some(m) => format!(
@@ -551,7 +560,7 @@ impl PartWorkshop {
                     };
                     let taken = seal_basis(&job.out)
                         .map_err(WorkshopError::KeepBasis)
-                        .and_then(|()| ready(&computed(summary, estimated_error)));
+                        .and_then(|()| ready(&computed(summary, estimated_error, warnings)));
                     match taken {
                         Ok(()) => {
                             served.1 = true;
@@ -571,9 +580,10 @@ impl PartWorkshop {
                 Ok(ChildNote::Done {
                     summary,
                     estimated_error,
+                    warnings,
                 }) => {
                     let _ = seal_basis(&job.out);
-                    outcome.get_or_insert(Ok(computed(summary, estimated_error)));
+                    outcome.get_or_insert(Ok(computed(summary, estimated_error, warnings)));
                 }
                 Ok(ChildNote::Error(message)) => {
                     outcome.get_or_insert(Err(WorkshopError::Failed { message }));
@@ -649,7 +659,9 @@ pub fn serve_compute(dir: &Path) -> anyhow::Result<()> {
             Err(e) => tracing::info!("no instant basis: {}", message(e)),
         }
     }
-    let first = match precompute::run_first(&parsed, &job.out, solver) {
+    // The warnings go to the page too (they also go on to the server's stderr).
+    let (first, warnings) = ves_pipeline::notices::collect(|| precompute::run_first(&parsed, &job.out, solver));
+    let first = match first {
         Ok(f) => f,
         Err(e) => {
             say(ChildNote::Error(message(e)));
@@ -665,16 +677,19 @@ pub fn serve_compute(dir: &Path) -> anyhow::Result<()> {
             .first()
             .map(|s| s.frequencies_hz.clone())
             .unwrap_or_default(),
+        warnings: warnings.clone(),
     });
     let mut go = String::new();
     let _ = std::io::stdin().lock().read_line(&mut go);
     if go.trim() != "check" {
         return Ok(());
     }
-    match first.check() {
+    let (checked, more) = ves_pipeline::notices::collect(|| first.check());
+    match checked {
         Ok(s) => say(ChildNote::Done {
             summary: summary_line(&s),
             estimated_error: worst_estimate(&s),
+            warnings: warnings.into_iter().chain(more).collect(),
         }),
         Err(e) => say(ChildNote::Error(message(e))),
     }
@@ -753,12 +768,13 @@ impl Workshop for PartWorkshop {
         }
         let out = self.dir.path().join(format!("basis-{n}.h5"));
         let saved = Self::text(&geometry, scene, false)?;
-        let computed = |summary: &precompute::Summary| Computed {
+        let computed = |summary: &precompute::Summary, warnings: &[String]| Computed {
             basis: out.clone(),
             scene: saved.clone(),
             summary: summary_line(summary),
             estimated_error: worst_estimate(summary),
             instant: false,
+            warnings: warnings.to_vec(),
         };
         if let Some(exe) = CHILD.get() {
             let job = ComputeJob {
@@ -781,7 +797,8 @@ impl Workshop for PartWorkshop {
         let _watch = ves_pipeline::progress::watch(Arc::new(PageWatch { progress, cancel }));
         // In the workshop's pool: faer and rayon take their threads from it. `ready` runs here,
         // outside the pool: the session it starts must not inherit the pool's lower priority.
-        let first = self.pool.install(|| precompute::run_first(&parsed, &out, self.solver));
+        let (first, mut warnings) =
+            ves_pipeline::notices::collect(|| self.pool.install(|| precompute::run_first(&parsed, &out, self.solver)));
         let first = match first {
             Ok(first) => first,
             Err(e) => {
@@ -790,16 +807,18 @@ impl Workshop for PartWorkshop {
             }
         };
         seal_basis(&out).map_err(WorkshopError::KeepBasis)?;
-        if let Err(e) = ready(&computed(&first.summary)) {
+        if let Err(e) = ready(&computed(&first.summary, &warnings)) {
             let _ = std::fs::remove_file(&out);
             return Err(e);
         }
         // The session serves this basis now: the ones before are of no more use.
         self.remove_bases_but(&out);
-        let summary = self.pool.install(|| first.check()).map_err(failed)?;
+        let (summary, more) = ves_pipeline::notices::collect(|| self.pool.install(|| first.check()));
+        let summary = summary.map_err(failed)?;
+        warnings.extend(more);
         // The checks wrote the file again.
         seal_basis(&out).map_err(WorkshopError::KeepBasis)?;
-        Ok(computed(&summary))
+        Ok(computed(&summary, &warnings))
     }
 
     fn open(&self, name: &str, bytes: &[u8]) -> Result<(), WorkshopError> {

@@ -1159,6 +1159,10 @@ fn a_second_page_a_reload_and_a_restart_show_the_set_up_the_server_keeps() {
         assert_eq!(p["edited"], edited, "{p}");
     };
     shows(&page["start"], "12", "210", false);
+    // The compute's warnings reach the page (the beam is one 10-node element through its
+    // thickness at the page's 5 %), not only the server's stderr.
+    let warned = |p: &serde_json::Value| p["warnings"].as_str().is_some_and(|w| w.contains("one element thick"));
+    assert!(warned(&page["start"]), "{page}");
     shows(&page["afterEdits"], "6", "70", true);
     // The second page: the server's set-up, not the part's starting scene.
     shows(&page["b"], "6", "70", true);
@@ -1187,6 +1191,7 @@ fn a_second_page_a_reload_and_a_restart_show_the_set_up_the_server_keeps() {
         "the project's basis is served, not computed: {stats}"
     );
     shows(&page["start"], "6", "210", false);
+    assert!(warned(&page["start"]), "the served basis's warnings are kept: {page}");
     assert_eq!(page["start"]["history"].as_array().map(Vec::len), Some(2), "{page}");
     assert_eq!(page["start"]["served"]["modes"], 6, "{page}");
 }

@@ -751,7 +751,7 @@ fn run_compute(shared: &Arc<Shared>, workshop: &dyn Workshop, scene: &serde_json
         swapped = true;
         shared.checking.store(true, Ordering::Release);
         change_setup(shared, |s| {
-            s.serve(scene.clone(), c.scene.clone(), c.summary.clone());
+            s.serve(scene.clone(), c.scene.clone(), c.summary.clone(), c.warnings.clone());
             true
         });
         if !c.instant {
@@ -763,13 +763,14 @@ fn run_compute(shared: &Arc<Shared>, workshop: &dyn Workshop, scene: &serde_json
                 "type": "computed", "summary": c.summary, "scene": c.scene,
                 "seconds": t0.elapsed().as_secs_f64(),
                 "estimated_error": c.estimated_error,
+                "warnings": c.warnings,
                 "live": if c.instant { "instant" } else { "converged" },
             }),
         );
         Ok(())
     };
     let done = workshop.compute(scene, progress.clone(), shared.cancel.clone(), &mut ready);
-    let record = |outcome: &str, summary: String| {
+    let record = |outcome: &str, summary: String, warnings: Option<&[String]>| {
         let entry = setup::Entry {
             unix_time: std::time::SystemTime::now()
                 .duration_since(std::time::UNIX_EPOCH)
@@ -783,6 +784,9 @@ fn run_compute(shared: &Arc<Shared>, workshop: &dyn Workshop, scene: &serde_json
             if outcome == "computed" {
                 s.summary = Some(entry.summary.clone());
             }
+            if let Some(w) = warnings {
+                s.warnings = w.to_vec();
+            }
             s.record(entry);
             true
         });
@@ -791,15 +795,15 @@ fn run_compute(shared: &Arc<Shared>, workshop: &dyn Workshop, scene: &serde_json
         Ok(c) if swapped => {
             // The checks wrote the file again.
             keep_basis(shared, &c.basis);
-            record("computed", c.summary.clone());
+            record("computed", c.summary.clone(), Some(&c.warnings));
         }
         Err(e) if swapped => {
             let summary = lock(&shared.setup).summary.clone().unwrap_or_default();
-            record("computed", format!("{summary}; its checks did not finish: {e}"));
+            record("computed", format!("{summary}; its checks did not finish: {e}"), None);
         }
-        Err(e @ WorkshopError::Cancelled { .. }) => record("cancelled", e.to_string()),
-        Err(e) => record("failed", e.to_string()),
-        Ok(_) => record("failed", "the compute made no basis".into()),
+        Err(e @ WorkshopError::Cancelled { .. }) => record("cancelled", e.to_string(), None),
+        Err(e) => record("failed", e.to_string(), None),
+        Ok(_) => record("failed", "the compute made no basis".into(), None),
     }
     let failed = |message: serde_json::Value| {
         shared.computes_failed.fetch_add(1, Ordering::Relaxed);
@@ -812,6 +816,7 @@ fn run_compute(shared: &Arc<Shared>, workshop: &dyn Workshop, scene: &serde_json
                 "type": "checked", "summary": c.summary,
                 "seconds": t0.elapsed().as_secs_f64(),
                 "estimated_error": c.estimated_error,
+                "warnings": c.warnings,
             }),
         ),
         Ok(_) => failed("the compute made no basis".into()),

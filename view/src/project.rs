@@ -215,7 +215,12 @@ mod tests {
         let opened = Project::open(&dir, "lever.stp", "k1").expect("open");
         assert!(opened.resumed.is_none() && opened.notice.is_none());
         let mut s = SetUp::new(json!({"modes": {"count": 12}}));
-        s.serve(json!({"modes": {"count": 12}}), "[modes]".into(), "12 modes".into());
+        s.serve(
+            json!({"modes": {"count": 12}}),
+            "[modes]".into(),
+            "12 modes".into(),
+            vec!["a wall one element thick".into()],
+        );
         s.edit(json!({"modes": {"count": 20}}));
         opened.project.save(&s).expect("save");
         let basis = dir.join("made.h5");

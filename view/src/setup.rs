@@ -38,6 +38,9 @@ pub struct SetUp {
     pub served_toml: Option<String>,
     /// The served basis's summary line.
     pub summary: Option<String>,
+    /// The warnings its compute gave, one line each.
+    #[serde(default)]
+    pub warnings: Vec<String>,
     /// The scene being edited (equal to `served` when nothing was edited since).
     pub draft: Value,
     undo: Vec<Value>,
@@ -97,11 +100,13 @@ impl SetUp {
         !self.served.as_ref().is_some_and(|s| same(s, &self.draft))
     }
 
-    /// `scene` (saved as `toml`) is served from now on, with `summary`.
-    pub fn serve(&mut self, scene: Value, toml: String, summary: String) {
+    /// `scene` (saved as `toml`) is served from now on, with `summary` and its compute's
+    /// `warnings`.
+    pub fn serve(&mut self, scene: Value, toml: String, summary: String, warnings: Vec<String>) {
         self.served = Some(scene);
         self.served_toml = Some(toml);
         self.summary = Some(summary);
+        self.warnings = warnings;
     }
 
     /// Adds a compute to the history.
@@ -110,7 +115,7 @@ impl SetUp {
     }
 
     /// The message every page gets: `{"type":"setup","draft","served","served_toml","summary",
-    /// "edited","undo","redo","history","project"}` (`undo` and `redo` count the steps
+    /// "warnings","edited","undo","redo","history","project"}` (`undo` and `redo` count the steps
     /// available; `history` is the newest [`HISTORY_SHOWN`] computes).
     pub fn message(&self, project: Option<&str>) -> Value {
         let shown = &self.history[self.history.len().saturating_sub(HISTORY_SHOWN)..];
@@ -120,6 +125,7 @@ impl SetUp {
             "served": self.served,
             "served_toml": self.served_toml,
             "summary": self.summary,
+            "warnings": self.warnings,
             "edited": self.edited(),
             "undo": self.undo.len(),
             "redo": self.redo.len(),
@@ -204,7 +210,7 @@ mod tests {
         let mut s = SetUp::new(json!({"a": 1}));
         assert!(!s.revert(), "nothing served yet");
         assert!(s.edited());
-        s.serve(json!({"a": 1}), "a = 1".into(), "12 modes".into());
+        s.serve(json!({"a": 1}), "a = 1".into(), "12 modes".into(), vec![]);
         assert!(!s.edited());
         s.edit(json!({"a": 2}));
         assert!(s.edited());
@@ -254,7 +260,7 @@ mod tests {
         let start = json!({"material": {"density": 7850.0}, "damping": {"alpha": 0.0}});
         assert!(changes(&start, &page).is_empty());
         let mut s = SetUp::new(start.clone());
-        s.serve(start, String::new(), String::new());
+        s.serve(start, String::new(), String::new(), vec![]);
         assert!(!s.edit(page) && !s.edited());
     }
 }

@@ -112,6 +112,9 @@ pub struct Computed {
     /// Whether this is an instant basis (the previous basis's mesh, modes from a few block
     /// solves, each frequency with a bound): the converged basis follows and replaces it.
     pub instant: bool,
+    /// The warnings the compute gave (one line each, as the CLI prints them): a thin wall, an
+    /// estimate above its target, straightened tets, a refinement stopped by memory.
+    pub warnings: Vec<String>,
 }
 
 /// Where a compute stands, for the page's progress bar.

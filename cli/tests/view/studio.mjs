@@ -20,6 +20,7 @@ const panel = (page) => page.evaluate(() => {
     editedText: document.getElementById('edited').textContent,
     undo: !(/** @type {HTMLButtonElement} */ (document.getElementById('undo')).disabled),
     progress: document.getElementById('progresstext').textContent,
+    warnings: document.getElementById('computewarnings').textContent,
     history: s ? s.history.map((e) => ({ outcome: e.outcome, changed: e.changed })) : null,
     served: s && s.served ? { modes: s.served.modes.count, young: s.served.material.young } : null,
     project: s ? s.project : null,

@@ -303,6 +303,9 @@ export function setupPanel(send, pick, faceMode) {
       }
       saved = msg.served_toml || null;
       $('savescene').disabled = !saved;
+      // The served basis's warnings (a thin wall, an estimate above its target, a refinement
+      // stopped by memory …), as the CLI prints them: not only on the server's stderr.
+      $('computewarnings').replaceChildren(...(msg.warnings || []).map((w) => el('div', { textContent: `⚠ ${w}` })));
       // A page opened (or reloaded) after the compute: what is served, not an empty line.
       if (msg.summary && !$('progresstext').textContent) $('progresstext').textContent = `computed: ${msg.summary}`;
       showState();
