@@ -264,25 +264,34 @@ struct Shared {
 }
 
 /// A project and the thread that writes its set-up: edits come from the server's own thread,
-/// which must not wait on a disk; the thread writes the latest state it has.
+/// which must not wait on a disk. One slot holds the latest state not yet written (a page
+/// sending edits faster than the disk takes them replaces it, never queues them).
 struct Keeper {
     project: Arc<Project>,
-    tx: std::sync::mpsc::Sender<SetUp>,
+    slot: Arc<Slot>,
     thread: std::thread::JoinHandle<()>,
 }
+
+/// The latest set-up to write, and whether the keeper is closing.
+type Slot = (Mutex<(Option<SetUp>, bool)>, std::sync::Condvar);
 
 impl Keeper {
     fn start(project: Project) -> Keeper {
         let project = Arc::new(project);
-        let (tx, rx) = std::sync::mpsc::channel::<SetUp>();
+        let slot: Arc<Slot> = Arc::default();
         let thread = std::thread::spawn({
-            let project = project.clone();
+            let (project, slot) = (project.clone(), slot.clone());
             move || {
                 let mut warned = false;
-                while let Ok(mut s) = rx.recv() {
-                    while let Ok(newer) = rx.try_recv() {
-                        s = newer;
-                    }
+                loop {
+                    let next = {
+                        let mut g = lock(&slot.0);
+                        while g.0.is_none() && !g.1 {
+                            g = slot.1.wait(g).unwrap_or_else(|p| p.into_inner());
+                        }
+                        g.0.take()
+                    };
+                    let Some(s) = next else { break };
                     if let Err(e) = project.save(&s)
                         && !std::mem::replace(&mut warned, true)
                     {
@@ -294,12 +303,19 @@ impl Keeper {
                 }
             }
         });
-        Keeper { project, tx, thread }
+        Keeper { project, slot, thread }
     }
 
-    /// Writes what is queued and ends the thread.
+    /// Puts `s` in the slot (replacing a state not yet written).
+    fn keep(&self, s: SetUp) {
+        lock(&self.slot.0).0 = Some(s);
+        self.slot.1.notify_one();
+    }
+
+    /// Writes what is in the slot and ends the thread.
     fn finish(self) {
-        drop(self.tx);
+        lock(&self.slot.0).1 = true;
+        self.slot.1.notify_one();
         let _ = self.thread.join();
     }
 }
@@ -872,7 +888,7 @@ fn publish_setup(shared: &Shared) {
     let project = lock(&shared.project);
     let folder = project.as_ref().map(|k| k.project.dir().display().to_string());
     if let Some(k) = project.as_ref() {
-        let _ = k.tx.send(s.clone());
+        k.keep(s.clone());
     }
     shared.setup_tx.send_replace(s.message(folder.as_deref()).to_string());
 }

@@ -225,7 +225,7 @@ pub fn generate_with(
         if meshing.straightened > 0 || meshing.rung > 0 {
             tracing::info!(
                 "{}: (cached mesh) meshed on rung {} ({}); {} of {} curved tets were invalid after order 2, \
-                 gmsh repaired {}, {} were made straight-sided",
+                 gmsh repaired {}, {} tets in all were made straight-sided",
                 part.request.geometry.display(),
                 meshing.rung,
                 meshing.strategy,
@@ -366,6 +366,20 @@ impl Request {
 }
 
 /// A warning, or an info line for a quiet request.
+/// The straightened tets in words: the `left` gmsh could not repair, and the neighbours that
+/// straightening their shared edges made invalid in turn (why the count can exceed `left`:
+/// 37 invalid, 10 repaired, 37 straightened did not add up as written before).
+fn straightened_words(left: usize, straightened: usize) -> String {
+    if straightened > left {
+        format!(
+            "the {left} left and {} neighbours that straightening their shared edges made invalid in turn, {straightened} in all,",
+            straightened - left
+        )
+    } else {
+        format!("the {straightened} left")
+    }
+}
+
 /// How to get a closer curved surface, in terms of the settings the scene has.
 fn closer_surface_advice(req: &Request) -> String {
     match (req.mesh.target_error, req.mesh.size) {
@@ -858,12 +872,12 @@ fn attempt_once(
                 notice(
                     req,
                     format!(
-                        "{path}: {} of {} curved tets were invalid after order 2; gmsh repaired {}, {} were made \
+                        "{path}: {} of {} curved tets were invalid after order 2; gmsh repaired {}; {} were made \
                          straight-sided (their faces are flat there: {})",
                         meshing.distorted,
                         mesh.tet_count(),
                         meshing.repaired_by_gmsh,
-                        meshing.straightened,
+                        straightened_words(left, meshing.straightened),
                         closer_surface_advice(req)
                     ),
                 );
@@ -1024,6 +1038,16 @@ fn extract(session: &gmsh::Gmsh, kind: Kind, scale: f64, path: &str) -> Result<M
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The straightened tets add up: those gmsh left, plus the neighbours straightened after them.
+    #[test]
+    fn straightened_tets_are_told_so_that_they_add_up() {
+        assert_eq!(
+            straightened_words(27, 37),
+            "the 27 left and 10 neighbours that straightening their shared edges made invalid in turn, 37 in all,"
+        );
+        assert_eq!(straightened_words(5, 5), "the 5 left");
+    }
 
     /// The part's file replaced by another part after it was read (between the cache key and
     /// gmsh): the key is of the bytes read, and gmsh reads a private copy of those same bytes,

@@ -294,8 +294,10 @@ export function setupPanel(send, pick, faceMode) {
       told = true;
       last = msg;
       const text = canon(msg.draft);
+      // Refilled only when the draft is not what this page last sent or was sent: a field
+      // changed here and not yet sent (typed, no change event yet) is not taken back.
       if ((msg.ack || 0) >= seq) {
-        if (!scene || canon(read()) !== text) {
+        if (!scene || text !== sent) {
           scene = JSON.parse(JSON.stringify(msg.draft));
           fill();
         }
