@@ -7,6 +7,13 @@ pub fn peak_rss_bytes() -> u64 {
     status_kb("VmHWM:") * 1024
 }
 
+/// Makes this process's peak resident size ([`peak_rss_bytes`]) its current size, so that the
+/// next peak read is that of the work done after this call (Linux 4.0 and later:
+/// `/proc/self/clear_refs`). False where it cannot; the peak then stays the process's.
+pub fn reset_peak() -> bool {
+    std::fs::write("/proc/self/clear_refs", b"5").is_ok()
+}
+
 /// Resident memory now, bytes (0 where /proc is not available).
 pub fn rss_bytes() -> u64 {
     status_kb("VmRSS:") * 1024
