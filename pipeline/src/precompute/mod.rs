@@ -164,7 +164,8 @@ pub struct Summary {
     pub spaces: Vec<SpaceSummary>,
     /// Stage times summed over spaces.
     pub timings_s: Timings,
-    /// Peak resident memory of this process so far, bytes (Linux `VmHWM`; 0 where unknown).
+    /// Peak resident memory of this process so far, bytes (Linux `VmHWM`; 0 where unknown); with
+    /// `mesh.target_error`, since its refinement began (the forecasts reset it there).
     pub peak_rss_bytes: u64,
     /// The warnings given while reading the scene and computing, one line each, in order
     /// (gathered by a front end that collects them, [`crate::notices`]: `ves precompute
