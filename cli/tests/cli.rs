@@ -1395,9 +1395,12 @@ fn the_estimate_tracks_the_truth(s: &serde_json::Value, reference: &serde_json::
 
 /// A `target_error` refinement remembers the mesh it chose for the geometry (beside the mesh
 /// cache): the same beam clamped at its other end starts from that mesh, which meets the target
-/// at once (one mesh instead of 2.0k, 6.1k and 32.8k unknowns), and is not meshed again.
+/// at once (one mesh instead of 2.0k, 6.1k and 32.8k unknowns), and is not meshed again; the
+/// same scene run again gives the same frequencies (to 1e-9). A refinement stopped short
+/// of its target (by `max_dofs` here) is remembered for its own rerun only: another support
+/// starts afresh.
 #[test]
-fn a_refinement_remembers_its_mesh_for_other_supports() {
+fn a_refinement_remembers_its_mesh_for_its_rerun_and_other_supports() {
     let cache = tempfile::tempdir().unwrap();
     let target = |scene: String| scene.replace("size = 0.025", "target_error = 0.01");
     let first = cantilever_case_json_cached(target, cache.path()).1["spaces"][0].clone();
@@ -1414,6 +1417,75 @@ fn a_refinement_remembers_its_mesh_for_other_supports() {
     assert!(again[0]["max_estimated_error"].as_f64().unwrap() <= 0.01, "{again:?}");
     // Its mesh came from the cache.
     assert!(v["timings_s"]["mesh"].as_f64().unwrap() < 0.5, "{}", v["timings_s"]);
+    let rerun = cantilever_case_json_cached(target, cache.path()).1["spaces"][0].clone();
+    assert_eq!(rerun["refinements"].as_array().map(Vec::len), Some(1), "{rerun}");
+    let hz = |v: &serde_json::Value| -> Vec<f64> {
+        v["frequencies_hz"]
+            .as_array()
+            .expect("frequencies")
+            .iter()
+            .filter_map(|f| f.as_f64())
+            .collect()
+    };
+    let (a, b) = (hz(&rerun), hz(&first));
+    assert!(
+        a.len() == b.len() && a.iter().zip(&b).all(|(x, y)| (x / y - 1.0).abs() < 1e-9),
+        "{a:?} vs {b:?}"
+    );
+
+    // Stopped short: 0.01 % cannot be met within 5000 unknowns.
+    let cache = tempfile::tempdir().unwrap();
+    let strict = |scene: String| scene.replace("size = 0.025", "target_error = 0.0001\nmax_dofs = 5000");
+    let (_, v) = cantilever_case_json_cached(strict, cache.path());
+    let stopped = v["spaces"][0]["refinements"].as_array().expect("steps").clone();
+    assert!(
+        stopped.last().unwrap()["max_estimated_error"].as_f64().unwrap() > 0.0001,
+        "{stopped:?}"
+    );
+    let strict_other_end = |scene: String| strict(scene).replace("value = 0.0 }", "value = 1.0 }");
+    let (_, v) = cantilever_case_json_cached(strict_other_end, cache.path());
+    let fresh = v["spaces"][0]["refinements"].as_array().expect("steps").clone();
+    assert!(fresh[0].get("remembered").is_none(), "{fresh:?}");
+    assert_eq!(fresh[0]["dofs"], stopped[0]["dofs"], "{fresh:?}");
+    let (_, v) = cantilever_case_json_cached(strict, cache.path());
+    let resumed = v["spaces"][0]["refinements"].as_array().expect("steps").clone();
+    assert_eq!(resumed[0]["remembered"], true, "{resumed:?}");
+    assert_eq!(resumed[0]["dofs"], stopped.last().unwrap()["dofs"], "{resumed:?}");
+}
+
+/// A support that holds an edge of the beam (its nodes on a line, no face) is warned of in
+/// `--json`'s warnings, naming the support and what to hold instead; a face held is not.
+#[test]
+fn a_support_on_a_line_is_warned_of() {
+    let cache = tempfile::tempdir().unwrap();
+    let edge = |scene: String| {
+        scene.replace(
+            "plane = { axis = \"x\", value = 0.0 }",
+            "box = { min = [0.0, -1.0, 0.0], max = [0.0, 1.0, 0.0] }\n[[fixed]]\nplane = { axis = \"x\", value = 1.0 }",
+        )
+    };
+    let (_, v) = cantilever_case_json_cached(edge, cache.path());
+    let warnings: Vec<&str> = v["warnings"]
+        .as_array()
+        .expect("warnings")
+        .iter()
+        .filter_map(|w| w.as_str())
+        .collect();
+    let line: Vec<&&str> = warnings
+        .iter()
+        .filter(|w| w.contains("only nodes on a line or at points"))
+        .collect();
+    assert_eq!(line.len(), 1, "{warnings:?}");
+    assert!(
+        line[0].starts_with("fixed[0] (box") && line[0].contains("faces = [...]"),
+        "{line:?}"
+    );
+    let (_, v) = cantilever_case_json_cached(|s| s, cache.path());
+    let warnings = v["warnings"].as_array().expect("warnings");
+    assert!(
+        warnings.iter().all(|w| !w.as_str().unwrap_or("").contains("on a line")),
+        "{warnings:?}"
+    );
 }
 
 /// `refinement = "local"`: the last mesh is graded (a gmsh background field from the element

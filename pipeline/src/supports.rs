@@ -292,6 +292,15 @@ pub fn held_by_each(mesh: &Mesh, supports: &[Support]) -> Result<Vec<Vec<u32>>, 
         let mut held = Vec::new();
         // Springs hold the others: no DOF is removed.
         let removes = s.kind == crate::scene::SupportKind::Held;
+        if removes && !holds_area(mesh, &nodes) {
+            let (what, _) = describe(&s.region, lo, hi, default_tol);
+            tracing::warn!(
+                "fixed[{index}] ({what}) holds no face of the part, only nodes on a line or at points (a plane \
+                 through a curved face's crest or along an edge): such a support is singular, its stiffness falls \
+                 as the mesh is refined, so the frequencies do not converge and mesh.target_error may not be met; \
+                 hold a face instead (`faces = [...]`, listed by `ves faces`, or a plane through a flat face)"
+            );
+        }
         for (i, _) in nodes.iter().enumerate().filter(|(_, x)| **x && removes) {
             for c in (0..3).filter(|&c| s.components[c]) {
                 let g = 3 * i + c;
@@ -304,6 +313,17 @@ pub fn held_by_each(mesh: &Mesh, supports: &[Support]) -> Result<Vec<Vec<u32>>, 
         each.push(held);
     }
     Ok(each)
+}
+
+/// Whether the nodes marked in `nodes` cover a surface triangle of the mesh (all three
+/// corners): an area held, not only a line or points. A mesh without surface triangles is
+/// taken as covered (nothing to tell from).
+fn holds_area(mesh: &Mesh, nodes: &[bool]) -> bool {
+    mesh.surface.is_empty()
+        || mesh
+            .surface
+            .iter()
+            .any(|t| t.iter().all(|&v| nodes.get(v as usize).copied().unwrap_or(false)))
 }
 
 /// Spring stiffness of a sliding support or a bearing per unit of the material's Young's
@@ -494,5 +514,16 @@ mod rigid_motions_left {
             kind: crate::scene::SupportKind::Held,
         };
         assert_eq!(count(&[edge]), 1);
+    }
+
+    /// A face held covers a surface triangle; an edge held (a line, the singular support the
+    /// refinement warns of) covers none.
+    #[test]
+    fn a_face_holds_an_area_and_an_edge_does_not() {
+        let m = cube();
+        let marked = |f: &dyn Fn([f64; 3]) -> bool| m.nodes.iter().map(|p| f(*p)).collect::<Vec<bool>>();
+        assert!(super::holds_area(&m, &marked(&|p| p[2] == 0.0)));
+        assert!(!super::holds_area(&m, &marked(&|p| p[0] == 0.0 && p[2] == 0.0)));
+        assert!(!super::holds_area(&m, &marked(&|p| p == [1.0, 1.0, 1.0])));
     }
 }

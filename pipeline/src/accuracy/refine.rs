@@ -101,9 +101,13 @@ pub fn refine(scene: &Scene, voi: Option<&Voi>, choice: SolverChoice, target: f6
     // process (the page's compute process solves the instant basis on the previous, often much
     // finer, mesh first; a Python session keeps its earlier computes' peak), which forecast
     // 32.6 GB for 9.8e4 unknowns and stopped the corpus block at 12 % for a 5 % target.
+    // Free pages malloc kept from that work go back first, so that what stays resident (the
+    // base the forecasts add to) is what is still in use.
+    crate::memory::release_free_memory();
     crate::memory::reset_peak();
+    let base = crate::memory::rss_bytes();
     let kept = scene.modes.count;
-    let memory = remembered::key(scene, voi);
+    let memory = remembered::Keys::of(scene, voi);
     let mut scene = scene.clone();
     let start = std::time::Instant::now();
     let voi_ratio = voi.map(|v| v.size / scene.mesh.size.max(f64::MIN_POSITIVE));
@@ -117,7 +121,7 @@ pub fn refine(scene: &Scene, voi: Option<&Voi>, choice: SolverChoice, target: f6
     };
     // The size field of local refinement, once there is one (it then replaces the sizes).
     let mut field: Option<SizeField> = None;
-    let (mut current, from_memory) = match first_mesh(&scene, memory.as_deref(), &scaled_voi, kept, choice, target) {
+    let (mut current, from_memory) = match first_mesh(&scene, memory.as_ref(), &scaled_voi, kept, choice, target) {
         Some((s, f)) => {
             field = f;
             (s, true)
@@ -126,15 +130,16 @@ pub fn refine(scene: &Scene, voi: Option<&Voi>, choice: SolverChoice, target: f6
     };
     // The size the mesher picked when the scene left it open; the VOI's keeps its ratio.
     scene.mesh.size = current.size;
-    let remember = |current: &Solved, field: Option<&SizeField>, worst: f64| {
+    let remember = |current: &Solved, field: Option<&SizeField>, worst: f64, reached: bool| {
         if let Some(k) = &memory {
             let chosen = remembered::Chosen {
                 size: current.size,
                 field: field.cloned(),
                 dofs: current.d.dofs.free_count(),
                 estimated_error: worst,
+                reached,
             };
-            remembered::store(k, &chosen);
+            k.store(&chosen);
         }
     };
     let estimate_of = |scene: &Scene, field: Option<&SizeField>, s: &Solved| {
@@ -169,7 +174,7 @@ pub fn refine(scene: &Scene, voi: Option<&Voi>, choice: SolverChoice, target: f6
             "refinement step"
         );
         if worst <= target {
-            remember(&current, field.as_ref(), worst);
+            remember(&current, field.as_ref(), worst, true);
             return Ok(finish(current, estimate, steps, true, start));
         }
         let next = Next::plan(
@@ -179,11 +184,11 @@ pub fn refine(scene: &Scene, voi: Option<&Voi>, choice: SolverChoice, target: f6
             seen.as_ref(),
             (worst, target),
             kept,
-            &steps,
+            (&steps, base),
         );
         if let Some(why) = next.refused(&scene, &steps, (worst, target)) {
             tracing::warn!("{why}");
-            remember(&current, field.as_ref(), worst);
+            remember(&current, field.as_ref(), worst, false);
             return Ok(finish(current, estimate, steps, false, start));
         }
         crate::progress::say(&next.announce(&steps, (worst, target)));
@@ -234,16 +239,21 @@ fn worth_starting_from(remembered: f64, target: f64) -> bool {
 /// be made (the refinement then starts afresh).
 fn first_mesh(
     scene: &Scene,
-    key: Option<&std::path::Path>,
+    keys: Option<&remembered::Keys>,
     scaled_voi: &dyn Fn(f64) -> Option<Voi>,
     kept: usize,
     choice: SolverChoice,
     target: f64,
 ) -> Option<(Solved, Option<SizeField>)> {
-    let chosen = remembered::lookup(key?)?;
-    if !worth_starting_from(chosen.estimated_error, target) {
+    let (chosen, scope) = keys?.lookup()?;
+    let whose = match scope {
+        remembered::Scope::Scenario => "the last run of this scene",
+        remembered::Scope::Geometry => "an earlier run of this geometry",
+    };
+    // This scene's own last mesh is always the start: its rerun gives the same basis.
+    if scope == remembered::Scope::Geometry && !worth_starting_from(chosen.estimated_error, target) {
         crate::progress::say(&format!(
-            "not starting from the mesh an earlier run of this geometry refined to ({} unknowns, estimated {:.2} %): \
+            "not starting from the mesh {whose} refined to ({} unknowns, estimated {:.2} %): \
              far finer than a target of {:.2} % needs",
             chosen.dofs,
             100.0 * chosen.estimated_error,
@@ -252,8 +262,8 @@ fn first_mesh(
         return None;
     }
     crate::progress::say(&format!(
-        "starting from the mesh an earlier run of this geometry refined to (mesh.size {:.3e} m{}, {} unknowns, \
-         estimated {:.2} %)",
+        "starting from the mesh {whose} {} (mesh.size {:.3e} m{}, {} unknowns, estimated {:.2} %)",
+        if chosen.reached { "refined to" } else { "stopped at" },
         chosen.size,
         if chosen.field.is_some() { ", graded" } else { "" },
         chosen.dofs,
@@ -302,7 +312,7 @@ impl Next {
         seen: Option<&Seen>,
         (worst, target): (f64, f64),
         kept: usize,
-        steps: &[Step],
+        (steps, base): (&[Step], u64),
     ) -> Next {
         let local = match (scene.mesh.refinement, estimate) {
             (Refinement::Local, Some(e)) if worst.is_finite() => local_field(scene, current, e, kept, target),
@@ -336,7 +346,7 @@ impl Next {
             size: current.size * factor,
             growth,
             unknowns: current.d.dofs.free_count() as f64 * growth,
-            cost: NextCost::of(steps, growth),
+            cost: NextCost::of(steps, growth, base),
         }
     }
 
@@ -452,14 +462,16 @@ fn size_exponent(steps: &[Step]) -> f64 {
 struct NextCost {
     /// Seconds, from the last mesh's at the measured growth of time with unknowns.
     seconds: f64,
-    /// Peak memory, bytes: this process's peak so far times the growth in unknowns.
+    /// Peak memory, bytes: what this process held when the refinement began, plus what the
+    /// refinement's peak added to it times the growth in unknowns.
     bytes: f64,
 }
 
 impl NextCost {
     /// Time grows as unknowns^a with a measured from the last two meshes (between 1 and 2),
-    /// or 1.3 with one mesh; memory as the unknowns.
-    fn of(steps: &[Step], growth: f64) -> NextCost {
+    /// or 1.3 with one mesh; memory beyond `base` (resident at the refinement's start: the
+    /// page's compute process holds its previous basis) as the unknowns.
+    fn of(steps: &[Step], growth: f64, base: u64) -> NextCost {
         let last_s = steps.last().map_or(0.0, |s| s.seconds);
         let a = match steps {
             [.., p, l] if p.dofs > 0 && l.dofs > p.dofs && p.seconds > 0.0 && l.seconds > 0.0 => {
@@ -469,7 +481,7 @@ impl NextCost {
         };
         NextCost {
             seconds: last_s * growth.powf(a),
-            bytes: crate::memory::peak_rss_bytes() as f64 * growth,
+            bytes: base as f64 + crate::memory::peak_rss_bytes().saturating_sub(base) as f64 * growth,
         }
     }
 

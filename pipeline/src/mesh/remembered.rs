@@ -1,10 +1,18 @@
-//! The mesh a `target_error` refinement chose for a geometry, kept beside the mesh cache: the
-//! next refinement of the same geometry at the same target, order and start starts from it
-//! instead of from the first size, whatever its supports, material, modes or loads (they change
-//! the error a little, and the refinement goes on from there when the target is not met).
+//! The mesh a `target_error` refinement chose for a geometry, kept beside the mesh cache, under
+//! two keys:
 //!
-//! Key: the geometry file's bytes, unit, element order, `target_error`, `refinement`, the
-//! scene's `mesh.size` (the start), `max_dofs` and the space (the VOI's box and size), and the
+//! - the *scenario*'s (geometry and supports, material and mode count as well): the same scene
+//!   run again — a saved scene of the page, a batch rerun — starts from the mesh its last run
+//!   ended on, reached or stopped, and gives that run's basis again instead of one from another
+//!   path of refinement;
+//! - the *geometry*'s: another scenario of the same part (other supports, material, modes or
+//!   loads change the error a little, and the refinement goes on from there when the target is
+//!   not met) starts from it. Only a mesh that met its target is kept here: one a refinement
+//!   stopped short on (a support on a line, whose error never falls) would send every later
+//!   scenario of the part, a free body too, to that mesh.
+//!
+//! Both keys hold the geometry file's bytes, unit, element order, `target_error`, `refinement`,
+//! the scene's `mesh.size` (the start), `max_dofs` and the space (the VOI's box and size), and the
 //! VES version. An entry is JSON; anything unreadable or implausible at its path is a miss.
 
 use super::cache;
@@ -24,42 +32,91 @@ pub struct Chosen {
     pub dofs: usize,
     /// Its largest estimated error then.
     pub estimated_error: f64,
+    /// Whether that met the target (false: the refinement stopped short of it). Entries written
+    /// before this was kept read as false.
+    #[serde(default)]
+    pub reached: bool,
 }
 
 /// Longest entry read (a size field of a million vertices is about 60 MB of JSON).
 const MAX_ENTRY: u64 = 256 << 20;
 
-/// Where the choice for `voi`'s space of `scene` lives; None with the cache off, without a
-/// target, for a `.geo` script (it may read other files) or an unreadable geometry.
-pub fn key(scene: &Scene, voi: Option<&Voi>) -> Option<PathBuf> {
-    let target = scene.mesh.target_error?;
-    let ext = scene.geometry.extension()?.to_str()?.to_ascii_lowercase();
-    if ext == "geo" {
-        return None;
+/// Which of the two keys a choice was found under.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Scope {
+    /// This very scenario ran before.
+    Scenario,
+    /// Another scenario of the geometry ran before.
+    Geometry,
+}
+
+/// Where the choices for `voi`'s space of a scene live.
+#[derive(Clone, Debug)]
+pub struct Keys {
+    scenario: PathBuf,
+    geometry: PathBuf,
+}
+
+impl Keys {
+    /// The keys of `voi`'s space of `scene`; None with the cache off, without a target, for a
+    /// `.geo` script (it may read other files) or an unreadable geometry.
+    pub fn of(scene: &Scene, voi: Option<&Voi>) -> Option<Keys> {
+        let target = scene.mesh.target_error?;
+        let ext = scene.geometry.extension()?.to_str()?.to_ascii_lowercase();
+        if ext == "geo" {
+            return None;
+        }
+        let dir = cache::dir()?;
+        let geometry = crate::input::read(&scene.geometry).ok()?;
+        let shape = serde_json::to_string(&(
+            scene.unit,
+            scene.mesh.order,
+            target,
+            scene.mesh.refinement,
+            scene.mesh.size,
+            scene.mesh.max_dofs,
+            voi.map(|v| (v.bbox, v.size)),
+        ))
+        .ok()?;
+        let mut h = crate::fingerprint::Fingerprint::default();
+        h.field(b"chosen mesh")
+            .field(env!("CARGO_PKG_VERSION").as_bytes())
+            .field(shape.as_bytes())
+            .field(ext.as_bytes())
+            .field(&geometry);
+        let of_geometry = h.value();
+        // What else shapes the error: the supports, the material and the modes kept (`Debug`
+        // writes each f64 so that it reads back the same).
+        let scenario = format!("{:?} {:?} {}", scene.fixed, scene.material, scene.modes.count);
+        h.field(b"scenario").field(scenario.as_bytes());
+        Some(Keys {
+            scenario: dir.join(format!("{:016x}.chosen", h.value())),
+            geometry: dir.join(format!("{of_geometry:016x}.chosen")),
+        })
     }
-    let dir = cache::dir()?;
-    let geometry = crate::input::read(&scene.geometry).ok()?;
-    let shape = serde_json::to_string(&(
-        scene.unit,
-        scene.mesh.order,
-        target,
-        scene.mesh.refinement,
-        scene.mesh.size,
-        scene.mesh.max_dofs,
-        voi.map(|v| (v.bbox, v.size)),
-    ))
-    .ok()?;
-    let mut h = crate::fingerprint::Fingerprint::default();
-    h.field(b"chosen mesh")
-        .field(env!("CARGO_PKG_VERSION").as_bytes())
-        .field(shape.as_bytes())
-        .field(ext.as_bytes())
-        .field(&geometry);
-    Some(dir.join(format!("{:016x}.chosen", h.value())))
+
+    /// The choice to start from: this scenario's, reached or not, else the geometry's when it
+    /// met its target.
+    pub fn lookup(&self) -> Option<(Chosen, Scope)> {
+        if let Some(c) = lookup(&self.scenario) {
+            return Some((c, Scope::Scenario));
+        }
+        lookup(&self.geometry)
+            .filter(|c| c.reached)
+            .map(|c| (c, Scope::Geometry))
+    }
+
+    /// Keeps `chosen` for this scenario, and for the geometry when it met its target.
+    pub fn store(&self, chosen: &Chosen) {
+        store(&self.scenario, chosen);
+        if chosen.reached {
+            store(&self.geometry, chosen);
+        }
+    }
 }
 
 /// The choice stored under `key`, if a plausible one is there.
-pub fn lookup(key: &std::path::Path) -> Option<Chosen> {
+fn lookup(key: &std::path::Path) -> Option<Chosen> {
     let (file, size) = match cache::open_entry(key) {
         Ok(Some(f)) => f,
         Ok(None) => return None,
@@ -85,7 +142,7 @@ pub fn lookup(key: &std::path::Path) -> Option<Chosen> {
 }
 
 /// Stores `chosen` under `key`; a failure only costs the next run its refinement (logged).
-pub fn store(key: &std::path::Path, chosen: &Chosen) {
+fn store(key: &std::path::Path, chosen: &Chosen) {
     cache::write_atomically(key, |w| {
         serde_json::to_writer(&mut *w, chosen).map_err(std::io::Error::other)
     });
@@ -107,6 +164,7 @@ mod tests {
             field: None,
             dofs: 32_787,
             estimated_error: 0.0031,
+            reached: true,
         };
         store(&key, &chosen);
         assert_eq!(lookup(&key), Some(chosen.clone()));
