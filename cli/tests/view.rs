@@ -722,7 +722,7 @@ fn a_free_body_stays_put_at_any_scale_and_the_page_reconnects() {
 
 /// `ves view PART.step` as a designer uses it (issue: from a STEP file to pulling the part in one
 /// page): the corpus block with two holes (not one of ours) opens as a free body; the page holds
-/// it by its two end faces, picks aluminium and computes; the mouse's hand pulls the top; the
+/// it by its two end faces (the curved one as its CAD face), picks aluminium and computes; the mouse's hand pulls the top; the
 /// saved scene recomputed by `ves precompute` gives the page's frequencies and `ves session`
 /// the page's force. Holding it by one face and computing again moves the session to the new
 /// basis; a cancelled compute leaves the part shown; a garbage file and a .geo are one line each.
@@ -774,12 +774,25 @@ fn a_step_part_is_set_up_computed_and_pulled_in_the_page() {
         "{kinds}"
     );
 
-    // Opened as a free body, then held by the two faces clicked.
+    // Opened as a free body, then held by the two faces clicked: the flat −x end by the plane
+    // through it, the curved +x end by its CAD face, as the page said.
     assert_eq!(page["free"]["free"].as_bool(), Some(true), "{}", page["free"]);
     let fixed = page["asked"]["fixed"].as_array().expect("supports");
     assert_eq!(fixed.len(), 2, "two faces clicked: {fixed:?}");
-    let axes: Vec<&str> = fixed.iter().map(|f| f["plane"]["axis"].as_str().unwrap()).collect();
-    assert_eq!(axes, ["x", "x"], "{fixed:?}");
+    assert_eq!(fixed[0]["plane"]["axis"].as_str(), Some("x"), "{fixed:?}");
+    let end_face = fixed[1]["faces"]
+        .as_array()
+        .filter(|t| t.len() == 1)
+        .and_then(|t| t[0].as_u64())
+        .unwrap_or_else(|| panic!("the +x end not held as one CAD face: {fixed:?}")) as u32;
+    let picked = &page["asked"]["picked"];
+    assert_eq!(picked[0].as_str(), Some(""), "{picked}");
+    assert!(
+        picked[1]
+            .as_str()
+            .is_some_and(|t| t.contains(&format!("face {end_face} ")) && t.contains("not flat: held as that face")),
+        "{picked}"
+    );
     let held = freqs(&page["held"]["f"]);
     assert_eq!(held.len(), 10, "{}", page["held"]);
     // The instant basis came first (the free body's mesh), each frequency with its bound, then
@@ -819,8 +832,9 @@ fn a_step_part_is_set_up_computed_and_pulled_in_the_page() {
     // (no `unit`: a STEP file carries its own):
     // aluminium 6061-T6 at its handbook values (the frequencies cannot tell it from steel:
     // √(E/ρ) differs by 2.4 %), the page's starting mesh (10-node tets to a 5 % error
-    // estimate), 10 modes, stress and damping as the page started; and held by the planes
-    // through the part's two x end faces (checked below against the part's own extent).
+    // estimate), 10 modes, stress and damping as the page started; and held by the plane
+    // through the part's −x end and by its +x end face (checked below against the part's own
+    // extent).
     let saved = dir.path().join("saved.toml");
     let text = std::fs::read_to_string(&saved).expect("saved scene");
     let mut scene: toml::Table = toml::from_str(&text).unwrap_or_else(|e| panic!("saved scene: {e}\n{text}"));
@@ -877,71 +891,87 @@ fn a_step_part_is_set_up_computed_and_pulled_in_the_page() {
         );
     }
 
-    // The planes clicked are the part's x extremes (its mesh from the STEP, read from the
-    // file): within the scene's plane tolerance (1e-6 of the diagonal, the page picks an f32
-    // vertex) or the plane would hold nothing. The panel shows them in mm to three digits.
+    // The plane clicked is the part's x minimum (its mesh from the STEP, read from the file):
+    // within the scene's plane tolerance (1e-6 of the diagonal, the page picks an f32 vertex) or
+    // the plane would hold nothing; the face is the +x end (its vertices within 1 mm of the
+    // part's x maximum: it is 0.5 mm proud). The panel shows the plane in mm to three digits.
     let b = surface_basis(&basis);
     let lo: [f64; 3] = std::array::from_fn(|c| b.rest.iter().map(|p| p[c]).fold(f64::MAX, f64::min));
     let hi: [f64; 3] = std::array::from_fn(|c| b.rest.iter().map(|p| p[c]).fold(f64::MIN, f64::max));
     let tol = 1e-6 * norm(sub(hi, lo));
-    let planes = planes
+    let supports = planes
         .as_array()
         .unwrap_or_else(|| panic!("fixed is not a list:\n{text}"));
-    let mut values: Vec<f64> = planes
-        .iter()
-        .map(|p| {
-            let plane = p.get("plane").and_then(|v| v.as_table());
-            let plane = plane.filter(|t| t.len() == 2 && p.as_table().is_some_and(|e| e.len() == 1));
-            let plane = plane.unwrap_or_else(|| panic!("not a plane alone: {p}"));
-            assert_eq!(plane.get("axis").and_then(|a| a.as_str()), Some("x"), "{p}");
-            plane
-                .get("value")
-                .and_then(|v| v.as_float())
-                .unwrap_or_else(|| panic!("{p}"))
-        })
-        .collect();
-    values.sort_by(f64::total_cmp);
+    assert_eq!(supports.len(), 2, "{text}");
+    let plane = supports[0].get("plane").and_then(|v| v.as_table());
+    let plane = plane.filter(|t| t.len() == 2 && supports[0].as_table().is_some_and(|e| e.len() == 1));
+    let plane = plane.unwrap_or_else(|| panic!("not a plane alone: {}", supports[0]));
+    assert_eq!(plane.get("axis").and_then(|a| a.as_str()), Some("x"), "{text}");
+    let value = plane
+        .get("value")
+        .and_then(|v| v.as_float())
+        .unwrap_or_else(|| panic!("{text}"));
     assert!(
-        values.len() == 2 && (values[0] - lo[0]).abs() <= tol && (values[1] - hi[0]).abs() <= tol,
-        "planes x = {values:?} m vs the part's x extent {} … {} m",
+        (value - lo[0]).abs() <= tol,
+        "plane x = {value} m vs the part's x extent {} … {} m",
         lo[0],
         hi[0]
     );
-    let shown = page["asked"]["shown"].as_array().expect("the panel's planes");
-    let mut shown: Vec<f64> = shown
-        .iter()
-        .map(|r| {
-            assert_eq!(r["axis"].as_str(), Some("x"), "{r}");
-            r["value"]
-                .as_str()
-                .and_then(|v| v.parse::<f64>().ok())
-                .unwrap_or_else(|| panic!("{r}"))
-                * 1e-3
-        })
-        .collect();
-    shown.sort_by(f64::total_cmp);
+    let faces_entry = supports[1].as_table().filter(|e| e.len() == 1);
+    let faces_saved = faces_entry.and_then(|e| e.get("faces")).and_then(|f| f.as_array());
+    assert_eq!(
+        faces_saved.map(|f| f.iter().filter_map(|t| t.as_integer()).collect::<Vec<_>>()),
+        Some(vec![i64::from(end_face)]),
+        "{text}"
+    );
+    let shown = page["asked"]["shown"].as_array().expect("the panel's supports");
+    let mm = shown[0]["value"]
+        .as_str()
+        .and_then(|v| v.parse::<f64>().ok())
+        .unwrap_or_else(|| panic!("{shown:?}"));
     assert!(
         shown.len() == 2
-            && (shown[0] - lo[0]).abs() <= 5e-3 * lo[0].abs() + tol
-            && (shown[1] - hi[0]).abs() <= 5e-3 * hi[0].abs() + tol,
-        "the panel shows x = {shown:?} m, the part spans {} … {} m",
+            && shown[0]["axis"].as_str() == Some("x")
+            && (mm * 1e-3 - lo[0]).abs() <= 5e-3 * lo[0].abs() + tol
+            && shown[1]["text"]
+                .as_str()
+                .is_some_and(|t| t.starts_with(&format!("faces {end_face} "))),
+        "the panel shows {shown:?}, the part spans x {} … {} m",
         lo[0],
         hi[0]
     );
-    // And the recomputed basis holds, in every component, the nodes within the scene's
-    // tolerance of those planes (the end faces: OpenCASCADE puts a face's nodes within its
-    // 1e-7 m of the plane) and no other.
-    let held_by = |x: f64| values.iter().any(|p| (x - p).abs() <= tol);
+    // And the recomputed basis holds, in every component, the vertices within the scene's
+    // tolerance of that plane (the −x end: OpenCASCADE puts a face's nodes within its 1e-7 m
+    // of the plane) and those of the face's triangles, and no other.
+    let tags = b.surface_faces.as_ref().expect("the basis keeps its CAD faces");
+    let mut on_face = vec![false; b.rest.len()];
+    for (t, tri) in b.triangles.iter().enumerate() {
+        if tags[t] == end_face {
+            for &v in tri {
+                on_face[v as usize] = true;
+            }
+        }
+    }
     for (v, p) in b.rest.iter().enumerate() {
-        let want = if held_by(p[0]) { 0b111 } else { 0 };
+        if on_face[v] {
+            assert!(
+                p[0] > hi[0] - 1e-3,
+                "face {end_face} has vertex {v} at {p:?}, not at the +x end"
+            );
+        }
+        let want = if (p[0] - value).abs() <= tol || on_face[v] {
+            0b111
+        } else {
+            0
+        };
         assert_eq!(
             b.fixed[v], want,
-            "vertex {v} at {p:?}: planes x = {values:?} m, tolerance {tol:e} m"
+            "vertex {v} at {p:?}: plane x = {value} m (tolerance {tol:e} m), face {end_face}"
         );
     }
     assert!(
-        b.fixed.iter().filter(|&&f| f != 0).count() > 10,
-        "the end faces hold few nodes"
+        on_face.iter().filter(|&&f| f).count() > 10 && b.fixed.iter().filter(|&&f| f != 0).count() > 20,
+        "the end faces hold few vertices"
     );
 
     // The pull: the page's force is `ves session`'s for the same hand path, and what it draws the

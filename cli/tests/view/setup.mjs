@@ -1,5 +1,5 @@
 // The set-up page end to end in a real headless Chromium: `ves view PART.step` computes the part
-// as a free body; the page holds it by two faces (clicked in views along ±x), picks aluminium,
+// as a free body; the page holds it by its two end faces (clicked in views along ±x), picks aluminium,
 // computes, and the mouse pulls a vertex; the scene is saved for the Rust test to recompute with
 // `ves precompute` and replay with `ves session`. Then one support is removed and the part
 // computed again (the session moves to the new basis), a compute is cancelled, and a garbage
@@ -28,7 +28,9 @@ try {
   await page.waitForFunction(() => window.ves && window.ves.ready, null, { timeout: 900000 });
   const free = await page.evaluate(() => ({ free: window.ves.hello.free_body, f: window.ves.hello.spaces[0].frequencies_hz }));
 
-  // Two faces: the +x end seen from +x, the −x end seen from −x, each clicked in the middle.
+  // Two faces by "pick a plane": the −x end seen from −x (flat: the plane through it), then the
+  // +x end seen from +x (a cylinder 0.5 mm proud: held as its CAD face, since a plane through
+  // its crest would hold a line), each clicked in the middle.
   const supports = () => page.evaluate(() => window.ves.setup.scene().fixed?.length ?? 0);
   const holdFace = async (key) => {
     await page.keyboard.press(key);
@@ -38,9 +40,9 @@ try {
     const n = await supports();
     await page.mouse.click((x0 + x1) / 2, (y0 + y1) / 2);
     await page.waitForFunction((k) => (window.ves.setup.scene().fixed?.length ?? 0) > k, n, { timeout: 10000 });
+    return page.evaluate(() => document.getElementById('setuperror').textContent);
   };
-  await holdFace('x');
-  await holdFace('Shift+X');
+  const picked = [await holdFace('Shift+X'), await holdFace('x')];
   // The support kinds: an elastic mount with its stiffness goes into the scene; back to clamped.
   const holdBy = page.locator('#supportlist .support').first().locator('select').nth(1);
   await holdBy.selectOption('elastic');
@@ -54,9 +56,12 @@ try {
   await page.selectOption('#material', { label: 'aluminium 6061-T6' });
   await page.fill('#modecount', '10');
   const asked = await page.evaluate(() => window.ves.setup.scene());
-  // The planes as the panel shows them (mm).
-  asked.shown = await page.evaluate(() => [...document.querySelectorAll('#supportlist .support')].map((r) => ({
-    axis: r.querySelector('select').value, value: r.querySelector('input[type=number]').value })));
+  // The supports as the panel shows them (a plane in mm, a face by its tag).
+  asked.shown = await page.evaluate(() => [...document.querySelectorAll('#supportlist .support')].map((r) => (
+    r.querySelector('input[type=number]:not([title])')
+      ? { axis: r.querySelector('select').value, value: r.querySelector('input[type=number]').value }
+      : { text: r.textContent })));
+  asked.picked = picked;
   let n = await ends(page);
   await page.click('#compute');
   await waitEnd(page, n);

@@ -148,11 +148,17 @@ export function requestPick(done) { picking = done; }
 // Faces: while the set-up panel picks them, the face under the cursor is lit and a click calls
 // the panel back with its tag.
 let facePick = null;
+/** The hello's record of CAD face `tag` (`kind`: plane, cylinder, other; as `ves faces`), or null.
+ * @param {number | null} tag @returns {any} */
+export function faceOf(tag) {
+  const space = state.hello && state.hello.spaces[state.active];
+  return tag != null && space && Array.isArray(space.faces) ? space.faces.find((/** @type {any} */ x) => x.tag === tag) || null : null;
+}
+
 /** What the page knows of face `tag` (the hello's `faces`, as `ves faces` lists them):
  * "face 24 · cylinder r 3.25 mm, concave · 34.6 mm²". */
 export function faceWords(tag) {
-  const space = state.hello && state.hello.spaces[state.active];
-  const f = space && Array.isArray(space.faces) ? space.faces.find((x) => x.tag === tag) : null;
+  const f = faceOf(tag);
   if (!f) return `face ${tag}`;
   const u = state.units;
   const a = f.area_m2;
@@ -225,6 +231,8 @@ canvas.addEventListener('pointerdown', (ev) => {
       point: new THREE.Vector3(s.rest[3 * v], s.rest[3 * v + 1], s.rest[3 * v + 2]),
       normal: hit.face.normal.clone(),
       outermost: (k, sign) => (tag == null ? null : outermost(s, tag, k, sign)),
+      face: faceOf(tag),
+      faceWords: tag == null ? '' : faceWords(tag),
     });
     return;
   }

@@ -169,15 +169,29 @@ export function setupPanel(send, pick, faceMode) {
   $('addplane').onclick = () => { (scene.fixed ||= []).push({ plane: { axis: 'x', value: 0 } }); drawSupports(); edit(); };
   $('pickplane').onclick = () => {
     $('setuperror').textContent = 'click a flat face of the part: the plane through it is held';
-    pick(({ point, normal, outermost }) => {
-      // The axis the face faces most; the plane through the clicked point along it, or through
-      // the CAD face's outermost point when that is near: a face slightly domed (a corpus
-      // block's end bulges by 0.5 mm) or a click near a hole's rim would otherwise put the plane
-      // through whichever vertex is nearest, holding a ring of nodes instead of the face.
+    pick(({ point, normal, outermost, face, faceWords }) => {
+      // The axis the face faces most.
       const m = [normal.x, normal.y, normal.z];
       const n = m.map(Math.abs);
       const k = n.indexOf(Math.max(...n));
       const axis = 'xyz'[k];
+      // A CAD face that is curved (the corpus block's +x end is a cylinder of 25 mm radius,
+      // 0.5 mm proud) or slanted: a plane x, y or z = … through it holds only a line of nodes,
+      // a singular support whose frequencies fall with every finer mesh. The face is what was meant.
+      if (face && (face.kind !== 'plane' || n[k] < 0.99)) {
+        const fixed = (scene.fixed ||= []);
+        let entry = fixed.find((f) => f.faces);
+        if (!entry) { entry = { faces: [] }; fixed.push(entry); }
+        if (!entry.faces.includes(face.tag)) entry.faces.push(face.tag);
+        $('setuperror').textContent = `${faceWords} is ${face.kind !== 'plane' ? 'not flat' : `not square to ${axis}`}: `
+          + 'held as that face (a plane through it would hold only a line of nodes)';
+        drawSupports();
+        edit();
+        return;
+      }
+      // The plane through the clicked point, or through the CAD face's outermost point when that
+      // is near: a click near a hole's rim would otherwise put the plane through whichever vertex
+      // is nearest, holding a ring of nodes instead of the face.
       let value = [point.x, point.y, point.z][k];
       const out = outermost(k, Math.sign(m[k]));
       if (out !== null && Math.abs(out - value) <= 0.05 * state.diag) value = out;
