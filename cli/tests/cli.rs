@@ -1398,7 +1398,7 @@ fn the_estimate_tracks_the_truth(s: &serde_json::Value, reference: &serde_json::
 /// at once (one mesh instead of 2.0k, 6.1k and 32.8k unknowns), and is not meshed again; the
 /// same scene run again gives the same frequencies (to 1e-9). A refinement stopped short
 /// of its target (by `max_dofs` here) is remembered for its own rerun only: another support
-/// starts afresh.
+/// starts afresh; the target its warning advises is met on that mesh at once.
 #[test]
 fn a_refinement_remembers_its_mesh_for_its_rerun_and_other_supports() {
     let cache = tempfile::tempdir().unwrap();
@@ -1451,6 +1451,24 @@ fn a_refinement_remembers_its_mesh_for_its_rerun_and_other_supports() {
     let resumed = v["spaces"][0]["refinements"].as_array().expect("steps").clone();
     assert_eq!(resumed[0]["remembered"], true, "{resumed:?}");
     assert_eq!(resumed[0]["dofs"], stopped.last().unwrap()["dofs"], "{resumed:?}");
+    // Its advice taken (the page's "accept" button): the target it names is met on that mesh,
+    // at once.
+    let warnings = v["warnings"].as_array().expect("warnings");
+    let advice = warnings
+        .iter()
+        .filter_map(|w| w.as_str()?.split("set mesh.target_error = ").nth(1))
+        .find_map(|t| t.split(' ').next()?.parse::<f64>().ok())
+        .unwrap_or_else(|| panic!("no target advised: {warnings:?}"));
+    let accept = |scene: String| strict(scene).replace("target_error = 0.0001", &format!("target_error = {advice}"));
+    let (_, v) = cantilever_case_json_cached(accept, cache.path());
+    let accepted = v["spaces"][0]["refinements"].as_array().expect("steps").clone();
+    assert_eq!(accepted.len(), 1, "{accepted:?}");
+    assert_eq!(accepted[0]["remembered"], true, "{accepted:?}");
+    assert_eq!(accepted[0]["dofs"], stopped.last().unwrap()["dofs"], "{accepted:?}");
+    assert!(
+        accepted[0]["max_estimated_error"].as_f64().unwrap() <= advice,
+        "{accepted:?}"
+    );
 }
 
 /// A support that holds an edge of the beam (its nodes on a line, no face) is warned of in

@@ -1,7 +1,8 @@
 //! FNV-1a (64 bits) over a sequence of byte fields: change detection — a basis's up-to-date
 //! check, the mesh cache's keys — not security.
 
-/// A running fingerprint.
+/// A running fingerprint (a clone goes on from the fields so far).
+#[derive(Clone)]
 pub struct Fingerprint(u64);
 
 impl Default for Fingerprint {

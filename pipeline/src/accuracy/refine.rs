@@ -138,6 +138,7 @@ pub fn refine(scene: &Scene, voi: Option<&Voi>, choice: SolverChoice, target: f6
                 dofs: current.d.dofs.free_count(),
                 estimated_error: worst,
                 reached,
+                target: Some(target),
             };
             k.store(&chosen);
         }
@@ -191,7 +192,13 @@ pub fn refine(scene: &Scene, voi: Option<&Voi>, choice: SolverChoice, target: f6
             remember(&current, field.as_ref(), worst, false);
             return Ok(finish(current, estimate, steps, false, start));
         }
-        crate::progress::say(&next.announce(&steps, (worst, target)));
+        // The share of the refinement done: the time spent over that plus the next mesh's
+        // forecast (the page showed 0 % for a minute, then jumped). A cancel stops it here.
+        let spent = start.elapsed().as_secs_f64();
+        crate::progress::stage(
+            &next.announce(&steps, (worst, target)),
+            REFINEMENT_SHARE * spent / (spent + next.cost.seconds.max(0.0)).max(f64::MIN_POSITIVE),
+        )?;
         seen = estimate.as_ref().map(|e| Seen {
             dofs: current.d.dofs.free_count(),
             errors: e.relative(),
@@ -222,6 +229,16 @@ pub fn refine(scene: &Scene, voi: Option<&Voi>, choice: SolverChoice, target: f6
     }
 }
 
+/// The `target_error` that accepts a mesh estimated at `worst`: rounded up to three decimals
+/// (the advice of a refinement that stops, which the page offers as one click).
+pub fn accepting(worst: f64) -> f64 {
+    (1000.0 * worst).ceil() / 1000.0
+}
+
+/// The share of a space's progress that meshing, solving and estimating cover, a refinement
+/// included; the static correction, stress, loads and writing follow.
+pub const REFINEMENT_SHARE: f64 = 0.85;
+
 /// How much finer than the target a remembered mesh's estimate may be and still be the start:
 /// frequencies of 10-node tets converge as h⁴, so 4× below the target is a size 1.4× finer
 /// (2.8× the unknowns) than needed. Finer ones came from a stricter target (a 0.1 % run's
@@ -245,12 +262,13 @@ fn first_mesh(
     choice: SolverChoice,
     target: f64,
 ) -> Option<(Solved, Option<SizeField>)> {
-    let (chosen, scope) = keys?.lookup()?;
+    let (chosen, scope) = keys?.lookup(target, |estimate| worth_starting_from(estimate, target))?;
     let whose = match scope {
         remembered::Scope::Scenario => "the last run of this scene",
         remembered::Scope::Geometry => "an earlier run of this geometry",
     };
-    // This scene's own last mesh is always the start: its rerun gives the same basis.
+    // This scene's own last mesh at this target is always the start: its rerun gives the same
+    // basis. With another target it is a start when it is not far finer than needed.
     if scope == remembered::Scope::Geometry && !worth_starting_from(chosen.estimated_error, target) {
         crate::progress::say(&format!(
             "not starting from the mesh {whose} refined to ({} unknowns, estimated {:.2} %): \
@@ -365,21 +383,22 @@ impl Next {
                  would need about {short}; to go further run where that much is free, or set mesh.target_error = \
                  {} to accept this one",
                 self.unknowns,
-                (1000.0 * worst).ceil() / 1000.0
+                accepting(worst)
             ));
         }
         let too_many = steps.len() >= MAX_STEPS;
         (self.unknowns > scene.mesh.max_dofs as f64 || too_many).then(|| {
             format!(
                 "{stopped}: the next mesh would have about {:.2e} unknowns, above mesh.max_dofs = {}{}; raise \
-                 mesh.max_dofs or accept this error",
+                 mesh.max_dofs, or set mesh.target_error = {} to accept this one",
                 self.unknowns,
                 scene.mesh.max_dofs,
                 if too_many {
                     format!(" or the limit of {MAX_STEPS} meshes was reached")
                 } else {
                     String::new()
-                }
+                },
+                accepting(worst)
             )
         })
     }

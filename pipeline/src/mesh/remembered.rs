@@ -1,17 +1,18 @@
 //! The mesh a `target_error` refinement chose for a geometry, kept beside the mesh cache, under
 //! two keys:
 //!
-//! - the *scenario*'s (geometry and supports, material and mode count as well): the same scene
-//!   run again — a saved scene of the page, a batch rerun — starts from the mesh its last run
-//!   ended on, reached or stopped, and gives that run's basis again instead of one from another
-//!   path of refinement;
-//! - the *geometry*'s: another scenario of the same part (other supports, material, modes or
+//! - the *scenario*'s (geometry and supports, material and mode count as well, not the target):
+//!   the same scene run again — a saved scene of the page, a batch rerun — starts from the mesh
+//!   its last run ended on, reached or stopped, and gives that run's basis again instead of one
+//!   from another path of refinement; asked with another target (the page's "accept" of a
+//!   refinement that stopped), it starts there when that is a good start;
+//! - the *geometry*'s (and the target's): another scenario of the same part (other supports, material, modes or
 //!   loads change the error a little, and the refinement goes on from there when the target is
 //!   not met) starts from it. Only a mesh that met its target is kept here: one a refinement
 //!   stopped short on (a support on a line, whose error never falls) would send every later
 //!   scenario of the part, a free body too, to that mesh.
 //!
-//! Both keys hold the geometry file's bytes, unit, element order, `target_error`, `refinement`,
+//! Both keys hold the geometry file's bytes, unit, element order, `refinement`,
 //! the scene's `mesh.size` (the start), `max_dofs` and the space (the VOI's box and size), and the
 //! VES version. An entry is JSON; anything unreadable or implausible at its path is a miss.
 
@@ -36,6 +37,9 @@ pub struct Chosen {
     /// before this was kept read as false.
     #[serde(default)]
     pub reached: bool,
+    /// The `target_error` it was refined for (None in entries written before it was kept).
+    #[serde(default)]
+    pub target: Option<f64>,
 }
 
 /// Longest entry read (a size field of a million vertices is about 60 MB of JSON).
@@ -71,7 +75,6 @@ impl Keys {
         let shape = serde_json::to_string(&(
             scene.unit,
             scene.mesh.order,
-            target,
             scene.mesh.refinement,
             scene.mesh.size,
             scene.mesh.max_dofs,
@@ -84,21 +87,26 @@ impl Keys {
             .field(shape.as_bytes())
             .field(ext.as_bytes())
             .field(&geometry);
-        let of_geometry = h.value();
+        let mut of_geometry = h.clone();
+        of_geometry.field(&target.to_le_bytes());
         // What else shapes the error: the supports, the material and the modes kept (`Debug`
-        // writes each f64 so that it reads back the same).
+        // writes each f64 so that it reads back the same). Not the target: a scenario asked
+        // again with another starts from its last mesh when that is a good start.
         let scenario = format!("{:?} {:?} {}", scene.fixed, scene.material, scene.modes.count);
         h.field(b"scenario").field(scenario.as_bytes());
         Some(Keys {
             scenario: dir.join(format!("{:016x}.chosen", h.value())),
-            geometry: dir.join(format!("{of_geometry:016x}.chosen")),
+            geometry: dir.join(format!("{:016x}.chosen", of_geometry.value())),
         })
     }
 
-    /// The choice to start from: this scenario's, reached or not, else the geometry's when it
+    /// The choice to start from: this scenario's, reached or not (and with another `target`,
+    /// reached or stopped, only when `good_start` of its estimate), else the geometry's when it
     /// met its target.
-    pub fn lookup(&self) -> Option<(Chosen, Scope)> {
-        if let Some(c) = lookup(&self.scenario) {
+    pub fn lookup(&self, target: f64, good_start: impl Fn(f64) -> bool) -> Option<(Chosen, Scope)> {
+        if let Some(c) = lookup(&self.scenario)
+            .filter(|c| c.target == Some(target) || (c.target.is_some() && good_start(c.estimated_error)))
+        {
             return Some((c, Scope::Scenario));
         }
         lookup(&self.geometry)
@@ -165,6 +173,7 @@ mod tests {
             dofs: 32_787,
             estimated_error: 0.0031,
             reached: true,
+            target: Some(0.01),
         };
         store(&key, &chosen);
         assert_eq!(lookup(&key), Some(chosen.clone()));

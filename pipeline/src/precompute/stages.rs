@@ -141,7 +141,10 @@ pub(super) fn solve_space_checked(
     }
     let (nonlinear, nonlinear_s) = timed(|| nonlinear(scene, &mut solved));
     let nonlinear = nonlinear?;
-    progress::stage("static correction and stress", 0.85)?;
+    progress::stage(
+        "static correction and stress",
+        crate::accuracy::refine::REFINEMENT_SHARE,
+    )?;
     let (contact, contact_s) = timed(|| contact_patches(scene, &solved));
     let (compliance, static_correction_s) = timed(|| compliance(scene, &solved, contact.as_ref()));
     let compliance = compliance?;

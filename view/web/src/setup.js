@@ -225,6 +225,27 @@ export function setupPanel(send, pick, faceMode) {
     e.preventDefault();
   });
 
+  // A warning as a line; a refinement that stopped short of its target (memory, max_dofs)
+  // advises the target that accepts its mesh: one click sets it and computes again (the mesh
+  // is remembered for this part, so the compute is one solve).
+  function warningRow(w) {
+    const row = el('div', { textContent: `⚠ ${w}` });
+    const m = /set mesh\.target_error = ([0-9.eE+-]+) to accept this one/.exec(w);
+    const t = m ? Number(m[1]) : NaN;
+    if (t > 0 && t <= 0.5) {
+      const b = el('button', { textContent: `accept ${plain(100 * t)} %`, className: 'accept',
+        title: `set the target error to ${plain(100 * t)} % and compute: the mesh it stopped on is kept` });
+      b.onclick = () => {
+        $('byerror').checked = true; $('bysize').checked = false;
+        $('target').value = plain(100 * t);
+        edit();
+        $('compute').click();
+      };
+      row.append(' ', b);
+    }
+    return row;
+  }
+
   // What the panel says about the set-up: edits not computed, undo and redo, the history.
   function showState() {
     if (!last) return;
@@ -321,7 +342,7 @@ export function setupPanel(send, pick, faceMode) {
       $('savescene').disabled = !saved;
       // The served basis's warnings (a thin wall, an estimate above its target, a refinement
       // stopped by memory …), as the CLI prints them: not only on the server's stderr.
-      $('computewarnings').replaceChildren(...(msg.warnings || []).map((w) => el('div', { textContent: `⚠ ${w}` })));
+      $('computewarnings').replaceChildren(...(msg.warnings || []).map(warningRow));
       // A page opened (or reloaded) after the compute: what is served, not an empty line.
       if (msg.summary && !$('progresstext').textContent) $('progresstext').textContent = `computed: ${msg.summary}`;
       showState();
