@@ -1135,6 +1135,90 @@ fn a_nonlinear_part_is_drawn_at_true_size_and_bends_on_an_arc() {
     );
 }
 
+/// A refinement that stopped short of its target says so in the page with one click that
+/// works: the cantilever at 0.01 % within 5000 unknowns stops, its warning carries an
+/// "accept X %" button, and clicking it computes the advised target, met on the mesh it stopped
+/// on (one mesh, the same frequencies), the warning gone.
+#[test]
+fn a_refinement_that_stopped_is_accepted_in_one_click() {
+    let dir = tempfile::tempdir().expect("a temporary directory");
+    let case = Path::new(env!("CARGO_MANIFEST_DIR")).join("../cases/cantilever");
+    std::fs::copy(case.join("cantilever.step"), dir.path().join("cantilever.step")).expect("copy the part");
+    let scene = std::fs::read_to_string(case.join("scene.toml"))
+        .expect("the scene")
+        .replace("size = 0.025", "target_error = 0.0001\nmax_dofs = 5000")
+        .replace("count = 20", "count = 6");
+    let path = write_file(dir.path(), "scene.toml", &scene);
+    let cache = dir.path().join("cache");
+    let (mut server, mut out, url) = start_view(&path, "0", "900", &[("VES_CACHE_DIR", &cache)], Stdio::piped());
+    let browser = browse("accept.mjs", &url, dir.path(), &[]);
+    let status = interrupt(&mut server);
+    let mut err = String::new();
+    server.stderr.take().map(|mut e| e.read_to_string(&mut err));
+    let mut rest = String::new();
+    out.read_to_string(&mut rest).expect("server output");
+    assert!(status.success(), "ves view after Ctrl-C: {status:?}: {err}");
+    assert!(browser.status.success(), "browser: {}", stderr(&browser));
+    let page: serde_json::Value = serde_json::from_slice(
+        browser
+            .stdout
+            .split(|&b| b == b'\n')
+            .find(|l| l.starts_with(b"{"))
+            .unwrap_or_default(),
+    )
+    .unwrap_or_else(|e| panic!("the page's JSON: {e}: {}", String::from_utf8_lossy(&browser.stdout)));
+    assert!(page["failure"].is_null(), "{page}\nserver: {err}");
+    assert_eq!(page["errors"], serde_json::json!([]), "{page}");
+    let (before, after) = (&page["before"], &page["after"]);
+    assert!(
+        before["warnings"]
+            .as_str()
+            .is_some_and(|w| w.contains("above mesh.max_dofs = 5000")),
+        "{before}"
+    );
+    let button = before["buttons"][0].as_str().unwrap_or_default();
+    let percent: f64 = button
+        .strip_prefix("accept ")
+        .and_then(|b| b.strip_suffix(" %"))
+        .and_then(|b| b.parse().ok())
+        .unwrap_or_else(|| panic!("button {button:?}"));
+    assert!(percent > 0.01 && percent <= 50.0, "{button}");
+    // The advised target computed and served, met, its warning gone.
+    assert_eq!(after["byError"], true, "{after}");
+    assert_eq!(
+        after["target"].as_str().and_then(|t| t.parse::<f64>().ok()),
+        Some(percent),
+        "{after}"
+    );
+    let served = after["served"]["mesh"]["target_error"].as_f64().unwrap_or(f64::NAN);
+    assert!((served / (percent / 100.0) - 1.0).abs() < 1e-9, "{after}");
+    assert!(
+        !after["warnings"].as_str().unwrap_or("").contains("to accept this one"),
+        "{after}"
+    );
+    assert_eq!(after["buttons"], serde_json::json!([]), "{after}");
+    // On the mesh it stopped on: the same frequencies.
+    let f = |v: &serde_json::Value| -> Vec<f64> {
+        v.as_array()
+            .expect("frequencies")
+            .iter()
+            .filter_map(|x| x.as_f64())
+            .collect()
+    };
+    let (a, b) = (f(&before["f"]), f(&after["f"]));
+    assert!(
+        a.len() == b.len() && a.iter().zip(&b).all(|(x, y)| (x / y - 1.0).abs() < 1e-9),
+        "{a:?} vs {b:?}"
+    );
+    if let Ok(keep) = std::env::var("VES_VIEW_SCREENSHOTS") {
+        std::fs::copy(
+            dir.path().join("accept_stopped.png"),
+            Path::new(&keep).join("accept_stopped.png"),
+        )
+        .expect("copy a screenshot");
+    }
+}
+
 /// Issue 44, one set-up owned by the server: `ves view PART.step` keeps its project beside the
 /// part. In one page a user types two edits (6 modes, E = 70 GPa); a second page and that page
 /// reloaded show them, marked as not computed; undo (a real click) returns the first edit in

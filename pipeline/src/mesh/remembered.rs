@@ -1,7 +1,7 @@
 //! The mesh a `target_error` refinement chose for a geometry, kept beside the mesh cache, under
 //! two keys:
 //!
-//! - the *scenario*'s (geometry and supports, material and mode count as well, not the target):
+//! - the *scenario*'s (geometry and supports, E, ν and the mode count as well, not the target):
 //!   the same scene run again — a saved scene of the page, a batch rerun — starts from the mesh
 //!   its last run ended on, reached or stopped, and gives that run's basis again instead of one
 //!   from another path of refinement; asked with another target (the page's "accept" of a
@@ -89,10 +89,12 @@ impl Keys {
             .field(&geometry);
         let mut of_geometry = h.clone();
         of_geometry.field(&target.to_le_bytes());
-        // What else shapes the error: the supports, the material and the modes kept (`Debug`
-        // writes each f64 so that it reads back the same). Not the target: a scenario asked
-        // again with another starts from its last mesh when that is a good start.
-        let scenario = format!("{:?} {:?} {}", scene.fixed, scene.material, scene.modes.count);
+        // What else shapes the error: the supports, the stiffness against theirs and Poisson's
+        // ratio, and the modes kept (`Debug` writes each f64 so that it reads back the same).
+        // Not the density (it scales every frequency alike), the yield strength, nor the target:
+        // a scenario asked again with another starts from its last mesh when that is a good start.
+        let m = &scene.material;
+        let scenario = format!("{:?} {:?} {:?} {}", scene.fixed, m.young, m.poisson, scene.modes.count);
         h.field(b"scenario").field(scenario.as_bytes());
         Some(Keys {
             scenario: dir.join(format!("{:016x}.chosen", h.value())),

@@ -241,7 +241,8 @@ export function setupPanel(send, pick, faceMode) {
         edit();
         $('compute').click();
       };
-      row.append(' ', b);
+      // First in its line: a long warning scrolls, the choice stays in view.
+      row.prepend(b, ' ');
     }
     return row;
   }
