@@ -108,15 +108,21 @@ struct Part {
     start: serde_json::Value,
 }
 
-/// One line for the page: the first space's size and frequencies, the time, and the largest
+/// One line for the page: the first space's mesh (nodes, tets, element size, worst shape
+/// quality: the mesh was hidden from the page) and frequencies, the time, and the largest
 /// estimated error when the estimate is in.
 fn summary_line(summary: &precompute::Summary) -> String {
     let Some(g) = summary.spaces.first() else {
         return String::new();
     };
+    // The element size to three significant digits.
+    let mm = 1e3 * g.meshing.size;
+    let digits = (2 - mm.abs().max(1e-9).log10().floor() as i32).clamp(0, 9) as usize;
     let mut line = format!(
-        "{} nodes, {} modes, first {:.4} Hz, in {:.1} s",
+        "{} nodes, {} tets, size {mm:.digits$} mm, worst quality {:.2}, {} modes, first {:.4} Hz, in {:.1} s",
         g.nodes,
+        g.tets,
+        g.min_tet_quality,
         g.frequencies_hz.len(),
         g.frequencies_hz.first().copied().unwrap_or(0.0),
         summary.timings_s.total

@@ -817,6 +817,17 @@ fn a_step_part_is_set_up_computed_and_pulled_in_the_page() {
         line(converged).contains("differ from the instant ones by at most"),
         "{converged}"
     );
+    // The mesh is said (tets, element size, worst quality) and drawn on request (E).
+    assert!(
+        line(converged).contains(" tets, size ") && line(converged).contains("worst quality 0."),
+        "{converged}"
+    );
+    assert_eq!(
+        (page["held"]["edgesBefore"].as_bool(), page["held"]["edges"].as_bool()),
+        (Some(false), Some(true)),
+        "{}",
+        page["held"]
+    );
     let stages: Vec<&str> = page["held"]["stages"]
         .as_array()
         .unwrap()
@@ -907,9 +918,10 @@ fn a_step_part_is_set_up_computed_and_pulled_in_the_page() {
     let plane = plane.filter(|t| t.len() == 2 && supports[0].as_table().is_some_and(|e| e.len() == 1));
     let plane = plane.unwrap_or_else(|| panic!("not a plane alone: {}", supports[0]));
     assert_eq!(plane.get("axis").and_then(|a| a.as_str()), Some("x"), "{text}");
+    // The page writes 0 as an integer (a JavaScript number), which the scene reads as 0.0.
     let value = plane
         .get("value")
-        .and_then(|v| v.as_float())
+        .and_then(|v| v.as_float().or_else(|| v.as_integer().map(|i| i as f64)))
         .unwrap_or_else(|| panic!("{text}"));
     assert!(
         (value - lo[0]).abs() <= tol,

@@ -69,7 +69,11 @@ try {
   const held = await page.evaluate(() => ({ notes: window.ves.notes.filter((x) => x.type !== 'progress'), f: window.ves.hello.spaces[0].frequencies_hz,
     stages: [...new Set(window.ves.notes.filter((x) => x.type === 'progress').map((x) => x.stage))] }));
   await page.keyboard.press('h');
+  // The mesh solved, its edges over the part (E).
+  held.edgesBefore = await page.evaluate(() => window.ves.edgesShown());
+  await page.keyboard.press('e');
   await rendered(page);
+  held.edges = await page.evaluate(() => window.ves.edgesShown());
   await page.screenshot({ path: `${out}/setup_held.png` });
 
   // Pull the vertex nearest the middle of the top: by script, so the hand path is known exactly.

@@ -60,6 +60,11 @@ export function facade(setup) {
       }
       return best;
     },
+    /** Whether the active space is drawn with its mesh's edges over it. */
+    edgesShown() {
+      const s = state.spaces[state.active];
+      return Boolean(s && s.mesh.visible && s.edges.visible && s.edges.parent === s.mesh);
+    },
     /** Screen rectangle (CSS px) of every drawn vertex of the active space: [xmin, ymin, xmax, ymax]. */
     drawnExtent() {
       const s = state.spaces[state.active];

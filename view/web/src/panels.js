@@ -7,7 +7,7 @@ import { dragging, endDrags, letGo } from './interaction.js';
 import { showLimit } from './hud.js';
 import { chooseLoad } from './loadcases.js';
 import { setScale } from './scale.js';
-import { showSupports } from './spaces.js';
+import { showEdges, showSupports } from './spaces.js';
 import { state } from './state.js';
 import { send } from './connection.js';
 import { canvas, fitView, homeView, viewAlong } from './viewport.js';
@@ -62,6 +62,7 @@ window.addEventListener('keydown', (ev) => {
   else if (k === 'x' || k === 'y' || k === 'z') viewAlong(k, ev.shiftKey ? -1 : 1);
   else if (k === 'r') resetSimulation();
   else if (k === 'p') $('shot').click();
+  else if (k === 'e') $('showedges').click();
   else return;
   ev.preventDefault();
 });
@@ -82,6 +83,7 @@ $('lock').addEventListener('change', (ev) => {
   state.dirty = true;
 });
 $('showsupports').addEventListener('change', () => { state.dirty = true; showSupports(); });
+$('showedges').addEventListener('change', () => { state.dirty = true; showEdges(); });
 $('showmarkers').addEventListener('change', () => { state.dirty = true; });
 
 // Panels fold to their title; on a small window they start folded so the part stays visible.

@@ -195,6 +195,8 @@ export function setupPanel(send, pick, faceMode) {
       let value = [point.x, point.y, point.z][k];
       const out = outermost(k, Math.sign(m[k]));
       if (out !== null && Math.abs(out - value) <= 0.05 * state.diag) value = out;
+      // A face through the origin: its f32 vertices read ±1e-16 m, shown as "1.11e-13 mm".
+      if (Math.abs(value) <= 1e-7 * state.diag) value = 0;
       (scene.fixed ||= []).push({ plane: { axis, value } });
       $('setuperror').textContent = n[k] < 0.99 ? `that face is not square to ${axis}: the plane ${axis} = … through the point holds only what lies on it` : '';
       drawSupports();

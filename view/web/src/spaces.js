@@ -20,6 +20,7 @@ export function clearSpaces() {
     scene.remove(s.mesh);
     s.geom.dispose();
     s.mesh.material.dispose();
+    s.edges.material.dispose();
     if (s.box) { scene.remove(s.box); s.box.dispose(); }
     if (s.supports) { scene.remove(s.supports); s.supports.geometry.dispose(); s.supports.material.dispose(); }
   }
@@ -38,8 +39,15 @@ export function addSpace(m, held) {
   geom.computeBoundingBox();
   // Flat shading: an FE surface has sharp edges that averaged normals would smear.
   const mat = new THREE.MeshStandardMaterial({ vertexColors: true, roughness: 0.6, metalness: 0.1, side: THREE.DoubleSide, flatShading: true });
+  // Pushed back a little so that the mesh's edges, drawn on the same triangles, stay in front.
+  mat.polygonOffset = true; mat.polygonOffsetFactor = 1; mat.polygonOffsetUnits = 1;
   const mesh = new THREE.Mesh(geom, mat);
   mesh.visible = m.space === state.active;
+  // The surface mesh's edges ("mesh edges" in Show): the same geometry, so they deform with the
+  // part; a child, so they are shown with it and move with a free body's pose.
+  const edges = new THREE.Mesh(geom, new THREE.MeshBasicMaterial({ color: 0x10161c, wireframe: true, transparent: true, opacity: 0.45 }));
+  edges.visible = $('showedges').checked;
+  mesh.add(edges);
   scene.add(mesh);
   const info = state.hello.spaces[m.space];
   let box = null;
@@ -60,7 +68,7 @@ export function addSpace(m, held) {
   }
   const size = geom.boundingBox.getSize(new THREE.Vector3()).length();
   state.spaces[m.space] = {
-    ...m, geom, mesh, box, supports, fixedIdx, size,
+    ...m, geom, mesh, edges, box, supports, fixedIdx, size,
     u: new Float32Array(3 * m.vertices), umag: new Float32Array(m.vertices),
     truePos: new Float32Array(m.rest), pose: null, drawnPose: null, vm: null, p1: null,
   };
@@ -86,6 +94,11 @@ function highlightBoxes() {
     s.box.material.opacity = on ? 1 : 0.5;
     s.box.material.transparent = !on;
   });
+}
+
+/** Draws the mesh's edges on every space (or not), as the checkbox says. */
+export function showEdges() {
+  for (const s of state.spaces) if (s) s.edges.visible = $('showedges').checked;
 }
 
 /** Shows the supports (or not, as the checkbox says) of the spaces shown. */

@@ -13,6 +13,7 @@
  * @property {Uint32Array|null} faces each triangle's CAD face tag, when the basis has them
  * @property {any} geom the surface's THREE.BufferGeometry (drawn positions and colours)
  * @property {any} mesh its THREE.Mesh
+ * @property {any} edges the mesh's edges over it (a wireframe child of `mesh` on the same geometry)
  * @property {any} box the volume of interest's THREE.Box3Helper, or null
  * @property {any} supports the held vertices' THREE.Points, or null
  * @property {number[]} fixedIdx the held vertices
