@@ -115,11 +115,17 @@ fn summary_line(summary: &precompute::Summary) -> String {
     let Some(g) = summary.spaces.first() else {
         return String::new();
     };
-    // The element size to three significant digits.
+    // The element size to three significant digits, when the mesh was made here (an instant
+    // basis reads the previous mesh back, whose size it does not know).
     let mm = 1e3 * g.meshing.size;
-    let digits = (2 - mm.abs().max(1e-9).log10().floor() as i32).clamp(0, 9) as usize;
+    let size = if mm > 0.0 && mm.is_finite() {
+        let digits = (2 - mm.log10().floor() as i32).clamp(0, 9) as usize;
+        format!(", size {mm:.digits$} mm")
+    } else {
+        String::new()
+    };
     let mut line = format!(
-        "{} nodes, {} tets, size {mm:.digits$} mm, worst quality {:.2}, {} modes, first {:.4} Hz, in {:.1} s",
+        "{} nodes, {} tets{size}, worst quality {:.2}, {} modes, first {:.4} Hz, in {:.1} s",
         g.nodes,
         g.tets,
         g.min_tet_quality,
