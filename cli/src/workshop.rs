@@ -10,6 +10,7 @@
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::sync::{Arc, OnceLock};
+use ves_pipeline::accuracy::refine;
 use ves_pipeline::modes::SolverChoice;
 use ves_pipeline::precompute;
 use ves_pipeline::scene::{Scene, SceneOptions};
@@ -352,6 +353,9 @@ struct ComputeJob {
     previous: Option<PathBuf>,
 }
 
+/// How the line of a first look begins (the first mesh's basis served while its refinement runs).
+const FIRST_LOOK: &str = "first look";
+
 /// Where a compute writing `out` puts its instant basis (`basis-N-instant.h5`).
 fn instant_path(out: &Path) -> PathBuf {
     let stem = out
@@ -520,6 +524,7 @@ impl PartWorkshop {
         let mut stdin = child.stdin.take();
         let (mut outcome, mut killed) = (None, false);
         let mut instant: Option<Vec<f64>> = None;
+        let mut first_look = false;
         let computed = |summary: String, estimated_error: Option<f64>, warnings: Vec<String>| Computed {
             basis: job.out.clone(),
             scene: saved.to_string(),
@@ -536,6 +541,7 @@ impl PartWorkshop {
                     summary,
                     frequencies_hz,
                 }) => {
+                    let summary_is_first_look = summary.starts_with(FIRST_LOOK);
                     let basis = instant_path(&job.out);
                     let taken = seal_basis(&basis).map_err(WorkshopError::KeepBasis).and_then(|()| {
                         ready(&Computed {
@@ -549,6 +555,7 @@ impl PartWorkshop {
                     });
                     match taken {
                         Ok(()) => {
+                            first_look = summary_is_first_look;
                             instant = Some(frequencies_hz);
                             *self.last() = Some(basis);
                         }
@@ -564,7 +571,8 @@ impl PartWorkshop {
                 }) => {
                     let summary = match instant.as_deref().and_then(|i| moved(i, &frequencies_hz)) {
                         Some(m) => format!(
-                            "{summary} · converged basis live: its frequencies differ from the instant ones by at most {:+.3} %",
+                            "{summary} · converged basis live: its frequencies differ from the {} by at most {:+.3} %",
+                            if first_look { "first look's" } else { "instant ones" },
                             // A move below the last digit shown is no move ("-0.000 %" read as one).
                             if (100.0 * m).abs() < 5e-4 { 0.0 } else { 100.0 * m }
                         ),
@@ -669,6 +677,30 @@ pub fn serve_compute(dir: &Path) -> anyhow::Result<()> {
             Ok(None) => {}
             // The converged compute still runs; it says what is wrong with the scene, if anything.
             Err(e) => tracing::info!("no instant basis: {}", message(e)),
+        }
+    }
+    // A first look when a part is opened: a refinement may take minutes on a thin-walled part
+    // (the corpus's cone cover: 4 meshes, 223 s), so its first mesh's basis, written without
+    // its estimate, is served at once and the refined one replaces it.
+    if job.previous.is_none() && parsed.mesh.target_error.is_some() && !refine::starts_remembered(&parsed) {
+        let mut look = parsed.clone();
+        look.mesh.target_error = None;
+        match precompute::run_first(&look, &instant_path(&job.out), solver) {
+            Ok(w) => say(ChildNote::Instant {
+                summary: format!(
+                    "{FIRST_LOOK}: the first mesh, its error not estimated yet; {} · the refinement to {} % follows",
+                    summary_line(&w.summary),
+                    100.0 * parsed.mesh.target_error.unwrap_or(0.0)
+                ),
+                frequencies_hz: w
+                    .summary
+                    .spaces
+                    .first()
+                    .map(|s| s.frequencies_hz.clone())
+                    .unwrap_or_default(),
+            }),
+            // The refinement still runs; it says what is wrong, if anything.
+            Err(e) => tracing::info!("no first look: {}", message(e)),
         }
     }
     // The warnings go to the page too (they also go on to the server's stderr).

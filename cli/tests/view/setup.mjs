@@ -26,6 +26,8 @@ try {
   const page = await newPage(browser, errors, { width: 1280, height: 860 }, { acceptDownloads: true });
   await page.goto(url);
   await page.waitForFunction(() => window.ves && window.ves.ready, null, { timeout: 900000 });
+  // A first look (the first mesh) may be served while the refinement runs: set up after it ends.
+  await page.waitForFunction(() => window.ves.status && !window.ves.status.computing, null, { timeout: 900000 });
   const free = await page.evaluate(() => ({ free: window.ves.hello.free_body, f: window.ves.hello.spaces[0].frequencies_hz }));
 
   // Two faces by "pick a plane": the −x end seen from −x (flat: the plane through it), then the

@@ -239,6 +239,19 @@ pub fn accepting(worst: f64) -> f64 {
 /// included; the static correction, stress, loads and writing follow.
 pub const REFINEMENT_SHARE: f64 = 0.85;
 
+/// Whether a refinement of `scene`'s global space would start from a remembered mesh (this
+/// scenario's, or a good one of its geometry): a caller then has no first mesh to show early.
+pub fn starts_remembered(scene: &Scene) -> bool {
+    let Some(target) = scene.mesh.target_error else {
+        return false;
+    };
+    remembered::Keys::of(scene, None)
+        .and_then(|k| k.lookup(target, |estimate| worth_starting_from(estimate, target)))
+        .is_some_and(|(c, scope)| {
+            scope == remembered::Scope::Scenario || worth_starting_from(c.estimated_error, target)
+        })
+}
+
 /// How much finer than the target a remembered mesh's estimate may be and still be the start:
 /// frequencies of 10-node tets converge as h⁴, so 4× below the target is a size 1.4× finer
 /// (2.8× the unknowns) than needed. Finer ones came from a stricter target (a 0.1 % run's
