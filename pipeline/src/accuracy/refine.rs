@@ -231,7 +231,7 @@ pub fn refine(scene: &Scene, voi: Option<&Voi>, choice: SolverChoice, target: f6
 
 /// The `target_error` that accepts a mesh estimated at `worst`: rounded up to three decimals
 /// (the advice of a refinement that stops, which the page offers as one click).
-pub fn accepting(worst: f64) -> f64 {
+fn accepting(worst: f64) -> f64 {
     (1000.0 * worst).ceil() / 1000.0
 }
 
@@ -246,10 +246,17 @@ pub fn starts_remembered(scene: &Scene) -> bool {
         return false;
     };
     remembered::Keys::of(scene, None)
-        .and_then(|k| k.lookup(target, |estimate| worth_starting_from(estimate, target)))
-        .is_some_and(|(c, scope)| {
-            scope == remembered::Scope::Scenario || worth_starting_from(c.estimated_error, target)
-        })
+        .and_then(|k| remembered_start(&k, target))
+        .is_some_and(|(_, _, starts)| starts)
+}
+
+/// The remembered mesh a refinement to `target` finds under `keys`, and whether it starts
+/// there: this scenario's always (its rerun gives the same basis; with another target the
+/// lookup only offers it when it is not far finer than needed), the geometry's when it is not.
+fn remembered_start(keys: &remembered::Keys, target: f64) -> Option<(remembered::Chosen, remembered::Scope, bool)> {
+    let (chosen, scope) = keys.lookup(target, |estimate| worth_starting_from(estimate, target))?;
+    let starts = scope == remembered::Scope::Scenario || worth_starting_from(chosen.estimated_error, target);
+    Some((chosen, scope, starts))
 }
 
 /// How much finer than the target a remembered mesh's estimate may be and still be the start:
@@ -275,14 +282,12 @@ fn first_mesh(
     choice: SolverChoice,
     target: f64,
 ) -> Option<(Solved, Option<SizeField>)> {
-    let (chosen, scope) = keys?.lookup(target, |estimate| worth_starting_from(estimate, target))?;
+    let (chosen, scope, starts) = remembered_start(keys?, target)?;
     let whose = match scope {
         remembered::Scope::Scenario => "the last run of this scene",
         remembered::Scope::Geometry => "an earlier run of this geometry",
     };
-    // This scene's own last mesh at this target is always the start: its rerun gives the same
-    // basis. With another target it is a start when it is not far finer than needed.
-    if scope == remembered::Scope::Geometry && !worth_starting_from(chosen.estimated_error, target) {
+    if !starts {
         crate::progress::say(&format!(
             "not starting from the mesh {whose} refined to ({} unknowns, estimated {:.2} %): \
              far finer than a target of {:.2} % needs",
