@@ -29,6 +29,17 @@ const SUBDIVISIONS_PER_RADIUS: f64 = 6.0;
 /// Largest subdivision of a triangle edge (a triangle 8 radii long is integrated at 1/48 of it).
 const MAX_SUBDIVISION: usize = 48;
 
+/// Where a cell of a triangle lies against a patch's disk.
+#[derive(Clone, Copy, PartialEq, Eq)]
+enum Place {
+    /// Wholly outside: skipped.
+    Outside,
+    /// Wholly inside: the pressure is smooth there, the cell is integrated whole.
+    Inside,
+    /// Across the rim: split in four.
+    Rim,
+}
+
 /// One patch: the loaded nodes and their weights (summing to 1).
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct Patch {
@@ -290,8 +301,8 @@ impl<'a> Surface<'a> {
         } else {
             0.0
         };
-        // Where a cell lies against the patch: outside, inside, or across the rim.
-        let place = |p: &[(f64, f64); 3]| -> std::cmp::Ordering {
+        // Where a cell lies against the patch.
+        let place = |p: &[(f64, f64); 3]| -> Place {
             let xs = p.map(flat);
             let mid: [f64; 3] = std::array::from_fn(|k| (xs[0][k] + xs[1][k] + xs[2][k]) / 3.0);
             let reach = xs
@@ -304,11 +315,11 @@ impl<'a> Surface<'a> {
             let d = sub(mid, centre);
             let d = dot(d, d).sqrt();
             if d > radius + reach + 2.0 * bulge {
-                std::cmp::Ordering::Greater
+                Place::Outside
             } else if d + reach + 2.0 * bulge < radius {
-                std::cmp::Ordering::Less
+                Place::Inside
             } else {
-                std::cmp::Ordering::Equal
+                Place::Rim
             }
         };
         let mut w = vec![0.0; ids.len()];
@@ -341,13 +352,13 @@ impl<'a> Surface<'a> {
         for cell in cells {
             let p = cell.map(|(u, v)| (u as f64 * h, v as f64 * h));
             match place(&p) {
-                std::cmp::Ordering::Greater => {}
-                std::cmp::Ordering::Less => rule(&p, 0.5 * h * h),
-                std::cmp::Ordering::Equal => {
+                Place::Outside => {}
+                Place::Inside => rule(&p, 0.5 * h * h),
+                Place::Rim => {
                     let half = |i: usize, j: usize| ((p[i].0 + p[j].0) / 2.0, (p[i].1 + p[j].1) / 2.0);
                     let (m01, m12, m20) = (half(0, 1), half(1, 2), half(2, 0));
                     for q in [[p[0], m01, m20], [m01, p[1], m12], [m20, m12, p[2]], [m12, m20, m01]] {
-                        if place(&q) != std::cmp::Ordering::Greater {
+                        if place(&q) != Place::Outside {
                             rule(&q, 0.125 * h * h);
                         }
                     }
