@@ -353,9 +353,6 @@ struct ComputeJob {
     previous: Option<PathBuf>,
 }
 
-/// How the line of a first look begins (the first mesh's basis served while its refinement runs).
-const FIRST_LOOK: &str = "first look";
-
 /// Where a compute writing `out` puts its instant basis (`basis-N-instant.h5`).
 fn instant_path(out: &Path) -> PathBuf {
     let stem = out
@@ -391,8 +388,13 @@ enum ChildNote {
     /// A stage began.
     Progress { stage: String, fraction: f64 },
     /// An instant basis is written (beside the job's, [`instant_path`]); the converged compute
-    /// goes on.
-    Instant { summary: String, frequencies_hz: Vec<f64> },
+    /// goes on. `first_look`: it is the first mesh of a refinement, not the previous mesh's.
+    Instant {
+        summary: String,
+        frequencies_hz: Vec<f64>,
+        #[serde(default)]
+        first_look: bool,
+    },
     /// The basis is written, its checks to come: the child waits for `check` on its stdin.
     First {
         summary: String,
@@ -540,8 +542,8 @@ impl PartWorkshop {
                 Ok(ChildNote::Instant {
                     summary,
                     frequencies_hz,
+                    first_look: look,
                 }) => {
-                    let summary_is_first_look = summary.starts_with(FIRST_LOOK);
                     let basis = instant_path(&job.out);
                     let taken = seal_basis(&basis).map_err(WorkshopError::KeepBasis).and_then(|()| {
                         ready(&Computed {
@@ -555,7 +557,7 @@ impl PartWorkshop {
                     });
                     match taken {
                         Ok(()) => {
-                            first_look = summary_is_first_look;
+                            first_look = look;
                             instant = Some(frequencies_hz);
                             *self.last() = Some(basis);
                         }
@@ -667,6 +669,7 @@ pub fn serve_compute(dir: &Path) -> anyhow::Result<()> {
     if let Some(previous) = &job.previous {
         match precompute::instant::run(&parsed, previous, &instant_path(&job.out)) {
             Ok(Some((summary, check))) => say(ChildNote::Instant {
+                first_look: false,
                 summary: instant_line(&summary, &check),
                 frequencies_hz: summary
                     .spaces
@@ -687,8 +690,9 @@ pub fn serve_compute(dir: &Path) -> anyhow::Result<()> {
         look.mesh.target_error = None;
         match precompute::run_first(&look, &instant_path(&job.out), solver) {
             Ok(w) => say(ChildNote::Instant {
+                first_look: true,
                 summary: format!(
-                    "{FIRST_LOOK}: the first mesh, its error not estimated yet; {} · the refinement to {} % follows",
+                    "first look: the first mesh, its error not estimated yet; {} · the refinement to {} % follows",
                     summary_line(&w.summary),
                     100.0 * parsed.mesh.target_error.unwrap_or(0.0)
                 ),
