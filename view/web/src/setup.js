@@ -149,10 +149,16 @@ export function setupPanel(send, pick, faceMode) {
   // the faces held; Done ends it.
   let picking = false;
   const heldFaces = () => (scene.fixed || []).filter((f) => f.faces).flatMap((f) => f.faces);
-  const toggleFace = (tag) => {
+  /** The scene's `faces` support, made when there is none. */
+  const facesEntry = () => {
     const fixed = (scene.fixed ||= []);
     let entry = fixed.find((f) => f.faces);
     if (!entry) { entry = { faces: [] }; fixed.push(entry); }
+    return entry;
+  };
+  const toggleFace = (tag) => {
+    const fixed = (scene.fixed ||= []);
+    const entry = facesEntry();
     const i = entry.faces.indexOf(tag);
     if (i >= 0) entry.faces.splice(i, 1); else entry.faces.push(tag);
     if (!entry.faces.length) fixed.splice(fixed.indexOf(entry), 1);
@@ -179,9 +185,7 @@ export function setupPanel(send, pick, faceMode) {
       // 0.5 mm proud) or slanted: a plane x, y or z = … through it holds only a line of nodes,
       // a singular support whose frequencies fall with every finer mesh. The face is what was meant.
       if (face && (face.kind !== 'plane' || n[k] < 0.99)) {
-        const fixed = (scene.fixed ||= []);
-        let entry = fixed.find((f) => f.faces);
-        if (!entry) { entry = { faces: [] }; fixed.push(entry); }
+        const entry = facesEntry();
         if (!entry.faces.includes(face.tag)) entry.faces.push(face.tag);
         $('setuperror').textContent = `${faceWords} is ${face.kind !== 'plane' ? 'not flat' : `not square to ${axis}`}: `
           + 'held as that face (a plane through it would hold only a line of nodes)';
