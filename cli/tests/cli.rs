@@ -854,12 +854,7 @@ fn json_lists_the_warnings_of_the_run() {
         .output()
         .expect("ves runs");
     let v = last_json(&o);
-    let warnings: Vec<&str> = v["warnings"]
-        .as_array()
-        .expect("warnings")
-        .iter()
-        .filter_map(|w| w.as_str())
-        .collect();
+    let warnings = warnings_of(&v);
     assert!(
         warnings.iter().any(|w| w.contains("geometry.unit = \"m\" is ignored")),
         "{warnings:?}"
@@ -1220,6 +1215,16 @@ fn cantilever_dir() -> std::path::PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("../cases/cantilever")
 }
 
+/// The `warnings` lines of a `--json` summary.
+fn warnings_of(v: &serde_json::Value) -> Vec<&str> {
+    v["warnings"]
+        .as_array()
+        .expect("warnings")
+        .iter()
+        .filter_map(|w| w.as_str())
+        .collect()
+}
+
 /// [`cantilever_case_json`] with the mesh cache in `cache` (a refinement remembers the mesh it
 /// chose there: in the user's cache a second run would start from it).
 fn cantilever_case_json_cached(
@@ -1483,12 +1488,7 @@ fn a_support_on_a_line_is_warned_of() {
         )
     };
     let (_, v) = cantilever_case_json_cached(edge, cache.path());
-    let warnings: Vec<&str> = v["warnings"]
-        .as_array()
-        .expect("warnings")
-        .iter()
-        .filter_map(|w| w.as_str())
-        .collect();
+    let warnings = warnings_of(&v);
     let line: Vec<&&str> = warnings
         .iter()
         .filter(|w| w.contains("only nodes on a line or at points"))

@@ -147,6 +147,41 @@ fn finish(
     rest
 }
 
+/// `ves view INPUT` (with `env`) for browser script `tests/view/SCRIPT` (`extra` its arguments
+/// after the folder `dir`), then Ctrl-C; asserts both ended well and the page had no failure or
+/// error. Returns the JSON line the script printed, the server's `--json` statistics and its
+/// stderr.
+fn view_and_browse(
+    input: &Path,
+    env: &[(&str, &Path)],
+    script: &str,
+    dir: &Path,
+    extra: &[&str],
+) -> (serde_json::Value, serde_json::Value, String) {
+    let (mut server, mut out, url) = start_view(input, "0", "900", env, Stdio::piped());
+    let browser = browse(script, &url, dir, extra);
+    let mut err = String::new();
+    let status = interrupt(&mut server);
+    server.stderr.take().map(|mut e| e.read_to_string(&mut err));
+    let mut rest = String::new();
+    out.read_to_string(&mut rest).expect("server output");
+    assert!(status.success(), "ves view after Ctrl-C: {status:?}: {err}");
+    assert!(browser.status.success(), "browser: {}", stderr(&browser));
+    let page: serde_json::Value = serde_json::from_slice(
+        browser
+            .stdout
+            .split(|&b| b == b'\n')
+            .find(|l| l.starts_with(b"{"))
+            .unwrap_or_default(),
+    )
+    .unwrap_or_else(|e| panic!("the page's JSON: {e}: {}", String::from_utf8_lossy(&browser.stdout)));
+    let stats: serde_json::Value =
+        serde_json::from_str(rest.lines().last().unwrap_or_default()).unwrap_or_else(|e| panic!("--json: {e}: {rest}"));
+    assert!(page["failure"].is_null(), "{page}\nserver: {err}");
+    assert_eq!(page["errors"], serde_json::json!([]), "{page}");
+    (page, stats, err)
+}
+
 /// Runs browser script `tests/view/SCRIPT` on `url` (arguments: the URL, the page's sources, the
 /// screenshot folder `dir`, then `extra`) to its end.
 fn browse(script: &str, url: &str, dir: &Path, extra: &[&str]) -> std::process::Output {
@@ -1167,25 +1202,7 @@ fn a_refinement_that_stopped_is_accepted_in_one_click() {
         .replace("count = 20", "count = 6");
     let path = write_file(dir.path(), "scene.toml", &scene);
     let cache = dir.path().join("cache");
-    let (mut server, mut out, url) = start_view(&path, "0", "900", &[("VES_CACHE_DIR", &cache)], Stdio::piped());
-    let browser = browse("accept.mjs", &url, dir.path(), &[]);
-    let status = interrupt(&mut server);
-    let mut err = String::new();
-    server.stderr.take().map(|mut e| e.read_to_string(&mut err));
-    let mut rest = String::new();
-    out.read_to_string(&mut rest).expect("server output");
-    assert!(status.success(), "ves view after Ctrl-C: {status:?}: {err}");
-    assert!(browser.status.success(), "browser: {}", stderr(&browser));
-    let page: serde_json::Value = serde_json::from_slice(
-        browser
-            .stdout
-            .split(|&b| b == b'\n')
-            .find(|l| l.starts_with(b"{"))
-            .unwrap_or_default(),
-    )
-    .unwrap_or_else(|e| panic!("the page's JSON: {e}: {}", String::from_utf8_lossy(&browser.stdout)));
-    assert!(page["failure"].is_null(), "{page}\nserver: {err}");
-    assert_eq!(page["errors"], serde_json::json!([]), "{page}");
+    let (page, _, _) = view_and_browse(&path, &[("VES_CACHE_DIR", &cache)], "accept.mjs", dir.path(), &[]);
     let (before, after) = (&page["before"], &page["after"]);
     assert!(
         before["warnings"]
@@ -1250,30 +1267,7 @@ fn a_second_page_a_reload_and_a_restart_show_the_set_up_the_server_keeps() {
         &step,
     )
     .expect("copy the part");
-    let run = |phase: &str| -> (serde_json::Value, serde_json::Value, String) {
-        let (mut server, mut out, url) = start_view(&step, "0", "900", &[], Stdio::piped());
-        let browser = browse("studio.mjs", &url, dir.path(), &[phase]);
-        let mut err = String::new();
-        let status = interrupt(&mut server);
-        server.stderr.take().map(|mut e| e.read_to_string(&mut err));
-        let mut rest = String::new();
-        out.read_to_string(&mut rest).expect("server output");
-        assert!(status.success(), "ves view after Ctrl-C: {status:?}: {err}");
-        assert!(browser.status.success(), "browser: {}", stderr(&browser));
-        let page: serde_json::Value = serde_json::from_slice(
-            browser
-                .stdout
-                .split(|&b| b == b'\n')
-                .find(|l| l.starts_with(b"{"))
-                .unwrap_or_default(),
-        )
-        .unwrap_or_else(|e| panic!("the page's JSON: {e}: {}", String::from_utf8_lossy(&browser.stdout)));
-        let stats: serde_json::Value = serde_json::from_str(rest.lines().last().unwrap_or_default())
-            .unwrap_or_else(|e| panic!("--json: {e}: {rest}"));
-        assert!(page["failure"].is_null(), "{page}\nserver: {err}");
-        assert_eq!(page["errors"], serde_json::json!([]), "{page}");
-        (page, stats, err)
-    };
+    let run = |phase: &str| view_and_browse(&step, &[], "studio.mjs", dir.path(), &[phase]);
 
     let (page, _, err) = run("first");
     let project = dir.path().join("cantilever.ves");
