@@ -57,8 +57,9 @@ const ASYMPTOTIC: f64 = 0.1;
 /// one face, the frequencies came within 1e-4 in three.
 const MAX_CYCLES: usize = 4;
 
-/// Right-hand sides per call of the factor's solve (as the block Krylov–Schur solver's).
-const CHUNK: usize = 8;
+/// Right-hand sides per call of the factor's solve at most (each call reads the factor once;
+/// its scratch grows with them).
+const CHUNK: usize = 16;
 
 /// Directions of a block whose M-norm² falls below this fraction of the block's largest before
 /// its projection are already in the space (deflated): what is left of them is mostly
@@ -130,7 +131,7 @@ pub fn warm_start(space: Space<'_>, count: usize, start: &[f64], blocks: usize) 
     let mut previous_move = f64::INFINITY;
     loop {
         cycles += 1;
-        let mut last = space_v.add(&problem, block);
+        let (mut last, mut last_m) = space_v.add(&problem, block);
         ritz = rayleigh_ritz(&space_v)?;
         tracing::debug!(
             cycle = cycles,
@@ -144,10 +145,11 @@ pub fn warm_start(space: Space<'_>, count: usize, start: &[f64], blocks: usize) 
                 break;
             }
             let cols = last.len() / n;
-            let mut next = m_times(&problem, &last);
+            // T·last = (K − σM)⁻¹ M·last, M·last kept from its addition.
+            let mut next = last_m;
             solve(&chol, &mut next, cols);
             solves += cols;
-            last = space_v.add(&problem, next);
+            (last, last_m) = space_v.add(&problem, next);
             let before = std::mem::replace(&mut ritz, rayleigh_ritz(&space_v)?);
             let moved = before
                 .0
@@ -355,13 +357,15 @@ fn k_times(problem: &EigenProblem<'_>, x: &[f64]) -> Vec<f64> {
     y
 }
 
-/// X ← (K − σM)⁻¹X for `cols` column-major vectors, [`CHUNK`] at a time on every core.
+/// X ← (K − σM)⁻¹X for `cols` column-major vectors, shared evenly between the cores in calls
+/// of at most [`CHUNK`] (24 columns on two cores: two calls of 12, not 8 + 8 then 8 alone).
 fn solve(chol: &Cholesky, x: &mut [f64], cols: usize) {
     if cols == 0 {
         return;
     }
     let n = x.len() / cols;
-    x.par_chunks_mut(n * CHUNK)
+    let calls = cols.div_ceil(CHUNK).max(rayon::current_num_threads()).min(cols);
+    x.par_chunks_mut(n * cols.div_ceil(calls))
         .for_each(|c| chol.solve_many_in_place(c, c.len() / n));
 }
 
@@ -431,82 +435,98 @@ impl Basis {
     }
 
     /// Adds what of `block` (column-major) is not in the basis yet, M-orthonormal; returns the
-    /// directions added (column-major).
-    fn add(&mut self, problem: &EigenProblem<'_>, mut block: Vec<f64>) -> Vec<f64> {
+    /// directions added (column-major) and their M-images.
+    ///
+    /// Three products with the sparse matrices, not six: the first pass's projection and SVQB
+    /// carry M·block along by the same small matrices (under cancellation its error grows as the
+    /// block shrinks, but the second pass, on a fresh product, repairs what the first leaves);
+    /// the second pass starts from M-orthonormal columns, so carrying its image is exact to
+    /// round-off, and only the K-image is made anew.
+    fn add(&mut self, problem: &EigenProblem<'_>, block: Vec<f64>) -> (Vec<f64>, Vec<f64>) {
         let n = self.n;
         if n == 0 || block.is_empty() {
-            return Vec::new();
+            return (Vec::new(), Vec::new());
         }
-        let before = column_norms(problem, &block, n);
+        let mut images = m_times(problem, &block);
+        let before = block
+            .chunks(n)
+            .zip(images.chunks(n))
+            .map(|(x, y)| dot(x, y))
+            .fold(0.0, f64::max);
+        let mut block = block;
         // Twice: one pass of classical Gram–Schmidt and SVQB leaves ε·κ along the basis.
         for pass in 0..2 {
-            let cols = block.len() / n;
-            let m = self.cols();
-            if m > 0 {
-                let c = tall::t_times(
-                    MatRef::from_column_major_slice(&self.mv, n, m),
-                    MatRef::from_column_major_slice(&block, n, cols),
-                );
-                tall::times(
-                    faer::MatMut::from_column_major_slice_mut(&mut block, n, cols),
-                    Accum::Add,
-                    MatRef::from_column_major_slice(&self.v, n, m),
-                    c.as_ref(),
-                    -1.0,
-                );
+            if pass == 1 {
+                images = m_times(problem, &block);
             }
+            self.project_out(&mut block, &mut images);
             // The second pass starts from M-orthonormal columns.
-            block = svqb(
-                problem,
-                &block,
-                n,
-                if pass == 0 { DEFLATE * before } else { DEFLATE_AGAIN },
-            );
+            let floor = if pass == 0 { DEFLATE * before } else { DEFLATE_AGAIN };
+            (block, images) = svqb(&block, &images, n, floor);
             if block.is_empty() {
-                return block;
+                return (block, images);
             }
         }
-        self.mv.extend_from_slice(&m_times(problem, &block));
+        self.mv.extend_from_slice(&images);
         self.kv.extend_from_slice(&k_times(problem, &block));
         self.v.extend_from_slice(&block);
-        block
+        (block, images)
+    }
+
+    /// X ← X − V(MV)ᵀX, and its M-image alike (MX ← MX − MV(MV)ᵀX).
+    fn project_out(&self, block: &mut [f64], images: &mut [f64]) {
+        let (n, m) = (self.n, self.cols());
+        if m == 0 {
+            return;
+        }
+        let cols = block.len() / n;
+        let c = tall::t_times(
+            MatRef::from_column_major_slice(&self.mv, n, m),
+            MatRef::from_column_major_slice(block, n, cols),
+        );
+        for (out, basis) in [(block, &self.v), (images, &self.mv)] {
+            tall::times(
+                faer::MatMut::from_column_major_slice_mut(out, n, cols),
+                Accum::Add,
+                MatRef::from_column_major_slice(basis, n, m),
+                c.as_ref(),
+                -1.0,
+            );
+        }
     }
 }
 
-/// The largest M-norm² of the block's columns.
-fn column_norms(problem: &EigenProblem<'_>, block: &[f64], n: usize) -> f64 {
-    let mb = m_times(problem, block);
-    block
-        .chunks(n)
-        .zip(mb.chunks(n))
-        .map(|(x, y)| x.iter().zip(y).map(|(a, b)| a * b).sum::<f64>())
-        .fold(0.0, f64::max)
+fn dot(x: &[f64], y: &[f64]) -> f64 {
+    x.iter().zip(y).map(|(a, b)| a * b).sum()
 }
 
 /// The block M-orthonormalised within itself (SVQB: the Gram matrix's eigenvectors scaled by
-/// its eigenvalues' inverse roots), directions whose M-norm² is at most `floor` dropped.
-fn svqb(problem: &EigenProblem<'_>, block: &[f64], n: usize, floor: f64) -> Vec<f64> {
+/// its eigenvalues' inverse roots), directions whose M-norm² is at most `floor` dropped; with
+/// their M-images (`images`, the block's, taken along).
+fn svqb(block: &[f64], images: &[f64], n: usize, floor: f64) -> (Vec<f64>, Vec<f64>) {
     let cols = block.len() / n;
-    let mb = m_times(problem, block);
     let g = tall::t_times(
         MatRef::from_column_major_slice(block, n, cols),
-        MatRef::from_column_major_slice(&mb, n, cols),
+        MatRef::from_column_major_slice(images, n, cols),
     );
     let g = Mat::<f64>::from_fn(cols, cols, |a, b| 0.5 * (g[(a, b)] + g[(b, a)]));
     let Ok((s, u)) = self_adjoint_eigen_qr(g.as_ref()) else {
-        return Vec::new();
+        return (Vec::new(), Vec::new());
     };
     let keep: Vec<usize> = (0..cols).filter(|&j| s[j] > floor && s[j] > 0.0).collect();
     let scale = Mat::<f64>::from_fn(cols, keep.len(), |a, k| u[(a, keep[k])] / s[keep[k]].sqrt());
-    let mut out = vec![0.0; n * keep.len()];
-    tall::times(
-        faer::MatMut::from_column_major_slice_mut(&mut out, n, keep.len()),
-        Accum::Replace,
-        MatRef::from_column_major_slice(block, n, cols),
-        scale.as_ref(),
-        1.0,
-    );
-    out
+    let [out, out_images] = [block, images].map(|x| {
+        let mut out = vec![0.0; n * keep.len()];
+        tall::times(
+            faer::MatMut::from_column_major_slice_mut(&mut out, n, keep.len()),
+            Accum::Replace,
+            MatRef::from_column_major_slice(x, n, cols),
+            scale.as_ref(),
+            1.0,
+        );
+        out
+    });
+    (out, out_images)
 }
 
 #[cfg(test)]
