@@ -61,10 +61,18 @@ const MAX_CYCLES: usize = 4;
 /// its scratch grows with them).
 const CHUNK: usize = 16;
 
-/// Directions of a block whose M-norm² falls below this fraction of the block's largest before
-/// its projection are already in the space (deflated): what is left of them is mostly
-/// round-off, and normalising it would put noise in the basis.
+/// A column of a block whose M-norm² falls below this fraction of its own before the
+/// projection is already in the space (deflated): what is left of it is mostly round-off, and
+/// normalising it would put noise in the basis. Its own, not the block's largest: a block's
+/// columns differ in scale by 1e15 and more (modes of norm 1 beside inertia loads' deflections
+/// of ~1/λ), and measured against the largest, the small ones were taken for round-off — or
+/// their round-off for directions (the beam's ν changed from 0.3 to 0.33 was left 1.7e-3 off in
+/// its 7th mode).
 const DEFLATE: f64 = 1e-20;
+
+/// Directions of the block's Gram matrix, its columns scaled to M-norm 1, whose eigenvalue is
+/// below this are combinations of the others to within round-off, and are dropped.
+const DEPENDENT: f64 = 1e-14;
 
 /// In the second pass the columns are M-orthonormal: one that loses more than this share of
 /// its norm² to the basis again was round-off from the first pass, and is dropped (on the free
@@ -437,96 +445,123 @@ impl Basis {
     /// Adds what of `block` (column-major) is not in the basis yet, M-orthonormal; returns the
     /// directions added (column-major) and their M-images.
     ///
-    /// Three products with the sparse matrices, not six: the first pass's projection and SVQB
-    /// carry M·block along by the same small matrices (under cancellation its error grows as the
-    /// block shrinks, but the second pass, on a fresh product, repairs what the first leaves);
-    /// the second pass starts from M-orthonormal columns, so carrying its image is exact to
-    /// round-off, and only the K-image is made anew.
+    /// Three products with the sparse matrices, not six: each pass's Gram matrix is made from a
+    /// fresh M-image of the projected block (an image carried through the projection loses the
+    /// digits the projection cancels, and the first pass cancels most of a Krylov block), the
+    /// block's M-norms before the projection follow by Pythagoras (‖x‖²_M = ‖c‖² + ‖x − Vc‖²_M
+    /// for c = (MV)ᵀx), and the second pass's image is carried through its SVQB, which is then
+    /// a near-identity (its columns M-orthonormal already).
     fn add(&mut self, problem: &EigenProblem<'_>, block: Vec<f64>) -> (Vec<f64>, Vec<f64>) {
         let n = self.n;
         if n == 0 || block.is_empty() {
             return (Vec::new(), Vec::new());
         }
-        let mut images = m_times(problem, &block);
-        let before = block
-            .chunks(n)
-            .zip(images.chunks(n))
-            .map(|(x, y)| dot(x, y))
-            .fold(0.0, f64::max);
         let mut block = block;
+        let along = self.project_out(&mut block);
+        let mut images = m_times(problem, &block);
+        let Some(first) = svqb(&block, &images, n, &along, DEFLATE) else {
+            return (Vec::new(), Vec::new());
+        };
         // Twice: one pass of classical Gram–Schmidt and SVQB leaves ε·κ along the basis.
-        for pass in 0..2 {
-            if pass == 1 {
-                images = m_times(problem, &block);
-            }
-            self.project_out(&mut block, &mut images);
-            // The second pass starts from M-orthonormal columns.
-            let floor = if pass == 0 { DEFLATE * before } else { DEFLATE_AGAIN };
-            (block, images) = svqb(&block, &images, n, floor);
-            if block.is_empty() {
-                return (block, images);
-            }
-        }
+        block = first.columns;
+        let along = self.project_out(&mut block);
+        images = m_times(problem, &block);
+        let Some(second) = svqb(&block, &images, n, &along, DEFLATE_AGAIN) else {
+            return (Vec::new(), Vec::new());
+        };
+        let images = if second.near_identity {
+            times_small(&images, &second.made, n)
+        } else {
+            m_times(problem, &second.columns)
+        };
+        let block = second.columns;
         self.mv.extend_from_slice(&images);
         self.kv.extend_from_slice(&k_times(problem, &block));
         self.v.extend_from_slice(&block);
         (block, images)
     }
 
-    /// X ← X − V(MV)ᵀX, and its M-image alike (MX ← MX − MV(MV)ᵀX).
-    fn project_out(&self, block: &mut [f64], images: &mut [f64]) {
+    /// X ← X − V(MV)ᵀX; returns per column the M-norm² taken away, ‖(MV)ᵀx‖².
+    fn project_out(&self, block: &mut [f64]) -> Vec<f64> {
         let (n, m) = (self.n, self.cols());
-        if m == 0 {
-            return;
-        }
         let cols = block.len() / n;
+        if m == 0 {
+            return vec![0.0; cols];
+        }
         let c = tall::t_times(
             MatRef::from_column_major_slice(&self.mv, n, m),
             MatRef::from_column_major_slice(block, n, cols),
         );
-        for (out, basis) in [(block, &self.v), (images, &self.mv)] {
-            tall::times(
-                faer::MatMut::from_column_major_slice_mut(out, n, cols),
-                Accum::Add,
-                MatRef::from_column_major_slice(basis, n, m),
-                c.as_ref(),
-                -1.0,
-            );
-        }
+        tall::times(
+            faer::MatMut::from_column_major_slice_mut(block, n, cols),
+            Accum::Add,
+            MatRef::from_column_major_slice(&self.v, n, m),
+            c.as_ref(),
+            -1.0,
+        );
+        (0..cols).map(|j| (0..m).map(|i| c[(i, j)] * c[(i, j)]).sum()).collect()
     }
 }
 
-fn dot(x: &[f64], y: &[f64]) -> f64 {
-    x.iter().zip(y).map(|(a, b)| a * b).sum()
+/// A block made M-orthonormal within itself by [`svqb`].
+struct Orthonormalised {
+    /// The new columns, column-major.
+    columns: Vec<f64>,
+    /// The small matrix that made them from the block's.
+    made: Mat<f64>,
+    /// Every eigenvalue of the block's Gram matrix was within 10 % of 1 and none was dropped:
+    /// an image carried through `made` keeps its digits.
+    near_identity: bool,
 }
 
-/// The block M-orthonormalised within itself (SVQB: the Gram matrix's eigenvectors scaled by
-/// its eigenvalues' inverse roots), directions whose M-norm² is at most `floor` dropped; with
-/// their M-images (`images`, the block's, taken along).
-fn svqb(block: &[f64], images: &[f64], n: usize, floor: f64) -> (Vec<f64>, Vec<f64>) {
+/// The block M-orthonormalised within itself (SVQB: the Gram matrix, its columns scaled to
+/// norm 1, its eigenvectors scaled by its eigenvalues' inverse roots; `images` the block's
+/// M-images). A column is dropped whose M-norm² is at most `floor` times what it had before
+/// its projection (`along`, what the projection took away, plus what is left), and a direction
+/// that is a combination of the others ([`DEPENDENT`]). `None` when nothing is left.
+fn svqb(block: &[f64], images: &[f64], n: usize, along: &[f64], floor: f64) -> Option<Orthonormalised> {
     let cols = block.len() / n;
     let g = tall::t_times(
         MatRef::from_column_major_slice(block, n, cols),
         MatRef::from_column_major_slice(images, n, cols),
     );
-    let g = Mat::<f64>::from_fn(cols, cols, |a, b| 0.5 * (g[(a, b)] + g[(b, a)]));
-    let Ok((s, u)) = self_adjoint_eigen_qr(g.as_ref()) else {
-        return (Vec::new(), Vec::new());
-    };
-    let keep: Vec<usize> = (0..cols).filter(|&j| s[j] > floor && s[j] > 0.0).collect();
-    let scale = Mat::<f64>::from_fn(cols, keep.len(), |a, k| u[(a, keep[k])] / s[keep[k]].sqrt());
-    let [out, out_images] = [block, images].map(|x| {
-        let mut out = vec![0.0; n * keep.len()];
-        tall::times(
-            faer::MatMut::from_column_major_slice_mut(&mut out, n, keep.len()),
-            Accum::Replace,
-            MatRef::from_column_major_slice(x, n, cols),
-            scale.as_ref(),
-            1.0,
-        );
-        out
+    let kept: Vec<usize> = (0..cols)
+        .filter(|&j| g[(j, j)] > 0.0 && g[(j, j)] > floor * (along[j] + g[(j, j)]))
+        .collect();
+    let root: Vec<f64> = kept.iter().map(|&j| g[(j, j)].sqrt()).collect();
+    let scaled = Mat::<f64>::from_fn(kept.len(), kept.len(), |a, b| {
+        0.5 * (g[(kept[a], kept[b])] + g[(kept[b], kept[a])]) / (root[a] * root[b])
     });
-    (out, out_images)
+    let (s, u) = self_adjoint_eigen_qr(scaled.as_ref()).ok()?;
+    let keep: Vec<usize> = (0..kept.len()).filter(|&k| s[k] > DEPENDENT).collect();
+    if keep.is_empty() {
+        return None;
+    }
+    let mut made = Mat::<f64>::zeros(cols, keep.len());
+    for (k, &e) in keep.iter().enumerate() {
+        for (a, &j) in kept.iter().enumerate() {
+            made[(j, k)] = u[(a, e)] / (root[a] * s[e].sqrt());
+        }
+    }
+    let near = |x: f64| (x - 1.0).abs() < 0.1;
+    Some(Orthonormalised {
+        columns: times_small(block, &made, n),
+        near_identity: keep.len() == cols && s.iter().all(|&x| near(x)) && (0..cols).all(|j| near(g[(j, j)])),
+        made,
+    })
+}
+
+/// X·S for column-major `x` of `n` rows and a small `s`.
+fn times_small(x: &[f64], s: &Mat<f64>, n: usize) -> Vec<f64> {
+    let mut out = vec![0.0; n * s.ncols()];
+    tall::times(
+        faer::MatMut::from_column_major_slice_mut(&mut out, n, s.ncols()),
+        Accum::Replace,
+        MatRef::from_column_major_slice(x, n, s.nrows()),
+        s.as_ref(),
+        1.0,
+    );
+    out
 }
 
 #[cfg(test)]
