@@ -75,6 +75,7 @@ pub mod element_type {
 /// One initialised gmsh library; finalised on drop.
 pub struct Gmsh {
     _lock: MutexGuard<'static, ()>,
+    api: &'static sys::Api,
 }
 
 fn cstring(call: &'static str, s: &str) -> Result<CString> {
@@ -85,7 +86,7 @@ fn cstring(call: &'static str, s: &str) -> Result<CString> {
 }
 
 /// Turns a non-zero `ierr` into an error carrying gmsh's last message.
-fn check(call: &'static str, ierr: c_int) -> Result<()> {
+fn check(api: &sys::Api, call: &'static str, ierr: c_int) -> Result<()> {
     if ierr == 0 {
         return Ok(());
     }
@@ -93,10 +94,10 @@ fn check(call: &'static str, ierr: c_int) -> Result<()> {
     let mut ierr2 = 0;
     // SAFETY: gmsh allocates the string; we copy it and free it with gmshFree.
     let message = unsafe {
-        sys::gmshLoggerGetLastError(&mut msg, &mut ierr2);
+        (api.gmshLoggerGetLastError)(&mut msg, &mut ierr2);
         if ierr2 == 0 && !msg.is_null() {
             let s = CStr::from_ptr(msg).to_string_lossy().into_owned();
-            sys::gmshFree(msg.cast());
+            (api.gmshFree)(msg.cast());
             s
         } else {
             String::new()
@@ -114,14 +115,14 @@ fn check(call: &'static str, ierr: c_int) -> Result<()> {
 ///
 /// # Safety
 /// `p` must be null or point to `n` initialised values allocated by gmsh.
-unsafe fn take<T: Copy>(p: *mut T, n: usize) -> Vec<T> {
+unsafe fn take<T: Copy>(api: &sys::Api, p: *mut T, n: usize) -> Vec<T> {
     if p.is_null() {
         return Vec::new();
     }
     // SAFETY: guaranteed by the caller.
     let v = unsafe { std::slice::from_raw_parts(p, n).to_vec() };
     // SAFETY: p was allocated by gmsh.
-    unsafe { sys::gmshFree(p.cast()) };
+    unsafe { (api.gmshFree)(p.cast()) };
     v
 }
 
@@ -132,17 +133,23 @@ impl Gmsh {
     /// Initialises gmsh (waiting for any other session to finish), silenced and without
     /// reading the user's configuration files, so runs are reproducible.
     pub fn start() -> Result<Gmsh> {
+        let api = sys::api().map_err(|reason| GmshError {
+            call: "initialize",
+            message: format!(
+                "gmsh's library could not be loaded ({reason}); install it (Debian 12: apt-get install libgmsh4.8)"
+            ),
+        })?;
         let lock = GMSH_LOCK.lock().unwrap_or_else(|poisoned| poisoned.into_inner());
         let mut ierr = 0;
         // SAFETY: argc = 0 with a null argv is accepted by gmshInitialize.
-        unsafe { sys::gmshInitialize(0, ptr::null_mut(), 0, &mut ierr) };
-        check("initialize", ierr)?;
-        let session = Gmsh { _lock: lock };
+        unsafe { (api.gmshInitialize)(0, ptr::null_mut(), 0, &mut ierr) };
+        check(api, "initialize", ierr)?;
+        let session = Gmsh { _lock: lock, api };
         session.set_number("General.Terminal", 0.0)?;
         // Keep gmsh's messages: they name the curves and surfaces behind a failure.
         // SAFETY: plain call.
-        unsafe { sys::gmshLoggerStart(&mut ierr) };
-        check("logger/start", ierr)?;
+        unsafe { (api.gmshLoggerStart)(&mut ierr) };
+        check(api, "logger/start", ierr)?;
         Ok(session)
     }
 
@@ -151,11 +158,11 @@ impl Gmsh {
         let (mut p, mut n, mut ierr) = (ptr::null_mut(), 0usize, 0);
         // SAFETY: gmsh allocates an array of n strings; each and the array are freed with gmshFree.
         unsafe {
-            sys::gmshLoggerGet(&mut p, &mut n, &mut ierr);
+            (self.api.gmshLoggerGet)(&mut p, &mut n, &mut ierr);
             if ierr != 0 || p.is_null() {
                 return Vec::new();
             }
-            let lines = take(p, n);
+            let lines = take(self.api, p, n);
             lines
                 .into_iter()
                 .map(|l| {
@@ -164,7 +171,7 @@ impl Gmsh {
                     } else {
                         CStr::from_ptr(l).to_string_lossy().into_owned()
                     };
-                    sys::gmshFree(l.cast());
+                    (self.api.gmshFree)(l.cast());
                     s
                 })
                 .collect()
@@ -176,8 +183,8 @@ impl Gmsh {
         let c = cstring("option/setNumber", name)?;
         let mut ierr = 0;
         // SAFETY: valid C string; gmsh initialised while self lives.
-        unsafe { sys::gmshOptionSetNumber(c.as_ptr(), value, &mut ierr) };
-        check("option/setNumber", ierr).map_err(|e| GmshError {
+        unsafe { (self.api.gmshOptionSetNumber)(c.as_ptr(), value, &mut ierr) };
+        check(self.api, "option/setNumber", ierr).map_err(|e| GmshError {
             message: format!("{name}: {}", e.message),
             ..e
         })
@@ -189,8 +196,8 @@ impl Gmsh {
         let v = cstring("option/setString", value)?;
         let mut ierr = 0;
         // SAFETY: valid C strings.
-        unsafe { sys::gmshOptionSetString(c.as_ptr(), v.as_ptr(), &mut ierr) };
-        check("option/setString", ierr).map_err(|e| GmshError {
+        unsafe { (self.api.gmshOptionSetString)(c.as_ptr(), v.as_ptr(), &mut ierr) };
+        check(self.api, "option/setString", ierr).map_err(|e| GmshError {
             message: format!("{name}: {}", e.message),
             ..e
         })
@@ -209,11 +216,11 @@ impl Gmsh {
         let mut ierr = 0;
         // SAFETY: valid C string.
         unsafe {
-            sys::gmshClear(&mut ierr);
-            check("clear", ierr)?;
-            sys::gmshOpen(c.as_ptr(), &mut ierr);
+            (self.api.gmshClear)(&mut ierr);
+            check(self.api, "clear", ierr)?;
+            (self.api.gmshOpen)(c.as_ptr(), &mut ierr);
         }
-        check("open", ierr)
+        check(self.api, "open", ierr)
     }
 
     /// `(dim, tag)` of every entity of dimension `dim` (-1: all).
@@ -223,9 +230,9 @@ impl Gmsh {
         let mut ierr = 0;
         // SAFETY: out-pointers valid; the array is copied and freed by `take`.
         let flat = unsafe {
-            sys::gmshModelGetEntities(&mut p, &mut n, dim, &mut ierr);
-            check("model/getEntities", ierr)?;
-            take(p, n)
+            (self.api.gmshModelGetEntities)(&mut p, &mut n, dim, &mut ierr);
+            check(self.api, "model/getEntities", ierr)?;
+            take(self.api, p, n)
         };
         Ok(flat.chunks_exact(2).map(|c| (c[0], c[1])).collect())
     }
@@ -238,9 +245,9 @@ impl Gmsh {
         unsafe {
             let [x0, y0, z0] = &mut a;
             let [x1, y1, z1] = &mut b;
-            sys::gmshModelGetBoundingBox(-1, -1, x0, y0, z0, x1, y1, z1, &mut ierr);
+            (self.api.gmshModelGetBoundingBox)(-1, -1, x0, y0, z0, x1, y1, z1, &mut ierr);
         }
-        check("model/getBoundingBox", ierr)?;
+        check(self.api, "model/getBoundingBox", ierr)?;
         Ok((a, b))
     }
 
@@ -248,16 +255,16 @@ impl Gmsh {
     pub fn generate(&self, dim: i32) -> Result<()> {
         let mut ierr = 0;
         // SAFETY: plain call.
-        unsafe { sys::gmshModelMeshGenerate(dim, &mut ierr) };
-        check("model/mesh/generate", ierr)
+        unsafe { (self.api.gmshModelMeshGenerate)(dim, &mut ierr) };
+        check(self.api, "model/mesh/generate", ierr)
     }
 
     /// Raises the mesh to element order `order` (2: 10-node tets).
     pub fn set_order(&self, order: i32) -> Result<()> {
         let mut ierr = 0;
         // SAFETY: plain call.
-        unsafe { sys::gmshModelMeshSetOrder(order, &mut ierr) };
-        check("model/mesh/setOrder", ierr)
+        unsafe { (self.api.gmshModelMeshSetOrder)(order, &mut ierr) };
+        check(self.api, "model/mesh/setOrder", ierr)
     }
 
     /// Optimises the mesh with gmsh's `method` ("HighOrder", "HighOrderElastic", "Netgen", …)
@@ -266,8 +273,8 @@ impl Gmsh {
         let m = cstring("model/mesh/optimize", method)?;
         let mut ierr = 0;
         // SAFETY: valid C string; no entity list (whole model).
-        unsafe { sys::gmshModelMeshOptimize(m.as_ptr(), 0, niter, ptr::null_mut(), 0, &mut ierr) };
-        check("model/mesh/optimize", ierr)
+        unsafe { (self.api.gmshModelMeshOptimize)(m.as_ptr(), 0, niter, ptr::null_mut(), 0, &mut ierr) };
+        check(self.api, "model/mesh/optimize", ierr)
     }
 
     /// All mesh nodes: gmsh tags and coordinates (x, y, z per node).
@@ -278,7 +285,7 @@ impl Gmsh {
         let mut ierr = 0;
         // SAFETY: out-pointers valid; arrays copied and freed.
         unsafe {
-            sys::gmshModelMeshGetNodes(
+            (self.api.gmshModelMeshGetNodes)(
                 &mut tags,
                 &mut ntags,
                 &mut coord,
@@ -291,9 +298,9 @@ impl Gmsh {
                 0,
                 &mut ierr,
             );
-            let (t, c) = (take(tags, ntags), take(coord, ncoord));
-            drop(take(par, npar));
-            check("model/mesh/getNodes", ierr)?;
+            let (t, c) = (take(self.api, tags, ntags), take(self.api, coord, ncoord));
+            drop(take(self.api, par, npar));
+            check(self.api, "model/mesh/getNodes", ierr)?;
             Ok((t, c))
         }
     }
@@ -312,9 +319,9 @@ impl Gmsh {
         let mut ierr = 0;
         // SAFETY: out-pointers valid; arrays copied and freed.
         unsafe {
-            sys::gmshModelMeshGetElementsByType(ty, &mut et, &mut net, &mut nt, &mut nnt, tag, 0, 1, &mut ierr);
-            let (e, n) = (take(et, net), take(nt, nnt));
-            check("model/mesh/getElementsByType", ierr)?;
+            (self.api.gmshModelMeshGetElementsByType)(ty, &mut et, &mut net, &mut nt, &mut nnt, tag, 0, 1, &mut ierr);
+            let (e, n) = (take(self.api, et, net), take(self.api, nt, nnt));
+            check(self.api, "model/mesh/getElementsByType", ierr)?;
             Ok((e, n))
         }
     }
@@ -324,8 +331,8 @@ impl Gmsh {
         let c = cstring("model/mesh/field/add", kind)?;
         let mut ierr = 0;
         // SAFETY: valid C string; tag -1 lets gmsh choose.
-        let tag = unsafe { sys::gmshModelMeshFieldAdd(c.as_ptr(), -1, &mut ierr) };
-        check("model/mesh/field/add", ierr)?;
+        let tag = unsafe { (self.api.gmshModelMeshFieldAdd)(c.as_ptr(), -1, &mut ierr) };
+        check(self.api, "model/mesh/field/add", ierr)?;
         Ok(tag)
     }
 
@@ -334,8 +341,8 @@ impl Gmsh {
         let c = cstring("model/mesh/field/setNumber", option)?;
         let mut ierr = 0;
         // SAFETY: valid C string.
-        unsafe { sys::gmshModelMeshFieldSetNumber(tag, c.as_ptr(), value, &mut ierr) };
-        check("model/mesh/field/setNumber", ierr)
+        unsafe { (self.api.gmshModelMeshFieldSetNumber)(tag, c.as_ptr(), value, &mut ierr) };
+        check(self.api, "model/mesh/field/setNumber", ierr)
     }
 
     /// Sets a list option of a size field (e.g. "FieldsList").
@@ -344,16 +351,16 @@ impl Gmsh {
         let mut v = values.to_vec();
         let mut ierr = 0;
         // SAFETY: valid C string and buffer of v.len() values (gmsh copies it).
-        unsafe { sys::gmshModelMeshFieldSetNumbers(tag, c.as_ptr(), v.as_mut_ptr(), v.len(), &mut ierr) };
-        check("model/mesh/field/setNumbers", ierr)
+        unsafe { (self.api.gmshModelMeshFieldSetNumbers)(tag, c.as_ptr(), v.as_mut_ptr(), v.len(), &mut ierr) };
+        check(self.api, "model/mesh/field/setNumbers", ierr)
     }
 
     /// Uses size field `tag` as the background mesh size.
     pub fn field_set_as_background(&self, tag: i32) -> Result<()> {
         let mut ierr = 0;
         // SAFETY: plain call.
-        unsafe { sys::gmshModelMeshFieldSetAsBackgroundMesh(tag, &mut ierr) };
-        check("model/mesh/field/setAsBackgroundMesh", ierr)
+        unsafe { (self.api.gmshModelMeshFieldSetAsBackgroundMesh)(tag, &mut ierr) };
+        check(self.api, "model/mesh/field/setAsBackgroundMesh", ierr)
     }
 
     /// Adds a list-based view of scalar values on tetrahedra ("SS") and returns its tag: per
@@ -374,13 +381,13 @@ impl Gmsh {
         let c = cstring("view/add", name)?;
         let mut ierr = 0;
         // SAFETY: valid C string; tag -1 lets gmsh choose.
-        let tag = unsafe { sys::gmshViewAdd(c.as_ptr(), -1, &mut ierr) };
-        check("view/add", ierr)?;
+        let tag = unsafe { (self.api.gmshViewAdd)(c.as_ptr(), -1, &mut ierr) };
+        check(self.api, "view/add", ierr)?;
         let kind = cstring("view/addListData", "SS")?;
         let mut v = data.to_vec();
         // SAFETY: valid C string; a buffer of v.len() values, 16 per tet as counted (gmsh copies it).
-        unsafe { sys::gmshViewAddListData(tag, kind.as_ptr(), count, v.as_mut_ptr(), v.len(), &mut ierr) };
-        check("view/addListData", ierr)?;
+        unsafe { (self.api.gmshViewAddListData)(tag, kind.as_ptr(), count, v.as_mut_ptr(), v.len(), &mut ierr) };
+        check(self.api, "view/addListData", ierr)?;
         Ok(tag)
     }
 }
@@ -391,8 +398,8 @@ impl Drop for Gmsh {
         // SAFETY: gmsh was initialised by `start`; the lock is released after this. The logger
         // outlives finalize otherwise: the next session would see this one's messages.
         unsafe {
-            sys::gmshLoggerStop(&mut ierr);
-            sys::gmshFinalize(&mut ierr);
+            (self.api.gmshLoggerStop)(&mut ierr);
+            (self.api.gmshFinalize)(&mut ierr);
         }
     }
 }
