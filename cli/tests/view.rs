@@ -1320,3 +1320,96 @@ fn a_second_page_a_reload_and_a_restart_show_the_set_up_the_server_keeps() {
     assert_eq!(page["start"]["history"].as_array().map(Vec::len), Some(2), "{page}");
     assert_eq!(page["start"]["served"]["modes"], 6, "{page}");
 }
+
+/// Design loads made in the page (issue 45): on the cantilever held at its root, a real click on
+/// the tip face makes a load (1 kN into that face by default), its row turned to 2 kN along -z,
+/// and "+ gravity" adds the weight. The page's compute serves both as static load cases equal to
+/// `ves precompute` of the scene it saves (same mesh: the same largest displacement and stress),
+/// each balanced by the supports' reaction, the weight ρVg.
+#[test]
+fn loads_made_in_the_page_equal_the_saved_scene_and_balance() {
+    let dir = tempfile::tempdir().expect("a temporary directory");
+    let case = Path::new(env!("CARGO_MANIFEST_DIR")).join("../cases/cantilever");
+    std::fs::copy(case.join("cantilever.step"), dir.path().join("cantilever.step")).expect("copy the part");
+    let scene = std::fs::read_to_string(case.join("scene.toml"))
+        .expect("the scene")
+        .replace("size = 0.025", "size = 0.05")
+        .replace("count = 20", "count = 6");
+    let path = write_file(dir.path(), "scene.toml", &scene);
+    let cache = dir.path().join("cache");
+    let (page, _, _) = view_and_browse(&path, &[("VES_CACHE_DIR", &cache)], "design_loads.mjs", dir.path(), &[]);
+    if let Ok(keep) = std::env::var("VES_VIEW_SCREENSHOTS") {
+        std::fs::copy(
+            dir.path().join("design_loads.png"),
+            Path::new(&keep).join("design_loads.png"),
+        )
+        .expect("copy the screenshot");
+    }
+    assert_eq!(page["before"], "none", "{page}");
+    // The click made load1 on one face, 1 kN into it (the tip face's outward normal is +x).
+    let vec3 = |v: &serde_json::Value| -> [f64; 3] { [0, 1, 2].map(|k| v[k].as_f64().unwrap_or(f64::NAN)) };
+    let picked = &page["picked"][0];
+    assert_eq!(picked["name"], "load1", "{page}");
+    assert_eq!(picked["faces"].as_array().map(Vec::len), Some(1), "{page}");
+    assert_eq!(vec3(&picked["force"]), [-1000.0, 0.0, 0.0], "{page}");
+    let directions = page["directions"].to_string();
+    assert!(
+        directions.contains("into face") && directions.contains("-z"),
+        "{directions}"
+    );
+    assert_eq!(vec3(&page["scene"]["load"][0]["force"]), [0.0, 0.0, -2000.0], "{page}");
+    assert_eq!(
+        vec3(&page["scene"]["gravity"]["acceleration"]),
+        [0.0, 0.0, -9.81],
+        "{page}"
+    );
+
+    // Served: both cases, each balanced by the reaction; the weight is ρVg of the 1 × 0.1 × 0.05 m beam.
+    let loads = page["loads"].as_array().expect("the hello's load cases");
+    let case_of = |name: &str| {
+        loads
+            .iter()
+            .find(|c| c["name"] == name)
+            .unwrap_or_else(|| panic!("{name}: {page}"))
+    };
+    let weight = 7850.0 * 1.0 * 0.1 * 0.05 * 9.81;
+    for (name, want) in [("load1", [0.0, 0.0, -2000.0]), ("gravity", [0.0, 0.0, -weight])] {
+        let c = case_of(name);
+        let (total, reaction) = (vec3(&c["total_force"]), vec3(&c["reaction"]));
+        for k in 0..3 {
+            assert!(
+                (total[k] - want[k]).abs() <= 1e-6 * want[2].abs(),
+                "{name}: total {total:?}, want {want:?}"
+            );
+            assert!(
+                (total[k] + reaction[k]).abs() <= 1e-6 * want[2].abs(),
+                "{name}: reaction {reaction:?}"
+            );
+        }
+    }
+    let note = page["note"].as_str().unwrap_or_default();
+    assert!(
+        note.contains("the supports react") && note.contains("balancing the load"),
+        "{note}"
+    );
+
+    // The saved scene, computed by `ves precompute`: the same cases on the same mesh.
+    let saved = dir.path().join("saved.toml");
+    let json = precompute_json_with(&saved, &dir.path().join("saved.h5"), &[]);
+    let cli = json["spaces"][0]["loads"].as_array().expect("--json's load cases");
+    assert_eq!(cli.len(), 2, "{json}");
+    for c in cli {
+        let name = c["name"].as_str().unwrap_or_default();
+        let paged = case_of(name);
+        for (a, b) in [
+            ("max_displacement_m", "max_displacement"),
+            ("max_von_mises_pa", "max_von_mises"),
+        ] {
+            let (x, y) = (c[a].as_f64().unwrap_or(f64::NAN), paged[b].as_f64().unwrap_or(f64::NAN));
+            assert!(
+                (x / y - 1.0).abs() < 1e-9,
+                "{name} {a}: precompute {x} against the page's {y}"
+            );
+        }
+    }
+}

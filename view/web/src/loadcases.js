@@ -102,9 +102,15 @@ export function drawLoad(s, c) {
   state.legend = { title, scale: 'magnitude', ticks, caption, atRest: false, lo: 0, hi, load: c.name };
   showLegend(title, 'magnitude', ticks, summary);
   placeMarkers(s, [{ vertex: top, text: `max on the surface ${w(c.vm[top])}` }]);
+  // The supports' reaction balances the load: what is left of the sum says how well.
+  const load = Math.hypot(...c.total_force);
+  const left = Math.hypot(...c.total_force.map((f, i) => f + c.reaction[i]));
+  const reaction = `the supports react ${label(Math.hypot(...c.reaction), 'force', 'si')}`
+    + ` [${c.reaction.map((f) => label(f, 'force', 'si')).join(', ')}]`
+    + (load > 0 ? `, balancing the load to ${(100 * left / load).toExponential(1)} %` : '');
   $('loadnote').replaceChildren(
-    `${c.name}: ${c.kind}, total ${label(Math.hypot(...c.total_force), 'force', 'si')}, largest displacement `
-      + `${label(c.maxDisplacement, 'length', u)} drawn ×${plain(k)}${state.scaleAuto ? ` (auto: the largest at ${Math.round(100 * AUTO_FRACTION)} % of the part's size)` : ''}. `,
+    `${c.name}: ${c.kind}, total ${label(load, 'force', 'si')}, largest displacement `
+      + `${label(c.maxDisplacement, 'length', u)} drawn ×${plain(k)}${state.scaleAuto ? ` (auto: the largest at ${Math.round(100 * AUTO_FRACTION)} % of the part's size)` : ''}; ${reaction}. `,
     el('b', { textContent: 'Hands are off while a load case is shown' }),
     ' (a drag orbits); choose "none" to pull the part again.',
   );

@@ -12,7 +12,7 @@ import { askFields, draw } from './drawing.js';
 import { facade } from './facade.js';
 import { clearHands, showHands } from './hands.js';
 import { placeTags, showLimit, showStatus } from './hud.js';
-import { dropDrags, faceMode, requestPick } from './interaction.js';
+import { dropDrags, faceMode, faceOf, requestPick } from './interaction.js';
 import { buildLoadList, drawLoad, hideLoad, onLoad } from './loadcases.js';
 import { animateMode, buildModeList, startMode } from './modes.js';
 import { offerColours, overlay } from './panels.js';
@@ -22,7 +22,7 @@ import { addSpace, clearSpaces, onFrame, onStress } from './spaces.js';
 import { DRAW_WINDOW, state } from './state.js';
 import { canvas, renderIfNeeded } from './viewport.js';
 
-const setup = setupPanel(send, requestPick, faceMode);
+const setup = setupPanel(send, requestPick, faceMode, faceOf);
 /** @type {any} */ (window).ves = facade(setup);
 
 /** The modes of `space` listed (asking for one puts a load case away). */

@@ -4,6 +4,7 @@
 // which runs the pipeline (meshing in its own process) and reports its stages here; when the
 // basis is ready the live session moves to it and the page redraws the new mesh.
 import { $, el } from './dom.js';
+import { designLoads } from './designloads.js';
 import { plain } from './units.js';
 import { state } from './state.js';
 
@@ -16,9 +17,10 @@ const canon = (v) => JSON.stringify(v, (k, x) => (x && typeof x === 'object' && 
   ? Object.fromEntries(Object.keys(x).sort().map((key) => [key, x[key]])) : x));
 const when = (t) => new Date(1000 * t).toLocaleString([], { month: 'short', day: 'numeric', hour: '2-digit', minute: '2-digit' });
 
-/** Wires the panel to `send` (a JSON message to the server) and `pick` (asks for one click on
- * the part: calls back with {point, normal}). Returns handlers for the server's messages. */
-export function setupPanel(send, pick, faceMode) {
+/** Wires the panel to `send` (a JSON message to the server), `pick` (asks for one click on
+ * the part: calls back with {point, normal}), `faceMode` (face picking on or off) and `faceOf`
+ * (the hello's record of a CAD face). Returns handlers for the server's messages. */
+export function setupPanel(send, pick, faceMode, faceOf) {
   let scene = null; // the scene being edited: the TOML's tables as JSON
   let geometry = null;
   let materials = [];
@@ -45,6 +47,19 @@ export function setupPanel(send, pick, faceMode) {
     seq += 1;
     send({ type: 'edit', scene: now, seq });
   }
+
+  // Forces, pressures and gravity (designloads.js); picking their faces ends the supports'.
+  const loads = designLoads({
+    scene: () => scene,
+    edit,
+    faceMode,
+    faceOf,
+    pickStarted: () => stopPickingSupports(),
+    note: (text) => { $('setuperror').textContent = text; },
+    list: $('designloads'),
+    status: $('loadsnote'),
+    pickButton: $('pickload'),
+  });
 
   function fill() {
     const m = scene.material || {};
@@ -116,6 +131,8 @@ export function setupPanel(send, pick, faceMode) {
       row.append(' ', held, stiffness, unit, ' ', del);
       list.appendChild(row);
     });
+    // Whether the loads have supports to react them.
+    loads.draw();
   }
 
   // The fields back into the scene, in SI.
@@ -166,12 +183,21 @@ export function setupPanel(send, pick, faceMode) {
     edit();
     faceMode(true, toggleFace, heldFaces());
   };
+  const stopPickingSupports = () => {
+    if (!picking) return;
+    picking = false;
+    $('pickfaces').textContent = '+ faces…';
+    faceMode(false, toggleFace, heldFaces());
+  };
   $('pickfaces').onclick = () => {
+    loads.stopPicking();
     picking = !picking;
     $('pickfaces').textContent = picking ? 'done' : '+ faces…';
     $('setuperror').textContent = picking ? 'click the faces that are held (again to let one go), then done' : '';
     faceMode(picking, toggleFace, heldFaces());
   };
+  $('pickload').onclick = () => loads.pickClicked();
+  $('addgravity').onclick = () => loads.addGravity();
   $('addplane').onclick = () => { (scene.fixed ||= []).push({ plane: { axis: 'x', value: 0 } }); drawSupports(); edit(); };
   $('pickplane').onclick = () => {
     $('setuperror').textContent = 'click a flat face of the part: the plane through it is held';
