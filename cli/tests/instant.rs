@@ -178,3 +178,42 @@ fn a_new_material_rescales_the_modes_without_a_solve() {
     let got = instant_within_bounds("nu", &other, &previous, &dir.path().join("nu-instant.h5"), &exact, 1e-3);
     assert!(got["instant"]["solves"].as_u64() > Some(0), "{got}");
 }
+
+/// A load added to a computed part (the page's "+ load on faces…" and "+ gravity" on a held
+/// beam): the instant basis rescales the modes without a solve and answers each load case
+/// exactly as `ves precompute` of the same scene does — the same largest displacement and von
+/// Mises stress, balanced by the reaction.
+#[test]
+fn a_load_added_is_answered_by_the_instant_basis() {
+    let (dir, root) = workdir(&beam(ROOT));
+    let previous = dir.path().join("root.h5");
+    precompute_json(&root, &previous);
+    let loaded = beam(ROOT).replace(
+        "[modes]",
+        "[[load]]\nname = \"tip\"\nplane = { axis = \"x\", value = 1.0 }\nforce = [0.0, 0.0, -1000.0]\n\
+         [gravity]\nacceleration = [0.0, 0.0, -9.81]\n[modes]",
+    );
+    let scene = write_file(dir.path(), "loaded.toml", &loaded);
+    let exact = precompute_json(&scene, &dir.path().join("loaded.h5"));
+    let got = instant_within_bounds(
+        "loaded",
+        &scene,
+        &previous,
+        &dir.path().join("loaded-instant.h5"),
+        &exact,
+        1e-9,
+    );
+    assert_eq!(got["instant"]["solves"], 0, "{got}");
+    let cases = |v: &serde_json::Value| v["spaces"][0]["loads"].as_array().cloned().unwrap_or_default();
+    let (want, have) = (cases(&exact), cases(&got));
+    assert_eq!(want.len(), 2, "{exact}");
+    assert_eq!(have.len(), 2, "{got}");
+    for (w, h) in want.iter().zip(&have) {
+        assert_eq!(w["name"], h["name"]);
+        for key in ["max_displacement_m", "max_von_mises_pa"] {
+            let (a, b) = (w[key].as_f64().unwrap(), h[key].as_f64().unwrap());
+            assert!((a / b - 1.0).abs() < 1e-9, "{} {key}: {b} against {a}", w["name"]);
+        }
+        assert!(h["balance_residual"].as_f64().unwrap() < 1e-9, "{h}");
+    }
+}
