@@ -18,7 +18,7 @@ const scaled = (v, k) => v.map((x) => x * k);
 /**
  * The loads' part of the panel.
  * @param {{ scene: () => any, edit: () => void, faceMode: Function, faceOf: (tag: number) => any,
- *   pickStarted: () => void, note: (text: string) => void, list: HTMLElement, status: HTMLElement,
+ *   pickStarted: () => void, relight: () => void, note: (text: string) => void, list: HTMLElement, status: HTMLElement,
  *   pickButton: HTMLButtonElement }} ctx
  */
 export function designLoads(ctx) {
@@ -139,6 +139,7 @@ export function designLoads(ctx) {
     const rows = loads.map((entry, i) => row(entry, i, loads));
     if (scene.gravity) rows.push(gravityRow(scene));
     ctx.list.replaceChildren(...rows);
+    ctx.relight();
     const any = rows.length > 0;
     ctx.status.textContent = !any ? 'none' : (scene.fixed || []).length ? ''
       : 'a load needs the part held: add a support (a free body has no static answer)';
@@ -151,7 +152,7 @@ export function designLoads(ctx) {
     ctx.pickButton.textContent = 'done';
     ctx.note(entry ? `click the faces ${entry.name} acts on (again to take one away), then done`
       : 'click the faces the load acts on (again to take one away), then done');
-    ctx.faceMode(true, toggle, entry ? entry.faces : []);
+    ctx.faceMode(true, toggle);
   }
 
   function stopPicking() {
@@ -159,7 +160,7 @@ export function designLoads(ctx) {
     picking = null;
     ctx.pickButton.textContent = '+ load on faces…';
     ctx.note('');
-    ctx.faceMode(false, null, []);
+    ctx.faceMode(false, null);
     return true;
   }
 
@@ -183,7 +184,7 @@ export function designLoads(ctx) {
     if (!loads.length) delete scene.load;
     draw();
     ctx.edit();
-    ctx.faceMode(true, toggle, picking === 'new' ? [] : picking.faces);
+    ctx.faceMode(true, toggle);
   }
 
   return {

@@ -7,7 +7,7 @@
 // the cursor): its ray cast runs at most once per animation frame.
 import * as THREE from 'three';
 import { hideProbe, showProbe, showTip } from './hud.js';
-import { HELD, HOVER, lightFaces } from './spaces.js';
+import { HOVER, lightFaces } from './spaces.js';
 import { state } from './state.js';
 import { label } from './units.js';
 import { sendTarget } from './connection.js';
@@ -169,10 +169,9 @@ export function faceWords(tag) {
   return `face ${tag} · ${kind} · ${area}`;
 }
 
-/** Face picking on (`onClick(tag)` for each click on a face) or off; `held`: the faces held. */
-export function faceMode(on, onClick, held) {
+/** Face picking on (`onClick(tag)` for each click on a face) or off. */
+export function faceMode(on, onClick) {
   facePick = on ? onClick : null;
-  lightFaces('held', held || [], HELD);
   if (!on) { lightFaces('hover', [], 0); state.hoverFace = null; }
 }
 

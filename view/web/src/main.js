@@ -18,11 +18,11 @@ import { animateMode, buildModeList, startMode } from './modes.js';
 import { offerColours, overlay } from './panels.js';
 import { KINDS } from './protocol.js';
 import { setupPanel } from './setup.js';
-import { addSpace, clearSpaces, onFrame, onStress } from './spaces.js';
+import { addSpace, clearSpaces, lightSetup, onFrame, onStress } from './spaces.js';
 import { DRAW_WINDOW, state } from './state.js';
 import { canvas, renderIfNeeded } from './viewport.js';
 
-const setup = setupPanel(send, requestPick, faceMode, faceOf);
+const setup = setupPanel(send, requestPick, faceMode, faceOf, lightSetup);
 /** @type {any} */ (window).ves = facade(setup);
 
 /** The modes of `space` listed (asking for one puts a load case away). */
@@ -71,7 +71,7 @@ function onText(msg) {
 }
 
 function onBinary(kind, m) {
-  if (kind === KINDS.MESH) addSpace(m, setup.heldFaces());
+  if (kind === KINDS.MESH) addSpace(m, setup.litFaces());
   else if (kind === KINDS.FRAME) {
     if (!state.spaces[m.space]) return;
     if (onFrame(m)) {

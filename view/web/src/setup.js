@@ -18,9 +18,10 @@ const canon = (v) => JSON.stringify(v, (k, x) => (x && typeof x === 'object' && 
 const when = (t) => new Date(1000 * t).toLocaleString([], { month: 'short', day: 'numeric', hour: '2-digit', minute: '2-digit' });
 
 /** Wires the panel to `send` (a JSON message to the server), `pick` (asks for one click on
- * the part: calls back with {point, normal}), `faceMode` (face picking on or off) and `faceOf`
- * (the hello's record of a CAD face). Returns handlers for the server's messages. */
-export function setupPanel(send, pick, faceMode, faceOf) {
+ * the part: calls back with {point, normal}), `faceMode` (face picking on or off), `faceOf`
+ * (the hello's record of a CAD face) and `light` (lights the faces held and loaded). Returns
+ * handlers for the server's messages. */
+export function setupPanel(send, pick, faceMode, faceOf, light) {
   let scene = null; // the scene being edited: the TOML's tables as JSON
   let geometry = null;
   let materials = [];
@@ -55,6 +56,7 @@ export function setupPanel(send, pick, faceMode, faceOf) {
     faceMode,
     faceOf,
     pickStarted: () => stopPickingSupports(),
+    relight: () => light(litFaces()),
     note: (text) => { $('setuperror').textContent = text; },
     list: $('designloads'),
     status: $('loadsnote'),
@@ -166,6 +168,7 @@ export function setupPanel(send, pick, faceMode, faceOf) {
   // the faces held; Done ends it.
   let picking = false;
   const heldFaces = () => (scene.fixed || []).filter((f) => f.faces).flatMap((f) => f.faces);
+  const litFaces = () => ({ held: heldFaces(), loaded: (scene.load || []).filter((l) => l.faces).flatMap((l) => l.faces) });
   /** The scene's `faces` support, made when there is none. */
   const facesEntry = () => {
     const fixed = (scene.fixed ||= []);
@@ -181,20 +184,20 @@ export function setupPanel(send, pick, faceMode, faceOf) {
     if (!entry.faces.length) fixed.splice(fixed.indexOf(entry), 1);
     drawSupports();
     edit();
-    faceMode(true, toggleFace, heldFaces());
+    faceMode(true, toggleFace);
   };
   const stopPickingSupports = () => {
     if (!picking) return;
     picking = false;
     $('pickfaces').textContent = '+ faces…';
-    faceMode(false, toggleFace, heldFaces());
+    faceMode(false, toggleFace);
   };
   $('pickfaces').onclick = () => {
     loads.stopPicking();
     picking = !picking;
     $('pickfaces').textContent = picking ? 'done' : '+ faces…';
     $('setuperror').textContent = picking ? 'click the faces that are held (again to let one go), then done' : '';
-    faceMode(picking, toggleFace, heldFaces());
+    faceMode(picking, toggleFace);
   };
   $('pickload').onclick = () => loads.pickClicked();
   $('addgravity').onclick = () => loads.addGravity();
@@ -412,8 +415,8 @@ export function setupPanel(send, pick, faceMode, faceOf) {
       $('cancel').disabled = !on;
       if (busy !== (on && !checking)) { busy = on && !checking; showState(); }
     },
-    /** The faces held (tags), for drawing them. */
-    heldFaces: () => (scene ? heldFaces() : []),
+    /** The faces held and the ones loaded (tags), for drawing them. */
+    litFaces: () => (scene ? litFaces() : { held: [], loaded: [] }),
     /** The scene being edited (tests and the console). */
     scene: () => read(),
     saved: () => saved,

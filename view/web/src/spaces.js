@@ -8,13 +8,12 @@ import { autoScale } from './scale.js';
 import { state } from './state.js';
 import { homeView, scene } from './viewport.js';
 
-/** Colours of lit faces: the one under the cursor, and the ones held. */
-export const HOVER = 0xffd45e, HELD = 0x3ddc84;
+/** Colours of lit faces: the one under the cursor, the ones held, the ones loaded. */
+export const HOVER = 0xffd45e, HELD = 0x3ddc84, LOADED = 0xff7a45;
 
 /** Removes every space from the scene and frees their geometries and materials. */
 export function clearSpaces() {
-  lightFaces('held', [], 0);
-  lightFaces('hover', [], 0);
+  for (const kind of Object.keys(faceLights)) lightFaces(kind, [], 0);
   for (const s of state.spaces) {
     if (!s) continue;
     scene.remove(s.mesh);
@@ -28,9 +27,9 @@ export function clearSpaces() {
   state.mode = null;
 }
 
-/** Adds the decoded mesh `m` (protocol.js) as a space; `held`: the CAD faces held, lit on
- * space 0. */
-export function addSpace(m, held) {
+/** Adds the decoded mesh `m` (protocol.js) as a space; `lit`: the CAD faces held and the ones
+ * loaded, lit on space 0. @param {any} m @param {{ held: number[], loaded: number[] }} lit */
+export function addSpace(m, lit) {
   const geom = new THREE.BufferGeometry();
   geom.setAttribute('position', new THREE.BufferAttribute(new Float32Array(m.rest), 3).setUsage(THREE.DynamicDrawUsage));
   const col = new Float32Array(3 * m.vertices).fill(0.8);
@@ -80,7 +79,7 @@ export function addSpace(m, held) {
     if (!same) homeView();
   }
   highlightBoxes();
-  if (m.space === 0) lightFaces('held', held, HELD);
+  if (m.space === 0) lightSetup(lit);
   // Ready once every space is in and a frame has been drawn (see main.js's loop).
   if (state.spaces.filter(Boolean).length === state.hello.spaces.length) state.meshesIn = true;
 }
@@ -171,7 +170,7 @@ export function onStress(m) {
 
 // Faces: each CAD face's triangles, lit when the cursor is over it (yellow) or held (green). The
 // overlay shares the part's drawn positions: it follows the drawing.
-const faceLights = { hover: null, held: null };
+const faceLights = { hover: null, held: null, loaded: null };
 function faceOverlay(s, tags, colour) {
   const want = new Set(tags);
   const idx = [];
@@ -185,7 +184,15 @@ function faceOverlay(s, tags, colour) {
   return m;
 }
 
-/** Lights the CAD faces `tags` of space 0 as `kind` ('hover' or 'held') in `colour`; none: off. */
+/** Lights the faces the set-up names on space 0: the held ones green, the loaded ones orange.
+ * @param {{ held: number[], loaded: number[] }} lit */
+export function lightSetup(lit) {
+  lightFaces('held', lit.held, HELD);
+  lightFaces('loaded', lit.loaded, LOADED);
+}
+
+/** Lights the CAD faces `tags` of space 0 as `kind` ('hover', 'held' or 'loaded') in `colour`;
+ * none: off. */
 export function lightFaces(kind, tags, colour) {
   const s = state.spaces[0];
   const old = faceLights[kind];
