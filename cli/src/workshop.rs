@@ -137,6 +137,9 @@ fn summary_line(summary: &precompute::Summary) -> String {
     if let Some(e) = worst_estimate(summary) {
         line.push_str(&format!("; estimated frequency error ≤ {:.2} %", 100.0 * e));
     }
+    if let Some(f) = summary.spaces.first().and_then(|s| s.felt_compliance.as_ref()) {
+        line.push_str(&f.text());
+    }
     line
 }
 

@@ -45,7 +45,7 @@ fn main() -> Result<()> {
             for radius in [scene.contact_radius, 0.0] {
                 let (patch, _, _) = surface.at_point(p.at, radius).context("no surface")?;
                 let block = ves_pipeline::compliance::patch_blocks(
-                    &d,
+                    &d.dofs,
                     &chol,
                     &[(patch.nodes.as_slice(), patch.weights.as_slice())],
                     || (),

@@ -45,7 +45,7 @@ pub fn surface_compliance_with(d: &Discretized, chol: &Cholesky, patches: &Patch
     require_supported(d)?;
     let all: Vec<(&[u32], &[f64])> = (0..patches.centres.len()).map(|k| patches.patch(k)).collect();
     let bar = crate::progress::count(all.len() as u64, "vertices (static correction)");
-    let blocks = patch_blocks(d, chol, &all, || bar.inc(VERTICES_PER_BLOCK as u64));
+    let blocks = patch_blocks(&d.dofs, chol, &all, || bar.inc(VERTICES_PER_BLOCK as u64));
     Ok(Compliance {
         nodes: patches.centres.clone(),
         blocks,
@@ -55,12 +55,12 @@ pub fn surface_compliance_with(d: &Discretized, chol: &Cholesky, patches: &Patch
 /// W K⁻¹ Wᵀ (m/N) for each patch (nodes, weights): how far the patch moves, on the average its
 /// weights take, per newton spread over it. `tick` is called after each block of patches.
 pub fn patch_blocks(
-    d: &Discretized,
+    dofs: &crate::fem::Dofs,
     chol: &Cholesky,
     patches: &[(&[u32], &[f64])],
     tick: impl Fn() + Sync,
 ) -> Vec<[[f64; 3]; 3]> {
-    let nf = d.dofs.free_count();
+    let nf = dofs.free_count();
     patches
         .par_chunks(VERTICES_PER_BLOCK)
         .flat_map_iter(|chunk| {
@@ -70,7 +70,7 @@ pub fn patch_blocks(
                 for c in 0..3 {
                     let rhs = &mut x[(3 * k + c) * nf..(3 * k + c + 1) * nf];
                     for (&a, &w) in nodes.iter().zip(*weights) {
-                        let f = d.dofs.free_of[3 * a as usize + c];
+                        let f = dofs.free_of[3 * a as usize + c];
                         if f != u32::MAX {
                             rhs[f as usize] += w;
                         }
@@ -87,7 +87,7 @@ pub fn patch_blocks(
                     for (b, column) in (0..3).map(|b| (b, &x[(3 * k + b) * nf..(3 * k + b + 1) * nf])) {
                         for (&node, &w) in nodes.iter().zip(*weights) {
                             for (a, row) in block.iter_mut().enumerate() {
-                                let f = d.dofs.free_of[3 * node as usize + a];
+                                let f = dofs.free_of[3 * node as usize + a];
                                 if f != u32::MAX {
                                     row[b] += w * column[f as usize];
                                 }
@@ -139,7 +139,7 @@ mod tests {
             .iter()
             .map(|at| {
                 let list: Vec<(&[u32], &[f64])> = at.iter().map(|p| (&p.nodes[..], &p.weights[..])).collect();
-                patch_blocks(&d, &chol, &list, || ())
+                patch_blocks(&d.dofs, &chol, &list, || ())
                     .iter()
                     .zip(points)
                     .map(|(b, &(_, axis))| b[axis][axis])

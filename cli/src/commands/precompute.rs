@@ -137,7 +137,7 @@ impl Args {
         for s in &summary.spaces {
             let f: Vec<String> = s.frequencies_hz.iter().take(6).map(|f| format!("{f:.4}")).collect();
             println!(
-                "{}: {} nodes, {} tets, {} dofs, {} modes (first: {} Hz), max residual {:.1e}{}{}",
+                "{}: {} nodes, {} tets, {} dofs, {} modes (first: {} Hz), max residual {:.1e}{}{}{}",
                 s.name,
                 s.nodes,
                 s.tets,
@@ -146,6 +146,7 @@ impl Args {
                 f.join(", "),
                 s.max_relative_residual,
                 ves_pipeline::accuracy::summary_text(s.estimated_relative_error.as_deref()),
+                s.felt_compliance.as_ref().map_or(String::new(), |f| f.text()),
                 s.nonlinear.map_or(String::new(), |n| n.text())
             );
         }

@@ -5,6 +5,7 @@
 //! ([`recovery`]). [`choose`] makes one number of the two. docs/accuracy.md says how far to
 //! trust it.
 
+pub mod felt;
 pub mod indicator;
 pub mod recovery;
 pub mod refine;

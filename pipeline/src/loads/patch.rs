@@ -188,6 +188,20 @@ impl<'a> Surface<'a> {
         }
     }
 
+    /// The outward unit normal at corner vertex `v`: its triangles' normals, weighted by area
+    /// through the unit normals' mean (zero when `v` is on no surface triangle).
+    pub fn normal_at(&self, v: u32) -> [f64; 3] {
+        let Some(around) = self.around.get(&v) else {
+            return [0.0; 3];
+        };
+        let sum = around.iter().fold([0.0; 3], |acc, &t| {
+            let [a, b, c] = self.corners(t);
+            let n = cross(sub(b, a), sub(c, a));
+            [acc[0] + n[0], acc[1] + n[1], acc[2] + n[2]]
+        });
+        unit(sum)
+    }
+
     fn corners(&self, t: usize) -> [[f64; 3]; 3] {
         self.mesh.surface[t].map(|v| self.mesh.nodes[v as usize])
     }

@@ -47,6 +47,8 @@ pub struct Timings {
     pub reactions: f64,
     /// The nonlinear model: modal derivatives and the reduced energy's coefficients.
     pub nonlinear: f64,
+    /// The felt compliance's truncation at sampled surface points (held parts).
+    pub felt_compliance: f64,
     /// Writing the file.
     pub write: f64,
     /// Everything.
@@ -67,6 +69,7 @@ impl Timings {
         self.contact += o.contact;
         self.reactions += o.reactions;
         self.nonlinear += o.nonlinear;
+        self.felt_compliance += o.felt_compliance;
     }
 }
 
@@ -112,6 +115,8 @@ pub struct SolvedSpace {
     /// The nonlinear model (`[model] kind = "nonlinear"`): `modes` then holds the derivatives
     /// after the eigenmodes.
     pub nonlinear: Option<crate::nonlinear::NonlinearModel>,
+    /// The felt compliance's modal truncation at sampled surface points (held parts).
+    pub felt: Option<crate::accuracy::felt::FeltTruncation>,
 }
 
 impl SolvedSpace {
@@ -222,6 +227,10 @@ pub struct SpaceSummary {
     pub sturm_count: Option<modes::SturmCount>,
     /// The scene's static load cases on this space (empty without `[[load]]` or `[gravity]`).
     pub loads: Vec<crate::loads::LoadSummary>,
+    /// How much of the exact static compliance at sampled contact patches the kept modes miss
+    /// (held parts; absent for a free body): the error of what a hand feels, on this mesh.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub felt_compliance: Option<crate::accuracy::felt::FeltTruncation>,
 }
 
 /// Runs the whole pipeline for a scene and writes `out` (which may not be a symlink).
@@ -462,6 +471,7 @@ fn write_all(scene: &Scene, out: &Path, spaces: &[SolvedSpace], transfer_s: f64,
                     .iter()
                     .map(|l| l.summary(scene.material.yield_strength))
                     .collect(),
+                felt_compliance: s.felt.clone(),
                 seconds: s.timings.mesh
                     + s.timings.assemble
                     + s.timings.factorize

@@ -109,6 +109,7 @@ pub(super) fn solve_space_checked(
     let name = voi.map_or("global".to_string(), |v| v.name.clone());
     // `run_first` asks for them later only on a fixed mesh size (a refinement needs them).
     let later = checks == Checks::Later;
+    let checks_later = later;
     debug_assert!(!later || scene.mesh.target_error.is_none());
     let (mut solved, sturm, estimated) = match scene.mesh.target_error {
         Some(target) => {
@@ -173,7 +174,20 @@ pub(super) fn solve_space_checked(
         nonlinear,
         nonlinear_s,
     };
-    Ok(store(name, voi, solved, later))
+    let mut space = store(name, voi, solved, later);
+    if !checks_later {
+        felt(&mut space)?;
+    }
+    Ok(space)
+}
+
+/// The felt compliance's truncation (`accuracy::felt`), with its time.
+fn felt(s: &mut SolvedSpace) -> Result<()> {
+    progress::stage("the felt compliance's truncation", 0.93)?;
+    let (felt, seconds) = timed(|| released(|| crate::accuracy::felt::truncation(s)));
+    s.felt = felt?;
+    s.timings.felt_compliance = seconds;
+    Ok(())
 }
 
 /// A space from modes found otherwise than by this module's solve (an instant basis on the
@@ -246,7 +260,7 @@ pub(super) fn check_later(scene: &Scene, s: &mut SolvedSpace, choice: SolverChoi
         progress::stage("estimated", 0.95)?;
         advice::warn_about_error(scene, &s.name, &s.mesh, s.meshing.size, s.error.as_ref());
     }
-    Ok(())
+    felt(s)
 }
 
 /// The `target_error` path: the refinement meshes, solves and estimates the space on finer
@@ -532,6 +546,7 @@ fn store(name: String, voi: Option<&Voi>, solved: Solved, later: AfterSolve) -> 
         loads: later.loads,
         reactions: later.reactions,
         nonlinear: later.nonlinear,
+        felt: None,
     }
 }
 
