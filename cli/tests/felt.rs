@@ -43,6 +43,8 @@ fn the_modes_miss_less_of_the_felt_compliance_as_more_are_kept() {
         assert_eq!(f["points"].as_array().map(Vec::len), Some(24), "{f}");
         let (largest, median) = (number(&f["largest_along_normal"]), number(&f["median_along_normal"]));
         assert!(largest >= median && median >= 0.0, "{count}: {f}");
+        let compliant = number(&f["largest_where_compliant"]);
+        assert!((0.0..=largest).contains(&compliant), "{count}: {f}");
         assert!(
             largest < last.0 && median < last.1,
             "{count} modes: {largest:.3e}, {median:.3e} after {last:?}"

@@ -16,6 +16,12 @@ use nalgebra::{Matrix3, Vector3};
 /// Points sampled: spread over the surface, the most compliant first.
 const SAMPLES: usize = 24;
 
+/// A point is where the part is compliant when its exact compliance is at least this share of
+/// the most compliant point's. Elsewhere a hand feels the coupling, not the part: on the
+/// ribplate held by its base, the plate's top misses 100 % of 2.6e-8 m/N (the local
+/// indentation no mode carries) beside 3.8e-6 m/N at the rib's tip, where 30 modes miss 2.9 %.
+const COMPLIANT: f64 = 0.01;
+
 /// The felt compliance's modal truncation at sampled surface points.
 #[derive(Clone, Debug, serde::Serialize)]
 pub struct FeltTruncation {
@@ -26,7 +32,11 @@ pub struct FeltTruncation {
     pub modes: usize,
     /// Each sampled point, the most compliant first.
     pub points: Vec<FeltPoint>,
-    /// The largest relative error along the surface normal over the points (0 when corrected).
+    /// The largest relative error along the surface normal over the points where the part is
+    /// compliant (exact compliance at least [`COMPLIANT`] of the largest sampled): what a hand
+    /// feels the part miss (0 when corrected).
+    pub largest_where_compliant: f64,
+    /// The largest relative error along the surface normal over all the points (0 when corrected).
     pub largest_along_normal: f64,
     /// The median of the same.
     pub median_along_normal: f64,
@@ -37,18 +47,19 @@ pub struct FeltTruncation {
 }
 
 impl FeltTruncation {
-    /// One clause for a summary line: "; felt compliance: the 12 modes miss ≤ 4.1 % along the
-    /// surface normal (median 0.52 %, 24 points) — [static_correction] makes it exact".
+    /// One clause for a summary line: "; felt compliance: the 20 modes miss ≤ 2.59 % of it where
+    /// the part is compliant, up to 86.83 % at stiff points (24 points; [static_correction]
+    /// makes it exact)".
     pub fn text(&self) -> String {
         if self.corrected {
             return "; felt compliance exact (static correction)".into();
         }
         format!(
-            "; felt compliance: the {} modes miss ≤ {:.2} % along the surface normal (median {:.2} %, {} points) — \
-             [static_correction] makes it exact",
+            "; felt compliance: the {} modes miss ≤ {:.2} % of it where the part is compliant, up to {:.2} % at \
+             stiff points ({} points; [static_correction] makes it exact)",
             self.modes,
+            100.0 * self.largest_where_compliant,
             100.0 * self.largest_along_normal,
-            100.0 * self.median_along_normal,
             self.points.len()
         )
     }
@@ -88,6 +99,7 @@ pub fn truncation(s: &SolvedSpace) -> Result<Option<FeltTruncation>> {
             corrected: true,
             modes: r,
             points: Vec::new(),
+            largest_where_compliant: 0.0,
             largest_along_normal: 0.0,
             median_along_normal: 0.0,
             largest_any_direction: 0.0,
@@ -173,9 +185,15 @@ pub fn truncation(s: &SolvedSpace) -> Result<Option<FeltTruncation>> {
         .collect();
     let mut along: Vec<f64> = points.iter().map(|p| p.along_normal).collect();
     along.sort_by(f64::total_cmp);
+    let softest = points.iter().map(|p| p.exact_m_per_n).fold(0.0, f64::max);
     Ok(Some(FeltTruncation {
         corrected: false,
         modes: r,
+        largest_where_compliant: points
+            .iter()
+            .filter(|p| p.exact_m_per_n >= COMPLIANT * softest)
+            .map(|p| p.along_normal)
+            .fold(0.0, f64::max),
         largest_along_normal: along.last().copied().unwrap_or(0.0),
         median_along_normal: along.get(along.len() / 2).copied().unwrap_or(0.0),
         largest_any_direction: points.iter().map(|p| p.any_direction).fold(0.0, f64::max),
