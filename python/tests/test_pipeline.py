@@ -301,3 +301,22 @@ def test_load_cases_are_read_from_python(cli, tmp_path):
     assert listed[0]["max_displacement_m"] == pytest.approx(tip["max_displacement"], rel=1e-12)
     with pytest.raises(KeyError, match="tip"):
         basis.load("wind")
+
+
+def test_the_error_of_what_is_felt_is_in_the_summary(cli, tmp_path):
+    """``summary["spaces"][0]["felt_compliance"]``: the share of the exact patch compliance the
+    kept modes miss at sampled surface points, as ``ves precompute --json`` gives it (the same
+    mesh, so the same figures); none missed at the cantilever's tip beyond a percent."""
+    import json
+
+    scene = scene_copy(tmp_path, GOOD)
+    basis = ves.precompute(scene, tmp_path / "py.h5", progress=False)
+    felt = basis.summary["spaces"][0]["felt_compliance"]
+    run = subprocess.run([str(cli), "precompute", str(scene), "-o", str(tmp_path / "cli.h5"), "--json"],
+                         capture_output=True, text=True, check=True)
+    want = json.loads(run.stdout.strip().splitlines()[-1])["spaces"][0]["felt_compliance"]
+    assert not felt["corrected"] and len(felt["points"]) == 24
+    for key in ("largest_where_compliant", "largest_along_normal", "median_along_normal"):
+        assert felt[key] == pytest.approx(want[key], rel=1e-9, abs=1e-12), key
+    tip = max(felt["points"], key=lambda p: p["exact_m_per_n"])
+    assert tip["position_m"][0] > 0.9 and 0.0 <= tip["along_normal"] < 0.01, tip
