@@ -181,11 +181,19 @@ pub(super) fn solve_space_checked(
     Ok(space)
 }
 
-/// The felt compliance's truncation (`accuracy::felt`), with its time.
+/// The felt compliance's truncation (`accuracy::felt`), with its time. A check, not the basis:
+/// when it cannot be made (K's factor does not fit in memory) the basis is written without it
+/// and a warning says why.
 fn felt(s: &mut SolvedSpace) -> Result<()> {
     progress::stage("the felt compliance's truncation", 0.93)?;
     let (felt, seconds) = timed(|| released(|| crate::accuracy::felt::truncation(s)));
-    s.felt = felt?;
+    match felt {
+        Ok(f) => s.felt = f,
+        Err(e) => tracing::warn!(
+            "space \"{}\": the felt compliance's truncation was not computed ({e:#}); the basis is written without it",
+            s.name
+        ),
+    }
     s.timings.felt_compliance = seconds;
     Ok(())
 }
