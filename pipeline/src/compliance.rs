@@ -54,6 +54,11 @@ pub fn surface_compliance_with(d: &Discretized, chol: &Cholesky, patches: &Patch
 
 /// W K⁻¹ Wᵀ (m/N) for each patch (nodes, weights): how far the patch moves, on the average its
 /// weights take, per newton spread over it. `tick` is called after each block of patches.
+///
+/// With a supernodal factor each block is Bᵀ K⁻¹ B from a forward solve alone that skips the
+/// supernodes the block's patches do not reach ([`Cholesky::local_gram`]); the patches are
+/// taken in the factor's order so that a block's patches share their paths up the elimination
+/// tree. Otherwise, full solves.
 pub fn patch_blocks(
     dofs: &crate::fem::Dofs,
     chol: &Cholesky,
@@ -61,15 +66,25 @@ pub fn patch_blocks(
     tick: impl Fn() + Sync,
 ) -> Vec<[[f64; 3]; 3]> {
     let nf = dofs.free_count();
-    patches
+    // Where each patch's centre falls in the factor's order (a held node: at the end).
+    let place = |(nodes, _): &(&[u32], &[f64])| {
+        nodes
+            .first()
+            .and_then(|&a| (0..3).find_map(|c| chol.position(dofs.free_of[3 * a as usize + c])))
+            .unwrap_or(usize::MAX)
+    };
+    let mut order: Vec<usize> = (0..patches.len()).collect();
+    order.sort_by_key(|&i| place(&patches[i]));
+    let solved: Vec<(usize, [[f64; 3]; 3])> = order
         .par_chunks(VERTICES_PER_BLOCK)
         .flat_map_iter(|chunk| {
             let nrhs = 3 * chunk.len();
             let mut x = vec![0.0; nf * nrhs];
-            for (k, (nodes, weights)) in chunk.iter().enumerate() {
+            for (k, &p) in chunk.iter().enumerate() {
+                let (nodes, weights) = patches[p];
                 for c in 0..3 {
                     let rhs = &mut x[(3 * k + c) * nf..(3 * k + c + 1) * nf];
-                    for (&a, &w) in nodes.iter().zip(*weights) {
+                    for (&a, &w) in nodes.iter().zip(weights) {
                         let f = dofs.free_of[3 * a as usize + c];
                         if f != u32::MAX {
                             rhs[f as usize] += w;
@@ -77,29 +92,42 @@ pub fn patch_blocks(
                     }
                 }
             }
-            chol.solve_many_in_place(&mut x, nrhs);
-            tick();
-            let out: Vec<[[f64; 3]; 3]> = chunk
-                .iter()
-                .enumerate()
-                .map(|(k, (nodes, weights))| {
-                    let mut block = [[0.0; 3]; 3];
-                    for (b, column) in (0..3).map(|b| (b, &x[(3 * k + b) * nf..(3 * k + b + 1) * nf])) {
-                        for (&node, &w) in nodes.iter().zip(*weights) {
-                            for (a, row) in block.iter_mut().enumerate() {
-                                let f = dofs.free_of[3 * node as usize + a];
-                                if f != u32::MAX {
-                                    row[b] += w * column[f as usize];
+            let blocks: Vec<[[f64; 3]; 3]> = match chol.local_gram(&x, nrhs) {
+                Some(g) => (0..chunk.len())
+                    .map(|k| std::array::from_fn(|a| std::array::from_fn(|b| g[(3 * k + a, 3 * k + b)])))
+                    .collect(),
+                None => {
+                    chol.solve_many_in_place(&mut x, nrhs);
+                    chunk
+                        .iter()
+                        .enumerate()
+                        .map(|(k, &p)| {
+                            let (nodes, weights) = patches[p];
+                            let mut block = [[0.0; 3]; 3];
+                            for (b, column) in (0..3).map(|b| (b, &x[(3 * k + b) * nf..(3 * k + b + 1) * nf])) {
+                                for (&node, &w) in nodes.iter().zip(weights) {
+                                    for (a, row) in block.iter_mut().enumerate() {
+                                        let f = dofs.free_of[3 * node as usize + a];
+                                        if f != u32::MAX {
+                                            row[b] += w * column[f as usize];
+                                        }
+                                    }
                                 }
                             }
-                        }
-                    }
-                    block
-                })
-                .collect();
-            out
+                            block
+                        })
+                        .collect()
+                }
+            };
+            tick();
+            chunk.iter().copied().zip(blocks).collect::<Vec<_>>()
         })
-        .collect()
+        .collect();
+    let mut out = vec![[[0.0; 3]; 3]; patches.len()];
+    for (p, block) in solved {
+        out[p] = block;
+    }
+    out
 }
 
 #[cfg(test)]

@@ -7,9 +7,11 @@
 //! error adds to it (the frequency estimate speaks of that) — and it is zero where the static
 //! correction is stored, which adds the missing part at every vertex.
 
+use crate::fem::{Assembled, Dofs};
 use crate::linsolve::factor_stiffness;
 use crate::loads::patch::{Patches, Surface};
-use crate::precompute::SolvedSpace;
+use crate::modes::Modes;
+use crate::tet_mesh::Mesh;
 use anyhow::Result;
 use nalgebra::{Matrix3, Vector3};
 
@@ -82,19 +84,33 @@ pub struct FeltPoint {
     pub any_direction: f64,
 }
 
+/// A held space's modes and what they are measured against.
+pub struct Space<'a> {
+    /// Its mesh.
+    pub mesh: &'a Mesh,
+    /// Its DOFs (which are held).
+    pub dofs: &'a Dofs,
+    /// Its K and M.
+    pub system: &'a Assembled,
+    /// Its modes (no rigid ones).
+    pub modes: &'a Modes,
+    /// The hand's contact patches (none: each vertex alone).
+    pub contact: Option<&'a Patches>,
+    /// The static correction is stored.
+    pub corrected: bool,
+}
+
 /// The felt compliance's truncation of space `s` (its modes and K); None for a free body (its
-/// K is singular: what a hand feels there is the rigid motion), a nonlinear model, a space
-/// whose K is on MPI ranks, or a part without a movable surface vertex.
-pub fn truncation(s: &SolvedSpace) -> Result<Option<FeltTruncation>> {
+/// K is singular: what a hand feels there is the rigid motion) or a part without a movable
+/// surface vertex.
+pub fn truncation(s: &Space<'_>) -> Result<Option<FeltTruncation>> {
     let start = std::time::Instant::now();
-    let Some(system) = s.system.as_ref() else {
-        return Ok(None);
-    };
-    if s.modes.rigid_dropped > 0 || s.nonlinear.is_some() {
+    let system = s.system;
+    if s.modes.rigid_dropped > 0 {
         return Ok(None);
     }
     let r = s.modes.eigenvalues.len();
-    if s.compliance.is_some() {
+    if s.corrected {
         return Ok(Some(FeltTruncation {
             corrected: true,
             modes: r,
@@ -107,7 +123,7 @@ pub fn truncation(s: &SolvedSpace) -> Result<Option<FeltTruncation>> {
         }));
     }
     let point_patches;
-    let patches: &Patches = match s.contact.as_ref() {
+    let patches: &Patches = match s.contact {
         Some(p) => p,
         None => {
             point_patches = crate::loads::patch::vertex_patches(&s.mesh, 0.0, |_| true);

@@ -186,7 +186,19 @@ pub(super) fn solve_space_checked(
 /// and a warning says why.
 fn felt(s: &mut SolvedSpace) -> Result<()> {
     progress::stage("the felt compliance's truncation", 0.93)?;
-    let (felt, seconds) = timed(|| released(|| crate::accuracy::felt::truncation(s)));
+    // A nonlinear model is felt through its own tangent; K on MPI ranks is not here.
+    let Some(system) = s.system.as_ref().filter(|_| s.nonlinear.is_none()) else {
+        return Ok(());
+    };
+    let space = crate::accuracy::felt::Space {
+        mesh: &s.mesh,
+        dofs: &s.dofs,
+        system,
+        modes: &s.modes,
+        contact: s.contact.as_ref(),
+        corrected: s.compliance.is_some(),
+    };
+    let (felt, seconds) = timed(|| released(|| crate::accuracy::felt::truncation(&space)));
     match felt {
         Ok(f) => s.felt = f,
         Err(e) => tracing::warn!(
