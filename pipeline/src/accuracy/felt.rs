@@ -126,7 +126,7 @@ pub fn truncation(s: &Space<'_>) -> Result<Option<FeltTruncation>> {
     let patches: &Patches = match s.contact {
         Some(p) => p,
         None => {
-            point_patches = crate::loads::patch::vertex_patches(&s.mesh, 0.0, |_| true);
+            point_patches = crate::loads::patch::vertex_patches(s.mesh, 0.0, |_| true);
             &point_patches
         }
     };
@@ -171,10 +171,10 @@ pub fn truncation(s: &Space<'_>) -> Result<Option<FeltTruncation>> {
             })
     };
     let chosen = sample(&s.mesh.nodes, patches, &movable, |k| modal(k).trace());
-    let chol = factor_stiffness(system, &s.dofs)?;
+    let chol = factor_stiffness(system, s.dofs)?;
     let list: Vec<(&[u32], &[f64])> = chosen.iter().map(|&k| patches.patch(k)).collect();
-    let exact = crate::compliance::patch_blocks(&s.dofs, &chol, &list, || {});
-    let surface = Surface::new(&s.mesh);
+    let exact = crate::compliance::patch_blocks(s.dofs, &chol, &list, || {});
+    let surface = Surface::new(s.mesh);
     let points: Vec<FeltPoint> = chosen
         .iter()
         .zip(&exact)
