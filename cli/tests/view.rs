@@ -1323,7 +1323,7 @@ fn a_second_page_a_reload_and_a_restart_show_the_set_up_the_server_keeps() {
 
 /// Design loads made in the page (issue 45): on the cantilever held at its root, a real click on
 /// the tip face makes a load (1 kN into that face by default), its row turned to 2 kN along -z,
-/// and "+ gravity" adds the weight. The page's compute serves both as static load cases equal to
+/// "+ gravity" adds the weight, and "exact felt stiffness" the static correction. The page's compute serves both as static load cases equal to
 /// `ves precompute` of the scene it saves (same mesh: the same largest displacement and stress),
 /// each balanced by the supports' reaction, the weight ρVg.
 #[test]
@@ -1392,6 +1392,10 @@ fn loads_made_in_the_page_equal_the_saved_scene_and_balance() {
         note.contains("the supports react") && note.contains("balancing the load"),
         "{note}"
     );
+    // "exact felt stiffness" ticked: the static correction in the scene, and the line says so.
+    assert_eq!(page["corrected"]["region"], "surface", "{page}");
+    let line = page["line"].as_str().unwrap_or_default();
+    assert!(line.contains("felt compliance exact (static correction)"), "{line}");
 
     // The saved scene, computed by `ves precompute`: the same cases on the same mesh.
     let saved = dir.path().join("saved.toml");

@@ -35,6 +35,8 @@ try {
   await page.fill('#designloads .designload:first-child input.magnitude', '2000');
   await page.press('#designloads .designload:first-child input.magnitude', 'Tab');
   await page.click('#addgravity');
+  // The felt stiffness made exact (the static correction), as the computed line then says.
+  await page.check('#exactfelt');
   out.scene = await page.evaluate(() => JSON.parse(JSON.stringify({ load: window.ves.setup.scene().load, gravity: window.ves.setup.scene().gravity })));
   await page.keyboard.press('h');
 
@@ -46,6 +48,8 @@ try {
   }, undefined, 600000);
   out.loads = await page.evaluate(() => window.ves.hello.spaces[0].loads);
   out.options = await page.evaluate(() => [...document.querySelectorAll('#loadcase option')].map((o) => o.textContent));
+  out.line = await page.evaluate(() => document.getElementById('progresstext').textContent);
+  out.corrected = await page.evaluate(() => window.ves.setup.scene().static_correction || null);
 
   // The force's case shown: its stress, safety factor line and the supports' reaction.
   const index = out.loads.findIndex((c) => c.name === 'load1');

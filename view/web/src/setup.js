@@ -80,6 +80,7 @@ export function setupPanel(send, pick, faceMode, faceOf, light) {
     $('size').value = mesh.size ? plain(mesh.size / MM) : '';
     $('modecount').value = String((scene.modes || {}).count || 12);
     $('stressfield').checked = Boolean((scene.stress || {}).enabled);
+    $('exactfelt').checked = Boolean(scene.static_correction);
     drawSupports();
   }
 
@@ -133,6 +134,8 @@ export function setupPanel(send, pick, faceMode, faceOf, light) {
       row.append(' ', held, stiffness, unit, ' ', del);
       list.appendChild(row);
     });
+    // The static correction needs a held part (a free body's K is singular).
+    $('exactfelt').disabled = !fixed.length;
     // Whether the loads have supports to react them.
     loads.draw();
   }
@@ -150,6 +153,8 @@ export function setupPanel(send, pick, faceMode, faceOf, light) {
     scene.mesh = mesh;
     scene.modes = { ...(scene.modes || {}), count: Math.round(num('modecount')) };
     scene.stress = { enabled: $('stressfield').checked };
+    if ($('exactfelt').checked && (scene.fixed || []).length) scene.static_correction = { region: 'surface' };
+    else delete scene.static_correction;
     // Only a BREP file's numbers need a unit: a STEP or IGES file states its own.
     const g = { ...(scene.geometry || {}) };
     if (/\.brep$/i.test(geometry || '')) g.unit = $('unit').value; else delete g.unit;
