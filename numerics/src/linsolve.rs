@@ -361,29 +361,26 @@ impl Cholesky {
         );
     }
 
-    /// Bᵀ A⁻¹ B for `k` column-major right-hand sides `b` (n × k) with few nonzero rows each (a
-    /// contact patch's weights): Y = L⁻¹ P B by a forward solve that skips every supernode no
-    /// right-hand side reaches yet (a local load reaches only its path up the elimination tree),
-    /// then YᵀY, summed supernode by supernode as each block of Y is final. No backward solve.
-    /// None when the factor is simplicial (a small problem: the caller solves in full).
-    pub fn local_gram(&self, b: &[f64], k: usize) -> Option<faer::Mat<f64>> {
+    /// Bᵀ A⁻¹ B for `k` right-hand sides B given by their nonzero `entries` (row, column,
+    /// value; repeated ones add), few to a column (a contact patch's weights): Y = L⁻¹ P B by a
+    /// forward solve that skips every supernode no right-hand side reaches yet (a local load
+    /// reaches only its path up the elimination tree), then YᵀY, summed supernode by supernode
+    /// as each block of Y is final. No backward solve. None when the factor is simplicial (a
+    /// small problem: the caller solves in full) or an entry is out of range.
+    pub fn local_gram(&self, entries: &[(usize, usize, f64)], k: usize) -> Option<faer::Mat<f64>> {
         use faer::sparse::linalg::cholesky::supernodal::SupernodalLltRef;
         let SymbolicCholeskyRaw::Supernodal(symbolic) = self.symbolic.raw() else {
             return None;
         };
         let n = symbolic.nrows();
-        if b.len() != n * k {
+        if entries.iter().any(|&(i, j, _)| i >= n || j >= k) {
             return None;
         }
         let llt = SupernodalLltRef::<usize, f64>::new(symbolic, &self.values);
         let mut x = faer::Mat::<f64>::zeros(n, k);
         let inv = self.symbolic.perm().map(|p| p.arrays().1);
-        for j in 0..k {
-            for (old, &v) in b[j * n..(j + 1) * n].iter().enumerate() {
-                if v != 0.0 {
-                    x[(inv.map_or(old, |inv| inv[old]), j)] = v;
-                }
-            }
+        for &(old, j, v) in entries {
+            x[(inv.map_or(old, |inv| inv[old]), j)] += v;
         }
         let mut gram = faer::Mat::<f64>::zeros(k, k);
         for s in 0..symbolic.n_supernodes() {
@@ -534,7 +531,12 @@ mod tests {
         for (i, v) in b[6 * n..].iter_mut().enumerate() {
             *v = ((i * 37 % 101) as f64 - 50.0) / 50.0;
         }
-        let g = chol.local_gram(&b, k).expect("a supernodal factor");
+        let entries: Vec<(usize, usize, f64)> = (0..k)
+            .flat_map(|j| (0..n).map(move |i| (i, j)))
+            .filter(|&(i, j)| b[j * n + i] != 0.0)
+            .map(|(i, j)| (i, j, b[j * n + i]))
+            .collect();
+        let g = chol.local_gram(&entries, k).expect("a supernodal factor");
         let mut x = b.clone();
         chol.solve_many_in_place(&mut x, k);
         let want = |p: usize, q: usize| -> f64 { (0..n).map(|i| b[p * n + i] * x[q * n + i]).sum() };

@@ -79,24 +79,29 @@ pub fn patch_blocks(
         .par_chunks(VERTICES_PER_BLOCK)
         .flat_map_iter(|chunk| {
             let nrhs = 3 * chunk.len();
-            let mut x = vec![0.0; nf * nrhs];
-            for (k, &p) in chunk.iter().enumerate() {
-                let (nodes, weights) = patches[p];
-                for c in 0..3 {
-                    let rhs = &mut x[(3 * k + c) * nf..(3 * k + c + 1) * nf];
-                    for (&a, &w) in nodes.iter().zip(weights) {
-                        let f = dofs.free_of[3 * a as usize + c];
-                        if f != u32::MAX {
-                            rhs[f as usize] += w;
-                        }
-                    }
-                }
-            }
-            let blocks: Vec<[[f64; 3]; 3]> = match chol.local_gram(&x, nrhs) {
+            // Right-hand side 3k + c: patch k's weights on its nodes' component c.
+            let entries: Vec<(usize, usize, f64)> = chunk
+                .iter()
+                .enumerate()
+                .flat_map(|(k, &p)| {
+                    let (nodes, weights) = patches[p];
+                    (0..3).flat_map(move |c| {
+                        nodes.iter().zip(weights).filter_map(move |(&a, &w)| {
+                            let f = dofs.free_of[3 * a as usize + c];
+                            (f != u32::MAX).then_some((f as usize, 3 * k + c, w))
+                        })
+                    })
+                })
+                .collect();
+            let blocks: Vec<[[f64; 3]; 3]> = match chol.local_gram(&entries, nrhs) {
                 Some(g) => (0..chunk.len())
                     .map(|k| std::array::from_fn(|a| std::array::from_fn(|b| g[(3 * k + a, 3 * k + b)])))
                     .collect(),
                 None => {
+                    let mut x = vec![0.0; nf * nrhs];
+                    for &(f, j, w) in &entries {
+                        x[j * nf + f] += w;
+                    }
                     chol.solve_many_in_place(&mut x, nrhs);
                     chunk
                         .iter()
