@@ -49,7 +49,7 @@ fn main() -> Result<()> {
                     &chol,
                     &[(patch.nodes.as_slice(), patch.weights.as_slice())],
                     || (),
-                )[0];
+                )?[0];
                 let g = nalgebra::Matrix3::from_fn(|a, b| block[a][b]);
                 felt.push((n.transpose() * g * n)[0]);
             }

@@ -45,7 +45,7 @@ pub fn surface_compliance_with(d: &Discretized, chol: &Cholesky, patches: &Patch
     require_supported(d)?;
     let all: Vec<(&[u32], &[f64])> = (0..patches.centres.len()).map(|k| patches.patch(k)).collect();
     let bar = crate::progress::count(all.len() as u64, "vertices (static correction)");
-    let blocks = patch_blocks(&d.dofs, chol, &all, || bar.inc(VERTICES_PER_BLOCK as u64));
+    let blocks = patch_blocks(&d.dofs, chol, &all, || bar.inc(VERTICES_PER_BLOCK as u64))?;
     Ok(Compliance {
         nodes: patches.centres.clone(),
         blocks,
@@ -64,8 +64,12 @@ pub fn patch_blocks(
     chol: &Cholesky,
     patches: &[(&[u32], &[f64])],
     tick: impl Fn() + Sync,
-) -> Vec<[[f64; 3]; 3]> {
+) -> Result<Vec<[[f64; 3]; 3]>> {
     let nf = dofs.free_count();
+    // Each block in flight holds n × 3·VERTICES_PER_BLOCK values (one per core), asked for first:
+    // 384 MB a core at a million unknowns.
+    let columns = 3 * VERTICES_PER_BLOCK.min(patches.len()) * rayon::current_num_threads();
+    crate::memory::ensure_fits("the compliance blocks' solves", 8 * (nf * columns) as u64)?;
     // Where each patch's centre falls in the factor's order (a held node: at the end).
     let place = |(nodes, _): &(&[u32], &[f64])| {
         nodes
@@ -132,7 +136,7 @@ pub fn patch_blocks(
     for (p, block) in solved {
         out[p] = block;
     }
-    out
+    Ok(out)
 }
 
 #[cfg(test)]
@@ -173,6 +177,7 @@ mod tests {
             .map(|at| {
                 let list: Vec<(&[u32], &[f64])> = at.iter().map(|p| (&p.nodes[..], &p.weights[..])).collect();
                 patch_blocks(&d.dofs, &chol, &list, || ())
+                    .expect("fits")
                     .iter()
                     .zip(points)
                     .map(|(b, &(_, axis))| b[axis][axis])

@@ -173,7 +173,7 @@ pub fn truncation(s: &Space<'_>) -> Result<Option<FeltTruncation>> {
     let chosen = sample(&s.mesh.nodes, patches, &movable, |k| modal(k).trace());
     let chol = factor_stiffness(system, s.dofs)?;
     let list: Vec<(&[u32], &[f64])> = chosen.iter().map(|&k| patches.patch(k)).collect();
-    let exact = crate::compliance::patch_blocks(s.dofs, &chol, &list, || {});
+    let exact = crate::compliance::patch_blocks(s.dofs, &chol, &list, || {})?;
     let surface = Surface::new(s.mesh);
     let points: Vec<FeltPoint> = chosen
         .iter()

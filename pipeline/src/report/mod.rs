@@ -661,7 +661,7 @@ impl Sweep<'_> {
             .iter()
             .map(|(p, _)| (p.nodes.as_slice(), p.weights.as_slice()))
             .collect();
-        let probe_blocks = crate::compliance::patch_blocks(&d.dofs, &chol, &patches, || ());
+        let probe_blocks = crate::compliance::patch_blocks(&d.dofs, &chol, &patches, || ())?;
         let t = Instant::now();
         let stepping = self.stepping();
         let sys = FullSystem::new(d, stepping)?;
