@@ -1346,6 +1346,13 @@ fn loads_made_in_the_page_equal_the_saved_scene_and_balance() {
         .expect("copy the screenshot");
     }
     assert_eq!(page["before"], "none", "{page}");
+    // Held and without the static correction: the line says what the modes miss of the felt
+    // compliance, and which box makes it exact.
+    let first = page["firstLine"].as_str().unwrap_or_default();
+    assert!(
+        first.contains("felt compliance: the 6 modes miss") && first.contains("tick \"exact felt stiffness\""),
+        "{first}"
+    );
     // The click made load1 on one face, 1 kN into it (the tip face's outward normal is +x).
     let vec3 = |v: &serde_json::Value| -> [f64; 3] { [0, 1, 2].map(|k| v[k].as_f64().unwrap_or(f64::NAN)) };
     let picked = &page["picked"][0];

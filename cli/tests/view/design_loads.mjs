@@ -18,6 +18,7 @@ try {
     return s && s.served && window.ves.ready && window.ves.status && !window.ves.status.computing;
   }, undefined, 600000);
   out.before = await page.evaluate(() => document.getElementById('loadsnote').textContent);
+  out.firstLine = await page.evaluate(() => document.getElementById('progresstext').textContent);
 
   // The tip face, seen from +x, under the cursor: a click makes load1.
   await page.keyboard.press('x');

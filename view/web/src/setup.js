@@ -15,6 +15,8 @@ const isPreset = (p, m) => close(m.young, p.young) && close(m.poisson, p.poisson
 // JSON with its keys sorted: the server's scenes come back in its order, not the page's.
 const canon = (v) => JSON.stringify(v, (k, x) => (x && typeof x === 'object' && !Array.isArray(x)
   ? Object.fromEntries(Object.keys(x).sort().map((key) => [key, x[key]])) : x));
+// The CLI's advice in the page's words: its scene key is this panel's box.
+const inPage = (summary) => summary.replace('[static_correction] makes it exact', 'tick "exact felt stiffness" to make it exact');
 const when = (t) => new Date(1000 * t).toLocaleString([], { month: 'short', day: 'numeric', hour: '2-digit', minute: '2-digit' });
 
 /** Wires the panel to `send` (a JSON message to the server), `pick` (asks for one click on
@@ -385,7 +387,7 @@ export function setupPanel(send, pick, faceMode, faceOf, light) {
       // stopped by memory …), as the CLI prints them: not only on the server's stderr.
       $('computewarnings').replaceChildren(...(msg.warnings || []).map(warningRow));
       // A page opened (or reloaded) after the compute: what is served, not an empty line.
-      if (msg.summary && !$('progresstext').textContent) $('progresstext').textContent = `computed: ${msg.summary}`;
+      if (msg.summary && !$('progresstext').textContent) $('progresstext').textContent = `computed: ${inPage(msg.summary)}`;
       showState();
     },
     /** Compute progress, its end, or why it failed. */
@@ -400,13 +402,13 @@ export function setupPanel(send, pick, faceMode, faceOf, light) {
         ready = msg.summary;
         $('setuperror').textContent = '';
         $('progressbar').style.width = '100%';
-        $('progresstext').textContent = `computed: ${msg.summary}`;
+        $('progresstext').textContent = `computed: ${inPage(msg.summary)}`;
         saved = msg.scene;
         $('savescene').disabled = false;
       } else if (msg.type === 'checked') {
         ready = null;
         $('progressbar').style.width = '100%';
-        $('progresstext').textContent = msg.error ? `computed; its checks did not finish: ${msg.error}` : `computed: ${msg.summary}`;
+        $('progresstext').textContent = msg.error ? `computed; its checks did not finish: ${msg.error}` : `computed: ${inPage(msg.summary)}`;
       } else if (msg.type === 'compute_error') {
         $('progresstext').textContent = '';
         $('progressbar').style.width = '0';
