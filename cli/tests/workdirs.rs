@@ -10,8 +10,18 @@ use std::os::unix::process::ExitStatusExt;
 use std::path::{Path, PathBuf};
 use std::process::{Command, Stdio};
 
-fn step() -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("../cases/cantilever/cantilever.step")
+/// The cantilever's STEP file, copied into a folder of its own: `ves view` keeps its project
+/// beside the part, and one left beside the case's own file (by an earlier run, or by the other
+/// test of this file at the same time) is resumed without a compute.
+fn step() -> (tempfile::TempDir, PathBuf) {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let path = dir.path().join("cantilever.step");
+    std::fs::copy(
+        Path::new(env!("CARGO_MANIFEST_DIR")).join("../cases/cantilever/cantilever.step"),
+        &path,
+    )
+    .expect("copy the part");
+    (dir, path)
 }
 
 /// A process id no process has now: a child's, once waited for.
@@ -52,7 +62,8 @@ fn ves_view_s_folder_is_private_gone_after_a_signal_and_stale_ones_are_removed_a
         let tmp = tempfile::tempdir().expect("tempdir");
         let dead = dead_pid();
         let stale = [stale(tmp.path(), "view", dead), stale(tmp.path(), "verify", dead)];
-        let (mut server, _out, _url) = start_view(&step(), "0", "60", &[("TMPDIR", tmp.path())], Stdio::null());
+        let (_part, step) = step();
+        let (mut server, _out, _url) = start_view(&step, "0", "60", &[("TMPDIR", tmp.path())], Stdio::null());
         let pid = server.id();
         let own: Vec<_> = owned_by(tmp.path(), pid)
             .into_iter()
@@ -127,7 +138,8 @@ fn page_status(port: u16) -> Option<u16> {
 #[test]
 fn a_compute_process_that_dies_fails_the_compute_and_the_server_stays_up() {
     let tmp = tempfile::tempdir().expect("tempdir");
-    let (mut server, mut out, url) = start_view(&step(), "0", "60", &[("TMPDIR", tmp.path())], Stdio::piped());
+    let (_part, step) = step();
+    let (mut server, mut out, url) = start_view(&step, "0", "60", &[("TMPDIR", tmp.path())], Stdio::piped());
     let port: u16 = url
         .trim_start_matches("http://127.0.0.1:")
         .split('/')

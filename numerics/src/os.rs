@@ -58,6 +58,34 @@ pub fn die_with_parent() {
     unsafe { libc::prctl(libc::PR_SET_PDEATHSIG, libc::SIGKILL as libc::c_ulong, 0, 0, 0) };
 }
 
+/// Kills this process's children (SIGKILL) and waits for each to end: its processes (a
+/// compute, a mesh worker) stop writing into its folders before they are removed. Children are
+/// found by their parent id in `/proc`.
+pub fn kill_children() {
+    let me = std::process::id();
+    let Ok(entries) = std::fs::read_dir("/proc") else {
+        return;
+    };
+    let children: Vec<libc::pid_t> = entries
+        .flatten()
+        .filter_map(|e| e.file_name().to_str()?.parse::<libc::pid_t>().ok())
+        .filter(|&pid| {
+            let stat = std::fs::read_to_string(format!("/proc/{pid}/stat")).unwrap_or_default();
+            // The parent is the second field after the command name in parentheses.
+            stat.rsplit_once(") ")
+                .and_then(|(_, rest)| rest.split_whitespace().nth(1)?.parse::<u32>().ok())
+                == Some(me)
+        })
+        .collect();
+    for &pid in &children {
+        // SAFETY: kill and waitpid on a child of this process; a null status pointer is allowed.
+        unsafe {
+            libc::kill(pid, libc::SIGKILL);
+            libc::waitpid(pid, std::ptr::null_mut(), 0);
+        }
+    }
+}
+
 /// This process's parent's id.
 pub fn parent_pid() -> u32 {
     // SAFETY: getppid has no arguments and cannot fail.
