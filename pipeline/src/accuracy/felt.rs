@@ -145,32 +145,32 @@ pub fn truncation(s: &Space<'_>) -> Result<Option<FeltTruncation>> {
     if movable.is_empty() || r == 0 {
         return Ok(None);
     }
-    // W φⱼ for patch k: 3 × r.
-    let modal_rows = |k: usize| -> Vec<[f64; 3]> {
+    // Σⱼ (W φⱼ)(W φⱼ)ᵀ / λⱼ for patch k.
+    let modal = |k: usize| -> Matrix3<f64> {
         let (nodes, weights) = patches.patch(k);
-        (0..r)
-            .map(|j| {
+        s.modes
+            .eigenvalues
+            .iter()
+            .enumerate()
+            .fold(Matrix3::zeros(), |acc, (j, &l)| {
                 let phi = &s.modes.vectors[j * nf..(j + 1) * nf];
-                std::array::from_fn(|c| {
+                let v = Vector3::from_fn(|c, _| {
                     nodes
                         .iter()
                         .zip(weights)
                         .filter_map(|(&a, &w)| free_of(a, c).map(|f| w * phi[f]))
                         .sum()
-                })
-            })
-            .collect()
-    };
-    let modal = |k: usize| -> Matrix3<f64> {
-        modal_rows(k)
-            .iter()
-            .zip(&s.modes.eigenvalues)
-            .fold(Matrix3::zeros(), |acc, (w, &l)| {
-                let v = Vector3::from(*w);
+                });
                 acc + v * v.transpose() / l
             })
     };
-    let chosen = sample(&s.mesh.nodes, patches, &movable, |k| modal(k).trace());
+    // The most compliant movable patch, each scored once.
+    let softest = movable
+        .iter()
+        .map(|&k| (k, modal(k).trace()))
+        .max_by(|a, b| a.1.total_cmp(&b.1))
+        .map_or(movable[0], |(k, _)| k);
+    let chosen = sample(&s.mesh.nodes, patches, &movable, softest);
     let chol = factor_stiffness(system, s.dofs)?;
     let list: Vec<(&[u32], &[f64])> = chosen.iter().map(|&k| patches.patch(k)).collect();
     let exact = crate::compliance::patch_blocks(s.dofs, &chol, &list, || {})?;
@@ -229,17 +229,12 @@ fn worst_share(c: &Matrix3<f64>, missed: &Matrix3<f64>) -> f64 {
     m.symmetric_eigenvalues().max()
 }
 
-/// [`SAMPLES`] of the patches `candidates` (indices into `patches`): the one whose modal
-/// compliance `score` is largest (where the modes make the part softest), then each the
-/// candidate farthest from those chosen, so the points spread over the whole surface.
-fn sample(nodes: &[[f64; 3]], patches: &Patches, candidates: &[usize], score: impl Fn(usize) -> f64) -> Vec<usize> {
+/// [`SAMPLES`] of the patches `candidates` (indices into `patches`): `first` (where the modes
+/// make the part softest), then each the candidate farthest from those chosen, so the points
+/// spread over the whole surface.
+fn sample(nodes: &[[f64; 3]], patches: &Patches, candidates: &[usize], first: usize) -> Vec<usize> {
     let at = |k: usize| nodes[patches.centres[k] as usize];
     let dist2 = |a: [f64; 3], b: [f64; 3]| (0..3).map(|i| (a[i] - b[i]).powi(2)).sum::<f64>();
-    let first = candidates
-        .iter()
-        .copied()
-        .max_by(|&a, &b| score(a).total_cmp(&score(b)))
-        .unwrap_or(candidates[0]);
     let mut chosen = vec![first];
     let mut nearest: Vec<f64> = candidates.iter().map(|&k| dist2(at(k), at(first))).collect();
     while chosen.len() < SAMPLES.min(candidates.len()) {

@@ -109,7 +109,6 @@ pub(super) fn solve_space_checked(
     let name = voi.map_or("global".to_string(), |v| v.name.clone());
     // `run_first` asks for them later only on a fixed mesh size (a refinement needs them).
     let later = checks == Checks::Later;
-    let checks_later = later;
     debug_assert!(!later || scene.mesh.target_error.is_none());
     let (mut solved, sturm, estimated) = match scene.mesh.target_error {
         Some(target) => {
@@ -158,7 +157,7 @@ pub(super) fn solve_space_checked(
     if let Some(s) = &sturm {
         advice::report_sturm(&name, s);
     }
-    let later = AfterSolve {
+    let after = AfterSolve {
         sturm,
         estimated,
         compliance,
@@ -174,8 +173,8 @@ pub(super) fn solve_space_checked(
         nonlinear,
         nonlinear_s,
     };
-    let mut space = store(name, voi, solved, later);
-    if !checks_later {
+    let mut space = store(name, voi, solved, after);
+    if !later {
         felt(&mut space)?;
     }
     Ok(space)
