@@ -10,17 +10,12 @@ use std::os::unix::process::ExitStatusExt;
 use std::path::{Path, PathBuf};
 use std::process::{Command, Stdio};
 
-/// The cantilever's STEP file, copied into a folder of its own: `ves view` keeps its project
-/// beside the part, and one left beside the case's own file (by an earlier run, or by the other
-/// test of this file at the same time) is resumed without a compute.
+/// The cantilever's STEP file in a folder of its own (`common::workdir`'s copy): `ves view`
+/// keeps its project beside the part, and one left beside the case's own file (by an earlier
+/// run, or by the other test of this file at the same time) is resumed without a compute.
 fn step() -> (tempfile::TempDir, PathBuf) {
-    let dir = tempfile::tempdir().expect("tempdir");
-    let path = dir.path().join("cantilever.step");
-    std::fs::copy(
-        Path::new(env!("CARGO_MANIFEST_DIR")).join("../cases/cantilever/cantilever.step"),
-        &path,
-    )
-    .expect("copy the part");
+    let (dir, _) = common::workdir(common::GOOD);
+    let path = dir.path().join("beam.step");
     (dir, path)
 }
 
