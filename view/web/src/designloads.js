@@ -37,6 +37,12 @@ export function designLoads(ctx) {
     return out.concat(AXES);
   }
 
+  /** A new force's direction: into `entry`'s first face when that face is flat, else down (-z). */
+  function pushing(entry) {
+    const d = directions(entry);
+    return d.length > AXES.length ? d[0][1] : [0, 0, -1];
+  }
+
   /** The area of `entry`'s faces (m²), when the page knows every one. */
   function area(entry) {
     const faces = (entry.faces || []).map(ctx.faceOf);
@@ -95,7 +101,7 @@ export function designLoads(ctx) {
       } else {
         const p = entry.pressure;
         delete entry.pressure;
-        entry.force = scaled(directions(entry)[0][1], a ? Math.abs(p) * a : 1000);
+        entry.force = scaled(pushing(entry), a ? Math.abs(p) * a : 1000);
       }
       changed();
     };
@@ -170,7 +176,7 @@ export function designLoads(ctx) {
     if (picking === 'new') {
       // A new load: 1 kN into its first face when that face is flat, else down.
       const entry = { name: freshName(loads), faces: [tag] };
-      entry.force = scaled(directions(entry)[0][1], 1000);
+      entry.force = scaled(pushing(entry), 1000);
       loads.push(entry);
       picking = entry;
     } else {
