@@ -1187,6 +1187,20 @@ fn a_nonlinear_part_is_drawn_at_true_size_and_bends_on_an_arc() {
     );
 }
 
+/// Browser script `script` on `ves view` of the cantilever case copied into `dir` (with its own
+/// mesh cache), its mesh size replaced by `mesh` and 6 modes: the page's JSON.
+fn cantilever_in_the_page(dir: &Path, mesh: &str, script: &str) -> serde_json::Value {
+    let case = Path::new(env!("CARGO_MANIFEST_DIR")).join("../cases/cantilever");
+    std::fs::copy(case.join("cantilever.step"), dir.join("cantilever.step")).expect("copy the part");
+    let scene = std::fs::read_to_string(case.join("scene.toml"))
+        .expect("the scene")
+        .replace("size = 0.025", mesh)
+        .replace("count = 20", "count = 6");
+    let path = write_file(dir, "scene.toml", &scene);
+    let cache = dir.join("cache");
+    view_and_browse(&path, &[("VES_CACHE_DIR", &cache)], script, dir, &[]).0
+}
+
 /// A refinement that stopped short of its target says so in the page with one click that
 /// works: the cantilever at 0.01 % within 5000 unknowns stops, its warning carries an
 /// "accept X %" button, and clicking it computes the advised target, met on the mesh it stopped
@@ -1194,15 +1208,7 @@ fn a_nonlinear_part_is_drawn_at_true_size_and_bends_on_an_arc() {
 #[test]
 fn a_refinement_that_stopped_is_accepted_in_one_click() {
     let dir = tempfile::tempdir().expect("a temporary directory");
-    let case = Path::new(env!("CARGO_MANIFEST_DIR")).join("../cases/cantilever");
-    std::fs::copy(case.join("cantilever.step"), dir.path().join("cantilever.step")).expect("copy the part");
-    let scene = std::fs::read_to_string(case.join("scene.toml"))
-        .expect("the scene")
-        .replace("size = 0.025", "target_error = 0.0001\nmax_dofs = 5000")
-        .replace("count = 20", "count = 6");
-    let path = write_file(dir.path(), "scene.toml", &scene);
-    let cache = dir.path().join("cache");
-    let (page, _, _) = view_and_browse(&path, &[("VES_CACHE_DIR", &cache)], "accept.mjs", dir.path(), &[]);
+    let page = cantilever_in_the_page(dir.path(), "target_error = 0.0001\nmax_dofs = 5000", "accept.mjs");
     let (before, after) = (&page["before"], &page["after"]);
     assert!(
         before["warnings"]
@@ -1329,15 +1335,7 @@ fn a_second_page_a_reload_and_a_restart_show_the_set_up_the_server_keeps() {
 #[test]
 fn loads_made_in_the_page_equal_the_saved_scene_and_balance() {
     let dir = tempfile::tempdir().expect("a temporary directory");
-    let case = Path::new(env!("CARGO_MANIFEST_DIR")).join("../cases/cantilever");
-    std::fs::copy(case.join("cantilever.step"), dir.path().join("cantilever.step")).expect("copy the part");
-    let scene = std::fs::read_to_string(case.join("scene.toml"))
-        .expect("the scene")
-        .replace("size = 0.025", "size = 0.05")
-        .replace("count = 20", "count = 6");
-    let path = write_file(dir.path(), "scene.toml", &scene);
-    let cache = dir.path().join("cache");
-    let (page, _, _) = view_and_browse(&path, &[("VES_CACHE_DIR", &cache)], "design_loads.mjs", dir.path(), &[]);
+    let page = cantilever_in_the_page(dir.path(), "size = 0.05", "design_loads.mjs");
     if let Ok(keep) = std::env::var("VES_VIEW_SCREENSHOTS") {
         std::fs::copy(
             dir.path().join("design_loads.png"),
