@@ -24,7 +24,7 @@ pub use names::{FORMAT, VERSION};
 #[cfg(feature = "hdf5")]
 pub use read::{BasisReader, Nonlinear, ReadError, SpaceReader, guarded};
 #[cfg(feature = "hdf5")]
-pub use write::{FileData, LoadData, NonlinearData, SpaceData, WriteError, write_file};
+pub use write::{FileData, LoadData, NonlinearData, PeakRecord, SpaceData, WriteError, write_file};
 
 /// An input that cannot be used: the file (or other input) it came from and what is wrong and
 /// what to change, shown as `path: message`. The one error of the readers of files (a basis, a

@@ -180,6 +180,17 @@ pub mod load {
     pub const MAX_VON_MISES: &str = "max_von_mises";
     /// The values of [`KIND`].
     pub const KINDS: [&str; 3] = ["force", "pressure", "gravity"];
+    /// Prefix of the optional attributes of the case's largest von Mises peak as studied on
+    /// meshes refined around it: `peak_verdict` (string, one of [`VERDICTS`]), `peak_value`
+    /// (f64, Pa), `peak_error` (f64, Pa: the value's estimated error; absent when none is
+    /// stated), `peak_refined` (f64[2], Pa: the value with the element size there halved, then
+    /// quartered), `peak_position` (f64[3], m).
+    pub const PEAK: &str = "peak";
+    /// Prefix of the same attributes for the largest peak that is not singular, when the
+    /// largest is.
+    pub const REGULAR_PEAK: &str = "regular_peak";
+    /// The values of a peak's verdict.
+    pub const VERDICTS: [&str; 4] = ["converging", "slow", "singular", "unsettled"];
     /// Most load cases a space may hold (counted before any is read).
     pub const MAX_LOADS: usize = 64;
 }

@@ -7,7 +7,7 @@ use ndarray::{Array1, Array2, Array3};
 use std::path::Path;
 
 mod loads;
-pub use loads::LoadData;
+pub use loads::{LoadData, PeakRecord};
 
 /// Writing failed: what was being written and HDF5's message.
 #[derive(Debug, thiserror::Error)]
@@ -540,6 +540,20 @@ mod tests {
             displacement: &u,
             von_mises: &vm,
             stress: &stress,
+            peak: Some(super::PeakRecord {
+                verdict: "singular".into(),
+                value: 4.0,
+                error: None,
+                refined: [4.5, 5.1],
+                position: [0.0, 1.0, 0.0],
+            }),
+            regular_peak: Some(super::PeakRecord {
+                verdict: "converging".into(),
+                value: 3.0,
+                error: Some(0.1),
+                refined: [3.05, 3.07],
+                position: [1.0, 0.0, 0.0],
+            }),
         };
         let path = temp("loads");
         write_tet_with(&path, None, std::slice::from_ref(&load)).unwrap();
@@ -556,6 +570,7 @@ mod tests {
             (l.reaction, l.total_force, l.stress.len()),
             ([0.0, 0.0, 10.0], [0.0, 0.0, -10.0], 24)
         );
+        assert_eq!((&l.peak, &l.regular_peak), (&load.peak, &load.regular_peak));
         drop(space);
         drop(file);
         // Older files, and scenes without loads: none.
@@ -581,6 +596,8 @@ mod tests {
             ("max", "max_displacement says"),
             ("dataset", "loads is not a group"),
             ("mask", "mesh/fixed_mask is 0 at node 0 but mesh/fixed_dofs holds it"),
+            ("verdict", "peak_verdict is \"sure\", not one of"),
+            ("error", "regular_peak_error missing, negative"),
         ] {
             write_tet_with(&path, None, std::slice::from_ref(&load)).unwrap();
             {
@@ -618,6 +635,14 @@ mod tests {
                             .with_data(&ndarray::arr1(&[0.0; 3]))
                             .create("loads")
                             .unwrap();
+                    }
+                    "verdict" => {
+                        c.delete_attr("peak_verdict").unwrap();
+                        crate::strings::write(&c, "peak_verdict", "sure").unwrap();
+                    }
+                    "error" => {
+                        c.delete_attr("regular_peak_error").unwrap();
+                        super::attr_f64(&c, "regular_peak_error", -1.0).unwrap();
                     }
                     "mask" => {
                         f.dataset("spaces/global/mesh/fixed_mask")

@@ -138,7 +138,16 @@ struct RawGravity {
 #[serde(deny_unknown_fields)]
 pub struct StressSettings {
     /// Compute and store the modal stress.
+    #[serde(default)]
     pub enabled: bool,
+    /// Study each load case's peak von Mises on meshes refined around it (its error, or that it
+    /// is singular); default true.
+    #[serde(default = "yes")]
+    pub peak_error: bool,
+}
+
+fn yes() -> bool {
+    true
 }
 
 /// Optional `[[probe]]` entries (a compatible v1 extension): a point force applied at the surface
@@ -543,6 +552,9 @@ pub struct Scene {
     pub contact_radius: f64,
     /// Whether each mode's stress is stored (`[stress] enabled = true`).
     pub stress: bool,
+    /// Whether each load case's peak stress is studied on meshes refined around it
+    /// (`[stress] peak_error`, default true).
+    pub peak_error: bool,
     /// Probe points for `ves report`.
     pub probes: Vec<Probe>,
     /// Service load cases (`[[load]]`, then `[gravity]`), each solved statically.
@@ -893,6 +905,7 @@ impl Scene {
             static_correction: raw.static_correction,
             contact_radius: contact_radius(raw.contact).map_err(err)?,
             stress: raw.stress.is_some_and(|s| s.enabled),
+            peak_error: raw.stress.is_none_or(|s| s.peak_error),
             probes: raw.probe,
             loads: load_cases(&raw.load, raw.gravity.as_ref(), !fixed_empty).map_err(err)?,
             nonlinear,

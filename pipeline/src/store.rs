@@ -100,6 +100,8 @@ impl Space<'_> {
                 displacement: &l.displacement,
                 von_mises: &l.von_mises,
                 stress: &l.stress,
+                peak: l.peaks.first().map(crate::accuracy::peak::PeakStress::record),
+                regular_peak: crate::accuracy::peak::regular(&l.peaks).map(crate::accuracy::peak::PeakStress::record),
             })
             .collect()
     }
@@ -322,6 +324,10 @@ pub struct LoadInfo {
     pub reaction_n: [f64; 3],
     /// |reaction + applied| over the sum of the nodal loads' magnitudes.
     pub balance_residual: f64,
+    /// The largest von Mises peak's value and error, or that it is singular and the largest
+    /// that is not, when the file has the study.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub peak_stress: Option<String>,
 }
 
 /// What `ves info` shows of a basis file.
@@ -380,6 +386,7 @@ pub fn info(path: &Path) -> Result<BasisInfo> {
                     max_von_mises_pa: l.max_von_mises,
                     reaction_n: l.reaction,
                     balance_residual: l.balance_residual,
+                    peak_stress: crate::accuracy::peak::case_text(l.peak.as_ref(), l.regular_peak.as_ref()),
                 })
                 .collect(),
         });

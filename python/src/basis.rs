@@ -355,6 +355,8 @@ impl Space {
         d.set_item("balance_residual", l.balance_residual)?;
         d.set_item("max_displacement", l.max_displacement)?;
         d.set_item("max_von_mises", l.max_von_mises)?;
+        d.set_item("peak", peak(py, l.peak.as_ref())?)?;
+        d.set_item("regular_peak", peak(py, l.regular_peak.as_ref())?)?;
         Ok(d)
     }
 
@@ -644,4 +646,19 @@ impl Basis {
     fn __repr__(&self) -> String {
         format!("<ves.Basis {} ({} spaces)>", self.path.display(), self.spaces.len())
     }
+}
+
+/// A studied von Mises peak as a dict (verdict, value and error in Pa — error None when none is
+/// stated — refined values, position in m), or None.
+fn peak<'py>(py: Python<'py>, p: Option<&ves_format::PeakRecord>) -> PyResult<Option<Bound<'py, PyDict>>> {
+    let Some(p) = p else {
+        return Ok(None);
+    };
+    let d = PyDict::new(py);
+    d.set_item("verdict", &p.verdict)?;
+    d.set_item("value", p.value)?;
+    d.set_item("error", p.error)?;
+    d.set_item("refined", p.refined.to_vec())?;
+    d.set_item("position", p.position.to_vec())?;
+    Ok(Some(d))
 }

@@ -86,7 +86,7 @@ class Space:
     def load_cases(self) -> List[str]:
         """The static load cases' names ([[load]], [gravity]), in the file's order."""
     def load(self, name: str) -> dict:
-        """One load case: kind, displacement (n, 3) m, von_mises (n,) Pa, stress (nv, 6) Pa, total_force, reaction (3,) N, balance_residual, max_displacement, max_von_mises."""
+        """One load case: kind, displacement (n, 3) m, von_mises (n,) Pa, stress (nv, 6) Pa, total_force, reaction (3,) N, balance_residual, max_displacement, max_von_mises, peak and regular_peak (verdict, value, error Pa or None, refined, position; or None)."""
     @property
     def estimated_relative_error(self) -> Optional[npt.NDArray[np.float64]]:
         """Each mode's estimated relative discretization error, shape (r,), or None."""

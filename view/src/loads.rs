@@ -60,6 +60,37 @@ pub struct LoadInfo {
     pub max_displacement: f64,
     /// Largest corner-vertex von Mises stress, Pa.
     pub max_von_mises: f64,
+    /// The largest von Mises peak as studied on meshes refined around it, when the file has it.
+    pub peak: Option<Peak>,
+    /// The largest studied peak that is not singular, when the largest is.
+    pub regular_peak: Option<Peak>,
+}
+
+/// A studied von Mises peak as the hello sends it (the file's `peak_*` attributes).
+#[derive(Clone, Debug, PartialEq, serde::Serialize)]
+pub struct Peak {
+    /// `converging`, `slow`, `singular` or `unsettled`.
+    pub verdict: String,
+    /// Its value on the basis's mesh, Pa.
+    pub value: f64,
+    /// The value's estimated error, Pa (null: none stated).
+    pub error: Option<f64>,
+    /// The value with the element size there halved, then quartered, Pa.
+    pub refined: [f64; 2],
+    /// Where it is, m.
+    pub position: [f64; 3],
+}
+
+impl From<&ves_format::PeakRecord> for Peak {
+    fn from(p: &ves_format::PeakRecord) -> Peak {
+        Peak {
+            verdict: p.verdict.clone(),
+            value: p.value,
+            error: p.error,
+            refined: p.refined,
+            position: p.position,
+        }
+    }
 }
 
 /// The load cases of one served space, as listed in the hello.
@@ -115,6 +146,8 @@ fn info(c: &LoadCase) -> LoadInfo {
         reaction: c.reaction,
         max_displacement: c.max_displacement,
         max_von_mises: c.max_von_mises,
+        peak: c.peak.as_ref().map(Peak::from),
+        regular_peak: c.regular_peak.as_ref().map(Peak::from),
     }
 }
 

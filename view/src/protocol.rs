@@ -625,6 +625,8 @@ mod tests {
             displacement: (0..12).map(f64::from).collect(),
             von_mises: vec![10.0, 20.0, 30.0, 40.0],
             stress: vec![0.0; 18],
+            peak: None,
+            regular_peak: None,
         };
         let b = load_case(1, 2, &basis, &case).expect("fits");
         let u32s = |at: usize| u32::from_le_bytes([b[at], b[at + 1], b[at + 2], b[at + 3]]);

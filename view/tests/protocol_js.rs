@@ -140,6 +140,8 @@ fn the_page_decodes_what_the_server_encodes() {
         displacement: (0..12).map(|k| f64::from(k) * 0.5).collect(),
         von_mises: vec![10.0, 20.0, 30.0, 40.0],
         stress: vec![0.0; 18],
+        peak: None,
+        regular_peak: None,
     };
     let mut no_faces = basis.clone();
     no_faces.surface_faces = None;

@@ -63,6 +63,9 @@ impl Args {
                     l.max_von_mises_pa,
                     l.balance_residual
                 );
+                if let Some(text) = &l.peak_stress {
+                    println!("      {}", esc(text));
+                }
             }
         }
         Ok(())

@@ -29,6 +29,49 @@ pub struct LoadCase {
     pub von_mises: Vec<f64>,
     /// Stress at the corner vertices, [nv, 6] row-major (Voigt xx yy zz yz xz xy), Pa.
     pub stress: Vec<f64>,
+    /// Its largest von Mises peak as studied on meshes refined around it, when the file has it.
+    pub peak: Option<crate::PeakRecord>,
+    /// The largest studied peak that is not singular, when the largest is.
+    pub regular_peak: Option<crate::PeakRecord>,
+}
+
+/// The peak record under `prefix` on `g`: none when its verdict is absent; refused (a message)
+/// when present but incomplete or out of range.
+fn read_peak(g: &hdf5::Group, prefix: &str) -> Result<Option<crate::PeakRecord>, String> {
+    let name = |f: &str| crate::PeakRecord::attr(prefix, f);
+    let Some(verdict) = crate::strings::read(g, &name("verdict")) else {
+        return Ok(None);
+    };
+    if !ld::VERDICTS.contains(&verdict.as_str()) {
+        return Err(format!(
+            "{} is {verdict:?}, not one of {:?}",
+            name("verdict"),
+            ld::VERDICTS
+        ));
+    }
+    let non_negative = |f: &str| {
+        scalar_attr::<f64>(g, &name(f))
+            .filter(|v| v.is_finite() && *v >= 0.0)
+            .ok_or_else(|| format!("{} missing, negative or not a finite f64", name(f)))
+    };
+    let value = non_negative("value")?;
+    let error = if g.attr(&name("error")).is_ok() {
+        Some(non_negative("error")?)
+    } else {
+        None
+    };
+    let refined = f64_array_attr(g, &name("refined"), 2)
+        .filter(|v| v.iter().all(|x| *x >= 0.0))
+        .ok_or_else(|| format!("{} missing or not two finite f64 ≥ 0", name("refined")))?;
+    let position = f64_array_attr(g, &name("position"), 3)
+        .ok_or_else(|| format!("{} missing or not three finite f64", name("position")))?;
+    Ok(Some(crate::PeakRecord {
+        verdict,
+        value,
+        error,
+        refined: [refined[0], refined[1]],
+        position: [position[0], position[1], position[2]],
+    }))
 }
 
 impl SpaceReader<'_> {
@@ -111,6 +154,8 @@ impl SpaceReader<'_> {
                 displacement: array(ld::DISPLACEMENT, 2, &[n, 3])?,
                 von_mises: array(ld::VON_MISES, 1, &[n])?,
                 stress: array(ld::STRESS, 2, &[nv, 6])?,
+                peak: read_peak(&g, ld::PEAK).map_err(bad)?,
+                regular_peak: read_peak(&g, ld::REGULAR_PEAK).map_err(bad)?,
             };
             // The attributes are what a page shows first: they must be the data's.
             let largest_u = case

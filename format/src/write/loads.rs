@@ -26,6 +26,48 @@ pub struct LoadData<'a> {
     pub von_mises: &'a [f64],
     /// Stress at the corner vertices, [nv, 6] row-major (Voigt), Pa.
     pub stress: &'a [f64],
+    /// Its largest von Mises peak as studied on meshes refined around it, if studied.
+    pub peak: Option<PeakRecord>,
+    /// The largest studied peak that is not singular, when the largest is.
+    pub regular_peak: Option<PeakRecord>,
+}
+
+/// A von Mises peak of a load case studied on meshes refined around it (`peak_*` and
+/// `regular_peak_*` attributes, docs/format.md).
+#[derive(Clone, Debug, PartialEq)]
+pub struct PeakRecord {
+    /// `converging`, `slow`, `singular` or `unsettled`.
+    pub verdict: String,
+    /// Its value on the file's mesh, Pa.
+    pub value: f64,
+    /// The value's estimated error, Pa (none for a singular or unsettled peak).
+    pub error: Option<f64>,
+    /// The value with the element size there halved, then quartered, Pa.
+    pub refined: [f64; 2],
+    /// Where it is, m.
+    pub position: [f64; 3],
+}
+
+impl PeakRecord {
+    /// The attribute named `field` of the record written under `prefix`.
+    pub fn attr(prefix: &str, field: &str) -> String {
+        format!("{prefix}_{field}")
+    }
+}
+
+fn write_peak(c: &hdf5::Group, prefix: &str, p: &PeakRecord) -> Result<(), WriteError> {
+    let name = |f: &str| PeakRecord::attr(prefix, f);
+    attr_str(c, &name("verdict"), &p.verdict)?;
+    attr_f64(c, &name("value"), p.value)?;
+    if let Some(e) = p.error {
+        attr_f64(c, &name("error"), e)?;
+    }
+    c.new_attr_builder()
+        .with_data(&Array1::from(p.refined.to_vec()))
+        .create(name("refined").as_str())
+        .map(drop)
+        .ctx(&name("refined"))?;
+    attr_vec3(c, &name("position"), p.position)
 }
 
 /// Writes `mesh/fixed_mask` (1 where a node has a supported DOF) of `n` nodes.
@@ -84,6 +126,12 @@ pub(super) fn write_loads(g: &hdf5::Group, n: usize, nv: usize, loads: &[LoadDat
         attr_f64(&c, ld::BALANCE_RESIDUAL, l.balance_residual)?;
         attr_f64(&c, ld::MAX_DISPLACEMENT, l.max_displacement)?;
         attr_f64(&c, ld::MAX_VON_MISES, l.max_von_mises)?;
+        if let Some(p) = &l.peak {
+            write_peak(&c, ld::PEAK, p)?;
+        }
+        if let Some(p) = &l.regular_peak {
+            write_peak(&c, ld::REGULAR_PEAK, p)?;
+        }
     }
     Ok(())
 }

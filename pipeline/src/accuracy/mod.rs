@@ -7,6 +7,7 @@
 
 pub mod felt;
 pub mod indicator;
+pub mod peak;
 pub mod recovery;
 pub mod refine;
 pub mod richardson;

@@ -40,6 +40,9 @@ pub struct LoadResult {
     pub max_displacement: f64,
     /// Largest von Mises stress over the corner vertices, Pa.
     pub max_von_mises: f64,
+    /// Its peaks studied on meshes refined around them (the largest first;
+    /// [`crate::accuracy::peak`]); empty when not studied.
+    pub peaks: Vec<crate::accuracy::peak::PeakStress>,
 }
 
 /// One load case in the `--json` summary of `ves precompute` (docs/scene.md).
@@ -65,6 +68,13 @@ pub struct LoadSummary {
     pub support_reactions: Vec<SupportReaction>,
     /// |reaction + applied| over the sum of the nodal loads' magnitudes.
     pub balance_residual: f64,
+    /// Its von Mises peaks studied on meshes refined around them, the largest first: value,
+    /// error or `singular` ([`crate::accuracy::peak`]); empty when not studied.
+    pub peaks: Vec<crate::accuracy::peak::PeakStress>,
+    /// What that says in a line: the largest peak's value and error, or that it is singular and
+    /// the largest peak that is not (absent when not studied).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub peak_stress: Option<String>,
 }
 
 /// The force and moment one support exerts on the part in a load case. A DOF held by two
@@ -241,6 +251,11 @@ impl LoadResult {
             reaction_n: self.reaction,
             support_reactions: self.support_reactions.clone(),
             balance_residual: self.balance_residual,
+            peaks: self.peaks.clone(),
+            peak_stress: crate::accuracy::peak::case_text(
+                self.peaks.first().map(|p| p.record()).as_ref(),
+                crate::accuracy::peak::regular(&self.peaks).map(|p| p.record()).as_ref(),
+            ),
         }
     }
 }
@@ -459,6 +474,7 @@ fn finish(
         balance_residual,
         max_displacement,
         max_von_mises,
+        peaks: Vec::new(),
     })
 }
 

@@ -49,6 +49,8 @@ pub struct Timings {
     pub nonlinear: f64,
     /// The felt compliance's truncation at sampled surface points (held parts).
     pub felt_compliance: f64,
+    /// The load cases' peak stresses solved again on meshes refined around them.
+    pub peak_stress: f64,
     /// Writing the file.
     pub write: f64,
     /// Everything.
@@ -70,6 +72,7 @@ impl Timings {
         self.reactions += o.reactions;
         self.nonlinear += o.nonlinear;
         self.felt_compliance += o.felt_compliance;
+        self.peak_stress += o.peak_stress;
     }
 }
 

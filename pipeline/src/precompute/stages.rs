@@ -176,8 +176,37 @@ pub(super) fn solve_space_checked(
     let mut space = store(name, voi, solved, after);
     if !later {
         felt(&mut space)?;
+        peak_stress(scene, &mut space)?;
     }
     Ok(space)
+}
+
+/// The load cases' peak stresses studied on meshes refined around them
+/// (`accuracy::peak`), with its time: for the whole part's linear cases unless `[stress]
+/// peak_error = false`. A check, not the basis: when it cannot be made (a refined mesh fails)
+/// the cases are written without it and a warning says why.
+fn peak_stress(scene: &Scene, s: &mut SolvedSpace) -> Result<()> {
+    if !scene.peak_error || s.loads.is_empty() || s.voi.is_some() || s.nonlinear.is_some() {
+        return Ok(());
+    }
+    progress::stage("the peak stresses, on meshes refined around them", 0.96)?;
+    let (studied, seconds) =
+        timed(|| released(|| crate::accuracy::peak::study(scene, &s.mesh, &s.dofs.fixed, &mut s.loads)));
+    if let Err(e) = studied {
+        tracing::warn!(
+            "space \"{}\": the load cases' peak stresses were not studied ({e:#}); they are written without an error",
+            s.name
+        );
+    }
+    for l in &s.loads {
+        let first = l.peaks.first().map(|p| p.record());
+        let regular = crate::accuracy::peak::regular(&l.peaks).map(|p| p.record());
+        if let Some(text) = crate::accuracy::peak::case_text(first.as_ref(), regular.as_ref()) {
+            tracing::info!("load case \"{}\": {text}", l.name);
+        }
+    }
+    s.timings.peak_stress = seconds;
+    Ok(())
 }
 
 /// The felt compliance's truncation (`accuracy::felt`), with its time. A check, not the basis:
@@ -279,7 +308,8 @@ pub(super) fn check_later(scene: &Scene, s: &mut SolvedSpace, choice: SolverChoi
         progress::stage("estimated", 0.95)?;
         advice::warn_about_error(scene, &s.name, &s.mesh, s.meshing.size, s.error.as_ref());
     }
-    felt(s)
+    felt(s)?;
+    peak_stress(scene, s)
 }
 
 /// The `target_error` path: the refinement meshes, solves and estimates the space on finer

@@ -66,6 +66,24 @@ export function hideLoad() {
 }
 
 const rgb = [0, 0, 0];
+
+/** What the study of a peak on meshes refined around it says of its value (the file's
+ * `peak_*`): its error, that it is singular (no converged value), or nothing settled. */
+function peakError(p, w) {
+  if (!p) return '';
+  const steps = `${w(p.value)} → ${w(p.refined[0])} → ${w(p.refined[1])} with the mesh there halved twice`;
+  if (p.verdict === 'singular') return ` at a singular point (${steps}: no converged value)`;
+  if (p.error != null) return ` ± ${plain((100 * p.error) / p.value)} %`;
+  return ` (unsettled: ${steps}; no error stated)`;
+}
+
+/** When the largest peak is singular, the largest studied one that is not: the stress to judge
+ * the part by, with its own safety factor. */
+function awayFrom(c, w, ys) {
+  const r = c.regular_peak;
+  if (!r) return '';
+  return ` · away from it ${w(r.value)}${peakError(r, w)}${ys && r.value > 0 ? `, safety factor ${plain(ys / r.value)}` : ''}`;
+}
 /** Draws load case `c` on space `s`: rest + k·u with the page's scale (automatic: the case's
  * largest displacement at AUTO_FRACTION of the part), coloured by its von Mises stress from zero
  * to the case's largest (the whole part's, from the file). */
@@ -93,15 +111,16 @@ export function drawLoad(s, c) {
   s.geom.attributes.color.needsUpdate = true;
   const w = (v) => label(v, 'stress', u);
   const sf = ys && hi > 0 ? ys / hi : null;
-  const safety = sf === null ? '' : ` · safety factor ${plain(sf)}${sf < min ? ` below the minimum ${plain(min)}: it would yield` : ''} (yield ${w(ys)})`;
+  const singular = c.peak?.verdict === 'singular';
+  const safety = sf === null ? '' : ` · safety factor ${plain(sf)}${singular ? ' from a singular peak' : ''}${sf < min ? ` below the minimum ${plain(min)}: it would yield` : ''} (yield ${w(ys)})`;
   const title = `von Mises stress, load case ${c.name} (static)`;
-  const summary = `max ${w(hi)}${safety}`;
+  const summary = `max ${w(hi)}${peakError(c.peak, w)}${safety}${awayFrom(c, w, ys)}`;
   state.field = { quantity: 'stress', valueAt: (i) => c.vm[i] };
   const caption = `load case ${c.name}: ${c.kind}, ${label(Math.hypot(...c.total_force), 'force', 'si')} · deformation drawn ${$('scaleshown').textContent} · ${summary}`;
   const ticks = [w(0), w(hi / 2), w(hi)];
   state.legend = { title, scale: 'magnitude', ticks, caption, atRest: false, lo: 0, hi, load: c.name };
   showLegend(title, 'magnitude', ticks, summary);
-  placeMarkers(s, [{ vertex: top, text: `max on the surface ${w(c.vm[top])}` }]);
+  placeMarkers(s, [{ vertex: top, text: `max on the surface ${w(c.vm[top])}${singular ? ' (singular)' : ''}` }]);
   // The supports' reaction balances the load: what is left of the sum says how well.
   const load = Math.hypot(...c.total_force);
   const left = Math.hypot(...c.total_force.map((f, i) => f + c.reaction[i]));
