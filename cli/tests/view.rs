@@ -1397,6 +1397,14 @@ fn loads_made_in_the_page_equal_the_saved_scene_and_balance() {
         note.contains("the supports react") && note.contains("balancing the load"),
         "{note}"
     );
+    // Its peak stress studied on meshes refined around it: the tip face's force on the clamped
+    // beam peaks at the clamp, a singular point, said so beside the peak away from it.
+    let peak = &case_of("load1")["peak"];
+    assert_eq!(peak["verdict"], "singular", "{peak}");
+    assert!(
+        note.contains("at a singular point") && note.contains("away from it"),
+        "{note}"
+    );
     // "exact felt stiffness" ticked: the static correction in the scene, and the line says so.
     assert_eq!(page["corrected"]["region"], "surface", "{page}");
     let line = page["line"].as_str().unwrap_or_default();

@@ -807,9 +807,13 @@ fn run_compute(shared: &Arc<Shared>, workshop: &dyn Workshop, scene: &serde_json
             true
         });
     };
+    // The checks wrote the file again, its load cases with their peaks' study among them.
+    let refreshed = match &done {
+        Ok(_) if swapped => refresh_loads(shared),
+        _ => None,
+    };
     match &done {
         Ok(c) if swapped => {
-            // The checks wrote the file again.
             keep_basis(shared, &c.basis);
             record("computed", c.summary.clone(), Some(&c.warnings));
         }
@@ -833,6 +837,7 @@ fn run_compute(shared: &Arc<Shared>, workshop: &dyn Workshop, scene: &serde_json
                 "seconds": t0.elapsed().as_secs_f64(),
                 "estimated_error": c.estimated_error,
                 "warnings": c.warnings,
+                "loads": refreshed,
             }),
         ),
         Ok(_) => failed("the compute made no basis".into()),
@@ -840,6 +845,31 @@ fn run_compute(shared: &Arc<Shared>, workshop: &dyn Workshop, scene: &serde_json
         Err(e) if swapped => note(shared, serde_json::json!({"type": "checked", "error": e.to_string()})),
         Err(e) => failed(e.to_string().into()),
     }
+}
+
+/// The served spaces' load cases listed again from their file (rewritten by a compute's
+/// checks: the cases' peak stresses are studied there), in the generation a new page is sent
+/// and, per space, for the pages already open; `None` when nothing is served.
+fn refresh_loads(shared: &Arc<Shared>) -> Option<serde_json::Value> {
+    let g = shared.generation.read().ok()?.clone();
+    if g.bases.is_empty() {
+        return None;
+    }
+    let space_loads: Vec<loads::SpaceLoads> = g.bases.iter().map(|b| loads::list(b)).collect();
+    let lists = serde_json::json!(space_loads.iter().map(|l| &l.cases).collect::<Vec<_>>());
+    let generation = Generation {
+        hello: hello(&g.bases, &space_loads, &shared.cfg, shared.workshop.as_deref()),
+        load_names: space_loads.iter().map(loads::SpaceLoads::names).collect(),
+        loads: space_loads,
+        meshes: g.meshes.clone(),
+        extent: g.extent,
+        bases: g.bases.clone(),
+        basis_path: g.basis_path.clone(),
+    };
+    if let Ok(mut w) = shared.generation.write() {
+        *w = Arc::new(generation);
+    }
+    Some(lists)
 }
 
 /// At a compute's end: the compute asked for during its checks, if any, starts now. Decided

@@ -47,6 +47,8 @@ try {
     const loads = window.ves.hello.spaces[0].loads || [];
     return s.history.length === 2 && !s.edited && !window.ves.status.computing && loads.length === 2;
   }, undefined, 600000);
+  // The peaks' study follows the pullable part (the checks after it) and reaches the hello.
+  await until(page, () => (window.ves.hello.spaces[0].loads || []).every((c) => c.peak), undefined, 120000);
   out.loads = await page.evaluate(() => window.ves.hello.spaces[0].loads);
   out.options = await page.evaluate(() => [...document.querySelectorAll('#loadcase option')].map((o) => o.textContent));
   out.line = await page.evaluate(() => document.getElementById('progresstext').textContent);

@@ -26,6 +26,22 @@ export function buildLoadList(space) {
   $('loadnote').textContent = space && space.loads_error ? `load cases not offered: ${space.loads_error}` : '';
 }
 
+/** The checks after a compute listed the cases again (their peaks studied): the hello takes
+ * them, the list is rebuilt, and the case shown, if still there, is drawn with its new figures. */
+export function loadsChecked(lists) {
+  if (!state.hello) return;
+  lists.forEach((cases, i) => { if (state.hello.spaces[i]) state.hello.spaces[i].loads = cases; });
+  const shown = state.loadCase;
+  buildLoadList(state.hello.spaces[state.active]);
+  if (!shown) return;
+  const info = (state.hello.spaces[shown.space].loads || [])[shown.index];
+  if (info && info.name === shown.name) {
+    state.loadCase = { ...shown, ...info };
+    $('loadcase').value = String(shown.index);
+    state.dirty = true;
+  } else hideLoad();
+}
+
 /** Shows load case `value` (its index in the active space's list; '' for none). `letGo` ends
  * this page's drags and lets go of its hands first. */
 export function chooseLoad(value, letGo) {
@@ -77,6 +93,13 @@ function peakError(p, w) {
   return ` (unsettled: ${steps}; no error stated)`;
 }
 
+/** The peak's study in a word or two, for the legend. */
+function shortPeak(p) {
+  if (!p) return '';
+  if (p.verdict === 'singular') return ' (singular point)';
+  return p.error != null ? ` ± ${plain((100 * p.error) / p.value)} %` : '';
+}
+
 /** When the largest peak is singular, the largest studied one that is not: the stress to judge
  * the part by, with its own safety factor. */
 function awayFrom(c, w, ys) {
@@ -114,7 +137,8 @@ export function drawLoad(s, c) {
   const singular = c.peak?.verdict === 'singular';
   const safety = sf === null ? '' : ` · safety factor ${plain(sf)}${singular ? ' from a singular peak' : ''}${sf < min ? ` below the minimum ${plain(min)}: it would yield` : ''} (yield ${w(ys)})`;
   const title = `von Mises stress, load case ${c.name} (static)`;
-  const summary = `max ${w(hi)}${peakError(c.peak, w)}${safety}${awayFrom(c, w, ys)}`;
+  // The legend keeps to one short line (it sits beside the set-up panel); the note says more.
+  const summary = `max ${w(hi)}${shortPeak(c.peak)}${safety}`;
   state.field = { quantity: 'stress', valueAt: (i) => c.vm[i] };
   const caption = `load case ${c.name}: ${c.kind}, ${label(Math.hypot(...c.total_force), 'force', 'si')} · deformation drawn ${$('scaleshown').textContent} · ${summary}`;
   const ticks = [w(0), w(hi / 2), w(hi)];
@@ -129,7 +153,8 @@ export function drawLoad(s, c) {
     + (load > 0 ? `, balancing the load to ${(100 * left / load).toExponential(1)} %` : '');
   $('loadnote').replaceChildren(
     `${c.name}: ${c.kind}, total ${label(load, 'force', 'si')}, largest displacement `
-      + `${label(c.maxDisplacement, 'length', u)} drawn ×${plain(k)}${state.scaleAuto ? ` (auto: the largest at ${Math.round(100 * AUTO_FRACTION)} % of the part's size)` : ''}; ${reaction}. `,
+      + `${label(c.maxDisplacement, 'length', u)} drawn ×${plain(k)}${state.scaleAuto ? ` (auto: the largest at ${Math.round(100 * AUTO_FRACTION)} % of the part's size)` : ''}; ${reaction}. `
+      + (c.peak ? `Peak von Mises ${w(hi)}${peakError(c.peak, w)}${awayFrom(c, w, ys)}. ` : ''),
     el('b', { textContent: 'Hands are off while a load case is shown' }),
     ' (a drag orbits); choose "none" to pull the part again.',
   );

@@ -13,7 +13,7 @@ import { facade } from './facade.js';
 import { clearHands, showHands } from './hands.js';
 import { placeTags, showLimit, showStatus } from './hud.js';
 import { dropDrags, faceMode, faceOf, requestPick } from './interaction.js';
-import { buildLoadList, drawLoad, hideLoad, onLoad } from './loadcases.js';
+import { buildLoadList, drawLoad, hideLoad, loadsChecked, onLoad } from './loadcases.js';
 import { animateMode, buildModeList, startMode } from './modes.js';
 import { offerColours, overlay } from './panels.js';
 import { KINDS } from './protocol.js';
@@ -64,6 +64,7 @@ function onText(msg) {
     if (state.loadWanted) hideLoad();
     $('loadnote').textContent = `the load case could not be read: ${msg.message}`;
   } else if (msg.type === 'progress' || msg.type === 'computed' || msg.type === 'checked' || msg.type === 'compute_error') {
+    if (msg.type === 'checked' && msg.loads) loadsChecked(msg.loads);
     state.notes.push(msg);
     if (state.notes.length > 200) state.notes.shift();
     setup.note(msg);
