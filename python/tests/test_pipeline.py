@@ -299,6 +299,15 @@ def test_load_cases_are_read_from_python(cli, tmp_path):
     listed = json.loads(info.stdout.strip().splitlines()[-1])["spaces"][0]["loads"]
     assert [c["name"] for c in listed] == basis.load_cases
     assert listed[0]["max_displacement_m"] == pytest.approx(tip["max_displacement"], rel=1e-12)
+    # Its peak studied on meshes refined around it: the largest at the clamp, its value the
+    # file's largest; an error stated unless it is singular or unsettled, as ``ves info`` says.
+    peak = tip["peak"]
+    assert peak["verdict"] in ("converging", "slow", "singular", "unsettled")
+    assert peak["value"] == pytest.approx(tip["max_von_mises"], rel=1e-12) and peak["position"][0] < 0.2
+    assert len(peak["refined"]) == 2 and (peak["error"] is None) == (peak["verdict"] in ("singular", "unsettled"))
+    if tip["regular_peak"] is not None:
+        assert peak["verdict"] == "singular" and tip["regular_peak"]["value"] < peak["value"]
+    assert "von Mises" in listed[0]["peak_stress"]
     with pytest.raises(KeyError, match="tip"):
         basis.load("wind")
 

@@ -149,6 +149,17 @@ impl Args {
                 s.felt_compliance.as_ref().map_or(String::new(), |f| f.text()),
                 s.nonlinear.map_or(String::new(), |n| n.text())
             );
+            for l in &s.loads {
+                println!(
+                    "  load {}: max displacement {:.4e} m, max von Mises {:.4e} Pa{}{}",
+                    l.name,
+                    l.max_displacement_m,
+                    l.max_von_mises_pa,
+                    l.safety_factor
+                        .map_or(String::new(), |f| format!(" (safety factor {f:.3})")),
+                    l.peak_stress.as_ref().map_or(String::new(), |t| format!("; {t}"))
+                );
+            }
         }
         println!("wrote {} in {:.2} s", summary.output, summary.timings_s.total);
         Ok(())
