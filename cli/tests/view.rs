@@ -1408,7 +1408,10 @@ fn loads_made_in_the_page_equal_the_saved_scene_and_balance() {
     // "exact felt stiffness" ticked: the static correction in the scene, and the line says so.
     assert_eq!(page["corrected"]["region"], "surface", "{page}");
     let line = page["line"].as_str().unwrap_or_default();
-    assert!(line.contains("felt compliance exact (static correction)"), "{line}");
+    assert!(
+        line.contains("felt compliance exact on the mesh (static correction)"),
+        "{line}"
+    );
 
     // The saved scene, computed by `ves precompute`: the same cases on the same mesh.
     let saved = dir.path().join("saved.toml");

@@ -32,7 +32,8 @@ pub struct FeltTruncation {
     pub corrected: bool,
     /// The modes kept.
     pub modes: usize,
-    /// Each sampled point, the most compliant first.
+    /// Each sampled point: the scene's `[[probe]]` positions first, then the most compliant,
+    /// then spread over the surface.
     pub points: Vec<FeltPoint>,
     /// The largest relative error along the surface normal over the points where the part is
     /// compliant (exact compliance at least [`COMPLIANT`] of the largest sampled): what a hand
@@ -44,6 +45,9 @@ pub struct FeltTruncation {
     pub median_along_normal: f64,
     /// The largest relative error in any direction over the points.
     pub largest_any_direction: f64,
+    /// The largest mesh error of the exact compliance over the points where the part is
+    /// compliant ([`discretization`]; None when not estimated).
+    pub mesh_where_compliant: Option<f64>,
     /// Seconds this took.
     pub seconds: f64,
 }
@@ -53,12 +57,15 @@ impl FeltTruncation {
     /// the part is compliant, up to 86.83 % at stiff points (24 points; [static_correction]
     /// makes it exact)".
     pub fn text(&self) -> String {
+        let mesh = self.mesh_where_compliant.map_or(String::new(), |m| {
+            format!("; the mesh's own error of it ≤ {:.2} % where compliant", 100.0 * m)
+        });
         if self.corrected {
-            return "; felt compliance exact (static correction)".into();
+            return format!("; felt compliance exact on the mesh (static correction){mesh}");
         }
         format!(
             "; felt compliance: the {} modes miss ≤ {:.2} % of it where the part is compliant, up to {:.2} % at \
-             stiff points ({} points; [static_correction] makes it exact)",
+             stiff points ({} points; [static_correction] makes it exact){mesh}",
             self.modes,
             100.0 * self.largest_where_compliant,
             100.0 * self.largest_along_normal,
@@ -74,7 +81,8 @@ pub struct FeltPoint {
     pub node: u32,
     /// Where that is, m.
     pub position_m: [f64; 3],
-    /// The outward surface normal there.
+    /// The outward surface normal there (for a named point, the direction opposite its probe's
+    /// force).
     pub normal: [f64; 3],
     /// The exact compliance along the inward normal, m/N: nᵀ W K⁻¹ Wᵀ n.
     pub exact_m_per_n: f64,
@@ -82,6 +90,13 @@ pub struct FeltPoint {
     pub along_normal: f64,
     /// The largest share in any direction d: max over d of dᵀ(C_exact − C_modal)d / dᵀ C_exact d.
     pub any_direction: f64,
+    /// The mesh's own relative error of `exact_m_per_n` (|c_h − c*| / c*), from the same
+    /// patch on two coarser meshes ([`discretization`]); None when not estimated.
+    pub mesh_error: Option<f64>,
+    /// What a hand there feels wrong in all, along the normal: the modes' share and the mesh's
+    /// error together, a + e − a·e (a finite-element part is too stiff, and so is a truncated
+    /// one: the two add); None when the mesh error is not estimated.
+    pub felt_error: Option<f64>,
 }
 
 /// A held space's modes and what they are measured against.
@@ -98,6 +113,12 @@ pub struct Space<'a> {
     pub contact: Option<&'a Patches>,
     /// The static correction is stored.
     pub corrected: bool,
+    /// Points to sample first (the scene's `[[probe]]` positions, and the direction opposite
+    /// each probe's force): a patch centred on the surface point nearest each, its compliance
+    /// along that direction, so two meshes of a part compare at the same places and directions.
+    pub first: Vec<([f64; 3], [f64; 3])>,
+    /// The contact patch's radius, m (0: a point).
+    pub radius: f64,
 }
 
 /// The felt compliance's truncation of space `s` (its modes and K); None for a free body (its
@@ -110,18 +131,6 @@ pub fn truncation(s: &Space<'_>) -> Result<Option<FeltTruncation>> {
         return Ok(None);
     }
     let r = s.modes.eigenvalues.len();
-    if s.corrected {
-        return Ok(Some(FeltTruncation {
-            corrected: true,
-            modes: r,
-            points: Vec::new(),
-            largest_where_compliant: 0.0,
-            largest_along_normal: 0.0,
-            median_along_normal: 0.0,
-            largest_any_direction: 0.0,
-            seconds: start.elapsed().as_secs_f64(),
-        }));
-    }
     let point_patches;
     let patches: &Patches = match s.contact {
         Some(p) => p,
@@ -145,9 +154,12 @@ pub fn truncation(s: &Space<'_>) -> Result<Option<FeltTruncation>> {
     if movable.is_empty() || r == 0 {
         return Ok(None);
     }
-    // Σⱼ (W φⱼ)(W φⱼ)ᵀ / λⱼ for patch k.
-    let modal = |k: usize| -> Matrix3<f64> {
-        let (nodes, weights) = patches.patch(k);
+    // Σⱼ (W φⱼ)(W φⱼ)ᵀ / λⱼ for a patch; with the static correction the runtime adds the rest:
+    // what is felt is the exact block.
+    let modal = |(nodes, weights): (&[u32], &[f64])| -> Matrix3<f64> {
+        if s.corrected {
+            return Matrix3::zeros();
+        }
         s.modes
             .eigenvalues
             .iter()
@@ -164,46 +176,124 @@ pub fn truncation(s: &Space<'_>) -> Result<Option<FeltTruncation>> {
                 acc + v * v.transpose() / l
             })
     };
-    // The most compliant movable patch, each scored once.
+    // The most compliant movable patch, each scored once (by its modal compliance; with the
+    // static correction by the first mode's, a cheap proxy).
+    let score = |k: usize| -> f64 {
+        if !s.corrected {
+            return modal(patches.patch(k)).trace();
+        }
+        let (nodes, weights) = patches.patch(k);
+        let phi = &s.modes.vectors[..nf];
+        (0..3)
+            .map(|c| {
+                nodes
+                    .iter()
+                    .zip(weights)
+                    .filter_map(|(&a, &w)| free_of(a, c).map(|f| w * phi[f]))
+                    .sum::<f64>()
+                    .powi(2)
+            })
+            .sum()
+    };
     let softest = movable
         .iter()
-        .map(|&k| (k, modal(k).trace()))
+        .map(|&k| (k, score(k)))
         .max_by(|a, b| a.1.total_cmp(&b.1))
         .map_or(movable[0], |(k, _)| k);
-    let chosen = sample(&s.mesh.nodes, patches, &movable, softest);
-    let chol = factor_stiffness(system, s.dofs)?;
-    let list: Vec<(&[u32], &[f64])> = chosen.iter().map(|&k| patches.patch(k)).collect();
-    let exact = crate::compliance::patch_blocks(s.dofs, &chol, &list, || {})?;
     let surface = Surface::new(s.mesh);
+    let at = |k: usize| s.mesh.nodes[patches.centres[k] as usize];
+    let dist2 = |a: [f64; 3], b: [f64; 3]| (0..3).map(|i| (a[i] - b[i]).powi(2)).sum::<f64>();
+    // The named points: a patch centred exactly where asked (two meshes compare there), its
+    // node and normal those of the nearest movable patch's centre.
+    let mut named: Vec<(crate::loads::patch::Patch, u32, [f64; 3])> = Vec::new();
+    let mut directions: Vec<[f64; 3]> = Vec::new();
+    let mut near: Vec<usize> = Vec::new();
+    for &(p, direction) in &s.first {
+        let (Some(k), Some((patch, centre, _))) = (
+            movable
+                .iter()
+                .copied()
+                .min_by(|&a, &b| dist2(at(a), p).total_cmp(&dist2(at(b), p))),
+            surface.at_point(p, s.radius),
+        ) else {
+            continue;
+        };
+        if patch.nodes.iter().all(|&a| (0..3).all(|c| free_of(a, c).is_some())) {
+            named.push((patch, patches.centres[k], centre));
+            directions.push(direction);
+            near.push(k);
+        }
+    }
+    let sampled = sample(&s.mesh.nodes, patches, &movable, &near, softest);
+    let mut chosen: Vec<Chosen<'_>> = named
+        .iter()
+        .map(|(p, node, at)| Chosen {
+            nodes: &p.nodes,
+            weights: &p.weights,
+            node: *node,
+            at: *at,
+        })
+        .collect();
+    for &k in &sampled[near.len()..] {
+        let (nodes, weights) = patches.patch(k);
+        chosen.push(Chosen {
+            nodes,
+            weights,
+            node: patches.centres[k],
+            at: at(k),
+        });
+    }
+    let chol = factor_stiffness(system, s.dofs)?;
+    let list: Vec<(&[u32], &[f64])> = chosen.iter().map(|c| (c.nodes, c.weights)).collect();
+    let exact = crate::compliance::patch_blocks(s.dofs, &chol, &list, || {})?;
     let points: Vec<FeltPoint> = chosen
         .iter()
         .zip(&exact)
-        .map(|(&k, c)| {
-            let node = patches.centres[k];
-            let normal = surface.normal_at(node);
-            let c = Matrix3::from_fn(|a, b| 0.5 * (c[a][b] + c[b][a]));
-            let missed = c - modal(k);
-            let n = Vector3::from(normal);
-            let exact_n = (n.transpose() * c * n)[0];
-            FeltPoint {
-                node,
-                position_m: s.mesh.nodes[node as usize],
-                normal,
-                exact_m_per_n: exact_n,
-                along_normal: if exact_n > 0.0 {
-                    (n.transpose() * missed * n)[0] / exact_n
+        .enumerate()
+        .map(
+            |(
+                i,
+                (
+                    &Chosen {
+                        nodes,
+                        weights,
+                        node,
+                        at: position,
+                    },
+                    c,
+                ),
+            )| {
+                let normal = directions.get(i).copied().unwrap_or_else(|| surface.normal_at(node));
+                let c = Matrix3::from_fn(|a, b| 0.5 * (c[a][b] + c[b][a]));
+                let missed = if s.corrected {
+                    Matrix3::zeros()
                 } else {
-                    0.0
-                },
-                any_direction: worst_share(&c, &missed),
-            }
-        })
+                    c - modal((nodes, weights))
+                };
+                let n = Vector3::from(normal);
+                let exact_n = (n.transpose() * c * n)[0];
+                FeltPoint {
+                    node,
+                    position_m: position,
+                    normal,
+                    exact_m_per_n: exact_n,
+                    along_normal: if exact_n > 0.0 {
+                        (n.transpose() * missed * n)[0] / exact_n
+                    } else {
+                        0.0
+                    },
+                    any_direction: worst_share(&c, &missed),
+                    mesh_error: None,
+                    felt_error: None,
+                }
+            },
+        )
         .collect();
     let mut along: Vec<f64> = points.iter().map(|p| p.along_normal).collect();
     along.sort_by(f64::total_cmp);
     let softest = points.iter().map(|p| p.exact_m_per_n).fold(0.0, f64::max);
     Ok(Some(FeltTruncation {
-        corrected: false,
+        corrected: s.corrected,
         modes: r,
         largest_where_compliant: points
             .iter()
@@ -213,9 +303,110 @@ pub fn truncation(s: &Space<'_>) -> Result<Option<FeltTruncation>> {
         largest_along_normal: along.last().copied().unwrap_or(0.0),
         median_along_normal: along.get(along.len() / 2).copied().unwrap_or(0.0),
         largest_any_direction: points.iter().map(|p| p.any_direction).fold(0.0, f64::max),
+        mesh_where_compliant: None,
         points,
         seconds: start.elapsed().as_secs_f64(),
     }))
+}
+
+/// A patch sampled: its nodes and weights, the vertex it is told by, and where its centre is.
+#[derive(Clone, Copy)]
+struct Chosen<'a> {
+    nodes: &'a [u32],
+    weights: &'a [f64],
+    node: u32,
+    at: [f64; 3],
+}
+
+/// Coarser meshes the mesh error of the felt compliance is read from: each vertex's size times
+/// these (as the frequency estimate's, [`super::COARSENING`] and its square).
+const COARSER: [f64; 2] = [super::COARSENING, super::COARSENING * super::COARSENING];
+
+/// The mesh's own error of each sampled point's exact compliance: the same patch (the scene's
+/// contact radius, at the surface vertex nearest the point, pushed along the point's normal) on
+/// two meshes with each vertex's element size (its mean edge length on `mesh`) 1.5× and 2.25×
+/// larger, and the three compliances extrapolated at their measured rate
+/// ([`super::richardson`]; a compliance is an energy, converging as the eigenvalues do); where
+/// the patch is smaller than the elements under it, plus the local indentation none of the
+/// meshes resolves (Boussinesq's for the patch on a half-space, times 1 − radius/size). Fills
+/// each point's `mesh_error` and `felt_error` and the largest where the part is compliant.
+pub fn discretization(
+    scene: &crate::scene::Scene,
+    mesh: &Mesh,
+    fine_dofs: usize,
+    felt: &mut FeltTruncation,
+) -> Result<()> {
+    // A point contact's exact compliance is infinite (a point load on a solid): no error to state.
+    if felt.points.is_empty() || scene.contact_radius <= 0.0 {
+        return Ok(());
+    }
+    let start = std::time::Instant::now();
+    let sizes = super::peak::vertex_sizes(mesh);
+    let field = crate::mesh::field::SizeField::on(mesh, sizes.clone());
+    let mut levels: Vec<(usize, Vec<f64>)> = Vec::new();
+    for factor in COARSER {
+        let d = crate::problem::discretize_with(scene, None, Some(&field.scaled(factor)), true)?;
+        let surface = Surface::new(&d.mesh);
+        // The same patch, centred exactly at each point (a coarser mesh has no vertex there).
+        let patches: Vec<crate::loads::patch::Patch> = felt
+            .points
+            .iter()
+            .map(|p| {
+                surface
+                    .at_point(p.position_m, scene.contact_radius)
+                    .map(|(patch, _, _)| patch)
+                    .ok_or_else(|| anyhow::anyhow!("the coarser mesh has no surface"))
+            })
+            .collect::<Result<_>>()?;
+        let chol = factor_stiffness(&d.system, &d.dofs)?;
+        let list: Vec<(&[u32], &[f64])> = patches
+            .iter()
+            .map(|p| (p.nodes.as_slice(), p.weights.as_slice()))
+            .collect();
+        let blocks = crate::compliance::patch_blocks(&d.dofs, &chol, &list, || {})?;
+        let along: Vec<f64> = felt
+            .points
+            .iter()
+            .zip(&blocks)
+            .map(|(p, c)| {
+                let n = Vector3::from(p.normal);
+                let c = Matrix3::from_fn(|a, b| 0.5 * (c[a][b] + c[b][a]));
+                (n.transpose() * c * n)[0]
+            })
+            .collect();
+        levels.push((d.dofs.free_count(), along));
+    }
+    let max_rate = super::max_rate(mesh.kind.order());
+    let (e, nu, a) = (scene.material.young, scene.material.poisson, scene.contact_radius);
+    for (i, p) in felt.points.iter_mut().enumerate() {
+        let mut dofs = vec![fine_dofs];
+        let mut values = vec![p.exact_m_per_n];
+        for (n, v) in &levels {
+            dofs.push(*n);
+            values.push(v[i]);
+        }
+        // A patch smaller than the elements under it is not resolved by any of the three meshes:
+        // its local indentation (a disk of radius a on a half-space, Boussinesq: 2(1 − ν²)/(π E a)
+        // at its centre) is missed in the share the elements cannot see, 1 − a/h.
+        let h = sizes.get(p.node as usize).copied().unwrap_or(0.0);
+        let local = if h > a {
+            2.0 * (1.0 - nu * nu) / (std::f64::consts::PI * e * a) * (1.0 - a / h)
+        } else {
+            0.0
+        };
+        let unresolved = local / (p.exact_m_per_n + local);
+        p.mesh_error = super::richardson::estimate(&dofs, &values, max_rate).map(|e| e.relative + unresolved);
+        p.felt_error = p.mesh_error.map(|e| p.along_normal + e - p.along_normal * e);
+    }
+    let softest = felt.points.iter().map(|p| p.exact_m_per_n).fold(0.0, f64::max);
+    felt.mesh_where_compliant = felt
+        .points
+        .iter()
+        .filter(|p| p.exact_m_per_n >= COMPLIANT * softest)
+        .filter_map(|p| p.mesh_error)
+        .reduce(f64::max);
+    felt.seconds += start.elapsed().as_secs_f64();
+    Ok(())
 }
 
 /// The largest eigenvalue of C⁻¹ᐟ² D C⁻¹ᐟ² (C the exact block, positive definite at a movable
@@ -229,14 +420,25 @@ fn worst_share(c: &Matrix3<f64>, missed: &Matrix3<f64>) -> f64 {
     m.symmetric_eigenvalues().max()
 }
 
-/// [`SAMPLES`] of the patches `candidates` (indices into `patches`): `first` (where the modes
-/// make the part softest), then each the candidate farthest from those chosen, so the points
-/// spread over the whole surface.
-fn sample(nodes: &[[f64; 3]], patches: &Patches, candidates: &[usize], first: usize) -> Vec<usize> {
+/// [`SAMPLES`] of the patches `candidates` (indices into `patches`): `named` (asked for), then
+/// `first` (where the modes make the part softest), then each the candidate farthest from those
+/// chosen, so the points spread over the whole surface.
+fn sample(nodes: &[[f64; 3]], patches: &Patches, candidates: &[usize], named: &[usize], first: usize) -> Vec<usize> {
     let at = |k: usize| nodes[patches.centres[k] as usize];
     let dist2 = |a: [f64; 3], b: [f64; 3]| (0..3).map(|i| (a[i] - b[i]).powi(2)).sum::<f64>();
-    let mut chosen = vec![first];
-    let mut nearest: Vec<f64> = candidates.iter().map(|&k| dist2(at(k), at(first))).collect();
+    let mut chosen: Vec<usize> = named.to_vec();
+    if !chosen.contains(&first) {
+        chosen.push(first);
+    }
+    let mut nearest: Vec<f64> = candidates
+        .iter()
+        .map(|&k| {
+            chosen
+                .iter()
+                .map(|&c| dist2(at(k), at(c)))
+                .fold(f64::INFINITY, f64::min)
+        })
+        .collect();
     while chosen.len() < SAMPLES.min(candidates.len()) {
         let (i, _) = nearest
             .iter()

@@ -175,7 +175,7 @@ pub(super) fn solve_space_checked(
     };
     let mut space = store(name, voi, solved, after);
     if !later {
-        felt(&mut space)?;
+        felt(scene, &mut space)?;
         peak_stress(scene, &mut space)?;
     }
     Ok(space)
@@ -212,7 +212,7 @@ fn peak_stress(scene: &Scene, s: &mut SolvedSpace) -> Result<()> {
 /// The felt compliance's truncation (`accuracy::felt`), with its time. A check, not the basis:
 /// when it cannot be made (K's factor does not fit in memory) the basis is written without it
 /// and a warning says why.
-fn felt(s: &mut SolvedSpace) -> Result<()> {
+fn felt(scene: &Scene, s: &mut SolvedSpace) -> Result<()> {
     progress::stage("the felt compliance's truncation", 0.93)?;
     // A nonlinear model is felt through its own tangent; K on MPI ranks is not here.
     let Some(system) = s.system.as_ref().filter(|_| s.nonlinear.is_none()) else {
@@ -225,6 +225,15 @@ fn felt(s: &mut SolvedSpace) -> Result<()> {
         modes: &s.modes,
         contact: s.contact.as_ref(),
         corrected: s.compliance.is_some(),
+        first: scene
+            .probes
+            .iter()
+            .map(|p| {
+                let n = p.force.iter().map(|f| f * f).sum::<f64>().sqrt().max(f64::MIN_POSITIVE);
+                (p.at, p.force.map(|f| -f / n))
+            })
+            .collect(),
+        radius: scene.contact_radius,
     };
     let (felt, seconds) = timed(|| released(|| crate::accuracy::felt::truncation(&space)));
     match felt {
@@ -235,6 +244,19 @@ fn felt(s: &mut SolvedSpace) -> Result<()> {
         ),
     }
     s.timings.felt_compliance = seconds;
+    // Its mesh error, on two coarser meshes of the whole part.
+    if let Some(f) = s.felt.as_mut().filter(|_| s.voi.is_none()) {
+        progress::stage("the felt compliance's mesh error", 0.95)?;
+        let fine = s.dofs.free_count();
+        let (done, more) = timed(|| released(|| crate::accuracy::felt::discretization(scene, &s.mesh, fine, f)));
+        if let Err(e) = done {
+            tracing::warn!(
+                "space \"{}\": the felt compliance's mesh error was not estimated ({e:#})",
+                s.name
+            );
+        }
+        s.timings.felt_compliance += more;
+    }
     Ok(())
 }
 
@@ -308,7 +330,7 @@ pub(super) fn check_later(scene: &Scene, s: &mut SolvedSpace, choice: SolverChoi
         progress::stage("estimated", 0.95)?;
         advice::warn_about_error(scene, &s.name, &s.mesh, s.meshing.size, s.error.as_ref());
     }
-    felt(s)?;
+    felt(scene, s)?;
     peak_stress(scene, s)
 }
 
