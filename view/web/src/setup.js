@@ -40,9 +40,24 @@ export function setupPanel(send, pick, faceMode, faceOf, light) {
   let last = null; // the server's last set-up message
   const panel = $('setup');
 
+  // A part becomes held: "exact felt stiffness" goes on, unless the user chose for this part —
+  // the kept modes alone make a held part feel stiffer than it is (on chunky parts 50–100×:
+  // docs/accuracy.md, "The error of what is felt").
+  let held = false; // the scene last filled or edited had supports
+  let feltChosen = false; // the user ticked or unticked "exact felt stiffness"
+  $('exactfelt').addEventListener('change', () => { feltChosen = true; showFeltNote(); });
+  function showFeltNote() {
+    const auto = !feltChosen && $('exactfelt').checked && !$('exactfelt').disabled;
+    $('feltnote').textContent = auto ? ' (on for a held part: the modes alone feel too stiff; untick for a faster compute)' : '';
+  }
+
   // An edit: the scene as the fields say goes to the server, which sends it to every page.
   function edit() {
     if (!scene) return;
+    const nowHeld = (scene.fixed || []).length > 0;
+    if (nowHeld && !held && !feltChosen) $('exactfelt').checked = true;
+    held = nowHeld;
+    showFeltNote();
     const now = read();
     const text = canon(now);
     if (text === sent) return;
@@ -83,7 +98,9 @@ export function setupPanel(send, pick, faceMode, faceOf, light) {
     $('modecount').value = String((scene.modes || {}).count || 12);
     $('stressfield').checked = Boolean((scene.stress || {}).enabled);
     $('exactfelt').checked = Boolean(scene.static_correction);
+    held = (scene.fixed || []).length > 0;
     drawSupports();
+    showFeltNote();
   }
 
   function drawSupports() {
