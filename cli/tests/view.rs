@@ -878,9 +878,9 @@ fn a_step_part_is_set_up_computed_and_pulled_in_the_page() {
     // (no `unit`: a STEP file carries its own):
     // aluminium 6061-T6 at its handbook values (the frequencies cannot tell it from steel:
     // √(E/ρ) differs by 2.4 %), the page's starting mesh (10-node tets to a 5 % error
-    // estimate), 10 modes, stress and damping as the page started; and held by the plane
-    // through the part's −x end and by its +x end face (checked below against the part's own
-    // extent).
+    // estimate), 10 modes, stress and damping as the page started, the exact felt stiffness
+    // the first support turned on; and held by the plane through the part's −x end and by its
+    // +x end face (checked below against the part's own extent).
     let saved = dir.path().join("saved.toml");
     let text = std::fs::read_to_string(&saved).expect("saved scene");
     let mut scene: toml::Table = toml::from_str(&text).unwrap_or_else(|e| panic!("saved scene: {e}\n{text}"));
@@ -904,6 +904,8 @@ fn a_step_part_is_set_up_computed_and_pulled_in_the_page() {
         [damping]
         alpha = 0.0
         beta = 1.0e-5
+        [static_correction]
+        region = "surface"
         "#,
     )
     .expect("the scene meant");
@@ -1405,6 +1407,28 @@ fn loads_made_in_the_page_equal_the_saved_scene_and_balance() {
         note.contains("at a singular point") && note.contains("away from it"),
         "{note}"
     );
+    // The report the page downloads: the set-up, the frequencies, the cases with their peaks.
+    let report = std::fs::read_to_string(dir.path().join("report.md")).unwrap_or_default();
+    assert!(
+        page["reportName"].as_str().is_some_and(|n| n.ends_with("-report.md")),
+        "{page}"
+    );
+    for want in [
+        "## Set-up",
+        "Held by: plane x = 0 m: clamped",
+        "load1: force [0, 0, -2000] N on faces 2",
+        "## Space global: frequencies",
+        "## Space global: load cases",
+        "singular point",
+        "Away from the singular points:",
+    ] {
+        assert!(report.contains(want), "{want:?} not in the report:\n{report}");
+    }
+    let modes = report
+        .lines()
+        .filter(|l| l.starts_with("| ") && l[2..].starts_with(|c: char| c.is_ascii_digit()))
+        .count();
+    assert_eq!(modes, 6, "{report}");
     // "exact felt stiffness" ticked: the static correction in the scene, and the line says so.
     assert_eq!(page["corrected"]["region"], "surface", "{page}");
     let line = page["line"].as_str().unwrap_or_default();

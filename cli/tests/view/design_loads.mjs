@@ -64,6 +64,9 @@ try {
 
   const [download] = await Promise.all([page.waitForEvent('download'), page.click('#savescene')]);
   await download.saveAs(`${shots}/saved.toml`);
+  const [report] = await Promise.all([page.waitForEvent('download'), page.click('#report')]);
+  await report.saveAs(`${shots}/report.md`);
+  out.reportName = report.suggestedFilename();
 } catch (e) {
   out.failure = String(e && e.stack || e);
 }

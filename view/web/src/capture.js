@@ -49,7 +49,8 @@ function stops(css) {
   });
 }
 
-function download(blob, name) {
+/** Saves `blob` as a download named `name`. */
+export function download(blob, name) {
   const a = document.createElement('a');
   a.href = URL.createObjectURL(blob);
   a.download = name;

@@ -18,11 +18,13 @@ import { animateMode, buildModeList, startMode } from './modes.js';
 import { offerColours, overlay } from './panels.js';
 import { KINDS } from './protocol.js';
 import { setupPanel } from './setup.js';
+import { downloadReport } from './report.js';
 import { addSpace, clearSpaces, lightSetup, onFrame, onStress } from './spaces.js';
 import { DRAW_WINDOW, state } from './state.js';
 import { canvas, renderIfNeeded } from './viewport.js';
 
 const setup = setupPanel(send, requestPick, faceMode, faceOf, lightSetup);
+$('report').onclick = () => downloadReport(setup.last());
 /** @type {any} */ (window).ves = facade(setup);
 
 /** The modes of `space` listed (asking for one puts a load case away). */
