@@ -79,7 +79,7 @@ fn the_modes_miss_less_of_the_felt_compliance_as_more_are_kept() {
 /// point (a `[[probe]]`, the patch centred exactly there, along the probe's direction) on the
 /// 10-node cantilever at 25 mm, the stated error is the true one within 2× — the true one
 /// measured against the same point on a mesh twice as fine (which keeps part of the error, so
-/// it reads low; `bench/felt_error.py` measures against a 3× finer mesh: 0.73–1.35 on the
+/// it reads low; `bench/felt_error.py` measures against a 3× finer mesh: 1.12–1.42 on the
 /// cantilever). The patch (5 mm) is smaller than the elements (25 mm): the local indentation
 /// no mesh here resolves is part of the statement.
 #[test]

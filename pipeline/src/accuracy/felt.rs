@@ -323,9 +323,10 @@ struct Chosen<'a> {
 const COARSER: [f64; 2] = [super::COARSENING, super::COARSENING * super::COARSENING];
 
 /// The mesh's own error of each sampled point's exact compliance: the same patch (the scene's
-/// contact radius, at the surface vertex nearest the point, pushed along the point's normal) on
-/// two meshes with each vertex's element size (its mean edge length on `mesh`) 1.5× and 2.25×
-/// larger, and the three compliances extrapolated at their measured rate
+/// contact radius, centred at the point, along the point's direction) on two meshes 1.5× and
+/// 2.25× coarser (the frequency estimate's, for a mesh of the scene's size; each vertex's
+/// measured size for a refined one), and the three compliances extrapolated at their measured
+/// rate
 /// ([`super::richardson`]; a compliance is an energy, converging as the eigenvalues do); where
 /// the patch is smaller than the elements under it, plus the local indentation none of the
 /// meshes resolves (Boussinesq's for the patch on a half-space, times 1 − radius/size). Fills
@@ -342,10 +343,23 @@ pub fn discretization(
     }
     let start = std::time::Instant::now();
     let sizes = super::peak::vertex_sizes(mesh);
-    let field = crate::mesh::field::SizeField::on(mesh, sizes.clone());
+    // A mesh of the scene's own size is coarsened as the frequency estimate coarsens it (the
+    // same meshes: the mesh cache has them when the estimate made them); a refined one by each
+    // vertex's measured size.
+    let field = scene
+        .mesh
+        .target_error
+        .is_some()
+        .then(|| crate::mesh::field::SizeField::on(mesh, sizes.clone()));
     let mut levels: Vec<(usize, Vec<f64>)> = Vec::new();
     for factor in COARSER {
-        let d = crate::problem::discretize_with(scene, None, Some(&field.scaled(factor)), true)?;
+        let d = match &field {
+            Some(f) => crate::problem::discretize_with(scene, None, Some(&f.scaled(factor)), true)?,
+            None => {
+                let (at, _, _) = super::coarser(scene, None, None, factor);
+                crate::problem::discretize_with(&at, None, None, true)?
+            }
+        };
         let surface = Surface::new(&d.mesh);
         // The same patch, centred exactly at each point (a coarser mesh has no vertex there).
         let patches: Vec<crate::loads::patch::Patch> = felt

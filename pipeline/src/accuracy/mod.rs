@@ -260,7 +260,7 @@ pub fn coarser_meshes_expected(scene: &Scene) -> bool {
 }
 
 /// The inputs of a mesh `factor` × coarser than the scene's (its VOI's and size field's too).
-fn coarser(
+pub(crate) fn coarser(
     scene: &Scene,
     voi: Option<&Voi>,
     field: Option<&SizeField>,
