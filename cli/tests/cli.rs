@@ -1811,9 +1811,10 @@ fn session_reports_von_mises_and_the_safety_factor() {
 }
 
 /// The mesh cache: a first precompute meshes the estimate's coarser meshes ahead into it (two
-/// hits), a second one of the same part with another material meshes nothing (three hits: the
-/// mesh and the estimate's two coarser ones, no new entries) and, on the same
-/// meshes, its frequencies scale exactly as √E; `VES_MESH_CACHE=off` stores nothing.
+/// hits, and two more when the felt check's mesh error reads the same meshes), a second one of
+/// the same part with another material meshes nothing (five hits: the mesh and the two coarser
+/// ones twice, no new entries) and, on the same meshes, its frequencies scale exactly as √E;
+/// `VES_MESH_CACHE=off` stores nothing.
 #[test]
 fn a_second_scenario_of_the_same_part_reuses_its_meshes() {
     let (dir, path) = workdir(GOOD);
@@ -1850,8 +1851,8 @@ fn a_second_scenario_of_the_same_part_reuses_its_meshes() {
     let entries = || count("mesh");
     let (hits, f) = run(&path, &[]);
     // The estimate's two coarser meshes were made ahead while the fine one was solved
-    // (`accuracy::Prefetch`): the estimate itself finds them in the cache.
-    assert_eq!((hits, entries()), (2, 3), "three meshes, one file each");
+    // (`accuracy::Prefetch`): the estimate finds them in the cache, and the felt check after it.
+    assert_eq!((hits, entries()), (4, 3), "three meshes, one file each");
     // The fine mesh's METIS ordering (the coarser ones are small enough for the dense solver).
     let orders = count("order");
     assert!(orders >= 1, "{orders} orderings");
@@ -1861,7 +1862,7 @@ fn a_second_scenario_of_the_same_part_reuses_its_meshes() {
         &GOOD.replace("young = 2.1e11", "young = 8.4e11"),
     );
     let (hits, g) = run(&stiffer, &[]);
-    assert_eq!((hits, entries()), (3, 3));
+    assert_eq!((hits, entries()), (5, 3));
     assert_eq!(count("order"), orders, "the same graphs: the orderings are reused");
     for (a, b) in f.iter().zip(&g) {
         assert!((b / a - 2.0).abs() < 1e-9, "{a} → {b}");
@@ -1920,12 +1921,14 @@ fn a_cached_mesh_says_its_warnings_once() {
 /// The tags survive the mesh cache: a mesh read back from a cache entry carries the tags of the
 /// mesh stored (the same `ves precompute` twice, the second a cache hit, writes the same
 /// `mesh/surface_faces`), and the runtime loads them (surface_only or not) one per triangle.
+/// A point contact (`[contact] radius = 0`): the felt check then meshes no coarser meshes, so
+/// the hits counted are the part's own mesh's.
 #[test]
 fn a_cached_mesh_carries_the_tags_of_a_fresh_one_into_the_basis_and_the_runtime() {
     let (dir, scene) = workdir(
         "name = \"faces\"\n[geometry]\nstep = \"beam.step\"\nunit = \"mm\"\n[material]\nyoung = 2.1e11\n\
          poisson = 0.3\ndensity = 7850.0\n[mesh]\nsize = 0.05\norder = 2\nerror_estimate = false\n[[fixed]]\n\
-         faces = [1]\n[modes]\ncount = 8\n",
+         faces = [1]\n[modes]\ncount = 8\n[contact]\nradius = 0.0\n",
     );
     let cache = dir.path().join("cache");
     let run = |out: &str| {

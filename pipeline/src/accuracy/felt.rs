@@ -318,6 +318,12 @@ struct Chosen<'a> {
     at: [f64; 3],
 }
 
+/// Whether [`discretization`] will mesh the scene's coarser meshes: a held, linear part with a
+/// contact patch (a free body has no felt check; a point contact no finite compliance).
+pub fn needs_coarser_meshes(scene: &crate::scene::Scene) -> bool {
+    !scene.fixed.is_empty() && scene.nonlinear.is_none() && scene.contact_radius > 0.0
+}
+
 /// Coarser meshes the mesh error of the felt compliance is read from: each vertex's size times
 /// these (as the frequency estimate's, [`super::COARSENING`] and its square).
 const COARSER: [f64; 2] = [super::COARSENING, super::COARSENING * super::COARSENING];
@@ -338,7 +344,7 @@ pub fn discretization(
     felt: &mut FeltTruncation,
 ) -> Result<()> {
     // A point contact's exact compliance is infinite (a point load on a solid): no error to state.
-    if felt.points.is_empty() || scene.contact_radius <= 0.0 {
+    if felt.points.is_empty() || !needs_coarser_meshes(scene) {
         return Ok(());
     }
     let start = std::time::Instant::now();

@@ -119,8 +119,10 @@ pub(super) fn solve_space_checked(
             // The coarser meshes, when they will be needed whatever the modes, are made beside
             // the fine one (each gmsh in its own process, one core each), so the fine solve
             // later has both cores to itself.
-            let prefetch =
-                (crate::accuracy::coarser_meshes_expected(scene) && !later).then(|| Prefetch::start(scene, voi, None));
+            // The felt check's mesh error needs them too on a held part's whole-part space.
+            let felt_needs = voi.is_none() && crate::accuracy::felt::needs_coarser_meshes(scene);
+            let prefetch = ((crate::accuracy::coarser_meshes_expected(scene) || felt_needs) && !later)
+                .then(|| Prefetch::start(scene, voi, None));
             progress::stage("meshing and assembling", 0.0)?;
             let problem = discretize(scene, voi, choice)?;
             progress::stage("eigen-solving", 0.3)?;
@@ -432,7 +434,7 @@ fn sturm_check(solved: &Solved, choice: SolverChoice) -> Result<Option<SturmCoun
 
 /// Estimate: each mode's discretization error, when the scene asks for it: the recovery estimate
 /// and, where needed, the coarser meshes (made beside the solve by `prefetch` when they were
-/// known to be needed).
+/// known to be needed, by the estimate or the felt check: its time counts the wait for them).
 fn estimate(
     scene: &Scene,
     voi: Option<&Voi>,
