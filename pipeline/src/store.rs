@@ -100,8 +100,8 @@ impl Space<'_> {
                 displacement: &l.displacement,
                 von_mises: &l.von_mises,
                 stress: &l.stress,
-                peak: l.peaks.first().map(crate::accuracy::peak::PeakStress::record),
-                regular_peak: crate::accuracy::peak::regular(&l.peaks).map(crate::accuracy::peak::PeakStress::record),
+                peak: l.peaks.first().map(crate::loads::peak::PeakStress::record),
+                regular_peak: crate::loads::peak::regular(&l.peaks).map(crate::loads::peak::PeakStress::record),
             })
             .collect()
     }
@@ -386,7 +386,7 @@ pub fn info(path: &Path) -> Result<BasisInfo> {
                     max_von_mises_pa: l.max_von_mises,
                     reaction_n: l.reaction,
                     balance_residual: l.balance_residual,
-                    peak_stress: crate::accuracy::peak::case_text(l.peak.as_ref(), l.regular_peak.as_ref()),
+                    peak_stress: crate::loads::peak::case_text(l.peak.as_ref(), l.regular_peak.as_ref()),
                 })
                 .collect(),
         });

@@ -4,6 +4,7 @@
 //! total.
 
 pub mod patch;
+pub mod peak;
 pub mod vector;
 
 pub use vector::LoadCaseError;
@@ -41,8 +42,8 @@ pub struct LoadResult {
     /// Largest von Mises stress over the corner vertices, Pa.
     pub max_von_mises: f64,
     /// Its peaks studied on meshes refined around them (the largest first;
-    /// [`crate::accuracy::peak`]); empty when not studied.
-    pub peaks: Vec<crate::accuracy::peak::PeakStress>,
+    /// `accuracy/peak.rs`); empty when not studied.
+    pub peaks: Vec<peak::PeakStress>,
 }
 
 /// One load case in the `--json` summary of `ves precompute` (docs/scene.md).
@@ -69,8 +70,8 @@ pub struct LoadSummary {
     /// |reaction + applied| over the sum of the nodal loads' magnitudes.
     pub balance_residual: f64,
     /// Its von Mises peaks studied on meshes refined around them, the largest first: value,
-    /// error or `singular` ([`crate::accuracy::peak`]); empty when not studied.
-    pub peaks: Vec<crate::accuracy::peak::PeakStress>,
+    /// error or `singular` (`accuracy/peak.rs`); empty when not studied.
+    pub peaks: Vec<peak::PeakStress>,
     /// What that says in a line: the largest peak's value and error, or that it is singular and
     /// the largest peak that is not (absent when not studied).
     #[serde(skip_serializing_if = "Option::is_none")]
@@ -252,9 +253,9 @@ impl LoadResult {
             support_reactions: self.support_reactions.clone(),
             balance_residual: self.balance_residual,
             peaks: self.peaks.clone(),
-            peak_stress: crate::accuracy::peak::case_text(
+            peak_stress: peak::case_text(
                 self.peaks.first().map(|p| p.record()).as_ref(),
-                crate::accuracy::peak::regular(&self.peaks).map(|p| p.record()).as_ref(),
+                peak::regular(&self.peaks).map(|p| p.record()).as_ref(),
             ),
         }
     }

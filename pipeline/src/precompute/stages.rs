@@ -202,8 +202,8 @@ fn peak_stress(scene: &Scene, s: &mut SolvedSpace) -> Result<()> {
     }
     for l in &s.loads {
         let first = l.peaks.first().map(|p| p.record());
-        let regular = crate::accuracy::peak::regular(&l.peaks).map(|p| p.record());
-        if let Some(text) = crate::accuracy::peak::case_text(first.as_ref(), regular.as_ref()) {
+        let regular = crate::loads::peak::regular(&l.peaks).map(|p| p.record());
+        if let Some(text) = crate::loads::peak::case_text(first.as_ref(), regular.as_ref()) {
             tracing::info!("load case \"{}\": {text}", l.name);
         }
     }
