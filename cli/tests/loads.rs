@@ -207,6 +207,19 @@ fn the_peak_stress_is_stated_with_its_error_or_said_to_be_singular() {
         text.contains("singular point") && text.contains("away from it"),
         "{text}"
     );
+    // The safety factor to judge the part by: against the largest peak that is not singular.
+    let regular = peaks
+        .iter()
+        .find(|p| p["verdict"] != "singular")
+        .expect("a regular peak");
+    let away = tip["safety_factor_away_from_singular"]
+        .as_f64()
+        .expect("safety_factor_away_from_singular");
+    let want = 2.5e8 / regular["value_pa"].as_f64().unwrap();
+    assert!(
+        (away - want).abs() < 1e-12 * want && away > tip["safety_factor"].as_f64().unwrap(),
+        "{tip}"
+    );
 
     let (fine_dir, fine_path) =
         workdir(&beam(0.0125, TIP).replace("[[fixed]]", "[stress]\npeak_error = false\n[[fixed]]"));

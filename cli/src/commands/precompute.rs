@@ -156,7 +156,11 @@ impl Args {
                     l.max_displacement_m,
                     l.max_von_mises_pa,
                     l.safety_factor
-                        .map_or(String::new(), |f| format!(" (safety factor {f:.3})")),
+                        .map_or(String::new(), |f| match l.safety_factor_away_from_singular {
+                            Some(away) =>
+                                format!(" (safety factor {f:.3} from a singular peak; {away:.3} away from it)"),
+                            None => format!(" (safety factor {f:.3})"),
+                        }),
                     l.peak_stress.as_ref().map_or(String::new(), |t| format!("; {t}"))
                 );
             }

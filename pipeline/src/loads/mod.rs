@@ -72,6 +72,10 @@ pub struct LoadSummary {
     /// Its von Mises peaks studied on meshes refined around them, the largest first: value,
     /// error or `singular` (`accuracy/peak.rs`); empty when not studied.
     pub peaks: Vec<peak::PeakStress>,
+    /// When the largest peak is singular (its `safety_factor` then falls as the mesh is refined):
+    /// the yield strength over the largest studied peak that is not, the figure to judge the
+    /// part by (`null` otherwise, or without a yield strength).
+    pub safety_factor_away_from_singular: Option<f64>,
     /// What that says in a line: the largest peak's value and error, or that it is singular and
     /// the largest peak that is not (absent when not studied).
     #[serde(skip_serializing_if = "Option::is_none")]
@@ -253,6 +257,10 @@ impl LoadResult {
             support_reactions: self.support_reactions.clone(),
             balance_residual: self.balance_residual,
             peaks: self.peaks.clone(),
+            safety_factor_away_from_singular: yield_strength
+                .zip(peak::regular(&self.peaks))
+                .filter(|(_, p)| p.value_pa > 0.0)
+                .map(|(y, p)| y / p.value_pa),
             peak_stress: peak::case_text(
                 self.peaks.first().map(|p| p.record()).as_ref(),
                 peak::regular(&self.peaks).map(|p| p.record()).as_ref(),
