@@ -367,14 +367,19 @@ pub fn discretization(
             }
         };
         let surface = Surface::new(&d.mesh);
-        // The same patch, centred exactly at each point (a coarser mesh has no vertex there).
+        // The same patch, centred exactly at each point (a coarser mesh has no vertex there) on
+        // the triangles facing the point's way.
         let patches: Vec<crate::loads::patch::Patch> = felt
             .points
             .iter()
             .map(|p| {
                 surface
-                    .at_point(p.position_m, scene.contact_radius)
-                    .map(|(patch, _, _)| patch)
+                    .at_point_facing(p.position_m, p.normal, scene.contact_radius)
+                    .or_else(|| {
+                        surface
+                            .at_point(p.position_m, scene.contact_radius)
+                            .map(|(patch, _, _)| patch)
+                    })
                     .ok_or_else(|| anyhow::anyhow!("the coarser mesh has no surface"))
             })
             .collect::<Result<_>>()?;

@@ -245,6 +245,18 @@ impl<'a> Surface<'a> {
         Some((patch, centre, distance))
     }
 
+    /// [`Surface::at_point`] on the triangles facing within [`MAX_TURN`] of `normal`, and spread
+    /// as a patch facing `normal`: the same patch as a vertex's of that normal on another mesh of
+    /// the part (at a hole's rim the closest triangle may be the bore's wall, whose patch is
+    /// another one). `None` when no triangle faces that way or nothing is loaded.
+    pub fn at_point_facing(&self, point: [f64; 3], normal: [f64; 3], radius: f64) -> Option<Patch> {
+        let (t, (centre, _)) = (0..self.mesh.surface.len())
+            .filter(|&t| dot(self.normals[t], normal) > MAX_TURN)
+            .map(|t| (t, closest_on_triangle(point, self.corners(t))))
+            .min_by(|a, b| a.1.1.total_cmp(&b.1.1))?;
+        self.spread(centre, normal, &[t], radius)
+    }
+
     /// The pressure around `centre` integrated over the triangles reached from `seeds`;
     /// `None` when nothing is loaded (radius 0).
     fn spread(&self, centre: [f64; 3], normal: [f64; 3], seeds: &[usize], radius: f64) -> Option<Patch> {
