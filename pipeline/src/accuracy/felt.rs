@@ -154,9 +154,19 @@ pub fn truncation(s: &Space<'_>) -> Result<Option<FeltTruncation>> {
     if movable.is_empty() || r == 0 {
         return Ok(None);
     }
+    // W φ: a patch's weighted motion in field φ (free DOFs).
+    let weighted = |(nodes, weights): (&[u32], &[f64]), phi: &[f64]| -> Vector3<f64> {
+        Vector3::from_fn(|c, _| {
+            nodes
+                .iter()
+                .zip(weights)
+                .filter_map(|(&a, &w)| free_of(a, c).map(|f| w * phi[f]))
+                .sum()
+        })
+    };
     // Σⱼ (W φⱼ)(W φⱼ)ᵀ / λⱼ for a patch; with the static correction the runtime adds the rest:
     // what is felt is the exact block.
-    let modal = |(nodes, weights): (&[u32], &[f64])| -> Matrix3<f64> {
+    let modal = |patch: (&[u32], &[f64])| -> Matrix3<f64> {
         if s.corrected {
             return Matrix3::zeros();
         }
@@ -165,35 +175,18 @@ pub fn truncation(s: &Space<'_>) -> Result<Option<FeltTruncation>> {
             .iter()
             .enumerate()
             .fold(Matrix3::zeros(), |acc, (j, &l)| {
-                let phi = &s.modes.vectors[j * nf..(j + 1) * nf];
-                let v = Vector3::from_fn(|c, _| {
-                    nodes
-                        .iter()
-                        .zip(weights)
-                        .filter_map(|(&a, &w)| free_of(a, c).map(|f| w * phi[f]))
-                        .sum()
-                });
+                let v = weighted(patch, &s.modes.vectors[j * nf..(j + 1) * nf]);
                 acc + v * v.transpose() / l
             })
     };
     // The most compliant movable patch, each scored once (by its modal compliance; with the
     // static correction by the first mode's, a cheap proxy).
     let score = |k: usize| -> f64 {
-        if !s.corrected {
-            return modal(patches.patch(k)).trace();
+        if s.corrected {
+            weighted(patches.patch(k), &s.modes.vectors[..nf]).norm_squared()
+        } else {
+            modal(patches.patch(k)).trace()
         }
-        let (nodes, weights) = patches.patch(k);
-        let phi = &s.modes.vectors[..nf];
-        (0..3)
-            .map(|c| {
-                nodes
-                    .iter()
-                    .zip(weights)
-                    .filter_map(|(&a, &w)| free_of(a, c).map(|f| w * phi[f]))
-                    .sum::<f64>()
-                    .powi(2)
-            })
-            .sum()
     };
     let softest = movable
         .iter()
@@ -208,7 +201,9 @@ pub fn truncation(s: &Space<'_>) -> Result<Option<FeltTruncation>> {
     let mut named: Vec<(crate::loads::patch::Patch, u32, [f64; 3])> = Vec::new();
     let mut directions: Vec<[f64; 3]> = Vec::new();
     let mut near: Vec<usize> = Vec::new();
-    for &(p, direction) in &s.first {
+    // At most as many as the points sampled: each costs three solves, and the scene's probe list
+    // has no bound of its own.
+    for &(p, direction) in s.first.iter().take(SAMPLES) {
         let (Some(k), Some((patch, centre, _))) = (
             movable
                 .iter()

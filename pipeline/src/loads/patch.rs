@@ -225,9 +225,7 @@ impl<'a> Surface<'a> {
     /// The patch of radius `radius` centred on the surface point closest to `point`, that centre,
     /// and how far `point` is from it.
     pub fn at_point(&self, point: [f64; 3], radius: f64) -> Option<(Patch, [f64; 3], f64)> {
-        let (t, (centre, distance)) = (0..self.mesh.surface.len())
-            .map(|t| (t, closest_on_triangle(point, self.corners(t))))
-            .min_by(|a, b| a.1.1.total_cmp(&b.1.1))?;
+        let (t, (centre, distance)) = self.closest(point, |_| true)?;
         let patch = match self.spread(centre, self.normals[t], &[t], radius) {
             Some(p) => p,
             // Radius 0: the nearest corner of that triangle.
@@ -250,11 +248,17 @@ impl<'a> Surface<'a> {
     /// the part (at a hole's rim the closest triangle may be the bore's wall, whose patch is
     /// another one). `None` when no triangle faces that way or nothing is loaded.
     pub fn at_point_facing(&self, point: [f64; 3], normal: [f64; 3], radius: f64) -> Option<Patch> {
-        let (t, (centre, _)) = (0..self.mesh.surface.len())
-            .filter(|&t| dot(self.normals[t], normal) > MAX_TURN)
-            .map(|t| (t, closest_on_triangle(point, self.corners(t))))
-            .min_by(|a, b| a.1.1.total_cmp(&b.1.1))?;
+        let (t, (centre, _)) = self.closest(point, |t| dot(self.normals[t], normal) > MAX_TURN)?;
         self.spread(centre, normal, &[t], radius)
+    }
+
+    /// The surface triangle closest to `point` among those `eligible` takes: its index, the
+    /// closest point on it and the distance.
+    fn closest(&self, point: [f64; 3], eligible: impl Fn(usize) -> bool) -> Option<(usize, ([f64; 3], f64))> {
+        (0..self.mesh.surface.len())
+            .filter(|&t| eligible(t))
+            .map(|t| (t, closest_on_triangle(point, self.corners(t))))
+            .min_by(|a, b| a.1.1.total_cmp(&b.1.1))
     }
 
     /// The pressure around `centre` integrated over the triangles reached from `seeds`;
