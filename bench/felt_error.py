@@ -14,14 +14,12 @@ the ratios. The fine mesh keeps its own error (a third of the coarse one's at ra
 "true" column is a little low where the rate is slow.
 """
 import argparse
-import json
 import os
-import subprocess
 import sys
 import tempfile
 
-ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
-VES = os.environ.get("VES", os.path.join(ROOT, "target", "release", "ves"))
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+from precompute_run import ROOT, precompute  # noqa: E402
 
 def probes(points):
     return "".join(f"[[probe]]\nat = [{x}, {y}, {z}]\nforce = [{-nx}, {-ny}, {-nz}]\n" for (x, y, z), (nx, ny, nz) in points)
@@ -85,14 +83,7 @@ count = {modes}
 
 
 def run(dirname, name, text):
-    path = os.path.join(dirname, name + ".toml")
-    with open(path, "w") as f:
-        f.write(text)
-    out = os.path.join(dirname, name + ".h5")
-    p = subprocess.run([VES, "precompute", path, "-o", out, "--json", "--force"], capture_output=True, text=True)
-    if p.returncode != 0:
-        sys.exit(f"{name}: ves precompute failed: {p.stderr.strip().splitlines()[-1:]}")
-    return json.loads(p.stdout.strip().splitlines()[-1])
+    return precompute(dirname, name, text)[0]
 
 
 def main():

@@ -12,18 +12,16 @@ the stated error, the value on the fine mesh, the true error (|value − fine|) 
 A singular peak has no stated error: its fine-mesh value shows whether it kept rising.
 """
 import argparse
-import json
 import math
 import os
-import subprocess
 import sys
 import tempfile
 
 import h5py
 import numpy as np
 
-ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
-VES = os.environ.get("VES", os.path.join(ROOT, "target", "release", "ves"))
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+from precompute_run import ROOT, precompute  # noqa: E402
 
 PARTS = {
     "cantilever": {
@@ -105,14 +103,7 @@ peak_error = {'true' if study else 'false'}
 
 
 def run(dirname, name, text):
-    path = os.path.join(dirname, name + ".toml")
-    with open(path, "w") as f:
-        f.write(text)
-    out = os.path.join(dirname, name + ".h5")
-    p = subprocess.run([VES, "precompute", path, "-o", out, "--json"], capture_output=True, text=True)
-    if p.returncode != 0:
-        sys.exit(f"{name}: ves precompute failed: {p.stderr.strip().splitlines()[-1:]}")
-    return json.loads(p.stdout.strip().splitlines()[-1]), out
+    return precompute(dirname, name, text)
 
 
 def fine_values(basis, case):
