@@ -329,7 +329,8 @@ fn basis_with_load() -> (tempfile::TempDir, PathBuf) {
 /// (read as absent), an inverted `fixed_mask`, load data of 1e300 (the page sent `inf`) and a
 /// `max_displacement` never compared with the data: `ves info` accepted some, `ves export` and
 /// the runtime's loader (`ves session`) all. Each is refused by all three, naming the dataset,
-/// and export writes nothing.
+/// and export writes nothing; so are a felt-error table out of order, a share above 1 and
+/// datasets of unequal length.
 #[test]
 fn every_reader_refuses_damaged_contact_loads_and_mask() {
     let (dir, basis) = basis_with_load();
@@ -361,6 +362,21 @@ fn every_reader_refuses_damaged_contact_loads_and_mask() {
             "c = g['loads/tip']\nd = c['displacement']\nv = d[...]\nv[-1] = [1e300, 0.0, 0.0]\nd[...] = v\n\
              c.attrs['max_displacement'] = 1e300",
             &["loads/tip/displacement", "single precision"],
+        ),
+        (
+            "felt_order.h5",
+            "d = g['felt/nodes']\nv = d[...]\nv[0], v[-1] = v[-1], v[0]\nd[...] = v",
+            &["felt/nodes", "ascending"],
+        ),
+        (
+            "felt_share.h5",
+            "d = g['felt/truncation']\nv = d[...]\nv[0] = 2.0\nd[...] = v",
+            &["felt/truncation", "outside [0, 1]"],
+        ),
+        (
+            "felt_extent.h5",
+            "n = len(g['felt/mesh_error'])\ndel g['felt/mesh_error']\ng['felt/mesh_error'] = np.zeros(n + 1)",
+            &["felt/", "mesh errors"],
         ),
         (
             "wrong_max.h5",

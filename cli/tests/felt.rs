@@ -120,3 +120,83 @@ fn the_felt_compliance_carries_its_mesh_error() {
         "stated {stated:e} against {true_error:e}"
     );
 }
+
+/// A hand is told what it feels wrong at its own vertex (`felt/` in the file, `felt_error` in
+/// `ves session --json`). With the static correction the felt compliance is exact on the mesh at
+/// every vertex and at any mode count, and the mesh's own error is estimated at each vertex a
+/// hand can touch — by the same estimator as a named point's: a `[[probe]]` placed exactly at
+/// the hand's vertex states the same error there. Without it, only the sampled points carry an
+/// error (the modes' share and the mesh's), and none is claimed with fewer modes than it was
+/// measured with.
+#[test]
+fn a_hand_is_told_the_felt_error_at_its_own_vertex() {
+    let scene = |extra: &str| {
+        GOOD.replace(
+            "size = 0.05\norder = 1",
+            "size = 0.025\norder = 2\nerror_estimate = false",
+        )
+        .replace("count = 4", "count = 10")
+            + extra
+    };
+    let correction = "[static_correction]\nregion = \"surface\"\n";
+    let (dir, path) = workdir(&scene(correction));
+    let corrected = dir.path().join("corrected.h5");
+    let json = precompute_json(&path, &corrected);
+    let spread = &json["spaces"][0]["felt_compliance"]["mesh_at_vertices"];
+    let (median, p90, largest) = (
+        number(&spread["median"]),
+        number(&spread["p90"]),
+        number(&spread["largest"]),
+    );
+    assert!(spread["vertices"].as_u64().unwrap_or(0) > 100, "{spread}");
+    assert!(0.0 < median && median <= p90 && p90 <= largest, "{spread}");
+
+    // A hand grabs the top face at mid-span and lifts it 0.1 mm.
+    let script = write_file(dir.path(), "hand.csv", "0,0.5,0.05,0.0502,1\n0.2,0.5,0.05,0.0503,1\n");
+    let session = |basis: &std::path::Path, extra: &[&str]| -> serde_json::Value {
+        let device = format!("script:{}", script.display());
+        let mut args = vec![
+            "session",
+            basis.to_str().unwrap(),
+            "--device",
+            &device,
+            "--json",
+            "--no-realtime",
+        ];
+        args.extend_from_slice(extra);
+        let o = ves(&args);
+        assert!(o.status.success(), "{}", stderr(&o));
+        let v: serde_json::Value = serde_json::from_slice(&o.stdout).expect("JSON");
+        v["hands"][0].clone()
+    };
+    let hand = session(&corrected, &[]);
+    let at = number(&hand["felt_error"]);
+    assert!(at > 0.0 && at < 0.5, "{hand}");
+    assert_eq!(hand["felt_error_max"], hand["felt_error"], "{hand}");
+    assert_eq!(session(&corrected, &["--modes", "3"])["felt_error"], hand["felt_error"]);
+    let p: Vec<f64> = (0..3).map(|c| number(&hand["first_vertex_position"][c])).collect();
+
+    // The same place as a named point: one estimator for both.
+    let probe = format!(
+        "[[probe]]\nat = [{:?}, {:?}, {:?}]\nforce = [0.0, 0.0, -1.0]\n",
+        p[0], p[1], p[2]
+    );
+    let plain = write_file(dir.path(), "plain.toml", &scene(&probe));
+    let uncorrected = dir.path().join("plain.h5");
+    let json = precompute_json(&plain, &uncorrected);
+    let point = &json["spaces"][0]["felt_compliance"]["points"][0];
+    let mesh = number(&point["mesh_error"]);
+    println!("at {p:?}: the hand is told {at:.4e}, the probe there {mesh:.4e}");
+    assert!((at - mesh).abs() <= 1e-3 * mesh, "hand {at:e}, probe {mesh:e}: {point}");
+
+    // Without the correction: the sampled point's error, modes and mesh together; none with
+    // fewer modes than the file's.
+    let hand = session(&uncorrected, &[]);
+    assert_eq!(hand["last_vertex"], hand["first_vertex"], "{hand}");
+    let felt = number(&point["felt_error"]);
+    assert!(
+        (number(&hand["felt_error"]) - felt).abs() <= 1e-6 * felt,
+        "{hand} against {point}"
+    );
+    assert!(session(&uncorrected, &["--modes", "3"])["felt_error"].is_null());
+}

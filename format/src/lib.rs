@@ -73,6 +73,31 @@ pub type Block3 = [[f64; 3]; 3];
 /// Static compliance as stored: node indices and one block per node.
 pub type Compliance = (Vec<u32>, Vec<Block3>);
 
+/// What a hand feels wrong at surface vertices (`felt/`), along each vertex's outward normal,
+/// for its contact patch there: the share of the exact compliance the stored modes miss and the
+/// mesh's own relative error of that exact compliance. With the static correction stored the
+/// truncation is 0 (the runtime adds the missing part at any mode count) and every vertex a
+/// hand can touch is listed; without it, only the sampled points.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct FeltErrors {
+    /// The modes the truncation was measured with (all the space's).
+    pub modes: u32,
+    /// Corner vertices, strictly ascending.
+    pub nodes: Vec<u32>,
+    /// The modes' share missed, in [0, 1], parallel to `nodes`.
+    pub truncation: Vec<f64>,
+    /// The mesh's relative error, finite and ≥ 0, parallel to `nodes`.
+    pub mesh_error: Vec<f64>,
+}
+
+impl FeltErrors {
+    /// What a hand feels wrong in all at entry k: a + e − a·e (both make the part too stiff).
+    pub fn total(&self, k: usize) -> f64 {
+        let (a, e) = (self.truncation[k], self.mesh_error[k]);
+        a + e - a * e
+    }
+}
+
 /// The hand's contact patches (`contact/`): for each surface vertex (centre), the nodes its force
 /// is spread over and their weights (summing to 1). The runtime applies a hand's force F at
 /// centre k as wₐ F on each node a and reads the displacement Σ wₐ uₐ; the compliance blocks,

@@ -130,6 +130,16 @@ pub mod space {
     pub const COMPLIANCE_NODES: &str = "compliance/nodes";
     /// f64 [p, 3, 3], m/N.
     pub const COMPLIANCE_BLOCKS: &str = "compliance/blocks";
+    /// Optional group: what a hand feels wrong at surface vertices (attribute [`FELT_MODES`]).
+    pub const FELT: &str = "felt";
+    /// u32 attribute of [`FELT`]: the modes the truncation was measured with.
+    pub const FELT_MODES: &str = "modes";
+    /// u32 [p]: corner vertices, strictly ascending.
+    pub const FELT_NODES: &str = "felt/nodes";
+    /// f64 [p]: the share of the exact compliance the modes miss, in [0, 1].
+    pub const FELT_TRUNCATION: &str = "felt/truncation";
+    /// f64 [p]: the mesh's relative error of the exact compliance, ≥ 0.
+    pub const FELT_MESH_ERROR: &str = "felt/mesh_error";
     /// Optional group: the hand's contact patches (attribute [`CONTACT_RADIUS`]).
     pub const CONTACT: &str = "contact";
     /// f64 attribute of [`CONTACT`], m.

@@ -1027,6 +1027,55 @@ impl<'a> SpaceReader<'a> {
         })
     }
 
+    /// What a hand feels wrong at surface vertices, if stored: as many entries in each dataset
+    /// (at most one per corner vertex, checked before reading), vertices strictly ascending and
+    /// below the corner count, truncations in [0, 1], mesh errors finite and ≥ 0.
+    pub fn felt(&self) -> Result<Option<crate::FeltErrors>, ReadError> {
+        self.guard(|| {
+            let Some(group) = self.optional_group(sp::FELT)? else {
+                return Ok(None);
+            };
+            let modes = scalar_attr::<u32>(&group, sp::FELT_MODES)
+                .filter(|&m| m >= 1)
+                .ok_or_else(|| self.err("felt/ has no modes attribute (≥ 1); the file is damaged"))?;
+            let p = self.shape::<u32>(sp::FELT_NODES, 1)?[0];
+            let t = self.shape::<f64>(sp::FELT_TRUNCATION, 1)?[0];
+            let e = self.shape::<f64>(sp::FELT_MESH_ERROR, 1)?[0];
+            if p > self.vertex_count || t != p || e != p {
+                return Err(self.err(format!(
+                    "felt/ holds {p} vertices, {t} truncations and {e} mesh errors for {} corner vertices; \
+                     the file is damaged",
+                    self.vertex_count
+                )));
+            }
+            let nodes = self.read_all::<u32>(sp::FELT_NODES, 1)?;
+            let nodes = self.indices(sp::FELT_NODES, nodes, self.vertex_count)?;
+            if nodes.windows(2).any(|w| w[0] >= w[1]) {
+                return Err(self.err("felt/nodes is not strictly ascending; the file is damaged"));
+            }
+            let truncation = self.finite(sp::FELT_TRUNCATION, self.read_all(sp::FELT_TRUNCATION, 1)?)?;
+            if let Some(k) = truncation.iter().position(|&a| !(0.0..=1.0).contains(&a)) {
+                return Err(self.err(format!(
+                    "felt/truncation entry {k} is {}, outside [0, 1]; the file is damaged",
+                    truncation[k]
+                )));
+            }
+            let mesh_error = self.finite(sp::FELT_MESH_ERROR, self.read_all(sp::FELT_MESH_ERROR, 1)?)?;
+            if let Some(k) = mesh_error.iter().position(|&e| e < 0.0) {
+                return Err(self.err(format!(
+                    "felt/mesh_error entry {k} is {}, below 0; the file is damaged",
+                    mesh_error[k]
+                )));
+            }
+            Ok(Some(crate::FeltErrors {
+                modes,
+                nodes,
+                truncation,
+                mesh_error,
+            }))
+        })
+    }
+
     /// The hand's contact patches, if stored, checked ([`crate::Contact::check`]).
     pub fn contact(&self) -> Result<Option<crate::Contact>, ReadError> {
         self.guard(|| {
@@ -1272,6 +1321,7 @@ impl<'a> SpaceReader<'a> {
         self.loads()?;
         self.support_reactions()?;
         self.contact()?;
+        self.felt()?;
         self.check_transfers()?;
         self.nonlinear()?;
         Ok(())

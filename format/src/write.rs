@@ -71,6 +71,8 @@ pub struct SpaceData<'a> {
     pub compliance: Option<(&'a [u32], &'a [crate::Block3])>,
     /// The hand's contact patches (optional group).
     pub contact: Option<&'a crate::Contact>,
+    /// What a hand feels wrong at surface vertices (optional group).
+    pub felt: Option<&'a crate::FeltErrors>,
     /// Transfer matrices from other spaces, row-major [r, r_from].
     pub transfers: &'a [(String, Vec<f64>)],
     /// What each support carries per unit modal coordinate, with the points the moments are
@@ -319,6 +321,13 @@ fn write_space(file: &hdf5::File, s: &SpaceData<'_>) -> Result<(), WriteError> {
             .create(sp::COMPLIANCE_BLOCKS)
             .ctx(sp::COMPLIANCE_BLOCKS)?;
     }
+    if let Some(f) = s.felt {
+        let fg = g.create_group(sp::FELT).ctx(sp::FELT)?;
+        attr_u32(&fg, sp::FELT_MODES, f.modes)?;
+        vector(&g, sp::FELT_NODES, &f.nodes)?;
+        vector(&g, sp::FELT_TRUNCATION, &f.truncation)?;
+        vector(&g, sp::FELT_MESH_ERROR, &f.mesh_error)?;
+    }
     if let Some(c) = s.contact {
         let cg = g.create_group(sp::CONTACT).ctx(sp::CONTACT)?;
         attr_f64(&cg, sp::CONTACT_RADIUS, c.radius)?;
@@ -403,6 +412,7 @@ mod tests {
                 stress: None,
                 basis: &[0.1; 12],
                 compliance: None,
+                felt: None,
                 contact: None,
                 transfers: &[],
                 support_reactions: None,

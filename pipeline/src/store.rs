@@ -29,6 +29,8 @@ pub struct Space<'a> {
     pub compliance: Option<&'a crate::compliance::Compliance>,
     /// The hand's contact patches (`contact/`), if any.
     pub contact: Option<&'a crate::loads::patch::Patches>,
+    /// What a hand feels wrong at surface vertices (`felt/`), if estimated.
+    pub felt: Option<&'a ves_format::FeltErrors>,
     /// The meshing ladder's rung that made the mesh, if known.
     pub meshing_strategy: Option<&'a str>,
     /// State-transfer matrices from the other spaces (`transfer/<from>`, row-major
@@ -68,6 +70,7 @@ impl Space<'_> {
             basis,
             compliance: self.compliance.map(|c| (c.nodes.as_slice(), c.blocks.as_slice())),
             contact: self.contact,
+            felt: self.felt,
             transfers: self.transfers,
             support_reactions: self.reactions.map(|r| (r.centres.as_slice(), r.per_mode.as_slice())),
             loads,

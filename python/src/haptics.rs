@@ -257,7 +257,9 @@ impl Haptics {
     /// among `vertex_nodes`), vertex_position (m), displacement (the vertex's elastic
     /// displacement, m), grip_gap (m, while grabbing: the hand's distance from the vertex when
     /// the grab began, carried rather than pulled), grabbing, contact, clamped, strain, strain_exceeded,
-    /// von_mises (Pa), safety_factor, stress_exceeded, principal_stress (Pa), principal_strain.
+    /// von_mises (Pa), safety_factor, stress_exceeded, principal_stress (Pa), principal_strain,
+    /// felt_error (what the hand feels wrong at its vertex, relative, along the normal: the
+    /// modes' share and the mesh's own error; None where the basis does not state it).
     fn hand_outputs<'py>(&self, py: Python<'py>) -> PyResult<Vec<Bound<'py, PyDict>>> {
         self.outputs
             .iter()
@@ -278,6 +280,7 @@ impl Haptics {
                 d.set_item("stress_exceeded", o.stress_exceeded)?;
                 d.set_item("principal_stress", o.principal_stress)?;
                 d.set_item("principal_strain", o.principal_strain)?;
+                d.set_item("felt_error", o.felt_error.is_finite().then_some(o.felt_error))?;
                 Ok(d)
             })
             .collect()

@@ -67,6 +67,18 @@ impl SupportReactions {
     }
 }
 
+/// What a hand feels wrong at the kept vertices, along each one's outward normal (the file's
+/// `felt/`, docs/accuracy.md): NaN where not stated.
+#[derive(Clone, Debug, Default)]
+pub struct FeltAt {
+    /// The modes the truncation was measured with.
+    pub modes: usize,
+    /// The share of the exact compliance those modes miss, per kept vertex.
+    pub truncation: Vec<f32>,
+    /// The mesh's relative error of the exact compliance, per kept vertex.
+    pub mesh_error: Vec<f32>,
+}
+
 /// A modal basis in memory.
 #[derive(Clone, Debug)]
 pub struct Basis {
@@ -102,6 +114,8 @@ pub struct Basis {
     /// Exact static compliance (K⁻¹)ᵢᵢ per kept vertex, m/N, when the file has it (NaN where a
     /// vertex has no block).
     pub compliance: Option<Vec<[[f64; 3]; 3]>>,
+    /// What a hand feels wrong at each kept vertex where the file states it (`felt/`).
+    pub felt: Option<FeltAt>,
     /// The hand's contact patch radius, m (0: a point contact at the vertex).
     pub contact_radius: f64,
     /// Per kept vertex, what gives the modal rows the hand's force acts through and its
@@ -214,6 +228,7 @@ impl Basis {
             beta,
             rigid,
             compliance: None,
+            felt: None,
             contact_radius: 0.0,
             contact: None,
             bytes_loaded,
@@ -386,6 +401,25 @@ impl Basis {
             .as_ref()
             .and_then(|c| c.get(i).copied())
             .filter(|b| b[0][0].is_finite())
+    }
+
+    /// What a hand at kept vertex `i` feels wrong, relative, along the vertex's normal: the
+    /// modes' share (none with the static correction, which makes the felt compliance exact
+    /// on the mesh at any mode count) and the mesh's own error together, a + e − a·e. `None`
+    /// where the file does not state it, or with fewer modes than it was measured with and no
+    /// static correction (fewer modes miss more).
+    pub fn felt_error(&self, i: usize) -> Option<f64> {
+        let f = self.felt.as_ref()?;
+        let e = f64::from(*f.mesh_error.get(i)?);
+        let a = if self.compliance_of(i).is_some() {
+            0.0
+        } else if f.modes == self.eigenvalues.len() {
+            f64::from(f.truncation[i])
+        } else {
+            return None;
+        };
+        let total = a + e - a * e;
+        total.is_finite().then_some(total)
     }
 
     /// The same basis with only its first `r` modes (all of them when `r` is larger).
@@ -672,6 +706,21 @@ mod file {
         }
         if let Some(contact) = s.contact()? {
             basis = with_contact_rows(basis, &s, &contact, &keep, &rows, r)?;
+        }
+        if let Some(f) = s.felt()? {
+            let mut at = FeltAt {
+                modes: f.modes as usize,
+                truncation: vec![f32::NAN; keep.len()],
+                mesh_error: vec![f32::NAN; keep.len()],
+            };
+            for (k, &node) in f.nodes.iter().enumerate() {
+                if let Some(&i) = slot.get(node as usize).filter(|&&i| i != u32::MAX) {
+                    at.truncation[i as usize] = f.truncation[k] as f32;
+                    at.mesh_error[i as usize] = f.mesh_error[k] as f32;
+                }
+            }
+            basis.bytes_loaded += 8 * keep.len();
+            basis.felt = Some(at);
         }
         match s.compliance()? {
             Some((nodes, blocks)) => {

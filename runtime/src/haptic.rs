@@ -158,7 +158,7 @@ pub struct HandInput {
 }
 
 /// What one hand gets back.
-#[derive(Clone, Copy, Debug, Default, serde::Serialize)]
+#[derive(Clone, Copy, Debug, serde::Serialize)]
 pub struct HandOutput {
     /// Force for the device, N (already limited).
     pub force: [f64; 3],
@@ -192,6 +192,33 @@ pub struct HandOutput {
     pub principal_strain: f64,
     /// The safety factor fell below the watch's minimum (the configured reaction acted).
     pub stress_exceeded: bool,
+    /// What the hand feels wrong at the active vertex, relative, along its normal
+    /// ([`crate::Basis::felt_error`]); NaN where the basis does not state it.
+    pub felt_error: f64,
+}
+
+impl Default for HandOutput {
+    /// Nothing touched: zeros, and no felt error stated (NaN, not an exact 0).
+    fn default() -> Self {
+        HandOutput {
+            force: [0.0; 3],
+            vertex: 0,
+            contact: false,
+            grabbing: false,
+            clamped: false,
+            vertex_position: [0.0; 3],
+            displacement: [0.0; 3],
+            grip_gap: 0.0,
+            strain: 0.0,
+            strain_exceeded: false,
+            von_mises: 0.0,
+            safety_factor: 0.0,
+            principal_stress: 0.0,
+            principal_strain: 0.0,
+            stress_exceeded: false,
+            felt_error: f64::NAN,
+        }
+    }
 }
 
 struct Hand {
@@ -892,6 +919,7 @@ impl Haptics {
         };
         out.force = (-device_w).into();
         out.vertex = vertex;
+        out.felt_error = self.basis.felt_error(vertex as usize).unwrap_or(f64::NAN);
         out.contact = hd.grabbed || magnitude > 0.0;
         out.vertex_position = p_w.into();
         out.displacement = (p.now - V3::from(self.basis.rest[vertex as usize])).into();

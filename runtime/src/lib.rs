@@ -21,4 +21,4 @@ pub mod snapshot;
 pub mod switching;
 pub mod visual;
 
-pub use basis::{Basis, LoadError, LoadOptions};
+pub use basis::{Basis, FeltAt, LoadError, LoadOptions};

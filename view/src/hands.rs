@@ -12,8 +12,8 @@ use ves_runtime::snapshot::Snapshot;
 const INPUT: usize = 6;
 /// Output layout: force (3), vertex, contact, clamped, vertex position (3), strain, strain
 /// exceeded, von Mises, safety factor, stress exceeded, message sequence read, principal
-/// stress, principal strain, displacement (3), grip gap, grabbing.
-const OUTPUT: usize = 22;
+/// stress, principal strain, displacement (3), grip gap, grabbing, felt error.
+const OUTPUT: usize = 23;
 
 /// One hand shared between the web clients and the haptic thread.
 pub struct HandSlot {
@@ -84,6 +84,7 @@ fn encode(out: &HandOutput, seq: u32) -> [f64; OUTPUT] {
         out.displacement[2],
         out.grip_gap,
         b(out.grabbing),
+        out.felt_error,
     ]
 }
 
@@ -104,6 +105,7 @@ fn decode(o: &[f64; OUTPUT]) -> (HandOutput, u32) {
         displacement: [o[17], o[18], o[19]],
         grip_gap: o[20],
         grabbing: o[21] != 0.0,
+        felt_error: o[22],
     };
     (out, o[14] as u32)
 }
@@ -300,6 +302,7 @@ mod tests {
             displacement: [14.0, 15.0, 16.0],
             grip_gap: 17.0,
             grabbing: true,
+            felt_error: 18.0,
         };
         let (back, seq) = decode(&encode(&out, 13));
         assert_eq!(seq, 13);

@@ -14,6 +14,7 @@ use crate::modes::Modes;
 use crate::tet_mesh::Mesh;
 use anyhow::Result;
 use nalgebra::{Matrix3, Vector3};
+use rayon::prelude::*;
 
 /// Points sampled: spread over the surface, the most compliant first.
 const SAMPLES: usize = 24;
@@ -48,8 +49,29 @@ pub struct FeltTruncation {
     /// The largest mesh error of the exact compliance over the points where the part is
     /// compliant ([`discretization`]; None when not estimated).
     pub mesh_where_compliant: Option<f64>,
+    /// The mesh error over every vertex a hand can touch where the part is compliant (as
+    /// `largest_where_compliant`), when the exact compliance is known at each (the static
+    /// correction): its median and 90th percentile (None otherwise).
+    pub mesh_at_vertices: Option<Spread>,
     /// Seconds this took.
     pub seconds: f64,
+    /// What a hand feels wrong at each vertex where it is known (the file's `felt/`): every
+    /// vertex a hand can touch with the static correction, the sampled points without.
+    #[serde(skip)]
+    pub map: Option<ves_format::FeltErrors>,
+}
+
+/// A spread of relative errors over vertices.
+#[derive(Clone, Copy, Debug, serde::Serialize)]
+pub struct Spread {
+    /// Vertices.
+    pub vertices: usize,
+    /// Median.
+    pub median: f64,
+    /// 90th percentile.
+    pub p90: f64,
+    /// Largest.
+    pub largest: f64,
 }
 
 impl FeltTruncation {
@@ -57,9 +79,17 @@ impl FeltTruncation {
     /// the part is compliant, up to 86.83 % at stiff points (24 points; [static_correction]
     /// makes it exact)".
     pub fn text(&self) -> String {
-        let mesh = self.mesh_where_compliant.map_or(String::new(), |m| {
+        let mut mesh = self.mesh_where_compliant.map_or(String::new(), |m| {
             format!("; the mesh's own error of it ≤ {:.2} % where compliant", 100.0 * m)
         });
+        if let Some(v) = self.mesh_at_vertices {
+            mesh += &format!(
+                " (at all {} such vertices: median {:.2} %, 90 % of them ≤ {:.2} %)",
+                v.vertices,
+                100.0 * v.median,
+                100.0 * v.p90
+            );
+        }
         if self.corrected {
             return format!("; felt compliance exact on the mesh (static correction){mesh}");
         }
@@ -299,8 +329,10 @@ pub fn truncation(s: &Space<'_>) -> Result<Option<FeltTruncation>> {
         median_along_normal: along.get(along.len() / 2).copied().unwrap_or(0.0),
         largest_any_direction: points.iter().map(|p| p.any_direction).fold(0.0, f64::max),
         mesh_where_compliant: None,
+        mesh_at_vertices: None,
         points,
         seconds: start.elapsed().as_secs_f64(),
+        map: None,
     }))
 }
 
@@ -323,6 +355,25 @@ pub fn needs_coarser_meshes(scene: &crate::scene::Scene) -> bool {
 /// these (as the frequency estimate's, [`super::COARSENING`] and its square).
 const COARSER: [f64; 2] = [super::COARSENING, super::COARSENING * super::COARSENING];
 
+/// The exact compliance at every surface vertex (the static correction's blocks): the mesh
+/// error is then stated at each vertex a hand can touch, not only at the sampled points.
+pub struct Everywhere<'a> {
+    /// The blocks, W K⁻¹ Wᵀ for each vertex's contact patch.
+    pub compliance: &'a crate::compliance::Compliance,
+    /// The contact patches they are for.
+    pub patches: &'a Patches,
+    /// Which DOFs are held.
+    pub dofs: &'a Dofs,
+}
+
+/// A place the compliance is compared at on each mesh.
+struct Target {
+    at: [f64; 3],
+    normal: [f64; 3],
+    node: u32,
+    exact: f64,
+}
+
 /// The mesh's own error of each sampled point's exact compliance: the same patch (the scene's
 /// contact radius, centred at the point, along the point's direction) on two meshes 1.5× and
 /// 2.25× coarser (the frequency estimate's, for a mesh of the scene's size; each vertex's
@@ -331,12 +382,15 @@ const COARSER: [f64; 2] = [super::COARSENING, super::COARSENING * super::COARSEN
 /// ([`super::richardson`]; a compliance is an energy, converging as the eigenvalues do); where
 /// the patch is smaller than the elements under it, plus the local indentation none of the
 /// meshes resolves (Boussinesq's for the patch on a half-space, times 1 − radius/size). Fills
-/// each point's `mesh_error` and `felt_error` and the largest where the part is compliant.
+/// each point's `mesh_error` and `felt_error` and the largest where the part is compliant; with
+/// `everywhere`, the same at every vertex a hand can touch (`map`, `mesh_at_vertices`), else
+/// `map` holds the sampled points.
 pub fn discretization(
     scene: &crate::scene::Scene,
     mesh: &Mesh,
     fine_dofs: usize,
     felt: &mut FeltTruncation,
+    everywhere: Option<Everywhere<'_>>,
 ) -> Result<()> {
     // A point contact's exact compliance is infinite (a point load on a solid): no error to state.
     if felt.points.is_empty() || !needs_coarser_meshes(scene) {
@@ -344,6 +398,19 @@ pub fn discretization(
     }
     let start = std::time::Instant::now();
     let sizes = super::peak::vertex_sizes(mesh);
+    let mut targets: Vec<Target> = felt
+        .points
+        .iter()
+        .map(|p| Target {
+            at: p.position_m,
+            normal: p.normal,
+            node: p.node,
+            exact: p.exact_m_per_n,
+        })
+        .collect();
+    if let Some(e) = &everywhere {
+        targets.extend(vertex_targets(mesh, e));
+    }
     // A mesh of the scene's own size is coarsened as the frequency estimate coarsens it (the
     // same meshes: the mesh cache has them when the estimate made them); a refined one by each
     // vertex's measured size.
@@ -352,7 +419,7 @@ pub fn discretization(
         .target_error
         .is_some()
         .then(|| crate::mesh::field::SizeField::on(mesh, sizes.clone()));
-    let mut levels: Vec<(usize, Vec<f64>)> = Vec::new();
+    let mut levels: Vec<(usize, Vec<Option<f64>>)> = Vec::new();
     for factor in COARSER {
         let d = match &field {
             Some(f) => crate::problem::discretize_with(scene, None, Some(&f.scaled(factor)), true)?,
@@ -364,58 +431,68 @@ pub fn discretization(
         let surface = Surface::new(&d.mesh);
         // The same patch, centred exactly at each point (a coarser mesh has no vertex there) on
         // the triangles facing the point's way.
-        let patches: Vec<crate::loads::patch::Patch> = felt
-            .points
-            .iter()
-            .map(|p| {
+        let patches: Vec<Option<crate::loads::patch::Patch>> = targets
+            .par_iter()
+            .map(|t| {
                 surface
-                    .at_point_facing(p.position_m, p.normal, scene.contact_radius)
-                    .or_else(|| {
-                        surface
-                            .at_point(p.position_m, scene.contact_radius)
-                            .map(|(patch, _, _)| patch)
+                    .at_point_facing(t.at, t.normal, scene.contact_radius)
+                    .or_else(|| surface.at_point(t.at, scene.contact_radius).map(|(patch, _, _)| patch))
+                    .filter(|p| {
+                        p.nodes
+                            .iter()
+                            .all(|&a| (0..3).all(|c| d.dofs.free_of[3 * a as usize + c] != u32::MAX))
                     })
-                    .ok_or_else(|| anyhow::anyhow!("the coarser mesh has no surface"))
             })
-            .collect::<Result<_>>()?;
+            .collect();
         let chol = factor_stiffness(&d.system, &d.dofs)?;
         let list: Vec<(&[u32], &[f64])> = patches
             .iter()
+            .flatten()
             .map(|p| (p.nodes.as_slice(), p.weights.as_slice()))
             .collect();
-        let blocks = crate::compliance::patch_blocks(&d.dofs, &chol, &list, || {})?;
-        let along: Vec<f64> = felt
-            .points
+        let mut blocks = crate::compliance::patch_blocks(&d.dofs, &chol, &list, || {})?.into_iter();
+        let along: Vec<Option<f64>> = targets
             .iter()
-            .zip(&blocks)
-            .map(|(p, c)| {
-                let n = Vector3::from(p.normal);
+            .zip(&patches)
+            .map(|(t, p)| {
+                p.as_ref()?;
+                let c = blocks.next()?;
+                let n = Vector3::from(t.normal);
                 let c = Matrix3::from_fn(|a, b| 0.5 * (c[a][b] + c[b][a]));
-                (n.transpose() * c * n)[0]
+                Some((n.transpose() * c * n)[0])
             })
             .collect();
         levels.push((d.dofs.free_count(), along));
     }
     let max_rate = super::max_rate(mesh.kind.order());
     let (e, nu, a) = (scene.material.young, scene.material.poisson, scene.contact_radius);
-    for (i, p) in felt.points.iter_mut().enumerate() {
-        let mut dofs = vec![fine_dofs];
-        let mut values = vec![p.exact_m_per_n];
-        for (n, v) in &levels {
-            dofs.push(*n);
-            values.push(v[i]);
-        }
-        // A patch smaller than the elements under it is not resolved by any of the three meshes:
-        // its local indentation (a disk of radius a on a half-space, Boussinesq: 2(1 − ν²)/(π E a)
-        // at its centre) is missed in the share the elements cannot see, 1 − a/h.
-        let h = sizes.get(p.node as usize).copied().unwrap_or(0.0);
-        let local = if h > a {
-            2.0 * (1.0 - nu * nu) / (std::f64::consts::PI * e * a) * (1.0 - a / h)
-        } else {
-            0.0
-        };
-        let unresolved = local / (p.exact_m_per_n + local);
-        p.mesh_error = super::richardson::estimate(&dofs, &values, max_rate).map(|e| e.relative + unresolved);
+    let errors: Vec<Option<f64>> = targets
+        .iter()
+        .enumerate()
+        .map(|(i, t)| {
+            let mut dofs = vec![fine_dofs];
+            let mut values = vec![t.exact];
+            for (n, v) in &levels {
+                dofs.push(*n);
+                values.push(v[i]?);
+            }
+            // A patch smaller than the elements under it is not resolved by any of the three
+            // meshes: its local indentation (a disk of radius a on a half-space, Boussinesq:
+            // 2(1 − ν²)/(π E a) at its centre) is missed in the share the elements cannot see,
+            // 1 − a/h.
+            let h = sizes.get(t.node as usize).copied().unwrap_or(0.0);
+            let local = if h > a {
+                2.0 * (1.0 - nu * nu) / (std::f64::consts::PI * e * a) * (1.0 - a / h)
+            } else {
+                0.0
+            };
+            let unresolved = local / (t.exact + local);
+            super::richardson::estimate(&dofs, &values, max_rate).map(|e| e.relative + unresolved)
+        })
+        .collect();
+    let n_points = felt.points.len();
+    for (p, e) in felt.points.iter_mut().zip(&errors) {
+        p.mesh_error = *e;
         p.felt_error = p.mesh_error.map(|e| p.along_normal + e - p.along_normal * e);
     }
     let softest = felt.points.iter().map(|p| p.exact_m_per_n).fold(0.0, f64::max);
@@ -425,8 +502,75 @@ pub fn discretization(
         .filter(|p| p.exact_m_per_n >= COMPLIANT * softest)
         .filter_map(|p| p.mesh_error)
         .reduce(f64::max);
+    // Each vertex once, ascending; the sampled points' own values where there are no others.
+    let mut known: Vec<(u32, f64, f64, f64)> = match everywhere {
+        Some(_) => targets[n_points..]
+            .iter()
+            .zip(&errors[n_points..])
+            .filter_map(|(t, e)| Some((t.node, 0.0, (*e)?, t.exact)))
+            .collect(),
+        None => felt
+            .points
+            .iter()
+            .filter_map(|p| Some((p.node, p.along_normal, p.mesh_error?, p.exact_m_per_n)))
+            .collect(),
+    };
+    known.sort_by_key(|k| k.0);
+    known.dedup_by_key(|k| k.0);
+    if everywhere.is_some() {
+        // Where the part is compliant, as for the points: at a stiff vertex a hand feels the
+        // fingertip's local indentation, which a mesh coarser than the patch does not resolve.
+        let softest = known.iter().map(|k| k.3).fold(0.0, f64::max);
+        let mut e: Vec<f64> = known
+            .iter()
+            .filter(|k| k.3 >= COMPLIANT * softest)
+            .map(|k| k.2)
+            .collect();
+        e.sort_by(f64::total_cmp);
+        felt.mesh_at_vertices = (!e.is_empty()).then(|| Spread {
+            vertices: e.len(),
+            median: e[e.len() / 2],
+            p90: e[(9 * e.len() / 10).min(e.len() - 1)],
+            largest: e[e.len() - 1],
+        });
+    }
+    felt.map = Some(ves_format::FeltErrors {
+        modes: felt.modes as u32,
+        nodes: known.iter().map(|k| k.0).collect(),
+        truncation: known.iter().map(|k| k.1).collect(),
+        mesh_error: known.iter().map(|k| k.2).collect(),
+    });
     felt.seconds += start.elapsed().as_secs_f64();
     Ok(())
+}
+
+/// Every vertex whose whole contact patch is free to move, with its exact compliance along its
+/// outward normal.
+fn vertex_targets(mesh: &Mesh, e: &Everywhere<'_>) -> Vec<Target> {
+    let surface = Surface::new(mesh);
+    let free = |a: u32| (0..3).all(|c| e.dofs.free_of[3 * a as usize + c] != u32::MAX);
+    e.compliance
+        .nodes
+        .iter()
+        .zip(&e.compliance.blocks)
+        .filter_map(|(&node, c)| {
+            let k = e.patches.centres.binary_search(&node).ok()?;
+            let (nodes, _) = e.patches.patch(k);
+            if !nodes.iter().all(|&a| free(a)) {
+                return None;
+            }
+            let normal = surface.normal_at(node);
+            let n = Vector3::from(normal);
+            let c = Matrix3::from_fn(|a, b| 0.5 * (c[a][b] + c[b][a]));
+            let exact = (n.transpose() * c * n)[0];
+            (exact > 0.0 && n.norm() > 0.5).then(|| Target {
+                at: mesh.nodes[node as usize],
+                normal,
+                node,
+                exact,
+            })
+        })
+        .collect()
 }
 
 /// The largest eigenvalue of C⁻¹ᐟ² D C⁻¹ᐟ² (C the exact block, positive definite at a movable

@@ -3,6 +3,7 @@
 //! nodal stress and von Mises stress, and the supports' reaction checked against the applied
 //! total.
 
+pub mod nearest;
 pub mod patch;
 pub mod peak;
 pub mod vector;

@@ -82,6 +82,8 @@ pub struct Surface<'a> {
     normals: Vec<[f64; 3]>,
     neighbours: Vec<[usize; 3]>,
     around: HashMap<u32, Vec<usize>>,
+    /// The triangles binned in space, made on the first search.
+    grid: std::sync::OnceLock<super::nearest::TriangleGrid>,
 }
 
 fn sub(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
@@ -185,6 +187,7 @@ impl<'a> Surface<'a> {
             normals,
             neighbours,
             around,
+            grid: std::sync::OnceLock::new(),
         }
     }
 
@@ -255,10 +258,9 @@ impl<'a> Surface<'a> {
     /// The surface triangle closest to `point` among those `eligible` takes: its index, the
     /// closest point on it and the distance.
     fn closest(&self, point: [f64; 3], eligible: impl Fn(usize) -> bool) -> Option<(usize, ([f64; 3], f64))> {
-        (0..self.mesh.surface.len())
-            .filter(|&t| eligible(t))
-            .map(|t| (t, closest_on_triangle(point, self.corners(t))))
-            .min_by(|a, b| a.1.1.total_cmp(&b.1.1))
+        self.grid
+            .get_or_init(|| super::nearest::TriangleGrid::new(self.mesh.surface.len(), |t| self.corners(t)))
+            .closest(point, eligible, |t| closest_on_triangle(point, self.corners(t)))
     }
 
     /// The pressure around `centre` integrated over the triangles reached from `seeds`;

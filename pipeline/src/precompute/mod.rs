@@ -134,6 +134,7 @@ impl SolvedSpace {
             mass: &self.mass,
             compliance: self.compliance.as_ref(),
             contact: self.contact.as_ref(),
+            felt: self.felt.as_ref().and_then(|f| f.map.as_ref()),
             meshing_strategy: Some(self.meshing.strategy),
             transfers: &self.transfers,
             estimated_relative_error: self.error.as_ref().map(|e| {

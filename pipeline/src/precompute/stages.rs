@@ -250,7 +250,19 @@ fn felt(scene: &Scene, s: &mut SolvedSpace) -> Result<()> {
     if let Some(f) = s.felt.as_mut().filter(|_| s.voi.is_none()) {
         progress::stage("the felt compliance's mesh error", 0.95)?;
         let fine = s.dofs.free_count();
-        let (done, more) = timed(|| released(|| crate::accuracy::felt::discretization(scene, &s.mesh, fine, f)));
+        // With the static correction the exact compliance is known at every vertex: the mesh
+        // error is stated at each one a hand can touch.
+        let everywhere = s
+            .compliance
+            .as_ref()
+            .zip(s.contact.as_ref())
+            .map(|(compliance, patches)| crate::accuracy::felt::Everywhere {
+                compliance,
+                patches,
+                dofs: &s.dofs,
+            });
+        let (done, more) =
+            timed(|| released(|| crate::accuracy::felt::discretization(scene, &s.mesh, fine, f, everywhere)));
         if let Err(e) = done {
             tracing::warn!(
                 "space \"{}\": the felt compliance's mesh error was not estimated ({e:#})",

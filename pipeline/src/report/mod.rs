@@ -729,6 +729,7 @@ impl Sweep<'_> {
                 mass: &d.system.mass,
                 compliance: exact.map(|e| &e.surface),
                 contact: exact.map(|e| &e.contact).filter(|c| c.radius > 0.0),
+                felt: None,
                 meshing_strategy: Some(d.meshing.strategy),
                 transfers: &[],
                 estimated_relative_error: None,

@@ -137,6 +137,11 @@ pub struct HandReport {
     pub last_vertex: Option<u32>,
     /// Its elastic displacement then (part frame), m.
     pub last_displacement_m: [f64; 3],
+    /// What the hand feels wrong at that vertex, relative, along its normal (the modes' share
+    /// and the mesh's own error; docs/accuracy.md); null where the basis does not state it.
+    pub felt_error: Option<f64>,
+    /// The largest of the same over the vertices it touched (null: none stated).
+    pub felt_error_max: Option<f64>,
 }
 
 impl HandReport {
@@ -158,6 +163,10 @@ impl HandReport {
             .max((u[0] * u[0] + u[1] * u[1] + u[2] * u[2]).sqrt());
         self.last_vertex = Some(out.vertex);
         self.last_displacement_m = u;
+        self.felt_error = out.felt_error.is_finite().then_some(out.felt_error);
+        if let Some(e) = self.felt_error {
+            self.felt_error_max = Some(self.felt_error_max.map_or(e, |m| m.max(e)));
+        }
     }
 }
 

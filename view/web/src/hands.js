@@ -3,7 +3,7 @@
 // that vertex with its value.
 import * as THREE from 'three';
 import { el } from './dom.js';
-import { label } from './units.js';
+import { feltText, label } from './units.js';
 import { state } from './state.js';
 import { scene, screenOfPoint } from './viewport.js';
 
@@ -54,7 +54,8 @@ function update(i, h) {
   const [x, y] = screenOfPoint(tip.copy(drawnAt).addScaledVector(dir, len), at);
   tag.style.left = `${x + 8}px`;
   tag.style.top = `${y - 8}px`;
-  tag.textContent = `${label(mag, 'force', 'si')} on the part`;
+  const felt = feltText(h.felt_error);
+  tag.textContent = `${label(mag, 'force', 'si')} on the part${felt ? ` (${felt})` : ''}`;
 }
 
 /** Every hand of a status (its `hands`). */

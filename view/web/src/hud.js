@@ -3,7 +3,7 @@
 import * as THREE from 'three';
 import { $, el } from './dom.js';
 import { gradient } from './colours.js';
-import { label, plain } from './units.js';
+import { feltText, label, plain } from './units.js';
 import { DRAW_WINDOW, state } from './state.js';
 import { scene, screenOfPoint } from './viewport.js';
 
@@ -38,7 +38,8 @@ export function showStatus(m) {
     const f = Math.hypot(...h.force);
     lines.push(`hand ${i + 1}: ${label(f, 'force', 'si')} on the part${h.clamped ? ' (device limit)' : ''}${h.button ? '' : ', pressing'}`
       + (h.von_mises > 0 ? ` · σvM ${label(h.von_mises, 'stress', u)} · σ1 ${label(h.principal_stress, 'stress', u)} · ε1 ${h.principal_strain.toExponential(2)}` : '')
-      + (h.safety_factor != null && h.von_mises > 0 ? ` · safety ${plain(h.safety_factor)}` : ''));
+      + (h.safety_factor != null && h.von_mises > 0 ? ` · safety ${plain(h.safety_factor)}` : '')
+      + (h.contact && feltText(h.felt_error) ? ` · ${feltText(h.felt_error)} here` : ''));
     if (h.strain_exceeded) {
       warn.push(`hand ${i + 1}: surface strain ${(100 * h.strain).toPrecision(2)} % at the held point is past the linear model's limit of ${(100 * state.hello.strain_limit).toPrecision(2)} %: the result there is not valid`);
     }

@@ -36,3 +36,12 @@ export function label(v, quantity, system) {
   }
   return siLabel(v, SI[quantity] || '');
 }
+
+/** What a hand feels wrong at its vertex (the status's `felt_error`: the share of the felt
+ * compliance the modes and the mesh miss, both making the part too stiff), as how much too
+ * stiff it feels: "felt ≤ 1.2 % too stiff"; '' when not stated. */
+export function feltText(e) {
+  if (e == null || !Number.isFinite(e)) return '';
+  if (e >= 0.5) return 'felt over 2× too stiff (the mesh is coarser than the fingertip)';
+  return `felt ≤ ${plain(100 * e / (1 - e))} % too stiff`;
+}
