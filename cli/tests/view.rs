@@ -1066,6 +1066,19 @@ fn a_step_part_is_set_up_computed_and_pulled_in_the_page() {
         norm(sub(true_u, expected)) < REL * e + f32_positions,
         "true displacement {true_u:?} m vs {expected:?} m from the basis"
     );
+    // What the hand feels wrong at its vertex (the checks' `felt/`, the static correction on
+    // for a held part): the saved scene's file states the same, and the page writes it beside
+    // the force and in the hand's line.
+    let felt = b
+        .felt_error(vertex)
+        .expect("the file states the felt error at the pulled vertex");
+    assert!(
+        (pulled["felt"].as_f64().unwrap_or(f64::NAN) - felt).abs() <= 1e-4 * felt,
+        "page {} against the file's {felt}",
+        pulled["felt"]
+    );
+    let text = format!("{} {}", pulled["handText"], pulled["tag"]);
+    assert!(text.contains("too stiff"), "{text}");
     let k = stated_scale(&pulled["scaleText"]);
     assert_eq!(pulled["scale"].as_f64(), Some(k), "{pulled}");
     let drawn_u = sub(vec3(&pulled["drawn"]), rest_file);

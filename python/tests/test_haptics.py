@@ -224,3 +224,28 @@ def test_a_volume_of_interest_takes_over_where_the_hand_pulls(work):
     assert both.active_space == "global" and both.switches == 2
     # Fewer modes in every space, transfers cut to match.
     assert ves.Haptics(basis, modes=5).mode_count == 5
+
+
+def test_a_hand_is_told_the_felt_error_where_the_basis_states_it(cantilever):
+    # Without the static correction the basis states what a hand feels wrong at the felt check's
+    # sampled points (the modes' share and the mesh's error together), nowhere else; with fewer
+    # modes than it was measured with, nowhere.
+    points = {}
+    for p in cantilever.summary["spaces"][0]["felt_compliance"]["points"]:
+        points.setdefault(p["node"], p)
+    for modes, stated in ((None, True), (3, False)):
+        sim = ves.Haptics(cantilever, stiffness=2e4, damping=500.0, max_force=1e3, modes=modes)
+        nodes = list(sim.vertex_nodes)
+        told = 0
+        for node, p in list(points.items())[:4]:
+            k = nodes.index(node)
+            sim.reset()
+            sim.step(sim.rest_positions[k][None, :], buttons=True)
+            out = sim.hand_outputs()[0]
+            assert out["vertex"] == k and out["contact"]
+            if stated and p["felt_error"] is not None:
+                assert out["felt_error"] == pytest.approx(p["felt_error"], rel=1e-6)
+                told += 1
+            else:
+                assert out["felt_error"] is None
+        assert told == (4 if stated else 0)

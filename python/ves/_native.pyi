@@ -190,7 +190,7 @@ class Haptics:
     ) -> npt.NDArray[np.float64]:
         """One step: hand positions (n, 3) m → device forces (n, 3) N (into ``out`` when given)."""
     def hand_outputs(self) -> list[dict]:
-        """Each hand's output of the last step (force, vertex, vertex_position, contact, clamped, strain, …)."""
+        """Each hand's output of the last step (force, vertex, vertex_position, contact, clamped, strain, …, felt_error: what the hand feels wrong at its vertex, or None)."""
     @property
     def q(self) -> npt.NDArray[np.float64]:
         """Modal coordinates, shape (r,)."""

@@ -121,6 +121,11 @@ typedef struct VesHandOutput {
    * Largest principal strain at the vertex (0 without modal stress).
    */
   double principal_strain;
+  /**
+   * What the hand feels wrong at the vertex, relative, along its normal (the modes' share and
+   * the mesh's own error; docs/accuracy.md); NaN where the basis does not state it.
+   */
+  double felt_error;
 } VesHandOutput;
 
 #ifdef __cplusplus

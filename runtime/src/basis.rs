@@ -79,6 +79,41 @@ pub struct FeltAt {
     pub mesh_error: Vec<f32>,
 }
 
+impl FeltAt {
+    /// The file's table on `kept` vertices, `slot[node]` the kept vertex of a file node
+    /// (`u32::MAX`: not kept).
+    fn of_file(f: &ves_format::FeltErrors, slot: &[u32], kept: usize) -> FeltAt {
+        let mut at = FeltAt {
+            modes: f.modes as usize,
+            truncation: vec![f32::NAN; kept],
+            mesh_error: vec![f32::NAN; kept],
+        };
+        for (k, &node) in f.nodes.iter().enumerate() {
+            if let Some(&i) = slot.get(node as usize).filter(|&&i| (i as usize) < kept) {
+                at.truncation[i as usize] = f.truncation[k] as f32;
+                at.mesh_error[i as usize] = f.mesh_error[k] as f32;
+            }
+        }
+        at
+    }
+
+    /// What a hand at kept vertex `i` feels wrong: the modes' share (none when `corrected`, the
+    /// static correction stored there) and the mesh's error, a + e − a·e; `None` where not
+    /// stated, or when `modes` (those simulated) are fewer than measured with, uncorrected.
+    pub fn error(&self, i: usize, corrected: bool, modes: usize) -> Option<f64> {
+        let e = f64::from(*self.mesh_error.get(i)?);
+        let a = if corrected {
+            0.0
+        } else if self.modes == modes {
+            f64::from(self.truncation[i])
+        } else {
+            return None;
+        };
+        let total = a + e - a * e;
+        total.is_finite().then_some(total)
+    }
+}
+
 /// A modal basis in memory.
 #[derive(Clone, Debug)]
 pub struct Basis {
@@ -409,17 +444,25 @@ impl Basis {
     /// where the file does not state it, or with fewer modes than it was measured with and no
     /// static correction (fewer modes miss more).
     pub fn felt_error(&self, i: usize) -> Option<f64> {
-        let f = self.felt.as_ref()?;
-        let e = f64::from(*f.mesh_error.get(i)?);
-        let a = if self.compliance_of(i).is_some() {
-            0.0
-        } else if f.modes == self.eigenvalues.len() {
-            f64::from(f.truncation[i])
-        } else {
-            return None;
-        };
-        let total = a + e - a * e;
-        total.is_finite().then_some(total)
+        self.felt
+            .as_ref()?
+            .error(i, self.compliance_of(i).is_some(), self.eigenvalues.len())
+    }
+
+    /// The file's `felt/` for these kept vertices, read again: a compute's checks write it
+    /// after the basis was first loaded (`ves view`). `None` without a source file or the group.
+    pub fn read_felt(&self) -> Result<Option<FeltAt>, LoadError> {
+        let Some(path) = &self.source else { return Ok(None) };
+        let file = ves_format::BasisReader::open(path)?;
+        let s = file.space(&self.space)?;
+        let Some(f) = s.felt()? else { return Ok(None) };
+        let mut slot = vec![u32::MAX; s.node_count];
+        for (k, &v) in self.node_index.iter().enumerate() {
+            if let Some(x) = slot.get_mut(v as usize) {
+                *x = k as u32;
+            }
+        }
+        Ok(Some(FeltAt::of_file(&f, &slot, self.rest.len())))
     }
 
     /// The same basis with only its first `r` modes (all of them when `r` is larger).
@@ -708,19 +751,8 @@ mod file {
             basis = with_contact_rows(basis, &s, &contact, &keep, &rows, r)?;
         }
         if let Some(f) = s.felt()? {
-            let mut at = FeltAt {
-                modes: f.modes as usize,
-                truncation: vec![f32::NAN; keep.len()],
-                mesh_error: vec![f32::NAN; keep.len()],
-            };
-            for (k, &node) in f.nodes.iter().enumerate() {
-                if let Some(&i) = slot.get(node as usize).filter(|&&i| i != u32::MAX) {
-                    at.truncation[i as usize] = f.truncation[k] as f32;
-                    at.mesh_error[i as usize] = f.mesh_error[k] as f32;
-                }
-            }
             basis.bytes_loaded += 8 * keep.len();
-            basis.felt = Some(at);
+            basis.felt = Some(FeltAt::of_file(&f, &slot, keep.len()));
         }
         match s.compliance()? {
             Some((nodes, blocks)) => {

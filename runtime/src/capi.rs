@@ -100,6 +100,9 @@ pub struct VesHandOutput {
     pub principal_stress: f64,
     /// Largest principal strain at the vertex (0 without modal stress).
     pub principal_strain: f64,
+    /// What the hand feels wrong at the vertex, relative, along its normal (the modes' share and
+    /// the mesh's own error; docs/accuracy.md); NaN where the basis does not state it.
+    pub felt_error: f64,
 }
 
 thread_local! {
@@ -463,6 +466,7 @@ fn step(
             stress_exceeded: i32::from(s.stress_exceeded),
             principal_stress: s.principal_stress,
             principal_strain: s.principal_strain,
+            felt_error: s.felt_error,
         };
     }
     h.time += h.sim.state().dt();

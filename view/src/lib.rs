@@ -189,6 +189,9 @@ struct Generation {
     loads: Vec<loads::SpaceLoads>,
     /// Their names, per space, for checking requests.
     load_names: Vec<Vec<String>>,
+    /// Each space's felt errors as the file's checks wrote them after the basis was loaded
+    /// (the session's basis has them when the file had them at load).
+    felt: Vec<Option<Arc<ves_runtime::FeltAt>>>,
 }
 
 /// Where the drawing thread's hook publishes (shared by every session the server runs).
@@ -523,6 +526,7 @@ impl Shared {
                 basis_path: None,
                 loads: Vec::new(),
                 load_names: Vec::new(),
+                felt: Vec::new(),
             })),
             generations: watch::channel(0).0,
             frames,
@@ -633,6 +637,7 @@ fn swap(shared: &Arc<Shared>, spaces: Vec<SpaceInput>, basis_path: Option<PathBu
             .map(|(i, b)| Bytes::from(protocol::mesh(i, b)))
             .collect(),
         extent: bases.first().map(|b| Extent::of(b)),
+        felt: vec![None; bases.len()],
         bases: bases.clone(),
         basis_path,
     };
@@ -863,6 +868,13 @@ fn refresh_loads(shared: &Arc<Shared>) -> Option<serde_json::Value> {
         loads: space_loads,
         meshes: g.meshes.clone(),
         extent: g.extent,
+        // The checks wrote what a hand feels wrong at each vertex (`felt/`); a file that cannot
+        // be read again keeps the hands without it.
+        felt: g
+            .bases
+            .iter()
+            .map(|b| b.read_felt().ok().flatten().map(Arc::new))
+            .collect(),
         bases: g.bases.clone(),
         basis_path: g.basis_path.clone(),
     };
@@ -1197,6 +1209,20 @@ fn hello(
     })
 }
 
+/// Each hand's felt error from the checks' table when the session's basis was loaded before
+/// the checks wrote it.
+fn felt_errors(shared: &Shared, space: usize, hands: &mut [HandStatus]) {
+    let Ok(g) = shared.generation.read() else { return };
+    let (Some(Some(felt)), Some(basis)) = (g.felt.get(space), g.bases.get(space)) else {
+        return;
+    };
+    for h in hands.iter_mut().filter(|h| h.output.felt_error.is_nan()) {
+        let i = h.output.vertex as usize;
+        let corrected = basis.compliance_of(i).is_some();
+        h.output.felt_error = felt.error(i, corrected, basis.eigenvalues.len()).unwrap_or(f64::NAN);
+    }
+}
+
 /// Status at [`STATUS_PERIOD`]: rates, hands, clients.
 async fn status_loop(shared: Arc<Shared>, tx: watch::Sender<String>, stop: Arc<AtomicBool>) {
     let mut tick = tokio::time::interval(STATUS_PERIOD);
@@ -1213,7 +1239,9 @@ async fn status_loop(shared: Arc<Shared>, tx: watch::Sender<String>, stop: Arc<A
             visual_hz = f64::from(frames.saturating_sub(frames0)) / dt;
             (t0, steps0, frames0) = (t, steps, frames);
         }
-        let hands: Vec<HandStatus> = shared.hands.iter().map(|h| h.status()).collect();
+        let space = shared.published.active_space.load(Ordering::Relaxed) as usize;
+        let mut hands: Vec<HandStatus> = shared.hands.iter().map(|h| h.status()).collect();
+        felt_errors(&shared, space, &mut hands);
         let supports: Vec<serde_json::Value> = shared
             .published
             .reactions

@@ -92,7 +92,12 @@ try {
   await page.evaluate((p) => window.ves.drive(0, p), target);
   await handAt(page, 0);
   await steady(page, grab.v, 60000);
+  // The checks after the part is pullable state what the hand feels wrong at its vertex.
+  await page.waitForFunction(() => window.ves.notes.some((x) => x.type === 'checked'), null, { timeout: 120000 });
+  await page.waitForFunction(() => Number.isFinite(window.ves.status.hands[0].felt_error), null, { timeout: 10000 }).catch(() => {});
   const pulled = await page.evaluate((v) => ({
+    felt: window.ves.status.hands[0].felt_error, handText: document.getElementById('handinfo').textContent,
+    tag: [...document.querySelectorAll('.forcelabel')].map((t) => t.textContent).join(' | '),
     hand: window.ves.status.hands[0], u: Array.from(window.ves.spaces[0].u.subarray(3 * v, 3 * v + 3)),
     position: window.ves.trueOf(0, v), drawn: window.ves.drawnOf(0, v), scale: window.ves.drawnScale,
     scaleText: document.getElementById('scaleshown').textContent,

@@ -234,12 +234,15 @@ pub fn truncation(s: &Space<'_>) -> Result<Option<FeltTruncation>> {
     // At most as many as the points sampled: each costs three solves, and the scene's probe list
     // has no bound of its own.
     for &(p, direction) in s.first.iter().take(SAMPLES) {
-        let (Some(k), Some((patch, centre, _))) = (
+        // Spread facing the asked direction, as on the coarser meshes (`discretization`): at an
+        // edge the closest triangle alone may be either face's.
+        let facing = surface.at_point_facing(p, direction, s.radius);
+        let (Some(k), Some((patch, centre))) = (
             movable
                 .iter()
                 .copied()
                 .min_by(|&a, &b| dist2(at(a), p).total_cmp(&dist2(at(b), p))),
-            surface.at_point(p, s.radius),
+            facing.or_else(|| surface.at_point(p, s.radius).map(|(patch, c, _)| (patch, c))),
         ) else {
             continue;
         };
@@ -436,6 +439,7 @@ pub fn discretization(
             .map(|t| {
                 surface
                     .at_point_facing(t.at, t.normal, scene.contact_radius)
+                    .map(|(patch, _)| patch)
                     .or_else(|| surface.at_point(t.at, scene.contact_radius).map(|(patch, _, _)| patch))
                     .filter(|p| {
                         p.nodes

@@ -249,10 +249,10 @@ impl<'a> Surface<'a> {
     /// [`Surface::at_point`] on the triangles facing within [`MAX_TURN`] of `normal`, and spread
     /// as a patch facing `normal`: the same patch as a vertex's of that normal on another mesh of
     /// the part (at a hole's rim the closest triangle may be the bore's wall, whose patch is
-    /// another one). `None` when no triangle faces that way or nothing is loaded.
-    pub fn at_point_facing(&self, point: [f64; 3], normal: [f64; 3], radius: f64) -> Option<Patch> {
+    /// another one), and its centre. `None` when no triangle faces that way or nothing is loaded.
+    pub fn at_point_facing(&self, point: [f64; 3], normal: [f64; 3], radius: f64) -> Option<(Patch, [f64; 3])> {
         let (t, (centre, _)) = self.closest(point, |t| dot(self.normals[t], normal) > MAX_TURN)?;
-        self.spread(centre, normal, &[t], radius)
+        self.spread(centre, normal, &[t], radius).map(|p| (p, centre))
     }
 
     /// The surface triangle closest to `point` among those `eligible` takes: its index, the
