@@ -38,6 +38,31 @@ fn step_ns(basis: Arc<Basis>, batches: usize, per_batch: usize, press: bool) -> 
     let p = basis.rest[v as usize];
     let n = basis.normals.get(v as usize).copied().unwrap_or([0.0, 0.0, 1.0]);
     let mut h = Haptics::new(basis, Coupling::default(), 1e-3, Scheme::Exact, 1);
+    timed_steps(&mut h, batches, per_batch, |k| {
+        let s = (k % 1000) as f64 / 1000.0 - 0.5;
+        let position = if press {
+            // Across the vertex along a tangent, 0.5 mm inside.
+            let tangent = if n[0].abs() < 0.9 {
+                [0.0, -n[2], n[1]]
+            } else {
+                [-n[2], 0.0, n[0]]
+            };
+            let norm = tangent.iter().map(|x| x * x).sum::<f64>().sqrt().max(1e-300);
+            std::array::from_fn(|c| p[c] - 5e-4 * n[c] + 2e-2 * s * tangent[c] / norm)
+        } else {
+            [p[0], p[1], p[2] + 1e-3 * s]
+        };
+        HandInput {
+            position,
+            velocity: [0.0; 3],
+            button: !press,
+        }
+    })
+}
+
+/// Per batch of `per_batch` steps of `h` (one hand, its input at step k from `input`), the mean
+/// time of a step, ns.
+fn timed_steps(h: &mut Haptics, batches: usize, per_batch: usize, input: impl Fn(u64) -> HandInput) -> Vec<f64> {
     let mut out = [HandOutput::default()];
     let mut samples = Vec::with_capacity(batches);
     let mut k = 0u64;
@@ -45,32 +70,67 @@ fn step_ns(basis: Arc<Basis>, batches: usize, per_batch: usize, press: bool) -> 
         let t = Instant::now();
         for _ in 0..per_batch {
             k += 1;
-            let s = (k % 1000) as f64 / 1000.0 - 0.5;
-            let position = if press {
-                // Across the vertex along a tangent, 0.5 mm inside.
-                let tangent = if n[0].abs() < 0.9 {
-                    [0.0, -n[2], n[1]]
-                } else {
-                    [-n[2], 0.0, n[0]]
-                };
-                let norm = tangent.iter().map(|x| x * x).sum::<f64>().sqrt().max(1e-300);
-                std::array::from_fn(|c| p[c] - 5e-4 * n[c] + 2e-2 * s * tangent[c] / norm)
-            } else {
-                [p[0], p[1], p[2] + 1e-3 * s]
-            };
-            h.step(
-                &[HandInput {
-                    position,
-                    velocity: [0.0; 3],
-                    button: !press,
-                }],
-                &mut out,
-            );
+            h.step(&[input(k)], &mut out);
         }
         std::hint::black_box(&out);
         samples.push(t.elapsed().as_nanos() as f64 / per_batch as f64);
     }
     samples
+}
+
+/// A nonlinear part bent far: one hand grabs the surface vertex the modes make most compliant
+/// and moves along its normal through ±`amplitude` of the part's size (its bounding box's
+/// diagonal) and back, once a second. Per batch the mean time of a step, and the whole run's
+/// Newton iterations and tangents per step (`None` for a linear basis).
+pub fn nonlinear_sweep(basis: Arc<Basis>, batches: usize, per_batch: usize, amplitude: f64) -> Option<Sweep> {
+    basis.nonlinear.as_ref()?;
+    let r = basis.mode_count();
+    let v = basis.surface_vertices.iter().copied().max_by(|&a, &b| {
+        let soft = |v: u32| -> f64 {
+            (0..r)
+                .map(|j| {
+                    let m = basis.mode(j);
+                    (0..3).map(|c| f64::from(m[3 * v as usize + c]).powi(2)).sum::<f64>() / basis.eigenvalues[j]
+                })
+                .sum()
+        };
+        soft(a).total_cmp(&soft(b))
+    })?;
+    let (lo, hi) = basis.rest.iter().fold(([f64::MAX; 3], [f64::MIN; 3]), |(lo, hi), p| {
+        (
+            std::array::from_fn(|c| lo[c].min(p[c])),
+            std::array::from_fn(|c| hi[c].max(p[c])),
+        )
+    });
+    let size = (0..3).map(|c| (hi[c] - lo[c]).powi(2)).sum::<f64>().sqrt();
+    let (p, n) = (basis.rest[v as usize], basis.normals[v as usize]);
+    let mut h = Haptics::new(basis, Coupling::default(), 1e-3, Scheme::Exact, 1);
+    let samples = timed_steps(&mut h, batches, per_batch, |k| {
+        let s = amplitude * size * (std::f64::consts::TAU * (k % 1000) as f64 / 1000.0).sin();
+        HandInput {
+            position: std::array::from_fn(|c| p[c] + s * n[c]),
+            velocity: [0.0; 3],
+            button: true,
+        }
+    });
+    let k = (batches * per_batch).max(1) as u64;
+    let c = h.nonlinear_counts()?;
+    Some(Sweep {
+        step_ns: median(samples),
+        iterations_per_step: c.iterations as f64 / k as f64,
+        tangents_per_step: c.tangents as f64 / k as f64,
+    })
+}
+
+/// What [`nonlinear_sweep`] measured.
+#[derive(Clone, Copy, Debug)]
+pub struct Sweep {
+    /// Median over batches of the mean step, ns.
+    pub step_ns: f64,
+    /// Newton iterations (force evaluations) per step.
+    pub iterations_per_step: f64,
+    /// Tangent stiffnesses made per step.
+    pub tangents_per_step: f64,
 }
 
 /// Median and 99th percentile of the time of gathering a vertex's contact rows (what a hand

@@ -157,6 +157,17 @@ pub struct HandInput {
     pub button: bool,
 }
 
+/// What a nonlinear part's steps took so far.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct NewtonCounts {
+    /// Newton iterations (each one force evaluation and one solve).
+    pub iterations: u64,
+    /// Tangent stiffnesses made and factored.
+    pub tangents: u64,
+    /// Steps whose tangent was not positive definite (the linear stiffness stood in).
+    pub indefinite: u64,
+}
+
 /// What one hand gets back.
 #[derive(Clone, Copy, Debug, serde::Serialize)]
 pub struct HandOutput {
@@ -641,12 +652,14 @@ impl Haptics {
         }
     }
 
-    /// The nonlinear step's counters: Newton iterations, steps with an indefinite tangent (None
-    /// for a linear basis).
-    pub fn nonlinear_counts(&self) -> Option<(u64, u64)> {
-        self.nonlinear
-            .as_ref()
-            .map(|nl| (nl.stepper.iterations, nl.stepper.indefinite))
+    /// The nonlinear step's counters: Newton iterations, tangents made, steps with an
+    /// indefinite tangent (None for a linear basis).
+    pub fn nonlinear_counts(&self) -> Option<NewtonCounts> {
+        self.nonlinear.as_ref().map(|nl| NewtonCounts {
+            iterations: nl.stepper.iterations,
+            tangents: nl.stepper.tangents,
+            indefinite: nl.stepper.indefinite,
+        })
     }
 
     /// The vertex hand `k` holds by a grab, if it does.

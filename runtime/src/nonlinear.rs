@@ -39,8 +39,12 @@ pub struct Polynomial {
 #[derive(Clone, Debug)]
 pub struct Scratch {
     s: Vec<f64>,
+    /// s in single precision (H s with H in single).
+    s32: Vec<f32>,
     u: Vec<f64>,
-    hj: Vec<f64>,
+    /// H J, column by column, in single precision: the tangent only steers Newton's iterations
+    /// (the converged step is the force's), so its rounding costs nothing but a rate.
+    hj: Vec<f32>,
     row: Vec<f64>,
 }
 
@@ -116,6 +120,27 @@ impl Polynomial {
         self
     }
 
+    /// H s into `u` (s in double, and a single-precision copy `s32` for H in single: eight
+    /// lanes a step instead of four, the products rounded as H's coefficients already are).
+    fn quartic_times(&self, s: &[f64], s32: &mut [f32], u: &mut [f64]) {
+        let np = self.pairs();
+        if self.h32.is_empty() {
+            for (p, up) in u.iter_mut().enumerate().take(np) {
+                *up = dot(&self.h[p * np..(p + 1) * np], s);
+            }
+            return;
+        }
+        for (x, &v) in s32.iter_mut().zip(s) {
+            *x = v as f32;
+        }
+        if crate::os::matvec32_simd(&self.h32, &s32[..np], u) {
+            return;
+        }
+        for (p, up) in u.iter_mut().enumerate().take(np) {
+            *up = dot32(&self.h32[p * np..(p + 1) * np], &s32[..np]);
+        }
+    }
+
     /// Row `p` of H dotted with `x`.
     #[inline]
     fn quartic_dot(&self, p: usize, x: &[f64]) -> f64 {
@@ -127,14 +152,16 @@ impl Polynomial {
         }
     }
 
-    /// y += c · row `p` of H.
+    /// y += c · row `p` of H, in single precision (the tangent's kernel).
     #[inline]
-    fn quartic_axpy(&self, c: f64, p: usize, y: &mut [f64]) {
+    fn quartic_axpy(&self, c: f64, p: usize, y: &mut [f32]) {
         let np = self.pairs();
         if self.h32.is_empty() {
-            axpy(c, &self.h[p * np..(p + 1) * np], y);
+            for (yi, hi) in y.iter_mut().zip(&self.h[p * np..(p + 1) * np]) {
+                *yi += (c * hi) as f32;
+            }
         } else {
-            axpy(c, &self.h32[p * np..(p + 1) * np], y);
+            crate::os::axpy32(c as f32, &self.h32[p * np..(p + 1) * np], y);
         }
     }
 
@@ -143,6 +170,7 @@ impl Polynomial {
         let np = self.pairs();
         Scratch {
             s: vec![0.0; np],
+            s32: vec![0.0; np],
             u: vec![0.0; np],
             hj: vec![0.0; np * self.r],
             row: vec![0.0; self.r],
@@ -161,14 +189,15 @@ impl Polynomial {
     }
 
     /// out += Jᵀ v, J = ∂s/∂q: (Jᵀ v)_i = Σ_{l≠i} v_(il) q_l + 2 v_(ii) q_i.
-    fn add_jt(&self, v: &[f64], q: &[f64], out: &mut [f64]) {
+    fn add_jt<V: Copy + Into<f64>>(&self, v: &[V], q: &[f64], out: &mut [f64]) {
         let mut p = 0;
         for k in 0..self.r {
-            out[k] += 2.0 * v[p] * q[k];
+            out[k] += 2.0 * v[p].into() * q[k];
             p += 1;
             for l in k + 1..self.r {
-                out[k] += v[p] * q[l];
-                out[l] += v[p] * q[k];
+                let vp: f64 = v[p].into();
+                out[k] += vp * q[l];
+                out[l] += vp * q[k];
                 p += 1;
             }
         }
@@ -203,9 +232,7 @@ impl Polynomial {
         let (r, np) = (self.r, self.pairs());
         self.products(q, &mut w.s);
         // u = Tᵀ q + H s.
-        for p in 0..np {
-            w.u[p] = self.quartic_dot(p, &w.s);
-        }
+        self.quartic_times(&w.s, &mut w.s32, &mut w.u);
         for i in 0..r {
             let ti = &self.t[i * np..(i + 1) * np];
             f[i] = dot(&self.k[i * r..(i + 1) * r], q) + dot(ti, &w.s);
@@ -371,14 +398,26 @@ pub(crate) fn dot<T: crate::os::Coefficient>(a: &[T], b: &[f64]) -> f64 {
     acc.iter().sum::<f64>() + tail
 }
 
-/// y += c x (x in double or single precision), the kernel of the tangent's quartic part.
-fn axpy<T: crate::os::Coefficient>(c: f64, x: &[T], y: &mut [f64]) {
-    if crate::os::axpy_simd(c, x, y) {
-        return;
+/// Σ aᵢ bᵢ of two single-precision vectors, summed in double at the end
+/// ([`crate::os::dot32_simd`]; else in eight independent sums).
+fn dot32(a: &[f32], b: &[f32]) -> f64 {
+    if let Some(d) = crate::os::dot32_simd(a, b) {
+        return d;
     }
-    for (yi, xi) in y.iter_mut().zip(x) {
-        *yi += c * (*xi).into();
+    let n = a.len().min(b.len());
+    let mut acc = [0.0f32; 8];
+    let (ca, cb) = (a[..n].chunks_exact(8), b[..n].chunks_exact(8));
+    let (ra, rb) = (ca.remainder(), cb.remainder());
+    for (x, y) in ca.zip(cb) {
+        for k in 0..8 {
+            acc[k] += x[k] * y[k];
+        }
     }
+    acc.iter().map(|&v| f64::from(v)).sum::<f64>()
+        + ra.iter()
+            .zip(rb)
+            .map(|(x, y)| f64::from(*x) * f64::from(*y))
+            .sum::<f64>()
 }
 
 fn norm(a: &[f64]) -> f64 {
@@ -388,14 +427,25 @@ fn norm(a: &[f64]) -> f64 {
 /// Most Newton iterations of one haptic step's free motion.
 pub const STEP_ITERATIONS: usize = 3;
 
-/// A haptic step's Newton iterations stop at a correction this small against the step's motion
-/// (each evaluation is followed by its correction, so a linear model takes Newmark's step
-/// exactly).
-pub const STEP_TOLERANCE: f64 = 1e-6;
+/// A haptic step's Newton iterations stop when the next correction (measured, or estimated
+/// from the measured rate) is this small against the step's motion (each evaluation is
+/// followed by its correction, so a linear model takes Newmark's step exactly). 1e-6 took 1.6×
+/// the force evaluations for the same pull: the soft cantilever's tip pulled through 0.3 L
+/// reached −0.27748 m against −0.27744 m, its energy after release held either way
+/// (docs/nonlinear.md).
+pub const STEP_TOLERANCE: f64 = 1e-4;
 
-/// Steps between refreshes of the tangent stiffness in the haptic step (4 ms at 1 kHz: the hand
-/// moves the part little in that time, and modified Newton on the last factor converges).
-pub const TANGENT_EVERY: u32 = 4;
+/// Steps a tangent stiffness is kept at most in the haptic step (32 ms at 1 kHz); it is made
+/// again sooner when modified Newton on it converges slowly ([`SLOW_RATE`]).
+pub const TANGENT_MAX_AGE: u32 = 32;
+
+/// Every this many steps, one iterates to the tolerance and measures how fast its corrections
+/// shrink; the steps between stop on that estimate.
+pub const MEASURE_EVERY: u32 = 4;
+
+/// A correction shrinking by less than this factor an iteration (measured) has the tangent made
+/// again at the next step: the part has moved far from where it was made.
+pub const SLOW_RATE: f64 = 0.25;
 
 /// Implicit Newmark (β = ¼, γ = ½) for M q̈ + C q̇ + f(q) = g with M = I (mass-orthonormal
 /// basis) and C = diag(α + βλᵢ): the step's residual
@@ -422,8 +472,17 @@ pub struct Stepper {
     work: Scratch,
     /// Steps since the tangent was last factored.
     age: u32,
+    /// How much modified Newton on the current factor shrinks a correction from one iteration
+    /// to the next, as last measured (infinite: not yet).
+    rate: f64,
+    /// A correction still above the tolerance shrank by less than [`SLOW_RATE`]: the factor is
+    /// made again at the next step. (A correction already within the tolerance may be round-off
+    /// and says nothing of the factor.)
+    slow: bool,
     /// Newton iterations taken, over all steps.
     pub iterations: u64,
+    /// Tangent stiffnesses made, over all steps.
+    pub tangents: u64,
     /// Steps whose tangent was not positive definite (the linear stiffness stood in).
     pub indefinite: u64,
     /// Relative residual ‖R‖/‖(f, inertia)‖ at the last free step's last evaluation.
@@ -450,8 +509,11 @@ impl Stepper {
             a: vec![0.0; r * r],
             linear,
             work: p.scratch(),
-            age: TANGENT_EVERY,
+            age: TANGENT_MAX_AGE,
+            rate: f64::INFINITY,
+            slow: false,
             iterations: 0,
+            tangents: 0,
             indefinite: 0,
             last_residual: 0.0,
         }
@@ -460,7 +522,9 @@ impl Stepper {
     /// Back to rest (accelerations zero).
     pub fn reset(&mut self) {
         self.accel.fill(0.0);
-        self.age = TANGENT_EVERY;
+        self.age = TANGENT_MAX_AGE;
+        self.rate = f64::INFINITY;
+        self.slow = false;
     }
 
     /// The free motion over the step from (q₀, v₀): Newton on R(q₁) = 0 without the hands'
@@ -471,12 +535,24 @@ impl Stepper {
         for i in 0..r {
             self.q_free[i] = q0[i] + dt * v0[i] + 0.25 * dt * dt * self.accel[i];
         }
-        // The tangent costs O(P r²), a force O(P²): it is refreshed every TANGENT_EVERY steps
-        // and the iterations in between are modified Newton on the last factor.
-        let refresh = self.age >= TANGENT_EVERY;
+        // The tangent costs O(P r²), a force O(P²): the iterations are modified Newton on the
+        // last factor, made again when it is TANGENT_MAX_AGE steps old or converges slowly (as
+        // stiff integrators keep their Jacobian).
+        let refresh = self.age >= TANGENT_MAX_AGE || self.slow;
+        // Every MEASURE_EVERY steps (and on a new factor) the step iterates to the tolerance and
+        // measures how fast the corrections shrink; the others stop as soon as the next
+        // correction, that rate times this one, would be below the tolerance: one force
+        // evaluation a step instead of two where the model is nearly linear over a step.
+        let measure = refresh || (self.age + 1).is_multiple_of(MEASURE_EVERY);
+        let mut last = f64::INFINITY;
+        let mut slowest: f64 = 0.0;
+        if refresh {
+            self.slow = false;
+        }
         for it in 0..STEP_ITERATIONS {
             if it == 0 && refresh {
                 p.force_and_tangent(&self.q_free, &mut self.f, &mut self.a, &mut self.work);
+                self.tangents += 1;
                 for i in 0..r {
                     self.a[i * r + i] += self.diag[i];
                 }
@@ -511,9 +587,20 @@ impl Stepper {
                 dn += d * d;
                 sn += (*qf - q).powi(2);
             }
-            if dn <= STEP_TOLERANCE * STEP_TOLERANCE * sn {
+            let tolerance = STEP_TOLERANCE * STEP_TOLERANCE * sn;
+            if it > 0 && last > 0.0 {
+                let shrink = (dn / last).sqrt();
+                slowest = slowest.max(shrink);
+                self.slow |= dn > tolerance && shrink > SLOW_RATE;
+            }
+            last = dn;
+            if dn <= tolerance || (!measure && self.rate * self.rate * dn <= tolerance) {
                 break;
             }
+        }
+        // What this step measured (a step that stopped on the estimate measured nothing).
+        if (measure && last.is_finite()) || slowest > self.rate {
+            self.rate = slowest;
         }
         self.age += 1;
         &self.q_free
@@ -650,6 +737,30 @@ mod tests {
         let sub = single.first(4);
         assert!(sub.h.is_empty() && sub.h32.len() == 10 * 10);
         assert!((sub.energy(&q, &mut sub.scratch()) - e4).abs() < 1e-6 * e4.abs());
+    }
+
+    /// The single-precision kernels (H s four rows at a time with column tails, H J in single
+    /// precision) only round: at sizes whose pair counts leave 0–3 rows and 12–14 columns over,
+    /// the force within 1e-6 and the tangent within 1e-5 of the double-precision model's.
+    #[test]
+    fn single_precision_kernels_only_round_at_any_size() {
+        for r in [7, 9, 12] {
+            let full = model(r);
+            let single = full.clone().single_precision();
+            let q: Vec<f64> = (0..r).map(|i| 0.3 * ((i * 7 % 5) as f64 - 2.0) + 0.05).collect();
+            let (mut f, mut g) = (vec![0.0; r], vec![0.0; r]);
+            let (mut kf, mut kg) = (vec![0.0; r * r], vec![0.0; r * r]);
+            full.force_and_tangent(&q, &mut f, &mut kf, &mut full.scratch());
+            single.force_and_tangent(&q, &mut g, &mut kg, &mut single.scratch());
+            let scale = f.iter().fold(0.0f64, |a, v| a.max(v.abs()));
+            for (a, b) in f.iter().zip(&g) {
+                assert!((a - b).abs() < 1e-6 * scale, "r {r}: force {a} vs {b}");
+            }
+            let scale = kf.iter().fold(0.0f64, |a, v| a.max(v.abs()));
+            for (a, b) in kf.iter().zip(&kg) {
+                assert!((a - b).abs() < 1e-5 * scale, "r {r}: tangent {a} vs {b}");
+            }
+        }
     }
 
     /// Without cubic and quartic terms the implicit step is Newmark's average acceleration on

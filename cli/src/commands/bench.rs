@@ -45,6 +45,18 @@ impl Args {
                 report.insert(format!("nonlinear_force_ns_median_r{r}"), force.into());
                 report.insert(format!("nonlinear_force_and_tangent_ns_median_r{r}"), tangent.into());
             }
+            // Bent far: a tenth of the part's size each way, once a second.
+            if let Some(s) = bench::nonlinear_sweep(b.clone(), 51, per_batch, 0.1) {
+                report.insert(format!("nonlinear_sweep_step_ns_median_r{r}"), s.step_ns.into());
+                report.insert(
+                    format!("nonlinear_sweep_iterations_per_step_r{r}"),
+                    s.iterations_per_step.into(),
+                );
+                report.insert(
+                    format!("nonlinear_sweep_tangents_per_step_r{r}"),
+                    s.tangents_per_step.into(),
+                );
+            }
             let ns = bench::haptic_press_step_ns(b, 201, per_batch);
             report.insert(format!("haptic_press_step_ns_median_r{r}"), ns.into());
         }
