@@ -47,7 +47,8 @@ pub struct FeltTruncation {
     /// The largest relative error in any direction over the points.
     pub largest_any_direction: f64,
     /// The largest mesh error of the exact compliance over the points where the part is
-    /// compliant ([`discretization`]; None when not estimated).
+    /// compliant, and with the static correction over every such vertex too
+    /// ([`discretization`]; None when not estimated).
     pub mesh_where_compliant: Option<f64>,
     /// The mesh error over every vertex a hand can touch where the part is compliant (as
     /// `largest_where_compliant`), when the exact compliance is known at each (the static
@@ -537,6 +538,10 @@ pub fn discretization(
             p90: e[(9 * e.len() / 10).min(e.len() - 1)],
             largest: e[e.len() - 1],
         });
+        // The largest is then the largest over every such vertex, not over the samples alone.
+        if let Some(v) = felt.mesh_at_vertices {
+            felt.mesh_where_compliant = Some(felt.mesh_where_compliant.map_or(v.largest, |m| m.max(v.largest)));
+        }
     }
     felt.map = Some(ves_format::FeltErrors {
         modes: felt.modes as u32,
