@@ -248,4 +248,5 @@ def test_a_hand_is_told_the_felt_error_where_the_basis_states_it(cantilever):
                 told += 1
             else:
                 assert out["felt_error"] is None
-        assert told == (4 if stated else 0)
+        expected = sum(1 for p in list(points.values())[:4] if p["felt_error"] is not None)
+        assert expected >= 1 and told == (expected if stated else 0)
