@@ -151,6 +151,11 @@ fn a_hand_is_told_the_felt_error_at_its_own_vertex() {
     assert!(spread["vertices"].as_u64().unwrap_or(0) > 100, "{spread}");
     assert!(0.0 < median && median <= p90 && p90 <= largest, "{spread}");
 
+    // `ves info` says where the file states it.
+    let info = ves(&["info", corrected.to_str().unwrap()]);
+    let text = String::from_utf8_lossy(&info.stdout);
+    assert!(text.contains("felt error stated at"), "{text}");
+
     // A hand grabs the top face at mid-span and lifts it 0.1 mm.
     let script = write_file(dir.path(), "hand.csv", "0,0.5,0.05,0.0502,1\n0.2,0.5,0.05,0.0503,1\n");
     let session = |basis: &std::path::Path, extra: &[&str]| -> serde_json::Value {

@@ -301,6 +301,9 @@ pub struct SpaceInfo {
     pub static_correction_vertices: usize,
     /// The hand's contact patch radius, m (0: a point contact; files without `contact/`).
     pub contact_radius_m: f64,
+    /// What a hand feels wrong where the file states it (`felt/`), when it does.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub felt_error: Option<FeltInfo>,
     /// How the mesh was made (the meshing ladder's rung), when the file says.
     pub meshing_strategy: Option<String>,
     /// Each mode's estimated relative discretization error, when the file has it.
@@ -308,6 +311,33 @@ pub struct SpaceInfo {
     pub estimated_relative_error: Option<Vec<f64>>,
     /// The static load cases stored (empty: none).
     pub loads: Vec<LoadInfo>,
+}
+
+/// What `ves info` shows of a space's felt errors (`felt/`): the modes' share and the mesh's
+/// error together at each vertex stated.
+#[derive(Debug, serde::Serialize)]
+pub struct FeltInfo {
+    /// Vertices with a statement.
+    pub vertices: usize,
+    /// The modes the truncation was measured with.
+    pub modes: u32,
+    /// Their median.
+    pub median: f64,
+    /// Their 90th percentile.
+    pub p90: f64,
+}
+
+impl FeltInfo {
+    fn of(f: &ves_format::FeltErrors) -> Option<FeltInfo> {
+        let mut e: Vec<f64> = (0..f.nodes.len()).map(|k| f.total(k)).collect();
+        e.sort_by(f64::total_cmp);
+        (!e.is_empty()).then(|| FeltInfo {
+            vertices: e.len(),
+            modes: f.modes,
+            median: e[e.len() / 2],
+            p90: e[(9 * e.len() / 10).min(e.len() - 1)],
+        })
+    }
 }
 
 /// What `ves info` shows of one load case.
@@ -376,6 +406,7 @@ pub fn info(path: &Path) -> Result<BasisInfo> {
             rigid_modes_dropped: s.rigid_modes_dropped,
             static_correction_vertices: s.compliance()?.map_or(0, |(n, _)| n.len()),
             contact_radius_m: s.contact()?.map_or(0.0, |c| c.radius),
+            felt_error: s.felt()?.as_ref().and_then(FeltInfo::of),
             meshing_strategy: s.meshing_strategy.clone(),
             estimated_relative_error: s.estimated_relative_error()?,
             loads: s

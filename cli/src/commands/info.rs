@@ -30,7 +30,15 @@ impl Args {
             } else {
                 ", hand contact on one vertex".to_string()
             };
-            let correction = format!("{contact}{correction}");
+            let felt = s.felt_error.as_ref().map_or(String::new(), |f| {
+                format!(
+                    ", felt error stated at {} vertices (median {:.2} %, 90 % of them ≤ {:.2} %)",
+                    f.vertices,
+                    100.0 * f.median,
+                    100.0 * f.p90
+                )
+            });
+            let correction = format!("{contact}{correction}{felt}");
             let meshing = s
                 .meshing_strategy
                 .as_deref()
