@@ -236,9 +236,7 @@ impl Polynomial {
         for i in 0..r {
             let ti = &self.t[i * np..(i + 1) * np];
             f[i] = dot(&self.k[i * r..(i + 1) * r], q) + dot(ti, &w.s);
-            for (u, t) in w.u.iter_mut().zip(ti) {
-                *u += t * q[i];
-            }
+            crate::os::axpy64(q[i], ti, &mut w.u);
         }
         self.add_jt(&w.u, q, f);
     }
