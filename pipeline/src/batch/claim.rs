@@ -209,12 +209,22 @@ pub fn acquire(out: &Path, lease_s: f64, shard: Option<String>) -> Result<Acquir
             COUNTER.fetch_add(1, Ordering::Relaxed)
         ),
     };
+    // A signal that ends the process releases the claim, from before it is linked into place:
+    // registered after, a SIGTERM just after the link left the claim behind (seen in CI).
+    let on_signal = {
+        let (path, token) = (path.clone(), owner.token.clone());
+        crate::workdir::at_signal(move || {
+            // No claim is linked after this (see `create`), and one linked before is removed.
+            *TERMINATING.lock().unwrap_or_else(|p| p.into_inner()) = true;
+            release(&path, &token);
+        })
+    };
     // Each round either claims, finds a live owner, or removes a gone owner's claim (which
     // another process may then claim first): a few rounds settle it.
     let mut gone = None;
     for _ in 0..8 {
         if create(&path, &owner)? {
-            return Ok(Acquired::Mine(start(path, owner, gone)));
+            return Ok(Acquired::Mine(start(path, owner, gone, on_signal)));
         }
         let Some(held) = read(&path) else {
             // Removed between the link and the read: try again.
@@ -233,6 +243,11 @@ pub fn acquire(out: &Path, lease_s: f64, shard: Option<String>) -> Result<Acquir
     )
 }
 
+/// Set by a signal's cleanup: the process is ending, no claim is to be linked any more. Held
+/// while a claim is linked, so the cleanup either comes before the link (which then does not
+/// happen) or after it (and removes the claim).
+static TERMINATING: Mutex<bool> = Mutex::new(false);
+
 /// Links a new claim into place: true when this process now holds it, false when a claim exists.
 fn create(path: &Path, owner: &Owner) -> Result<bool> {
     let mut tmp = crate::output::temporary_beside(path).map_err(|e| {
@@ -247,6 +262,10 @@ fn create(path: &Path, owner: &Owner) -> Result<bool> {
     tmp.write_all(&text)
         .and_then(|()| tmp.as_file().sync_all())
         .with_context(|| format!("{}: cannot write the claim", path.display()))?;
+    let terminating = TERMINATING.lock().unwrap_or_else(|p| p.into_inner());
+    if *terminating {
+        anyhow::bail!("{}: not claimed: the process is ending (a signal)", path.display());
+    }
     match std::fs::hard_link(tmp.path(), path) {
         Ok(()) => Ok(true),
         Err(e) if e.kind() == std::io::ErrorKind::AlreadyExists => Ok(false),
@@ -330,8 +349,8 @@ fn read(path: &Path) -> Option<Owner> {
     }))
 }
 
-/// Starts renewing a claim just made.
-fn start(path: PathBuf, owner: Owner, took_over: Option<Owner>) -> Claim {
+/// Starts renewing a claim just made (`on_signal` releases it if a signal ends the process).
+fn start(path: PathBuf, owner: Owner, took_over: Option<Owner>, on_signal: crate::workdir::SignalGuard) -> Claim {
     let every = Duration::from_secs_f64(owner.lease_s / 4.0);
     let owner = std::sync::Arc::new(Mutex::new(owner));
     let lost = std::sync::Arc::new(AtomicBool::new(false));
@@ -354,13 +373,6 @@ fn start(path: PathBuf, owner: Owner, took_over: Option<Owner>) -> Claim {
     if renewer.is_none() {
         tracing::warn!(claim = %path.display(), "no thread to renew the claim: another host may take it over after its lease");
     }
-    let on_signal = {
-        let (path, token) = (
-            path.clone(),
-            owner.lock().unwrap_or_else(|p| p.into_inner()).token.clone(),
-        );
-        crate::workdir::at_signal(move || release(&path, &token))
-    };
     Claim {
         path,
         owner,
