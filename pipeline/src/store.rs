@@ -317,26 +317,17 @@ pub struct SpaceInfo {
 /// error together at each vertex stated.
 #[derive(Debug, serde::Serialize)]
 pub struct FeltInfo {
-    /// Vertices with a statement.
-    pub vertices: usize,
     /// The modes the truncation was measured with.
     pub modes: u32,
-    /// Their median.
-    pub median: f64,
-    /// Their 90th percentile.
-    pub p90: f64,
+    /// Their spread over the vertices stated.
+    #[serde(flatten)]
+    pub spread: crate::accuracy::felt::Spread,
 }
 
 impl FeltInfo {
     fn of(f: &ves_format::FeltErrors) -> Option<FeltInfo> {
-        let mut e: Vec<f64> = (0..f.nodes.len()).map(|k| f.total(k)).collect();
-        e.sort_by(f64::total_cmp);
-        (!e.is_empty()).then(|| FeltInfo {
-            vertices: e.len(),
-            modes: f.modes,
-            median: e[e.len() / 2],
-            p90: e[(9 * e.len() / 10).min(e.len() - 1)],
-        })
+        let spread = crate::accuracy::felt::Spread::of((0..f.nodes.len()).map(|k| f.total(k)).collect())?;
+        Some(FeltInfo { modes: f.modes, spread })
     }
 }
 

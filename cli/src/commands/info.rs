@@ -33,9 +33,9 @@ impl Args {
             let felt = s.felt_error.as_ref().map_or(String::new(), |f| {
                 format!(
                     ", felt error stated at {} vertices (median {:.2} %, 90 % of them ≤ {:.2} %)",
-                    f.vertices,
-                    100.0 * f.median,
-                    100.0 * f.p90
+                    f.spread.vertices,
+                    100.0 * f.spread.median,
+                    100.0 * f.spread.p90
                 )
             });
             let correction = format!("{contact}{correction}{felt}");

@@ -75,6 +75,20 @@ pub struct Spread {
     pub largest: f64,
 }
 
+impl Spread {
+    /// The spread of `values` (None when empty).
+    pub fn of(mut values: Vec<f64>) -> Option<Spread> {
+        values.sort_by(f64::total_cmp);
+        let n = values.len();
+        (n > 0).then(|| Spread {
+            vertices: n,
+            median: values[n / 2],
+            p90: values[(9 * n / 10).min(n - 1)],
+            largest: values[n - 1],
+        })
+    }
+}
+
 impl FeltTruncation {
     /// One clause for a summary line: "; felt compliance: the 20 modes miss ≤ 2.59 % of it where
     /// the part is compliant, up to 86.83 % at stiff points (24 points; [static_correction]
@@ -526,18 +540,13 @@ pub fn discretization(
         // Where the part is compliant, as for the points: at a stiff vertex a hand feels the
         // fingertip's local indentation, which a mesh coarser than the patch does not resolve.
         let softest = known.iter().map(|k| k.3).fold(0.0, f64::max);
-        let mut e: Vec<f64> = known
-            .iter()
-            .filter(|k| k.3 >= COMPLIANT * softest)
-            .map(|k| k.2)
-            .collect();
-        e.sort_by(f64::total_cmp);
-        felt.mesh_at_vertices = (!e.is_empty()).then(|| Spread {
-            vertices: e.len(),
-            median: e[e.len() / 2],
-            p90: e[(9 * e.len() / 10).min(e.len() - 1)],
-            largest: e[e.len() - 1],
-        });
+        felt.mesh_at_vertices = Spread::of(
+            known
+                .iter()
+                .filter(|k| k.3 >= COMPLIANT * softest)
+                .map(|k| k.2)
+                .collect(),
+        );
         // The largest is then the largest over every such vertex, not over the samples alone.
         if let Some(v) = felt.mesh_at_vertices {
             felt.mesh_where_compliant = Some(felt.mesh_where_compliant.map_or(v.largest, |m| m.max(v.largest)));
