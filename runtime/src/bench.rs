@@ -85,17 +85,20 @@ fn timed_steps(h: &mut Haptics, batches: usize, per_batch: usize, input: impl Fn
 pub fn nonlinear_sweep(basis: Arc<Basis>, batches: usize, per_batch: usize, amplitude: f64) -> Option<Sweep> {
     basis.nonlinear.as_ref()?;
     let r = basis.mode_count();
-    let v = basis.surface_vertices.iter().copied().max_by(|&a, &b| {
-        let soft = |v: u32| -> f64 {
-            (0..r)
-                .map(|j| {
-                    let m = basis.mode(j);
-                    (0..3).map(|c| f64::from(m[3 * v as usize + c]).powi(2)).sum::<f64>() / basis.eigenvalues[j]
-                })
-                .sum()
-        };
-        soft(a).total_cmp(&soft(b))
-    })?;
+    // Each vertex's modal compliance Σⱼ |φⱼ(v)|²/λⱼ, once.
+    let soft = |v: u32| -> f64 {
+        (0..r)
+            .map(|j| {
+                let m = basis.mode(j);
+                (0..3).map(|c| f64::from(m[3 * v as usize + c]).powi(2)).sum::<f64>() / basis.eigenvalues[j]
+            })
+            .sum()
+    };
+    let (v, _) = basis
+        .surface_vertices
+        .iter()
+        .map(|&v| (v, soft(v)))
+        .max_by(|a, b| a.1.total_cmp(&b.1))?;
     let (lo, hi) = basis.rest.iter().fold(([f64::MAX; 3], [f64::MIN; 3]), |(lo, hi), p| {
         (
             std::array::from_fn(|c| lo[c].min(p[c])),
