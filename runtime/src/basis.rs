@@ -744,7 +744,7 @@ mod file {
             // H in single precision: the step at r = 30 took 96 µs against 112–120 µs in double
             // (docs/nonlinear.md), and the basis half the bytes.
             let p = all.first(r).single_precision();
-            basis.bytes_loaded += 8 * (p.k.len() + p.t.len()) + 4 * p.h32.len();
+            basis.bytes_loaded += p.bytes();
             basis.nonlinear = Some(std::sync::Arc::new(p));
         }
         if let Some(contact) = s.contact()? {

@@ -14,6 +14,7 @@ pub mod integrator;
 pub mod kdtree;
 pub mod nonlinear;
 pub mod os;
+pub mod packed;
 pub mod realtime;
 pub mod rigid_body;
 pub mod session;

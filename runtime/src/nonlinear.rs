@@ -5,6 +5,7 @@
 //! with Newton iterations warm-started from the last step, allocation-free, and gives the hand
 //! its step compliance from the same factor, so the coupling stays implicit.
 
+use crate::packed::Panels;
 use nalgebra::{DMatrix, DVector};
 
 /// Index of the pair (k, l), k ≤ l, among the r(r+1)/2 pairs ordered (0,0), (0,1), …, (1,1), …:
@@ -29,10 +30,12 @@ pub struct Polynomial {
     /// Quartic-energy coefficients, P × P row-major (symmetric positive semi-definite); empty
     /// once [`Polynomial::single_precision`] moved them to `h32`.
     pub h: Vec<f64>,
-    /// H in single precision (the runtime's copy: half the bytes the haptic step reads; the
-    /// quartic energy then carries a relative rounding of about 1e-7, far below the model's own
-    /// error). Empty: H is in `h`.
-    pub h32: Vec<f32>,
+    /// H in single precision, row by row (the tangent's rows; the quartic energy then carries a
+    /// relative rounding of about 1e-7, far below the model's own error). Empty: H is in `h`.
+    h32: Vec<f32>,
+    /// The same H stored by panels, each pair once: the force's product H s, the haptic step's
+    /// largest cost, reads half the bytes (empty with `h32`).
+    panels: Panels,
 }
 
 /// Work space of [`Polynomial`]'s evaluations (no allocation once made).
@@ -46,12 +49,27 @@ pub struct Scratch {
     /// (the converged step is the force's), so its rounding costs nothing but a rate.
     hj: Vec<f32>,
     row: Vec<f64>,
+    /// The panel product's row sums in single precision.
+    panel_sums: Vec<f32>,
 }
 
 impl Polynomial {
     /// Number of pairs P = r(r+1)/2.
     pub fn pairs(&self) -> usize {
         self.r * (self.r + 1) / 2
+    }
+
+    /// The model of r vectors with K (r × r), T (r × P) and H (P × P), row-major, in double
+    /// precision.
+    pub fn new(r: usize, k: Vec<f64>, t: Vec<f64>, h: Vec<f64>) -> Polynomial {
+        Polynomial {
+            r,
+            k,
+            t,
+            h,
+            h32: Vec::new(),
+            panels: Panels::default(),
+        }
     }
 
     /// The model a basis file stores: linear part diag(λ), cubic T [r, P] and quartic H [P, P]
@@ -62,13 +80,12 @@ impl Polynomial {
         for (i, l) in eigenvalues.iter().enumerate() {
             k[i * r + i] = *l;
         }
-        Polynomial {
-            r,
-            k,
-            t: cubic,
-            h: quartic,
-            h32: Vec::new(),
-        }
+        Polynomial::new(r, k, cubic, quartic)
+    }
+
+    /// Bytes the coefficients take.
+    pub fn bytes(&self) -> usize {
+        8 * (self.k.len() + self.t.len() + self.h.len()) + 4 * self.h32.len() + self.panels.bytes()
     }
 
     /// The model of the first `r` vectors alone: the energy restricted to q_j = 0 for j ≥ r,
@@ -98,31 +115,35 @@ impl Polynomial {
                 .flat_map(|&a| pairs.iter().map(move |&b| h[a * np_all + b]))
                 .collect()
         };
-        Polynomial {
-            r,
-            k,
-            t,
-            h: if self.h.is_empty() { Vec::new() } else { pick(&self.h) },
-            h32: if self.h32.is_empty() {
-                Vec::new()
-            } else {
-                pick32(&self.h32)
-            },
+        let h = if self.h.is_empty() { Vec::new() } else { pick(&self.h) };
+        let p = Polynomial::new(r, k, t, h);
+        if self.h32.is_empty() {
+            p
+        } else {
+            p.with_single(pick32(&self.h32))
         }
     }
 
     /// The same model with H held in single precision (`h32`), as the runtime keeps it.
     pub fn single_precision(mut self) -> Polynomial {
         if self.h32.is_empty() {
-            self.h32 = self.h.iter().map(|&v| v as f32).collect();
+            let h32 = self.h.iter().map(|&v| v as f32).collect();
             self.h = Vec::new();
+            self = self.with_single(h32);
         }
+        self
+    }
+
+    /// This model with H in single precision `h32` (P × P row-major), and its panels.
+    fn with_single(mut self, h32: Vec<f32>) -> Polynomial {
+        self.panels = Panels::of_rows(&h32, self.pairs());
+        self.h32 = h32;
         self
     }
 
     /// H s into `u` (s in double, and a single-precision copy `s32` for H in single: eight
     /// lanes a step instead of four, the products rounded as H's coefficients already are).
-    fn quartic_times(&self, s: &[f64], s32: &mut [f32], u: &mut [f64]) {
+    fn quartic_times(&self, s: &[f64], s32: &mut [f32], u: &mut [f64], sums: &mut [f32]) {
         let np = self.pairs();
         if self.h32.is_empty() {
             for (p, up) in u.iter_mut().enumerate().take(np) {
@@ -133,12 +154,7 @@ impl Polynomial {
         for (x, &v) in s32.iter_mut().zip(s) {
             *x = v as f32;
         }
-        if crate::os::matvec32_simd(&self.h32, &s32[..np], u) {
-            return;
-        }
-        for (p, up) in u.iter_mut().enumerate().take(np) {
-            *up = dot32(&self.h32[p * np..(p + 1) * np], &s32[..np]);
-        }
+        self.panels.times(s32, u, sums);
     }
 
     /// Row `p` of H dotted with `x`.
@@ -168,12 +184,15 @@ impl Polynomial {
     /// Work space for this model.
     pub fn scratch(&self) -> Scratch {
         let np = self.pairs();
+        // The panel product reads and writes its padded length (zeros beyond P stay zeros).
+        let padded = np.max(self.panels.padded());
         Scratch {
             s: vec![0.0; np],
-            s32: vec![0.0; np],
-            u: vec![0.0; np],
+            s32: vec![0.0; padded],
+            u: vec![0.0; padded],
             hj: vec![0.0; np * self.r],
             row: vec![0.0; self.r],
+            panel_sums: vec![0.0; padded],
         }
     }
 
@@ -232,11 +251,10 @@ impl Polynomial {
         let (r, np) = (self.r, self.pairs());
         self.products(q, &mut w.s);
         // u = Tᵀ q + H s.
-        self.quartic_times(&w.s, &mut w.s32, &mut w.u);
+        self.quartic_times(&w.s, &mut w.s32, &mut w.u, &mut w.panel_sums);
         for i in 0..r {
             let ti = &self.t[i * np..(i + 1) * np];
-            f[i] = dot(&self.k[i * r..(i + 1) * r], q) + dot(ti, &w.s);
-            crate::os::axpy64(q[i], ti, &mut w.u);
+            f[i] = dot(&self.k[i * r..(i + 1) * r], q) + crate::os::dot_and_axpy64(ti, &w.s, q[i], &mut w.u);
         }
         self.add_jt(&w.u, q, f);
     }
@@ -396,28 +414,6 @@ pub(crate) fn dot<T: crate::os::Coefficient>(a: &[T], b: &[f64]) -> f64 {
     acc.iter().sum::<f64>() + tail
 }
 
-/// Σ aᵢ bᵢ of two single-precision vectors, summed in double at the end
-/// ([`crate::os::dot32_simd`]; else in eight independent sums).
-fn dot32(a: &[f32], b: &[f32]) -> f64 {
-    if let Some(d) = crate::os::dot32_simd(a, b) {
-        return d;
-    }
-    let n = a.len().min(b.len());
-    let mut acc = [0.0f32; 8];
-    let (ca, cb) = (a[..n].chunks_exact(8), b[..n].chunks_exact(8));
-    let (ra, rb) = (ca.remainder(), cb.remainder());
-    for (x, y) in ca.zip(cb) {
-        for k in 0..8 {
-            acc[k] += x[k] * y[k];
-        }
-    }
-    acc.iter().map(|&v| f64::from(v)).sum::<f64>()
-        + ra.iter()
-            .zip(rb)
-            .map(|(x, y)| f64::from(*x) * f64::from(*y))
-            .sum::<f64>()
-}
-
 fn norm(a: &[f64]) -> f64 {
     dot(a, a).sqrt()
 }
@@ -465,6 +461,14 @@ pub struct Stepper {
     res: Vec<f64>,
     /// A, then its Cholesky factor L (lower, row-major).
     a: Vec<f64>,
+    /// L⁻¹ (lower, row-major), on the way to `inverse`.
+    l_inverse: Vec<f64>,
+    /// A⁻¹, r × r: made once a tangent (every few dozen steps), it turns each of a step's half
+    /// dozen solves (Newton's corrections, the hands' compliance, the step's end) into one
+    /// product, where the two triangular solves were chains of dependent operations.
+    inverse: Vec<f64>,
+    /// A⁻¹ x before it is copied back.
+    solved: Vec<f64>,
     /// The linear part of A, the fallback where the tangent is not positive definite.
     linear: Vec<f64>,
     work: Scratch,
@@ -505,6 +509,9 @@ impl Stepper {
             f: vec![0.0; r],
             res: vec![0.0; r],
             a: vec![0.0; r * r],
+            l_inverse: vec![0.0; r * r],
+            inverse: vec![0.0; r * r],
+            solved: vec![0.0; r],
             linear,
             work: p.scratch(),
             age: TANGENT_MAX_AGE,
@@ -559,6 +566,7 @@ impl Stepper {
                     self.a.copy_from_slice(&self.linear);
                     cholesky_in_place(&mut self.a, r);
                 }
+                inverse_of_factor(&self.a, r, &mut self.l_inverse, &mut self.inverse);
                 self.age = 0;
             } else {
                 p.force(&self.q_free, &mut self.f, &mut self.work);
@@ -578,7 +586,7 @@ impl Stepper {
             // Every evaluation is followed by its correction (a solve costs r², an evaluation
             // r⁴); a correction that small ends the step without evaluating again.
             self.iterations += 1;
-            cholesky_solve(&self.a, r, &mut self.res);
+            self.solve_res();
             let (mut dn, mut sn) = (0.0, 0.0);
             for ((qf, d), q) in self.q_free.iter_mut().zip(&self.res).zip(q0) {
                 *qf += d;
@@ -610,8 +618,15 @@ impl Stepper {
     }
 
     /// x ← A⁻¹ x with the factor of the last [`Stepper::free`].
-    pub fn solve(&self, x: &mut [f64]) {
-        cholesky_solve(&self.a, x.len(), x);
+    pub fn solve(&mut self, x: &mut [f64]) {
+        symmetric_times(&self.inverse, x, &mut self.solved);
+        x.copy_from_slice(&self.solved);
+    }
+
+    /// res ← A⁻¹ res.
+    fn solve_res(&mut self) {
+        symmetric_times(&self.inverse, &self.res, &mut self.solved);
+        self.res.copy_from_slice(&self.solved);
     }
 
     /// Ends the step under the modal force `g`: q₁ = q_free + A⁻¹ g, then a₁ and v₁ by
@@ -619,7 +634,7 @@ impl Stepper {
     pub fn finish(&mut self, q: &mut [f64], v: &mut [f64], g: &[f64]) {
         let (r, dt) = (q.len(), self.dt);
         self.res.copy_from_slice(g);
-        cholesky_solve(&self.a, r, &mut self.res);
+        self.solve_res();
         for i in 0..r {
             let q1 = self.q_free[i] + self.res[i];
             let a1 = 4.0 / (dt * dt) * (q1 - q[i] - dt * v[i]) - self.accel[i];
@@ -664,21 +679,33 @@ fn cholesky_in_place(a: &mut [f64], r: usize) -> bool {
     true
 }
 
-/// x ← (L Lᵀ)⁻¹ x.
-fn cholesky_solve(l: &[f64], r: usize, x: &mut [f64]) {
-    for i in 0..r {
-        let mut s = x[i];
-        for k in 0..i {
-            s -= l[i * r + k] * x[k];
+/// A⁻¹ = L⁻ᵀ L⁻¹ from the Cholesky factor L (lower, row-major, r × r) into `inverse`, with
+/// `l_inverse` as work space (L⁻¹ in its lower triangle): r³/3 products, no allocation.
+fn inverse_of_factor(l: &[f64], r: usize, l_inverse: &mut [f64], inverse: &mut [f64]) {
+    l_inverse.fill(0.0);
+    for j in 0..r {
+        l_inverse[j * r + j] = 1.0 / l[j * r + j];
+        for i in j + 1..r {
+            let s: f64 = (j..i).map(|k| l[i * r + k] * l_inverse[k * r + j]).sum();
+            l_inverse[i * r + j] = -s / l[i * r + i];
         }
-        x[i] = s / l[i * r + i];
     }
-    for i in (0..r).rev() {
-        let mut s = x[i];
-        for k in i + 1..r {
-            s -= l[k * r + i] * x[k];
+    for i in 0..r {
+        for j in 0..=i {
+            let s: f64 = (i..r).map(|k| l_inverse[k * r + i] * l_inverse[k * r + j]).sum();
+            inverse[i * r + j] = s;
+            inverse[j * r + i] = s;
         }
-        x[i] = s / l[i * r + i];
+    }
+}
+
+/// y = S x for a symmetric r × r row-major S: the sum of x_j times row j (= column j), each a
+/// vector operation.
+fn symmetric_times(s: &[f64], x: &[f64], y: &mut [f64]) {
+    let r = x.len();
+    y.fill(0.0);
+    for (j, &xj) in x.iter().enumerate() {
+        crate::os::axpy64(xj, &s[j * r..(j + 1) * r], y);
     }
 }
 
@@ -700,13 +727,7 @@ mod tests {
                 ((a.min(b) * 31 + a.max(b) * 17) % 97) as f64 * 1e-2 + if a == b { 5.0 } else { 0.0 }
             })
             .collect();
-        Polynomial {
-            r,
-            k,
-            t,
-            h,
-            h32: Vec::new(),
-        }
+        Polynomial::new(r, k, t, h)
     }
 
     #[test]
@@ -761,6 +782,37 @@ mod tests {
         }
     }
 
+    /// The inverse made from the Cholesky factor times A is the identity, and applying it solves
+    /// as the two triangular solves would (a made-up symmetric positive definite A, r = 13).
+    #[test]
+    fn the_inverse_from_the_factor_solves() {
+        let r = 13;
+        let a: Vec<f64> = (0..r * r)
+            .map(|i| {
+                let (p, q) = (i / r, i % r);
+                ((p.min(q) * 7 + p.max(q) * 3) % 11) as f64 * 0.1 + if p == q { 4.0 + p as f64 } else { 0.0 }
+            })
+            .collect();
+        let mut l = a.clone();
+        assert!(cholesky_in_place(&mut l, r));
+        let (mut li, mut inv) = (vec![f64::NAN; r * r], vec![f64::NAN; r * r]);
+        inverse_of_factor(&l, r, &mut li, &mut inv);
+        for i in 0..r {
+            for j in 0..r {
+                let p: f64 = (0..r).map(|k| inv[i * r + k] * a[k * r + j]).sum();
+                let e = if i == j { 1.0 } else { 0.0 };
+                assert!((p - e).abs() < 1e-13, "(A^-1 A)[{i}][{j}] = {p}");
+            }
+        }
+        let b: Vec<f64> = (0..r).map(|i| (i as f64 * 0.7).sin()).collect();
+        let mut x = vec![0.0; r];
+        symmetric_times(&inv, &b, &mut x);
+        for i in 0..r {
+            let ax: f64 = (0..r).map(|k| a[i * r + k] * x[k]).sum();
+            assert!((ax - b[i]).abs() < 1e-13, "row {i}: {ax} vs {}", b[i]);
+        }
+    }
+
     /// Without cubic and quartic terms the implicit step is Newmark's average acceleration on
     /// each mode: the linear runtime's `Transition::newmark`, step for step.
     #[test]
@@ -771,13 +823,7 @@ mod tests {
         for i in 0..r {
             k[i * r + i] = lambda[i];
         }
-        let p = Polynomial {
-            r,
-            k,
-            t: vec![0.0; r * 6],
-            h: vec![0.0; 36],
-            h32: Vec::new(),
-        };
+        let p = Polynomial::new(r, k, vec![0.0; r * 6], vec![0.0; 36]);
         let (alpha, beta, dt) = (0.5, 1e-4, 1e-3);
         let c: Vec<f64> = lambda.iter().map(|l| alpha + beta * l).collect();
         let mut stepper = Stepper::new(&p, &c, dt);

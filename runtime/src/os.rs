@@ -146,35 +146,42 @@ pub fn dot_simd<T: Coefficient>(a: &[T], b: &[f64]) -> Option<f64> {
     None
 }
 
-/// Σ aᵢ bᵢ of two single-precision vectors, eight lanes at a time, with AVX2 + FMA when the
-/// processor has them (`None` otherwise). The products and the 32 running sums are single
-/// precision, the final sum double: each product is rounded as the f32 coefficients already
-/// were, so the error stays of the order of the one H in single precision carries.
+/// y = H s for H stored by panels (`crate::packed`, `blocks` panels of eight columns in
+/// `panels`), with AVX2 + FMA when the processor has them (false otherwise: nothing done).
+/// `s`, `y` and the work space `w` hold at least 8 · `blocks` values.
 #[inline]
-pub fn dot32_simd(a: &[f32], b: &[f32]) -> Option<f64> {
+pub fn panels_times_simd(panels: &[f32], blocks: usize, s: &[f32], y: &mut [f64], w: &mut [f32]) -> bool {
     #[cfg(target_arch = "x86_64")]
-    if simd::available() {
-        // SAFETY: the processor has AVX2 and FMA (checked just above).
-        return Some(unsafe { simd::dot32(a, b) });
-    }
-    let _ = (a, b);
-    None
-}
-
-/// u = H s for a row-major single-precision n × n matrix `h` (n = `s.len()`), with AVX2 + FMA
-/// when the processor has them (false otherwise: nothing done). Four rows at a time share each
-/// load of s and one reduction, where a dot product a row spent as much on its reduction as on
-/// its products (4.4–7.9 GMAC/s at n = 100–465, single-precision lanes or not).
-#[inline]
-pub fn matvec32_simd(h: &[f32], s: &[f32], u: &mut [f64]) -> bool {
-    #[cfg(target_arch = "x86_64")]
-    if simd::available() && h.len() >= s.len() * s.len() && u.len() >= s.len() {
-        // SAFETY: AVX2 and FMA are there, and h holds n rows of n, u n values (checked above).
-        unsafe { simd::matvec32(h, s, u) };
+    if simd::available()
+        && panels.len() >= blocks * (blocks + 1) * 32
+        && s.len() >= 8 * blocks
+        && y.len() >= 8 * blocks
+        && w.len() >= 8 * blocks
+    {
+        // SAFETY: AVX2 and FMA are there, and every length the kernel reads (checked above).
+        unsafe { simd::panels_times(panels, blocks, s, y, w) };
         return true;
     }
-    let _ = (h, s, u);
+    let _ = (panels, blocks, s, y, w);
     false
+}
+
+/// Σ tᵢ sᵢ, and u += c t, in one pass over t (double precision, AVX2 + FMA when the processor
+/// has them): the nonlinear force's T s and Tᵀ q read T once instead of twice.
+#[inline]
+pub fn dot_and_axpy64(t: &[f64], s: &[f64], c: f64, u: &mut [f64]) -> f64 {
+    let n = t.len().min(s.len()).min(u.len());
+    #[cfg(target_arch = "x86_64")]
+    if simd::available() {
+        // SAFETY: as in `dot_simd`; the three slices are cut to n.
+        return unsafe { simd::dot_and_axpy64(&t[..n], &s[..n], c, &mut u[..n]) };
+    }
+    let mut d = 0.0;
+    for ((ti, si), ui) in t[..n].iter().zip(&s[..n]).zip(&mut u[..n]) {
+        d += ti * si;
+        *ui += c * ti;
+    }
+    d
 }
 
 /// y += c x in double precision, with AVX2 + FMA when the processor has them (the crate is
@@ -254,84 +261,103 @@ mod simd {
         }
     }
 
-    /// Four 8-wide single-precision FMA chains.
+    /// y = H s by panels (`crate::packed`): for each half panel (four columns j), each block I
+    /// above the diagonal adds Σ_c H[I, j_c] s_(j_c) to y_I and H[I, j_c] ⊙ s_I to four running
+    /// column sums t_c; the diagonal block adds to the t_c alone, whose lanes are then summed
+    /// into y_(j_c). A panel's first half leaves its row sums in `w`, the second adds them and
+    /// the sum goes to y in double.
+    ///
+    /// # Safety
+    /// AVX2 and FMA must be there; `panels` holds blocks(blocks + 1) · 32 values and `s`, `y`,
+    /// `w` 8 · blocks each.
     #[target_feature(enable = "avx2,fma")]
-    pub unsafe fn dot32(a: &[f32], b: &[f32]) -> f64 {
+    pub unsafe fn panels_times(panels: &[f32], blocks: usize, s: &[f32], y: &mut [f64], w: &mut [f32]) {
         use std::arch::x86_64::*;
-        let n = a.len().min(b.len());
-        let (pa, pb) = (a.as_ptr(), b.as_ptr());
-        let mut acc = [_mm256_setzero_ps(); 4];
-        let mut i = 0;
-        // SAFETY: every load reads a[i..i + 32] and b[i..i + 32] with i + 32 ≤ n; AVX2 is there
-        // (this function's feature).
+        y[..8 * blocks].fill(0.0);
+        let (ps, py, pw) = (s.as_ptr(), y.as_mut_ptr(), w.as_mut_ptr());
+        let mut ph = panels.as_ptr();
+        // SAFETY: the panels are read in order, 32 values a block, Σ_J 2(J + 1) blocks of 32 =
+        // blocks(blocks + 1) · 32 values in all; s, y and w are indexed below 8 · blocks.
         unsafe {
-            while i + 32 <= n {
-                for (k, lane) in acc.iter_mut().enumerate() {
-                    let x = _mm256_loadu_ps(pa.add(i + 8 * k));
-                    let y = _mm256_loadu_ps(pb.add(i + 8 * k));
-                    *lane = _mm256_fmadd_ps(x, y, *lane);
+            for jb in 0..blocks {
+                for half in 0..2 {
+                    let j0 = 8 * jb + 4 * half;
+                    let b = [0, 1, 2, 3].map(|c| _mm256_broadcast_ss(&*ps.add(j0 + c)));
+                    let mut t = [_mm256_setzero_ps(); 4];
+                    for ib in 0..jb {
+                        let si = _mm256_loadu_ps(ps.add(8 * ib));
+                        let c = [0, 1, 2, 3].map(|k| _mm256_loadu_ps(ph.add(8 * k)));
+                        // Two chains for y_I, so its four products do not wait on each other.
+                        let ya = if half == 0 {
+                            _mm256_mul_ps(c[0], b[0])
+                        } else {
+                            _mm256_fmadd_ps(c[0], b[0], _mm256_loadu_ps(pw.add(8 * ib)))
+                        };
+                        let yb = _mm256_mul_ps(c[1], b[1]);
+                        let ya = _mm256_fmadd_ps(c[2], b[2], ya);
+                        let yb = _mm256_fmadd_ps(c[3], b[3], yb);
+                        let sum = _mm256_add_ps(ya, yb);
+                        if half == 0 {
+                            _mm256_storeu_ps(pw.add(8 * ib), sum);
+                        } else {
+                            let lo = _mm256_cvtps_pd(_mm256_castps256_ps128(sum));
+                            let hi = _mm256_cvtps_pd(_mm256_extractf128_ps(sum, 1));
+                            let at = py.add(8 * ib);
+                            _mm256_storeu_pd(at, _mm256_add_pd(_mm256_loadu_pd(at), lo));
+                            _mm256_storeu_pd(at.add(4), _mm256_add_pd(_mm256_loadu_pd(at.add(4)), hi));
+                        }
+                        for k in 0..4 {
+                            t[k] = _mm256_fmadd_ps(c[k], si, t[k]);
+                        }
+                        ph = ph.add(32);
+                    }
+                    let si = _mm256_loadu_ps(ps.add(8 * jb));
+                    for (k, tk) in t.iter_mut().enumerate() {
+                        *tk = _mm256_fmadd_ps(_mm256_loadu_ps(ph.add(8 * k)), si, *tk);
+                    }
+                    ph = ph.add(32);
+                    // The four column sums' lanes, summed at once.
+                    let h = _mm256_hadd_ps(_mm256_hadd_ps(t[0], t[1]), _mm256_hadd_ps(t[2], t[3]));
+                    let sums = _mm_add_ps(_mm256_castps256_ps128(h), _mm256_extractf128_ps(h, 1));
+                    let at = py.add(j0);
+                    _mm256_storeu_pd(at, _mm256_add_pd(_mm256_loadu_pd(at), _mm256_cvtps_pd(sums)));
                 }
-                i += 32;
             }
-            let mut total = 0.0f64;
-            for lane in acc {
-                let mut v = [0.0f32; 8];
-                _mm256_storeu_ps(v.as_mut_ptr(), lane);
-                total += v.iter().map(|&x| f64::from(x)).sum::<f64>();
-            }
-            total
-                + a[i..n]
-                    .iter()
-                    .zip(&b[i..n])
-                    .map(|(x, y)| f64::from(*x) * f64::from(*y))
-                    .sum::<f64>()
         }
     }
 
-    /// u = H s, four rows at a time (two 8-wide chains a row: eight FMAs in flight).
+    /// Σ tᵢ sᵢ and u += c t, four lanes at a time with two chains for the sum.
     ///
     /// # Safety
-    /// AVX2 and FMA must be there; `h.len() ≥ n²` and `u.len() ≥ n`, n = `s.len()`.
+    /// AVX2 and FMA must be there; `s` and `u` are as long as `t`.
     #[target_feature(enable = "avx2,fma")]
-    pub unsafe fn matvec32(h: &[f32], s: &[f32], u: &mut [f64]) {
+    pub unsafe fn dot_and_axpy64(t: &[f64], s: &[f64], c: f64, u: &mut [f64]) -> f64 {
         use std::arch::x86_64::*;
-        let n = s.len();
-        let (ph, ps) = (h.as_ptr(), s.as_ptr());
-        let wide = n - n % 16;
-        let sum8 = |v: __m256| -> f64 {
-            let mut lanes = [0.0f32; 8];
-            // SAFETY: eight f32 stored into an eight-f32 array.
-            unsafe { _mm256_storeu_ps(lanes.as_mut_ptr(), v) };
-            lanes.iter().map(|&x| f64::from(x)).sum()
-        };
-        let mut row = 0;
-        // SAFETY: rows row..row + 4 < n and columns j..j + 16 ≤ wide ≤ n are inside h (n × n)
-        // and s; the caller's contract for the features.
+        let n = t.len();
+        let (pt, ps, pu) = (t.as_ptr(), s.as_ptr(), u.as_mut_ptr());
+        let cc = _mm256_set1_pd(c);
+        let mut acc = [_mm256_setzero_pd(); 2];
+        let mut i = 0;
+        // SAFETY: every access is below i + 8 ≤ n (or i + 4 ≤ n) in slices of n values.
         unsafe {
-            while row + 4 <= n {
-                let mut acc = [[_mm256_setzero_ps(); 2]; 4];
-                let mut j = 0;
-                while j < wide {
-                    let (s0, s1) = (_mm256_loadu_ps(ps.add(j)), _mm256_loadu_ps(ps.add(j + 8)));
-                    for (k, a) in acc.iter_mut().enumerate() {
-                        let r = ph.add((row + k) * n + j);
-                        a[0] = _mm256_fmadd_ps(_mm256_loadu_ps(r), s0, a[0]);
-                        a[1] = _mm256_fmadd_ps(_mm256_loadu_ps(r.add(8)), s1, a[1]);
-                    }
-                    j += 16;
+            while i + 8 <= n {
+                for (k, a) in acc.iter_mut().enumerate() {
+                    let x = _mm256_loadu_pd(pt.add(i + 4 * k));
+                    *a = _mm256_fmadd_pd(x, _mm256_loadu_pd(ps.add(i + 4 * k)), *a);
+                    let y = pu.add(i + 4 * k);
+                    _mm256_storeu_pd(y, _mm256_fmadd_pd(x, cc, _mm256_loadu_pd(y)));
                 }
-                for (k, a) in acc.iter().enumerate() {
-                    let tail: f64 = (wide..n)
-                        .map(|c| f64::from(*ph.add((row + k) * n + c)) * f64::from(*ps.add(c)))
-                        .sum();
-                    u[row + k] = sum8(_mm256_add_ps(a[0], a[1])) + tail;
-                }
-                row += 4;
+                i += 8;
             }
-            while row < n {
-                u[row] = dot32(&h[row * n..(row + 1) * n], s);
-                row += 1;
+            let mut lanes = [0.0f64; 4];
+            _mm256_storeu_pd(lanes.as_mut_ptr(), _mm256_add_pd(acc[0], acc[1]));
+            let mut d: f64 = lanes.iter().sum();
+            while i < n {
+                d += t[i] * s[i];
+                u[i] = c.mul_add(t[i], u[i]);
+                i += 1;
             }
+            d
         }
     }
 

@@ -201,13 +201,7 @@ fn nonlinear_haptic_steps_allocate_nothing() {
     let h = (0..np * np)
         .map(|i| if i % (np + 1) == 0 { 1e6 } else { 1e4 })
         .collect();
-    let model = ves_runtime::nonlinear::Polynomial {
-        r,
-        k,
-        t,
-        h,
-        h32: Vec::new(),
-    };
+    let model = ves_runtime::nonlinear::Polynomial::new(r, k, t, h);
     basis.nonlinear = Some(Arc::new(model.single_precision()));
     let mut h = Haptics::new(
         Arc::new(basis),

@@ -252,13 +252,7 @@ pub fn reduce(points: &Points, mesh: &Mesh, mat: &Lame, u: &[f64], r: usize) -> 
             .flat_map(|i| (0..m.ncols()).map(move |j| m[(i, j)]))
             .collect::<Vec<f64>>()
     };
-    Polynomial {
-        r,
-        k: rows(kk.as_ref()),
-        t: rows(tt.as_ref()),
-        h: rows(hh.as_ref()),
-        h32: Vec::new(),
-    }
+    Polynomial::new(r, rows(kk.as_ref()), rows(tt.as_ref()), rows(hh.as_ref()))
 }
 
 #[cfg(test)]
