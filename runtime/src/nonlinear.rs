@@ -181,6 +181,20 @@ impl Polynomial {
         }
     }
 
+    /// y += a · row `p` of H and z += b · the same row, in single precision (the row read once).
+    #[inline]
+    fn quartic_axpy2(&self, p: usize, a: f64, y: &mut [f32], b: f64, z: &mut [f32]) {
+        let np = self.pairs();
+        if self.h32.is_empty() {
+            for ((yi, zi), hi) in y.iter_mut().zip(z.iter_mut()).zip(&self.h[p * np..(p + 1) * np]) {
+                *yi += (a * hi) as f32;
+                *zi += (b * hi) as f32;
+            }
+        } else {
+            crate::os::axpy2_32(&self.h32[p * np..(p + 1) * np], a as f32, y, b as f32, z);
+        }
+    }
+
     /// Work space for this model.
     pub fn scratch(&self) -> Scratch {
         let np = self.pairs();
@@ -208,17 +222,9 @@ impl Polynomial {
     }
 
     /// out += Jᵀ v, J = ∂s/∂q: (Jᵀ v)_i = Σ_{l≠i} v_(il) q_l + 2 v_(ii) q_i.
-    fn add_jt<V: Copy + Into<f64>>(&self, v: &[V], q: &[f64], out: &mut [f64]) {
-        let mut p = 0;
-        for k in 0..self.r {
-            out[k] += 2.0 * v[p].into() * q[k];
-            p += 1;
-            for l in k + 1..self.r {
-                let vp: f64 = v[p].into();
-                out[k] += vp * q[l];
-                out[l] += vp * q[k];
-                p += 1;
-            }
+    fn add_jt<V: crate::os::Coefficient>(&self, v: &[V], q: &[f64], out: &mut [f64]) {
+        if !crate::os::add_pairs_transposed_simd(v, &q[..self.r], out) {
+            add_jt_portable(self.r, v, q, out);
         }
     }
 
@@ -285,18 +291,21 @@ impl Polynomial {
                 kt[m * r + i] += w.row[m];
             }
         }
-        // H J column by column (column m: Σ_l H[:, (m l)] q_l, twice for l = m; H symmetric, so
-        // row (m l) is read), then Jᵀ of it.
-        for m in 0..r {
-            let col = &mut w.hj[m * np..(m + 1) * np];
-            col.fill(0.0);
-            for (l, &ql) in q.iter().enumerate() {
-                let c = if l == m { 2.0 * ql } else { ql };
-                if c == 0.0 {
-                    continue;
+        // H J column by column (column m: Σ_l H[:, (m l)] q_l, twice for l = m): row (k l) of H
+        // (its column, H symmetric) read once for both columns it adds to, q_l times to column
+        // k and q_k times to column l.
+        w.hj.fill(0.0);
+        let mut p = 0;
+        for k in 0..r {
+            for l in k..r {
+                let (before, from_l) = w.hj.split_at_mut(l * np);
+                if l == k {
+                    self.quartic_axpy(2.0 * q[k], p, &mut from_l[..np]);
+                } else if q[k] != 0.0 || q[l] != 0.0 {
+                    let col_k = &mut before[k * np..(k + 1) * np];
+                    self.quartic_axpy2(p, q[l], col_k, q[k], &mut from_l[..np]);
                 }
-                let pl = pair_index(r, m.min(l), m.max(l));
-                self.quartic_axpy(c, pl, col);
+                p += 1;
             }
         }
         for m in 0..r {
@@ -679,6 +688,21 @@ fn cholesky_in_place(a: &mut [f64], r: usize) -> bool {
     true
 }
 
+/// [`Polynomial::add_jt`] a pair at a time (a processor without AVX2 and FMA).
+fn add_jt_portable<V: Copy + Into<f64>>(r: usize, v: &[V], q: &[f64], out: &mut [f64]) {
+    let mut p = 0;
+    for k in 0..r {
+        out[k] += 2.0 * v[p].into() * q[k];
+        p += 1;
+        for l in k + 1..r {
+            let vp: f64 = v[p].into();
+            out[k] += vp * q[l];
+            out[l] += vp * q[k];
+            p += 1;
+        }
+    }
+}
+
 /// A⁻¹ = L⁻ᵀ L⁻¹ from the Cholesky factor L (lower, row-major, r × r) into `inverse`, with
 /// `l_inverse` as work space (L⁻¹ in its lower triangle): r³/3 products, no allocation.
 fn inverse_of_factor(l: &[f64], r: usize, l_inverse: &mut [f64], inverse: &mut [f64]) {
@@ -778,6 +802,33 @@ mod tests {
             let scale = kf.iter().fold(0.0f64, |a, v| a.max(v.abs()));
             for (a, b) in kf.iter().zip(&kg) {
                 assert!((a - b).abs() < 1e-5 * scale, "r {r}: tangent {a} vs {b}");
+            }
+        }
+    }
+
+    /// Jᵀ v in vector lanes equals it a pair at a time, for v in double and in single precision
+    /// and rows of pairs shorter and longer than a lane.
+    #[test]
+    fn pairs_transposed_in_lanes_as_one_at_a_time() {
+        for r in [1, 2, 5, 9, 30] {
+            let np = r * (r + 1) / 2;
+            let v: Vec<f64> = (0..np).map(|i| ((i * 37) % 17) as f64 * 0.1 - 0.8).collect();
+            let v32: Vec<f32> = v.iter().map(|&x| x as f32).collect();
+            let q: Vec<f64> = (0..r).map(|i| ((i * 13) % 7) as f64 * 0.2 - 0.6).collect();
+            let p = model(r);
+            let start: Vec<f64> = (0..r).map(|i| i as f64).collect();
+            for single in [false, true] {
+                let (mut lanes, mut one) = (start.clone(), start.clone());
+                if single {
+                    p.add_jt(&v32, &q, &mut lanes);
+                    add_jt_portable(r, &v32, &q, &mut one);
+                } else {
+                    p.add_jt(&v, &q, &mut lanes);
+                    add_jt_portable(r, &v, &q, &mut one);
+                }
+                for (a, b) in lanes.iter().zip(&one) {
+                    assert!((a - b).abs() < 1e-12 * (1.0 + b.abs()), "r {r}: {a} vs {b}");
+                }
             }
         }
     }

@@ -184,6 +184,23 @@ pub fn dot_and_axpy64(t: &[f64], s: &[f64], c: f64, u: &mut [f64]) -> f64 {
     d
 }
 
+/// out += Jᵀ v for the pairs of r = `q.len()` coordinates ordered (0,0), (0,1), …, (1,1), …
+/// (J = ∂s/∂q, s the products q_k q_l, k ≤ l): out_k += 2 v_(kk) q_k + Σ_(l>k) v_(kl) q_l and
+/// out_l += v_(kl) q_k, a row of pairs at a time in AVX2 lanes when the processor has them
+/// (false otherwise: nothing done). A pair at a time, every product waited on the last.
+#[inline]
+pub fn add_pairs_transposed_simd<T: Coefficient>(v: &[T], q: &[f64], out: &mut [f64]) -> bool {
+    let r = q.len();
+    #[cfg(target_arch = "x86_64")]
+    if simd::available() && v.len() >= r * (r + 1) / 2 && out.len() >= r {
+        // SAFETY: AVX2 and FMA are there; v holds the r(r+1)/2 pairs and out r values.
+        unsafe { simd::add_pairs_transposed(v, q, out) };
+        return true;
+    }
+    let _ = (v, out, r);
+    false
+}
+
 /// y += c x in double precision, with AVX2 + FMA when the processor has them (the crate is
 /// built for plain x86-64: two lanes otherwise).
 #[inline]
@@ -196,6 +213,22 @@ pub fn axpy64(c: f64, x: &[f64], y: &mut [f64]) {
     }
     for (yi, xi) in y.iter_mut().zip(x) {
         *yi += c * xi;
+    }
+}
+
+/// y += a x and z += b x in single precision (x read once), with AVX2 + FMA when the processor
+/// has them.
+#[inline]
+pub fn axpy2_32(x: &[f32], a: f32, y: &mut [f32], b: f32, z: &mut [f32]) {
+    #[cfg(target_arch = "x86_64")]
+    if simd::available() {
+        // SAFETY: as in `dot_simd`.
+        unsafe { simd::axpy2_32(x, a, y, b, z) };
+        return;
+    }
+    for ((yi, zi), xi) in y.iter_mut().zip(z.iter_mut()).zip(x) {
+        *yi += a * xi;
+        *zi += b * xi;
     }
 }
 
@@ -361,11 +394,61 @@ mod simd {
         }
     }
 
+    /// out += Jᵀ v by rows of pairs: row k's pairs (k, l > k) dotted with q_(k+1..) into out_k
+    /// and added, times q_k, to out_(k+1..).
+    ///
+    /// # Safety
+    /// AVX2 and FMA must be there; `v` holds r(r+1)/2 values and `out` r, r = `q.len()`.
+    #[target_feature(enable = "avx2,fma")]
+    pub unsafe fn add_pairs_transposed<T: super::Coefficient>(v: &[T], q: &[f64], out: &mut [f64]) {
+        use std::arch::x86_64::*;
+        let r = q.len();
+        let (pv, pq, po) = (v.as_ptr(), q.as_ptr(), out.as_mut_ptr());
+        let mut p = 0;
+        // SAFETY: row k reads v[p..p + r − k] (p + r − k ≤ r(r+1)/2), q and out below r.
+        unsafe {
+            for k in 0..r {
+                let qk = q[k];
+                let qkv = _mm256_set1_pd(qk);
+                let n = r - k - 1;
+                let mut acc = _mm256_setzero_pd();
+                let mut i = 0;
+                while i + 4 <= n {
+                    let x = T::load4(pv.add(p + 1 + i));
+                    acc = _mm256_fmadd_pd(x, _mm256_loadu_pd(pq.add(k + 1 + i)), acc);
+                    let o = po.add(k + 1 + i);
+                    _mm256_storeu_pd(o, _mm256_fmadd_pd(x, qkv, _mm256_loadu_pd(o)));
+                    i += 4;
+                }
+                let mut lanes = [0.0f64; 4];
+                _mm256_storeu_pd(lanes.as_mut_ptr(), acc);
+                let mut sum = 2.0 * v[p].into() * qk + (lanes[0] + lanes[1]) + (lanes[2] + lanes[3]);
+                while i < n {
+                    let x: f64 = v[p + 1 + i].into();
+                    sum += x * q[k + 1 + i];
+                    out[k + 1 + i] += x * qk;
+                    i += 1;
+                }
+                out[k] += sum;
+                p += n + 1;
+            }
+        }
+    }
+
     /// y += c x in double precision, compiled for AVX2 + FMA (the compiler vectorises it).
     #[target_feature(enable = "avx2,fma")]
     pub unsafe fn axpy64(c: f64, x: &[f64], y: &mut [f64]) {
         for (yi, xi) in y.iter_mut().zip(x) {
             *yi = c.mul_add(*xi, *yi);
+        }
+    }
+
+    /// y += a x and z += b x in single precision, compiled for AVX2 + FMA.
+    #[target_feature(enable = "avx2,fma")]
+    pub unsafe fn axpy2_32(x: &[f32], a: f32, y: &mut [f32], b: f32, z: &mut [f32]) {
+        for ((yi, zi), xi) in y.iter_mut().zip(z.iter_mut()).zip(x) {
+            *yi = a.mul_add(*xi, *yi);
+            *zi = b.mul_add(*xi, *zi);
         }
     }
 
