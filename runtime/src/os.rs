@@ -201,6 +201,21 @@ pub fn add_pairs_transposed_simd<T: Coefficient>(v: &[T], q: &[f64], out: &mut [
     false
 }
 
+/// For four rows tₐ of length n = `s.len()` held one after another in `rows`: Σ tₐᵢ sᵢ for
+/// each, and u += Σₐ cₐ tₐ, with AVX2 + FMA when the processor has them (`None` otherwise:
+/// nothing done). u is read and written once for the four rows, where a row at a time it was
+/// read and written four times.
+#[inline]
+pub fn dots_and_axpy4(rows: &[f64], s: &[f64], c: [f64; 4], u: &mut [f64]) -> Option<[f64; 4]> {
+    #[cfg(target_arch = "x86_64")]
+    if simd::available() && rows.len() >= 4 * s.len() && u.len() >= s.len() {
+        // SAFETY: AVX2 and FMA are there; rows holds 4n values and u n (checked above).
+        return Some(unsafe { simd::dots_and_axpy4(rows, s, c, u) });
+    }
+    let _ = (rows, s, c, u);
+    None
+}
+
 /// y += c x in double precision, with AVX2 + FMA when the processor has them (the crate is
 /// built for plain x86-64: two lanes otherwise).
 #[inline]
@@ -432,6 +447,49 @@ mod simd {
                 out[k] += sum;
                 p += n + 1;
             }
+        }
+    }
+
+    /// Four rows' dot products with s and their combination added to u, four lanes at a time.
+    ///
+    /// # Safety
+    /// AVX2 and FMA must be there; `rows` holds 4n values and `u` n, n = `s.len()`.
+    #[target_feature(enable = "avx2,fma")]
+    pub unsafe fn dots_and_axpy4(rows: &[f64], s: &[f64], c: [f64; 4], u: &mut [f64]) -> [f64; 4] {
+        use std::arch::x86_64::*;
+        let n = s.len();
+        let (pt, ps, pu) = (rows.as_ptr(), s.as_ptr(), u.as_mut_ptr());
+        let cc = c.map(|x| _mm256_set1_pd(x));
+        let mut acc = [_mm256_setzero_pd(); 4];
+        let mut i = 0;
+        // SAFETY: row a's values are rows[a n..(a + 1) n]; every index is below n.
+        unsafe {
+            while i + 4 <= n {
+                let sv = _mm256_loadu_pd(ps.add(i));
+                let mut uv = _mm256_loadu_pd(pu.add(i));
+                for a in 0..4 {
+                    let x = _mm256_loadu_pd(pt.add(a * n + i));
+                    acc[a] = _mm256_fmadd_pd(x, sv, acc[a]);
+                    uv = _mm256_fmadd_pd(x, cc[a], uv);
+                }
+                _mm256_storeu_pd(pu.add(i), uv);
+                i += 4;
+            }
+            let mut out = [0.0f64; 4];
+            for a in 0..4 {
+                let mut lanes = [0.0f64; 4];
+                _mm256_storeu_pd(lanes.as_mut_ptr(), acc[a]);
+                out[a] = (lanes[0] + lanes[1]) + (lanes[2] + lanes[3]);
+            }
+            while i < n {
+                for a in 0..4 {
+                    let x = rows[a * n + i];
+                    out[a] += x * s[i];
+                    u[i] = c[a].mul_add(x, u[i]);
+                }
+                i += 1;
+            }
+            out
         }
     }
 
