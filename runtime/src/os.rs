@@ -146,8 +146,8 @@ pub fn dot_simd<T: Coefficient>(a: &[T], b: &[f64]) -> Option<f64> {
     None
 }
 
-/// y = H s for H stored by panels (`crate::packed`, `blocks` panels of eight columns in
-/// `panels`), with AVX2 + FMA when the processor has them (false otherwise: nothing done).
+/// y = H s for H stored by panels (the layout of `packed.rs`: `blocks` panels of eight
+/// columns in `panels`), with AVX2 + FMA when the processor has them (false otherwise: nothing done).
 /// `s`, `y` and the work space `w` hold at least 8 · `blocks` values.
 #[inline]
 pub fn panels_times_simd(panels: &[f32], blocks: usize, s: &[f32], y: &mut [f64], w: &mut [f32]) -> bool {
@@ -309,10 +309,10 @@ mod simd {
         }
     }
 
-    /// y = H s by panels (`crate::packed`): for each half panel (four columns j), each block I
-    /// above the diagonal adds Σ_c H[I, j_c] s_(j_c) to y_I and H[I, j_c] ⊙ s_I to four running
-    /// column sums t_c; the diagonal block adds to the t_c alone, whose lanes are then summed
-    /// into y_(j_c). A panel's first half leaves its row sums in `w`, the second adds them and
+    /// y = H s by panels (the layout of `packed.rs`): for each half panel (four columns j),
+    /// each block I above the diagonal adds Σ_c H[I, j_c] s_(j_c) to y_I and H[I, j_c] ⊙ s_I
+    /// to four running column sums t_c; the diagonal block adds to the t_c alone, whose lanes
+    /// are then summed into y_(j_c). A panel's first half leaves its row sums in `w`, the second adds them and
     /// the sum goes to y in double.
     ///
     /// # Safety
