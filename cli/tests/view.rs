@@ -344,6 +344,25 @@ fn the_mouse_pulls_the_tip_in_a_real_browser_and_the_page_shows_the_static_respo
     // The displacement magnitude the page colours by is |Φq|.
     let umag = held["umag"].as_f64().unwrap();
     assert!((umag - e).abs() < REL * e, "|u| coloured {umag} m vs |Φq| {e} m");
+    // The probe pinned at mid-span (a second pin, double-clicked twice, is gone) reads |Φq| there
+    // during the pull, from the file's modes, and says it on the part.
+    let mid = page["midSpan"].as_u64().unwrap() as usize;
+    let pins = held["pins"].as_array().expect("pins");
+    assert_eq!(pins.len(), 1, "one probe left pinned: {}", held["pins"]);
+    assert_eq!(page["pinnedAtRest"].as_array().map(Vec::len), Some(1), "{page}");
+    assert_eq!(pins[0]["vertex"].as_u64(), Some(mid as u64), "{}", held["pins"]);
+    let at_mid = norm(field_at(&b, mid, &q));
+    let pinned = pins[0]["value"].as_f64().unwrap();
+    assert!(
+        (pinned - at_mid).abs() < REL * at_mid && at_mid > 0.2 * e,
+        "probe P{} reads {pinned} m at mid-span vs |Φq| {at_mid} m from the basis (tip {e} m)",
+        pins[0]["n"]
+    );
+    let text = pins[0]["text"].as_str().unwrap_or_default();
+    assert!(
+        text.starts_with("P1 ") && text.ends_with("m"),
+        "the probe's label: {text:?}"
+    );
     // And beam theory agrees on the scale: the vertical tip stiffness 3EI/L³.
     let k_beam = 3.0 * 2.1e11 * (0.1 * 0.05f64.powi(3) / 12.0);
     assert!(

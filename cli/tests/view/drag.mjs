@@ -22,6 +22,18 @@ try {
   const root = await page.evaluate(() => window.ves.nearestVertex(0, [0.0, 0.05, 0.05]));
   const [x, y] = await page.evaluate((v) => window.ves.screenOf(0, v), vertex);
   const [rx, ry] = await page.evaluate((v) => window.ves.screenOf(0, v), root);
+
+  // Probes pinned by double-clicks: one at mid-span stays, one near the root is pinned and
+  // unpinned by a second double-click on it.
+  const midSpan = await page.evaluate(() => window.ves.nearestVertex(0, [0.5, 0.05, 0.05]));
+  const nearRoot = await page.evaluate(() => window.ves.nearestVertex(0, [0.2, 0.05, 0.05]));
+  for (const v of [midSpan, nearRoot, nearRoot]) {
+    const [px, py] = await page.evaluate((w) => window.ves.screenOf(0, w), v);
+    await page.mouse.dblclick(px, py);
+    await until(page, () => !window.ves.status.hands[0].active);
+    await rendered(page);
+  }
+  const pinnedAtRest = await page.evaluate(() => window.ves.pins);
   await page.mouse.move(x, y);
   await page.mouse.down();
   const pixels = 60;
@@ -55,6 +67,9 @@ try {
       handText: document.getElementById('handinfo').textContent,
       latency_ms: window.ves.latency.slice(),
       frames: window.ves.frames,
+      // The pinned probes as drawn in the same frame: vertex, |u| there, the label.
+      pins: window.ves.pins,
+      pinU: window.ves.pins.map((p) => Array.from(s.u.subarray(3 * p.vertex, 3 * p.vertex + 3))),
     };
   }, vertex);
   held.screenMoved = Math.hypot(x2 - x, y2 - y);
@@ -130,7 +145,7 @@ try {
   await page.waitForFunction(() => window.ves.mode !== null, null, { timeout: 5000 });
   const mode = await page.evaluate(() => ({ mode: window.ves.mode.mode, frequency: window.ves.mode.frequency }));
 
-  console.log(JSON.stringify({ vertex, pixels, atRest, lost, fitted, viewport: [1200, 800], held, vonMisesLegend, second, released, framesBefore: before, after, mode, errors }));
+  console.log(JSON.stringify({ vertex, pixels, atRest, midSpan, pinnedAtRest, lost, fitted, viewport: [1200, 800], held, vonMisesLegend, second, released, framesBefore: before, after, mode, errors }));
 } finally {
   await browser.close();
 }

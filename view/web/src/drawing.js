@@ -4,7 +4,7 @@
 import * as THREE from 'three';
 import { $ } from './dom.js';
 import { fieldOf } from './field.js';
-import { placeMarkers, showLegend, showProbe } from './hud.js';
+import { placeMarkers, placePins, showLegend, showProbe } from './hud.js';
 import { drawScale, restLevel } from './scale.js';
 import { supportsFollow } from './spaces.js';
 import { state } from './state.js';
@@ -73,5 +73,6 @@ function colour(s) {
   state.legend = { title: f.title, scale: f.scale, ticks: f.ticks, caption, atRest: f.atRest, lo: f.lo, hi: f.hi };
   showLegend(f.title, f.scale, f.ticks, f.summary || '');
   placeMarkers(s, f.markers);
+  placePins(s);
   if (state.probe) showProbe(state.probe.vertex, state.probe.x, state.probe.y);
 }

@@ -7,6 +7,7 @@ import { kindOf } from './protocol.js';
 import { setScale } from './scale.js';
 import { state } from './state.js';
 import { drive, release } from './interaction.js';
+import { nearestVertex } from './spaces.js';
 import { camera, canvas, screenOfPoint } from './viewport.js';
 
 const v = new THREE.Vector3();
@@ -53,12 +54,15 @@ export function facade(setup) {
     /** The vertex nearest `p` at rest (m, part frame). */
     nearestVertex(space, p) {
       const s = state.spaces[space];
-      let best = -1, bd = Infinity;
-      for (let i = 0; i < s.vertices; i++) {
-        const d = (s.rest[3 * i] - p[0]) ** 2 + (s.rest[3 * i + 1] - p[1]) ** 2 + (s.rest[3 * i + 2] - p[2]) ** 2;
-        if (d < bd) { bd = d; best = i; }
-      }
-      return best;
+      return nearestVertex(s.rest, s.vertices, p);
+    },
+    /** The pinned probes of the active space as drawn: number, vertex, the field's value there
+     * and the label shown. */
+    get pins() {
+      return state.pins.filter((p) => p.space === state.active).map((p) => ({
+        n: p.n, vertex: p.vertex, value: state.field ? state.field.valueAt(p.vertex) : null,
+        text: [...document.querySelectorAll('.pin')].map((t) => t.textContent).find((t) => t.startsWith(`P${p.n} `)) || null,
+      }));
     },
     /** Whether the active space is drawn with its mesh's edges over it. */
     edgesShown() {

@@ -3,7 +3,7 @@
 import * as THREE from 'three';
 import { $, el } from './dom.js';
 import { gradient } from './colours.js';
-import { feltText, label, plain } from './units.js';
+import { feltText, fieldWords, label, plain } from './units.js';
 import { DRAW_WINDOW, state } from './state.js';
 import { scene, screenOfPoint } from './viewport.js';
 
@@ -90,7 +90,7 @@ const at = [0, 0];
 /** Moves the markers' labels to where their dots are drawn, and the supports' to their
  * centres (after a render). */
 export function placeTags() {
-  for (const m of markers) {
+  for (const m of [...markers, ...pinMarks]) {
     if (!m.dot.visible) continue;
     const [x, y] = screenOfPoint(m.dot.position, at);
     m.tag.style.left = `${x + 8}px`; m.tag.style.top = `${y - 8}px`;
@@ -119,23 +119,62 @@ export function showScale(k) {
   $('scaleshown').textContent = `×${plain(k)}${state.scaleAuto ? ', auto' : ''}`;
 }
 
-// Markers at the field's extremes: a dot on the part and its value beside it. Made once and
-// reused: a redraw only moves them.
-const markers = [];
+// Markers at the field's extremes, and the pinned probes: a dot on the part and its value beside
+// it. Made once and reused: a redraw only moves them.
+const markers = [], pinMarks = [];
+const pinPoint = new THREE.Vector3();
 const markerGeometry = new THREE.SphereGeometry(1, 12, 8);
 
 /** Places the markers of `list` ({vertex, text}) on space `s` as drawn. */
 export function placeMarkers(s, list) {
-  while (markers.length < list.length) {
-    const dot = new THREE.Mesh(markerGeometry, new THREE.MeshBasicMaterial({ color: 0xffffff, depthTest: false }));
+  placeDots(markers, s, list, $('showmarkers').checked, 'marker', 0xffffff);
+}
+
+/** Most probes pinned at once (a further one replaces the oldest). */
+export const MOST_PINS = 12;
+
+/** Places the pinned probes of space `s` (the active one) with the values of the field drawn. */
+export function placePins(s) {
+  const f = state.field;
+  const list = f ? state.pins.filter((p) => p.space === state.active && p.vertex < s.vertices)
+    .map((p) => ({ vertex: p.vertex, text: `P${p.n} ${fieldWords(f, p.vertex, state.units)}` })) : [];
+  placeDots(pinMarks, s, list, true, 'marker pin', 0xffd24a);
+  $('pinrow').hidden = state.pins.length === 0;
+}
+
+/** Pins a probe at `vertex` of the active space, or unpins the one there (or drawn within
+ * `near` CSS px of screen point `xy`). */
+export function togglePin(vertex, xy, near) {
+  const mine = state.pins.filter((p) => p.space === state.active);
+  const s = state.spaces[state.active];
+  const hit = mine.find((p) => {
+    if (p.vertex === vertex) return true;
+    const [x, y] = screenOfPoint(pinPoint.fromBufferAttribute(s.geom.attributes.position, p.vertex), at);
+    return Math.hypot(x - xy[0], y - xy[1]) <= near;
+  });
+  if (hit) state.pins = state.pins.filter((p) => p !== hit);
+  else {
+    if (state.pins.length >= MOST_PINS) state.pins.shift();
+    const rest = Array.from(s.rest.subarray(3 * vertex, 3 * vertex + 3));
+    state.pins.push({ space: state.active, vertex, rest, n: state.pins.reduce((m, p) => Math.max(m, p.n), 0) + 1 });
+  }
+  state.dirty = true;
+}
+
+/** Every pinned probe let go. */
+export function clearPins() { state.pins = []; state.dirty = true; }
+
+/** `list`'s dots and tags from `pool` on space `s` as drawn (hidden unless `shown`). */
+function placeDots(pool, s, list, shown, className, colour) {
+  while (pool.length < list.length) {
+    const dot = new THREE.Mesh(markerGeometry, new THREE.MeshBasicMaterial({ color: colour, depthTest: false }));
     dot.renderOrder = 2;
-    const tag = el('div', { className: 'marker' });
+    const tag = el('div', { className });
     document.body.appendChild(tag);
     scene.add(dot);
-    markers.push({ dot, tag });
+    pool.push({ dot, tag });
   }
-  const shown = $('showmarkers').checked;
-  markers.forEach((m, i) => {
+  pool.forEach((m, i) => {
     const on = i < list.length && list[i].vertex >= 0 && shown;
     m.dot.visible = on;
     m.tag.style.display = on ? 'block' : 'none';
@@ -152,8 +191,7 @@ export function placeMarkers(s, list) {
 export function showProbe(v, x, y) {
   const f = state.field, s = state.spaces[state.active];
   if (!f || !s || v >= s.vertices) return;
-  const value = f.valueAt(v);
-  const shown = f.quantity === 'ratio' ? (Number.isFinite(value) ? plain(value) : 'no stress') : label(value, f.quantity, state.units);
+  const shown = fieldWords(f, v, state.units);
   // Coordinates to 1e-5 of the part's size: f32 round-off is not a position.
   const q = 1e-5 * state.diag;
   const where = Array.from(s.truePos.subarray(3 * v, 3 * v + 3)).map((c) => label(Math.round(c / q) * q, 'length', state.units)).join(', ');

@@ -6,7 +6,7 @@
 // orbits. Hovering shows the probe (or, while the set-up panel picks faces, lights the face under
 // the cursor): its ray cast runs at most once per animation frame.
 import * as THREE from 'three';
-import { hideProbe, showProbe, showTip } from './hud.js';
+import { hideProbe, showProbe, showTip, togglePin } from './hud.js';
 import { HOVER, lightFaces } from './spaces.js';
 import { state } from './state.js';
 import { label } from './units.js';
@@ -277,6 +277,13 @@ canvas.addEventListener('pointerup', endPointer);
 canvas.addEventListener('pointercancel', endPointer);
 canvas.addEventListener('pointerleave', () => { if (!drags.size) { hover = null; hideProbe(); } });
 canvas.addEventListener('contextmenu', (ev) => ev.preventDefault());
+// A double-click on the part pins a probe there (or unpins the one clicked): its value stays on
+// the part and follows it while a hand pulls, where the hover probe is off.
+canvas.addEventListener('dblclick', (ev) => {
+  if (facePick || picking || !state.ready || state.mode) return;
+  const got = pick(ev);
+  if (got) togglePin(got.vertex, [ev.clientX, ev.clientY], 10);
+});
 canvas.addEventListener('wheel', (ev) => {
   if (drags.size === 0) return;
   ev.preventDefault();

@@ -5,7 +5,7 @@
 // would not change; "none" brings the live part back.
 import { $, el } from './dom.js';
 import { sequential } from './colours.js';
-import { hideProbe, placeMarkers, showLegend, showScale } from './hud.js';
+import { hideProbe, placeMarkers, placePins, showLegend, showScale } from './hud.js';
 import { label, plain } from './units.js';
 import { AUTO_FRACTION, nice } from './scale.js';
 import { supportsFollow } from './spaces.js';
@@ -145,6 +145,7 @@ export function drawLoad(s, c) {
   state.legend = { title, scale: 'magnitude', ticks, caption, atRest: false, lo: 0, hi, load: c.name };
   showLegend(title, 'magnitude', ticks, summary);
   placeMarkers(s, [{ vertex: top, text: `max on the surface ${w(c.vm[top])}${singular ? ' (singular)' : ''}` }]);
+  placePins(s);
   // The supports' reaction balances the load: what is left of the sum says how well.
   const load = Math.hypot(...c.total_force);
   const left = Math.hypot(...c.total_force.map((f, i) => f + c.reaction[i]));

@@ -34,6 +34,7 @@ function onHello(msg) {
   const again = state.hello !== null;
   const samePart = again && state.hello.name === msg.name;
   if (again) { state.reconnects += 1; clearSpaces(); clearHands(); }
+  if (!samePart) state.pins = [];
   document.body.classList.remove('stale');
   state.hello = msg;
   state.lastSeq = -1;

@@ -4,7 +4,7 @@ import { $ } from './dom.js';
 import * as capture from './capture.js';
 import { askFields } from './drawing.js';
 import { dragging, endDrags, letGo } from './interaction.js';
-import { showLimit } from './hud.js';
+import { clearPins, showLimit } from './hud.js';
 import { chooseLoad } from './loadcases.js';
 import { setScale } from './scale.js';
 import { showEdges, showSupports } from './spaces.js';
@@ -40,6 +40,7 @@ const pictureName = () => (state.hello ? state.hello.name : 'ves');
 $('fit').onclick = () => { if (!dragging()) fitView(); };
 $('home').onclick = () => { if (!dragging()) homeView(); };
 $('resetsim').onclick = resetSimulation;
+$('clearpins').onclick = clearPins;
 for (const b of document.querySelectorAll('[data-axis]')) {
   if (b instanceof HTMLElement) b.onclick = () => viewAlong(b.dataset.axis, Number(b.dataset.sign));
 }

@@ -2,10 +2,11 @@
 // supports, loads, mesh), the computed line (the frequency estimate, the felt check), the
 // warnings, each space's frequencies, and each load case's figures — its largest displacement,
 // its peak stress with the peak's error or the note that it is singular, the safety factor and
-// what the supports carry. Markdown, downloaded under the part's name.
+// what the supports carry; the probes pinned on the part with their values as shown. Markdown,
+// downloaded under the part's name.
 import { download } from './capture.js';
 import { state } from './state.js';
-import { label, plain } from './units.js';
+import { fieldWords, label, plain } from './units.js';
 
 const row = (cells) => `| ${cells.join(' | ')} |`;
 
@@ -80,6 +81,15 @@ export function reportText(setup) {
         out.push(`- ${c.name}: von Mises ${w(r.value)} ${peakText(r, w)} at (${r.position.map((x) => len(x)).join(', ')})`
           + (ys && r.value > 0 ? `, safety factor ${plain(ys / r.value)}` : ''));
       }
+    }
+    out.push('');
+  }
+  const pins = state.pins.filter((p) => p.space === state.active);
+  if (pins.length && state.field && state.legend) {
+    out.push(`## Probes pinned: ${state.legend.title}, as shown when the report was written`, '',
+      row(['probe', 'vertex', 'at rest', 'value']), row(Array(4).fill('---')));
+    for (const p of pins) {
+      out.push(row([`P${p.n}`, String(p.vertex), `(${p.rest.map(len).join(', ')})`, fieldWords(state.field, p.vertex, u)]));
     }
     out.push('');
   }

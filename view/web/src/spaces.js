@@ -27,6 +27,16 @@ export function clearSpaces() {
   state.mode = null;
 }
 
+/** The vertex of `rest` (3 per vertex, `n` vertices) nearest point `p`. */
+export function nearestVertex(rest, n, p) {
+  let best = -1, bd = Infinity;
+  for (let i = 0; i < n; i++) {
+    const d = (rest[3 * i] - p[0]) ** 2 + (rest[3 * i + 1] - p[1]) ** 2 + (rest[3 * i + 2] - p[2]) ** 2;
+    if (d < bd) { bd = d; best = i; }
+  }
+  return best;
+}
+
 /** Adds the decoded mesh `m` (protocol.js) as a space; `lit`: the CAD faces held and the ones
  * loaded, lit on space 0. @param {any} m @param {{ held: number[], loaded: number[] }} lit */
 export function addSpace(m, lit) {
@@ -71,6 +81,8 @@ export function addSpace(m, lit) {
     u: new Float32Array(3 * m.vertices), umag: new Float32Array(m.vertices),
     truePos: new Float32Array(m.rest), pose: null, drawnPose: null, vm: null, p1: null,
   };
+  // The pins of this space on its new mesh: the vertex nearest where each was pinned.
+  for (const p of state.pins) if (p.space === m.space) p.vertex = nearestVertex(m.rest, m.vertices, p.rest);
   if (m.space === 0) {
     // The same part again (a reconnect): the user's view stays; another part is framed.
     const same = state.keepView && state.diag && Math.abs(size - state.diag) <= 1e-6 * size;

@@ -123,6 +123,11 @@ export const state = {
   // Under the cursor.
   /** The probe: the vertex under the cursor and where, or null. @type {{vertex: number, x: number, y: number, text?: string}|null} */
   probe: null,
+  /** Probes pinned by a double-click: a vertex of a space each (and its rest position, to find
+   * it again on a recomputed mesh of the same part), numbered P1, P2, … in the order pinned;
+   * their values follow the part (a pull, a load case).
+   * @type {{space: number, vertex: number, rest: number[], n: number}[]} */
+  pins: [],
   /** The CAD face under the cursor while faces are picked, or null. @type {number|null} */
   hoverFace: null,
 };

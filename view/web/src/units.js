@@ -45,3 +45,10 @@ export function feltText(e) {
   if (e >= 0.5) return 'felt over 2× too stiff (the mesh is coarser than the fingertip)';
   return `felt ≤ ${plain(100 * e / (1 - e))} % too stiff`;
 }
+
+/** Field `f`'s value at vertex `v` in words, in `units` (a ratio bare; none where there is no
+ * stress). @param {{quantity: string, valueAt: (i: number) => number}} f */
+export function fieldWords(f, v, units) {
+  const value = f.valueAt(v);
+  return f.quantity === 'ratio' ? (Number.isFinite(value) ? plain(value) : 'no stress') : label(value, f.quantity, units);
+}
