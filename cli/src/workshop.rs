@@ -143,6 +143,20 @@ fn summary_line(summary: &precompute::Summary) -> String {
     line
 }
 
+/// The first space's mesh for the page (`Computed::mesh`): nodes, tets, element size (0 when
+/// read back from a previous basis), worst shape quality and the tets by quality.
+fn mesh_of(summary: &precompute::Summary) -> serde_json::Value {
+    summary.spaces.first().map_or(serde_json::Value::Null, |g| {
+        serde_json::json!({
+            "nodes": g.nodes,
+            "tets": g.tets,
+            "size_m": g.meshing.size,
+            "worst_quality": g.min_tet_quality,
+            "quality_histogram": g.tet_quality_histogram,
+        })
+    })
+}
+
 /// The largest estimated relative error of the first space's modes, when estimated.
 fn worst_estimate(summary: &precompute::Summary) -> Option<f64> {
     let e = summary.spaces.first()?.estimated_relative_error.as_ref()?;
@@ -397,6 +411,9 @@ enum ChildNote {
         frequencies_hz: Vec<f64>,
         #[serde(default)]
         first_look: bool,
+        /// [`mesh_of`] its summary.
+        #[serde(default)]
+        mesh: serde_json::Value,
     },
     /// The basis is written, its checks to come: the child waits for `check` on its stdin.
     First {
@@ -407,6 +424,8 @@ enum ChildNote {
         /// The warnings so far.
         #[serde(default)]
         warnings: Vec<String>,
+        #[serde(default)]
+        mesh: serde_json::Value,
     },
     /// The checks are written too.
     Done {
@@ -415,6 +434,8 @@ enum ChildNote {
         /// Every warning of the compute.
         #[serde(default)]
         warnings: Vec<String>,
+        #[serde(default)]
+        mesh: serde_json::Value,
     },
     /// The compute failed (one line).
     Error(String),
@@ -530,13 +551,14 @@ impl PartWorkshop {
         let (mut outcome, mut killed) = (None, false);
         let mut instant: Option<Vec<f64>> = None;
         let mut first_look = false;
-        let computed = |summary: String, estimated_error: Option<f64>, warnings: Vec<String>| Computed {
+        let computed = |summary: String, estimated_error: Option<f64>, warnings: Vec<String>, mesh| Computed {
             basis: job.out.clone(),
             scene: saved.to_string(),
             summary,
             estimated_error,
             instant: false,
             warnings,
+            mesh,
         };
         loop {
             let note = notes.recv_timeout(std::time::Duration::from_millis(50));
@@ -546,6 +568,7 @@ impl PartWorkshop {
                     summary,
                     frequencies_hz,
                     first_look: look,
+                    mesh,
                 }) => {
                     let basis = instant_path(&job.out);
                     let taken = seal_basis(&basis).map_err(WorkshopError::KeepBasis).and_then(|()| {
@@ -556,6 +579,7 @@ impl PartWorkshop {
                             estimated_error: None,
                             instant: true,
                             warnings: Vec::new(),
+                            mesh,
                         })
                     });
                     match taken {
@@ -573,6 +597,7 @@ impl PartWorkshop {
                     estimated_error,
                     frequencies_hz,
                     warnings,
+                    mesh,
                 }) => {
                     let summary = match instant.as_deref().and_then(|i| moved(i, &frequencies_hz)) {
                         Some(m) => format!(
@@ -585,7 +610,7 @@ impl PartWorkshop {
                     };
                     let taken = seal_basis(&job.out)
                         .map_err(WorkshopError::KeepBasis)
-                        .and_then(|()| ready(&computed(summary, estimated_error, warnings)));
+                        .and_then(|()| ready(&computed(summary, estimated_error, warnings, mesh)));
                     match taken {
                         Ok(()) => {
                             served.1 = true;
@@ -606,9 +631,10 @@ impl PartWorkshop {
                     summary,
                     estimated_error,
                     warnings,
+                    mesh,
                 }) => {
                     let _ = seal_basis(&job.out);
-                    outcome.get_or_insert(Ok(computed(summary, estimated_error, warnings)));
+                    outcome.get_or_insert(Ok(computed(summary, estimated_error, warnings, mesh)));
                 }
                 Ok(ChildNote::Error(message)) => {
                     outcome.get_or_insert(Err(WorkshopError::Failed { message }));
@@ -673,6 +699,7 @@ pub fn serve_compute(dir: &Path) -> anyhow::Result<()> {
         match precompute::instant::run(&parsed, previous, &instant_path(&job.out)) {
             Ok(Some((summary, check))) => say(ChildNote::Instant {
                 first_look: false,
+                mesh: mesh_of(&summary),
                 summary: instant_line(&summary, &check),
                 frequencies_hz: summary
                     .spaces
@@ -694,6 +721,7 @@ pub fn serve_compute(dir: &Path) -> anyhow::Result<()> {
         match precompute::run_first(&look, &instant_path(&job.out), solver) {
             Ok(w) => say(ChildNote::Instant {
                 first_look: true,
+                mesh: mesh_of(&w.summary),
                 summary: format!(
                     "first look: the first mesh, its error not estimated yet; {} · the refinement to {} % follows",
                     summary_line(&w.summary),
@@ -720,6 +748,7 @@ pub fn serve_compute(dir: &Path) -> anyhow::Result<()> {
         }
     };
     say(ChildNote::First {
+        mesh: mesh_of(&first.summary),
         summary: summary_line(&first.summary),
         estimated_error: worst_estimate(&first.summary),
         frequencies_hz: first
@@ -738,6 +767,7 @@ pub fn serve_compute(dir: &Path) -> anyhow::Result<()> {
     let (checked, more) = ves_pipeline::notices::collect(|| first.check());
     match checked {
         Ok(s) => say(ChildNote::Done {
+            mesh: mesh_of(&s),
             summary: summary_line(&s),
             estimated_error: worst_estimate(&s),
             warnings: warnings.into_iter().chain(more).collect(),
@@ -820,6 +850,7 @@ impl Workshop for PartWorkshop {
         let out = self.dir.path().join(format!("basis-{n}.h5"));
         let saved = Self::text(&geometry, scene, false)?;
         let computed = |summary: &precompute::Summary, warnings: &[String]| Computed {
+            mesh: mesh_of(summary),
             basis: out.clone(),
             scene: saved.clone(),
             summary: summary_line(summary),

@@ -957,6 +957,35 @@ fn a_step_part_is_set_up_computed_and_pulled_in_the_page() {
             "page {held:?} Hz vs ves precompute {again:?} Hz"
         );
     }
+    // The set-up panel's tets by shape quality are those of the same mesh through the CLI, and
+    // the panel says how many are poor.
+    let cli_space = &last_json(&o)["spaces"][0];
+    let histogram = &converged["mesh"]["quality_histogram"];
+    assert_eq!(histogram, &cli_space["tet_quality_histogram"], "{converged}");
+    let bins: Vec<u64> = histogram
+        .as_array()
+        .unwrap()
+        .iter()
+        .filter_map(|v| v.as_u64())
+        .collect();
+    assert_eq!(
+        bins.iter().sum::<u64>(),
+        cli_space["tets"].as_u64().unwrap(),
+        "{bins:?}"
+    );
+    let shown = &page["held"]["meshQuality"];
+    let text = shown["text"].as_str().unwrap_or_default();
+    assert!(
+        shown["shown"].as_bool() == Some(true)
+            && text.starts_with(&format!("{} tets by shape quality", bins.iter().sum::<u64>()))
+            && text.contains(&format!("{} below 0.2", bins[0] + bins[1])),
+        "{shown}"
+    );
+    let bars = shown["bars"].as_array().unwrap();
+    assert_eq!(bars.len(), 10, "{shown}");
+    for (bar, n) in bars.iter().zip(&bins) {
+        assert_eq!(bar.as_f64().unwrap() > 0.0, *n > 0, "{shown} vs {bins:?}");
+    }
 
     // The plane clicked is the part's x minimum (its mesh from the STEP, read from the file):
     // within the scene's plane tolerance (1e-6 of the diagonal, the page picks an f32 vertex) or

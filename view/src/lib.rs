@@ -773,6 +773,7 @@ fn run_compute(shared: &Arc<Shared>, workshop: &dyn Workshop, scene: &serde_json
         shared.checking.store(true, Ordering::Release);
         change_setup(shared, |s| {
             s.serve(scene.clone(), c.scene.clone(), c.summary.clone(), c.warnings.clone());
+            s.mesh = c.mesh.clone();
             true
         });
         if !c.instant {
@@ -785,6 +786,7 @@ fn run_compute(shared: &Arc<Shared>, workshop: &dyn Workshop, scene: &serde_json
                 "seconds": t0.elapsed().as_secs_f64(),
                 "estimated_error": c.estimated_error,
                 "warnings": c.warnings,
+                "mesh": c.mesh,
                 "live": if c.instant { "instant" } else { "converged" },
             }),
         );

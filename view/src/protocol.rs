@@ -24,7 +24,7 @@
 //! (`SetUp::message` in `setup.rs`; `ack`: the `seq` of the last `edit` or `compute` of this
 //! connection the server had applied).
 //! Server → page, text, about a compute: `{"type":"progress","stage","fraction"}`,
-//! `{"type":"computed","summary","scene","seconds","warnings","live"}`, `{"type":"checked","summary","seconds","warnings"}`, `{"type":"compute_error","message"}`; a
+//! `{"type":"computed","summary","scene","seconds","warnings","mesh","live"}`, `{"type":"checked","summary","seconds","warnings"}`, `{"type":"compute_error","message"}`; a
 //! new basis then comes as a new hello and its meshes. About a load case the file could not give
 //! (to the page that asked): `{"type":"load_error","space","index","message"}`. Anything else —
 //! binary, longer than [`MAX_MESSAGE`], not JSON, unknown fields, non-finite or far-away

@@ -41,6 +41,9 @@ pub struct SetUp {
     /// The warnings its compute gave, one line each.
     #[serde(default)]
     pub warnings: Vec<String>,
+    /// Its mesh (the compute's `mesh`: sizes and the tets' quality histogram), or null.
+    #[serde(default)]
+    pub mesh: Value,
     /// The scene being edited (equal to `served` when nothing was edited since).
     pub draft: Value,
     undo: Vec<Value>,
@@ -115,7 +118,7 @@ impl SetUp {
     }
 
     /// The message every page gets: `{"type":"setup","draft","served","served_toml","summary",
-    /// "warnings","edited","undo","redo","history","project"}` (`undo` and `redo` count the steps
+    /// "warnings","mesh","edited","undo","redo","history","project"}` (`undo` and `redo` count the steps
     /// available; `history` is the newest [`HISTORY_SHOWN`] computes).
     pub fn message(&self, project: Option<&str>) -> Value {
         let shown = &self.history[self.history.len().saturating_sub(HISTORY_SHOWN)..];
@@ -126,6 +129,7 @@ impl SetUp {
             "served_toml": self.served_toml,
             "summary": self.summary,
             "warnings": self.warnings,
+            "mesh": self.mesh,
             "edited": self.edited(),
             "undo": self.undo.len(),
             "redo": self.redo.len(),

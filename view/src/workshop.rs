@@ -115,6 +115,9 @@ pub struct Computed {
     /// The warnings the compute gave (one line each, as the CLI prints them): a thin wall, an
     /// estimate above its target, straightened tets, a refinement stopped by memory.
     pub warnings: Vec<String>,
+    /// The first space's mesh for the page: `{nodes, tets, size_m, worst_quality,
+    /// quality_histogram}` (tets by shape quality, a tenth of [0, 1] a bin), or null.
+    pub mesh: serde_json::Value,
 }
 
 /// Where a compute stands, for the page's progress bar.

@@ -76,6 +76,12 @@ try {
   await page.keyboard.press('e');
   await rendered(page);
   held.edges = await page.evaluate(() => window.ves.edgesShown());
+  // The mesh's tets by shape quality, as the set-up panel shows them.
+  held.meshQuality = await page.evaluate(() => ({
+    text: document.getElementById('meshqualitytext').textContent,
+    shown: !document.getElementById('meshquality').hidden,
+    bars: [...document.querySelectorAll('#meshqualitybars rect')].map((r) => Number(r.getAttribute('height'))),
+  }));
   await page.screenshot({ path: `${out}/setup_held.png` });
 
   // Pull the vertex nearest the middle of the top: by script, so the hand path is known exactly.

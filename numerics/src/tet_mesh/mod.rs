@@ -76,20 +76,43 @@ impl Mesh {
     pub fn worst_quality(&self) -> (f64, [f64; 3]) {
         let mut worst = (f64::INFINITY, [0.0; 3]);
         for e in 0..self.tet_count() {
-            let t = self.tet(e);
-            let x: [[f64; 3]; 4] = std::array::from_fn(|k| self.nodes[t[k] as usize]);
-            let vol = signed_volume(&self.nodes, t) / 6.0;
-            let mut l2 = 0.0;
-            for (a, b) in [(0, 1), (0, 2), (0, 3), (1, 2), (1, 3), (2, 3)] {
-                l2 += (0..3).map(|c| (x[a][c] - x[b][c]).powi(2)).sum::<f64>();
-            }
-            let lrms = (l2 / 6.0).sqrt();
-            let q = 6.0 * std::f64::consts::SQRT_2 * vol / lrms.powi(3);
+            let (q, x) = self.shape_quality(e);
             if q < worst.0 {
                 worst = (q, std::array::from_fn(|c| x.iter().map(|p| p[c]).sum::<f64>() / 4.0));
             }
         }
         worst
+    }
+
+    /// Tet `e`'s shape quality q = 6√2·V / l_rms³ (signed: an inverted tet is negative), and its
+    /// corners.
+    fn shape_quality(&self, e: usize) -> (f64, [[f64; 3]; 4]) {
+        let t = self.tet(e);
+        let x: [[f64; 3]; 4] = std::array::from_fn(|k| self.nodes[t[k] as usize]);
+        let vol = signed_volume(&self.nodes, t) / 6.0;
+        let mut l2 = 0.0;
+        for (a, b) in [(0, 1), (0, 2), (0, 3), (1, 2), (1, 3), (2, 3)] {
+            l2 += (0..3).map(|c| (x[a][c] - x[b][c]).powi(2)).sum::<f64>();
+        }
+        let lrms = (l2 / 6.0).sqrt();
+        (6.0 * std::f64::consts::SQRT_2 * vol / lrms.powi(3), x)
+    }
+
+    /// How many tets have a shape quality in each tenth of [0, 1]: bin k counts
+    /// k/10 ≤ q < (k+1)/10, the last also q = 1 (and round-off above), the first also q ≤ 0 or
+    /// undefined (a flat or inverted tet).
+    pub fn quality_histogram(&self) -> [u64; 10] {
+        let mut bins = [0u64; 10];
+        for e in 0..self.tet_count() {
+            let q = self.shape_quality(e).0;
+            let k = if q.is_nan() {
+                0
+            } else {
+                (q * 10.0).floor().clamp(0.0, 9.0) as usize
+            };
+            bins[k] += 1;
+        }
+        bins
     }
 
     /// The worst tet when it has (numerically) no volume: gmsh's Delaunay can leave one flat tet

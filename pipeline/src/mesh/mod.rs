@@ -1086,6 +1086,21 @@ mod tests {
         assert!(q > 0.0 && q < 1e-3, "{q}");
         assert!((at[0] - 0.5).abs() < 1e-12 && (at[1] - 0.5).abs() < 1e-12);
         assert_eq!(m.surface.len(), 4, "a single tet is all boundary");
+        // Both in one mesh (the sliver's corners moved beside the regular tet): one in the
+        // lowest tenth, one in the highest.
+        let both: Vec<[f64; 3]> = regular
+            .iter()
+            .chain(
+                sliver
+                    .iter()
+                    .map(|p| [p[0] + 3.0, p[1], p[2]])
+                    .collect::<Vec<_>>()
+                    .iter(),
+            )
+            .copied()
+            .collect();
+        let m = Mesh::from_raw(&both, &[0, 1, 2, 3, 4, 5, 6, 7], Kind::Tet4);
+        assert_eq!(m.quality_histogram(), [1, 0, 0, 0, 0, 0, 0, 0, 0, 1]);
     }
 
     /// The size after `marker` in a budget message (`… ≥ 1.23e-3 m`).

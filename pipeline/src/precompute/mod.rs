@@ -206,6 +206,8 @@ pub struct SpaceSummary {
     pub rigid_modes_dropped: usize,
     /// Worst tet shape quality (6√2·V/l_rms³: 1 regular, → 0 sliver).
     pub min_tet_quality: f64,
+    /// How many tets have a shape quality in each tenth of [0, 1] (the first also flat ones).
+    pub tet_quality_histogram: [u64; 10],
     /// Corner vertices (what the runtime draws and picks).
     pub vertices: usize,
     /// Seconds this space took (mesh to eigen-solve, and static correction).
@@ -464,6 +466,7 @@ fn write_all(scene: &Scene, out: &Path, spaces: &[SolvedSpace], transfer_s: f64,
                 orthonormality_error: s.modes.orthonormality_error,
                 rigid_modes_dropped: s.modes.rigid_dropped,
                 min_tet_quality: s.mesh.worst_quality().0,
+                tet_quality_histogram: s.mesh.quality_histogram(),
                 vertices: s.mesh.vertex_count,
                 meshing: s.meshing,
                 estimated_relative_error: s.error.as_ref().map(|e| e.relative()),

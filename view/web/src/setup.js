@@ -287,6 +287,31 @@ export function setupPanel(send, pick, faceMode, faceOf, light) {
   // A warning as a line; a refinement that stopped short of its target (memory, max_dofs)
   // advises the target that accepts its mesh: one click sets it and computes again (the mesh
   // is remembered for this part, so the compute is one solve).
+  /** The mesh solved, by its tets' shape quality: a bar per tenth of [0, 1] (those below 0.2
+   * amber) and a line saying how many are poor and the worst. @param {any} mesh */
+  function showMeshQuality(mesh) {
+    const bins = mesh && Array.isArray(mesh.quality_histogram) ? mesh.quality_histogram : null;
+    $('meshquality').hidden = !bins;
+    if (!bins) return;
+    const total = bins.reduce((a, b) => a + b, 0), most = Math.max(1, ...bins);
+    const poor = bins[0] + bins[1];
+    $('meshqualitytext').textContent = `${total} tets by shape quality (0 flat … 1 regular): ${poor} below 0.2`
+      + `${total ? ` (${plain((100 * poor) / total)} %)` : ''}, worst ${plain(mesh.worst_quality)}`;
+    const ns = 'http://www.w3.org/2000/svg';
+    $('meshqualitybars').replaceChildren(...bins.map((n, k) => {
+      const r = document.createElementNS(ns, 'rect');
+      // A bin with any tet shows at least a sliver: the poor tail is what matters.
+      const h = n > 0 ? Math.max(1.5, (22 * n) / most) : 0;
+      r.setAttribute('x', String(10 * k + 0.5)); r.setAttribute('width', '9');
+      r.setAttribute('y', String(24 - h)); r.setAttribute('height', String(h));
+      r.setAttribute('fill', k < 2 ? '#e0a030' : '#5fa8e8');
+      const t = document.createElementNS(ns, 'title');
+      t.textContent = `${plain(k / 10)}–${plain((k + 1) / 10)}: ${n} tets`;
+      r.appendChild(t);
+      return r;
+    }));
+  }
+
   function warningRow(w) {
     const row = el('div', { textContent: `⚠ ${w}` });
     const m = /set mesh\.target_error = ([0-9.eE+-]+) to accept this one/.exec(w);
@@ -405,6 +430,7 @@ export function setupPanel(send, pick, faceMode, faceOf, light) {
       $('computewarnings').replaceChildren(...(msg.warnings || []).map(warningRow));
       // A page opened (or reloaded) after the compute: what is served, not an empty line.
       if (msg.summary && !$('progresstext').textContent) $('progresstext').textContent = `computed: ${inPage(msg.summary)}`;
+      showMeshQuality(msg.mesh);
       showState();
     },
     /** Compute progress, its end, or why it failed. */
@@ -420,6 +446,7 @@ export function setupPanel(send, pick, faceMode, faceOf, light) {
         $('setuperror').textContent = '';
         $('progressbar').style.width = '100%';
         $('progresstext').textContent = `computed: ${inPage(msg.summary)}`;
+        showMeshQuality(msg.mesh);
         saved = msg.scene;
         $('savescene').disabled = false;
       } else if (msg.type === 'checked') {
