@@ -262,6 +262,17 @@ fn the_mouse_pulls_the_tip_in_a_real_browser_and_the_page_shows_the_static_respo
     );
     let label = held["supportLabel"][0].as_str().unwrap_or_default();
     assert!(label.starts_with("support 1 carries"), "{held}");
+    // What the modes kept leave out of the reaction is said beside it, as the share measured here.
+    if (share - 1.0).abs() > 0.011 {
+        let said: f64 = label
+            .split("the modes kept carry ")
+            .nth(1)
+            .and_then(|t| t.split(' ').next())
+            .and_then(|t| t.parse().ok())
+            .unwrap_or_else(|| panic!("the label does not say the modes' share {share}: {label:?}"));
+        assert!((said / 100.0 - share).abs() < 0.005, "{said} % said vs {share} measured: {label:?}");
+    }
+    eprintln!("the support's label at a steady pull: {label}");
 
     // 0. Before the pull the legend said "at rest" (no colours spread over round-off), and the
     //    deformation scale is automatic.
@@ -362,6 +373,30 @@ fn the_mouse_pulls_the_tip_in_a_real_browser_and_the_page_shows_the_static_respo
     assert!(
         text.starts_with("P1 ") && text.ends_with("m"),
         "the probe's label: {text:?}"
+    );
+    // The report written after the pull lists it, with its largest value over the pull: at
+    // least what it read while held (the held value is the steady one, the pull's extreme the
+    // same or an overshoot).
+    let probes = page["probes"].as_str().unwrap_or_default();
+    let row = probes
+        .lines()
+        .find(|l| l.starts_with(&format!("| P1 | {mid} |")))
+        .unwrap_or_else(|| panic!("no P1 row in the report's probes:\n{probes}"));
+    let cells: Vec<&str> = row.split('|').map(str::trim).collect();
+    let metres = |t: &str| -> f64 {
+        let (number, unit) = t.split_once(' ').unwrap_or((t, "m"));
+        let scale = match unit {
+            "nm" => 1e-9,
+            "µm" => 1e-6,
+            "mm" => 1e-3,
+            _ => 1.0,
+        };
+        number.parse::<f64>().map(|v| v * scale).unwrap_or(f64::NAN)
+    };
+    let extreme = metres(cells[5]);
+    assert!(
+        probes.starts_with("## Probes pinned: displacement magnitude") && extreme >= 0.99 * at_mid,
+        "the report's P1 over the pull {extreme} m vs {at_mid} m held:\n{probes}"
     );
     // And beam theory agrees on the scale: the vertical tip stiffness 3EI/L³.
     let k_beam = 3.0 * 2.1e11 * (0.1 * 0.05f64.powi(3) / 12.0);

@@ -100,6 +100,12 @@ try {
   await page.mouse.up();
   await until(page, () => !window.ves.status.hands[0].active);
   const released = await page.evaluate(() => window.ves.status.hands[0].active);
+  // The report after the pull: the pinned probe's value now and its extreme over the pull.
+  const [download] = await Promise.all([page.waitForEvent('download'), page.click('#report')]);
+  const reportPath = shot.replace(/\.png$/, '_report.md');
+  await download.saveAs(reportPath);
+  const report = (await import('node:fs')).readFileSync(reportPath, 'utf8');
+  const probes = report.slice(report.indexOf('## Probes pinned'));
 
   // Malformed input through a socket of its own: text garbage, binary, oversized, a non-finite
   // position (JSON has no NaN: null), a hand that does not exist. All five must be dropped. A
@@ -145,7 +151,7 @@ try {
   await page.waitForFunction(() => window.ves.mode !== null, null, { timeout: 5000 });
   const mode = await page.evaluate(() => ({ mode: window.ves.mode.mode, frequency: window.ves.mode.frequency }));
 
-  console.log(JSON.stringify({ vertex, pixels, atRest, midSpan, pinnedAtRest, lost, fitted, viewport: [1200, 800], held, vonMisesLegend, second, released, framesBefore: before, after, mode, errors }));
+  console.log(JSON.stringify({ vertex, pixels, atRest, midSpan, pinnedAtRest, probes, lost, fitted, viewport: [1200, 800], held, vonMisesLegend, second, released, framesBefore: before, after, mode, errors }));
 } finally {
   await browser.close();
 }

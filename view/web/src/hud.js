@@ -75,6 +75,7 @@ function showSupports(m) {
     supportTags.push(tag);
   }
   const shown = $('showsupports').checked;
+  const share = modalShare(m, list);
   supportTags.forEach((tag, k) => {
     // At rest every support carries exactly nothing: no label then.
     const on = shown && k < list.length && [...list[k].force_n, ...list[k].moment_nm].some((v) => v !== 0);
@@ -82,8 +83,26 @@ function showSupports(m) {
     tag.dataset.support = String(k);
     if (!on) return;
     const f = list[k].force_n, mo = list[k].moment_nm;
-    tag.textContent = `support ${k + 1} carries ${label(Math.hypot(...f), 'force', 'si')} · ${plain(Math.hypot(...mo))} N·m`;
+    tag.textContent = `support ${k + 1} carries ${label(Math.hypot(...f), 'force', 'si')} · ${plain(Math.hypot(...mo))} N·m`
+      + (k === 0 && share ? ` (the modes kept carry ${share})` : '');
   });
+}
+
+/** The supports' reactions come from the modes kept (Φq): short of the hands' load by what the
+ * truncation leaves out (the hand's own force is exact with the static correction). When the
+ * hands hold steady (the share as at the last status, within 0.5 %: a moving part's inertia
+ * is no truncation) and it differs from theirs by more than 1 %, that share in words. */
+let lastShare = NaN;
+function modalShare(m, list) {
+  const hands = (m.hands || []).filter((h) => h.active);
+  const load = [0, 1, 2].map((c) => hands.reduce((a, h) => a + h.force[c], 0));
+  // What the supports carry (the part's force on them) is the hands' load when all is held.
+  const carried = [0, 1, 2].map((c) => list.reduce((a, s) => a + s.force_n[c], 0));
+  const f = Math.hypot(...load);
+  const along = hands.length && list.length && f > 0 ? carried.reduce((a, v, c) => a + v * load[c], 0) / (f * f) : NaN;
+  const steady = Math.abs(along - lastShare) < 0.005;
+  lastShare = along;
+  return steady && Math.abs(along - 1) > 0.01 ? `${plain(100 * along)} % of the hands' ${label(f, 'force', 'si')}` : '';
 }
 
 const at = [0, 0];
@@ -136,10 +155,27 @@ export const MOST_PINS = 12;
 /** Places the pinned probes of space `s` (the active one) with the values of the field drawn. */
 export function placePins(s) {
   const f = state.field;
+  if (f && !state.mode && !state.loadCase) keepExtremes(f);
   const list = f ? state.pins.filter((p) => p.space === state.active && p.vertex < s.vertices)
     .map((p) => ({ vertex: p.vertex, text: `P${p.n} ${fieldWords(f, p.vertex, state.units)}` })) : [];
   placeDots(pinMarks, s, list, true, 'marker pin', 0xffd24a);
   $('pinrow').hidden = state.pins.length === 0;
+}
+
+/** Each pin's extreme of the live colouring over the last motion (from when the part left rest
+ * to now, kept once it is at rest again: the report after a pull has the pull's): the largest
+ * magnitude, the lowest safety factor. @param {any} f */
+function keepExtremes(f) {
+  const moving = state.episodePeak > 0;
+  for (const p of state.pins) {
+    if (p.space !== state.active) continue;
+    if (moving && !p.moving) p.extremes = {};
+    p.moving = moving;
+    if (!moving) continue;
+    const v = f.valueAt(p.vertex), e = p.extremes[state.colour];
+    if (!Number.isFinite(v)) continue;
+    if (e === undefined || (state.colour === 'safety' ? v < e : Math.abs(v) > Math.abs(e))) p.extremes[state.colour] = v;
+  }
 }
 
 /** Pins a probe at `vertex` of the active space, or unpins the one there (or drawn within
@@ -156,7 +192,7 @@ export function togglePin(vertex, xy, near) {
   else {
     if (state.pins.length >= MOST_PINS) state.pins.shift();
     const rest = Array.from(s.rest.subarray(3 * vertex, 3 * vertex + 3));
-    state.pins.push({ space: state.active, vertex, rest, n: state.pins.reduce((m, p) => Math.max(m, p.n), 0) + 1 });
+    state.pins.push({ space: state.active, vertex, rest, n: state.pins.reduce((m, p) => Math.max(m, p.n), 0) + 1, extremes: {}, moving: false });
   }
   state.dirty = true;
 }

@@ -2,7 +2,7 @@
 // shape, which is then animated instead of the live part until clicked again.
 import { $, el } from './dom.js';
 import { sequential } from './colours.js';
-import { showLegend } from './hud.js';
+import { placeMarkers, placePins, showLegend } from './hud.js';
 import { state } from './state.js';
 import { send } from './connection.js';
 
@@ -34,6 +34,8 @@ export function startMode(m) {
   const b = $('modes').children[m.mode];
   if (b) b.classList.add('on');
   state.mode = { ...m, start: performance.now() };
+  // The probes pinned read the shape's relative amplitude |φ| while it is shown.
+  state.field = { quantity: 'ratio', valueAt: (i) => Math.hypot(m.phi[3 * i], m.phi[3 * i + 1], m.phi[3 * i + 2]) };
   showLegend(`mode ${m.mode + 1}, ${m.frequency.toPrecision(5)} Hz: relative amplitude (shape only)`, 'magnitude', ['0', '0.5', '1']);
 }
 
@@ -55,4 +57,7 @@ export function animateMode() {
   s.geom.attributes.position.needsUpdate = true;
   s.geom.attributes.color.needsUpdate = true;
   s.geom.computeBoundingSphere();
+  // The live part's extremes are not this shape's; the pins move with it.
+  placeMarkers(s, []);
+  placePins(s);
 }

@@ -87,11 +87,38 @@ $('showsupports').addEventListener('change', () => { state.dirty = true; showSup
 $('showedges').addEventListener('change', () => { state.dirty = true; showEdges(); });
 $('showmarkers').addEventListener('change', () => { state.dirty = true; });
 
-// Panels fold to their title; on a small window they start folded so the part stays visible.
-for (const p of document.querySelectorAll('.panel[data-fold]')) {
-  if (!(p instanceof HTMLElement)) continue;
-  const b = /** @type {HTMLElement} */ (p.querySelector('.fold'));
-  const set = (folded) => { p.classList.toggle('folded', folded); b.textContent = folded ? '+' : '−'; };
-  b.onclick = () => set(!p.classList.contains('folded'));
-  set(p.dataset.fold === 'always' || (window.innerWidth < 1000 && p.dataset.fold === 'small'));
+// Panels fold to their title. On a small window (narrower than 1000 px or lower than 700 px)
+// they overlap when open: they start folded so the part stays visible, and opening one folds
+// the others (at 800 × 600 the readout and the set-up panel, at 420 px every panel, overlapped).
+const small = () => window.innerWidth < 1000 || window.innerHeight < 700;
+const foldable = [...document.querySelectorAll('.panel[data-fold]')].filter((p) => p instanceof HTMLElement);
+/** @param {HTMLElement} p @param {boolean} folded */
+function fold(p, folded) {
+  p.classList.toggle('folded', folded);
+  const b = p.querySelector('.fold');
+  if (b) b.textContent = folded ? '+' : '−';
 }
+for (const p of foldable) {
+  const b = /** @type {HTMLElement} */ (p.querySelector('.fold'));
+  b.onclick = () => {
+    const opening = p.classList.contains('folded');
+    fold(p, !opening);
+    if (opening && small()) for (const q of foldable) if (q !== p) fold(q, true);
+  };
+  fold(p, p.dataset.fold === 'always' || (small() && p.dataset.fold === 'small'));
+}
+
+// The set-up panel sits under the readout and ends above the legend (and, in a narrow window,
+// above the Show panel at the bottom), whatever their heights: at fixed places the readout,
+// opened on a short window, ran under it.
+function placeSetup() {
+  const setup = $('setup'), hud = $('hud').getBoundingClientRect();
+  const top = Math.round(hud.bottom + 8);
+  const narrow = window.innerWidth < 700;
+  const below = Math.min($('legend').getBoundingClientRect().top, narrow ? $('controls').getBoundingClientRect().top : Infinity);
+  setup.style.top = `${top}px`;
+  setup.style.maxHeight = `${Math.max(120, Math.round(below - 8 - top))}px`;
+}
+const watchSizes = new ResizeObserver(placeSetup);
+for (const id of ['hud', 'legend', 'controls']) watchSizes.observe($(id));
+window.addEventListener('resize', placeSetup);

@@ -86,10 +86,20 @@ export function reportText(setup) {
   }
   const pins = state.pins.filter((p) => p.space === state.active);
   if (pins.length && state.field && state.legend) {
-    out.push(`## Probes pinned: ${state.legend.title}, as shown when the report was written`, '',
-      row(['probe', 'vertex', 'at rest', 'value']), row(Array(4).fill('---')));
+    // The field's name without the legend's state ("…: at rest").
+    const what = state.legend.title.replace(/: at rest$/, '');
+    const live = !state.mode && !state.loadCase;
+    const extremeOf = (p) => {
+      const e = p.extremes[state.colour];
+      return e === undefined ? '—' : fieldWords({ quantity: state.field.quantity, valueAt: () => e }, 0, u);
+    };
+    out.push(`## Probes pinned: ${what}`, '',
+      live ? `Now, and the extreme (${state.colour === 'safety' ? 'lowest' : 'largest'}) over the part's last motion.` : 'As shown when the report was written.', '',
+      row(['probe', 'vertex', 'position (part at rest)', 'now', ...(live ? ['extreme, last motion'] : [])]),
+      row(Array(live ? 5 : 4).fill('---')));
     for (const p of pins) {
-      out.push(row([`P${p.n}`, String(p.vertex), `(${p.rest.map(len).join(', ')})`, fieldWords(state.field, p.vertex, u)]));
+      out.push(row([`P${p.n}`, String(p.vertex), `(${p.rest.map(len).join(', ')})`, fieldWords(state.field, p.vertex, u),
+        ...(live ? [extremeOf(p)] : [])]));
     }
     out.push('');
   }

@@ -125,8 +125,9 @@ export const state = {
   probe: null,
   /** Probes pinned by a double-click: a vertex of a space each (and its rest position, to find
    * it again on a recomputed mesh of the same part), numbered P1, P2, … in the order pinned;
-   * their values follow the part (a pull, a load case).
-   * @type {{space: number, vertex: number, rest: number[], n: number}[]} */
+   * their values follow the part (a pull, a load case); `extremes`: per colouring, the extreme
+   * over the last motion (hud.js).
+   * @type {{space: number, vertex: number, rest: number[], n: number, extremes: Record<string, number>, moving: boolean}[]} */
   pins: [],
   /** The CAD face under the cursor while faces are picked, or null. @type {number|null} */
   hoverFace: null,
