@@ -6,12 +6,15 @@ import { placeMarkers, placePins, showLegend } from './hud.js';
 import { state } from './state.js';
 import { send } from './connection.js';
 
+/** A frequency to five significant digits, without an exponent ("116620", not "1.1662e+5"). */
+const hertz = (f) => String(Number(f.toPrecision(5)));
+
 /** Lists the modes of `space` (the hello's) as buttons; `onAsk` runs before a mode is asked for. */
 export function buildModeList(space, onAsk) {
   const box = $('modes');
   box.textContent = '';
   space.frequencies_hz.forEach((f, j) => {
-    const b = el('button', { textContent: `mode ${j + 1}: ${f.toPrecision(5)} Hz` });
+    const b = el('button', { textContent: `mode ${j + 1}: ${hertz(f)} Hz` });
     b.onclick = () => {
       if (state.mode && state.mode.mode === j) { stopMode(); return; }
       onAsk();
@@ -36,7 +39,7 @@ export function startMode(m) {
   state.mode = { ...m, start: performance.now() };
   // The probes pinned read the shape's relative amplitude |φ| while it is shown.
   state.field = { quantity: 'ratio', valueAt: (i) => Math.hypot(m.phi[3 * i], m.phi[3 * i + 1], m.phi[3 * i + 2]) };
-  showLegend(`mode ${m.mode + 1}, ${m.frequency.toPrecision(5)} Hz: relative amplitude (shape only)`, 'magnitude', ['0', '0.5', '1']);
+  showLegend(`mode ${m.mode + 1}, ${hertz(m.frequency)} Hz: relative amplitude (shape only)`, 'magnitude', ['0', '0.5', '1']);
 }
 
 const rgb = [0, 0, 0];

@@ -74,7 +74,7 @@ export function setupPanel(send, pick, faceMode, faceOf, light) {
     faceOf,
     pickStarted: () => stopPickingSupports(),
     relight: () => light(litFaces()),
-    note: (text) => { $('setuperror').textContent = text; },
+    note: (text) => { problem(text); },
     list: $('designloads'),
     status: $('loadsnote'),
     pickButton: $('pickload'),
@@ -220,14 +220,14 @@ export function setupPanel(send, pick, faceMode, faceOf, light) {
     loads.stopPicking();
     picking = !picking;
     $('pickfaces').textContent = picking ? 'done' : '+ faces…';
-    $('setuperror').textContent = picking ? 'click the faces that are held (again to let one go), then done' : '';
+    hint(picking ? 'click the faces that are held (again to let one go), then done' : '');
     faceMode(picking, toggleFace);
   };
   $('pickload').onclick = () => loads.pickClicked();
   $('addgravity').onclick = () => loads.addGravity();
   $('addplane').onclick = () => { (scene.fixed ||= []).push({ plane: { axis: 'x', value: 0 } }); drawSupports(); edit(); };
   $('pickplane').onclick = () => {
-    $('setuperror').textContent = 'click a flat face of the part: the plane through it is held';
+    hint('click a flat face of the part: the plane through it is held');
     pick(({ point, normal, outermost, face, faceWords }) => {
       // The axis the face faces most.
       const m = [normal.x, normal.y, normal.z];
@@ -240,8 +240,8 @@ export function setupPanel(send, pick, faceMode, faceOf, light) {
       if (face && (face.kind !== 'plane' || n[k] < 0.99)) {
         const entry = facesEntry();
         if (!entry.faces.includes(face.tag)) entry.faces.push(face.tag);
-        $('setuperror').textContent = `${faceWords} is ${face.kind !== 'plane' ? 'not flat' : `not square to ${axis}`}: `
-          + 'held as that face (a plane through it would hold only a line of nodes)';
+        problem(`${faceWords} is ${face.kind !== 'plane' ? 'not flat' : `not square to ${axis}`}: `
+          + 'held as that face (a plane through it would hold only a line of nodes)');
         drawSupports();
         edit();
         return;
@@ -255,13 +255,13 @@ export function setupPanel(send, pick, faceMode, faceOf, light) {
       // A face through the origin: its f32 vertices read ±1e-16 m, shown as "1.11e-13 mm".
       if (Math.abs(value) <= 1e-7 * state.diag) value = 0;
       (scene.fixed ||= []).push({ plane: { axis, value } });
-      $('setuperror').textContent = n[k] < 0.99 ? `that face is not square to ${axis}: the plane ${axis} = … through the point holds only what lies on it` : '';
+      problem(n[k] < 0.99 ? `that face is not square to ${axis}: the plane ${axis} = … through the point holds only what lies on it` : '');
       drawSupports();
       edit();
     });
   };
   $('compute').onclick = () => {
-    $('setuperror').textContent = '';
+    problem('');
     const now = read();
     sent = canon(now);
     seq += 1;
@@ -287,6 +287,11 @@ export function setupPanel(send, pick, faceMode, faceOf, light) {
   // A warning as a line; a refinement that stopped short of its target (memory, max_dofs)
   // advises the target that accepts its mesh: one click sets it and computes again (the mesh
   // is remembered for this part, so the compute is one solve).
+  /** What went wrong, in the panel's error line (red). */
+  function problem(text) { $('setuperror').classList.remove('hint'); $('setuperror').textContent = text; }
+  /** What to do next, in the same line (not red: an instruction is no error). */
+  function hint(text) { $('setuperror').classList.add('hint'); $('setuperror').textContent = text; }
+
   /** The mesh solved, by its tets' shape quality: a bar per tenth of [0, 1] (those below 0.2
    * amber) and a line saying how many are poor and the worst. @param {any} mesh */
   function showMeshQuality(mesh) {
@@ -358,14 +363,14 @@ export function setupPanel(send, pick, faceMode, faceOf, light) {
     const file = e.target.files[0];
     e.target.value = '';
     if (!file) return;
-    $('setuperror').textContent = '';
+    problem('');
     $('progresstext').textContent = `sending ${file.name}…`;
     try {
       const r = await fetch(`/open?name=${encodeURIComponent(file.name)}`, { method: 'POST', body: file });
       const answer = await r.json().catch(() => ({ error: `the server answered ${r.status}` }));
-      if (answer.error) { $('setuperror').textContent = answer.error; $('progresstext').textContent = ''; }
+      if (answer.error) { problem(answer.error); $('progresstext').textContent = ''; }
     } catch (err) {
-      $('setuperror').textContent = `could not send ${file.name}: ${err.message}`;
+      problem(`could not send ${file.name}: ${err.message}`);
     }
   };
   $('savescene').onclick = () => {
@@ -437,13 +442,13 @@ export function setupPanel(send, pick, faceMode, faceOf, light) {
     note(msg) {
       if (msg.type === 'progress') {
         // A new compute: the last one's error or "cancelled" no longer stands under it.
-        if (msg.stage === 'starting') { ready = null; $('setuperror').textContent = ''; }
+        if (msg.stage === 'starting') { ready = null; problem(''); }
         $('progressbar').style.width = `${(100 * msg.fraction).toFixed(0)}%`;
         // After the swap the part is in use while its error estimate is made.
         $('progresstext').textContent = (ready ? `ready: ${ready} · ` : '') + `${msg.stage} — ${(100 * msg.fraction).toFixed(0)} %`;
       } else if (msg.type === 'computed') {
         ready = msg.summary;
-        $('setuperror').textContent = '';
+        problem('');
         $('progressbar').style.width = '100%';
         $('progresstext').textContent = `computed: ${inPage(msg.summary)}`;
         showMeshQuality(msg.mesh);
@@ -456,7 +461,7 @@ export function setupPanel(send, pick, faceMode, faceOf, light) {
       } else if (msg.type === 'compute_error') {
         $('progresstext').textContent = '';
         $('progressbar').style.width = '0';
-        $('setuperror').textContent = msg.message;
+        problem(msg.message);
       }
     },
     /** The status says whether a compute runs, and whether only its checks remain (the part is
