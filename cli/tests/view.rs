@@ -270,7 +270,10 @@ fn the_mouse_pulls_the_tip_in_a_real_browser_and_the_page_shows_the_static_respo
             .and_then(|t| t.split(' ').next())
             .and_then(|t| t.parse().ok())
             .unwrap_or_else(|| panic!("the label does not say the modes' share {share}: {label:?}"));
-        assert!((said / 100.0 - share).abs() < 0.005, "{said} % said vs {share} measured: {label:?}");
+        assert!(
+            (said / 100.0 - share).abs() < 0.005,
+            "{said} % said vs {share} measured: {label:?}"
+        );
     }
     eprintln!("the support's label at a steady pull: {label}");
 
