@@ -84,12 +84,11 @@ fn the_modes_miss_less_of_the_felt_compliance_as_more_are_kept() {
 /// no mesh here resolves is part of the statement.
 #[test]
 fn the_felt_compliance_carries_its_mesh_error() {
+    // The scene's default estimate: with `error_estimate = false` no error is estimated, the
+    // felt compliance's mesh error neither.
     let scene = |size: f64| {
-        GOOD.replace(
-            "size = 0.05\norder = 1",
-            &format!("size = {size}\norder = 2\nerror_estimate = false"),
-        )
-        .replace("count = 4", "count = 10")
+        GOOD.replace("size = 0.05\norder = 1", &format!("size = {size}\norder = 2"))
+            .replace("count = 4", "count = 10")
             + "[[probe]]\nat = [0.5, 0.05, 0.05]\nforce = [0.0, 0.0, -1.0]\n"
     };
     let (dir, path) = workdir(&scene(0.025));
@@ -131,11 +130,8 @@ fn the_felt_compliance_carries_its_mesh_error() {
 #[test]
 fn a_hand_is_told_the_felt_error_at_its_own_vertex() {
     let scene = |extra: &str| {
-        GOOD.replace(
-            "size = 0.05\norder = 1",
-            "size = 0.025\norder = 2\nerror_estimate = false",
-        )
-        .replace("count = 4", "count = 10")
+        GOOD.replace("size = 0.05\norder = 1", "size = 0.025\norder = 2")
+            .replace("count = 4", "count = 10")
             + extra
     };
     let correction = "[static_correction]\nregion = \"surface\"\n";
