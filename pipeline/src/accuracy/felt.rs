@@ -369,10 +369,7 @@ struct Chosen<'a> {
 /// of the felt compliance is one, and its two coarser meshes took 27–50 % of a held corpus
 /// part's precompute).
 pub fn needs_coarser_meshes(scene: &crate::scene::Scene) -> bool {
-    !scene.fixed.is_empty()
-        && scene.nonlinear.is_none()
-        && scene.contact_radius > 0.0
-        && scene.mesh.error_estimate.on()
+    !scene.fixed.is_empty() && scene.nonlinear.is_none() && scene.contact_radius > 0.0 && scene.mesh.error_estimate.on()
 }
 
 /// Coarser meshes the mesh error of the felt compliance is read from: each vertex's size times
