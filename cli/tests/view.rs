@@ -1318,6 +1318,8 @@ fn a_refinement_that_stopped_is_accepted_in_one_click() {
         "{before}"
     );
     let button = before["buttons"][0].as_str().unwrap_or_default();
+    // Beside it, refining where the error is instead (the scene's refinement is uniform).
+    assert_eq!(before["buttons"][1], "refine locally", "{before}");
     let percent: f64 = button
         .strip_prefix("accept ")
         .and_then(|b| b.strip_suffix(" %"))
