@@ -109,7 +109,19 @@ const at = [0, 0];
 /** Moves the markers' labels to where their dots are drawn, and the supports' to their
  * centres (after a render). */
 export function placeTags() {
-  for (const m of [...markers, ...pinMarks]) {
+  // Probes pinned close together would write over each other: a label that would cover another
+  // probe's dot or a label placed before it goes a line lower.
+  const pins = pinMarks.filter((m) => m.dot.visible).map((m) => [m, screenOfPoint(m.dot.position, [0, 0])]);
+  const taken = pins.map(([, [x, y]]) => ({ left: x - 5, top: y - 5, w: 10, h: 10 }));
+  for (const [m, [x, y]] of pins) {
+    const w = m.tag.offsetWidth, h = m.tag.offsetHeight || 16, left = x + 8;
+    let top = y - 8;
+    const clash = (r) => top < r.top + r.h && r.top < top + h && left < r.left + r.w && r.left < left + w;
+    while (taken.some(clash)) top += h;
+    taken.push({ left, top, w, h });
+    m.tag.style.left = `${left}px`; m.tag.style.top = `${top}px`;
+  }
+  for (const m of markers) {
     if (!m.dot.visible) continue;
     const [x, y] = screenOfPoint(m.dot.position, at);
     m.tag.style.left = `${x + 8}px`; m.tag.style.top = `${y - 8}px`;
