@@ -1516,6 +1516,7 @@ fn loads_made_in_the_page_equal_the_saved_scene_and_balance() {
     );
     for want in [
         "## Set-up",
+        "- Material: structural steel — E 210 GPa, ν 0.3",
         "Held by: plane x = 0 m: clamped",
         "load1: force [0, 0, -2000] N on faces 2",
         "## Space global: frequencies",

@@ -24,7 +24,7 @@ import { DRAW_WINDOW, state } from './state.js';
 import { canvas, renderIfNeeded } from './viewport.js';
 
 const setup = setupPanel(send, requestPick, faceMode, faceOf, lightSetup);
-$('report').onclick = () => downloadReport(setup.last());
+$('report').onclick = () => downloadReport(setup.last(), setup.materialName);
 /** @type {any} */ (window).ves = facade(setup);
 
 /** The modes of `space` listed (asking for one puts a load case away). */

@@ -38,8 +38,9 @@ function peakText(p, w) {
 }
 
 /** The report's Markdown, from the hello and the set-up the server keeps (`setup`: its last
- * message, or null without a set-up panel). */
-export function reportText(setup) {
+ * message, or null without a set-up panel; `materialName`: a preset material's name).
+ * @param {any} setup @param {(m: any) => string|null} [materialName] */
+export function reportText(setup, materialName = (_m) => null) {
   const h = state.hello;
   if (!h) return '';
   const u = state.units, w = (v) => label(v, 'stress', u), len = (v) => label(v, 'length', u), force = (v) => label(v, 'force', 'si');
@@ -49,7 +50,7 @@ export function reportText(setup) {
     const m = served.material || {};
     out.push('## Set-up', '',
       `- Geometry: ${(served.geometry || {}).step || h.name}`,
-      `- Material: E ${plain(m.young / 1e9)} GPa, ν ${plain(m.poisson)}, ρ ${plain(m.density)} kg/m³${m.yield_strength ? `, yield ${w(m.yield_strength)}` : ''}`,
+      `- Material: ${materialName(m) ? `${materialName(m)} — ` : ''}E ${plain(m.young / 1e9)} GPa, ν ${plain(m.poisson)}, ρ ${plain(m.density)} kg/m³${m.yield_strength ? `, yield ${w(m.yield_strength)}` : ''}`,
       `- Mesh: ${(served.mesh || {}).order === 1 ? '4' : '10'}-node tets, ${served.mesh && served.mesh.target_error !== undefined ? `until the error estimate is ${plain(100 * served.mesh.target_error)} %` : `element size ${len((served.mesh || {}).size)}`}; ${(served.modes || {}).count} modes${served.static_correction ? '; static correction (exact felt stiffness)' : ''}`,
       `- Held by: ${(served.fixed || []).length ? (served.fixed || []).map(supportText).join('; ') : 'nothing (a free body)'}`);
     const loads = (served.load || []).map(loadText);
@@ -106,8 +107,9 @@ export function reportText(setup) {
   return out.join('\n');
 }
 
-/** Downloads the report as `NAME-report.md`. */
-export function downloadReport(setup) {
+/** Downloads the report as `NAME-report.md`.
+ * @param {any} setup @param {(m: any) => string|null} [materialName] */
+export function downloadReport(setup, materialName) {
   const name = (setup && setup.served && setup.served.name) || ((state.hello && state.hello.name) || 'part').replace(/\.[^.]*$/, '');
-  download(new Blob([reportText(setup)], { type: 'text/markdown' }), `${name}-report.md`);
+  download(new Blob([reportText(setup, materialName)], { type: 'text/markdown' }), `${name}-report.md`);
 }

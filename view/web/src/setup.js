@@ -494,5 +494,7 @@ export function setupPanel(send, pick, faceMode, faceOf, light) {
     saved: () => saved,
     /** The server's last set-up message. */
     last: () => last,
+    /** The name of the preset material `m` is (E, ν, ρ), or null for a custom one. */
+    materialName: (m) => (m && materials.find((p) => isPreset(p, m))?.name) || null,
   };
 }
