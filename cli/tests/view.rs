@@ -397,6 +397,15 @@ fn the_mouse_pulls_the_tip_in_a_real_browser_and_the_page_shows_the_static_respo
         number.parse::<f64>().map(|v| v * scale).unwrap_or(f64::NAN)
     };
     let extreme = metres(cells[5]);
+    // A reload keeps it, at the same vertex, labelled.
+    let reloaded = &page["pinsAfterReload"];
+    assert_eq!(reloaded[0][0], 1, "{reloaded}");
+    assert_eq!(reloaded[0][1].as_u64(), Some(mid as u64), "{reloaded}");
+    assert!(
+        reloaded[0][2].as_str().is_some_and(|t| t.starts_with("P1 ")),
+        "{reloaded}"
+    );
+    assert_eq!(reloaded.as_array().map(Vec::len), Some(1), "{reloaded}");
     assert!(
         probes.starts_with("## Probes pinned: displacement magnitude") && extreme >= 0.99 * at_mid,
         "the report's P1 over the pull {extreme} m vs {at_mid} m held:\n{probes}"

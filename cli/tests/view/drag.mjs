@@ -151,7 +151,13 @@ try {
   await page.waitForFunction(() => window.ves.mode !== null, null, { timeout: 5000 });
   const mode = await page.evaluate(() => ({ mode: window.ves.mode.mode, frequency: window.ves.mode.frequency }));
 
-  console.log(JSON.stringify({ vertex, pixels, atRest, midSpan, pinnedAtRest, probes, lost, fitted, viewport: [1200, 800], held, vonMisesLegend, second, released, framesBefore: before, after, mode, errors }));
+  // A reload keeps the probe pinned (this browser's storage), at the same vertex.
+  await page.reload();
+  await page.waitForFunction(() => window.ves && window.ves.ready && window.ves.frames > 3, null, { timeout: 30000 });
+  await rendered(page);
+  const pinsAfterReload = await page.evaluate(() => window.ves.pins.map((p) => [p.n, p.vertex, p.text]));
+
+  console.log(JSON.stringify({ vertex, pixels, atRest, midSpan, pinnedAtRest, probes, pinsAfterReload, lost, fitted, viewport: [1200, 800], held, vonMisesLegend, second, released, framesBefore: before, after, mode, errors }));
 } finally {
   await browser.close();
 }

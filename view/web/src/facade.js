@@ -59,7 +59,7 @@ export function facade(setup) {
     /** The pinned probes of the active space as drawn: number, vertex, the field's value there
      * and the label shown. */
     get pins() {
-      return state.pins.filter((p) => p.space === state.active).map((p) => ({
+      return state.pins.filter((p) => p.space === state.active && p.vertex >= 0).map((p) => ({
         n: p.n, vertex: p.vertex, value: state.field ? state.field.valueAt(p.vertex) : null,
         text: [...document.querySelectorAll('.pin')].map((t) => t.textContent).find((t) => t.startsWith(`P${p.n} `)) || null,
       }));

@@ -168,7 +168,7 @@ export const MOST_PINS = 12;
 export function placePins(s) {
   const f = state.field;
   if (f && !state.mode && !state.loadCase) keepExtremes(f);
-  const list = f ? state.pins.filter((p) => p.space === state.active && p.vertex < s.vertices)
+  const list = f ? state.pins.filter((p) => p.space === state.active && p.vertex >= 0 && p.vertex < s.vertices)
     .map((p) => ({ vertex: p.vertex, text: `P${p.n} ${fieldWords(f, p.vertex, state.units)}` })) : [];
   placeDots(pinMarks, s, list, true, 'marker pin', 0xffd24a);
   $('pinrow').hidden = state.pins.length === 0;
@@ -206,11 +206,32 @@ export function togglePin(vertex, xy, near) {
     const rest = Array.from(s.rest.subarray(3 * vertex, 3 * vertex + 3));
     state.pins.push({ space: state.active, vertex, rest, n: state.pins.reduce((m, p) => Math.max(m, p.n), 0) + 1, extremes: {}, moving: false });
   }
+  keepPins();
   state.dirty = true;
 }
 
 /** Every pinned probe let go. */
-export function clearPins() { state.pins = []; state.dirty = true; }
+export function clearPins() { state.pins = []; keepPins(); state.dirty = true; }
+
+// The pins outlive a reload: kept in this browser's storage under the part's name (where they
+// are, not their values), found again by position when its meshes come.
+const pinKey = () => `ves.pins.${state.hello ? state.hello.name : ''}`;
+function keepPins() {
+  try {
+    localStorage.setItem(pinKey(), JSON.stringify(state.pins.map((p) => ({ space: p.space, rest: p.rest, n: p.n }))));
+  } catch { /* storage off or full: the pins last as long as the page */ }
+}
+
+/** The pins this browser kept for the part the hello serves (none if unreadable). */
+export function keptPins() {
+  try {
+    const kept = JSON.parse(localStorage.getItem(pinKey()) || '[]');
+    if (!Array.isArray(kept)) return [];
+    return kept.slice(0, MOST_PINS).filter((p) => p && Number.isInteger(p.space) && Number.isInteger(p.n)
+      && Array.isArray(p.rest) && p.rest.length === 3 && p.rest.every(Number.isFinite))
+      .map((p) => ({ space: p.space, vertex: -1, rest: p.rest, n: p.n, extremes: {}, moving: false }));
+  } catch { return []; }
+}
 
 /** `list`'s dots and tags from `pool` on space `s` as drawn (hidden unless `shown`). */
 function placeDots(pool, s, list, shown, className, colour) {

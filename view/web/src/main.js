@@ -11,7 +11,7 @@ import { connect, frameShows, send } from './connection.js';
 import { askFields, draw } from './drawing.js';
 import { facade } from './facade.js';
 import { clearHands, showHands } from './hands.js';
-import { placeTags, showLimit, showStatus } from './hud.js';
+import { keptPins, placeTags, showLimit, showStatus } from './hud.js';
 import { dropDrags, faceMode, faceOf, requestPick } from './interaction.js';
 import { buildLoadList, drawLoad, hideLoad, loadsChecked, onLoad } from './loadcases.js';
 import { animateMode, buildModeList, startMode } from './modes.js';
@@ -34,9 +34,10 @@ function onHello(msg) {
   const again = state.hello !== null;
   const samePart = again && state.hello.name === msg.name;
   if (again) { state.reconnects += 1; clearSpaces(); clearHands(); }
-  if (!samePart) state.pins = [];
   document.body.classList.remove('stale');
   state.hello = msg;
+  // Another part: the probes this browser pinned on it before (a reload, or reopened).
+  if (!samePart) state.pins = keptPins();
   state.lastSeq = -1;
   state.active = 0;
   state.keepView = samePart;

@@ -85,7 +85,7 @@ export function reportText(setup, materialName = (_m) => null) {
     }
     out.push('');
   }
-  const pins = state.pins.filter((p) => p.space === state.active);
+  const pins = state.pins.filter((p) => p.space === state.active && p.vertex >= 0);
   if (pins.length && state.field && state.legend) {
     // The field's name without the legend's state ("…: at rest").
     const what = state.legend.title.replace(/: at rest$/, '');
