@@ -120,7 +120,7 @@ fn summary_line(summary: &precompute::Summary) -> String {
     // basis reads the previous mesh back, whose size it does not know).
     let mm = 1e3 * g.meshing.size;
     let size = if mm > 0.0 && mm.is_finite() {
-        format!(", size {} mm", significant(mm, 3))
+        format!(", size {} mm", ves_pipeline::report::significant(mm, 3))
     } else {
         String::new()
     };
@@ -132,7 +132,7 @@ fn summary_line(summary: &precompute::Summary) -> String {
         g.tets,
         g.min_tet_quality,
         g.frequencies_hz.len(),
-        significant(g.frequencies_hz.first().copied().unwrap_or(0.0), 5),
+        ves_pipeline::report::significant(g.frequencies_hz.first().copied().unwrap_or(0.0), 5),
         summary.timings_s.total
     );
     if let Some(e) = worst_estimate(summary) {
@@ -142,16 +142,6 @@ fn summary_line(summary: &precompute::Summary) -> String {
         line.push_str(&f.text());
     }
     line
-}
-
-/// `v` to `n` significant digits, without an exponent (at most 9 decimals).
-fn significant(v: f64, n: i32) -> String {
-    let digits = if v > 0.0 && v.is_finite() {
-        (n - 1 - v.log10().floor() as i32).clamp(0, 9) as usize
-    } else {
-        0
-    };
-    format!("{v:.digits$}")
 }
 
 /// The first space's mesh for the page (`Computed::mesh`): nodes, tets, element size (0 when
@@ -970,16 +960,6 @@ impl Workshop for PartWorkshop {
 mod tests {
     use super::*;
     use std::os::unix::fs::MetadataExt;
-
-    #[test]
-    fn figures_keep_the_digits_asked_for_without_an_exponent() {
-        assert_eq!(significant(10137.6657, 5), "10138");
-        assert_eq!(significant(46.273784, 5), "46.274");
-        assert_eq!(significant(116620.4, 5), "116620");
-        assert_eq!(significant(1.3312, 3), "1.33");
-        assert_eq!(significant(0.000123456, 3), "0.000123");
-        assert_eq!(significant(0.0, 5), "0");
-    }
 
     fn mode(p: &Path) -> u32 {
         std::fs::metadata(p)

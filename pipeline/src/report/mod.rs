@@ -21,6 +21,7 @@ use crate::store;
 use anyhow::{Context, Result, bail};
 use nalgebra::{Matrix3, Vector3};
 pub use newmark::{FullSystem, ModalSystem, Stepping, System, integrate_step_load};
+pub use render::significant;
 use serde::Serialize;
 use std::path::Path;
 use std::sync::Arc;
@@ -90,7 +91,7 @@ pub fn default_sizes(scene: &Scene) -> Result<(Vec<f64>, String)> {
             meshing.size,
             format!(
                 "{} m = 1/{} of the part's largest extent, the first mesh `ves precompute` makes when mesh.size is left out",
-                render::significant(meshing.size),
+                render::significant(meshing.size, 4),
                 crate::mesh::AUTO_SIZE_FRACTION
             ),
         )
@@ -101,7 +102,7 @@ pub fn default_sizes(scene: &Scene) -> Result<(Vec<f64>, String)> {
          steps, 1/1.5 and 1/2 of it (a refinement step at most halves the size); give --sizes to sweep others",
         sizes
             .iter()
-            .map(|&x| render::significant(x))
+            .map(|&x| render::significant(x, 4))
             .collect::<Vec<_>>()
             .join(", "),
     );
@@ -925,7 +926,15 @@ mod tests {
 
     #[test]
     fn sizes_print_with_four_significant_digits() {
-        assert_eq!(render::significant(1.0 / 15.0), "0.06667");
-        assert_eq!(render::significant(4e-4 / 3.0), "0.0001333");
+        assert_eq!(render::significant(1.0 / 15.0, 4), "0.06667");
+        assert_eq!(render::significant(4e-4 / 3.0, 4), "0.0001333");
+        // Other counts of digits, no exponent either way (the page's line: sizes to 3, the
+        // first frequency to 5).
+        assert_eq!(render::significant(10137.6657, 5), "10138");
+        assert_eq!(render::significant(46.273784, 5), "46.274");
+        assert_eq!(render::significant(116620.4, 5), "116620");
+        assert_eq!(render::significant(1.3312, 3), "1.33");
+        assert_eq!(render::significant(0.000123456, 3), "0.000123");
+        assert_eq!(render::significant(0.0, 5), "0");
     }
 }

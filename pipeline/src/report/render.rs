@@ -53,12 +53,13 @@ pub(super) fn size(h: f64) -> String {
     format!("{}", (h * 1e9).round() / 1e9)
 }
 
-/// A positive number to 4 significant digits, without exponent for everyday sizes (0.06667).
-pub(super) fn significant(x: f64) -> String {
+/// A positive number to `digits` significant digits, without exponent for everyday sizes
+/// (0.06667 at 4; a frequency 10138 Hz at 5, not 10137.6657).
+pub fn significant(x: f64, digits: i32) -> String {
     if !(x.is_finite() && x > 0.0) {
         return format!("{x}");
     }
-    let scale = 10f64.powi(3 - x.log10().floor() as i32);
+    let scale = 10f64.powi(digits - 1 - x.log10().floor() as i32);
     format!("{}", (x * scale).round() / scale)
 }
 
