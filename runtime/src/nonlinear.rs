@@ -141,8 +141,8 @@ impl Polynomial {
         self
     }
 
-    /// H s into `u` (s in double, and a single-precision copy `s32` for H in single: eight
-    /// lanes a step instead of four, the products rounded as H's coefficients already are).
+    /// H s into `u` (s in double; with H in single, by its panels from a single-precision copy
+    /// `s32`, the products rounded as H's coefficients already are, `sums` their work space).
     fn quartic_times(&self, s: &[f64], s32: &mut [f32], u: &mut [f64], sums: &mut [f32]) {
         let np = self.pairs();
         if self.h32.is_empty() {
@@ -258,22 +258,13 @@ impl Polynomial {
         self.products(q, &mut w.s);
         // u = Tᵀ q + H s.
         self.quartic_times(&w.s, &mut w.s32, &mut w.u, &mut w.panel_sums);
-        let mut i = 0;
-        // Four rows of T at a time (u read and written once for the four), then one by one.
-        while i + 4 <= r {
-            let rows = &self.t[i * np..(i + 4) * np];
-            let c = [q[i], q[i + 1], q[i + 2], q[i + 3]];
-            let Some(d) = crate::os::dots_and_axpy4(rows, &w.s, c, &mut w.u[..np]) else {
-                break;
-            };
-            for (a, da) in d.iter().enumerate() {
+        // Four rows of T at a time (u read and written once for the four).
+        for i in (0..r).step_by(4) {
+            let m = (r - i).min(4);
+            let d = crate::os::dots_and_axpy(&self.t[i * np..(i + m) * np], &w.s, &q[i..i + m], &mut w.u[..np]);
+            for (a, da) in d.iter().enumerate().take(m) {
                 f[i + a] = dot(&self.k[(i + a) * r..(i + a + 1) * r], q) + da;
             }
-            i += 4;
-        }
-        for i in i..r {
-            let ti = &self.t[i * np..(i + 1) * np];
-            f[i] = dot(&self.k[i * r..(i + 1) * r], q) + crate::os::dot_and_axpy64(ti, &w.s, q[i], &mut w.u);
         }
         self.add_jt(&w.u, q, f);
     }

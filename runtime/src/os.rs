@@ -166,24 +166,6 @@ pub fn panels_times_simd(panels: &[f32], blocks: usize, s: &[f32], y: &mut [f64]
     false
 }
 
-/// Σ tᵢ sᵢ, and u += c t, in one pass over t (double precision, AVX2 + FMA when the processor
-/// has them): the nonlinear force's T s and Tᵀ q read T once instead of twice.
-#[inline]
-pub fn dot_and_axpy64(t: &[f64], s: &[f64], c: f64, u: &mut [f64]) -> f64 {
-    let n = t.len().min(s.len()).min(u.len());
-    #[cfg(target_arch = "x86_64")]
-    if simd::available() {
-        // SAFETY: as in `dot_simd`; the three slices are cut to n.
-        return unsafe { simd::dot_and_axpy64(&t[..n], &s[..n], c, &mut u[..n]) };
-    }
-    let mut d = 0.0;
-    for ((ti, si), ui) in t[..n].iter().zip(&s[..n]).zip(&mut u[..n]) {
-        d += ti * si;
-        *ui += c * ti;
-    }
-    d
-}
-
 /// out += Jᵀ v for the pairs of r = `q.len()` coordinates ordered (0,0), (0,1), …, (1,1), …
 /// (J = ∂s/∂q, s the products q_k q_l, k ≤ l): out_k += 2 v_(kk) q_k + Σ_(l>k) v_(kl) q_l and
 /// out_l += v_(kl) q_k, a row of pairs at a time in AVX2 lanes when the processor has them
@@ -201,19 +183,45 @@ pub fn add_pairs_transposed_simd<T: Coefficient>(v: &[T], q: &[f64], out: &mut [
     false
 }
 
-/// For four rows tₐ of length n = `s.len()` held one after another in `rows`: Σ tₐᵢ sᵢ for
-/// each, and u += Σₐ cₐ tₐ, with AVX2 + FMA when the processor has them (`None` otherwise:
-/// nothing done). u is read and written once for the four rows, where a row at a time it was
-/// read and written four times.
+/// For m ≤ 4 rows tₐ (m = `c.len()`) of length n = `s.len()` held one after another in `rows`:
+/// Σ tₐᵢ sᵢ for each (the first m values returned), and u += Σₐ cₐ tₐ, with AVX2 + FMA when the
+/// processor has them — the nonlinear force's T s and Tᵀ q in one pass over T, u read and
+/// written once for the m rows (a row at a time it was read and written four times). Panics if
+/// `rows` or `u` is shorter than that.
 #[inline]
-pub fn dots_and_axpy4(rows: &[f64], s: &[f64], c: [f64; 4], u: &mut [f64]) -> Option<[f64; 4]> {
+pub fn dots_and_axpy(rows: &[f64], s: &[f64], c: &[f64], u: &mut [f64]) -> [f64; 4] {
+    let (m, n) = (c.len().min(4), s.len());
+    assert!(
+        rows.len() >= m * n && u.len() >= n,
+        "{m} rows of {n} and {n} values to add to"
+    );
     #[cfg(target_arch = "x86_64")]
-    if simd::available() && rows.len() >= 4 * s.len() && u.len() >= s.len() {
-        // SAFETY: AVX2 and FMA are there; rows holds 4n values and u n (checked above).
-        return Some(unsafe { simd::dots_and_axpy4(rows, s, c, u) });
+    if simd::available() {
+        // SAFETY: AVX2 and FMA are there; rows holds m n values and u n (asserted above).
+        return unsafe {
+            match m {
+                4 => simd::dots_and_axpy::<4>(rows, s, c, u),
+                3 => simd::dots_and_axpy::<3>(rows, s, c, u),
+                2 => simd::dots_and_axpy::<2>(rows, s, c, u),
+                1 => simd::dots_and_axpy::<1>(rows, s, c, u),
+                _ => [0.0; 4],
+            }
+        };
     }
-    let _ = (rows, s, c, u);
-    None
+    dots_and_axpy_portable(rows, s, &c[..m], u)
+}
+
+/// [`dots_and_axpy`] a value at a time (a processor without AVX2 and FMA).
+fn dots_and_axpy_portable(rows: &[f64], s: &[f64], c: &[f64], u: &mut [f64]) -> [f64; 4] {
+    let n = s.len();
+    let mut out = [0.0; 4];
+    for (a, (o, ca)) in out.iter_mut().zip(c).enumerate() {
+        for ((t, si), ui) in rows[a * n..(a + 1) * n].iter().zip(s).zip(u.iter_mut()) {
+            *o += t * si;
+            *ui += ca * t;
+        }
+    }
+    out
 }
 
 /// y += c x in double precision, with AVX2 + FMA when the processor has them (the crate is
@@ -374,41 +382,6 @@ mod simd {
         }
     }
 
-    /// Σ tᵢ sᵢ and u += c t, four lanes at a time with two chains for the sum.
-    ///
-    /// # Safety
-    /// AVX2 and FMA must be there; `s` and `u` are as long as `t`.
-    #[target_feature(enable = "avx2,fma")]
-    pub unsafe fn dot_and_axpy64(t: &[f64], s: &[f64], c: f64, u: &mut [f64]) -> f64 {
-        use std::arch::x86_64::*;
-        let n = t.len();
-        let (pt, ps, pu) = (t.as_ptr(), s.as_ptr(), u.as_mut_ptr());
-        let cc = _mm256_set1_pd(c);
-        let mut acc = [_mm256_setzero_pd(); 2];
-        let mut i = 0;
-        // SAFETY: every access is below i + 8 ≤ n (or i + 4 ≤ n) in slices of n values.
-        unsafe {
-            while i + 8 <= n {
-                for (k, a) in acc.iter_mut().enumerate() {
-                    let x = _mm256_loadu_pd(pt.add(i + 4 * k));
-                    *a = _mm256_fmadd_pd(x, _mm256_loadu_pd(ps.add(i + 4 * k)), *a);
-                    let y = pu.add(i + 4 * k);
-                    _mm256_storeu_pd(y, _mm256_fmadd_pd(x, cc, _mm256_loadu_pd(y)));
-                }
-                i += 8;
-            }
-            let mut lanes = [0.0f64; 4];
-            _mm256_storeu_pd(lanes.as_mut_ptr(), _mm256_add_pd(acc[0], acc[1]));
-            let mut d: f64 = lanes.iter().sum();
-            while i < n {
-                d += t[i] * s[i];
-                u[i] = c.mul_add(t[i], u[i]);
-                i += 1;
-            }
-            d
-        }
-    }
-
     /// out += Jᵀ v by rows of pairs: row k's pairs (k, l > k) dotted with q_(k+1..) into out_k
     /// and added, times q_k, to out_(k+1..).
     ///
@@ -450,24 +423,24 @@ mod simd {
         }
     }
 
-    /// Four rows' dot products with s and their combination added to u, four lanes at a time.
+    /// M rows' dot products with s and their combination added to u, four lanes at a time.
     ///
     /// # Safety
-    /// AVX2 and FMA must be there; `rows` holds 4n values and `u` n, n = `s.len()`.
+    /// AVX2 and FMA must be there; `rows` holds M n values, `c` M and `u` n, n = `s.len()`.
     #[target_feature(enable = "avx2,fma")]
-    pub unsafe fn dots_and_axpy4(rows: &[f64], s: &[f64], c: [f64; 4], u: &mut [f64]) -> [f64; 4] {
+    pub unsafe fn dots_and_axpy<const M: usize>(rows: &[f64], s: &[f64], c: &[f64], u: &mut [f64]) -> [f64; 4] {
         use std::arch::x86_64::*;
         let n = s.len();
         let (pt, ps, pu) = (rows.as_ptr(), s.as_ptr(), u.as_mut_ptr());
-        let cc = c.map(|x| _mm256_set1_pd(x));
-        let mut acc = [_mm256_setzero_pd(); 4];
+        let cc: [__m256d; M] = std::array::from_fn(|a| _mm256_set1_pd(c[a]));
+        let mut acc = [_mm256_setzero_pd(); M];
         let mut i = 0;
         // SAFETY: row a's values are rows[a n..(a + 1) n]; every index is below n.
         unsafe {
             while i + 4 <= n {
                 let sv = _mm256_loadu_pd(ps.add(i));
                 let mut uv = _mm256_loadu_pd(pu.add(i));
-                for a in 0..4 {
+                for a in 0..M {
                     let x = _mm256_loadu_pd(pt.add(a * n + i));
                     acc[a] = _mm256_fmadd_pd(x, sv, acc[a]);
                     uv = _mm256_fmadd_pd(x, cc[a], uv);
@@ -476,13 +449,13 @@ mod simd {
                 i += 4;
             }
             let mut out = [0.0f64; 4];
-            for a in 0..4 {
+            for a in 0..M {
                 let mut lanes = [0.0f64; 4];
                 _mm256_storeu_pd(lanes.as_mut_ptr(), acc[a]);
                 out[a] = (lanes[0] + lanes[1]) + (lanes[2] + lanes[3]);
             }
             while i < n {
-                for a in 0..4 {
+                for a in 0..M {
                     let x = rows[a * n + i];
                     out[a] += x * s[i];
                     u[i] = c[a].mul_add(x, u[i]);
@@ -515,6 +488,46 @@ mod simd {
     pub unsafe fn axpy32(c: f32, x: &[f32], y: &mut [f32]) {
         for (yi, xi) in y.iter_mut().zip(x) {
             *yi = c.mul_add(*xi, *yi);
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The rows' sums and the combination added to u, in vector lanes and a value at a time,
+    /// for one to four rows and lengths with and without a tail.
+    #[test]
+    fn rows_dotted_and_combined_in_lanes_as_one_at_a_time() {
+        for n in [1, 3, 4, 9, 45] {
+            for m in 1..=4 {
+                let rows: Vec<f64> = (0..m * n).map(|i| ((i * 37) % 17) as f64 * 0.1 - 0.8).collect();
+                let s: Vec<f64> = (0..n).map(|i| ((i * 13) % 7) as f64 * 0.2 - 0.6).collect();
+                let c: Vec<f64> = (0..m).map(|a| 0.5 - a as f64 * 0.3).collect();
+                let start: Vec<f64> = (0..n).map(|i| i as f64 * 0.01).collect();
+                let (mut u, mut v) = (start.clone(), start.clone());
+                let d = dots_and_axpy(&rows, &s, &c, &mut u);
+                let e = dots_and_axpy_portable(&rows, &s, &c, &mut v);
+                for a in 0..4 {
+                    let want: f64 = if a < m {
+                        (0..n).map(|i| rows[a * n + i] * s[i]).sum()
+                    } else {
+                        0.0
+                    };
+                    assert!(
+                        (d[a] - want).abs() < 1e-12 && (e[a] - want).abs() < 1e-12,
+                        "n {n}, m {m}, row {a}"
+                    );
+                }
+                for i in 0..n {
+                    let want = start[i] + (0..m).map(|a| c[a] * rows[a * n + i]).sum::<f64>();
+                    assert!(
+                        (u[i] - want).abs() < 1e-12 && (v[i] - want).abs() < 1e-12,
+                        "n {n}, m {m}, u[{i}]"
+                    );
+                }
+            }
         }
     }
 }
