@@ -6,7 +6,7 @@
 // downloaded under the part's name.
 import { download } from './capture.js';
 import { state } from './state.js';
-import { fieldWords, label, plain } from './units.js';
+import { fieldWords, label, plain, quantityWords } from './units.js';
 
 const row = (cells) => `| ${cells.join(' | ')} |`;
 
@@ -92,7 +92,7 @@ export function reportText(setup, materialName = (_m) => null) {
     const live = !state.mode && !state.loadCase;
     const extremeOf = (p) => {
       const e = p.extremes[state.colour];
-      return e === undefined ? '—' : fieldWords({ quantity: state.field.quantity, valueAt: () => e }, 0, u);
+      return e === undefined ? '—' : quantityWords(state.field.quantity, e, u);
     };
     out.push(`## Probes pinned: ${what}`, '',
       live ? `Now, and the extreme (${state.colour === 'safety' ? 'lowest' : 'largest'}) over the part's last motion.` : 'As shown when the report was written.', '',

@@ -295,7 +295,9 @@ export function setupPanel(send, pick, faceMode, faceOf, light) {
   /** The mesh solved, by its tets' shape quality: a bar per tenth of [0, 1] (those below 0.2
    * amber) and a line saying how many are poor and the worst. @param {any} mesh */
   function showMeshQuality(mesh) {
-    const bins = mesh && Array.isArray(mesh.quality_histogram) ? mesh.quality_histogram : null;
+    // Ten counts, or nothing drawn (a project file brings them back: it is read as any input).
+    const h = mesh && mesh.quality_histogram;
+    const bins = Array.isArray(h) && h.length === 10 && h.every((n) => Number.isInteger(n) && n >= 0) ? h : null;
     $('meshquality').hidden = !bins;
     if (!bins) return;
     const total = bins.reduce((a, b) => a + b, 0), most = Math.max(1, ...bins);

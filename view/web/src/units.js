@@ -46,9 +46,13 @@ export function feltText(e) {
   return `felt ≤ ${plain(100 * e / (1 - e))} % too stiff`;
 }
 
-/** Field `f`'s value at vertex `v` in words, in `units` (a ratio bare; none where there is no
- * stress). @param {{quantity: string, valueAt: (i: number) => number}} f */
+/** A value of `quantity` in words, in `units` (a ratio bare; none where there is no stress). */
+export function quantityWords(quantity, value, units) {
+  return quantity === 'ratio' ? (Number.isFinite(value) ? plain(value) : 'no stress') : label(value, quantity, units);
+}
+
+/** Field `f`'s value at vertex `v` in words (see quantityWords).
+ * @param {{quantity: string, valueAt: (i: number) => number}} f */
 export function fieldWords(f, v, units) {
-  const value = f.valueAt(v);
-  return f.quantity === 'ratio' ? (Number.isFinite(value) ? plain(value) : 'no stress') : label(value, f.quantity, units);
+  return quantityWords(f.quantity, f.valueAt(v), units);
 }
