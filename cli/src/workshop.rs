@@ -829,6 +829,10 @@ impl Workshop for PartWorkshop {
         })
     }
 
+    fn geometry(&self) -> Option<PathBuf> {
+        Some(self.part().geometry.clone())
+    }
+
     fn compute(
         &self,
         scene: &serde_json::Value,

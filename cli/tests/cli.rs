@@ -836,6 +836,34 @@ fn faces_are_listed_as_the_cad_states_them() {
     assert_refused(&o, "give a STEP or IGES file");
 }
 
+/// `ves faces` names the faces as the STEP file does: the corpus block with each face named by
+/// its place in the file's shell ("f1" … "f30") is listed with face k named "fk" — gmsh numbers
+/// the faces in the file's order, and the names follow only because every plane and cylinder of
+/// the file is the face of that number. The block as published names every face "PartBody"
+/// (the body's name, not a face's) and is listed without names.
+#[test]
+fn faces_carry_the_names_the_step_file_gives_them() {
+    let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("..");
+    let dir = tempfile::tempdir().unwrap();
+    let copy = block_with_named_faces(dir.path(), "named block.step");
+    let listed = |file: &Path| -> Vec<serde_json::Value> {
+        let o = ves(&["faces", file.to_str().unwrap(), "--json"]);
+        last_json(&o).as_array().expect("a list of faces").clone()
+    };
+    let faces = listed(&copy);
+    assert_eq!(faces.len(), 30);
+    for f in &faces {
+        let tag = f["tag"].as_u64().expect("tag");
+        assert_eq!(f["name"].as_str(), Some(format!("f{tag}").as_str()), "{f}");
+    }
+    // The bores keep their kind (the names did not move the faces).
+    assert!(faces.iter().filter(|f| f["concave"] == true).count() >= 8);
+    let text_out = ves(&["faces", copy.to_str().unwrap()]);
+    assert!(String::from_utf8_lossy(&text_out.stdout).contains("\"f2\" cylinder (concave)"));
+    let published = root.join("cases/corpus/pmi_block_2holes.step");
+    assert!(listed(&published).iter().all(|f| f["name"].is_null()));
+}
+
 /// `--json` carries every warning of the run, one line each, whatever VES_LOG shows on stderr
 /// (a unit the STEP file overrides, a 4-node mesh far too stiff in bending).
 #[test]

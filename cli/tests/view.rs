@@ -830,12 +830,8 @@ fn a_free_body_stays_put_at_any_scale_and_the_page_reconnects() {
 #[test]
 fn a_step_part_is_set_up_computed_and_pulled_in_the_page() {
     let dir = tempfile::tempdir().expect("a temporary directory");
-    let step = dir.path().join("pmi_block_2holes.step");
-    std::fs::copy(
-        Path::new(env!("CARGO_MANIFEST_DIR")).join("../cases/corpus/pmi_block_2holes.step"),
-        &step,
-    )
-    .expect("copy the corpus part");
+    // The corpus block, its faces named "f1" … "f30" as a CAD system names them.
+    let step = block_with_named_faces(dir.path(), "pmi_block_2holes.step");
     let (server, out, url) = serve_for(&step, "0", "3600");
     let web = Path::new(env!("CARGO_MANIFEST_DIR")).join("../view/web");
     let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/view/setup.mjs");
@@ -1204,7 +1200,7 @@ fn a_step_part_is_set_up_computed_and_pulled_in_the_page() {
     );
     assert!(one[0] < held[0], "one face {one:?} vs two {held:?}");
     // Hovered, the +x end face is named with what it is, as `ves faces` lists it (this block's
-    // end is a convex cylinder of 25 mm), and its area.
+    // end is a convex cylinder of 25 mm), its name in the STEP file, and its area.
     let tip = page["one"]["tip"].as_str().unwrap_or("");
     let listed = last_json(&ves(&["faces", step.to_str().unwrap(), "--json"]));
     let face = listed
@@ -1212,8 +1208,9 @@ fn a_step_part_is_set_up_computed_and_pulled_in_the_page() {
         .and_then(|l| l.iter().find(|f| f["tag"].as_u64() == Some(tag)))
         .unwrap_or_else(|| panic!("face {tag} not listed: {listed}"));
     let kind = face["kind"].as_str().unwrap_or("");
+    // With the STEP file's name of the face: "face 8 “f8” · other · 6.76 mm²".
     assert!(
-        tip.starts_with(&format!("face {tag} · {kind}")) && tip.contains('²'),
+        tip.starts_with(&format!("face {tag} “f{tag}” · {kind}")) && tip.contains('²'),
         "{tip} / {face}"
     );
     if kind == "cylinder" {

@@ -36,6 +36,9 @@ pub struct Face {
     pub concave: Option<bool>,
     /// Surface triangles of the mesh on it.
     pub triangles: usize,
+    /// Its name in the STEP file (`ADVANCED_FACE('name', …)`), where the file gives faces
+    /// names and gmsh's numbering is confirmed to be the file's order ([`name_from_step`]).
+    pub name: Option<String>,
 }
 
 /// A plane's normals agree within this (1 − the largest eigenvalue's share of Σ A n nᵀ).
@@ -76,7 +79,130 @@ pub fn list(input: &Path, allow_geo_scripts: bool) -> Result<Vec<Face>> {
         Scene::parse(&beside, &text).map_err(|e| anyhow::anyhow!("{}", e.message))?
     };
     let (mesh, _) = crate::mesh::generate(&scene, None)?;
-    Ok(of_mesh(&mesh))
+    let mut faces = of_mesh(&mesh);
+    if let Some(text) = step_text(&scene.geometry)
+        && let Err(why) = name_from_step(&mut faces, &text)
+    {
+        tracing::warn!(
+            "{}: its face names are not given: {why}; the faces are known by number",
+            scene.geometry.display()
+        );
+    }
+    Ok(faces)
+}
+
+/// The text of a STEP file (`None` for another kind of file, or one that does not read).
+pub fn step_text(path: &Path) -> Option<String> {
+    let ext = path.extension()?.to_string_lossy().to_ascii_lowercase();
+    if ext != "step" && ext != "stp" {
+        return None;
+    }
+    let bytes = crate::input::read(path).ok()?;
+    Some(String::from_utf8_lossy(&bytes).into_owned())
+}
+
+/// A plane's or an axis' direction agrees with the file's within this (1 − |cos|: 2.6°).
+const DIRECTION_TOL: f64 = 1e-3;
+/// A face's position agrees with the file's within this share of the part's size.
+const POSITION_TOL: f64 = 1e-4;
+
+/// Names `faces` (a STEP part's, as gmsh numbered them) with the names the STEP file gives
+/// its faces ([`crate::step_faces`]): gmsh numbers the faces in the order of the file's shells
+/// (OpenCASCADE builds the shape in that order), which is believed only when the counts agree
+/// and every plane and cylinder the file states is the face of that number here — the plane
+/// through the same point with the same normal, the cylinder of the same radius about the same
+/// axis (a cylinder meshed too coarsely to read as one, a narrow strip, only has its centroid
+/// within the cylinder). A name every
+/// face shares (a body's name copied onto each), "NONE", or the face's own entity number
+/// (`'#520'`) is not a face's name. Returns how many faces were named, or why none were: a
+/// mesh made on a healed geometry may have renumbered its faces, a file with several solids may
+/// be ordered otherwise.
+pub fn name_from_step(faces: &mut [Face], text: &str) -> Result<usize, String> {
+    let stated = crate::step_faces::faces(text);
+    if stated.is_empty() {
+        return Err("the file has no solid with faces".into());
+    }
+    let named = |s: &crate::step_faces::StepFace| {
+        let shared = stated.len() > 1 && stated.iter().all(|o| o.name == s.name);
+        !(s.name.is_empty() || shared || s.name.eq_ignore_ascii_case("NONE") || s.name == format!("#{}", s.id))
+    };
+    if !stated.iter().any(named) {
+        return Ok(0);
+    }
+    if faces.len() != stated.len() || faces.iter().any(|f| f.tag == 0 || f.tag as usize > stated.len()) {
+        return Err(format!("the file has {} faces, the mesh {}", stated.len(), faces.len()));
+    }
+    let metres = crate::step_units::length_unit(text).map_or(1e-3, |u| u.metres);
+    let (mut lo, mut hi) = (Vector3::repeat(f64::INFINITY), Vector3::repeat(f64::NEG_INFINITY));
+    for f in faces.iter() {
+        lo = lo.inf(&Vector3::from(f.centroid_m));
+        hi = hi.sup(&Vector3::from(f.centroid_m));
+    }
+    let size = (hi - lo)
+        .norm()
+        .max(faces.iter().map(|f| f.area_m2.sqrt()).fold(0.0, f64::max));
+    let mut checked = 0;
+    for f in faces.iter() {
+        use crate::step_faces::Surface;
+        let s = &stated[f.tag as usize - 1];
+        let parallel = |a: [f64; 3], b: [f64; 3]| Vector3::from(a).dot(&Vector3::from(b)).abs() >= 1.0 - DIRECTION_TOL;
+        let agrees = match (&s.surface, f.kind) {
+            (Surface::Plane { point, normal }, "plane") => {
+                let off = Vector3::from(f.centroid_m) - metres * Vector3::from(*point);
+                let n = f.normal.unwrap_or_default();
+                parallel(*normal, n) && Vector3::from(*normal).dot(&off).abs() <= POSITION_TOL * size
+            }
+            (Surface::Cylinder { point, axis, radius }, "cylinder") => {
+                let (r, a) = (metres * radius, Vector3::from(*axis));
+                let off = Vector3::from(f.axis_point_m.unwrap_or_default()) - metres * Vector3::from(*point);
+                let from_axis = (off - off.dot(&a) * a).norm();
+                (f.radius_m.unwrap_or_default() - r).abs() <= RADIUS_TOL * r
+                    && parallel(*axis, f.axis.unwrap_or_default())
+                    && from_axis <= POSITION_TOL * size + RADIUS_TOL * r
+            }
+            // A cylinder meshed coarsely reads as a plane (a narrow strip: one row of facets) or
+            // as other: its facets' centroid lies within the cylinder.
+            (Surface::Cylinder { point, axis, radius }, _) => {
+                let a = Vector3::from(*axis);
+                let off = Vector3::from(f.centroid_m) - metres * Vector3::from(*point);
+                (off - off.dot(&a) * a).norm() <= (1.0 + RADIUS_TOL) * metres * radius + POSITION_TOL * size
+            }
+            (Surface::Plane { .. }, _) => false,
+            (Surface::Other, _) => true,
+        };
+        if !agrees {
+            let said = match s.surface {
+                Surface::Plane { .. } => "a plane",
+                Surface::Cylinder { .. } => "a cylinder",
+                Surface::Other => "another surface",
+            };
+            let here = match f.kind {
+                "plane" => "a plane",
+                "cylinder" => "a cylinder",
+                _ => "another surface",
+            };
+            return Err(format!(
+                "face {} here ({here}) is not the file's face {} (#{}, {said})",
+                f.tag, f.tag, s.id
+            ));
+        }
+        checked += usize::from(matches!(
+            (&s.surface, f.kind),
+            (Surface::Plane { .. }, "plane") | (Surface::Cylinder { .. }, "cylinder")
+        ));
+    }
+    if checked == 0 {
+        return Err("it has no plane or cylinder to check gmsh's numbering by".into());
+    }
+    let mut count = 0;
+    for f in faces.iter_mut() {
+        let s = &stated[f.tag as usize - 1];
+        if named(s) {
+            f.name = Some(s.name.clone());
+            count += 1;
+        }
+    }
+    Ok(count)
 }
 
 /// The faces of a bare surface (a basis's: its corner vertices, triangles and each triangle's
@@ -129,6 +255,7 @@ fn face(mesh: &Mesh, tag: u32, tris: &[usize]) -> Face {
         radius_m: None,
         concave: None,
         triangles: tris.len(),
+        name: None,
     };
     if area <= 0.0 {
         return f;
@@ -178,4 +305,105 @@ fn face(mesh: &Mesh, tag: u32, tris: &[usize]) -> Face {
         f.concave = Some(outward < 0.0);
     }
     f
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A STEP file (millimetres) with faces `(name, surface)` in one shell; surfaces are
+    /// `p z` (the plane z = z, normal +z) or `c r` (the cylinder of radius r about z).
+    fn step(faces: &[(&str, &str)]) -> String {
+        let mut data = String::from(
+            "#1=DIRECTION('',(0.,0.,1.));\n#9=(LENGTH_UNIT()NAMED_UNIT(*)SI_UNIT(.MILLI.,.METRE.));\n\
+             #8=(GEOMETRIC_REPRESENTATION_CONTEXT(3)GLOBAL_UNIT_ASSIGNED_CONTEXT((#9))REPRESENTATION_CONTEXT('',''));\n",
+        );
+        let mut refs = Vec::new();
+        for (i, (name, surface)) in faces.iter().enumerate() {
+            let n = 100 + 10 * i;
+            let (kind, value) = surface.split_once(' ').unwrap();
+            let value: f64 = value.parse().unwrap();
+            let z = if kind == "p" { value } else { 0.0 };
+            data += &format!("#{}=CARTESIAN_POINT('',(0.,0.,{z:?}));\n", n + 1);
+            data += &format!("#{}=AXIS2_PLACEMENT_3D('',#{},#1,$);\n", n + 2, n + 1);
+            data += &match kind {
+                "p" => format!("#{}=PLANE('',#{});\n", n + 3, n + 2),
+                _ => format!("#{}=CYLINDRICAL_SURFACE('',#{},{value:?});\n", n + 3, n + 2),
+            };
+            data += &format!("#{n}=ADVANCED_FACE('{name}',(#5),#{},.T.);\n", n + 3);
+            refs.push(format!("#{n}"));
+        }
+        data += &format!(
+            "#2=CLOSED_SHELL('',({}));\n#3=MANIFOLD_SOLID_BREP('',#2);\n",
+            refs.join(",")
+        );
+        format!("ISO-10303-21;\nHEADER;\nENDSEC;\nDATA;\n{data}ENDSEC;\n")
+    }
+
+    /// A face as the mesh would list it (metres).
+    fn face(tag: u32, kind: &'static str, at: f64) -> Face {
+        let mut f = Face {
+            tag,
+            kind,
+            area_m2: 1e-4,
+            centroid_m: [0.01, 0.0, at],
+            normal: None,
+            axis: None,
+            axis_point_m: None,
+            radius_m: None,
+            concave: None,
+            triangles: 10,
+            name: None,
+        };
+        if kind == "plane" {
+            f.normal = Some([0.0, 0.0, -1.0]);
+        } else if kind == "cylinder" {
+            (f.axis, f.axis_point_m, f.radius_m) = (Some([0.0, 0.0, 1.0]), Some([0.0, 0.0, 0.02]), Some(at));
+        }
+        f
+    }
+
+    #[test]
+    fn names_follow_the_file_s_order_only_where_its_geometry_agrees() {
+        let text = step(&[("bottom", "p 0"), ("bore", "c 5"), ("top", "p 40"), ("", "p 20")]);
+        let listed = || {
+            vec![
+                face(1, "plane", 0.0),
+                face(2, "cylinder", 0.005),
+                face(3, "plane", 0.04),
+                face(4, "plane", 0.02),
+            ]
+        };
+        let mut faces = listed();
+        assert_eq!(name_from_step(&mut faces, &text), Ok(3));
+        let names: Vec<_> = faces.iter().map(|f| f.name.as_deref()).collect();
+        assert_eq!(names, [Some("bottom"), Some("bore"), Some("top"), None]);
+        // A narrow strip of the bore, meshed too coarsely to read as a cylinder, is held only to
+        // lie within it.
+        for kind in ["other", "plane"] {
+            let mut faces = listed();
+            faces[1] = face(2, kind, 0.0);
+            faces[1].centroid_m = [0.0049, 0.0, 0.02];
+            assert_eq!(name_from_step(&mut faces, &text), Ok(3));
+        }
+        // Numbered otherwise (two planes swapped, the bore's radius, one face fewer): no names.
+        for change in [
+            |f: &mut Vec<Face>| (f[0].tag, f[2].tag) = (3, 1),
+            |f: &mut Vec<Face>| f[1].radius_m = Some(0.006),
+            |f: &mut Vec<Face>| f[1] = face(2, "plane", 0.0),
+            |f: &mut Vec<Face>| drop(f.pop()),
+        ] {
+            let mut faces = listed();
+            change(&mut faces);
+            assert!(name_from_step(&mut faces, &text).is_err());
+            assert!(faces.iter().all(|f| f.name.is_none()));
+        }
+        // No name worth giving: a body's name on every face, NONE, the face's own number.
+        let shared = step(&[("Body", "p 0"), ("Body", "c 5"), ("Body", "p 40"), ("Body", "p 20")]);
+        let own = step(&[("#100", "p 0"), ("NONE", "c 5"), ("#120", "p 40"), ("", "p 20")]);
+        for text in [shared, own] {
+            let mut faces = listed();
+            assert_eq!(name_from_step(&mut faces, &text), Ok(0));
+        }
+    }
 }

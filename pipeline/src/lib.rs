@@ -26,6 +26,7 @@ pub mod problem;
 pub mod progress;
 pub mod report;
 pub mod scene;
+pub mod step_faces;
 pub mod step_units;
 pub mod store;
 pub mod supports;

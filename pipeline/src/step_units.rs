@@ -17,7 +17,13 @@ pub struct StepUnit {
 /// without a DATA section).
 pub fn statements(text: &str) -> impl Iterator<Item = (u64, &str)> {
     let data = text.find("DATA;").map_or("", |i| &text[i..]);
-    data.split(';').filter_map(|statement| {
+    // A `;` inside a quoted name ends nothing (`''` inside one is a quote, which toggles twice).
+    let mut quoted = false;
+    data.split(move |c| {
+        quoted ^= c == '\'';
+        c == ';' && !quoted
+    })
+    .filter_map(|statement| {
         let (id, body) = statement.trim().strip_prefix('#')?.split_once('=')?;
         Some((id.trim().parse().ok()?, body))
     })

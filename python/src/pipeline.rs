@@ -423,8 +423,8 @@ pub fn verify<'py>(
 
 /// A part's CAD faces, as `ves faces --json`: a list of dicts (tag — what a scene's
 /// `faces = [...]` names —, kind "plane" / "cylinder" / "other", area_m2, centroid_m, normal of a
-/// plane; axis, axis_point_m, radius_m and concave of a cylinder). `path`: a STEP or IGES part,
-/// or a scene (.toml).
+/// plane; axis, axis_point_m, radius_m and concave of a cylinder; name, the STEP file's name of
+/// the face where it gives one, else None). `path`: a STEP or IGES part, or a scene (.toml).
 #[pyfunction]
 #[pyo3(signature = (path, *, progress=true, allow_geo_scripts=false))]
 pub fn faces<'py>(

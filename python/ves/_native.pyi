@@ -244,7 +244,7 @@ def faces(
     progress: bool = True,
     allow_geo_scripts: bool = False,
 ) -> list:
-    """``ves faces --json`` as a call: the part's CAD faces as dicts (tag, kind "plane" / "cylinder" / "other", area_m2, centroid_m; normal; axis, axis_point_m, radius_m, concave)."""
+    """``ves faces --json`` as a call: the part's CAD faces as dicts (tag, kind "plane" / "cylinder" / "other", area_m2, centroid_m; normal; axis, axis_point_m, radius_m, concave; name: the STEP file's name of the face, or None)."""
 
 def verify(
     input: Union[str, os.PathLike, Basis],

@@ -64,8 +64,9 @@ pub struct ViewConfig {
 }
 
 /// [`ViewConfig::face_kinds`]: from a space's surface (corner vertices, triangles, face tags)
-/// to a JSON list the page shows on hover.
-pub type FaceKinds = fn(&[[f64; 3]], &[[u32; 3]], &[u32]) -> serde_json::Value;
+/// and the geometry file of the part set up ([`Workshop::geometry`]: for the faces' names, where it
+/// states them) to a JSON list the page shows on hover.
+pub type FaceKinds = fn(&[[f64; 3]], &[[u32; 3]], &[u32], Option<&std::path::Path>) -> serde_json::Value;
 
 /// What a viewer run measured.
 #[derive(Clone, Debug, Default, serde::Serialize)]
@@ -1162,6 +1163,7 @@ fn hello(
     cfg: &ViewConfig,
     workshop: Option<&dyn Workshop>,
 ) -> serde_json::Value {
+    let part = workshop.and_then(|w| w.geometry());
     let spaces: Vec<_> = bases
         .iter()
         .enumerate()
@@ -1182,7 +1184,7 @@ fn hello(
                 "loads": l.map(|l| l.cases.clone()).unwrap_or_default(),
                 "loads_error": l.and_then(|l| l.error.clone()),
                 "faces": cfg.face_kinds.zip(b.surface_faces.as_ref()).map(|(kinds, faces)| {
-                    kinds(&b.rest[..b.vertex_count()], &b.triangles, faces)
+                    kinds(&b.rest[..b.vertex_count()], &b.triangles, faces, part.as_deref())
                 }),
             })
         })

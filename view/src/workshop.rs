@@ -152,6 +152,10 @@ pub trait Workshop: Send + Sync {
     /// counts) with content `bytes` the part from now on, with a fresh starting scene. Only
     /// STEP, IGES and BREP are taken, checked by content, never a `.geo` script.
     fn open(&self, name: &str, bytes: &[u8]) -> Result<(), WorkshopError>;
+    /// The geometry file of the part set up now (its faces' names are read from it), if any.
+    fn geometry(&self) -> Option<std::path::PathBuf> {
+        None
+    }
 }
 
 /// Largest geometry file the page may send, bytes.

@@ -50,8 +50,9 @@ impl Args {
                 }
                 _ => "other".to_string(),
             };
+            let name = f.name.as_ref().map_or(String::new(), |n| format!("{n:?} "));
             text.push_str(&format!(
-                "{:>5}  {what}; area {:.4} mm², centroid {}\n",
+                "{:>5}  {name}{what}; area {:.4} mm², centroid {}\n",
                 f.tag,
                 1e6 * f.area_m2,
                 mm(f.centroid_m)

@@ -234,7 +234,19 @@ fn read_part(p: &std::path::Path) -> Result<Vec<u8>> {
     std::fs::read(p).with_context(|| format!("{}: cannot read the part", p.display()))
 }
 
-/// What each CAD face of a surface is, for the page's hover ([`ves_pipeline::faces`]).
-fn face_kinds(vertices: &[[f64; 3]], triangles: &[[u32; 3]], faces: &[u32]) -> serde_json::Value {
-    serde_json::to_value(ves_pipeline::faces::of_surface(vertices, triangles, faces)).unwrap_or_default()
+/// What each CAD face of a surface is, for the page's hover ([`ves_pipeline::faces`]), named
+/// as the part's STEP file names them where its numbering is confirmed to be gmsh's.
+fn face_kinds(
+    vertices: &[[f64; 3]],
+    triangles: &[[u32; 3]],
+    faces: &[u32],
+    part: Option<&std::path::Path>,
+) -> serde_json::Value {
+    let mut listed = ves_pipeline::faces::of_surface(vertices, triangles, faces);
+    if let Some(text) = part.and_then(ves_pipeline::faces::step_text) {
+        // A basis of another part (served while a new one computes) is not named: said nowhere,
+        // as the hover then shows that basis' own faces by number.
+        let _ = ves_pipeline::faces::name_from_step(&mut listed, &text);
+    }
+    serde_json::to_value(listed).unwrap_or_default()
 }

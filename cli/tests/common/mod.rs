@@ -179,6 +179,27 @@ pub fn number_after(text: &str, marker: &str) -> f64 {
         .unwrap_or_else(|| panic!("no number after {marker:?} in {text}"))
 }
 
+/// The corpus block (`pmi_block_2holes.step`, which names every face "PartBody") written to
+/// `dir/name` with each face named by its place in the file's shell: "f1" … "f30".
+pub fn block_with_named_faces(dir: &Path, name: &str) -> PathBuf {
+    let step = Path::new(env!("CARGO_MANIFEST_DIR")).join("../cases/corpus/pmi_block_2holes.step");
+    let text = std::fs::read_to_string(step).expect("the corpus block");
+    let shell = text
+        .split("CLOSED_SHELL(")
+        .nth(1)
+        .and_then(|s| s.split(")) ;").next())
+        .expect("its shell");
+    let order: Vec<&str> = shell.split('(').nth(1).expect("its faces").split(',').collect();
+    assert_eq!(order.len(), 30);
+    let mut named = text.clone();
+    for (k, id) in order.iter().enumerate() {
+        let from = format!("{id}=ADVANCED_FACE('PartBody'");
+        assert_eq!(named.matches(&from).count(), 1, "{from}");
+        named = named.replace(&from, &format!("{id}=ADVANCED_FACE('f{}'", k + 1));
+    }
+    write_file(dir, name, &named)
+}
+
 /// Writes `text` to `dir/name` and returns the path.
 pub fn write_file(dir: &Path, name: &str, text: &str) -> PathBuf {
     let path = dir.join(name);

@@ -156,7 +156,8 @@ export function faceOf(tag) {
 }
 
 /** What the page knows of face `tag` (the hello's `faces`, as `ves faces` lists them):
- * "face 24 · cylinder r 3.25 mm, concave · 34.6 mm²". */
+ * "face 24 · cylinder r 3.25 mm, concave · 34.6 mm²", with the STEP file's name of the face
+ * after its number where the file gives one ("face 3 “mounting face” · plane · …"). */
 export function faceWords(tag) {
   const f = faceOf(tag);
   if (!f) return `face ${tag}`;
@@ -166,7 +167,8 @@ export function faceWords(tag) {
   const kind = f.kind === 'cylinder'
     ? `cylinder r ${label(f.radius_m, 'length', u)}${f.concave ? ', concave' : ''}`
     : f.kind;
-  return `face ${tag} · ${kind} · ${area}`;
+  const name = typeof f.name === 'string' && f.name ? ` “${f.name}”` : '';
+  return `face ${tag}${name} · ${kind} · ${area}`;
 }
 
 /** Face picking on (`onClick(tag)` for each click on a face) or off. */
