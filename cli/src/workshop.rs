@@ -184,8 +184,9 @@ fn starting_scene(geometry: &Path) -> serde_json::Value {
 }
 
 /// A file's stem as a scene name and a file name: ASCII letters, digits, `-` and `_` (others
-/// become `_`), at most 64 characters; "part" for none.
-fn safe_stem(path: &Path) -> String {
+/// become `_`), at most 64 characters; "part" for none. (Also the folder name of a part opened
+/// in the page, with its key.)
+pub(crate) fn safe_stem(path: &Path) -> String {
     let stem = path
         .file_stem()
         .map(|s| s.to_string_lossy().into_owned())
@@ -281,12 +282,6 @@ impl PartWorkshop {
                 let _ = std::fs::remove_file(path);
             }
         }
-    }
-
-    /// Starts from `basis` (a project's, served again): instant bases are made from it.
-    pub fn resume(self, basis: &Path) -> PartWorkshop {
-        *self.last() = Some(basis.to_path_buf());
-        self
     }
 
     /// Serve an instant basis first when only supports, material or modes changed.
@@ -831,6 +826,10 @@ impl Workshop for PartWorkshop {
 
     fn geometry(&self) -> Option<PathBuf> {
         Some(self.part().geometry.clone())
+    }
+
+    fn served_from_project(&self, basis: &Path) {
+        *self.last() = Some(basis.to_path_buf());
     }
 
     fn compute(

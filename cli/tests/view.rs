@@ -1368,13 +1368,8 @@ fn a_refinement_that_stopped_is_accepted_in_one_click() {
     }
 }
 
-/// Issue 44, one set-up owned by the server: `ves view PART.step` keeps its project beside the
-/// part. In one page a user types two edits (6 modes, E = 70 GPa); a second page and that page
-/// reloaded show them, marked as not computed; undo (a real click) returns the first edit in
-/// every page; Compute serves it, and the history names what changed. A server restarted on the
-/// same part serves that basis at once (no compute) with the same set-up and history.
-#[test]
-fn a_second_page_a_reload_and_a_restart_show_the_set_up_the_server_keeps() {
+/// A temporary folder holding a copy of the cantilever's STEP file (its project goes beside it).
+fn cantilever_step_in_a_folder() -> (tempfile::TempDir, std::path::PathBuf) {
     let dir = tempfile::tempdir().expect("a temporary directory");
     let step = dir.path().join("cantilever.step");
     std::fs::copy(
@@ -1382,6 +1377,17 @@ fn a_second_page_a_reload_and_a_restart_show_the_set_up_the_server_keeps() {
         &step,
     )
     .expect("copy the part");
+    (dir, step)
+}
+
+/// Issue 44, one set-up owned by the server: `ves view PART.step` keeps its project beside the
+/// part. In one page a user types two edits (6 modes, E = 70 GPa); a second page and that page
+/// reloaded show them, marked as not computed; undo (a real click) returns the first edit in
+/// every page; Compute serves it, and the history names what changed. A server restarted on the
+/// same part serves that basis at once (no compute) with the same set-up and history.
+#[test]
+fn a_second_page_a_reload_and_a_restart_show_the_set_up_the_server_keeps() {
+    let (dir, step) = cantilever_step_in_a_folder();
     let run = |phase: &str| view_and_browse(&step, &[], "studio.mjs", dir.path(), &[phase]);
 
     let (page, _, err) = run("first");
@@ -1434,6 +1440,78 @@ fn a_second_page_a_reload_and_a_restart_show_the_set_up_the_server_keeps() {
     assert!(warned(&page["start"]), "the served basis's warnings are kept: {page}");
     assert_eq!(page["start"]["history"].as_array().map(Vec::len), Some(2), "{page}");
     assert_eq!(page["start"]["served"]["modes"], 6, "{page}");
+}
+
+/// Issue 44, a part opened in the page keeps a project too: with `ves view` on the cantilever,
+/// a real click on "open a part…" opens the corpus block (its faces named), which is computed
+/// and given one edit (6 modes, not computed). A server started afresh on the cantilever, the
+/// same file opened again in the page: its project (under `VES_PROJECTS_DIR`, named by the part
+/// and its content) is resumed — the basis served without a compute, the edit still marked.
+#[test]
+fn a_part_opened_in_the_page_resumes_its_project() {
+    let (dir, step) = cantilever_step_in_a_folder();
+    let upload_dir = tempfile::tempdir().expect("a folder the page's file comes from");
+    let block = block_with_named_faces(upload_dir.path(), "pmi_block_2holes.step");
+    let projects = dir.path().join("projects");
+    let env = [("VES_PROJECTS_DIR", projects.as_path())];
+    let run = |phase: &str| view_and_browse(&step, &env, "upload.mjs", dir.path(), &[phase, block.to_str().unwrap()]);
+
+    let (page, first, err) = run("first");
+    for k in ["started", "opened", "edited"] {
+        assert_eq!(page[k], true, "{k}: {page}\nserver: {err}");
+    }
+    // Its own folder under VES_PROJECTS_DIR: the part's name and its content's key.
+    let folder: Vec<_> = std::fs::read_dir(&projects)
+        .expect("the projects folder")
+        .filter_map(|e| e.ok().map(|e| e.path()))
+        .collect();
+    assert_eq!(folder.len(), 1, "{folder:?}");
+    let project = &folder[0];
+    let name = project.file_name().unwrap_or_default().to_string_lossy().into_owned();
+    assert!(
+        name.starts_with("pmi_block_2holes-") && name.len() == "pmi_block_2holes-".len() + 12,
+        "{name}"
+    );
+    assert!(err.contains(&format!("project {}: new", project.display())), "{err}");
+    assert!(project.join("project.json").is_file() && project.join("basis.h5").is_file());
+    assert_eq!(page["after"]["served"]["name"], "pmi_block_2holes", "{page}");
+    assert_eq!(page["after"]["edited"], true, "{page}");
+    assert_eq!(page["after"]["project"].as_str(), project.to_str(), "{page}");
+    assert_eq!(first["computes"], 2, "the cantilever's and the block's: {first}");
+
+    let (page, again, err) = run("again");
+    for k in ["started", "opened", "told"] {
+        assert_eq!(page[k], true, "{k}: {page}\nserver: {err}");
+    }
+    assert!(
+        err.contains(&format!("project {}: resumed (1 compute before)", project.display())),
+        "{err}"
+    );
+    assert_eq!(again["computes"], 0, "both projects served, nothing computed: {again}");
+    let after = &page["after"];
+    assert_eq!(after["served"]["name"], "pmi_block_2holes", "{page}");
+    assert_eq!(
+        (after["draftModes"].as_u64(), after["modes"].as_str()),
+        (Some(6), Some("6")),
+        "{page}"
+    );
+    assert_eq!(after["edited"], true, "{page}");
+    assert_eq!(after["history"], 1, "{page}");
+    // The title follows the part opened (it kept the command line's part's before).
+    assert_eq!(after["title"], "pmi_block_2holes.step — VES view", "{page}");
+    assert!(
+        after["progress"]
+            .as_str()
+            .is_some_and(|p| p.contains("its project resumed (1 compute before)")),
+        "{page}"
+    );
+    if let Ok(keep) = std::env::var("VES_VIEW_SCREENSHOTS") {
+        std::fs::copy(
+            dir.path().join("upload_resumed.png"),
+            Path::new(&keep).join("upload_resumed.png"),
+        )
+        .expect("copy a screenshot");
+    }
 }
 
 /// Design loads made in the page (issue 45): on the cantilever held at its root, a real click on

@@ -263,8 +263,11 @@ struct Shared {
     /// Its message as last sent (empty without a workshop): a watch, since only the latest
     /// state matters and a page that lagged must still get it.
     setup_tx: watch::Sender<String>,
-    /// The project on disk, if any; let go when the page opens another part.
+    /// The project on disk, if any; let go when the page opens another part (for that part's
+    /// own, through `uploads`).
     project: Mutex<Option<Keeper>>,
+    /// [`Studio::uploads`].
+    uploads: Option<ProjectFor>,
 }
 
 /// A project and the thread that writes its set-up: edits come from the server's own thread,
@@ -333,7 +336,15 @@ pub struct Studio {
     pub project: Option<Project>,
     /// The set-up to start from (a project's); the workshop's starting scene without.
     pub setup: Option<SetUp>,
+    /// Opens the project of a part opened in the page (**open a part…**); without it such a
+    /// part is set up without one.
+    pub uploads: Option<ProjectFor>,
 }
+
+/// [`Studio::uploads`]: the project (made or resumed) of the part the page opened, from its
+/// file name as the user picked it and its bytes; `None` when it cannot be kept (said by the
+/// caller).
+pub type ProjectFor = Arc<dyn Fn(&str, &[u8]) -> Option<project::Opened> + Send + Sync>;
 
 /// Serves the viewer on `spaces` until the session ends (its duration, Ctrl-C, or `stop`).
 /// `ready` gets the bound address before the first client can connect.
@@ -359,6 +370,7 @@ pub fn serve_with(
         workshop,
         project: None,
         setup: None,
+        uploads: None,
     });
     serve_studio(spaces, studio, cfg, stop, ready)
 }
@@ -494,14 +506,14 @@ const COMPUTE_END_WAIT: Duration = Duration::from_secs(5);
 impl Shared {
     /// The server's state before any session: no basis, no client.
     fn new(cfg: &ViewConfig, studio: Option<Studio>, status: watch::Receiver<String>) -> Shared {
-        let (workshop, project, setup) = match studio {
+        let (workshop, project, setup, uploads) = match studio {
             Some(s) => {
                 let setup = s
                     .setup
                     .unwrap_or_else(|| SetUp::new(s.workshop.setup()["scene"].clone()));
-                (Some(s.workshop), s.project, setup)
+                (Some(s.workshop), s.project, setup, s.uploads)
             }
-            None => (None, None, SetUp::default()),
+            None => (None, None, SetUp::default(), None),
         };
         let (frame_tx, frames) = watch::channel(Bytes::new());
         let (stress_tx, stress_frames) = watch::channel(Bytes::new());
@@ -565,6 +577,7 @@ impl Shared {
             setup: Mutex::new(setup),
             setup_tx: watch::channel(String::new()).0,
             project: Mutex::new(project.map(Keeper::start)),
+            uploads,
         }
     }
 
@@ -1013,20 +1026,65 @@ async fn open_part(
     let shared_open = shared.clone();
     let opened = tokio::task::spawn_blocking(move || {
         workshop.open(&name, &bytes).map_err(OpenFailure::Refused)?;
-        let scene = workshop.setup()["scene"].clone();
-        // Another part: a set-up of its own, and the project (the part ves view was given)
-        // stays as it was left.
+        // Another part: the project before (the part ves view was given, or one opened before)
+        // stays as it was left, and this part's own is made or resumed.
         if let Some(k) = lock(&shared_open.project).take() {
             k.finish();
         }
-        *lock(&shared_open.setup) = SetUp::new(scene.clone());
-        publish_setup(&shared_open);
-        launch(claim, workshop, scene).map_err(OpenFailure::NotStarted)
+        let opened = shared_open.uploads.as_ref().and_then(|f| f(&name, &bytes));
+        let start = workshop.setup()["scene"].clone();
+        let Some(opened) = opened else {
+            *lock(&shared_open.setup) = SetUp::new(start.clone());
+            publish_setup(&shared_open);
+            return launch(claim, workshop, start)
+                .map_err(OpenFailure::NotStarted)
+                .map(|()| None);
+        };
+        if let Some(n) = &opened.notice {
+            eprintln!("ves view: {n}");
+        }
+        let dir = opened.project.dir().display().to_string();
+        let resumed = opened.resumed.as_ref().map(|r| r.setup.history.len());
+        let (setup, basis) = match opened.resumed {
+            Some(r) => (r.setup, r.basis),
+            None => (SetUp::new(start.clone()), None),
+        };
+        // The project's basis, served at once as when `ves view` resumes a project; one that
+        // cannot be read is computed again.
+        let spaces = basis.as_ref().and_then(|b| {
+            ves_runtime::switching::load_spaces(b, None, true)
+                .map_err(|e| eprintln!("ves view: {}: {e}; its scene is computed again", b.display()))
+                .ok()
+        });
+        *lock(&shared_open.project) = Some(Keeper::start(opened.project));
+        let served = setup.served.clone();
+        *lock(&shared_open.setup) = setup;
+        eprintln!(
+            "ves view: project {dir}: {}",
+            project::resumed_words(resumed, spaces.is_some())
+        );
+        match (spaces, basis) {
+            (Some(spaces), Some(b)) => {
+                workshop.served_from_project(&b);
+                swap(&shared_open, spaces, Some(b)).map_err(OpenFailure::Serve)?;
+                publish_setup(&shared_open);
+                drop(claim);
+                Ok(resumed)
+            }
+            _ => {
+                publish_setup(&shared_open);
+                let scene = served.unwrap_or(start);
+                launch(claim, workshop, scene)
+                    .map_err(OpenFailure::NotStarted)
+                    .map(|()| None)
+            }
+        }
     })
     .await
     .unwrap_or_else(|e| Err(OpenFailure::Panicked(e)));
     match opened {
-        Ok(()) => answer(StatusCode::OK, serde_json::json!({"ok": true})),
+        // `resumed`: the part's project was served as it was left (how many computes it had).
+        Ok(resumed) => answer(StatusCode::OK, serde_json::json!({"ok": true, "resumed": resumed})),
         Err(e) => answer(e.status(), serde_json::json!({"error": e.to_string()})),
     }
 }
@@ -1040,6 +1098,9 @@ enum OpenFailure {
     /// The part is open but its compute did not start.
     #[error(transparent)]
     NotStarted(ComputeError),
+    /// The part's project basis could not be served.
+    #[error(transparent)]
+    Serve(ViewError),
     /// The opening task panicked.
     #[error("opening failed: {0}")]
     Panicked(tokio::task::JoinError),
@@ -1051,7 +1112,9 @@ impl OpenFailure {
     fn status(&self) -> StatusCode {
         match self {
             OpenFailure::Refused(_) => StatusCode::UNPROCESSABLE_ENTITY,
-            OpenFailure::NotStarted(_) | OpenFailure::Panicked(_) => StatusCode::INTERNAL_SERVER_ERROR,
+            OpenFailure::NotStarted(_) | OpenFailure::Serve(_) | OpenFailure::Panicked(_) => {
+                StatusCode::INTERNAL_SERVER_ERROR
+            }
         }
     }
 }
@@ -1194,7 +1257,11 @@ fn hello(
     serde_json::json!({
         "type": "hello",
         "protocol": protocol::VERSION,
-        "name": cfg.name,
+        // The part set up now (one opened in the page included), else the file given.
+        "name": part
+            .as_ref()
+            .and_then(|p| p.file_name())
+            .map_or_else(|| cfg.name.clone(), |n| n.to_string_lossy().into_owned()),
         "client": 0,
         "rate_hz": s.rate_hz,
         "max_force": s.coupling.max_force,

@@ -80,6 +80,18 @@ pub struct Opened {
     pub notice: Option<String>,
 }
 
+/// What opening a project did, in words for the user: "new", "resumed (2 computes before)"
+/// (its basis served), or its set-up resumed with its scene computed again. `resumed`: the
+/// computes in the history of a set-up resumed; `served`: whether its basis is served.
+pub fn resumed_words(resumed: Option<usize>, served: bool) -> String {
+    match (resumed, served) {
+        (Some(1), true) => "resumed (1 compute before)".into(),
+        (Some(n), true) => format!("resumed ({n} computes before)"),
+        (Some(_), false) => "its set-up resumed; its scene is computed again".into(),
+        (None, _) => "new".into(),
+    }
+}
+
 impl Project {
     /// Opens (or makes) the project in `dir` for the part named `part` whose content gives `key`.
     pub fn open(dir: &Path, part: &str, key: &str) -> Result<Opened, ProjectError> {

@@ -156,6 +156,9 @@ pub trait Workshop: Send + Sync {
     fn geometry(&self) -> Option<std::path::PathBuf> {
         None
     }
+    /// The basis `basis` of a project is served (no compute made it): the next compute may
+    /// start from it as from one it made.
+    fn served_from_project(&self, _basis: &std::path::Path) {}
 }
 
 /// Largest geometry file the page may send, bytes.

@@ -10,7 +10,7 @@ use std::path::PathBuf;
 use std::sync::Arc;
 use std::sync::atomic::AtomicBool;
 use ves_pipeline::scene::{Scene, SceneOptions};
-use ves_view::{self as view, ViewConfig};
+use ves_view::{self as view, ViewConfig, Workshop};
 
 /// What `ves view` was given: a basis to serve, or a part to set up (its project's basis, if
 /// it had one; else the first basis to come).
@@ -53,10 +53,12 @@ pub struct Args {
     no_instant: bool,
     /// Where the set-up is kept (the scene served, edits, undo, the history of computes, the
     /// basis served last): a part opened again resumes there. Default for a geometry file:
-    /// PART.ves beside it; a scene keeps a project only when given one.
+    /// PART.ves beside it; a scene keeps a project only when given one. A part opened in the
+    /// page keeps its own under VES_PROJECTS_DIR (default ~/.local/share/ves/projects).
     #[arg(long, conflicts_with = "no_project")]
     project: Option<PathBuf>,
-    /// Keep no project: the set-up lives as long as the server.
+    /// Keep no project (nor one for a part opened in the page): the set-up lives as long as the
+    /// server.
     #[arg(long)]
     no_project: bool,
 }
@@ -170,6 +172,7 @@ impl Args {
                 workshop: Arc::new(workshop),
                 project: None,
                 setup: None,
+                uploads: self.uploads(),
             };
             Ok((None, Some(studio)))
         };
@@ -177,15 +180,11 @@ impl Args {
             return none(workshop);
         };
         let dir = std::path::absolute(&dir)?;
-        let mut f = ves_pipeline::fingerprint::Fingerprint::default();
-        for k in key {
-            f.field(k);
-        }
         let name = part
             .file_name()
             .map(|n| n.to_string_lossy().into_owned())
             .unwrap_or_default();
-        let opened = match view::Project::open(&dir, &name, &format!("{:016x}", f.value())) {
+        let opened = match view::Project::open(&dir, &name, &project_key(key)) {
             Ok(o) => o,
             // A folder that cannot be written (a read-only share): the part is still set up.
             Err(e) => {
@@ -206,27 +205,63 @@ impl Args {
                 .map_err(|e| tracing::warn!("{}: {e}; its scene is computed again", b.display()))
                 .ok()
         });
-        let workshop = match (&spaces, &basis) {
-            (Some(_), Some(b)) => workshop.resume(b),
-            _ => workshop,
-        };
+        if let (Some(_), Some(b)) = (&spaces, &basis) {
+            // Instant bases are made from the project's basis, as from one computed.
+            workshop.served_from_project(b);
+        }
         // Said on every start: which folder holds the set-up, and whether it was resumed.
         eprintln!(
             "ves view: project {}: {}",
             dir.display(),
-            match (&setup, &spaces) {
-                (Some(s), Some(_)) => format!("resumed ({} computes before)", s.history.len()),
-                (Some(_), None) => "its set-up resumed; its scene is computed again".into(),
-                _ => "new".into(),
-            }
+            view::project::resumed_words(setup.as_ref().map(|s| s.history.len()), spaces.is_some())
         );
         let studio = view::Studio {
             workshop: Arc::new(workshop),
             project: Some(opened.project),
             setup,
+            uploads: self.uploads(),
         };
         Ok((spaces, Some(studio)))
     }
+
+    /// Where the projects of parts opened in the page (**open a part…**) are kept, each in a
+    /// folder named by the part and its content's key: `VES_PROJECTS_DIR`, else
+    /// `$XDG_DATA_HOME/ves/projects`, else `~/.local/share/ves/projects`; none with --no-project.
+    fn uploads(&self) -> Option<view::ProjectFor> {
+        if self.no_project {
+            return None;
+        }
+        let var = |v: &str| std::env::var_os(v).map(PathBuf::from).filter(|p| p.is_absolute());
+        let home = var("VES_PROJECTS_DIR")
+            .or_else(|| var("XDG_DATA_HOME").map(|d| d.join("ves/projects")))
+            .or_else(|| var("HOME").map(|h| h.join(".local/share/ves/projects")))?;
+        Some(Arc::new(move |name: &str, bytes: &[u8]| {
+            let key = project_key(&[bytes]);
+            let file = std::path::Path::new(name);
+            let dir = home.join(format!("{}-{}", crate::workshop::safe_stem(file), &key[..12]));
+            let part = file
+                .file_name()
+                .map(|n| n.to_string_lossy().into_owned())
+                .unwrap_or_default();
+            view::Project::open(&dir, &part, &key)
+                .map_err(|view::project::ProjectError::Folder { dir, error }| {
+                    tracing::warn!(
+                        "{}: {error}; the part opened in the page is set up without a project (set VES_PROJECTS_DIR to a folder you can write)",
+                        dir.display()
+                    )
+                })
+                .ok()
+        }))
+    }
+}
+
+/// A project's key: the fingerprint of the part's bytes (and a scene's text).
+fn project_key(parts: &[&[u8]]) -> String {
+    let mut f = ves_pipeline::fingerprint::Fingerprint::default();
+    for p in parts {
+        f.field(p);
+    }
+    format!("{:016x}", f.value())
 }
 
 /// The part's bytes, for its project's key.

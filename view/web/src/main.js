@@ -78,7 +78,8 @@ function onText(msg) {
 function onBinary(kind, m) {
   if (kind === KINDS.MESH) addSpace(m, setup.litFaces());
   else if (kind === KINDS.FRAME) {
-    if (!state.spaces[m.space]) return;
+    // A frame of the basis before a swap may arrive after the new part's mesh: not this part's.
+    if (!state.spaces[m.space] || m.vertices !== state.spaces[m.space].vertices) return;
     if (onFrame(m)) {
       // Another space is active: its modes and load cases are offered.
       const info = state.hello.spaces[m.space];

@@ -387,6 +387,11 @@ export function setupPanel(send, pick, faceMode, faceOf, light) {
       const r = await fetch(`/open?name=${encodeURIComponent(file.name)}`, { method: 'POST', body: file });
       const answer = await r.json().catch(() => ({ error: `the server answered ${r.status}` }));
       if (answer.error) { problem(answer.error); $('progresstext').textContent = ''; }
+      // Its project on the server was resumed: its basis is served as it was left, no compute.
+      else if (typeof answer.resumed === 'number') {
+        const n = answer.resumed;
+        $('progresstext').textContent = `opened ${file.name}: its project resumed (${n} compute${n === 1 ? '' : 's'} before), nothing computed`;
+      }
     } catch (err) {
       problem(`could not send ${file.name}: ${err.message}`);
     }

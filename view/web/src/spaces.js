@@ -174,7 +174,8 @@ function samePose(a, b) {
 /** A decoded stress message: the fields of its space, coloured at the next drawing. */
 export function onStress(m) {
   const s = state.spaces[m.space];
-  if (!s) return;
+  // The stress of a frame before a swap (another part's vertex count) is not this part's.
+  if (!s || m.vonMises.length !== s.vertices) return;
   s.vm = m.vonMises;
   s.p1 = m.principal;
   state.dirty = true;

@@ -1,0 +1,57 @@
+// A part opened in the page keeps a project of its own (issue 44): "first" opens PART through
+// "open a part…" (the file chooser), waits for its compute and types one edit (6 modes);
+// "again", on a server started afresh, opens the same file: its project is resumed — the set-up
+// with the edit not computed, the basis served without a compute.
+// Arguments: URL, the page's sources, the screenshot folder, "first" | "again", PART's path.
+// Prints one JSON line of what the page showed.
+import { launch, newPage, until } from './browser.mjs';
+
+const [url, webDir, shots, phase, part] = process.argv.slice(2);
+const browser = await launch(webDir);
+const errors = [];
+const out = { phase, errors };
+
+const state = (page) => page.evaluate(() => {
+  const s = window.ves.setup.state();
+  return {
+    modes: /** @type {HTMLInputElement} */ (document.getElementById('modecount')).value,
+    edited: !document.getElementById('edited').hidden,
+    progress: document.getElementById('progresstext').textContent,
+    project: s ? s.project : null,
+    served: s && s.served ? { name: s.served.name, modes: s.served.modes.count } : null,
+    draftModes: s && s.draft ? s.draft.modes.count : null,
+    history: s ? s.history.length : null,
+    title: document.title,
+  };
+});
+
+try {
+  const page = await newPage(browser, errors, { width: 1400, height: 900 });
+  await page.goto(url);
+  // The command-line part served, nothing computing.
+  out.started = await until(page, () => { const s = window.ves.setup.state(); return s && s.served && window.ves.status && !window.ves.status.computing; }, undefined, 600000);
+  out.before = await state(page);
+  // A real click on "open a part…" and the file chooser it opens.
+  const [chooser] = await Promise.all([page.waitForEvent('filechooser'), page.click('#openpart')]);
+  await chooser.setFiles(part);
+  // The opened part served (its name in the served scene) and its compute over (in its
+  // history: the status's "computing" may be older than the served scene).
+  out.opened = await until(page, () => {
+    const s = window.ves.setup.state();
+    return s && s.served && s.served.name !== 'cantilever' && s.project && s.history.length >= 1 && window.ves.status && !window.ves.status.computing;
+  }, undefined, 600000);
+  if (phase === 'first') {
+    await page.click('#modecount', { clickCount: 3 });
+    await page.keyboard.type('6');
+    await page.keyboard.press('Tab');
+    out.edited = await until(page, () => window.ves.setup.state().draft.modes.count === 6, undefined, 20000);
+  } else {
+    out.told = await until(page, () => /resumed/.test(document.getElementById('progresstext').textContent), undefined, 20000);
+    await page.screenshot({ path: `${shots}/upload_resumed.png` });
+  }
+  out.after = await state(page);
+} catch (e) {
+  out.failure = String(e && e.stack || e);
+}
+await browser.close();
+console.log(JSON.stringify(out));
