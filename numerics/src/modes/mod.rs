@@ -145,7 +145,9 @@ fn factor_shifted(
 ) -> Result<crate::linsolve::Cholesky, FactorError> {
     use crate::linsolve::Cholesky;
     let shifted: Vec<f64> = problem.k.iter().zip(problem.m).map(|(k, m)| k - sigma * m).collect();
+    let t0 = std::time::Instant::now();
     let symbolic = Cholesky::analyse(problem.pattern, ordering)?;
+    tracing::debug!(seconds = t0.elapsed().as_secs_f64(), "analysed");
     Cholesky::factor(symbolic, problem.pattern, &shifted, sigma)
 }
 

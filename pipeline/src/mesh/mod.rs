@@ -206,6 +206,12 @@ pub fn warm_cache(scene: &Scene, voi: Option<&Voi>, field: Option<&field::SizeFi
     true
 }
 
+/// The solvers of a mesh (made here, or read back from a basis) reuse its fill-reducing
+/// ordering from the mesh cache's folder, keyed by the mesh's node graph.
+pub fn keep_orderings() {
+    crate::linsolve::keep_orderings_in(&cache::Orderings);
+}
+
 /// [`generate`], with the sizes of `field` instead of the scene's and the VOI's when given
 /// (local refinement); `quiet` turns its warnings into info lines (a helper mesh, such as a
 /// coarser one for the error estimate, is not what the user asked about).
@@ -215,8 +221,7 @@ pub fn generate_with(
     field: Option<&field::SizeField>,
     quiet: bool,
 ) -> Result<(Mesh, Meshing), MeshError> {
-    // The solvers of a mesh made here reuse its fill-reducing ordering from the cache's folder.
-    crate::linsolve::keep_orderings_in(&cache::Orderings);
+    keep_orderings();
     let mut part = Part::read(Request::new(scene, voi, field, quiet))?;
     if let Some((mesh, mut meshing)) = part.cached() {
         tracing::info!(nodes = mesh.nodes.len(), "mesh cache hit");

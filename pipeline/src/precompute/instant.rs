@@ -98,6 +98,8 @@ pub fn run(scene: &Scene, previous: &Path, out: &Path) -> Result<Option<(Summary
     crate::progress::stage("assembling on the previous mesh", 0.1)?;
     let t = Instant::now();
     let mesh = stored.mesh;
+    // The mesh's ordering, kept when it was made (or by the last basis on it), is not made again.
+    crate::mesh::keep_orderings();
     let dofs = crate::supports::select(&mesh, &scene.fixed)?;
     let springs: Vec<_> = crate::supports::springs(&mesh, &scene.fixed, scene.material.young)?
         .into_iter()
