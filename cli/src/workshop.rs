@@ -101,6 +101,9 @@ pub struct PartWorkshop {
     last: std::sync::Mutex<Option<PathBuf>>,
     /// Whether an instant basis is served first when it can be (`ves view --instant`).
     instant: bool,
+    /// The part before the one opened last, with the basis served then, until the new part's
+    /// first compute ends ([`Workshop::settle`]).
+    previous: std::sync::Mutex<Option<(Part, Option<PathBuf>)>>,
 }
 
 /// The part being set up: its geometry file and the scene the page starts from.
@@ -268,6 +271,7 @@ impl PartWorkshop {
             solver,
             last: std::sync::Mutex::new(None),
             instant: false,
+            previous: std::sync::Mutex::new(None),
         })
     }
 
@@ -295,6 +299,17 @@ impl PartWorkshop {
 
     fn part(&self) -> std::sync::MutexGuard<'_, Part> {
         self.part.lock().unwrap_or_else(|p| p.into_inner())
+    }
+
+    fn previous(&self) -> std::sync::MutexGuard<'_, Option<(Part, Option<PathBuf>)>> {
+        self.previous.lock().unwrap_or_else(|p| p.into_inner())
+    }
+
+    /// Removes a part uploaded before (not the user's own file): no compute can use it any more.
+    fn forget(&self, part: &Part) {
+        if let Some(dir) = part.geometry.parent().filter(|d| d.starts_with(self.dir.path())) {
+            let _ = std::fs::remove_dir_all(dir);
+        }
     }
 
     /// `scene` (JSON from the page) as scene text with `geometry`: `absolute` names the file by
@@ -875,7 +890,17 @@ impl Workshop for PartWorkshop {
             let done = self.compute_in_child(exe, &dir, &job, &saved, &progress, &cancel, ready);
             // Whatever happened: the child's own folders (meshing) are in there too.
             let _ = std::fs::remove_dir_all(&dir);
-            return done;
+            // The page's user knows a part opened in the page by its name, not the folder the
+            // server keeps it in.
+            return done.map_err(|e| match e {
+                WorkshopError::Failed { message } => WorkshopError::Failed {
+                    message: message.replace(
+                        &geometry.display().to_string(),
+                        &geometry.file_name().unwrap_or_default().to_string_lossy(),
+                    ),
+                },
+                e => e,
+            });
         }
         let failed = |e: anyhow::Error| WorkshopError::Failed {
             message: format!("{e:#}").replace('\n', " "),
@@ -947,15 +972,31 @@ impl Workshop for PartWorkshop {
             return Err(WorkshopError::KeepPart(e));
         }
         // Another part: no instant basis from the last one's.
-        *self.last() = None;
-        let mut part = self.part();
-        part.start = starting_scene(&path);
-        let before = std::mem::replace(&mut part.geometry, path);
-        // A part uploaded before (not the user's own file): no compute can use it any more.
-        if let Some(old) = before.parent().filter(|d| d.starts_with(self.dir.path())) {
-            let _ = std::fs::remove_dir_all(old);
+        let last = self.last().take();
+        let new = Part {
+            start: starting_scene(&path),
+            geometry: path,
+        };
+        let before = std::mem::replace(&mut *self.part(), new);
+        // The part before is kept until the new one has made a basis; one kept from an opening
+        // before is of no more use.
+        if let Some((older, _)) = self.previous().replace((before, last)) {
+            self.forget(&older);
         }
         Ok(())
+    }
+
+    fn settle(&self, keep: bool) {
+        let Some((before, last)) = self.previous().take() else {
+            return;
+        };
+        if keep {
+            self.forget(&before);
+        } else {
+            let opened = std::mem::replace(&mut *self.part(), before);
+            *self.last() = last;
+            self.forget(&opened);
+        }
     }
 }
 

@@ -1454,12 +1454,36 @@ fn a_part_opened_in_the_page_resumes_its_project() {
     let block = block_with_named_faces(upload_dir.path(), "pmi_block_2holes.step");
     let projects = dir.path().join("projects");
     let env = [("VES_PROJECTS_DIR", projects.as_path())];
-    let run = |phase: &str| view_and_browse(&step, &env, "upload.mjs", dir.path(), &[phase, block.to_str().unwrap()]);
+    // A file that starts as STEP and is cut short: it is taken, and its compute fails.
+    let text = std::fs::read_to_string(&block).expect("the block");
+    let bad = write_file(upload_dir.path(), "cut.step", &text[..text.len() / 3]);
+    let run = |phase: &str| {
+        let args = [phase, block.to_str().unwrap(), bad.to_str().unwrap()];
+        view_and_browse(&step, &env, "upload.mjs", dir.path(), &args)
+    };
 
     let (page, first, err) = run("first");
-    for k in ["started", "opened", "edited"] {
+    for k in ["started", "badFailed", "opened", "edited"] {
         assert_eq!(page[k], true, "{k}: {page}\nserver: {err}");
     }
+    // The cut file's compute failed: the cantilever is still the part set up — its set-up, its
+    // project beside it, its title — and the page says so.
+    let bad = &page["afterBad"];
+    assert_eq!(bad["served"]["name"], "cantilever", "{page}");
+    assert_eq!(
+        bad["project"].as_str(),
+        dir.path().join("cantilever.ves").to_str(),
+        "{page}"
+    );
+    assert_eq!(bad["title"], "cantilever.step — VES view", "{page}");
+    // Said in the page by the file's own name: what failed, why, and what is still set up.
+    let said = page["badError"].as_str().unwrap_or_default();
+    assert!(
+        said.contains("cantilever.step is still the part set up")
+            && said.contains("cut.step: gmsh could not read it")
+            && !said.contains("ves-view"),
+        "{page}"
+    );
     // Its own folder under VES_PROJECTS_DIR: the part's name and its content's key.
     let folder: Vec<_> = std::fs::read_dir(&projects)
         .expect("the projects folder")
@@ -1477,7 +1501,10 @@ fn a_part_opened_in_the_page_resumes_its_project() {
     assert_eq!(page["after"]["served"]["name"], "pmi_block_2holes", "{page}");
     assert_eq!(page["after"]["edited"], true, "{page}");
     assert_eq!(page["after"]["project"].as_str(), project.to_str(), "{page}");
-    assert_eq!(first["computes"], 2, "the cantilever's and the block's: {first}");
+    assert_eq!(
+        first["computes"], 3,
+        "the cantilever's, the cut file's and the block's: {first}"
+    );
 
     let (page, again, err) = run("again");
     for k in ["started", "opened", "told"] {

@@ -9,8 +9,9 @@
 
 use std::collections::HashMap;
 
-/// Longest face name kept, characters (longer ones are cut, marked with "…").
-const NAME_CHARS: usize = 80;
+/// Longest face name kept, characters (longer ones are cut, marked with "…"): a bound on what a
+/// hostile file makes every listing carry, far above any CAD system's face names.
+const NAME_CHARS: usize = 256;
 /// Deepest nesting of a statement's parameters that is read.
 const DEPTH: usize = 16;
 

@@ -268,6 +268,9 @@ struct Shared {
     project: Mutex<Option<Keeper>>,
     /// [`Studio::uploads`].
     uploads: Option<ProjectFor>,
+    /// While the first compute of a part opened in the page runs: the set-up and the project
+    /// before it, put back (with the workshop's part) if that compute makes no basis.
+    opening: Mutex<Option<(SetUp, Option<Arc<Project>>)>>,
 }
 
 /// A project and the thread that writes its set-up: edits come from the server's own thread,
@@ -283,8 +286,7 @@ struct Keeper {
 type Slot = (Mutex<(Option<SetUp>, bool)>, std::sync::Condvar);
 
 impl Keeper {
-    fn start(project: Project) -> Keeper {
-        let project = Arc::new(project);
+    fn start(project: Arc<Project>) -> Keeper {
         let slot: Arc<Slot> = Arc::default();
         let thread = std::thread::spawn({
             let (project, slot) = (project.clone(), slot.clone());
@@ -319,11 +321,12 @@ impl Keeper {
         self.slot.1.notify_one();
     }
 
-    /// Writes what is in the slot and ends the thread.
-    fn finish(self) {
+    /// Writes what is in the slot and ends the thread; the project, to keep again later.
+    fn finish(self) -> Arc<Project> {
         lock(&self.slot.0).1 = true;
         self.slot.1.notify_one();
         let _ = self.thread.join();
+        self.project
     }
 }
 
@@ -576,7 +579,8 @@ impl Shared {
             swaps: AtomicU64::new(0),
             setup: Mutex::new(setup),
             setup_tx: watch::channel(String::new()).0,
-            project: Mutex::new(project.map(Keeper::start)),
+            project: Mutex::new(project.map(|p| Keeper::start(Arc::new(p)))),
+            opening: Mutex::new(None),
             uploads,
         }
     }
@@ -784,6 +788,10 @@ fn run_compute(shared: &Arc<Shared>, workshop: &dyn Workshop, scene: &serde_json
         let spaces = ves_runtime::switching::load_spaces(&c.basis, None, true).map_err(ViewError::Load)?;
         swap(shared, spaces, Some(c.basis.clone()))?;
         swapped = true;
+        // A part opened in the page is served: it reads, the part before is let go.
+        if lock(&shared.opening).take().is_some() {
+            workshop.settle(true);
+        }
         shared.checking.store(true, Ordering::Release);
         change_setup(shared, |s| {
             s.serve(scene.clone(), c.scene.clone(), c.summary.clone(), c.warnings.clone());
@@ -833,6 +841,41 @@ fn run_compute(shared: &Arc<Shared>, workshop: &dyn Workshop, scene: &serde_json
         Ok(_) if swapped => refresh_loads(shared),
         _ => None,
     };
+    // The first compute of a part opened in the page made no basis (it failed or was
+    // cancelled): the part before is the part again, with its set-up and project.
+    let opening = lock(&shared.opening).take();
+    if let Some((setup_before, project_before)) = opening {
+        workshop.settle(false);
+        // The opened part's project, made for it now, keeps nothing: it goes too.
+        let new_part = lock(&shared.setup).history.is_empty();
+        if let Some(k) = lock(&shared.project).take() {
+            let p = k.finish();
+            if new_part {
+                p.discard();
+            }
+        }
+        *lock(&shared.project) = project_before.map(Keeper::start);
+        *lock(&shared.setup) = setup_before;
+        publish_setup(shared);
+        let failed = match &done {
+            Err(e) => e.to_string(),
+            Ok(_) => "the compute made no basis".into(),
+        };
+        shared.computes_failed.fetch_add(1, Ordering::Relaxed);
+        let part = shared
+            .generation
+            .read()
+            .ok()
+            .and_then(|g| g.hello["name"].as_str().map(String::from));
+        note(
+            shared,
+            serde_json::json!({"type": "compute_error", "message": format!(
+                "the part opened was not computed ({failed}); {} is still the part set up",
+                part.as_deref().unwrap_or("the part before")
+            )}),
+        );
+        return;
+    }
     match &done {
         Ok(c) if swapped => {
             keep_basis(shared, &c.basis);
@@ -948,7 +991,15 @@ fn publish_setup(shared: &Shared) {
     if let Some(k) = project.as_ref() {
         k.keep(s.clone());
     }
-    shared.setup_tx.send_replace(s.message(folder.as_deref()).to_string());
+    let mut message = s.message(folder.as_deref());
+    // A part opened in the page whose first compute runs: its name (the drawing is still the
+    // part before's).
+    if lock(&shared.opening).is_some()
+        && let Some(name) = shared.workshop.as_ref().and_then(|w| w.geometry())
+    {
+        message["opening"] = name.file_name().unwrap_or_default().to_string_lossy().into();
+    }
+    shared.setup_tx.send_replace(message.to_string());
 }
 
 /// Applies `f` to the set-up and, if it says it changed it, publishes it.
@@ -1027,10 +1078,10 @@ async fn open_part(
     let opened = tokio::task::spawn_blocking(move || {
         workshop.open(&name, &bytes).map_err(OpenFailure::Refused)?;
         // Another part: the project before (the part ves view was given, or one opened before)
-        // stays as it was left, and this part's own is made or resumed.
-        if let Some(k) = lock(&shared_open.project).take() {
-            k.finish();
-        }
+        // stays as it was left, and this part's own is made or resumed. Both come back if the
+        // new part's first compute makes no basis (a file that starts as STEP but does not read).
+        let before = lock(&shared_open.project).take().map(Keeper::finish);
+        *lock(&shared_open.opening) = Some((lock(&shared_open.setup).clone(), before));
         let opened = shared_open.uploads.as_ref().and_then(|f| f(&name, &bytes));
         let start = workshop.setup()["scene"].clone();
         let Some(opened) = opened else {
@@ -1056,7 +1107,7 @@ async fn open_part(
                 .map_err(|e| eprintln!("ves view: {}: {e}; its scene is computed again", b.display()))
                 .ok()
         });
-        *lock(&shared_open.project) = Some(Keeper::start(opened.project));
+        *lock(&shared_open.project) = Some(Keeper::start(Arc::new(opened.project)));
         let served = setup.served.clone();
         *lock(&shared_open.setup) = setup;
         eprintln!(
@@ -1067,6 +1118,9 @@ async fn open_part(
             (Some(spaces), Some(b)) => {
                 workshop.served_from_project(&b);
                 swap(&shared_open, spaces, Some(b)).map_err(OpenFailure::Serve)?;
+                // Served: the part reads, the one before is let go.
+                lock(&shared_open.opening).take();
+                workshop.settle(true);
                 publish_setup(&shared_open);
                 drop(claim);
                 Ok(resumed)

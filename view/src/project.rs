@@ -157,6 +157,15 @@ impl Project {
         replace(&self.dir.join(STATE), |f| f.write_all(&text))
     }
 
+    /// Removes what the project wrote, and its folder when nothing else is in it: a project
+    /// made for a part whose first compute failed keeps nothing worth resuming.
+    pub fn discard(&self) {
+        for f in [STATE, BASIS] {
+            let _ = std::fs::remove_file(self.dir.join(f));
+        }
+        let _ = std::fs::remove_dir(&self.dir);
+    }
+
     /// Keeps a copy of the basis `from` as the project's basis.
     pub fn keep_basis(&self, from: &Path) -> std::io::Result<()> {
         replace(&self.dir.join(BASIS), |f| {

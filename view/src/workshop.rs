@@ -159,6 +159,9 @@ pub trait Workshop: Send + Sync {
     /// The basis `basis` of a project is served (no compute made it): the next compute may
     /// start from it as from one it made.
     fn served_from_project(&self, _basis: &std::path::Path) {}
+    /// After [`Workshop::open`], once the new part's first compute ended: `keep` (it made a
+    /// basis) lets the part before go; otherwise the part before is the part again.
+    fn settle(&self, _keep: bool) {}
 }
 
 /// Largest geometry file the page may send, bytes.

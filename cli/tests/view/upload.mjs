@@ -2,11 +2,14 @@
 // "open a part…" (the file chooser), waits for its compute and types one edit (6 modes);
 // "again", on a server started afresh, opens the same file: its project is resumed — the set-up
 // with the edit not computed, the basis served without a compute.
-// Arguments: URL, the page's sources, the screenshot folder, "first" | "again", PART's path.
+// In "first", a file that starts as STEP but is cut short (BAD) is opened before PART: its
+// compute fails, and the part before stays the part set up (its set-up, project and title).
+// Arguments: URL, the page's sources, the screenshot folder, "first" | "again", PART's path,
+// BAD's path.
 // Prints one JSON line of what the page showed.
 import { launch, newPage, until } from './browser.mjs';
 
-const [url, webDir, shots, phase, part] = process.argv.slice(2);
+const [url, webDir, shots, phase, part, bad] = process.argv.slice(2);
 const browser = await launch(webDir);
 const errors = [];
 const out = { phase, errors };
@@ -31,9 +34,19 @@ try {
   // The command-line part served, nothing computing.
   out.started = await until(page, () => { const s = window.ves.setup.state(); return s && s.served && window.ves.status && !window.ves.status.computing; }, undefined, 600000);
   out.before = await state(page);
-  // A real click on "open a part…" and the file chooser it opens.
-  const [chooser] = await Promise.all([page.waitForEvent('filechooser'), page.click('#openpart')]);
-  await chooser.setFiles(part);
+  /** A real click on "open a part…" and the file chooser it opens, given `file`. */
+  const open = async (file) => {
+    const [chooser] = await Promise.all([page.waitForEvent('filechooser'), page.click('#openpart')]);
+    await chooser.setFiles(file);
+  };
+  if (phase === 'first') {
+    const notes = await page.evaluate(() => window.ves.notes.length);
+    await open(bad);
+    out.badFailed = await until(page, (n) => window.ves.notes.slice(n).some((m) => m.type === 'compute_error'), notes, 600000);
+    out.afterBad = await state(page);
+    out.badError = await page.evaluate(() => document.getElementById('setuperror').textContent);
+  }
+  await open(part);
   // The opened part served (its name in the served scene) and its compute over (in its
   // history: the status's "computing" may be older than the served scene).
   out.opened = await until(page, () => {

@@ -741,9 +741,18 @@ fn attempt_once(
     let scale = gmsh_scale(req);
     session.set_string("Geometry.OCCTargetUnit", "MM").map_err(g)?;
     phase(isolation::READING);
-    session
-        .open(req.source.as_deref().unwrap_or(req.geometry.as_path()))
-        .map_err(g)?;
+    let source = req.source.as_deref().unwrap_or(req.geometry.as_path());
+    session.open(source).map_err(|e| {
+        // gmsh names the private copy it read: the user knows the file by its own name.
+        let cause = e.to_string().replace(&source.display().to_string(), &path);
+        Attempt::Fatal(MeshError::Geometry {
+            path: path.clone(),
+            message: format!(
+                "gmsh could not read it ({cause}): the file may be cut short or damaged; export the part again \
+                 from its CAD system (STEP AP214 or AP242, one solid)"
+            ),
+        })
+    })?;
     let volumes = session.entities(3).map_err(g)?;
     if volumes.is_empty() {
         let faces = session.entities(2).map_err(g)?.len();

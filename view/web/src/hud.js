@@ -76,9 +76,13 @@ function showSupports(m) {
   }
   const shown = $('showsupports').checked;
   const share = modalShare(m, list);
+  // At rest a support carries nothing, or the last of a released pull's decay (1e-187 N): no
+  // label below a millionth of the device's force limit (its moment: of that force across the
+  // part).
+  const tiny = 1e-6 * (state.hello?.max_force || 1);
   supportTags.forEach((tag, k) => {
-    // At rest every support carries exactly nothing: no label then.
-    const on = shown && k < list.length && [...list[k].force_n, ...list[k].moment_nm].some((v) => v !== 0);
+    const on = shown && k < list.length
+      && (Math.hypot(...list[k].force_n) > tiny || Math.hypot(...list[k].moment_nm) > tiny * (state.diag || 1));
     tag.style.display = on ? 'block' : 'none';
     tag.dataset.support = String(k);
     if (!on) return;

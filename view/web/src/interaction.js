@@ -167,7 +167,9 @@ export function faceWords(tag) {
   const kind = f.kind === 'cylinder'
     ? `cylinder r ${label(f.radius_m, 'length', u)}${f.concave ? ', concave' : ''}`
     : f.kind;
-  const name = typeof f.name === 'string' && f.name ? ` “${f.name}”` : '';
+  // The STEP file's name, cut for the tooltip (`ves faces --json` has it whole).
+  const named = typeof f.name === 'string' ? f.name : '';
+  const name = named ? ` “${named.length > 60 ? `${named.slice(0, 59)}…` : named}”` : '';
   return `face ${tag}${name} · ${kind} · ${area}`;
 }
 

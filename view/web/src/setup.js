@@ -421,6 +421,7 @@ export function setupPanel(send, pick, faceMode, faceOf, light) {
       if (geometry !== s.geometry || !scene) {
         geometry = s.geometry;
         $('geomname').textContent = geometry || '';
+        $('geomname').title = geometry || '';
         // A STEP or IGES file states its unit: the choice is only for a BREP file.
         $('unitrow').hidden = !/\.brep$/i.test(geometry || '');
         if (!told || !scene) {
@@ -459,6 +460,9 @@ export function setupPanel(send, pick, faceMode, faceOf, light) {
       // A page opened (or reloaded) after the compute: what is served, not an empty line.
       if (msg.summary && !$('progresstext').textContent) $('progresstext').textContent = `computed: ${inPage(msg.summary)}`;
       showMeshQuality(msg.mesh);
+      // A part opened in the page and not computed yet: the panel is its set-up, the drawing
+      // still the part before (put back if the new one does not compute).
+      $('geomname').textContent = msg.opening ? `opening ${msg.opening}… (${geometry || 'the part'} shown)` : geometry || '';
       showState();
     },
     /** Compute progress, its end, or why it failed. */
