@@ -1458,7 +1458,12 @@ fn a_part_opened_in_the_page_resumes_its_project() {
     let text = std::fs::read_to_string(&block).expect("the block");
     let bad = write_file(upload_dir.path(), "cut.step", &text[..text.len() / 3]);
     let run = |phase: &str| {
-        let args = [phase, block.to_str().unwrap(), bad.to_str().unwrap()];
+        let args = [
+            phase,
+            block.to_str().unwrap(),
+            bad.to_str().unwrap(),
+            step.to_str().unwrap(),
+        ];
         view_and_browse(&step, &env, "upload.mjs", dir.path(), &args)
     };
 
@@ -1524,6 +1529,14 @@ fn a_part_opened_in_the_page_resumes_its_project() {
     );
     assert_eq!(after["edited"], true, "{page}");
     assert_eq!(after["history"], 1, "{page}");
+    // The command-line part's file opened in the page: its own project, resumed, not a new one.
+    assert_eq!(page["back"], true, "{page}");
+    assert_eq!(
+        page["backState"]["progress"].as_str().map(|p| p.contains("resumed")),
+        Some(true),
+        "{page}"
+    );
+    assert_eq!(again["computes"], 0, "nothing computed: {again}");
     // The title follows the part opened (it kept the command line's part's before).
     assert_eq!(after["title"], "pmi_block_2holes.step — VES view", "{page}");
     assert!(

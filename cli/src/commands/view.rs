@@ -172,7 +172,7 @@ impl Args {
                 workshop: Arc::new(workshop),
                 project: None,
                 setup: None,
-                uploads: self.uploads(),
+                uploads: self.uploads(None),
             };
             Ok((None, Some(studio)))
         };
@@ -184,7 +184,8 @@ impl Args {
             .file_name()
             .map(|n| n.to_string_lossy().into_owned())
             .unwrap_or_default();
-        let opened = match view::Project::open(&dir, &name, &project_key(key)) {
+        let key = project_key(key);
+        let opened = match view::Project::open(&dir, &name, &key) {
             Ok(o) => o,
             // A folder that cannot be written (a read-only share): the part is still set up.
             Err(e) => {
@@ -219,7 +220,7 @@ impl Args {
             workshop: Arc::new(workshop),
             project: Some(opened.project),
             setup,
-            uploads: self.uploads(),
+            uploads: self.uploads(Some((dir.clone(), key))),
         };
         Ok((spaces, Some(studio)))
     }
@@ -227,7 +228,9 @@ impl Args {
     /// Where the projects of parts opened in the page (**open a part…**) are kept, each in a
     /// folder named by the part and its content's key: `VES_PROJECTS_DIR`, else
     /// `$XDG_DATA_HOME/ves/projects`, else `~/.local/share/ves/projects`; none with --no-project.
-    fn uploads(&self) -> Option<view::ProjectFor> {
+    /// The command-line part opened again in the page (`own`: its project's folder and key, the
+    /// same bytes) goes back to its own project.
+    fn uploads(&self, own: Option<(PathBuf, String)>) -> Option<view::ProjectFor> {
         if self.no_project {
             return None;
         }
@@ -238,7 +241,10 @@ impl Args {
         Some(Arc::new(move |name: &str, bytes: &[u8]| {
             let key = project_key(&[bytes]);
             let file = std::path::Path::new(name);
-            let dir = home.join(format!("{}-{}", crate::workshop::safe_stem(file), &key[..12]));
+            let dir = match &own {
+                Some((dir, own_key)) if *own_key == key => dir.clone(),
+                _ => home.join(format!("{}-{}", crate::workshop::safe_stem(file), &key[..12])),
+            };
             let part = file
                 .file_name()
                 .map(|n| n.to_string_lossy().into_owned())

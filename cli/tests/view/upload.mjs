@@ -4,12 +4,13 @@
 // with the edit not computed, the basis served without a compute.
 // In "first", a file that starts as STEP but is cut short (BAD) is opened before PART: its
 // compute fails, and the part before stays the part set up (its set-up, project and title).
-// Arguments: URL, the page's sources, the screenshot folder, "first" | "again", PART's path,
-// BAD's path.
+// In "again", the command-line part's own file (OWN) opened in the page last goes back to its
+// project beside it. Arguments: URL, the page's sources, the screenshot folder, "first" |
+// "again", PART's path, BAD's path, OWN's path.
 // Prints one JSON line of what the page showed.
 import { launch, newPage, until } from './browser.mjs';
 
-const [url, webDir, shots, phase, part, bad] = process.argv.slice(2);
+const [url, webDir, shots, phase, part, bad, own] = process.argv.slice(2);
 const browser = await launch(webDir);
 const errors = [];
 const out = { phase, errors };
@@ -63,6 +64,15 @@ try {
     await page.screenshot({ path: `${shots}/upload_resumed.png` });
   }
   out.after = await state(page);
+  if (phase === 'again') {
+    // The command-line part's own file opened in the page: back to its project beside it.
+    await open(own);
+    out.back = await until(page, () => {
+      const s = window.ves.setup.state();
+      return s && s.project && s.project.endsWith('cantilever.ves') && s.served && s.served.name === 'cantilever';
+    }, undefined, 60000);
+    out.backState = await state(page);
+  }
 } catch (e) {
   out.failure = String(e && e.stack || e);
 }
