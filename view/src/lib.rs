@@ -1095,7 +1095,7 @@ async fn open_part(
             eprintln!("ves view: {n}");
         }
         let dir = opened.project.dir().display().to_string();
-        let resumed = opened.resumed.as_ref().map(|r| r.setup.history.len());
+        let resumed = opened.resumed.as_ref().map(|r| r.setup.computes());
         let (setup, basis) = match opened.resumed {
             Some(r) => (r.setup, r.basis),
             None => (SetUp::new(start.clone()), None),

@@ -117,6 +117,11 @@ impl SetUp {
         push_bounded(&mut self.history, entry, HISTORY);
     }
 
+    /// The computes in the history that made a basis (cancelled and failed ones left out).
+    pub fn computes(&self) -> usize {
+        self.history.iter().filter(|e| e.outcome == "computed").count()
+    }
+
     /// The message every page gets: `{"type":"setup","draft","served","served_toml","summary",
     /// "warnings","mesh","edited","undo","redo","history","project"}` (`undo` and `redo` count the steps
     /// available; `history` is the newest [`HISTORY_SHOWN`] computes).

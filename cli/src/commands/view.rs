@@ -214,7 +214,7 @@ impl Args {
         eprintln!(
             "ves view: project {}: {}",
             dir.display(),
-            view::project::resumed_words(setup.as_ref().map(|s| s.history.len()), spaces.is_some())
+            view::project::resumed_words(setup.as_ref().map(view::setup::SetUp::computes), spaces.is_some())
         );
         let studio = view::Studio {
             workshop: Arc::new(workshop),

@@ -8,6 +8,16 @@ import { designLoads } from './designloads.js';
 import { plain } from './units.js';
 import { state } from './state.js';
 
+/** Face `tag`'s name in the part's STEP file, as the hello lists it (cut to 30 characters), in
+ * quotes after a space; '' when it has none.
+ * @param {number} tag @returns {string} */
+function faceName(tag) {
+  const space = state.hello && state.hello.spaces && state.hello.spaces[0];
+  const f = space && Array.isArray(space.faces) ? space.faces.find((/** @type {any} */ x) => x.tag === tag) : null;
+  if (!f || typeof f.name !== 'string' || !f.name) return '';
+  return ` “${f.name.length > 30 ? `${f.name.slice(0, 29)}…` : f.name}”`;
+}
+
 const MM = 1e-3;
 // A preset is the material when its constants match to the fields' rounding.
 const close = (a, b) => Math.abs(a - b) <= 1e-6 * Math.abs(b);
@@ -121,7 +131,7 @@ export function setupPanel(send, pick, faceMode, faceOf, light) {
       } else if (f.box) {
         row.textContent = `box ${f.box.min.map((v) => plain(v / MM)).join(', ')} … ${f.box.max.map((v) => plain(v / MM)).join(', ')} mm`;
       } else if (f.faces) {
-        row.textContent = `faces ${f.faces.join(', ')}`;
+        row.textContent = `faces ${f.faces.map((t) => `${t}${faceName(t)}`).join(', ')}`;
       }
       // How it holds (docs/scene.md, support kinds): all components, one, or a kind with its own
       // FE counterpart — sliding (the face's normal only), bearing (a cylindrical face: radial,
@@ -288,7 +298,12 @@ export function setupPanel(send, pick, faceMode, faceOf, light) {
   });
 
   /** What went wrong, in the panel's error line (red). */
-  function problem(text) { $('setuperror').classList.remove('hint'); $('setuperror').textContent = text; }
+  function problem(text) {
+    $('setuperror').classList.remove('hint');
+    $('setuperror').textContent = text;
+    // In sight, whatever the panel's scroll (a trial missed "cancelled" below its fold).
+    if (text) $('setuperror').scrollIntoView({ block: 'nearest' });
+  }
   /** What to do next, in the same line (not red: an instruction is no error). */
   function hint(text) { $('setuperror').classList.add('hint'); $('setuperror').textContent = text; }
 
