@@ -843,35 +843,17 @@ fn run_compute(shared: &Arc<Shared>, workshop: &dyn Workshop, scene: &serde_json
     };
     // The first compute of a part opened in the page made no basis (it failed or was
     // cancelled): the part before is the part again, with its set-up and project.
-    let opening = lock(&shared.opening).take();
-    if let Some((setup_before, project_before)) = opening {
-        workshop.settle(false);
-        // The opened part's project, made for it now, keeps nothing: it goes too.
-        let new_part = lock(&shared.setup).history.is_empty();
-        if let Some(k) = lock(&shared.project).take() {
-            let p = k.finish();
-            if new_part {
-                p.discard();
-            }
-        }
-        *lock(&shared.project) = project_before.map(Keeper::start);
-        *lock(&shared.setup) = setup_before;
-        publish_setup(shared);
+    if lock(&shared.opening).is_some() {
         let failed = match &done {
             Err(e) => e.to_string(),
             Ok(_) => "the compute made no basis".into(),
         };
         shared.computes_failed.fetch_add(1, Ordering::Relaxed);
-        let part = shared
-            .generation
-            .read()
-            .ok()
-            .and_then(|g| g.hello["name"].as_str().map(String::from));
+        let part = revert_opening(shared, workshop);
         note(
             shared,
             serde_json::json!({"type": "compute_error", "message": format!(
-                "the part opened was not computed ({failed}); {} is still the part set up",
-                part.as_deref().unwrap_or("the part before")
+                "the part opened was not computed ({failed}); {part} is still the part set up"
             )}),
         );
         return;
@@ -980,6 +962,32 @@ fn keep_basis(shared: &Shared, basis: &std::path::Path) {
     }
 }
 
+/// A part opened in the page made no basis: the part before is the part again (the workshop's,
+/// with its set-up and project; the project made for the new part now, which keeps nothing,
+/// removed). Returns the name of the part set up again.
+fn revert_opening(shared: &Shared, workshop: &dyn Workshop) -> String {
+    let Some((setup_before, project_before)) = lock(&shared.opening).take() else {
+        return String::new();
+    };
+    workshop.settle(false);
+    let new_part = lock(&shared.setup).history.is_empty();
+    if let Some(k) = lock(&shared.project).take() {
+        let p = k.finish();
+        if new_part {
+            p.discard();
+        }
+    }
+    *lock(&shared.project) = project_before.map(Keeper::start);
+    *lock(&shared.setup) = setup_before;
+    publish_setup(shared);
+    shared
+        .generation
+        .read()
+        .ok()
+        .and_then(|g| g.hello["name"].as_str().map(String::from))
+        .unwrap_or_else(|| "the part before".into())
+}
+
 /// Sends the set-up to every page and queues it for the project.
 fn publish_setup(shared: &Shared) {
     if shared.workshop.is_none() {
@@ -1084,11 +1092,17 @@ async fn open_part(
         *lock(&shared_open.opening) = Some((lock(&shared_open.setup).clone(), before));
         let opened = shared_open.uploads.as_ref().and_then(|f| f(&name, &bytes));
         let start = workshop.setup()["scene"].clone();
+        // A compute that cannot start, or a project's basis that cannot be served: the part
+        // before stays the part.
+        let reverted = |e: OpenFailure| {
+            revert_opening(&shared_open, workshop.as_ref());
+            e
+        };
         let Some(opened) = opened else {
             *lock(&shared_open.setup) = SetUp::new(start.clone());
             publish_setup(&shared_open);
-            return launch(claim, workshop, start)
-                .map_err(OpenFailure::NotStarted)
+            return launch(claim, workshop.clone(), start)
+                .map_err(|e| reverted(OpenFailure::NotStarted(e)))
                 .map(|()| None);
         };
         if let Some(n) = &opened.notice {
@@ -1117,7 +1131,7 @@ async fn open_part(
         match (spaces, basis) {
             (Some(spaces), Some(b)) => {
                 workshop.served_from_project(&b);
-                swap(&shared_open, spaces, Some(b)).map_err(OpenFailure::Serve)?;
+                swap(&shared_open, spaces, Some(b)).map_err(|e| reverted(OpenFailure::Serve(e)))?;
                 // Served: the part reads, the one before is let go.
                 lock(&shared_open.opening).take();
                 workshop.settle(true);
@@ -1128,8 +1142,8 @@ async fn open_part(
             _ => {
                 publish_setup(&shared_open);
                 let scene = served.unwrap_or(start);
-                launch(claim, workshop, scene)
-                    .map_err(OpenFailure::NotStarted)
+                launch(claim, workshop.clone(), scene)
+                    .map_err(|e| reverted(OpenFailure::NotStarted(e)))
                     .map(|()| None)
             }
         }
