@@ -1012,7 +1012,8 @@ mod tests {
     }
 
     /// An uploaded part is readable by its owner only, in a folder only its owner can enter;
-    /// the next part replaces it on disk too (before, every upload stayed until the end).
+    /// the next part replaces it on disk too once that one has made a basis (before, every
+    /// upload stayed until the end), and one that made none gives the part before back.
     #[test]
     fn uploaded_parts_are_private_and_a_replaced_one_is_removed() {
         let w = PartWorkshop::for_geometry(Path::new("part.step"), SolverChoice::Auto).unwrap();
@@ -1026,10 +1027,19 @@ mod tests {
         w.open("second.stp", step).unwrap();
         let second = w.part().geometry.clone();
         assert!(second.exists());
+        // Kept until the second part's first compute ends.
+        assert!(first.exists(), "the first part is gone before the second computed");
+        w.settle(true);
         assert!(
             !first.exists() && !first.parent().unwrap().exists(),
             "the first part stays"
         );
+        // A part that makes no basis: the one before is the part again, the new one removed.
+        w.open("broken.step", step).unwrap();
+        let broken = w.part().geometry.clone();
+        w.settle(false);
+        assert_eq!(w.part().geometry, second);
+        assert!(!broken.exists() && !broken.parent().unwrap().exists());
         // A refused upload changes nothing.
         assert!(w.open("third.step", b"not a part").is_err());
         assert_eq!(w.part().geometry, second);
