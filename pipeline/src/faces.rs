@@ -114,10 +114,12 @@ const POSITION_TOL: f64 = 1e-4;
 /// axis (a cylinder meshed too coarsely to read as one, a narrow strip, only has its centroid
 /// within the cylinder). A name every
 /// face shares (a body's name copied onto each), "NONE", or the face's own entity number
-/// (`'#520'`) is not a face's name. Returns how many faces were named, or why none were: a
-/// mesh made on a healed geometry may have renumbered its faces, a file with several solids may
-/// be ordered otherwise.
+/// (`'#520'`) is not a face's name. Where OpenCASCADE split faces (the mesh has more), the
+/// order is matched with the pieces ([`split_alignment`]). Returns how many faces were named, or
+/// why none were: a mesh made on a healed geometry may have renumbered its faces, a file with
+/// several solids may be ordered otherwise.
 pub fn name_from_step(faces: &mut [Face], text: &str) -> Result<usize, String> {
+    use crate::step_faces::Surface;
     let stated = crate::step_faces::faces(text);
     if stated.is_empty() {
         return Err("the file has no solid with faces".into());
@@ -129,8 +131,9 @@ pub fn name_from_step(faces: &mut [Face], text: &str) -> Result<usize, String> {
     if !stated.iter().any(named) {
         return Ok(0);
     }
-    if faces.len() != stated.len() || faces.iter().any(|f| f.tag == 0 || f.tag as usize > stated.len()) {
-        return Err(format!("the file has {} faces, the mesh {}", stated.len(), faces.len()));
+    let (n, m) = (faces.len(), stated.len());
+    if n < m || n > m + MAX_SPLITS || faces.iter().enumerate().any(|(k, f)| f.tag as usize != k + 1) {
+        return Err(format!("the file has {m} faces, the mesh {n}"));
     }
     let metres = crate::step_units::length_unit(text).map_or(1e-3, |u| u.metres);
     let (mut lo, mut hi) = (Vector3::repeat(f64::INFINITY), Vector3::repeat(f64::NEG_INFINITY));
@@ -141,68 +144,145 @@ pub fn name_from_step(faces: &mut [Face], text: &str) -> Result<usize, String> {
     let size = (hi - lo)
         .norm()
         .max(faces.iter().map(|f| f.area_m2.sqrt()).fold(0.0, f64::max));
-    let mut checked = 0;
-    for f in faces.iter() {
-        use crate::step_faces::Surface;
-        let s = &stated[f.tag as usize - 1];
-        let parallel = |a: [f64; 3], b: [f64; 3]| Vector3::from(a).dot(&Vector3::from(b)).abs() >= 1.0 - DIRECTION_TOL;
-        let agrees = match (&s.surface, f.kind) {
-            (Surface::Plane { point, normal }, "plane") => {
-                let off = Vector3::from(f.centroid_m) - metres * Vector3::from(*point);
-                let n = f.normal.unwrap_or_default();
-                parallel(*normal, n) && Vector3::from(*normal).dot(&off).abs() <= POSITION_TOL * size
+    let fit = |f: &Face, s: &crate::step_faces::StepFace| fits(f, &s.surface, metres, size);
+    let assigned: Vec<usize> = if n == m {
+        // One face each: face k is the file's k-th, said by the first that is not.
+        for (f, s) in faces.iter().zip(&stated) {
+            if fit(f, s) == Fit::No {
+                let said = match s.surface {
+                    Surface::Plane { .. } => "a plane",
+                    Surface::Cylinder { .. } => "a cylinder",
+                    Surface::Other => "another surface",
+                };
+                let here = match f.kind {
+                    "plane" => "a plane",
+                    "cylinder" => "a cylinder",
+                    _ => "another surface",
+                };
+                return Err(format!(
+                    "face {} here ({here}) is not the file's face {} (#{}, {said})",
+                    f.tag, f.tag, s.id
+                ));
             }
-            (Surface::Cylinder { point, axis, radius }, "cylinder") => {
-                let (r, a) = (metres * radius, Vector3::from(*axis));
-                let off = Vector3::from(f.axis_point_m.unwrap_or_default()) - metres * Vector3::from(*point);
-                let from_axis = (off - off.dot(&a) * a).norm();
-                (f.radius_m.unwrap_or_default() - r).abs() <= RADIUS_TOL * r
-                    && parallel(*axis, f.axis.unwrap_or_default())
-                    && from_axis <= POSITION_TOL * size + RADIUS_TOL * r
-            }
-            // A cylinder meshed coarsely reads as a plane (a narrow strip: one row of facets) or
-            // as other: its facets' centroid lies within the cylinder.
-            (Surface::Cylinder { point, axis, radius }, _) => {
-                let a = Vector3::from(*axis);
-                let off = Vector3::from(f.centroid_m) - metres * Vector3::from(*point);
-                (off - off.dot(&a) * a).norm() <= (1.0 + RADIUS_TOL) * metres * radius + POSITION_TOL * size
-            }
-            (Surface::Plane { .. }, _) => false,
-            (Surface::Other, _) => true,
-        };
-        if !agrees {
-            let said = match s.surface {
-                Surface::Plane { .. } => "a plane",
-                Surface::Cylinder { .. } => "a cylinder",
-                Surface::Other => "another surface",
-            };
-            let here = match f.kind {
-                "plane" => "a plane",
-                "cylinder" => "a cylinder",
-                _ => "another surface",
-            };
-            return Err(format!(
-                "face {} here ({here}) is not the file's face {} (#{}, {said})",
-                f.tag, f.tag, s.id
-            ));
         }
-        checked += usize::from(matches!(
-            (&s.surface, f.kind),
-            (Surface::Plane { .. }, "plane") | (Surface::Cylinder { .. }, "cylinder")
-        ));
-    }
+        (0..m).collect()
+    } else {
+        split_alignment(n, m, |i, j| fit(&faces[i], &stated[j]))?
+    };
+    let checked = faces
+        .iter()
+        .zip(&assigned)
+        .filter(|(f, j)| fit(f, &stated[**j]) == Fit::Same)
+        .count();
     if checked == 0 {
         return Err("it has no plane or cylinder to check gmsh's numbering by".into());
     }
     let mut count = 0;
-    for f in faces.iter_mut() {
-        let s = &stated[f.tag as usize - 1];
-        if named(s) {
-            f.name = Some(s.name.clone());
+    for (f, &j) in faces.iter_mut().zip(&assigned) {
+        if named(&stated[j]) {
+            f.name = Some(stated[j].name.clone());
             count += 1;
         }
     }
     Ok(count)
+}
+
+/// Most faces OpenCASCADE may have split in two (or more) for names still to be given.
+const MAX_SPLITS: usize = 16;
+
+/// How a face found in the mesh fits a face the file states.
+#[derive(Clone, Copy, Debug, PartialEq)]
+enum Fit {
+    /// The same plane or cylinder.
+    Same,
+    /// Nothing against it (a surface of another kind, a cylinder too coarse to read as one).
+    Possible,
+    /// Not that face.
+    No,
+}
+
+fn fits(f: &Face, surface: &crate::step_faces::Surface, metres: f64, size: f64) -> Fit {
+    use crate::step_faces::Surface;
+    let parallel = |a: [f64; 3], b: [f64; 3]| Vector3::from(a).dot(&Vector3::from(b)).abs() >= 1.0 - DIRECTION_TOL;
+    let same = |yes: bool| if yes { Fit::Same } else { Fit::No };
+    match (surface, f.kind) {
+        (Surface::Plane { point, normal }, "plane") => {
+            let off = Vector3::from(f.centroid_m) - metres * Vector3::from(*point);
+            let n = f.normal.unwrap_or_default();
+            same(parallel(*normal, n) && Vector3::from(*normal).dot(&off).abs() <= POSITION_TOL * size)
+        }
+        (Surface::Cylinder { point, axis, radius }, "cylinder") => {
+            let (r, a) = (metres * radius, Vector3::from(*axis));
+            let off = Vector3::from(f.axis_point_m.unwrap_or_default()) - metres * Vector3::from(*point);
+            let from_axis = (off - off.dot(&a) * a).norm();
+            same(
+                (f.radius_m.unwrap_or_default() - r).abs() <= RADIUS_TOL * r
+                    && parallel(*axis, f.axis.unwrap_or_default())
+                    && from_axis <= POSITION_TOL * size + RADIUS_TOL * r,
+            )
+        }
+        // A cylinder meshed coarsely reads as a plane (a narrow strip: one row of facets) or
+        // as other: its facets' centroid lies within the cylinder.
+        (Surface::Cylinder { point, axis, radius }, _) => {
+            let a = Vector3::from(*axis);
+            let off = Vector3::from(f.centroid_m) - metres * Vector3::from(*point);
+            let within = (off - off.dot(&a) * a).norm() <= (1.0 + RADIUS_TOL) * metres * radius + POSITION_TOL * size;
+            if within { Fit::Possible } else { Fit::No }
+        }
+        (Surface::Plane { .. }, _) => Fit::No,
+        (Surface::Other, _) => Fit::Possible,
+    }
+}
+
+/// The file's face of each of `n` mesh faces (in tag order) when OpenCASCADE split some of the
+/// `m` the file states: the faces keep the file's order, each file face gets one or more
+/// consecutive mesh faces, and a piece after the first must be the same plane or cylinder. Only
+/// an alignment that is the one possible is taken (counted by dynamic programming, capped at
+/// two).
+fn split_alignment(n: usize, m: usize, fit: impl Fn(usize, usize) -> Fit) -> Result<Vec<usize>, String> {
+    // ways[i][j]: alignments of the first i mesh faces onto the first j file faces (capped).
+    let at = |i: usize, j: usize| i * (m + 1) + j;
+    let mut ways = vec![0u8; (n + 1) * (m + 1)];
+    ways[0] = 1;
+    for i in 0..n {
+        for j in i.saturating_sub(n - m)..=i.min(m) {
+            let w = ways[at(i, j)];
+            if w == 0 {
+                continue;
+            }
+            if j < m && fit(i, j) != Fit::No {
+                ways[at(i + 1, j + 1)] = (ways[at(i + 1, j + 1)] + w).min(2);
+            }
+            if j > 0 && fit(i, j - 1) == Fit::Same {
+                ways[at(i + 1, j)] = (ways[at(i + 1, j)] + w).min(2);
+            }
+        }
+    }
+    match ways[at(n, m)] {
+        0 => {
+            return Err(format!(
+                "the file has {m} faces, the mesh {n}, and no split of the file's faces fits"
+            ));
+        }
+        1 => {}
+        _ => {
+            return Err(format!(
+                "the file has {m} faces, the mesh {n}, matched more than one way"
+            ));
+        }
+    }
+    let mut assigned = vec![0; n];
+    let mut j = m;
+    for i in (0..n).rev() {
+        // The one path: its step into (i + 1, j) came from a new face or from a piece.
+        if j > 0 && ways[at(i, j - 1)] > 0 && fit(i, j - 1) != Fit::No {
+            j -= 1;
+            assigned[i] = j;
+        } else {
+            assigned[i] = j - 1;
+        }
+    }
+    Ok(assigned)
 }
 
 /// The faces of a bare surface (a basis's: its corner vertices, triangles and each triangle's
@@ -398,6 +478,26 @@ mod tests {
             assert!(name_from_step(&mut faces, &text).is_err());
             assert!(faces.iter().all(|f| f.name.is_none()));
         }
+        // OpenCASCADE split the bottom in two (tags shift after it): both pieces are the bottom.
+        let mut split = listed();
+        split.insert(1, face(2, "plane", 0.0));
+        for (k, f) in split.iter_mut().enumerate() {
+            f.tag = k as u32 + 1;
+        }
+        assert_eq!(name_from_step(&mut split, &text), Ok(4));
+        let names: Vec<_> = split.iter().map(|f| f.name.as_deref()).collect();
+        assert_eq!(names, [Some("bottom"), Some("bottom"), Some("bore"), Some("top"), None]);
+        // Two faces of the file on one plane and three pieces on it here: which piece is whose
+        // is not known, so none is named.
+        let twins = step(&[("left", "p 0"), ("right", "p 0"), ("bore", "c 5")]);
+        let mut three = vec![
+            face(1, "plane", 0.0),
+            face(2, "plane", 0.0),
+            face(3, "plane", 0.0),
+            face(4, "cylinder", 0.005),
+        ];
+        assert!(name_from_step(&mut three, &twins).is_err());
+        assert!(three.iter().all(|f| f.name.is_none()));
         // No name worth giving: a body's name on every face, NONE, the face's own number.
         let shared = step(&[("Body", "p 0"), ("Body", "c 5"), ("Body", "p 40"), ("Body", "p 20")]);
         let own = step(&[("#100", "p 0"), ("NONE", "c 5"), ("#120", "p 40"), ("", "p 20")]);
