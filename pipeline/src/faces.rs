@@ -241,9 +241,12 @@ fn fits(f: &Face, surface: &crate::step_faces::Surface, metres: f64, size: f64) 
 /// two).
 fn split_alignment(n: usize, m: usize, fit: impl Fn(usize, usize) -> Fit) -> Result<Vec<usize>, String> {
     // ways[i][j]: alignments of the first i mesh faces onto the first j file faces (capped).
-    let at = |i: usize, j: usize| i * (m + 1) + j;
-    let mut ways = vec![0u8; (n + 1) * (m + 1)];
-    ways[0] = 1;
+    // Only i - (n - m) ≤ j ≤ i can be reached: a band of n - m + 1 per row (≤ MAX_SPLITS + 1),
+    // not a square sized by the file's face count.
+    let band = n - m + 1;
+    let at = |i: usize, j: usize| i * band + (j + band - 1 - i);
+    let mut ways = vec![0u8; (n + 1) * band];
+    ways[at(0, 0)] = 1;
     for i in 0..n {
         for j in i.saturating_sub(n - m)..=i.min(m) {
             let w = ways[at(i, j)];
@@ -253,7 +256,8 @@ fn split_alignment(n: usize, m: usize, fit: impl Fn(usize, usize) -> Fit) -> Res
             if j < m && fit(i, j) != Fit::No {
                 ways[at(i + 1, j + 1)] = (ways[at(i + 1, j + 1)] + w).min(2);
             }
-            if j > 0 && fit(i, j - 1) == Fit::Same {
+            // A piece keeps j: reachable only while n - m pieces are not all used.
+            if j > 0 && j + (n - m) > i && fit(i, j - 1) == Fit::Same {
                 ways[at(i + 1, j)] = (ways[at(i + 1, j)] + w).min(2);
             }
         }
