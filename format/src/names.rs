@@ -95,6 +95,14 @@ pub mod space {
     /// Optional f64 [s, 3], m: the point each support's moment is about (the middle of the
     /// bounding box of the nodes it holds). Present exactly when [`SUPPORT_REACTIONS`] is.
     pub const SUPPORT_CENTRES: &str = "modes/support_centres";
+    /// Optional f64 [q, 18·s] (parts held by several supports that leave no rigid motion):
+    /// row i, column (6k + c)·3 + d = component c (as in [`SUPPORT_REACTIONS`]) of what
+    /// support k exerts on the part per newton of a static load along axis d at corner vertex
+    /// [`SUPPORT_INFLUENCE_NODES`] row i. Present only with [`SUPPORT_REACTIONS`].
+    pub const SUPPORT_INFLUENCE: &str = "modes/support_influence";
+    /// Optional u32 [q]: the corner vertices of [`SUPPORT_INFLUENCE`]'s rows, strictly
+    /// ascending (the surface's). Present exactly when it is.
+    pub const SUPPORT_INFLUENCE_NODES: &str = "modes/support_influence_nodes";
     /// String attribute of [`STRESS`]: the component order.
     pub const STRESS_COMPONENTS: &str = "components";
     /// Its value.

@@ -48,6 +48,10 @@ const MAX_COMPRESSION: u128 = 1100;
 /// modal coordinate ([`sp::SUPPORT_REACTIONS`]).
 pub type SupportReactions = (Vec<[f64; 3]>, Vec<f64>);
 
+/// Each support's reaction per newton of a static load at surface corner vertices: the
+/// vertices (strictly ascending) and the row-major [q, 18·s] coefficients.
+pub type SupportInfluence = (Vec<u32>, Vec<f64>);
+
 /// Supports a file may hold reactions for: far more than a scene of at most 64 KiB can name.
 const MAX_SUPPORTS: usize = 4096;
 
@@ -874,6 +878,49 @@ impl<'a> SpaceReader<'a> {
         })
     }
 
+    /// Each support's reaction per newton of a static load at surface corner vertices, when
+    /// the file has it ([`sp::SUPPORT_INFLUENCE`]): the vertices (strictly ascending, below the
+    /// corner vertex count) and the row-major [q, 18·s] values, s the supports of
+    /// [`SpaceReader::support_reactions`]; extents checked before anything is read.
+    pub fn support_influence(&self) -> Result<Option<SupportInfluence>, ReadError> {
+        self.guard(|| {
+            let (has, listed) = (
+                self.has_dataset(sp::SUPPORT_INFLUENCE)?,
+                self.has_dataset(sp::SUPPORT_INFLUENCE_NODES)?,
+            );
+            if !has && !listed {
+                return Ok(None);
+            }
+            let bad = |what: String| Err(self.err(format!("{what}; the file is damaged")));
+            if has != listed || !self.has_dataset(sp::SUPPORT_CENTRES)? {
+                return bad(format!(
+                    "{} and {} come together, and with {}",
+                    sp::SUPPORT_INFLUENCE,
+                    sp::SUPPORT_INFLUENCE_NODES,
+                    sp::SUPPORT_REACTIONS
+                ));
+            }
+            let s = self.shape::<f64>(sp::SUPPORT_CENTRES, 2)?[0];
+            let shape = self.shape::<f64>(sp::SUPPORT_INFLUENCE, 2)?;
+            let q = self.shape::<u32>(sp::SUPPORT_INFLUENCE_NODES, 1)?[0];
+            if s > MAX_SUPPORTS || q > self.vertex_count || shape != [q, 18 * s] {
+                return bad(format!(
+                    "{} is {shape:?} for {q} vertices and {s} supports: expected [q, 18·s] with q ≤ {} \
+                     corner vertices",
+                    sp::SUPPORT_INFLUENCE,
+                    self.vertex_count
+                ));
+            }
+            let nodes = self.read_all::<u32>(sp::SUPPORT_INFLUENCE_NODES, 1)?;
+            let nodes = self.indices(sp::SUPPORT_INFLUENCE_NODES, nodes, self.vertex_count)?;
+            if nodes.windows(2).any(|w| w[0] >= w[1]) {
+                return bad(format!("{} is not strictly ascending", sp::SUPPORT_INFLUENCE_NODES));
+            }
+            let values = self.finite(sp::SUPPORT_INFLUENCE, self.read_all(sp::SUPPORT_INFLUENCE, 2)?)?;
+            Ok(Some((nodes, values)))
+        })
+    }
+
     /// Each mode's estimated relative discretization error, when the file has it: one
     /// non-negative value per mode (NaN where a mode had no estimate).
     pub fn estimated_relative_error(&self) -> Result<Option<Vec<f64>>, ReadError> {
@@ -1320,6 +1367,7 @@ impl<'a> SpaceReader<'a> {
         self.fixed_mask()?;
         self.loads()?;
         self.support_reactions()?;
+        self.support_influence()?;
         self.contact()?;
         self.felt()?;
         self.check_transfers()?;

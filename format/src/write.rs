@@ -78,6 +78,9 @@ pub struct SpaceData<'a> {
     /// What each support carries per unit modal coordinate, with the points the moments are
     /// about: (centres [s], row-major [6·s, r]); none for a free body.
     pub support_reactions: Option<(&'a [[f64; 3]], &'a [f64])>,
+    /// Each support's reaction per newton of a static load at surface corner vertices: (the
+    /// vertices, ascending; row-major [q, 18·s]); only with `support_reactions`.
+    pub support_influence: Option<(&'a [u32], &'a [f64])>,
     /// Static load cases (`loads/<name>/`); empty: none.
     pub loads: &'a [LoadData<'a>],
     /// The reduced nonlinear model, if any.
@@ -287,6 +290,18 @@ fn write_space(file: &hdf5::File, s: &SpaceData<'_>) -> Result<(), WriteError> {
             .with_data(&c)
             .create(sp::SUPPORT_CENTRES)
             .ctx(sp::SUPPORT_CENTRES)?;
+        if let Some((nodes, values)) = s.support_influence {
+            let a = Array2::from_shape_vec((nodes.len(), 18 * centres.len()), values.to_vec())
+                .ctx(sp::SUPPORT_INFLUENCE)?;
+            g.new_dataset_builder()
+                .with_data(&a)
+                .create(sp::SUPPORT_INFLUENCE)
+                .ctx(sp::SUPPORT_INFLUENCE)?;
+            g.new_dataset_builder()
+                .with_data(nodes)
+                .create(sp::SUPPORT_INFLUENCE_NODES)
+                .ctx(sp::SUPPORT_INFLUENCE_NODES)?;
+        }
     }
     let basis = Array2::from_shape_vec((3 * n, r), s.basis.to_vec()).ctx(sp::BASIS)?;
     // Chunks of whole rows of a few modes: the runtime reads vertex rows of the first r modes.
@@ -416,6 +431,7 @@ mod tests {
                 contact: None,
                 transfers: &[],
                 support_reactions: None,
+                support_influence: None,
                 nonlinear: None,
                 loads,
                 rigid: None,
@@ -471,27 +487,31 @@ mod tests {
         }
     }
 
+    /// The test tet written to `path`, its space's group open for more datasets (with its file,
+    /// which must outlive it).
+    fn write_tet_group(path: &std::path::Path) -> (hdf5::File, hdf5::Group) {
+        write_tet(path, None).unwrap();
+        let f = crate::file::open_rw(path).unwrap();
+        let g = f.group("spaces/global").unwrap();
+        (f, g)
+    }
+
+    /// Adds dataset `name` holding `values` to `g`, when given.
+    fn add_f64(g: &hdf5::Group, name: &str, values: Option<ndarray::Array2<f64>>) {
+        if let Some(v) = values {
+            g.new_dataset_builder().with_data(&v).create(name).unwrap();
+        }
+    }
+
     /// Support reactions are read back as stored; reactions without their centres, the wrong
     /// shape or a non-finite value are refused (and by `validate`).
     #[test]
     fn support_reactions_are_read_back_and_checked() {
         let path = temp("reactions");
         let add = |reactions: Option<ndarray::Array2<f64>>, centres: Option<ndarray::Array2<f64>>| {
-            write_tet(&path, None).unwrap();
-            let f = crate::file::open_rw(&path).unwrap();
-            let g = f.group("spaces/global").unwrap();
-            if let Some(r) = reactions {
-                g.new_dataset_builder()
-                    .with_data(&r)
-                    .create(sp::SUPPORT_REACTIONS)
-                    .unwrap();
-            }
-            if let Some(c) = centres {
-                g.new_dataset_builder()
-                    .with_data(&c)
-                    .create(sp::SUPPORT_CENTRES)
-                    .unwrap();
-            }
+            let (_file, g) = write_tet_group(&path);
+            add_f64(&g, sp::SUPPORT_REACTIONS, reactions);
+            add_f64(&g, sp::SUPPORT_CENTRES, centres);
         };
         let read = || {
             BasisReader::open(&path)
@@ -520,6 +540,76 @@ mod tests {
             ("nan", Some(nan), Some(centre.clone()), "non-finite"),
         ] {
             add(reactions, centres);
+            let e = read().unwrap_err();
+            assert!(e.message.contains(says), "{what}: {e}");
+            let file = BasisReader::open(&path).unwrap();
+            assert!(file.space("global").unwrap().validate().is_err(), "{what}");
+        }
+        let _ = std::fs::remove_file(path);
+    }
+
+    /// Influence coefficients: read back as stored (two supports, two vertices); refused alone,
+    /// without the reactions, of the wrong width, with a vertex out of range or out of order, or
+    /// with a NaN (by the reader and by `validate`).
+    #[test]
+    fn support_influence_is_read_back_and_checked() {
+        let path = temp("influence");
+        let twelve = ndarray::Array2::from_shape_fn((12, 1), |(i, _)| i as f64);
+        let centres = ndarray::arr2(&[[0.0, 0.0, 0.0], [1.0, 0.0, 0.0]]);
+        let add = |reactions: bool, values: Option<ndarray::Array2<f64>>, nodes: Option<Vec<u32>>| {
+            let (_file, g) = write_tet_group(&path);
+            add_f64(&g, sp::SUPPORT_REACTIONS, reactions.then(|| twelve.clone()));
+            add_f64(&g, sp::SUPPORT_CENTRES, reactions.then(|| centres.clone()));
+            add_f64(&g, sp::SUPPORT_INFLUENCE, values);
+            if let Some(n) = nodes {
+                g.new_dataset_builder()
+                    .with_data(&n)
+                    .create(sp::SUPPORT_INFLUENCE_NODES)
+                    .unwrap();
+            }
+        };
+        let read = || {
+            BasisReader::open(&path)
+                .unwrap()
+                .space("global")
+                .unwrap()
+                .support_influence()
+        };
+        let values = ndarray::Array2::from_shape_fn((2, 36), |(i, j)| (36 * i + j) as f64);
+        add(true, Some(values.clone()), Some(vec![1, 3]));
+        let (nodes, v) = read().unwrap().expect("stored");
+        assert_eq!((nodes, v.len(), v[37]), (vec![1, 3], 72, 37.0));
+        add(true, None, None);
+        assert!(read().unwrap().is_none());
+        let mut nan = values.clone();
+        nan[[1, 5]] = f64::NAN;
+        for (what, reactions, values, nodes, says) in [
+            ("alone", true, Some(values.clone()), None, "come together"),
+            (
+                "no reactions",
+                false,
+                Some(values.clone()),
+                Some(vec![1, 3]),
+                "come together",
+            ),
+            (
+                "narrow",
+                true,
+                Some(ndarray::Array2::zeros((2, 18))),
+                Some(vec![1, 3]),
+                "expected [q, 18·s]",
+            ),
+            ("beyond", true, Some(values.clone()), Some(vec![1, 4]), "beyond"),
+            (
+                "order",
+                true,
+                Some(values.clone()),
+                Some(vec![3, 1]),
+                "strictly ascending",
+            ),
+            ("nan", true, Some(nan), Some(vec![1, 3]), "non-finite"),
+        ] {
+            add(reactions, values, nodes);
             let e = read().unwrap_err();
             assert!(e.message.contains(says), "{what}: {e}");
             let file = BasisReader::open(&path).unwrap();

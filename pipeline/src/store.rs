@@ -73,6 +73,10 @@ impl Space<'_> {
             felt: self.felt,
             transfers: self.transfers,
             support_reactions: self.reactions.map(|r| (r.centres.as_slice(), r.per_mode.as_slice())),
+            support_influence: self
+                .reactions
+                .and_then(|r| r.influence.as_ref())
+                .map(|i| (i.nodes.as_slice(), i.values.as_slice())),
             loads,
             nonlinear: self.nonlinear.map(|n| ves_format::NonlinearData {
                 eigenmodes: n.eigenmodes,

@@ -339,17 +339,17 @@ impl Haptics {
         Some(PyArray1::from_vec(py, vm))
     }
 
-    /// What each `[[fixed]]` support exerts on the part now: shape (s, 6), per support force
+    /// What each `[[fixed]]` support exerts on the part now, the hands' loads included (a load
+    /// held steady is carried whole where one support holds every rigid motion): shape (s, 6), per support force
     /// x y z (N) then moment x y z (N·m) about `support_centres`; None for a free body or a
     /// basis without stored reactions (or while a volume of interest's space is active).
     fn support_reactions<'py>(&self, py: Python<'py>) -> PyResult<Option<Bound<'py, PyArray2<f64>>>> {
-        let Some(r) = self.basis().support_reactions.as_ref() else {
+        let Some(out) = self.sim().support_reactions() else {
             return Ok(None);
         };
-        let mut out = vec![[0.0; 6]; r.count()];
-        r.of(&self.sim().state().q, &mut out);
+        let r = out.len();
         let flat: Vec<f64> = out.iter().flatten().copied().collect();
-        let a = Array2::from_shape_vec((r.count(), 6), flat).map_err(|e| PyValueError::new_err(e.to_string()))?;
+        let a = Array2::from_shape_vec((r, 6), flat).map_err(|e| PyValueError::new_err(e.to_string()))?;
         Ok(Some(a.into_pyarray(py)))
     }
 

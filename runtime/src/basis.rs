@@ -45,6 +45,49 @@ pub struct SupportReactions {
     /// Row-major [6·s, r]: row 6k+c is component c (force x y z, N; moment x y z, N·m) of
     /// support k per unit of each mode's coordinate.
     pub per_mode: Vec<f64>,
+    /// What the supports carry of a static load at a vertex, exactly: the share the
+    /// truncated modes leave out is added back from it ([`Basis::support_reactions_loaded`]).
+    pub statics: StaticReactions,
+}
+
+/// How the exact static reactions of a load at a vertex are known.
+#[derive(Clone, Debug, PartialEq)]
+pub enum StaticReactions {
+    /// Not known: the supports leave a rigid motion free (a load along it has no static
+    /// answer), or the file does not say. The reactions are the modes' share only.
+    Unknown,
+    /// One support holds every rigid motion: by equilibrium it carries the whole load, force
+    /// −f and moment −(x − c) × f about its centre c.
+    Equilibrium,
+    /// Several supports holding every rigid motion: each one's reaction per newton at the kept
+    /// vertices the file states (the file's `modes/support_influence`).
+    Influence {
+        /// Per kept vertex, its row in `values` (`u32::MAX`: not stated).
+        row: Vec<u32>,
+        /// Row-major [rows, 18·s]: column (6k + c)·3 + d is component c of support k per
+        /// newton along axis d.
+        values: Vec<f32>,
+    },
+}
+
+/// Scratch for [`Basis::support_reactions_loaded`]: a vertex's contact rows and a modal state.
+pub struct ReactionWork {
+    rows: Vec<f64>,
+    q: Vec<f64>,
+    /// Per support, the static reactions of the loads.
+    statics: Vec<[f64; 6]>,
+}
+
+impl ReactionWork {
+    /// Room for `basis`'s modes.
+    pub fn for_basis(basis: &Basis) -> ReactionWork {
+        let r = basis.mode_count();
+        ReactionWork {
+            rows: vec![0.0; 3 * r],
+            q: vec![0.0; r],
+            statics: vec![[0.0; 6]; basis.support_reactions.as_ref().map_or(0, |s| s.count())],
+        }
+    }
 }
 
 impl SupportReactions {
@@ -465,6 +508,87 @@ impl Basis {
         Ok(Some(FeltAt::of_file(&f, &slot, self.rest.len())))
     }
 
+    /// What each `[[fixed]]` support exerts on the part in modal state `q` with the hands'
+    /// `loads` (kept vertex, force on the part, N) into `out` (one `[force x y z, moment x y z]`
+    /// per support); allocation-free. Where the exact static reactions are known
+    /// ([`StaticReactions`]) the truncated modes' share is added back (the mode-acceleration
+    /// method): R = R_modal(q − Λ⁻¹Φᵥᵀf) + R_static(f), so a load held steady is carried
+    /// whole, and while the part moves its inertia shows as the modes' own. Otherwise the modes'
+    /// share, R_modal(q). Returns whether the share was added back; nothing is written when the
+    /// basis stores no reactions.
+    pub fn support_reactions_loaded(
+        &self,
+        q: &[f64],
+        loads: impl Iterator<Item = (u32, [f64; 3])>,
+        work: &mut ReactionWork,
+        out: &mut [[f64; 6]],
+    ) -> bool {
+        let Some(sr) = &self.support_reactions else {
+            return false;
+        };
+        let r = self.mode_count().min(q.len()).min(work.q.len());
+        if sr.statics == StaticReactions::Unknown {
+            sr.of(q, out);
+            return false;
+        }
+        work.q[..r].copy_from_slice(&q[..r]);
+        work.statics.iter_mut().for_each(|p| *p = [0.0; 6]);
+        let mut loaded = false;
+        for (v, f) in loads.filter(|(v, _)| (*v as usize) < self.rest.len()) {
+            // Several supports: the vertex's coefficients; none stated there leaves its load
+            // to the modes' share.
+            let coefficients = match &sr.statics {
+                StaticReactions::Influence { row, values } => {
+                    let width = 18 * sr.count();
+                    let Some(&i) = row.get(v as usize).filter(|&&i| i != u32::MAX) else {
+                        continue;
+                    };
+                    Some(&values[i as usize * width..(i as usize + 1) * width])
+                }
+                _ => None,
+            };
+            loaded = true;
+            self.gather_contact_rows(v as usize, &mut work.rows);
+            for j in 0..r {
+                let rows = [work.rows[j], work.rows[r + j], work.rows[2 * r + j]];
+                work.q[j] -= (rows[0] * f[0] + rows[1] * f[1] + rows[2] * f[2]) / self.eigenvalues[j];
+            }
+            match coefficients {
+                Some(coefficients) => {
+                    for (k, part) in work.statics.iter_mut().enumerate() {
+                        for (c, p) in part.iter_mut().enumerate() {
+                            let g = &coefficients[(6 * k + c) * 3..(6 * k + c) * 3 + 3];
+                            *p += (0..3).map(|d| f64::from(g[d]) * f[d]).sum::<f64>();
+                        }
+                    }
+                }
+                None => {
+                    let x = self.rest[v as usize];
+                    let c = sr.centres[0];
+                    let d = [x[0] - c[0], x[1] - c[1], x[2] - c[2]];
+                    let moment = [
+                        d[1] * f[2] - d[2] * f[1],
+                        d[2] * f[0] - d[0] * f[2],
+                        d[0] * f[1] - d[1] * f[0],
+                    ];
+                    if let Some(p) = work.statics.first_mut() {
+                        for a in 0..3 {
+                            p[a] -= f[a];
+                            p[3 + a] -= moment[a];
+                        }
+                    }
+                }
+            }
+        }
+        sr.of(&work.q[..r], out);
+        for (o, p) in out.iter_mut().zip(&work.statics) {
+            for (a, b) in o.iter_mut().zip(p) {
+                *a += b;
+            }
+        }
+        loaded
+    }
+
     /// The same basis with only its first `r` modes (all of them when `r` is larger).
     pub fn first_modes(&self, r: usize) -> Basis {
         let (n, all) = (self.rest.len(), self.eigenvalues.len());
@@ -727,7 +851,30 @@ mod file {
             let all = s.mode_count;
             let per_mode: Vec<f64> = per_mode.chunks_exact(all).flat_map(|c| &c[..r]).copied().collect();
             basis.bytes_loaded += 8 * (per_mode.len() + 3 * centres.len());
-            basis.support_reactions = Some(SupportReactions { centres, per_mode });
+            // One support holding every rigid motion carries any static load whole; several
+            // share it as their influence coefficients say.
+            let statics = match (s.support_influence()?, s.rigid_modes_dropped) {
+                (_, 1..) => StaticReactions::Unknown,
+                (None, _) if centres.len() == 1 => StaticReactions::Equilibrium,
+                (None, _) => StaticReactions::Unknown,
+                (Some((nodes, all)), _) => {
+                    let width = 18 * centres.len();
+                    let (mut row, mut values) = (vec![u32::MAX; keep.len()], Vec::new());
+                    for (v, coefficients) in nodes.iter().zip(all.chunks_exact(width)) {
+                        if let Some(&k) = slot.get(*v as usize).filter(|&&k| k != u32::MAX) {
+                            row[k as usize] = (values.len() / width) as u32;
+                            values.extend(coefficients.iter().map(|&c| c as f32));
+                        }
+                    }
+                    basis.bytes_loaded += 4 * (row.len() + values.len());
+                    StaticReactions::Influence { row, values }
+                }
+            };
+            basis.support_reactions = Some(SupportReactions {
+                centres,
+                per_mode,
+                statics,
+            });
         }
         if let Some(n) = s.nonlinear()? {
             // Held in f32: a finite f64 beyond f32's range would become infinite (as for φ).

@@ -251,6 +251,8 @@ struct Hand {
     residual: M3,
     /// Force applied to the part at the vertex last step (part frame).
     last_force: V3,
+    /// Force applied to the part this step (part frame): zero when the hand applied none.
+    applied: V3,
     /// Per surface neighbour k: the modal row of the edge strain, (φ_k − φ_i)·d / |d|².
     edge_rows: Vec<f64>,
     /// A nonlinear basis: each edge's relative displacement rows, [edge][component][mode], and
@@ -378,6 +380,7 @@ impl Haptics {
                 g: M3::zeros(),
                 residual: M3::zeros(),
                 last_force: V3::zeros(),
+                applied: V3::zeros(),
                 edge_rows: vec![0.0; STRAIN_NEIGHBOURS * r],
                 edge_vectors: vec![
                     0.0;
@@ -673,6 +676,9 @@ impl Haptics {
     /// applies the force; then the modes (and a free body) advance, or roll back if non-finite.
     pub fn step(&mut self, inputs: &[HandInput], outputs: &mut [HandOutput]) {
         self.f.fill(0.0);
+        for h in &mut self.hands {
+            h.applied = V3::zeros();
+        }
         let mut wrench = Wrench::default();
         // Where a free body will be after a step without the hands' forces: the coupling is
         // solved at the end of the step, like the modes (implicit). The same for every hand.
@@ -939,6 +945,7 @@ impl Haptics {
         out.grip_gap = hd.grip.map_or(0.0, |g| g.norm());
         out.grabbing = hd.grabbed;
         self.hands[k].last_force = force;
+        self.hands[k].applied = force;
     }
 
     /// Stage 7: advance the modes (and a free body); roll everything back if the result is not
@@ -969,6 +976,9 @@ impl Haptics {
             }
             for o in outputs.iter_mut() {
                 o.force = [0.0; 3];
+            }
+            for h in &mut self.hands {
+                h.applied = V3::zeros();
             }
             self.quarantined += 1;
         }
@@ -1007,9 +1017,31 @@ impl Haptics {
         }
     }
 
-    /// Writes what a drawing thread needs into `out` as space `space`: the pose and q.
+    /// Writes what a drawing thread needs into `out` as space `space`: the pose, q and the
+    /// hands' loads.
     pub fn publish_into(&self, space: usize, out: &mut crate::snapshot::Published) {
         out.set(space, self.pose(), &self.state.q);
+        out.set_loads(self.hand_loads());
+    }
+
+    /// Each hand's load on the part this step: (its kept vertex, the force on the part, N, part
+    /// frame); hands that applied none are left out.
+    pub fn hand_loads(&self) -> impl Iterator<Item = (u32, [f64; 3])> + '_ {
+        self.hands
+            .iter()
+            .filter(|h| h.applied != V3::zeros())
+            .filter_map(|h| h.vertex.map(|v| (v, h.applied.into())))
+    }
+
+    /// What each `[[fixed]]` support exerts on the part now, the hands' loads included
+    /// ([`Basis::support_reactions_loaded`]); `None` when the basis stores no reactions.
+    pub fn support_reactions(&self) -> Option<Vec<[f64; 6]>> {
+        let sr = self.basis.support_reactions.as_ref()?;
+        let mut out = vec![[0.0; 6]; sr.count()];
+        let mut work = crate::basis::ReactionWork::for_basis(&self.basis);
+        self.basis
+            .support_reactions_loaded(&self.state.q, self.hand_loads(), &mut work, &mut out);
+        Some(out)
     }
 
     /// The pose a drawing thread needs: centre of mass in the world, then the unit quaternion

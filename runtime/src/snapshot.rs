@@ -53,29 +53,69 @@ impl Snapshot {
     }
 }
 
-/// The state a haptic thread publishes for drawing: the active space, the part's pose and that
-/// space's modal coordinates, laid out once as `[space, pose (7), q (r)]`.
+/// The state a haptic thread publishes for drawing: the active space, the part's pose, that
+/// space's modal coordinates and each hand's load on the part, laid out once as
+/// `[space, pose (7), q (r), per hand: vertex, force x y z]`.
 #[derive(Clone, Debug)]
 pub struct Published {
     values: Vec<f64>,
+    /// Room for modal coordinates (the hands' loads follow them).
+    modes: usize,
 }
 
 /// Where the pose starts and the modal coordinates start in [`Published`]'s values.
 const POSE: usize = 1;
 const MODAL: usize = POSE + 7;
+/// Values per hand's load: its vertex (−1: none), then its force.
+const HAND: usize = 4;
 
 impl Published {
-    /// Room for up to `modes` modal coordinates; space 0, no pose, q = 0.
+    /// Room for up to `modes` modal coordinates and no hand; space 0, no pose, q = 0.
     pub fn new(modes: usize) -> Published {
-        Published {
-            values: vec![0.0; MODAL + modes],
+        Published::with_hands(modes, 0)
+    }
+
+    /// Room for up to `modes` modal coordinates and `hands` hands' loads; nothing loaded.
+    pub fn with_hands(modes: usize, hands: usize) -> Published {
+        let mut p = Published {
+            values: vec![0.0; MODAL + modes + HAND * hands],
+            modes,
+        };
+        p.clear_loads();
+        p
+    }
+
+    /// Every hand's slot says "no load".
+    fn clear_loads(&mut self) {
+        for slot in self.values[MODAL + self.modes..].chunks_exact_mut(HAND) {
+            slot.copy_from_slice(&[-1.0, 0.0, 0.0, 0.0]);
         }
+    }
+
+    /// Sets the hands' loads on the part: (kept vertex of the active space, force on the part
+    /// in the part's frame, N); hands beyond the room are dropped, slots not given say none.
+    pub fn set_loads(&mut self, loads: impl Iterator<Item = (u32, [f64; 3])>) {
+        self.clear_loads();
+        let slots = self.values[MODAL + self.modes..].chunks_exact_mut(HAND);
+        for (slot, (v, f)) in slots.zip(loads) {
+            slot.copy_from_slice(&[f64::from(v), f[0], f[1], f[2]]);
+        }
+    }
+
+    /// The hands' loads as published: (kept vertex, force on the part, N), hands without one
+    /// left out.
+    pub fn loads(&self) -> impl Iterator<Item = (u32, [f64; 3])> + '_ {
+        self.values[MODAL + self.modes..]
+            .chunks_exact(HAND)
+            .filter(|s| s[0] >= 0.0)
+            .map(|s| (s[0] as u32, [s[1], s[2], s[3]]))
     }
 
     /// Sets the whole state (`q` may be shorter than the room: the rest is left as it was).
     pub fn set(&mut self, space: usize, pose: [f64; 7], q: &[f64]) {
         self.values[0] = space as f64;
         self.values[POSE..MODAL].copy_from_slice(&pose);
+        let q = &q[..q.len().min(self.modes)];
         self.values[MODAL..MODAL + q.len()].copy_from_slice(q);
     }
 
@@ -92,7 +132,7 @@ impl Published {
 
     /// The first `r` modal coordinates (at most the room).
     pub fn modal(&self, r: usize) -> &[f64] {
-        &self.values[MODAL..(MODAL + r).min(self.values.len())]
+        &self.values[MODAL..MODAL + r.min(self.modes)]
     }
 
     /// Sets one modal coordinate (tests and examples).
@@ -162,5 +202,21 @@ mod tests {
             (2, &pose[..], &[0.5, -0.25, 4.0][..])
         );
         assert_eq!(out.modal(2), &[0.5, -0.25]);
+    }
+
+    #[test]
+    fn the_hands_loads_follow_the_modes_and_only_those_given_are_read() {
+        let mut state = Published::with_hands(2, 3);
+        state.set(0, [0.0; 7], &[1.0, 2.0]);
+        state.set_loads([(7, [1.0, -2.0, 3.0]), (0, [0.0, 0.0, 5.0])].into_iter());
+        let snap = Snapshot::for_state(&state);
+        snap.publish_state(&state, 0.0);
+        let mut out = Published::with_hands(2, 3);
+        snap.read_state(&mut out);
+        assert_eq!(out.modal(5), &[1.0, 2.0]);
+        let loads: Vec<_> = out.loads().collect();
+        assert_eq!(loads, vec![(7, [1.0, -2.0, 3.0]), (0, [0.0, 0.0, 5.0])]);
+        state.set_loads(std::iter::empty());
+        assert_eq!(state.loads().count(), 0);
     }
 }

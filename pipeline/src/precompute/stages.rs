@@ -195,7 +195,7 @@ pub(super) fn solve_space_checked(
     progress::stage("service loads", if refined { 0.9 } else { shares.loads })?;
     let (loads, loads_s) = timed(|| released(|| loads(scene, &solved, nonlinear.as_ref())));
     let loads = loads?;
-    let (reactions, reactions_s) = timed(|| reactions(scene, voi, &solved));
+    let (reactions, reactions_s) = timed(|| reactions(scene, voi, &solved, true));
     let reactions = reactions?;
     if let Some(s) = &sturm {
         advice::report_sturm(&name, s);
@@ -332,7 +332,7 @@ pub(super) fn space_from_modes(
         ordering_s: 0.0,
     };
     let (stress, stress_s) = timed(|| stress(scene, &solved));
-    let (reactions, reactions_s) = timed(|| reactions(scene, None, &solved));
+    let (reactions, reactions_s) = timed(|| reactions(scene, None, &solved, false));
     let reactions = reactions?;
     // The load cases of a linear model: K factored once and a solve each, so a load added to a
     // computed part is answered with the instant basis (its modes rescaled, no search).
@@ -559,13 +559,27 @@ fn stress(scene: &Scene, solved: &Solved) -> Option<Vec<f64>> {
 
 /// What each support carries per unit modal coordinate, for the global space of a held part
 /// with a linear model (a volume of interest's mesh need not hold the supports).
-fn reactions(scene: &Scene, voi: Option<&Voi>, solved: &Solved) -> Result<Option<crate::loads::ModalReactions>> {
+/// With `influence`, and K here, a part held by several supports gets their influence
+/// coefficients too (what each carries of a load held steady); an instant basis goes without
+/// (the converged one that follows has them).
+fn reactions(
+    scene: &Scene,
+    voi: Option<&Voi>,
+    solved: &Solved,
+    influence: bool,
+) -> Result<Option<crate::loads::ModalReactions>> {
     // Reactions linear in q are wrong for a nonlinear model once it rotates (the page showed a
     // support carrying 2.75 N of a 10 N pull): none rather than a wrong one.
     if voi.is_some() || scene.nonlinear.is_some() {
         return Ok(None);
     }
-    crate::loads::modal_reactions(scene, solved.problem.mesh(), solved.problem.dofs(), &solved.modes)
+    let modal = crate::loads::modal_reactions(scene, solved.problem.mesh(), solved.problem.dofs(), &solved.modes)?;
+    match (modal, solved.problem.here()) {
+        (Some(m), Some(d)) if influence => {
+            crate::loads::with_influence(scene, d, solved.modes.rigid_dropped, m).map(Some)
+        }
+        (modal, _) => Ok(modal),
+    }
 }
 
 /// The nonlinear model's basis and energy, when the scene asks for one: the modes get their

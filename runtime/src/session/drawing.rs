@@ -35,6 +35,8 @@ struct Buffers {
     sigma: Vec<f32>,
     /// Per support, force and moment (empty without stored reactions).
     reactions: Vec<[f64; 6]>,
+    /// Scratch for the reactions' static share.
+    work: crate::basis::ReactionWork,
 }
 
 impl Drawing {
@@ -51,6 +53,7 @@ impl Drawing {
                 u: vec![0.0; 3 * b.vertex_count()],
                 sigma: vec![0.0; if b.stress.is_some() { 6 * b.vertex_count() } else { 0 }],
                 reactions: vec![[0.0; 6]; b.support_reactions.as_ref().map_or(0, |r| r.count())],
+                work: crate::basis::ReactionWork::for_basis(b),
             })
             .collect();
         let start = Instant::now();
@@ -90,8 +93,8 @@ impl Drawing {
             self.part.alarm.store(below, Ordering::Relaxed);
             self.part.alarm_frames.fetch_add(u64::from(below), Ordering::Relaxed);
         }
-        let reactions = basis.support_reactions.as_ref().map(|r| {
-            r.of(q, &mut buf.reactions);
+        let reactions = basis.support_reactions.as_ref().map(|_| {
+            basis.support_reactions_loaded(q, self.state.loads(), &mut buf.work, &mut buf.reactions);
             &buf.reactions[..]
         });
         // The peaks are the first space's supports (a volume of interest's space has none).

@@ -126,7 +126,7 @@ impl HapticLoop<'_> {
             .map(|s| s.basis().mode_count())
             .max()
             .unwrap_or(0);
-        let mut published = Published::new(r_max);
+        let mut published = Published::with_hands(r_max, hands);
         let start = Instant::now();
         let mut pacer = Pacer::new(cfg, rt, start);
         let mut fault = None;

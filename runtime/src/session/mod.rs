@@ -200,7 +200,7 @@ pub fn run_spaces_with(
     let bases: Vec<Arc<Basis>> = spaces.iter().map(|s| s.basis.clone()).collect();
     let mut haptics = switcher(spaces, cfg, hands, bases[0].rigid.is_some())?;
     let r_max = bases.iter().map(|b| b.mode_count()).max().unwrap_or(0);
-    let snapshot = Arc::new(Snapshot::for_state(&Published::new(r_max)));
+    let snapshot = Arc::new(Snapshot::for_state(&Published::with_hands(r_max, hands)));
     let part = Arc::new(stats::PartRecord {
         support_force: (0..bases[0].support_reactions.as_ref().map_or(0, |r| r.count()))
             .map(|_| stats::AtomicMax::default())
@@ -211,7 +211,7 @@ pub fn run_spaces_with(
     let drawing = drawing::Drawing {
         bases: bases.clone(),
         snapshot: snapshot.clone(),
-        state: Published::new(r_max),
+        state: Published::with_hands(r_max, hands),
         part: part.clone(),
         stop: stop_drawing.clone(),
         cap: cfg.visual_hz.map(|hz| Duration::from_secs_f64(1.0 / hz.max(1.0))),
@@ -265,6 +265,10 @@ pub fn run_spaces_with(
             yield_strength: bases[0].yield_strength,
             elastic: bases[0].elastic.is_some(),
             final_reactions: final_reactions(&bases[0], &haptics),
+            reactions_corrected: bases[0]
+                .support_reactions
+                .as_ref()
+                .is_some_and(|r| r.statics != crate::basis::StaticReactions::Unknown),
         },
     ))
 }
@@ -275,8 +279,7 @@ fn final_reactions(first: &Basis, haptics: &crate::switching::Switcher) -> Vec<(
     let Some(r) = first.support_reactions.as_ref().filter(|_| haptics.active() == 0) else {
         return Vec::new();
     };
-    let mut out = vec![[0.0; 6]; r.count()];
-    r.of(&haptics.sim(0).state().q, &mut out);
+    let out = haptics.sim(0).support_reactions().unwrap_or_default();
     r.centres.iter().copied().zip(out).collect()
 }
 

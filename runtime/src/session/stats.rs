@@ -85,9 +85,10 @@ pub struct SessionStats {
 }
 
 /// What one support exerted on the part during a session: the reactions of the modal state
-/// (u = Φq), exact for that displacement of the FE model. With few modes and no static
-/// correction the supports together carry less than a hand's static force (the modes left out
-/// carry the rest).
+/// (u = Φq), exact for that displacement of the FE model, and — where the basis knows the
+/// supports' static reactions (`corrected`) — the share of the hands' loads the truncated modes
+/// leave out added back, so a load held steady is carried whole. Without that the supports
+/// together carry less than a hand's static force (the modes left out carry the rest).
 #[derive(Clone, Debug, serde::Serialize)]
 pub struct SupportReport {
     /// The support, counted from 0 as `fixed[i]` in the scene.
@@ -100,6 +101,11 @@ pub struct SupportReport {
     pub final_moment_nm: [f64; 3],
     /// The largest force magnitude over the frames drawn, N.
     pub force_max_n: f64,
+    /// The truncated modes' share of the hands' loads is added back: one support holding every
+    /// rigid motion (equilibrium), or the file's influence coefficients for several. False: the
+    /// modes' share only (supports that leave a rigid motion free, more than six supports, an
+    /// instant basis held by several).
+    pub corrected: bool,
 }
 
 /// A device read that failed and ended the session: every device was sent zero force at that
@@ -313,6 +319,8 @@ pub(super) struct DrawingSide<'a> {
     pub elastic: bool,
     /// Per support: its centre and its force and moment at the last state.
     pub final_reactions: Vec<([f64; 3], [f64; 6])>,
+    /// The reactions carry the truncated modes' share of the hands' loads.
+    pub reactions_corrected: bool,
 }
 
 impl SessionStats {
@@ -371,6 +379,7 @@ impl SessionStats {
                     final_force_n: [r[0], r[1], r[2]],
                     final_moment_nm: [r[3], r[4], r[5]],
                     force_max_n: max.get(),
+                    corrected: d.reactions_corrected,
                 })
                 .collect(),
         }
