@@ -1,6 +1,8 @@
 //! A modal basis as the runtime holds it: corner vertices (optionally only the surface ones), the
 //! first r modes in f32, mode-major so the full-field update is a sequence of axpys.
 
+use crate::rigid_body::V3;
+
 /// Loading failed; the message names the file and what is wrong.
 pub type LoadError = ves_format::InputError;
 
@@ -60,12 +62,13 @@ pub enum StaticReactions {
     /// −f and moment −(x − c) × f about its centre c.
     Equilibrium,
     /// Several supports holding every rigid motion: each one's reaction per newton at the kept
-    /// vertices the file states (the file's `modes/support_influence`).
+    /// vertices the file states (the file's `modes/support_influence`), the last support's by
+    /// equilibrium.
     Influence {
         /// Per kept vertex, its row in `values` (`u32::MAX`: not stated).
         row: Vec<u32>,
-        /// Row-major [rows, 18·s]: column (6k + c)·3 + d is component c of support k per
-        /// newton along axis d.
+        /// Row-major [rows, 18·(s − 1)]: column (6k + c)·3 + d is component c of support k per
+        /// newton along axis d, for every support but the last.
         values: Vec<f32>,
     },
 }
@@ -527,7 +530,7 @@ impl Basis {
             return false;
         };
         let r = self.mode_count().min(q.len()).min(work.q.len());
-        if sr.statics == StaticReactions::Unknown {
+        if sr.statics == StaticReactions::Unknown || sr.count() == 0 {
             sr.of(q, out);
             return false;
         }
@@ -535,17 +538,18 @@ impl Basis {
         work.statics.iter_mut().for_each(|p| *p = [0.0; 6]);
         let mut loaded = false;
         for (v, f) in loads.filter(|(v, _)| (*v as usize) < self.rest.len()) {
-            // Several supports: the vertex's coefficients; none stated there leaves its load
-            // to the modes' share.
+            // Several supports: the vertex's coefficients (of all but the last); none stated
+            // there leaves its load to the modes' share.
+            let last = sr.count() - 1;
             let coefficients = match &sr.statics {
                 StaticReactions::Influence { row, values } => {
-                    let width = 18 * sr.count();
+                    let width = 18 * last;
                     let Some(&i) = row.get(v as usize).filter(|&&i| i != u32::MAX) else {
                         continue;
                     };
-                    Some(&values[i as usize * width..(i as usize + 1) * width])
+                    &values[i as usize * width..(i as usize + 1) * width]
                 }
-                _ => None,
+                _ => &[][..],
             };
             loaded = true;
             self.gather_contact_rows(v as usize, &mut work.rows);
@@ -553,31 +557,27 @@ impl Basis {
                 let rows = [work.rows[j], work.rows[r + j], work.rows[2 * r + j]];
                 work.q[j] -= (rows[0] * f[0] + rows[1] * f[1] + rows[2] * f[2]) / self.eigenvalues[j];
             }
-            match coefficients {
-                Some(coefficients) => {
-                    for (k, part) in work.statics.iter_mut().enumerate() {
-                        for (c, p) in part.iter_mut().enumerate() {
-                            let g = &coefficients[(6 * k + c) * 3..(6 * k + c) * 3 + 3];
-                            *p += (0..3).map(|d| f64::from(g[d]) * f[d]).sum::<f64>();
-                        }
-                    }
+            // The last support carries what the others leave: the part is in equilibrium, so
+            // its force is −(f + Σ F_k) and its moment about its centre c is
+            // −((x − c) × f + Σ (M_k + (c_k − c) × F_k)).
+            let c = V3::from(sr.centres[last]);
+            let (mut force, mut moment) = (V3::from(f), (V3::from(self.rest[v as usize]) - c).cross(&V3::from(f)));
+            for (k, part) in work.statics.iter_mut().enumerate().take(last) {
+                let mut here = [0.0; 6];
+                for (cpt, h) in here.iter_mut().enumerate() {
+                    let g = &coefficients[(6 * k + cpt) * 3..(6 * k + cpt) * 3 + 3];
+                    *h = (0..3).map(|d| f64::from(g[d]) * f[d]).sum::<f64>();
                 }
-                None => {
-                    let x = self.rest[v as usize];
-                    let c = sr.centres[0];
-                    let d = [x[0] - c[0], x[1] - c[1], x[2] - c[2]];
-                    let moment = [
-                        d[1] * f[2] - d[2] * f[1],
-                        d[2] * f[0] - d[0] * f[2],
-                        d[0] * f[1] - d[1] * f[0],
-                    ];
-                    if let Some(p) = work.statics.first_mut() {
-                        for a in 0..3 {
-                            p[a] -= f[a];
-                            p[3 + a] -= moment[a];
-                        }
-                    }
+                let (fk, mk) = (V3::new(here[0], here[1], here[2]), V3::new(here[3], here[4], here[5]));
+                force += fk;
+                moment += mk + (V3::from(sr.centres[k]) - c).cross(&fk);
+                for (p, h) in part.iter_mut().zip(here) {
+                    *p += h;
                 }
+            }
+            for a in 0..3 {
+                work.statics[last][a] -= force[a];
+                work.statics[last][3 + a] -= moment[a];
             }
         }
         sr.of(&work.q[..r], out);
@@ -855,15 +855,19 @@ mod file {
             // share it as their influence coefficients say.
             let statics = match (s.support_influence()?, s.rigid_modes_dropped) {
                 (_, 1..) => StaticReactions::Unknown,
-                (None, _) if centres.len() == 1 => StaticReactions::Equilibrium,
+                (_, _) if centres.is_empty() => StaticReactions::Unknown,
+                // One support needs no coefficients (a file that has some is not believed).
+                (_, _) if centres.len() == 1 => StaticReactions::Equilibrium,
                 (None, _) => StaticReactions::Unknown,
                 (Some((nodes, all)), _) => {
-                    let width = 18 * centres.len();
+                    // All supports but the last: equilibrium gives the last (half the memory
+                    // for two supports).
+                    let (width, kept) = (18 * centres.len(), 18 * (centres.len() - 1));
                     let (mut row, mut values) = (vec![u32::MAX; keep.len()], Vec::new());
                     for (v, coefficients) in nodes.iter().zip(all.chunks_exact(width)) {
                         if let Some(&k) = slot.get(*v as usize).filter(|&&k| k != u32::MAX) {
-                            row[k as usize] = (values.len() / width) as u32;
-                            values.extend(coefficients.iter().map(|&c| c as f32));
+                            row[k as usize] = (values.len() / kept) as u32;
+                            values.extend(coefficients[..kept].iter().map(|&c| c as f32));
                         }
                     }
                     basis.bytes_loaded += 4 * (row.len() + values.len());
