@@ -1,7 +1,8 @@
 //! A modal basis as the runtime holds it: corner vertices (optionally only the surface ones), the
 //! first r modes in f32, mode-major so the full-field update is a sequence of axpys.
 
-use crate::rigid_body::V3;
+/// Small vectors for the reactions' arms.
+type V3 = nalgebra::Vector3<f64>;
 
 /// Loading failed; the message names the file and what is wrong.
 pub type LoadError = ves_format::InputError;

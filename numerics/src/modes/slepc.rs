@@ -41,7 +41,7 @@ pub fn solve(
         let (solver, scales, moments) = Distributed::assemble(token, mesh, dofs, material, choice)?;
         let assemble_s = t0.elapsed().as_secs_f64();
         let petsc_options = std::env::var_os("PETSC_OPTIONS").is_some();
-        let modes = super::select(&scales, rigid, count, &solver, None)
+        let modes = super::select(&scales, rigid, count, &solver, None, None)
             .map_err(|e| super::blame_petsc_options(e, petsc_options));
         solver.release()?;
         Ok(SolvedOnRanks {
