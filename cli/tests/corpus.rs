@@ -211,3 +211,33 @@ fn a_part_no_rung_can_mesh_gets_advice_that_works() {
         Some(strategy.as_str())
     );
 }
+
+/// `mesh.smooth_curved = false` (the page's first look): the thin cone cover's 10-node tets that
+/// curving made invalid are all straightened at once, none by gmsh's smoother, and every element
+/// is valid either way; the two meshes are cached apart.
+#[test]
+fn curved_tets_are_straightened_at_once_without_the_smoother() {
+    let dir = tempfile::tempdir().expect("temp dir");
+    let step = Path::new(env!("CARGO_MANIFEST_DIR")).join("../cases/corpus/thin_cone_cover.step");
+    let smoothed = default_scene(&step, dir.path());
+    let text = std::fs::read_to_string(&smoothed).expect("scene");
+    let straight = dir.path().join("straight.toml");
+    std::fs::write(&straight, text.replace("order = 2", "order = 2\nsmooth_curved = false")).expect("write");
+    let mesh = |path: &Path| {
+        let scene = Scene::load(path).expect("scene");
+        ves_pipeline::mesh::generate(&scene, None).expect("meshes")
+    };
+    let ((a, ma), (b, mb)) = (mesh(&smoothed), mesh(&straight));
+    println!("smoothed {ma:?}\nstraight {mb:?}");
+    assert!(ma.distorted > 0 && ma.repaired_by_gmsh > 0, "{ma:?}");
+    assert_eq!((mb.distorted, mb.repaired_by_gmsh), (ma.distorted, 0), "{mb:?}");
+    assert!(mb.straightened >= mb.distorted, "{mb:?}");
+    for (what, m) in [("smoothed", &a), ("straight", &b)] {
+        let worst = m
+            .tets
+            .chunks_exact(10)
+            .map(|t| min_scaled_jacobian(&t.iter().map(|&n| m.nodes[n as usize]).collect::<Vec<_>>()))
+            .fold(f64::INFINITY, f64::min);
+        assert!(worst > 0.0, "{what}: an invalid element (scaled Jacobian {worst})");
+    }
+}

@@ -296,6 +296,15 @@ pub struct MeshSettings {
     /// How `target_error` refines: everywhere alike (default) or where the error is.
     #[serde(default)]
     pub refinement: Refinement,
+    /// 10-node tets made invalid by curving them to the CAD surface go through gmsh's elastic
+    /// smoother first (default), or are made straight-sided at once (`false`: faster meshing of
+    /// parts with many curved faces, the geometry flat on a few more elements).
+    #[serde(default = "default_smooth_curved")]
+    pub smooth_curved: bool,
+}
+
+fn default_smooth_curved() -> bool {
+    true
 }
 
 /// Which error estimate `[mesh] error_estimate` asks for (docs/accuracy.md).

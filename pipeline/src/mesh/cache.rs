@@ -77,6 +77,11 @@ pub(super) fn key(req: &Request, geometry: &[u8]) -> Option<PathBuf> {
     }
     // The extension too: it picks gmsh's reader.
     h.field(shape.as_bytes()).field(ext.as_bytes()).field(geometry);
+    // Curved tets straightened without gmsh's smoother: another mesh (the default's keys
+    // stay as they were).
+    if !req.mesh.smooth_curved {
+        h.field(b"straightened");
+    }
     Some(dir()?.join(format!("{:016x}.mesh", h.value())))
 }
 

@@ -874,9 +874,12 @@ fn attempt_once(
             let t = std::time::Instant::now();
             phase("optimising the curved elements");
             session.set_number("Mesh.HighOrderNumLayers", 3.0).map_err(g)?;
-            match session.optimize(HIGH_ORDER_METHOD, 1) {
-                Ok(()) => mesh = extract(&session, kind, scale, &path).map_err(fatal)?,
-                Err(e) => tracing::info!("gmsh {HIGH_ORDER_METHOD} failed ({e}); straightening instead"),
+            // `mesh.smooth_curved = false` (the page's first look): straightened at once.
+            if req.mesh.smooth_curved {
+                match session.optimize(HIGH_ORDER_METHOD, 1) {
+                    Ok(()) => mesh = extract(&session, kind, scale, &path).map_err(fatal)?,
+                    Err(e) => tracing::info!("gmsh {HIGH_ORDER_METHOD} failed ({e}); straightening instead"),
+                }
             }
             meshing.optimize_s = t.elapsed().as_secs_f64();
             let left = mesh.distorted_tets(quality::MIN_SCALED_JACOBIAN).len();
