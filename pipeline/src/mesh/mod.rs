@@ -889,11 +889,15 @@ fn attempt_once(
                 notice(
                     req,
                     format!(
-                        "{path}: {} of {} curved tets were invalid after order 2; gmsh repaired {}; {} were made \
+                        "{path}: {} of {} curved tets were invalid after order 2; {}; {} were made \
                          straight-sided (their faces are flat there: {})",
                         meshing.distorted,
                         mesh.tet_count(),
-                        meshing.repaired_by_gmsh,
+                        if req.mesh.smooth_curved {
+                            format!("gmsh repaired {}", meshing.repaired_by_gmsh)
+                        } else {
+                            "not smoothed first (mesh.smooth_curved = false)".to_string()
+                        },
                         straightened_words(left, meshing.straightened),
                         closer_surface_advice(req)
                     ),
