@@ -531,7 +531,7 @@ impl Basis {
             return false;
         };
         let r = self.mode_count().min(q.len()).min(work.q.len());
-        if sr.statics == StaticReactions::Unknown || sr.count() == 0 {
+        if sr.statics == StaticReactions::Unknown || sr.count() == 0 || work.statics.len() < sr.count() {
             sr.of(q, out);
             return false;
         }

@@ -73,10 +73,12 @@ pub fn support_influence(
     }
     let all_springs: Vec<NodeSpring> = springs.iter().flatten().copied().collect();
     // Right-hand sides, column (6k + c): K_s,k T_c − K w_c at the free DOFs, where w_c is T_c
-    // on support k's held DOFs (0 elsewhere) and K holds the elements and every spring.
-    let columns: Vec<Vec<f64>> = (0..6 * s)
-        .into_par_iter()
-        .map(|col| {
+    // on support k's held DOFs (0 elsewhere) and K holds the elements and every spring. Asked
+    // for first: 6 columns a support of every free DOF.
+    let mut x = crate::memory::try_zeros::<f64>("the supports' influence solves", nf * 6 * s)?;
+    x.par_chunks_mut(nf.max(1))
+        .enumerate()
+        .try_for_each(|(col, out)| -> Result<()> {
             let (k, c) = (col / 6, col % 6);
             let mut w = vec![0.0; n3];
             for &g in &held[k] {
@@ -89,14 +91,17 @@ pub fn support_influence(
             spring_forces(&all_springs, &w, |g, v| rhs[g] += v);
             rhs.iter_mut().for_each(|v| *v = -*v);
             // The ground of support k's springs moved by T_c pulls the part with K_s,k T_c.
-            let ground: Vec<f64> = (0..n3)
-                .map(|g| rigid_motion(c, centres[k], mesh.nodes[g / 3])[g % 3])
-                .collect();
-            spring_forces(&springs[k], &ground, |g, v| rhs[g] += v);
-            Ok(dofs.free.iter().map(|&g| rhs[g as usize]).collect::<Vec<f64>>())
-        })
-        .collect::<Result<_>>()?;
-    let mut x: Vec<f64> = columns.concat();
+            if !springs[k].is_empty() {
+                let ground: Vec<f64> = (0..n3)
+                    .map(|g| rigid_motion(c, centres[k], mesh.nodes[g / 3])[g % 3])
+                    .collect();
+                spring_forces(&springs[k], &ground, |g, v| rhs[g] += v);
+            }
+            for (o, &g) in out.iter_mut().zip(&dofs.free) {
+                *o = rhs[g as usize];
+            }
+            Ok(())
+        })?;
     chol.solve_many_in_place(&mut x, 6 * s);
     let mut nodes: Vec<u32> = mesh.surface.iter().flatten().copied().collect();
     nodes.sort_unstable();

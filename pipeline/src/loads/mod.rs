@@ -224,18 +224,29 @@ pub fn with_influence(
     let path = || scene.path.display().to_string();
     let held = crate::supports::held_by_each(&d.mesh, &scene.fixed).with_context(path)?;
     let springs = crate::supports::springs(&d.mesh, &scene.fixed, scene.material.young).with_context(path)?;
-    let chol = factor_stiffness(&d.system, &d.dofs)?;
-    let near = near_held(&d.mesh, &held);
-    reactions.influence = Some(influence::support_influence(
-        &d.mesh,
-        &near,
-        &Lame::of(&scene.material),
-        &d.dofs,
-        &chol,
-        &held,
-        &springs,
-        &reactions.centres,
-    )?);
+    let made = factor_stiffness(&d.system, &d.dofs)
+        .map_err(anyhow::Error::from)
+        .and_then(|chol| {
+            influence::support_influence(
+                &d.mesh,
+                &near_held(&d.mesh, &held),
+                &Lame::of(&scene.material),
+                &d.dofs,
+                &chol,
+                &held,
+                &springs,
+                &reactions.centres,
+            )
+        });
+    // An extra, not the basis: without it a session's reactions are the modes' share.
+    match made {
+        Ok(i) => reactions.influence = Some(i),
+        Err(e) => tracing::warn!(
+            "{}: the supports' influence coefficients were not made ({e:#}); a session's support reactions \
+             are the modes' share of the hands' loads",
+            path()
+        ),
+    }
     Ok(reactions)
 }
 
