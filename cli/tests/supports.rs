@@ -233,4 +233,23 @@ fn influence_coefficients_give_each_support_its_load_case_reaction() {
     }
     // Both carry a real share: the elastic tip is not a bystander.
     assert!(carried[1][2] > 0.1 * load, "{carried:?}");
+    // `ves info` says so.
+    let info = ves(&["info", out.to_str().unwrap(), "--json"]);
+    let info: serde_json::Value = serde_json::from_slice(&info.stdout).expect("info JSON");
+    let supports = &info["spaces"][0]["supports"];
+    assert_eq!(supports["count"], 2, "{info}");
+    assert_eq!(
+        supports["influence_vertices"].as_u64(),
+        Some(rows.len() as u64),
+        "{info}"
+    );
+    assert_eq!(supports["carried_whole"], true, "{info}");
+    let text = String::from_utf8_lossy(&ves(&["info", out.to_str().unwrap()]).stdout).to_string();
+    assert!(
+        text.contains(&format!(
+            "2 supports: a hand's load carried whole (influence coefficients at {} vertices)",
+            rows.len()
+        )),
+        "{text}"
+    );
 }

@@ -308,6 +308,11 @@ pub struct SpaceInfo {
     /// What a hand feels wrong where the file states it (`felt/`), when it does.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub felt_error: Option<FeltInfo>,
+    /// What the supports carry during a session, when the file stores their reactions (held
+    /// parts): how many, and at how many surface vertices their influence coefficients are
+    /// stated (0: none stored).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub supports: Option<SupportsInfo>,
     /// How the mesh was made (the meshing ladder's rung), when the file says.
     pub meshing_strategy: Option<String>,
     /// Each mode's estimated relative discretization error, when the file has it.
@@ -315,6 +320,35 @@ pub struct SpaceInfo {
     pub estimated_relative_error: Option<Vec<f64>>,
     /// The static load cases stored (empty: none).
     pub loads: Vec<LoadInfo>,
+}
+
+/// What `ves info` shows of a space's supports (`modes/support_reactions`,
+/// `modes/support_influence`).
+#[derive(Clone, Debug, serde::Serialize)]
+pub struct SupportsInfo {
+    /// `[[fixed]]` supports whose reactions are stored.
+    pub count: usize,
+    /// Surface vertices with influence coefficients (0: none stored).
+    pub influence_vertices: usize,
+    /// A hand's load held steady is carried whole by the supports in a session: one support
+    /// holding every rigid motion, or influence coefficients for several.
+    pub carried_whole: bool,
+}
+
+impl SupportsInfo {
+    /// Its words in `ves info`'s line.
+    pub fn text(&self) -> String {
+        let how = match (self.carried_whole, self.influence_vertices) {
+            (false, _) => "a session's reactions are the modes' share of a hand's load".to_string(),
+            (true, 0) => "a hand's load carried whole (equilibrium)".to_string(),
+            (true, v) => format!("a hand's load carried whole (influence coefficients at {v} vertices)"),
+        };
+        format!(
+            ", {} support{}: {how}",
+            self.count,
+            if self.count == 1 { "" } else { "s" }
+        )
+    }
 }
 
 /// What `ves info` shows of a space's felt errors (`felt/`): the modes' share and the mesh's
@@ -402,6 +436,20 @@ pub fn info(path: &Path) -> Result<BasisInfo> {
             static_correction_vertices: s.compliance()?.map_or(0, |(n, _)| n.len()),
             contact_radius_m: s.contact()?.map_or(0.0, |c| c.radius),
             felt_error: s.felt()?.as_ref().and_then(FeltInfo::of),
+            supports: match s.support_reactions()? {
+                None => None,
+                Some((centres, _)) => {
+                    let influence_vertices = s.support_influence()?.map_or(0, |(nodes, _)| nodes.len());
+                    // As the runtime reads it (`Basis::support_reactions_loaded`).
+                    let carried_whole = s.rigid_modes_dropped == 0
+                        && (centres.len() == 1 || (centres.len() > 1 && influence_vertices > 0));
+                    Some(SupportsInfo {
+                        count: centres.len(),
+                        influence_vertices,
+                        carried_whole,
+                    })
+                }
+            },
             meshing_strategy: s.meshing_strategy.clone(),
             estimated_relative_error: s.estimated_relative_error()?,
             loads: s

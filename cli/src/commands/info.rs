@@ -38,7 +38,8 @@ impl Args {
                     100.0 * f.spread.p90
                 )
             });
-            let correction = format!("{contact}{correction}{felt}");
+            let supports = s.supports.as_ref().map_or(String::new(), |i| i.text());
+            let correction = format!("{contact}{correction}{felt}{supports}");
             let meshing = s
                 .meshing_strategy
                 .as_deref()
