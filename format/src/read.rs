@@ -52,6 +52,32 @@ pub type SupportReactions = (Vec<[f64; 3]>, Vec<f64>);
 /// vertices (strictly ascending) and the row-major [q, 18·s] coefficients.
 pub type SupportInfluence = (Vec<u32>, Vec<f64>);
 
+/// How a session knows the exact static reactions of a hand's load on a part held by
+/// `supports` supports that leave `rigid_modes_dropped` rigid motions free, with or without
+/// influence coefficients: the one rule the runtime and `ves info` read a file by.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum ReactionStatics {
+    /// Not known (a rigid motion left free, no supports, or several without coefficients):
+    /// the modes' share only.
+    Unknown,
+    /// One support holding every rigid motion: equilibrium (coefficients, if any, not read).
+    Equilibrium,
+    /// Several supports and their influence coefficients.
+    Influence,
+}
+
+impl ReactionStatics {
+    /// The rule.
+    pub fn of(supports: usize, rigid_modes_dropped: u32, has_influence: bool) -> ReactionStatics {
+        match (supports, rigid_modes_dropped, has_influence) {
+            (0, _, _) | (_, 1.., _) => ReactionStatics::Unknown,
+            (1, _, _) => ReactionStatics::Equilibrium,
+            (_, _, true) => ReactionStatics::Influence,
+            (_, _, false) => ReactionStatics::Unknown,
+        }
+    }
+}
+
 /// Supports a file may hold reactions for: far more than a scene of at most 64 KiB can name.
 const MAX_SUPPORTS: usize = 4096;
 

@@ -439,10 +439,13 @@ pub fn info(path: &Path) -> Result<BasisInfo> {
             supports: match s.support_reactions()? {
                 None => None,
                 Some((centres, _)) => {
-                    let influence_vertices = s.support_influence()?.map_or(0, |(nodes, _)| nodes.len());
-                    // As the runtime reads it (`Basis::support_reactions_loaded`).
-                    let carried_whole = s.rigid_modes_dropped == 0
-                        && (centres.len() == 1 || (centres.len() > 1 && influence_vertices > 0));
+                    let influence = s.support_influence()?;
+                    let carried_whole = ves_format::read::ReactionStatics::of(
+                        centres.len(),
+                        s.rigid_modes_dropped,
+                        influence.is_some(),
+                    ) != ves_format::read::ReactionStatics::Unknown;
+                    let influence_vertices = influence.map_or(0, |(nodes, _)| nodes.len());
                     Some(SupportsInfo {
                         count: centres.len(),
                         influence_vertices,

@@ -854,13 +854,13 @@ mod file {
             basis.bytes_loaded += 8 * (per_mode.len() + 3 * centres.len());
             // One support holding every rigid motion carries any static load whole; several
             // share it as their influence coefficients say.
-            let statics = match (s.support_influence()?, s.rigid_modes_dropped) {
-                (_, 1..) => StaticReactions::Unknown,
-                (_, _) if centres.is_empty() => StaticReactions::Unknown,
-                // One support needs no coefficients (a file that has some is not believed).
-                (_, _) if centres.len() == 1 => StaticReactions::Equilibrium,
-                (None, _) => StaticReactions::Unknown,
-                (Some((nodes, all)), _) => {
+            let influence = s.support_influence()?;
+            let rule = ves_format::read::ReactionStatics::of(centres.len(), s.rigid_modes_dropped, influence.is_some());
+            let statics = match (rule, influence) {
+                (ves_format::read::ReactionStatics::Unknown, _) => StaticReactions::Unknown,
+                (ves_format::read::ReactionStatics::Equilibrium, _) => StaticReactions::Equilibrium,
+                (_, None) => StaticReactions::Unknown,
+                (_, Some((nodes, all))) => {
                     // All supports but the last: equilibrium gives the last (half the memory
                     // for two supports).
                     let (width, kept) = (18 * centres.len(), 18 * (centres.len() - 1));
