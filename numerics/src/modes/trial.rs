@@ -42,7 +42,10 @@ pub fn first_elastic_bound(problem: &EigenProblem<'_>, dofs: &Dofs, nodes: &[[f6
     if half <= 0.0 || !half.is_finite() {
         return None;
     }
-    let mut v = vec![0.0; n * fields];
+    // Three blocks of 30 vectors: asked for first, and no bound (the solve's own shift) when
+    // memory is short.
+    let zeros = || crate::memory::try_zeros::<f64>("the trial fields of λ₁'s bound", n * fields).ok();
+    let (mut v, mut kv, mut mv) = (zeros()?, zeros()?, zeros()?);
     for (g, &f) in dofs.free_of.iter().enumerate() {
         if f == u32::MAX {
             continue;
@@ -54,7 +57,6 @@ pub fn first_elastic_bound(problem: &EigenProblem<'_>, dofs: &Dofs, nodes: &[[f6
             v[(3 * k + a) * n + f as usize] = *m;
         }
     }
-    let (mut kv, mut mv) = (vec![0.0; v.len()], vec![0.0; v.len()]);
     sym_matmul(problem.pattern, problem.k, &v, &mut kv);
     sym_matmul(problem.pattern, problem.m, &v, &mut mv);
     // Vᵀ W as one dense product (faer's, threaded).
