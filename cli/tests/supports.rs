@@ -51,6 +51,68 @@ fn a_sliding_face_holds_its_normal_as_removing_it_does() {
     }
 }
 
+/// The rigid motions a basis says its supports leave free (`rigid/free_motions`, twists (v, ω)
+/// about the centre of mass), or `None` when the file stores none.
+fn free_motions(basis: &std::path::Path) -> Option<Vec<[f64; 6]>> {
+    let f = hdf5::File::open(basis).unwrap();
+    let ds = f.dataset("spaces/global/rigid/free_motions").ok()?;
+    let v: Vec<f64> = ds.read_raw().unwrap();
+    Some(v.chunks_exact(6).map(|r| std::array::from_fn(|j| r[j])).collect())
+}
+
+/// How far each of `got` lies outside the span of the unit twists `want` (orthonormal),
+/// relative to its length: 0 when the two span the same motions (same count).
+fn outside_span(got: &[[f64; 6]], want: &[[f64; 6]]) -> f64 {
+    assert_eq!(got.len(), want.len(), "{got:?} against {want:?}");
+    got.iter()
+        .map(|t| {
+            let mut r = *t;
+            for w in want {
+                let d: f64 = r.iter().zip(w).map(|(a, b)| a * b).sum();
+                r.iter_mut().zip(w).for_each(|(a, b)| *a -= d * b);
+            }
+            let norm = |x: &[f64; 6]| x.iter().map(|v| v * v).sum::<f64>().sqrt();
+            norm(&r) / norm(t)
+        })
+        .fold(0.0, f64::max)
+}
+
+/// The beam held by sliding root and bottom faces may only slide along y. In a session under
+/// gravity (on by default when a part can move) the supports carry its 385 N weight: a hand
+/// holding a point of its top face still feels nothing. Before, a part held in some directions
+/// was simulated as a wholly free body, and it hung from the hand (the device's whole 10 N).
+#[test]
+fn a_part_held_in_some_directions_moves_only_along_the_others() {
+    let fixed = "[[fixed]]\nplane = { axis = \"x\", value = 0.0 }\nkind = \"sliding\"\n\
+                 [[fixed]]\nplane = { axis = \"z\", value = 0.0 }\nkind = \"sliding\"\n";
+    let (dir, path) = workdir(&beam(fixed, 4));
+    let basis = dir.path().join("slides.h5");
+    let got = precompute_json(&path, &basis);
+    assert_eq!(got["spaces"][0]["rigid_modes_dropped"], 1);
+    let free = free_motions(&basis).expect("rigid/free_motions stored");
+    let off = outside_span(&free, &[[0.0, 1.0, 0.0, 0.0, 0.0, 0.0]]);
+    println!("free motion {:?}: {off:.1e} outside the slide along y", free[0]);
+    assert!(off < 1e-6, "{free:?}");
+    let script = dir.path().join("hold.csv");
+    std::fs::write(&script, "t,x,y,z,button\n0,0.7,0.05,0.05,1\n0.5,0.7,0.05,0.05,1\n").unwrap();
+    let v = session_json_with(&basis, &script, &["--no-realtime"]);
+    let hand = numbers(&v["final_forces_n"][0]);
+    let felt = hand.iter().map(|f| f * f).sum::<f64>().sqrt();
+    println!("the hand holding still feels {felt:.2e} N ({hand:?})");
+    assert!(felt < 0.01, "the hand carries the part: {hand:?}");
+    // Pulled 2 cm along y and held there, it slides after the hand (held, the coupling would
+    // pull with 500 N/m × 2 cm = 10 N for ever); the momenta's damping settles it.
+    std::fs::write(
+        &script,
+        "t,x,y,z,button\n0,0.7,0.05,0.05,1\n0.5,0.7,0.07,0.05,1\n12,0.7,0.07,0.05,1\n",
+    )
+    .unwrap();
+    let v = session_json_with(&basis, &script, &["--no-realtime"]);
+    let hand = numbers(&v["final_forces_n"][0]);
+    println!("pulled 2 cm along y and held, the hand feels {hand:?} N");
+    assert!(hand.iter().all(|f| f.abs() < 0.5), "it did not slide: {hand:?}");
+}
+
 /// The beam (1.0 × 0.1 × 0.05 m steel, 39.25 kg) on soft springs along z under its whole bottom
 /// face: x, y and the turn about z stay free (3 rigid motions); the first three modes are the
 /// rigid body on the springs, ω² = kA/m × b²/(b² + h²) (roll about x, about the centre of mass:
@@ -102,6 +164,13 @@ fn a_shaft_in_two_bearings_bends_as_a_pinned_beam() {
     let out = dir.path().join("shaft.h5");
     let got = precompute_json_with(&path, &out, &["--allow-geo-scripts"]);
     assert_eq!(got["spaces"][0]["rigid_modes_dropped"], 2, "{got}");
+    // What is free: the slide along the axis and the turn about it (the centre of mass is on
+    // the axis, so both twists are pure).
+    let free = free_motions(&out).expect("rigid/free_motions stored");
+    let axis = [[1.0, 0.0, 0.0, 0.0, 0.0, 0.0], [0.0, 0.0, 0.0, 1.0, 0.0, 0.0]];
+    let off = outside_span(&free, &axis);
+    println!("free motions {free:?}: {off:.1e} outside the slide along and the turn about x");
+    assert!(off < 1e-3, "{free:?}");
     let (e, rho, d, span) = (2.1e11f64, 7850.0f64, 0.04f64, 0.486f64);
     let want = std::f64::consts::PI / (2.0 * span * span) * (e / rho).sqrt() * d / 4.0;
     for (i, g) in frequencies(&got).iter().enumerate() {

@@ -284,6 +284,28 @@ pub fn symmetric_positive_definite(b: &Block3, free: [bool; 3]) -> Result<f64, C
     Ok((0..3).map(|i| b[i][i]).fold(0.0, f64::max))
 }
 
+/// Whether these vectors are linearly independent: Gram–Schmidt, each vector's part outside the
+/// ones before it at least 1e-9 of its own length.
+pub fn independent<const N: usize>(vectors: &[[f64; N]]) -> bool {
+    let mut basis: Vec<[f64; N]> = Vec::with_capacity(vectors.len());
+    for v in vectors {
+        let norm = v.iter().map(|x| x * x).sum::<f64>().sqrt();
+        let mut w = *v;
+        for _ in 0..2 {
+            for b in &basis {
+                let d: f64 = w.iter().zip(b).map(|(x, y)| x * y).sum();
+                w.iter_mut().zip(b).for_each(|(x, y)| *x -= d * y);
+            }
+        }
+        let left = w.iter().map(|x| x * x).sum::<f64>().sqrt();
+        if left.is_nan() || left <= 1e-9 * norm {
+            return false;
+        }
+        basis.push(w.map(|x| x / left));
+    }
+    true
+}
+
 /// A load case's stated largest value `stated` (attribute `max_displacement` or `max_von_mises`)
 /// equal to the largest of its data, `found`, to [`RELATIVE_TOLERANCE`].
 pub fn stated_max(stated: f64, found: f64) -> Result<(), CheckError> {

@@ -56,7 +56,7 @@ pub struct Material {
     pub yield_strength: Option<f64>,
 }
 
-/// Mass properties of a free body (`rigid/`).
+/// Mass properties of a part that can move as a whole (`rigid/`).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct RigidProperties {
     /// kg.
@@ -65,6 +65,63 @@ pub struct RigidProperties {
     pub center: [f64; 3],
     /// kg·m², about the centre of mass.
     pub inertia: [[f64; 3]; 3],
+    /// The rigid motions the supports leave free: all six for a free body.
+    pub free: FreeMotions,
+}
+
+/// The rigid motions a part's supports leave free, as twists about its centre of mass: row
+/// `(v, ω)` moves a material point at `x` with velocity `v + ω × (x − c)`. Any basis of the
+/// free motions serves (the runtime makes it orthonormal in kinetic energy). A free body has
+/// all six; a shaft in two bearings one (its turn about the axis); a plate held only out of
+/// plane three.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct FreeMotions {
+    count: usize,
+    twists: [[f64; 6]; 6],
+}
+
+impl FreeMotions {
+    /// All six: a free body (the identity twists).
+    pub fn all() -> FreeMotions {
+        FreeMotions {
+            count: 6,
+            twists: std::array::from_fn(|i| std::array::from_fn(|j| if i == j { 1.0 } else { 0.0 })),
+        }
+    }
+
+    /// These twists (at most six, each finite); `None` otherwise.
+    pub fn new(twists: &[[f64; 6]]) -> Option<FreeMotions> {
+        if twists.len() > 6 || twists.iter().flatten().any(|v| !v.is_finite()) {
+            return None;
+        }
+        let mut all = [[0.0; 6]; 6];
+        all[..twists.len()].copy_from_slice(twists);
+        Some(FreeMotions {
+            count: twists.len(),
+            twists: all,
+        })
+    }
+
+    /// How many.
+    pub fn count(&self) -> usize {
+        self.count
+    }
+
+    /// The twists `(v, ω)` about the centre of mass.
+    pub fn twists(&self) -> &[[f64; 6]] {
+        &self.twists[..self.count]
+    }
+
+    /// Whether every rigid motion is free (a free body).
+    pub fn is_all(&self) -> bool {
+        self.count == 6
+    }
+}
+
+impl Default for FreeMotions {
+    fn default() -> FreeMotions {
+        FreeMotions::all()
+    }
 }
 
 /// A 3×3 static compliance block (K⁻¹)ᵢᵢ, m/N.

@@ -107,8 +107,12 @@ pub mod space {
     pub const STRESS_COMPONENTS: &str = "components";
     /// Its value.
     pub const STRESS_COMPONENT_ORDER: &str = "xx yy zz yz xz xy";
-    /// Group (free bodies): attributes [`MASS`], [`CENTER_OF_MASS`], [`INERTIA`].
+    /// Group (parts that can move as a whole): attributes [`MASS`], [`CENTER_OF_MASS`],
+    /// [`INERTIA`], and [`FREE_MOTIONS`] when some rigid motions are held.
     pub const RIGID: &str = "rigid";
+    /// f64 [k, 6] in [`RIGID`], k = `rigid_modes_dropped` < 6: the rigid motions the supports
+    /// leave free, each a twist (v, ω) about the centre of mass. Absent for a free body (all six).
+    pub const FREE_MOTIONS: &str = "free_motions";
     /// f64 attribute, kg.
     pub const MASS: &str = "mass";
     /// f64[3] attribute, m.

@@ -1184,10 +1184,16 @@ impl<'a> SpaceReader<'a> {
         })
     }
 
-    /// Mass properties of a free body, if stored (mass > 0, all finite).
+    /// Mass properties of a part that can move as a whole, if stored (mass > 0, all finite),
+    /// with the rigid motions its supports leave free. `None` too for a part held in some
+    /// directions whose file does not say which motions are free (written before
+    /// [`sp::FREE_MOTIONS`]): it is then simulated held in place rather than wholly free.
     pub fn rigid(&self) -> Result<Option<RigidProperties>, ReadError> {
         self.guard(|| {
             let Some(g) = self.optional_group(sp::RIGID)? else {
+                return Ok(None);
+            };
+            let Some(free) = self.free_motions()? else {
                 return Ok(None);
             };
             let mass = scalar_attr::<f64>(&g, sp::MASS).filter(|m| m.is_finite() && *m > 0.0);
@@ -1202,11 +1208,41 @@ impl<'a> SpaceReader<'a> {
                         mass,
                         center: [c[0], c[1], c[2]],
                         inertia,
+                        free,
                     }))
                 }
                 _ => Err(self.err("rigid/ mass, center_of_mass or inertia missing or not finite")),
             }
         })
+    }
+
+    /// The rigid motions the supports leave free ([`sp::FREE_MOTIONS`]): all six for a free
+    /// body (the dataset absent), the stored twists for a part held in some directions (shape
+    /// [rigid_modes_dropped, 6] checked before reading, finite, independent); `None` when
+    /// nothing is free or the file does not say which motions are.
+    fn free_motions(&self) -> Result<Option<crate::FreeMotions>, ReadError> {
+        let name = format!("{}/{}", sp::RIGID, sp::FREE_MOTIONS);
+        let k = self.rigid_modes_dropped as usize;
+        let has = self.has_dataset(&name)?;
+        let bad = |what: String| Err(self.err(format!("{name}: {what}; the file is damaged")));
+        match (k, has) {
+            (0, _) | (1..=5, false) => return Ok(None),
+            (6, false) => return Ok(Some(crate::FreeMotions::all())),
+            (6, true) => return bad("present for a free body, whose six rigid motions are all free".into()),
+            _ => {}
+        }
+        let shape = self.shape::<f64>(&name, 2)?;
+        if shape != [k, 6] {
+            return bad(format!(
+                "shape {shape:?}, expected [{k}, 6] (rigid_modes_dropped = {k})"
+            ));
+        }
+        let v = self.finite(&name, self.read_all(&name, 2)?)?;
+        let rows: Vec<[f64; 6]> = v.chunks_exact(6).map(|r| std::array::from_fn(|j| r[j])).collect();
+        if !checks::independent(&rows) {
+            return bad("its twists are not independent".into());
+        }
+        Ok(crate::FreeMotions::new(&rows))
     }
 
     /// The reduced nonlinear model ([`sp::NONLINEAR`]), when the space has one: the model's

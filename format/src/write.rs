@@ -368,6 +368,12 @@ fn write_space(file: &hdf5::File, s: &SpaceData<'_>) -> Result<(), WriteError> {
             .with_data(&inertia)
             .create(sp::INERTIA)
             .ctx(sp::INERTIA)?;
+        if !rp.free.is_all() {
+            let name = format!("{}/{}", sp::RIGID, sp::FREE_MOTIONS);
+            let t = rp.free.twists();
+            let m = Array2::from_shape_fn((t.len(), 6), |(i, j)| t[i][j]);
+            g.new_dataset_builder().with_data(&m).create(name.as_str()).ctx(&name)?;
+        }
     }
     Ok(())
 }
@@ -395,9 +401,19 @@ mod tests {
         faces: Option<&[u32]>,
         loads: &[super::LoadData<'_>],
     ) -> Result<(), super::WriteError> {
+        write_tet_edited(path, faces, loads, |_| {})
+    }
+
+    /// [`write_tet_with`], the space edited before it is written.
+    fn write_tet_edited(
+        path: &std::path::Path,
+        faces: Option<&[u32]>,
+        loads: &[super::LoadData<'_>],
+        edit: impl FnOnce(&mut SpaceData<'_>),
+    ) -> Result<(), super::WriteError> {
         let nodes = [[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]];
         let surface = [[1, 2, 3], [0, 3, 2], [0, 1, 3], [0, 2, 1]];
-        let data = FileData {
+        let mut data = FileData {
             generator: "test",
             scene_toml: "",
             source_hash: None,
@@ -437,7 +453,72 @@ mod tests {
                 rigid: None,
             }],
         };
+        edit(&mut data.spaces[0]);
         super::write_file(path, &data)
+    }
+
+    /// The rigid motions a part's supports leave: a free body's six without a dataset; a part
+    /// held in some directions with its twists, read back as written; such a part's file
+    /// without them (written before) gives no rigid motion, held in place; twists of the
+    /// wrong count or dependent ones are refused (and by `validate`).
+    #[test]
+    fn free_motions_are_read_back_and_checked() {
+        let path = temp("free");
+        let props = |free: crate::FreeMotions| crate::RigidProperties {
+            mass: 2.0,
+            center: [0.25, 0.25, 0.25],
+            inertia: [[0.1, 0.0, 0.0], [0.0, 0.1, 0.0], [0.0, 0.0, 0.1]],
+            free,
+        };
+        let read = || BasisReader::open(&path).unwrap().space("global").unwrap().rigid();
+        write_tet_edited(&path, None, &[], |s| {
+            s.rigid_modes_dropped = 6;
+            s.rigid = Some(props(crate::FreeMotions::all()));
+        })
+        .unwrap();
+        assert_eq!(read().unwrap().map(|r| r.free), Some(crate::FreeMotions::all()));
+        let turn = [[0.0, -0.25, 0.0, 1.0, 0.0, 0.0], [1.0, 0.0, 0.0, 0.0, 0.0, 0.0]];
+        let two = crate::FreeMotions::new(&turn).unwrap();
+        write_tet_edited(&path, None, &[], |s| {
+            s.rigid_modes_dropped = 2;
+            s.rigid = Some(props(two));
+        })
+        .unwrap();
+        assert_eq!(read().unwrap().map(|r| r.free.twists().to_vec()), Some(turn.to_vec()));
+        let name = format!("{}/{}", sp::RIGID, sp::FREE_MOTIONS);
+        {
+            let f = crate::file::open_rw(&path).unwrap();
+            f.group("spaces/global").unwrap().unlink(&name).unwrap();
+        }
+        assert_eq!(read().unwrap(), None, "older file: held in place");
+        for (what, dropped, twists, says) in [
+            ("count", 1u32, turn.to_vec(), "expected [1, 6]"),
+            (
+                "dependent",
+                2,
+                vec![turn[0], turn[0].map(|v| 2.0 * v)],
+                "not independent",
+            ),
+            ("free body", 6, turn.to_vec(), "present for a free body"),
+        ] {
+            write_tet_edited(&path, None, &[], |s| {
+                s.rigid_modes_dropped = dropped;
+                s.rigid = Some(props(two));
+            })
+            .unwrap();
+            {
+                let f = crate::file::open_rw(&path).unwrap();
+                let g = f.group("spaces/global").unwrap();
+                let _ = g.unlink(&name);
+                let m = ndarray::Array2::from_shape_fn((twists.len(), 6), |(i, j)| twists[i][j]);
+                add_f64(&g, &name, Some(m));
+            }
+            let e = read().unwrap_err();
+            assert!(e.message.contains(says), "{what}: {e}");
+            let file = BasisReader::open(&path).unwrap();
+            assert!(file.space("global").unwrap().validate().is_err(), "{what}");
+        }
+        let _ = std::fs::remove_file(path);
     }
 
     fn temp(name: &str) -> std::path::PathBuf {

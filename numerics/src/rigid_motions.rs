@@ -5,32 +5,24 @@ use crate::fem::Dofs;
 /// The six rigid motions sampled at the nodes (full DOF vectors): three translations, then
 /// rotations about the axes through `center`, scaled by 1/`length` so all six are O(1).
 pub fn rigid_motions(nodes: &[[f64; 3]], center: [f64; 3], length: f64) -> [Vec<f64>; 6] {
-    std::array::from_fn(|r| {
-        let mut u = vec![0.0; 3 * nodes.len()];
-        for (i, p) in nodes.iter().enumerate() {
-            let x = [
-                (p[0] - center[0]) / length,
-                (p[1] - center[1]) / length,
-                (p[2] - center[2]) / length,
-            ];
-            let d = match r {
-                0 => [1.0, 0.0, 0.0],
-                1 => [0.0, 1.0, 0.0],
-                2 => [0.0, 0.0, 1.0],
-                3 => [0.0, -x[2], x[1]],
-                4 => [x[2], 0.0, -x[0]],
-                _ => [-x[1], x[0], 0.0],
-            };
-            u[3 * i..3 * i + 3].copy_from_slice(&d);
-        }
-        u
-    })
+    std::array::from_fn(|r| nodes.iter().flat_map(|p| rigid_at(*p, center, length)[r]).collect())
 }
 
-/// [`rigid_motions`] about the centre of the nodes' bounding box, scaled by its largest side.
-fn scaled_rigid_motions(nodes: &[[f64; 3]]) -> [Vec<f64>; 6] {
-    let (center, length) = frame(nodes);
-    rigid_motions(nodes, center, length)
+/// The six rigid motions of [`rigid_motions`] at one point: row r is motion r's displacement.
+pub fn rigid_at(p: [f64; 3], center: [f64; 3], length: f64) -> [[f64; 3]; 6] {
+    let x = [
+        (p[0] - center[0]) / length,
+        (p[1] - center[1]) / length,
+        (p[2] - center[2]) / length,
+    ];
+    [
+        [1.0, 0.0, 0.0],
+        [0.0, 1.0, 0.0],
+        [0.0, 0.0, 1.0],
+        [0.0, -x[2], x[1]],
+        [x[2], 0.0, -x[0]],
+        [-x[1], x[0], 0.0],
+    ]
 }
 
 /// The centre of the nodes' bounding box and its largest side: the frame the rigid motions of
@@ -74,30 +66,57 @@ pub fn free_rigid_count(nodes: &[[f64; 3]], dofs: &Dofs) -> usize {
 /// [`free_rigid_count`] with surface springs holding the part too: a rigid motion they stretch
 /// is held.
 pub fn free_rigid_count_with(nodes: &[[f64; 3]], dofs: &Dofs, springs: &[crate::fem::springs::NodeSpring]) -> usize {
+    free_motions(nodes, dofs, springs, [0.0; 3]).count()
+}
+
+/// The rigid motions the supports (fixed DOFs, and springs: a motion they stretch is held)
+/// leave free, as twists `(v, ω)` about `center`: the null space of the Gram matrix of the six
+/// rigid motions restricted to the fixed DOFs plus the springs' energy of each pair, each part
+/// scaled to a largest diagonal of 1 (the same rank test as the count, so the two agree).
+pub fn free_motions(
+    nodes: &[[f64; 3]],
+    dofs: &Dofs,
+    springs: &[crate::fem::springs::NodeSpring],
+    center: [f64; 3],
+) -> ves_format::FreeMotions {
     if dofs.fixed.is_empty() && springs.is_empty() {
-        return 6;
+        return ves_format::FreeMotions::all();
     }
-    let modes = scaled_rigid_motions(nodes);
-    let held = crate::fem::springs::rigid_gram(springs, &modes);
-    // Gram matrix of the restrictions to the fixed DOFs, plus the springs' energy of each pair,
-    // each scaled to a largest diagonal of 1; its rank is the constrained count.
-    let fixed = faer::Mat::<f64>::from_fn(6, 6, |a, b| {
-        dofs.fixed
-            .iter()
-            .map(|&d| modes[a][d as usize] * modes[b][d as usize])
-            .sum()
-    });
+    let (middle, length) = frame(nodes);
+    let at = |i: usize| rigid_at(nodes[i], middle, length);
+    let held = crate::fem::springs::rigid_gram(springs, at);
+    let mut fixed = [[0.0; 6]; 6];
+    for &d in &dofs.fixed {
+        let m = at(d as usize / 3);
+        let c = d as usize % 3;
+        for a in 0..6 {
+            for b in 0..6 {
+                fixed[a][b] += m[a][c] * m[b][c];
+            }
+        }
+    }
     let unit = |d: f64| if d > 0.0 { 1.0 / d } else { 0.0 };
     let (sf, ss) = (
-        unit((0..6).map(|p| fixed[(p, p)]).fold(0.0f64, f64::max)),
+        unit((0..6).map(|p| fixed[p][p]).fold(0.0f64, f64::max)),
         unit((0..6).map(|p| held[p][p]).fold(0.0f64, f64::max)),
     );
-    let gram = faer::Mat::<f64>::from_fn(6, 6, |a, b| sf * fixed[(a, b)] + ss * held[a][b]);
-    let eig = match gram.self_adjoint_eigenvalues(faer::Side::Lower) {
-        Ok(e) => e,
-        Err(_) => return 6,
-    };
-    let top = eig.iter().fold(0.0f64, |a, &v| a.max(v.abs()));
-    let rank = eig.iter().filter(|&&v| v > 1e-10 * top).count();
-    6 - rank
+    let gram = nalgebra::Matrix6::from_fn(|a, b| sf * fixed[a][b] + ss * held[a][b]);
+    let eig = nalgebra::SymmetricEigen::new(0.5 * (gram + gram.transpose()));
+    if eig.eigenvalues.iter().any(|v| !v.is_finite()) {
+        return ves_format::FreeMotions::all();
+    }
+    let top = eig.eigenvalues.iter().fold(0.0f64, |a, &v| a.max(v.abs()));
+    // A null vector (t, ω_s) moves x by t + ω_s × (x − middle)/length: about `center` that is
+    // the twist (t + ω × (center − middle), ω) with ω = ω_s/length.
+    let twists: Vec<[f64; 6]> = (0..6)
+        .filter(|&i| eig.eigenvalues[i] <= 1e-10 * top)
+        .map(|i| {
+            let u = eig.eigenvectors.column(i);
+            let w = nalgebra::Vector3::new(u[3], u[4], u[5]) / length;
+            let off = nalgebra::Vector3::from(center) - nalgebra::Vector3::from(middle);
+            let v = nalgebra::Vector3::new(u[0], u[1], u[2]) + w.cross(&off);
+            [v[0], v[1], v[2], w[0], w[1], w[2]]
+        })
+        .collect();
+    ves_format::FreeMotions::new(&twists).unwrap_or_else(ves_format::FreeMotions::all)
 }

@@ -155,7 +155,9 @@ impl Meshed {
     /// Assembles K, M and the mass on this process; its seconds join `assemble_s`.
     pub fn assemble(self) -> Result<Discretized, fem::assembly::AssemblyError> {
         let t = Instant::now();
-        let system = fem::assembly::assemble_with(&self.mesh, &self.material, &self.dofs, &self.springs)?;
+        let mut system = fem::assembly::assemble_with(&self.mesh, &self.material, &self.dofs, &self.springs)?;
+        system.mass.free =
+            crate::rigid_motions::free_motions(&self.mesh.nodes, &self.dofs, &self.springs, system.mass.center);
         Ok(Discretized {
             model: Model {
                 mesh: self.mesh,

@@ -84,11 +84,33 @@ impl Space<'_> {
                 cubic: &n.reduced.t,
                 quartic: &n.reduced.h,
             }),
-            rigid: (self.modes.rigid_dropped > 0).then_some(ves_format::RigidProperties {
+            rigid: self.free_motions().map(|free| ves_format::RigidProperties {
                 mass: self.mass.mass,
                 center: self.mass.center,
                 inertia: self.mass.inertia,
+                free,
             }),
+        }
+    }
+
+    /// The rigid motions left free, when there are any: as many as the eigen-solve dropped (a
+    /// file whose `rigid/free_motions` disagreed with `rigid_modes_dropped` would be refused by
+    /// every reader, so a mismatch writes no `rigid/`: the part is then simulated held).
+    fn free_motions(&self) -> Option<ves_format::FreeMotions> {
+        let dropped = self.modes.rigid_dropped;
+        match dropped {
+            0 => None,
+            6 => Some(ves_format::FreeMotions::all()),
+            _ if self.mass.free.count() == dropped => Some(self.mass.free),
+            _ => {
+                tracing::warn!(
+                    "space {}: {dropped} rigid motions dropped but {} found free by the supports: its rigid motions \
+                     are not stored, and a session holds the part in place",
+                    self.name,
+                    self.mass.free.count()
+                );
+                None
+            }
         }
     }
 

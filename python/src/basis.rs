@@ -374,8 +374,10 @@ impl Space {
             .map(|(n, b)| (n.clone_ref(py), b.clone_ref(py)))
     }
 
-    /// A free body's mass properties: dict with mass (kg), center_of_mass (m) and inertia
-    /// (kg·m², about the centre of mass); None for a supported part.
+    /// The mass properties of a part that can move as a whole: dict with mass (kg),
+    /// center_of_mass (m), inertia (kg·m², about the centre of mass) and free_motions (k, 6):
+    /// the rigid motions its supports leave free as twists (v, ω) about the centre of mass
+    /// (the identity's six rows for a free body); None for a part held in every direction.
     #[getter]
     fn rigid<'py>(&self, py: Python<'py>) -> PyResult<Option<Bound<'py, PyDict>>> {
         let Some(r) = self.rigid else { return Ok(None) };
@@ -383,6 +385,7 @@ impl Space {
         d.set_item("mass", r.mass)?;
         d.set_item("center_of_mass", r.center)?;
         d.set_item("inertia", r.inertia)?;
+        d.set_item("free_motions", r.free.twists().to_vec())?;
         Ok(Some(d))
     }
 

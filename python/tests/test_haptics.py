@@ -174,6 +174,7 @@ def test_a_free_bracket_held_by_one_corner_hangs_below_the_hand(work):
     bracket = ves.precompute(REPO / "cases" / "bracket" / "scene.toml", work / "bracket.h5", progress=False)
     assert bracket.space("global").rigid_modes_dropped == 6
     mass = bracket.rigid["mass"]
+    np.testing.assert_array_equal(bracket.rigid["free_motions"], np.eye(6))  # all six free
     sim = ves.Haptics(bracket, stiffness=2000.0, free_body=True)
     hand = sim.rest_positions[0][None, :].copy()
     forces = np.zeros((1, 3))

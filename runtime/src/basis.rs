@@ -8,7 +8,7 @@ type V3 = nalgebra::Vector3<f64>;
 pub type LoadError = ves_format::InputError;
 
 /// Mass properties of a free body (defined with the file format).
-pub use ves_format::RigidProperties;
+pub use ves_format::{FreeMotions, RigidProperties};
 
 /// What to load from a basis file.
 #[derive(Clone, Debug, Default)]

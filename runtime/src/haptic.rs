@@ -422,7 +422,9 @@ impl Haptics {
     /// Makes the part a free body moving under the hands' forces and `gravity` (m/s²), from the
     /// basis's mass properties; `damping` (1/s) bleeds both momenta, so a part hanging from a
     /// hand stops swinging. Inputs and outputs are then in the world frame, which starts equal
-    /// to the part frame. Fails when the basis holds no mass properties (a supported part).
+    /// to the part frame; a part held in some directions moves along the rigid motions its
+    /// supports leave only. Fails when the basis holds no mass properties (a part held in every
+    /// direction).
     pub fn set_free_body(&mut self, gravity: [f64; 3], damping: f64) -> Result<(), FreeBodyError> {
         let props = self.basis.rigid.ok_or(FreeBodyError::Supported)?;
         let mut body = RigidBody::new(&props, gravity).ok_or(FreeBodyError::SingularInertia)?;

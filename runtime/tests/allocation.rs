@@ -85,6 +85,7 @@ fn grid(patches: bool) -> Arc<Basis> {
             mass: 0.1,
             center: [0.02, 0.02, 0.0],
             inertia: [[1e-5, 0.0, 0.0], [0.0, 1e-5, 0.0], [0.0, 0.0, 2e-5]],
+            free: ves_runtime::basis::FreeMotions::all(),
         }),
     )
     .expect("grid basis")

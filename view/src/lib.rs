@@ -1339,6 +1339,8 @@ fn hello(
         "min_safety_factor": s.watch.min_safety_factor,
         "strain_limit": s.watch.limit,
         "free_body": first.is_some_and(|b| b.rigid.is_some()),
+        // How many rigid motions the supports leave (6: a free body; a shaft in bearings 1).
+        "free_motions": first.and_then(|b| b.rigid.map(|r| r.free.count())),
         "center": first.and_then(|b| b.rigid.map(|r| r.center)),
         "gravity": s.free_body.map(|(g, _)| g),
         "spaces": spaces,

@@ -20,6 +20,10 @@ pub struct MassProperties {
     pub center: [f64; 3],
     /// kg·m², about the centre of mass.
     pub inertia: [[f64; 3]; 3],
+    /// The rigid motions the supports leave free, as twists about the centre of mass: all six
+    /// as assembled, set from the supports by whoever knows them
+    /// (`rigid_motions::free_motions`).
+    pub free: ves_format::FreeMotions,
 }
 
 /// Node-level lower-triangular block pattern (CSC over nodes).
@@ -355,5 +359,10 @@ fn mass_properties(mass: f64, first: [f64; 3], second: [[f64; 3]; 3]) -> MassPro
             inertia[i][j] = if i == j { tr } else { 0.0 } - r[i][j];
         }
     }
-    MassProperties { mass, center, inertia }
+    MassProperties {
+        mass,
+        center,
+        inertia,
+        free: ves_format::FreeMotions::all(),
+    }
 }

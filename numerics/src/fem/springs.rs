@@ -169,22 +169,26 @@ pub fn mid_nodes(mesh: &Mesh) -> HashMap<(u32, u32), u32> {
     out
 }
 
-/// ½ uᵀK_s u for each pair of the six rigid motions `modes` (full DOF vectors): the Gram matrix
-/// whose rank is the number of rigid motions the springs hold.
-pub fn rigid_gram(springs: &[NodeSpring], modes: &[Vec<f64>; 6]) -> [[f64; 6]; 6] {
+/// ½ uᵀK_s u for each pair of the six rigid motions, `at(node)` giving their displacements
+/// there (row r: motion r): the Gram matrix whose rank is the number of rigid motions the
+/// springs hold.
+pub fn rigid_gram(springs: &[NodeSpring], at: impl Fn(usize) -> [[f64; 3]; 6]) -> [[f64; 6]; 6] {
+    // xᵀ B y for a spring's 3×3 block B.
+    let form = |x: &[f64; 3], b: &[[f64; 3]; 3], y: &[f64; 3]| -> f64 {
+        x.iter()
+            .zip(b)
+            .map(|(xr, row)| xr * row.iter().zip(y).map(|(bc, yc)| bc * yc).sum::<f64>())
+            .sum()
+    };
     let mut g = [[0.0; 6]; 6];
     for s in springs {
-        let (a, b) = (3 * s.a as usize, 3 * s.b as usize);
+        let (ma, mb) = (at(s.a as usize), at(s.b as usize));
         for p in 0..6 {
             for q in 0..6 {
-                let mut v = 0.0;
-                for r in 0..3 {
-                    for c in 0..3 {
-                        v += modes[p][a + r] * s.block[r][c] * modes[q][b + c];
-                        if s.a != s.b {
-                            v += modes[p][b + c] * s.block[r][c] * modes[q][a + r];
-                        }
-                    }
+                // The block couples a's DOFs (rows) to b's (columns), and b's to a's by symmetry.
+                let mut v = form(&ma[p], &s.block, &mb[q]);
+                if s.a != s.b {
+                    v += form(&ma[q], &s.block, &mb[p]);
                 }
                 g[p][q] += v;
             }
@@ -212,8 +216,9 @@ mod tests {
             let springs = face_springs(&mesh, &top, 1e6, |n, _| {
                 std::array::from_fn(|r| std::array::from_fn(|c| n[r] * n[c]))
             });
-            let modes = crate::rigid_motions::rigid_motions(&mesh.nodes, [0.0; 3], 1.0);
-            let g = rigid_gram(&springs, &modes);
+            let g = rigid_gram(&springs, |i| {
+                crate::rigid_motions::rigid_at(mesh.nodes[i], [0.0; 3], 1.0)
+            });
             assert!((g[2][2] - 1e6 * 0.5).abs() < 1e-6, "{kind:?}: {}", g[2][2]);
             assert!(g[0][0].abs() < 1e-6 && g[1][1].abs() < 1e-6, "{kind:?}");
         }

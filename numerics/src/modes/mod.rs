@@ -750,8 +750,9 @@ impl Model {
         material: crate::material::Material,
         springs: &[crate::fem::springs::NodeSpring],
     ) -> Result<Model, crate::fem::assembly::AssemblyError> {
-        let system = crate::fem::assembly::assemble_with(&mesh, &material, &dofs, springs)?;
-        let rigid = crate::rigid_motions::free_rigid_count_with(&mesh.nodes, &dofs, springs);
+        let mut system = crate::fem::assembly::assemble_with(&mesh, &material, &dofs, springs)?;
+        system.mass.free = crate::rigid_motions::free_motions(&mesh.nodes, &dofs, springs, system.mass.center);
+        let rigid = system.mass.free.count();
         Ok(Model {
             mesh,
             dofs,

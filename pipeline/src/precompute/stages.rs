@@ -462,7 +462,9 @@ fn solve(scene: &Scene, problem: Problem, choice: SolverChoice) -> Result<Solved
                 let mass = d.system.mass;
                 (Problem::Here(d), mass)
             } else {
-                (Problem::OnRanks(m), s.moments.properties())
+                let mut mass = s.moments.properties();
+                mass.free = crate::rigid_motions::free_motions(&m.mesh.nodes, &m.dofs, &m.springs, mass.center);
+                (Problem::OnRanks(m), mass)
             };
             Ok(Solved {
                 problem,

@@ -11,7 +11,13 @@ import { scene, screenOfPoint } from './viewport.js';
 export function showLimit() {
   const h = state.hello;
   $('limit').textContent = `device force limit ${plain(h.max_force)} N · coupling ${label(h.stiffness, 'stiffness', state.units)}`
-    + (h.free_body ? ` · free body, gravity ${plain(Math.hypot(...(h.gravity || [0, 0, 0])))} m/s²` : '');
+    + (h.free_body ? ` · ${freeness(h.free_motions)}, gravity ${plain(Math.hypot(...(h.gravity || [0, 0, 0])))} m/s²` : '');
+}
+
+/** How the part may move as a whole: a free body, or the rigid motions its supports leave. */
+function freeness(count) {
+  if (count == null || count >= 6) return 'free body';
+  return `held, free along ${count} rigid motion${count === 1 ? '' : 's'} its supports leave`;
 }
 
 /** Redraws per second over the last DRAW_WINDOW redraws. */
