@@ -43,6 +43,28 @@ fn instant_bases_match_the_converged_solve_within_their_bounds() {
         // The file is a basis like any other: `ves info` reads and checks it whole.
         let info = ves(&["info", out.to_str().unwrap(), "--json"]);
         assert!(info.status.success(), "{name}: {}", stderr(&info));
+        // Held by both ends, the instant basis carries a hand's load whole at once: the
+        // supports' influence coefficients come from its search's own factor of K, the same
+        // as the converged basis's.
+        let influence = |path: &std::path::Path| -> Option<Vec<f64>> {
+            let f = ves_format::file::open(path).unwrap();
+            let g = f.group("spaces/global").unwrap();
+            g.dataset("modes/support_influence").ok().map(|d| d.read_raw().unwrap())
+        };
+        let (a, b) = (influence(&out), influence(&dir.path().join(format!("{name}.h5"))));
+        assert_eq!(a.is_some(), name == "both", "{name}: instant influence {}", a.is_some());
+        assert_eq!(
+            b.is_some(),
+            name == "both",
+            "{name}: converged influence {}",
+            b.is_some()
+        );
+        if let (Some(a), Some(b)) = (a, b) {
+            let top = b.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+            let off = a.iter().zip(&b).fold(0.0f64, |m, (x, y)| m.max((x - y).abs())) / top;
+            println!("{name}: influence coefficients instant against converged, {off:.1e} of the largest");
+            assert!(a.len() == b.len() && off < 1e-9, "{name}: {off:.1e}");
+        }
     }
     // Another mesh size: no instant basis, said in one line, nothing written.
     let finer = write_file(

@@ -38,6 +38,10 @@ pub struct Warm {
     pub solves: usize,
     /// Vectors in the space searched.
     pub basis: usize,
+    /// The factor of K itself when the search was made at σ = 0 (a held part): what the
+    /// supports' influence coefficients and the load cases need, handed on rather than made
+    /// again.
+    pub stiffness_factor: Option<crate::linsolve::Cholesky>,
 }
 
 /// No further stage once the wanted Ritz values' error after the last stage is expected below
@@ -258,12 +262,13 @@ pub fn warm_start(space: Space<'_>, count: usize, start: &[f64], blocks: usize) 
             sigma,
             factorize_s,
             eigensolve_s: t1.elapsed().as_secs_f64(),
-            symbolic: Some(chol.into_symbolic()),
+            symbolic: None,
         },
         bounds,
         estimates,
         solves,
         basis: m,
+        stiffness_factor: (sigma == 0.0).then_some(chol),
     })
 }
 
@@ -300,6 +305,7 @@ pub fn scaled(space: Space<'_>, eigenvalues: Vec<f64>, mut vectors: Vec<f64>) ->
         },
         solves: 0,
         basis: r,
+        stiffness_factor: None,
     })
 }
 

@@ -12,7 +12,7 @@ pub mod vector;
 pub use vector::LoadCaseError;
 
 use crate::fem::element::Lame;
-use crate::linsolve::factor_stiffness;
+use crate::linsolve::{Cholesky, factor_stiffness};
 use crate::problem::Discretized;
 use crate::scene::Scene;
 use anyhow::{Context, Result, bail};
@@ -216,6 +216,7 @@ pub fn with_influence(
     d: &Discretized,
     rigid_dropped: usize,
     mut reactions: ModalReactions,
+    factor: Option<&Cholesky>,
 ) -> Result<ModalReactions> {
     let s = reactions.centres.len();
     if rigid_dropped > 0 || !(2..=influence::MAX_SUPPORTS).contains(&s) {
@@ -224,7 +225,8 @@ pub fn with_influence(
     let path = || scene.path.display().to_string();
     let held = crate::supports::held_by_each(&d.mesh, &scene.fixed).with_context(path)?;
     let springs = crate::supports::springs(&d.mesh, &scene.fixed, scene.material.young).with_context(path)?;
-    let made = factor_stiffness(&d.system, &d.dofs)
+    let mut own = None;
+    let made = stiffness(d, factor, &mut own)
         .map_err(anyhow::Error::from)
         .and_then(|chol| {
             influence::support_influence(
@@ -232,7 +234,7 @@ pub fn with_influence(
                 &near_held(&d.mesh, &held),
                 &Lame::of(&scene.material),
                 &d.dofs,
-                &chol,
+                chol,
                 &held,
                 &springs,
                 &reactions.centres,
@@ -387,7 +389,25 @@ pub fn load_vectors(scene: &Scene, d: &Discretized) -> Result<Vec<Vec<f64>>> {
 /// Solves K u = f for every load vector (3n each) on `d`, supported DOFs held at zero: one
 /// factorisation, all right-hand sides at once. Returns the displacements (3n each).
 pub fn solve_static(d: &Discretized, loads: &[Vec<f64>]) -> Result<Vec<Vec<f64>>> {
-    let chol = factor_stiffness(&d.system, &d.dofs)?;
+    solve_static_with(d, loads, None)
+}
+
+/// K's factor: `given` when an earlier stage made it on the same K, else made into `own`.
+fn stiffness<'a>(
+    d: &Discretized,
+    given: Option<&'a Cholesky>,
+    own: &'a mut Option<Cholesky>,
+) -> Result<&'a Cholesky, crate::linsolve::FactorError> {
+    match given {
+        Some(c) => Ok(c),
+        None => Ok(own.insert(factor_stiffness(&d.system, &d.dofs)?)),
+    }
+}
+
+/// [`solve_static`] with K's factor when an earlier stage made it (`None`: made here).
+pub fn solve_static_with(d: &Discretized, loads: &[Vec<f64>], factor: Option<&Cholesky>) -> Result<Vec<Vec<f64>>> {
+    let mut own = None;
+    let chol = stiffness(d, factor, &mut own)?;
     let nf = d.dofs.free_count();
     let mut x = vec![0.0; nf * loads.len()];
     for (j, f) in loads.iter().enumerate() {
@@ -408,6 +428,7 @@ pub fn solve_loads(
     scene: &Scene,
     d: &Discretized,
     nonlinear: Option<(&crate::nonlinear::NonlinearModel, &crate::modes::Modes)>,
+    factor: Option<&Cholesky>,
 ) -> Result<Vec<LoadResult>> {
     if scene.loads.is_empty() {
         return Ok(Vec::new());
@@ -423,7 +444,8 @@ pub fn solve_loads(
     if let Some((model, modes)) = nonlinear {
         let basis = crate::nonlinear::full_columns(d, modes);
         let points = crate::fem::stvk::Points::of(&d.mesh)?;
-        let chol = factor_stiffness(&d.system, &d.dofs)?;
+        let mut own = None;
+        let chol = stiffness(d, factor, &mut own)?;
         return scene
             .loads
             .iter()
@@ -431,13 +453,13 @@ pub fn solve_loads(
             .map(|(case, f)| {
                 let (u, internal, _) = crate::nonlinear::static_response(d, model, &basis, f, &points)
                     .with_context(|| format!("load case {}", case.name))?;
-                let reacting = one_newton_step(d, &lame, &chol, &springs, f, &u, &internal)?;
+                let reacting = one_newton_step(d, &lame, chol, &springs, f, &u, &internal)?;
                 let s = crate::fem::stress::vertex_stress_cauchy(&d.mesh, &lame, &u);
                 finish(d, case, f, u, (&reacting.0, &reacting.1), s, (&held, &springs))
             })
             .collect();
     }
-    let u = solve_static(d, &f)?;
+    let u = solve_static_with(d, &f, factor)?;
     let r = f.len();
     // Stress of all cases at once: fields side by side, as the modal stress is recovered.
     let fields: Vec<f64> = u.iter().flatten().copied().collect();

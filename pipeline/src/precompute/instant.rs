@@ -139,7 +139,8 @@ pub fn run(scene: &Scene, previous: &Path, out: &Path) -> Result<Option<(Summary
     let mut d = d;
     d.assemble_s = assemble_s;
     tracing::info!(seconds = start.elapsed().as_secs_f64(), "instant: modes found");
-    let space = stages::space_from_modes(scene, d, warm.modes)?;
+    let space = stages::space_from_modes(scene, d, warm.modes, warm.stiffness_factor.as_ref())?;
+    drop(warm.stiffness_factor);
     tracing::info!(seconds = start.elapsed().as_secs_f64(), "instant: patches and stress");
     crate::progress::stage("writing", 0.9)?;
     let summary = write_all(scene, out, std::slice::from_ref(&space), 0.0, start)?;

@@ -193,9 +193,9 @@ pub(super) fn solve_space_checked(
     let compliance = compliance?;
     let (stress, stress_s) = timed(|| stress(scene, &solved));
     progress::stage("service loads", if refined { 0.9 } else { shares.loads })?;
-    let (loads, loads_s) = timed(|| released(|| loads(scene, &solved, nonlinear.as_ref())));
+    let (loads, loads_s) = timed(|| released(|| loads(scene, &solved, nonlinear.as_ref(), None)));
     let loads = loads?;
-    let (reactions, reactions_s) = timed(|| reactions(scene, voi, &solved, true));
+    let (reactions, reactions_s) = timed(|| reactions(scene, voi, &solved, Influence::Made));
     let reactions = reactions?;
     if let Some(s) = &sturm {
         advice::report_sturm(&name, s);
@@ -324,6 +324,7 @@ pub(super) fn space_from_modes(
     scene: &Scene,
     d: crate::problem::Discretized,
     modes: modes::Modes,
+    stiffness: Option<&crate::linsolve::Cholesky>,
 ) -> Result<SolvedSpace> {
     let solved = Solved {
         mass: d.system.mass,
@@ -332,12 +333,15 @@ pub(super) fn space_from_modes(
         ordering_s: 0.0,
     };
     let (stress, stress_s) = timed(|| stress(scene, &solved));
-    let (reactions, reactions_s) = timed(|| reactions(scene, None, &solved, false));
+    // K's factor, when the search made it, gives the supports' influence coefficients for a
+    // few solves (6 a support) and answers the load cases.
+    let influence = stiffness.map_or(Influence::Without, Influence::With);
+    let (reactions, reactions_s) = timed(|| reactions(scene, None, &solved, influence));
     let reactions = reactions?;
     // The load cases of a linear model: K factored once and a solve each, so a load added to a
     // computed part is answered with the instant basis (its modes rescaled, no search).
     let (loads, loads_s) = match scene.nonlinear {
-        None => timed(|| released(|| loads(scene, &solved, None))),
+        None => timed(|| released(|| loads(scene, &solved, None, stiffness))),
         Some(_) => (Ok(Vec::new()), 0.0),
     };
     let later = AfterSolve {
@@ -559,16 +563,27 @@ fn stress(scene: &Scene, solved: &Solved) -> Option<Vec<f64>> {
     Some(crate::fem::stress::vertex_stress(solved.problem.mesh(), &lame, &u, r))
 }
 
+/// Whether a space's supports get their influence coefficients, and with which factor of K.
+#[derive(Clone, Copy)]
+enum Influence<'a> {
+    /// None (an instant basis searched at a shift: the converged one that follows has them).
+    Without,
+    /// Made, K factorised for them.
+    Made,
+    /// Made with K's factor from an earlier stage (an instant basis of a held part: its
+    /// search's own).
+    With(&'a crate::linsolve::Cholesky),
+}
+
 /// What each support carries per unit modal coordinate, for the global space of a held part
 /// with a linear model (a volume of interest's mesh need not hold the supports).
 /// With `influence`, and K here, a part held by several supports gets their influence
-/// coefficients too (what each carries of a load held steady); an instant basis goes without
-/// (the converged one that follows has them).
+/// coefficients too (what each carries of a load held steady).
 fn reactions(
     scene: &Scene,
     voi: Option<&Voi>,
     solved: &Solved,
-    influence: bool,
+    influence: Influence<'_>,
 ) -> Result<Option<crate::loads::ModalReactions>> {
     // Reactions linear in q are wrong for a nonlinear model once it rotates (the page showed a
     // support carrying 2.75 N of a 10 N pull): none rather than a wrong one.
@@ -576,10 +591,13 @@ fn reactions(
         return Ok(None);
     }
     let modal = crate::loads::modal_reactions(scene, solved.problem.mesh(), solved.problem.dofs(), &solved.modes)?;
+    let factor = match influence {
+        Influence::Without => return Ok(modal),
+        Influence::Made => None,
+        Influence::With(chol) => Some(chol),
+    };
     match (modal, solved.problem.here()) {
-        (Some(m), Some(d)) if influence => {
-            crate::loads::with_influence(scene, d, solved.modes.rigid_dropped, m).map(Some)
-        }
+        (Some(m), Some(d)) => crate::loads::with_influence(scene, d, solved.modes.rigid_dropped, m, factor).map(Some),
         (modal, _) => Ok(modal),
     }
 }
@@ -605,6 +623,7 @@ fn loads(
     scene: &Scene,
     solved: &Solved,
     nonlinear: Option<&crate::nonlinear::NonlinearModel>,
+    stiffness: Option<&crate::linsolve::Cholesky>,
 ) -> Result<Vec<crate::loads::LoadResult>> {
     if scene.loads.is_empty() {
         return Ok(Vec::new());
@@ -613,7 +632,7 @@ fn loads(
         .problem
         .here()
         .context("the load cases need K, which was left on the MPI ranks")?;
-    crate::loads::solve_loads(scene, d, nonlinear.map(|m| (m, &solved.modes)))
+    crate::loads::solve_loads(scene, d, nonlinear.map(|m| (m, &solved.modes)), stiffness)
 }
 
 /// What the stages after the solve made.

@@ -103,8 +103,8 @@ pub struct SupportReport {
     pub force_max_n: f64,
     /// The truncated modes' share of the hands' loads is added back: one support holding every
     /// rigid motion (equilibrium), or the file's influence coefficients for several. False: the
-    /// modes' share only (supports that leave a rigid motion free, more than six supports, an
-    /// instant basis held by several).
+    /// modes' share only (supports that leave a rigid motion free, more than six supports, a
+    /// file without coefficients).
     pub corrected: bool,
 }
 
