@@ -174,6 +174,15 @@ impl Meshed {
 }
 
 impl Discretized {
+    /// Of the meshing seconds, what did not go into making the mesh itself (starting gmsh,
+    /// reading the geometry, the cache): what a mesh of any size costs.
+    pub fn fixed_mesh_s(&self) -> f64 {
+        if self.meshing.cached {
+            return 0.0;
+        }
+        (self.mesh_s - self.meshing.generate_s).max(0.0)
+    }
+
     /// Assembles K and M on a given mesh and DOF numbering; stage times left at zero.
     pub fn assemble(mesh: Mesh, dofs: Dofs, material: Material) -> Result<Discretized> {
         Ok(Discretized {

@@ -30,6 +30,9 @@ pub struct Step {
     pub dofs: usize,
     /// Seconds to mesh, assemble and solve it (its estimate not included).
     pub seconds: f64,
+    /// Of those, what every mesh pays whatever its size: starting gmsh and reading the
+    /// geometry (0 for a mesh from the cache).
+    pub fixed_s: f64,
     /// Its kept modes' frequencies.
     pub frequencies_hz: Vec<f64>,
     /// The largest estimated relative error of a kept mode (NaN without an estimate).
@@ -162,6 +165,7 @@ pub fn refine(scene: &Scene, voi: Option<&Voi>, choice: SolverChoice, target: f6
             nodes: current.d.mesh.nodes.len(),
             dofs: current.d.dofs.free_count(),
             seconds: current.seconds,
+            fixed_s: current.d.fixed_mesh_s().min(current.seconds),
             frequencies_hz: current.modes.frequencies_hz()[..kept.min(current.modes.eigenvalues.len())].to_vec(),
             max_estimated_error: worst,
             remembered: from_memory && steps.is_empty(),
@@ -376,7 +380,13 @@ impl Next {
             .and_then(|v| v.parse::<f64>().ok())
             .filter(|f| *f > 0.0 && *f < 1.0)
             .unwrap_or(factor);
-        let growth = local.as_ref().map_or(factor.powf(-size_exponent(steps)), |n| n.growth);
+        let growth = match (&local, steps) {
+            (Some(n), _) => n.growth,
+            // Before two meshes have measured how the unknowns grow, the first mesh's own tets
+            // say which of them the smaller size refines.
+            (None, [] | [_]) => super::indicator::uniform_growth(&current.d.mesh, current.size, factor),
+            (None, _) => factor.powf(-size_exponent(steps)),
+        };
         Next {
             local,
             size: current.size * factor,
@@ -505,19 +515,23 @@ struct NextCost {
 }
 
 impl NextCost {
-    /// Time grows as unknowns^a with a measured from the last two meshes (between 1 and 2),
-    /// or 1.3 with one mesh; memory beyond `base` (resident at the refinement's start: the
-    /// page's compute process holds its previous basis) as the unknowns.
+    /// Time beyond a mesh's fixed cost (starting gmsh, reading the geometry: the same for
+    /// every mesh) grows as unknowns^a with a measured from the last two meshes (between 1 and
+    /// 2), or 1.3 with one mesh; memory beyond `base` (resident at the refinement's start: the
+    /// page's compute process holds its previous basis) as the unknowns. Scaled whole, the
+    /// first mesh's fixed cost (most of a small mesh's time) made the first forecast 1.4–4×
+    /// the time taken (docs/accuracy.md).
     fn of(steps: &[Step], growth: f64, base: u64) -> NextCost {
-        let last_s = steps.last().map_or(0.0, |s| s.seconds);
+        let grows = |s: &Step| (s.seconds - s.fixed_s).max(0.0);
+        let (fixed, last_s) = steps.last().map_or((0.0, 0.0), |s| (s.fixed_s, grows(s)));
         let a = match steps {
-            [.., p, l] if p.dofs > 0 && l.dofs > p.dofs && p.seconds > 0.0 && l.seconds > 0.0 => {
-                ((l.seconds / p.seconds).ln() / (l.dofs as f64 / p.dofs as f64).ln()).clamp(1.0, 2.0)
+            [.., p, l] if p.dofs > 0 && l.dofs > p.dofs && grows(p) > 0.0 && grows(l) > 0.0 => {
+                ((grows(l) / grows(p)).ln() / (l.dofs as f64 / p.dofs as f64).ln()).clamp(1.0, 2.0)
             }
             _ => 1.3,
         };
         NextCost {
-            seconds: last_s * growth.powf(a),
+            seconds: fixed + last_s * growth.powf(a),
             bytes: base as f64 + crate::memory::peak_rss_bytes().saturating_sub(base) as f64 * growth,
         }
     }
@@ -611,6 +625,7 @@ mod tests {
             nodes: 0,
             dofs,
             seconds: 1.0,
+            fixed_s: 0.0,
             frequencies_hz: Vec::new(),
             max_estimated_error: 0.1,
             remembered: false,

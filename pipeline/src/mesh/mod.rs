@@ -836,6 +836,7 @@ fn attempt_once(
             &session,
         ));
     }
+    let generating = std::time::Instant::now();
     if let Err(cause) = session.generate(3) {
         return Err(retry(
             MeshError::Gmsh {
@@ -905,6 +906,7 @@ fn attempt_once(
             }
         }
     }
+    meshing.generate_s = generating.elapsed().as_secs_f64();
     drop(session);
     Ok((mesh, meshing))
 }
@@ -961,6 +963,10 @@ pub struct Meshing {
     pub optimize_s: f64,
     /// The element size used, m (the scene's, or the one picked when it left it open).
     pub size: f64,
+    /// Seconds gmsh spent making the mesh itself (3-D mesh, order 2, optimisation): what grows
+    /// with the mesh, apart from starting gmsh and reading the geometry.
+    #[serde(default)]
+    pub generate_s: f64,
     /// Read from the mesh cache (made by an earlier run, which said its warnings in full).
     #[serde(default)]
     pub cached: bool,
