@@ -95,7 +95,9 @@ class Space:
         """Exact static compliance: node indices (p,) and 3×3 blocks (p, 3, 3), m/N; or None."""
     @property
     def rigid(self) -> Optional[dict]:
-        """A free body's mass, center_of_mass and inertia; None for a supported part."""
+        """A movable part's mass, center_of_mass, inertia and free_motions (k, 6): the rigid
+        motions its supports leave, twists (v, ω) about the centre of mass (six for a free
+        body); None for a part held in every direction."""
     def to_meshio(self, modes: Optional[int] = None) -> Any:
         """The space as a meshio.Mesh: tets in VTK order, mode shapes as point data mode_1, …"""
 
