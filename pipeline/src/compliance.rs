@@ -33,10 +33,18 @@ fn require_supported(d: &Discretized) -> Result<()> {
 const VERTICES_PER_BLOCK: usize = 16;
 
 /// Compliance blocks of every corner vertex on the surface, each for its contact patch.
-pub fn surface_compliance(d: &Discretized, patches: &Patches) -> Result<Compliance> {
+/// `factor`, when given, is K's own, made by an earlier stage.
+pub fn surface_compliance(
+    d: &Discretized,
+    patches: &Patches,
+    factor: Option<&crate::linsolve::Cholesky>,
+) -> Result<Compliance> {
     // Before factorising: a free body's K is singular, and the reason should say why.
     require_supported(d)?;
-    surface_compliance_with(d, &factor_stiffness(&d.system, &d.dofs)?, patches)
+    match factor {
+        Some(chol) => surface_compliance_with(d, chol, patches),
+        None => surface_compliance_with(d, &factor_stiffness(&d.system, &d.dofs)?, patches),
+    }
 }
 
 /// The same with K's factor already at hand (`chol` must factor `d`'s K): block k is

@@ -164,6 +164,8 @@ pub struct Space<'a> {
     pub first: Vec<([f64; 3], [f64; 3])>,
     /// The contact patch's radius, m (0: a point).
     pub radius: f64,
+    /// K's factor when an earlier stage made it (none: made here).
+    pub factor: Option<&'a crate::linsolve::Cholesky>,
 }
 
 /// The felt compliance's truncation of space `s` (its modes and K); None for a free body (its
@@ -286,9 +288,16 @@ pub fn truncation(s: &Space<'_>) -> Result<Option<FeltTruncation>> {
             at: at(k),
         });
     }
-    let chol = factor_stiffness(system, s.dofs)?;
+    let own;
+    let chol = match s.factor {
+        Some(c) => c,
+        None => {
+            own = factor_stiffness(system, s.dofs)?;
+            &own
+        }
+    };
     let list: Vec<(&[u32], &[f64])> = chosen.iter().map(|c| (c.nodes, c.weights)).collect();
-    let exact = crate::compliance::patch_blocks(s.dofs, &chol, &list, || {})?;
+    let exact = crate::compliance::patch_blocks(s.dofs, chol, &list, || {})?;
     let points: Vec<FeltPoint> = chosen
         .iter()
         .zip(&exact)

@@ -218,8 +218,7 @@ pub fn with_influence(
     mut reactions: ModalReactions,
     factor: Option<&Cholesky>,
 ) -> Result<ModalReactions> {
-    let s = reactions.centres.len();
-    if rigid_dropped > 0 || !(2..=influence::MAX_SUPPORTS).contains(&s) {
+    if !wants_influence(rigid_dropped, reactions.centres.len()) {
         return Ok(reactions);
     }
     let path = || scene.path.display().to_string();
@@ -390,6 +389,12 @@ pub fn load_vectors(scene: &Scene, d: &Discretized) -> Result<Vec<Vec<f64>>> {
 /// factorisation, all right-hand sides at once. Returns the displacements (3n each).
 pub fn solve_static(d: &Discretized, loads: &[Vec<f64>]) -> Result<Vec<Vec<f64>>> {
     solve_static_with(d, loads, None)
+}
+
+/// Whether `supports` supports leaving `rigid_dropped` rigid motions get influence
+/// coefficients ([`with_influence`]): two to six, holding every rigid motion.
+pub fn wants_influence(rigid_dropped: usize, supports: usize) -> bool {
+    rigid_dropped == 0 && (2..=influence::MAX_SUPPORTS).contains(&supports)
 }
 
 /// K's factor: `given` when an earlier stage made it on the same K, else made into `own`.

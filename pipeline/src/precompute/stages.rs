@@ -189,14 +189,17 @@ pub(super) fn solve_space_checked(
         },
     )?;
     let (contact, contact_s) = timed(|| contact_patches(scene, &solved));
-    let (compliance, static_correction_s) = timed(|| compliance(scene, &solved, contact.as_ref()));
+    let shared = SharedFactor::of(&solved);
+    let (compliance, static_correction_s) = timed(|| compliance(scene, &solved, contact.as_ref(), &shared));
     let compliance = compliance?;
     let (stress, stress_s) = timed(|| stress(scene, &solved));
     progress::stage("service loads", if refined { 0.9 } else { shares.loads })?;
-    let (loads, loads_s) = timed(|| released(|| loads(scene, &solved, nonlinear.as_ref(), None)));
+    let factor = || if scene.loads.is_empty() { None } else { shared.get() };
+    let (loads, loads_s) = timed(|| released(|| loads(scene, &solved, nonlinear.as_ref(), factor())));
     let loads = loads?;
-    let (reactions, reactions_s) = timed(|| reactions(scene, voi, &solved, Influence::Made));
+    let (reactions, reactions_s) = timed(|| reactions(scene, voi, &solved, Influence::Made(&shared)));
     let reactions = reactions?;
+    let factor = shared.into_made();
     if let Some(s) = &sturm {
         advice::report_sturm(&name, s);
     }
@@ -218,7 +221,7 @@ pub(super) fn solve_space_checked(
     };
     let mut space = store(name, voi, solved, after);
     if !later {
-        felt(scene, &mut space)?;
+        felt(scene, &mut space, factor)?;
         peak_stress(scene, &mut space)?;
     }
     Ok(space)
@@ -255,7 +258,8 @@ fn peak_stress(scene: &Scene, s: &mut SolvedSpace) -> Result<()> {
 /// The felt compliance's truncation (`accuracy::felt`), with its time. A check, not the basis:
 /// when it cannot be made (K's factor does not fit in memory) the basis is written without it
 /// and a warning says why.
-fn felt(scene: &Scene, s: &mut SolvedSpace) -> Result<()> {
+/// `factor`: K's, when an earlier stage made it; dropped before the coarser meshes are made.
+fn felt(scene: &Scene, s: &mut SolvedSpace, factor: Option<crate::linsolve::Cholesky>) -> Result<()> {
     progress::stage("the felt compliance's truncation", 0.93)?;
     // A nonlinear model is felt through its own tangent; K on MPI ranks is not here.
     let Some(system) = s.system.as_ref().filter(|_| s.nonlinear.is_none()) else {
@@ -277,8 +281,11 @@ fn felt(scene: &Scene, s: &mut SolvedSpace) -> Result<()> {
             })
             .collect(),
         radius: scene.contact_radius,
+        factor: factor.as_ref(),
     };
     let (felt, seconds) = timed(|| released(|| crate::accuracy::felt::truncation(&space)));
+    drop(space);
+    drop(factor);
     match felt {
         Ok(f) => s.felt = f,
         Err(e) => tracing::warn!(
@@ -389,7 +396,7 @@ pub(super) fn check_later(scene: &Scene, s: &mut SolvedSpace, choice: SolverChoi
         progress::stage("estimated", 0.95)?;
         advice::warn_about_error(scene, &s.name, &s.mesh, s.meshing.size, s.error.as_ref());
     }
-    felt(scene, s)?;
+    felt(scene, s, None)?;
     peak_stress(scene, s)
 }
 
@@ -529,7 +536,12 @@ fn contact_patches(scene: &Scene, solved: &Solved) -> Option<Patches> {
 
 /// Compliance: the static correction's blocks, when the scene asks for them, for the contact
 /// patches (each vertex alone without them).
-fn compliance(scene: &Scene, solved: &Solved, contact: Option<&Patches>) -> Result<Option<Compliance>> {
+fn compliance(
+    scene: &Scene,
+    solved: &Solved,
+    contact: Option<&Patches>,
+    shared: &SharedFactor<'_>,
+) -> Result<Option<Compliance>> {
     if scene.static_correction.is_none() {
         return Ok(None);
     }
@@ -545,7 +557,9 @@ fn compliance(scene: &Scene, solved: &Solved, contact: Option<&Patches>) -> Resu
             &points
         }
     };
-    Ok(Some(crate::compliance::surface_compliance(d, patches)?))
+    // A free body's K is singular: no factor is tried, and the stage says why.
+    let factor = (solved.modes.rigid_dropped == 0).then(|| shared.get()).flatten();
+    Ok(Some(crate::compliance::surface_compliance(d, patches, factor)?))
 }
 
 /// Stress: each mode's stress at the corner vertices (`[stress] enabled`).
@@ -563,13 +577,51 @@ fn stress(scene: &Scene, solved: &Solved) -> Option<Vec<f64>> {
     Some(crate::fem::stress::vertex_stress(solved.problem.mesh(), &lame, &u, r))
 }
 
+/// K's factor, made when a stage first asks for it and handed to the stages after it: the
+/// static correction, the load cases, the supports' influence coefficients and the felt check
+/// each factorised K for itself before (on the mould held by two faces, two factorisations of
+/// 0.4 s where one serves). Made at the first request only, so a space whose stages need none
+/// makes none; a factorisation that fails is remembered as none, and each stage then makes its
+/// own and says why as before.
+struct SharedFactor<'a> {
+    d: Option<&'a crate::problem::Discretized>,
+    made: std::cell::OnceCell<Option<crate::linsolve::Cholesky>>,
+}
+
+impl<'a> SharedFactor<'a> {
+    fn of(solved: &'a Solved) -> SharedFactor<'a> {
+        SharedFactor {
+            d: solved.problem.here(),
+            made: std::cell::OnceCell::new(),
+        }
+    }
+
+    fn get(&self) -> Option<&crate::linsolve::Cholesky> {
+        let d = self.d?;
+        self.made
+            .get_or_init(|| match crate::linsolve::factor_stiffness(&d.system, &d.dofs) {
+                Ok(c) => Some(c),
+                Err(e) => {
+                    tracing::debug!("K's shared factor not made ({e}); each stage makes its own");
+                    None
+                }
+            })
+            .as_ref()
+    }
+
+    /// The factor, if it was made (for a stage after the space is stored).
+    fn into_made(self) -> Option<crate::linsolve::Cholesky> {
+        self.made.into_inner().flatten()
+    }
+}
+
 /// Whether a space's supports get their influence coefficients, and with which factor of K.
 #[derive(Clone, Copy)]
 enum Influence<'a> {
     /// None (an instant basis searched at a shift: the converged one that follows has them).
     Without,
-    /// Made, K factorised for them.
-    Made,
+    /// Made, with K's factor shared by the converged compute's stages.
+    Made(&'a SharedFactor<'a>),
     /// Made with K's factor from an earlier stage (an instant basis of a held part: its
     /// search's own).
     With(&'a crate::linsolve::Cholesky),
@@ -591,13 +643,16 @@ fn reactions(
         return Ok(None);
     }
     let modal = crate::loads::modal_reactions(scene, solved.problem.mesh(), solved.problem.dofs(), &solved.modes)?;
-    let factor = match influence {
-        Influence::Without => return Ok(modal),
-        Influence::Made => None,
-        Influence::With(chol) => Some(chol),
-    };
+    let rigid = solved.modes.rigid_dropped;
     match (modal, solved.problem.here()) {
-        (Some(m), Some(d)) => crate::loads::with_influence(scene, d, solved.modes.rigid_dropped, m, factor).map(Some),
+        (Some(m), Some(d)) if crate::loads::wants_influence(rigid, m.centres.len()) => {
+            let factor = match influence {
+                Influence::Without => return Ok(Some(m)),
+                Influence::Made(shared) => shared.get(),
+                Influence::With(chol) => Some(chol),
+            };
+            crate::loads::with_influence(scene, d, rigid, m, factor).map(Some)
+        }
         (modal, _) => Ok(modal),
     }
 }
