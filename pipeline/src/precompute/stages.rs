@@ -189,10 +189,11 @@ pub(super) fn solve_space_checked(
         },
     )?;
     let (contact, contact_s) = timed(|| contact_patches(scene, &solved));
+    // The modal stress (r fields over the mesh) before K's factor is made, not beside it.
+    let (stress, stress_s) = timed(|| stress(scene, &solved));
     let shared = SharedFactor::of(&solved);
     let (compliance, static_correction_s) = timed(|| compliance(scene, &solved, contact.as_ref(), &shared));
     let compliance = compliance?;
-    let (stress, stress_s) = timed(|| stress(scene, &solved));
     progress::stage("service loads", if refined { 0.9 } else { shares.loads })?;
     let factor = || if scene.loads.is_empty() { None } else { shared.get() };
     let (loads, loads_s) = timed(|| released(|| loads(scene, &solved, nonlinear.as_ref(), factor())));
