@@ -254,6 +254,20 @@ pub fn nested_dissection(graph: &NodeGraph, dofs: &Dofs) -> (Vec<usize>, Vec<usi
     (fwd, inv)
 }
 
+/// K's factor: `given` when an earlier stage made it on the same K, else made into `own`
+/// (which then holds it as long as the caller needs it).
+pub fn given_or_made<'a>(
+    system: &crate::fem::Assembled,
+    dofs: &Dofs,
+    given: Option<&'a Cholesky>,
+    own: &'a mut Option<Cholesky>,
+) -> Result<&'a Cholesky, FactorError> {
+    match given {
+        Some(c) => Ok(c),
+        None => Ok(own.insert(factor_stiffness(system, dofs)?)),
+    }
+}
+
 /// Factorises the stiffness K of a supported part (METIS ordering).
 pub fn factor_stiffness(system: &crate::fem::Assembled, dofs: &Dofs) -> Result<Cholesky, FactorError> {
     Cholesky::factor(analyse(system, dofs)?, &system.pattern, &system.k, 0.0)

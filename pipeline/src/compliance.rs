@@ -3,7 +3,7 @@
 //! `loads::patch`; (K⁻¹)ᵢᵢ for a point contact). The runtime adds (Gᵢ − Φ̄ᵢ Λ⁻¹ Φ̄ᵢᵀ) F at the
 //! active vertex (Φ̄ᵢ = Wᵢ Φ), so the felt stiffness is exact whatever the number of modes kept.
 
-use crate::linsolve::{Cholesky, factor_stiffness};
+use crate::linsolve::Cholesky;
 use crate::loads::patch::Patches;
 use crate::problem::Discretized;
 use anyhow::{Result, bail};
@@ -41,10 +41,12 @@ pub fn surface_compliance(
 ) -> Result<Compliance> {
     // Before factorising: a free body's K is singular, and the reason should say why.
     require_supported(d)?;
-    match factor {
-        Some(chol) => surface_compliance_with(d, chol, patches),
-        None => surface_compliance_with(d, &factor_stiffness(&d.system, &d.dofs)?, patches),
-    }
+    let mut own = None;
+    surface_compliance_with(
+        d,
+        crate::linsolve::given_or_made(&d.system, &d.dofs, factor, &mut own)?,
+        patches,
+    )
 }
 
 /// The same with K's factor already at hand (`chol` must factor `d`'s K): block k is
@@ -179,7 +181,7 @@ mod tests {
         };
         let d = Discretized::assemble(mesh, Dofs::from_mask(&mask), Material::elastic(2.1e11, 0.3, 7850.0))
             .expect("assembles");
-        let chol = factor_stiffness(&d.system, &d.dofs).expect("factors");
+        let chol = crate::linsolve::factor_stiffness(&d.system, &d.dofs).expect("factors");
         patches
             .iter()
             .map(|at| {

@@ -288,14 +288,8 @@ pub fn truncation(s: &Space<'_>) -> Result<Option<FeltTruncation>> {
             at: at(k),
         });
     }
-    let own;
-    let chol = match s.factor {
-        Some(c) => c,
-        None => {
-            own = factor_stiffness(system, s.dofs)?;
-            &own
-        }
-    };
+    let mut own = None;
+    let chol = crate::linsolve::given_or_made(system, s.dofs, s.factor, &mut own)?;
     let list: Vec<(&[u32], &[f64])> = chosen.iter().map(|c| (c.nodes, c.weights)).collect();
     let exact = crate::compliance::patch_blocks(s.dofs, chol, &list, || {})?;
     let points: Vec<FeltPoint> = chosen

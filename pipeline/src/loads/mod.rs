@@ -12,7 +12,7 @@ pub mod vector;
 pub use vector::LoadCaseError;
 
 use crate::fem::element::Lame;
-use crate::linsolve::{Cholesky, factor_stiffness};
+use crate::linsolve::Cholesky;
 use crate::problem::Discretized;
 use crate::scene::Scene;
 use anyhow::{Context, Result, bail};
@@ -225,7 +225,7 @@ pub fn with_influence(
     let held = crate::supports::held_by_each(&d.mesh, &scene.fixed).with_context(path)?;
     let springs = crate::supports::springs(&d.mesh, &scene.fixed, scene.material.young).with_context(path)?;
     let mut own = None;
-    let made = stiffness(d, factor, &mut own)
+    let made = crate::linsolve::given_or_made(&d.system, &d.dofs, factor, &mut own)
         .map_err(anyhow::Error::from)
         .and_then(|chol| {
             influence::support_influence(
@@ -394,25 +394,15 @@ pub fn solve_static(d: &Discretized, loads: &[Vec<f64>]) -> Result<Vec<Vec<f64>>
 /// Whether `supports` supports leaving `rigid_dropped` rigid motions get influence
 /// coefficients ([`with_influence`]): two to six, holding every rigid motion.
 pub fn wants_influence(rigid_dropped: usize, supports: usize) -> bool {
-    rigid_dropped == 0 && (2..=influence::MAX_SUPPORTS).contains(&supports)
-}
-
-/// K's factor: `given` when an earlier stage made it on the same K, else made into `own`.
-fn stiffness<'a>(
-    d: &Discretized,
-    given: Option<&'a Cholesky>,
-    own: &'a mut Option<Cholesky>,
-) -> Result<&'a Cholesky, crate::linsolve::FactorError> {
-    match given {
-        Some(c) => Ok(c),
-        None => Ok(own.insert(factor_stiffness(&d.system, &d.dofs)?)),
-    }
+    // The reader's rule (what a session believes), and at most six supports (the writer's cost).
+    let rule = ves_format::read::ReactionStatics::of(supports, rigid_dropped.min(6) as u32, true);
+    supports <= influence::MAX_SUPPORTS && rule == ves_format::read::ReactionStatics::Influence
 }
 
 /// [`solve_static`] with K's factor when an earlier stage made it (`None`: made here).
 pub fn solve_static_with(d: &Discretized, loads: &[Vec<f64>], factor: Option<&Cholesky>) -> Result<Vec<Vec<f64>>> {
     let mut own = None;
-    let chol = stiffness(d, factor, &mut own)?;
+    let chol = crate::linsolve::given_or_made(&d.system, &d.dofs, factor, &mut own)?;
     let nf = d.dofs.free_count();
     let mut x = vec![0.0; nf * loads.len()];
     for (j, f) in loads.iter().enumerate() {
@@ -450,7 +440,7 @@ pub fn solve_loads(
         let basis = crate::nonlinear::full_columns(d, modes);
         let points = crate::fem::stvk::Points::of(&d.mesh)?;
         let mut own = None;
-        let chol = stiffness(d, factor, &mut own)?;
+        let chol = crate::linsolve::given_or_made(&d.system, &d.dofs, factor, &mut own)?;
         return scene
             .loads
             .iter()
