@@ -116,6 +116,20 @@ impl FreeMotions {
     pub fn is_all(&self) -> bool {
         self.count == 6
     }
+
+    /// The same motions as twists about `to`, these being about `from`: a twist (v, ω) moves
+    /// the point `to` with v + ω × (to − from).
+    pub fn moved(&self, from: [f64; 3], to: [f64; 3]) -> FreeMotions {
+        let d = [to[0] - from[0], to[1] - from[1], to[2] - from[2]];
+        let mut out = *self;
+        for t in &mut out.twists[..self.count] {
+            let w = [t[3], t[4], t[5]];
+            t[0] += w[1] * d[2] - w[2] * d[1];
+            t[1] += w[2] * d[0] - w[0] * d[2];
+            t[2] += w[0] * d[1] - w[1] * d[0];
+        }
+        out
+    }
 }
 
 impl Default for FreeMotions {
@@ -387,5 +401,22 @@ mod contact_tests {
         let mut rounded = good();
         rounded.weights[3] = 1.0 + 1e-9;
         assert_eq!(rounded.check(Tet10, 4, 6), Ok(()), "rounding is allowed");
+    }
+}
+
+#[cfg(test)]
+mod free_motion_tests {
+    use super::FreeMotions;
+
+    /// A turn about the axis through a along z, given about the origin, moved to c: the same
+    /// turn, its point c moving with ω × (c − a).
+    #[test]
+    fn a_turn_moved_to_another_point_is_the_same_turn() {
+        let (a, c) = ([1.0, 2.0, 0.0], [0.5, -1.0, 3.0]);
+        // About the origin: v = ω × (0 − a) with ω = e_z.
+        let at_origin = FreeMotions::new(&[[a[1], -a[0], 0.0, 0.0, 0.0, 1.0]]).expect("one twist");
+        let moved = at_origin.moved([0.0; 3], c);
+        let want = [-(c[1] - a[1]), c[0] - a[0], 0.0, 0.0, 0.0, 1.0];
+        assert_eq!(moved.twists(), &[want]);
     }
 }

@@ -60,13 +60,7 @@ pub fn on_free_dofs_in(nodes: &[[f64; 3]], dofs: &Dofs, (center, length): ([f64;
 /// restricted to the supported DOFs. 6 for a free body, 0 for a clamped one, 3 for a plate
 /// supported only out of plane.
 pub fn free_rigid_count(nodes: &[[f64; 3]], dofs: &Dofs) -> usize {
-    free_rigid_count_with(nodes, dofs, &[])
-}
-
-/// [`free_rigid_count`] with surface springs holding the part too: a rigid motion they stretch
-/// is held.
-pub fn free_rigid_count_with(nodes: &[[f64; 3]], dofs: &Dofs, springs: &[crate::fem::springs::NodeSpring]) -> usize {
-    free_motions(nodes, dofs, springs, [0.0; 3]).count()
+    free_motions(nodes, dofs, &[], [0.0; 3]).count()
 }
 
 /// The rigid motions the supports (fixed DOFs, and springs: a motion they stretch is held)

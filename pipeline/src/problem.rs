@@ -50,8 +50,8 @@ pub struct Meshed {
     pub dofs: Dofs,
     /// The springs of the supports that hold by springs (sliding, bearing, elastic).
     pub springs: Vec<crate::fem::springs::NodeSpring>,
-    /// Rigid motions left by the supports.
-    pub rigid: usize,
+    /// The rigid motions the supports leave free, as twists about the origin.
+    pub free: ves_format::FreeMotions,
     /// The material.
     pub material: Material,
     /// Seconds spent meshing.
@@ -138,12 +138,12 @@ pub fn mesh_with_supports(
         .into_iter()
         .flatten()
         .collect();
-    let rigid = crate::rigid_motions::free_rigid_count_with(&mesh.nodes, &dofs, &springs);
+    let free = crate::rigid_motions::free_motions(&mesh.nodes, &dofs, &springs, [0.0; 3]);
     Ok(Meshed {
         mesh,
         dofs,
         springs,
-        rigid,
+        free,
         material: scene.material,
         mesh_s,
         meshing,
@@ -152,19 +152,24 @@ pub fn mesh_with_supports(
 }
 
 impl Meshed {
+    /// How many rigid motions the supports leave free.
+    pub fn rigid(&self) -> usize {
+        self.free.count()
+    }
+
     /// Assembles K, M and the mass on this process; its seconds join `assemble_s`.
     pub fn assemble(self) -> Result<Discretized, fem::assembly::AssemblyError> {
         let t = Instant::now();
         let mut system = fem::assembly::assemble_with(&self.mesh, &self.material, &self.dofs, &self.springs)?;
-        system.mass.free =
-            crate::rigid_motions::free_motions(&self.mesh.nodes, &self.dofs, &self.springs, system.mass.center);
+        system.mass.free = self.free.moved([0.0; 3], system.mass.center);
+        let rigid = self.rigid();
         Ok(Discretized {
             model: Model {
                 mesh: self.mesh,
                 dofs: self.dofs,
                 system,
                 material: self.material,
-                rigid: self.rigid,
+                rigid,
             },
             mesh_s: self.mesh_s,
             meshing: self.meshing,

@@ -446,7 +446,7 @@ fn discretize(scene: &Scene, voi: Option<&Voi>, choice: SolverChoice) -> Result<
     // refused now, before the eigen-solve.
     let rigid = match &problem {
         Problem::Here(d) => d.rigid,
-        Problem::OnRanks(m) => m.rigid,
+        Problem::OnRanks(m) => m.rigid(),
     };
     crate::loads::check_before_solve(scene, problem.mesh(), rigid)?;
     Ok(problem)
@@ -467,7 +467,7 @@ fn solve(scene: &Scene, problem: Problem, choice: SolverChoice) -> Result<Solved
             })
         }
         Problem::OnRanks(mut m) => {
-            let s = released(|| modes::solve_on_ranks(&m.mesh, &m.dofs, m.material, m.rigid, count, choice))?;
+            let s = released(|| modes::solve_on_ranks(&m.mesh, &m.dofs, m.material, m.rigid(), count, choice))?;
             m.assemble_s += s.assemble_s;
             let (problem, mass) = if needs_whole_system(scene) {
                 let d = m.assemble().with_context(|| scene.geometry.display().to_string())?;
@@ -475,7 +475,7 @@ fn solve(scene: &Scene, problem: Problem, choice: SolverChoice) -> Result<Solved
                 (Problem::Here(d), mass)
             } else {
                 let mut mass = s.moments.properties();
-                mass.free = crate::rigid_motions::free_motions(&m.mesh.nodes, &m.dofs, &m.springs, mass.center);
+                mass.free = m.free.moved([0.0; 3], mass.center);
                 (Problem::OnRanks(m), mass)
             };
             Ok(Solved {
