@@ -6,8 +6,9 @@
 // of a core busy, which would measure the browser, not the server.
 //
 // It waits for the first compute (cold: nothing cached) and its error estimate, then changes only
-// how the supports hold (every support along z only, then clamped again, three times) and asks
-// for a compute; each time from the request to the new hello and meshes (pullable), and to the
+// how the supports hold — every support along z only, clamped again, along x and z, then along z
+// only once more (a set-up computed before, served from its kept basis) — and asks for a
+// compute; each time from the request to the new hello and meshes (pullable), and to the
 // estimate. Prints one JSON object.
 //
 // usage: node --experimental-websocket bench/setup.mjs URL
@@ -45,9 +46,10 @@ try {
   const firstChecked = notes.find((n) => n.type === 'checked');
   const scene = JSON.parse(JSON.stringify(hello.setup.scene));
   const runs = [];
-  for (let k = 0; k < 3; k++) {
+  const sets = [['z only', ['z']], ['clamped', null], ['x and z', ['x', 'z']], ['z only again', ['z']]];
+  for (const [held, components] of sets) {
     for (const f of scene.fixed || []) {
-      if (k % 2) delete f.components; else f.components = ['z'];
+      if (components) f.components = components; else delete f.components;
     }
     const [c0, k0] = [count('computed') + count('compute_error'), count('checked')];
     hello = null;
@@ -62,7 +64,7 @@ try {
     const est = notes.filter((n) => n.type === 'checked').at(-1);
     // With an instant basis first (ves view's default), the converged one follows.
     const converged = notes.filter((n) => n.type === 'computed' && n.live !== 'instant' && n.at >= t0).at(0);
-    runs.push({ held: k % 2 ? 'clamped' : 'z only', first_live: done.live, request_to_pullable_s: ready, server_s: done.seconds,
+    runs.push({ held, first_live: done.live, request_to_pullable_s: ready, server_s: done.seconds,
       summary: done.summary, request_to_converged_s: converged ? (converged.at - t0) / 1000 : null,
       converged: converged ? converged.summary : null, request_to_estimate_s: (est.at - t0) / 1000, estimate: est.summary || est.error });
   }

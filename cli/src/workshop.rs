@@ -99,6 +99,9 @@ pub struct PartWorkshop {
     pool: rayon::ThreadPool,
     /// The basis served last (an instant basis starts from it).
     last: std::sync::Mutex<Option<PathBuf>>,
+    /// Set-ups computed before, by [`setup_key`], with their converged bases, newest last:
+    /// asking for one again serves its basis at once.
+    kept: std::sync::Mutex<Vec<(String, Computed)>>,
     /// Whether an instant basis is served first when it can be (`ves view --instant`).
     instant: bool,
     /// The part before the one opened last, with the basis served then, until the new part's
@@ -270,22 +273,58 @@ impl PartWorkshop {
             computed: AtomicU64::new(0),
             solver,
             last: std::sync::Mutex::new(None),
+            kept: std::sync::Mutex::new(Vec::new()),
             instant: false,
             previous: std::sync::Mutex::new(None),
         })
     }
 
-    /// Removes the bases computed here (and their sidecars, `basis-N.*`) but `keep`'s.
+    /// Removes the bases computed here (and their sidecars, `basis-N.*`) but `keep`'s and the
+    /// kept set-ups' ([`PartWorkshop::keep`]).
     fn remove_bases_but(&self, keep: &Path) {
         let Ok(entries) = std::fs::read_dir(self.dir.path()) else {
             return;
         };
+        let kept: Vec<PathBuf> = self.kept().iter().map(|(_, c)| c.basis.clone()).collect();
         for e in entries.flatten() {
             let path = e.path();
-            if e.file_name().to_string_lossy().starts_with("basis-") && path.file_stem() != keep.file_stem() {
+            let stem = path.file_stem();
+            if e.file_name().to_string_lossy().starts_with("basis-")
+                && stem != keep.file_stem()
+                && !kept.iter().any(|k| k.file_stem() == stem)
+            {
                 let _ = std::fs::remove_file(path);
             }
         }
+    }
+
+    fn kept(&self) -> std::sync::MutexGuard<'_, Vec<(String, Computed)>> {
+        self.kept.lock().unwrap_or_else(|p| p.into_inner())
+    }
+
+    /// Keeps `computed`, the converged basis of the set-up `key` ([`setup_key`]), for a later request of the same
+    /// set-up: the newest [`KEPT`] set-ups, at most [`KEPT_BYTES`] of bases (the oldest go first,
+    /// their files with them).
+    fn keep(&self, key: &str, computed: &Computed) {
+        let mut kept = self.kept();
+        kept.retain(|(k, _)| k != key);
+        kept.push((key.to_string(), computed.clone()));
+        let size = |c: &Computed| std::fs::metadata(&c.basis).map_or(0, |m| m.len());
+        while kept.len() > 1 && (kept.len() > KEPT || kept.iter().map(|(_, c)| size(c)).sum::<u64>() > KEPT_BYTES) {
+            let (_, old) = kept.remove(0);
+            remove_basis(&old.basis);
+        }
+    }
+
+    /// The converged basis of a set-up computed before ([`setup_key`]), if it is still there;
+    /// it becomes the newest kept.
+    fn kept_for(&self, key: &str) -> Option<Computed> {
+        let mut kept = self.kept();
+        let at = kept.iter().position(|(k, c)| k == key && c.basis.is_file())?;
+        let entry = kept.remove(at);
+        let computed = entry.1.clone();
+        kept.push(entry);
+        Some(computed)
     }
 
     /// Serve an instant basis first when only supports, material or modes changed.
@@ -379,6 +418,52 @@ struct ComputeJob {
     /// basis is made from it first.
     #[serde(default)]
     previous: Option<PathBuf>,
+}
+
+/// Set-ups whose bases are kept for a request of the same set-up ([`PartWorkshop::keep`]): an
+/// engineer comparing how a part is held goes back and forth between a few.
+const KEPT: usize = 8;
+
+/// Bytes of kept bases at most (the newest is kept whatever its size): the mould's basis of 30
+/// modes is 0.1 GB.
+const KEPT_BYTES: u64 = 2 << 30;
+
+/// What identifies a set-up for [`PartWorkshop::keep`]: the page's scene with every number
+/// read as a float (a page's `0` and a scene file's `0.0` are one value), the geometry's path and
+/// a fingerprint of its bytes (a part exported again from CAD to the same file is another part).
+/// None when the geometry cannot be read (the compute says why).
+fn setup_key(scene: &serde_json::Value, geometry: &Path) -> Option<String> {
+    fn floats(v: &serde_json::Value) -> serde_json::Value {
+        use serde_json::Value;
+        match v {
+            Value::Number(n) => n
+                .as_f64()
+                .and_then(serde_json::Number::from_f64)
+                .map_or_else(|| v.clone(), Value::Number),
+            Value::Array(a) => Value::Array(a.iter().map(floats).collect()),
+            Value::Object(o) => Value::Object(o.iter().map(|(k, v)| (k.clone(), floats(v))).collect()),
+            _ => v.clone(),
+        }
+    }
+    let bytes = std::fs::read(geometry).ok()?;
+    let mut f = ves_pipeline::fingerprint::Fingerprint::default();
+    f.field(&bytes);
+    Some(format!("{:016x} {}\n{}", f.value(), geometry.display(), floats(scene)))
+}
+
+/// Removes a basis made here and its sidecars (`basis-N.*`).
+fn remove_basis(basis: &Path) {
+    let (Some(dir), Some(stem)) = (basis.parent(), basis.file_stem()) else {
+        return;
+    };
+    let Ok(entries) = std::fs::read_dir(dir) else {
+        return;
+    };
+    for e in entries.flatten() {
+        if e.path().file_stem() == Some(stem) {
+            let _ = std::fs::remove_file(e.path());
+        }
+    }
 }
 
 /// Where a compute writing `out` puts its instant basis (`basis-N-instant.h5`).
@@ -874,6 +959,19 @@ impl Workshop for PartWorkshop {
         }
         let out = self.dir.path().join(format!("basis-{n}.h5"));
         let saved = Self::text(&geometry, scene, false)?;
+        // The same set-up as a compute before: its basis, at once (the same scene, part and
+        // solver make the same basis). Not for a script, which may read other files.
+        let key = (!parsed.is_script()).then(|| setup_key(scene, &geometry)).flatten();
+        if let Some(before) = key.as_deref().and_then(|k| self.kept_for(k)) {
+            let again = Computed {
+                summary: format!("{} · the same set-up as before: its basis served again", before.summary),
+                ..before
+            };
+            ready(&again)?;
+            *self.last() = Some(again.basis.clone());
+            self.remove_bases_but(&again.basis);
+            return Ok(again);
+        }
         let computed = |summary: &precompute::Summary, warnings: &[String]| Computed {
             mesh: mesh_of(summary),
             basis: out.clone(),
@@ -885,7 +983,7 @@ impl Workshop for PartWorkshop {
         };
         if let Some(exe) = CHILD.get() {
             let job = ComputeJob {
-                scene: text,
+                scene: text.clone(),
                 path,
                 out: out.clone(),
                 solver: self.solver.name().to_string(),
@@ -896,6 +994,9 @@ impl Workshop for PartWorkshop {
             let done = self.compute_in_child(exe, &dir, &job, &saved, &progress, &cancel, ready);
             // Whatever happened: the child's own folders (meshing) are in there too.
             let _ = std::fs::remove_dir_all(&dir);
+            if let (Ok(c), Some(k)) = (&done, &key) {
+                self.keep(k, c);
+            }
             // The page's user knows a part opened in the page by its name, not the folder the
             // server keeps it in.
             return done.map_err(|e| match e {
@@ -935,7 +1036,11 @@ impl Workshop for PartWorkshop {
         warnings.extend(more);
         // The checks wrote the file again.
         seal_basis(&out).map_err(WorkshopError::KeepBasis)?;
-        Ok(computed(&summary, &warnings))
+        let done = computed(&summary, &warnings);
+        if let Some(k) = &key {
+            self.keep(k, &done);
+        }
+        Ok(done)
     }
 
     fn open(&self, name: &str, bytes: &[u8]) -> Result<(), WorkshopError> {
@@ -1105,6 +1210,78 @@ mod tests {
                 .get("unit")
                 .is_none()
         );
+    }
+
+    /// A set-up asked for again is served from its kept basis, without a compute (the same
+    /// file, its frequencies those computed for it); another set-up in between is computed and
+    /// kept too; the kept bases are bounded, the oldest removed with their files.
+    #[test]
+    fn a_set_up_asked_for_again_is_served_from_its_kept_basis() {
+        let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("../cases/cantilever/scene.toml");
+        let scene = Scene::load(&root).expect("the cantilever scene");
+        let w = PartWorkshop::for_scene(&scene, SceneOptions::default(), SolverChoice::Auto).expect("a workshop");
+        let mut page = w.setup()["scene"].clone();
+        page["mesh"] = serde_json::json!({ "size": 0.05, "order": 1, "error_estimate": false });
+        page["modes"] = serde_json::json!({ "count": 4 });
+        let clamped = page.clone();
+        page["fixed"][0]["components"] = serde_json::json!(["z"]);
+        let along_z = page;
+        let mut served = Vec::new();
+        let mut compute = |scene: &serde_json::Value| {
+            let mut basis = None;
+            let c = w
+                .compute(scene, Arc::new(|_| {}), Arc::new(AtomicBool::new(false)), &mut |c| {
+                    basis = Some(c.basis.clone());
+                    Ok(())
+                })
+                .expect("computes");
+            assert_eq!(basis.as_ref(), Some(&c.basis), "the basis served is the one returned");
+            let f = ves_format::read::BasisReader::open(&c.basis)
+                .and_then(|r| r.space("global")?.frequencies_hz())
+                .expect("the basis reads");
+            served.push((c, f));
+        };
+        compute(&clamped);
+        compute(&along_z);
+        compute(&clamped);
+        // As a page sends it: the plane's 0.0 as 0.
+        let mut integer = clamped.clone();
+        integer["fixed"][0]["plane"]["value"] = serde_json::json!(0);
+        compute(&integer);
+        let [(first, f1), (other, f2), (again, f3), (integer, _)] = &served[..] else {
+            unreachable!()
+        };
+        assert_eq!(
+            integer.basis, first.basis,
+            "a number written as an integer is the same set-up"
+        );
+        assert_ne!(first.basis, other.basis);
+        assert_ne!(f1, f2, "held along z only is another set-up");
+        assert_eq!(again.basis, first.basis, "the kept basis is served again");
+        assert_eq!(f3, f1);
+        assert!(again.summary.contains("served again"), "{}", again.summary);
+        assert!(!other.summary.contains("served again"), "{}", other.summary);
+        assert!(first.basis.is_file() && other.basis.is_file(), "both kept");
+        // Bounded: more set-ups than kept push the oldest out, its file with it.
+        for k in 0..KEPT {
+            let fake = w.dir.path().join(format!("basis-fake-{k}.h5"));
+            std::fs::write(&fake, b"x").expect("a stand-in file");
+            w.keep(
+                &format!("set-up {k}"),
+                &Computed {
+                    basis: fake,
+                    ..first.clone()
+                },
+            );
+        }
+        assert_eq!(w.kept().len(), KEPT);
+        assert!(!first.basis.exists() && !other.basis.exists(), "the oldest are removed");
+        assert!(w.kept_for(&setup_key_of(&w, &clamped)).is_none());
+    }
+
+    /// The key [`PartWorkshop::compute`] keeps `scene` under.
+    fn setup_key_of(w: &PartWorkshop, scene: &serde_json::Value) -> String {
+        setup_key(scene, &w.part().geometry.clone()).expect("a key")
     }
 
     #[test]
