@@ -171,6 +171,26 @@ fn a_shaft_in_two_bearings_bends_as_a_pinned_beam() {
     let off = outside_span(&free, &axis);
     println!("free motions {free:?}: {off:.1e} outside the slide along and the turn about x");
     assert!(off < 1e-3, "{free:?}");
+    // `ves info` names them as an engineer would: a slide along the axis and a turn about it,
+    // the axis through y = z = 0.
+    let info = last_json(&ves(&["info", out.to_str().unwrap(), "--json"]));
+    let motions = &info["spaces"][0]["free_motions"];
+    println!("ves info: {motions}");
+    let along_x = |m: &serde_json::Value| (numbers(&m["direction"])[0].abs() - 1.0).abs() < 1e-3;
+    assert_eq!(motions[0]["kind"], "slide", "{motions}");
+    assert!(along_x(&motions[0]), "{motions}");
+    assert_eq!(motions[1]["kind"], "turn", "{motions}");
+    assert!(along_x(&motions[1]), "{motions}");
+    let point = numbers(&motions[1]["point"]);
+    assert!(
+        point[1].abs() < 1e-4 && point[2].abs() < 1e-4,
+        "the axis through {point:?}"
+    );
+    let text = String::from_utf8_lossy(&ves(&["info", out.to_str().unwrap()]).stdout).into_owned();
+    assert!(
+        text.contains("free to slide along") && text.contains(" and turn about "),
+        "{text}"
+    );
     let (e, rho, d, span) = (2.1e11f64, 7850.0f64, 0.04f64, 0.486f64);
     let want = std::f64::consts::PI / (2.0 * span * span) * (e / rho).sqrt() * d / 4.0;
     for (i, g) in frequencies(&got).iter().enumerate() {

@@ -114,3 +114,147 @@ pub fn free_motions(
         .collect();
     ves_format::FreeMotions::new(&twists).unwrap_or_else(ves_format::FreeMotions::all)
 }
+
+/// A rigid motion a part's supports leave free, described as an engineer names it.
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize)]
+#[serde(tag = "kind", rename_all = "lowercase")]
+pub enum FreeMotion {
+    /// A translation along `direction` (unit).
+    Slide {
+        /// Unit direction.
+        direction: [f64; 3],
+    },
+    /// A rotation about the axis along `direction` (unit) through `point` (m).
+    Turn {
+        /// The axis's unit direction.
+        direction: [f64; 3],
+        /// The point of the axis nearest the centre of mass, m.
+        point: [f64; 3],
+    },
+    /// A rotation about an axis with a slide along it of `pitch` metres per radian.
+    Screw {
+        /// The axis's unit direction.
+        direction: [f64; 3],
+        /// The point of the axis nearest the centre of mass, m.
+        point: [f64; 3],
+        /// Metres along the axis per radian about it.
+        pitch: f64,
+    },
+}
+
+/// The free motions `twists` (rows `(v, ω)` about `center`, any basis of them) as slides (the
+/// translations among them, orthonormal) and turns or screws about axes (the rest, with what of
+/// their translation the slides already give removed). `length` is the part's size (m): ω is
+/// compared with v at that lever arm.
+pub fn describe(twists: &[[f64; 6]], center: [f64; 3], length: f64) -> Vec<FreeMotion> {
+    use nalgebra::{DMatrix, Vector3};
+    let k = twists.len();
+    if k == 0 || length.is_nan() || length <= 0.0 {
+        return Vec::new();
+    }
+    let v = |t: &[f64; 6]| Vector3::new(t[0], t[1], t[2]);
+    let w = |t: &[f64; 6]| Vector3::new(t[3], t[4], t[5]);
+    // The combinations of the twists that turn nothing: the null space of their ω-Gram matrix,
+    // measured against the whole twists' size.
+    let turns = DMatrix::from_fn(k, k, |a, b| length * length * w(&twists[a]).dot(&w(&twists[b])));
+    let whole = DMatrix::from_fn(k, k, |a, b| {
+        v(&twists[a]).dot(&v(&twists[b])) + length * length * w(&twists[a]).dot(&w(&twists[b]))
+    });
+    let scale = whole.symmetric_eigenvalues().iter().fold(0.0f64, |a, &x| a.max(x));
+    let eig = nalgebra::SymmetricEigen::new(turns);
+    let combine = |y: nalgebra::DVectorView<'_, f64>| {
+        (0..k).fold((Vector3::zeros(), Vector3::zeros()), |(sv, sw), i| {
+            (sv + y[i] * v(&twists[i]), sw + y[i] * w(&twists[i]))
+        })
+    };
+    let mut slides: Vec<Vector3<f64>> = Vec::new();
+    let mut rotations = Vec::new();
+    for i in 0..k {
+        let (tv, tw) = combine(eig.eigenvectors.column(i));
+        if eig.eigenvalues[i] <= 1e-10 * scale {
+            // Gram–Schmidt among the slides found so far.
+            let d = slides.iter().fold(tv, |d, s| d - s * s.dot(&d));
+            if d.norm() > 1e-8 * tv.norm().max(f64::MIN_POSITIVE) {
+                slides.push(d.normalize());
+            }
+        } else {
+            rotations.push((tv, tw));
+        }
+    }
+    let mut out: Vec<FreeMotion> = slides
+        .iter()
+        .map(|s| FreeMotion::Slide { direction: (*s).into() })
+        .collect();
+    for (tv, tw) in rotations {
+        let tv = slides.iter().fold(tv, |d, s| d - s * s.dot(&d));
+        let n2 = tw.norm_squared();
+        let direction = tw / n2.sqrt();
+        let pitch = tv.dot(&tw) / n2;
+        let point = Vector3::from(center) + tw.cross(&tv) / n2;
+        out.push(if pitch.abs() <= 1e-6 * length {
+            FreeMotion::Turn {
+                direction: direction.into(),
+                point: point.into(),
+            }
+        } else {
+            FreeMotion::Screw {
+                direction: direction.into(),
+                point: point.into(),
+                pitch,
+            }
+        });
+    }
+    out
+}
+
+#[cfg(test)]
+mod describe_tests {
+    use super::*;
+
+    /// A shaft's free motions given as two mixed screws (the turn about an axis off the centre
+    /// and the slide along it, combined) read back as one slide along the axis and one turn
+    /// about it through the right point; a plate held out of plane, as two slides and a turn.
+    #[test]
+    fn mixed_twists_read_as_a_slide_and_a_turn() {
+        let c = [0.1, 0.2, 0.3];
+        // The axis along x through (0, 0.25, 0.3): a turn ω = x̂ moves c with v = ω × (c − p).
+        let turn = [0.0, 0.0, -0.05, 1.0, 0.0, 0.0];
+        let slide = [1.0, 0.0, 0.0, 0.0, 0.0, 0.0];
+        let mix = |a: f64, b: f64| -> [f64; 6] { std::array::from_fn(|i| a * turn[i] + b * slide[i]) };
+        let got = describe(&[mix(0.6, 0.8), mix(0.8, -0.6)], c, 0.5);
+        assert_eq!(got.len(), 2, "{got:?}");
+        let FreeMotion::Slide { direction } = got[0] else {
+            panic!("{got:?}")
+        };
+        assert!((direction[0].abs() - 1.0).abs() < 1e-12, "{direction:?}");
+        let FreeMotion::Turn { direction, point } = got[1] else {
+            panic!("{got:?}")
+        };
+        assert!((direction[0].abs() - 1.0).abs() < 1e-12, "{direction:?}");
+        for (g, w) in point.iter().zip([0.1, 0.25, 0.3]) {
+            assert!((g - w).abs() < 1e-12, "{point:?}");
+        }
+        let plate = describe(
+            &[
+                [1.0, 1.0, 0.0, 0.0, 0.0, 0.0],
+                [1.0, -1.0, 0.0, 0.0, 0.0, 0.0],
+                [0.0, 0.0, 0.0, 0.0, 0.0, 2.0],
+            ],
+            [0.0; 3],
+            1.0,
+        );
+        assert_eq!(plate.len(), 3, "{plate:?}");
+        assert!(matches!(plate[2], FreeMotion::Turn { direction, .. } if (direction[2].abs() - 1.0).abs() < 1e-12));
+        assert!(
+            plate[..2]
+                .iter()
+                .all(|m| matches!(m, FreeMotion::Slide { direction } if direction[2] == 0.0))
+        );
+        // A screw stays a screw.
+        let screw = describe(&[[0.0, 0.0, 0.01, 0.0, 0.0, 1.0]], [0.0; 3], 1.0);
+        assert!(
+            matches!(screw[0], FreeMotion::Screw { pitch, .. } if (pitch - 0.01).abs() < 1e-15),
+            "{screw:?}"
+        );
+    }
+}

@@ -323,6 +323,9 @@ pub struct SpaceInfo {
     pub nonlinear: Option<crate::nonlinear::Summary>,
     /// Rigid modes dropped.
     pub rigid_modes_dropped: u32,
+    /// The rigid motions the supports leave free (`rigid/free_motions`, or all six of a free
+    /// body), as slides along directions and turns (or screws) about axes; empty for a held part.
+    pub free_motions: Vec<crate::rigid_motions::FreeMotion>,
     /// Vertices with a static-correction block (0: none stored).
     pub static_correction_vertices: usize,
     /// The hand's contact patch radius, m (0: a point contact; files without `contact/`).
@@ -455,6 +458,11 @@ pub fn info(path: &Path) -> Result<BasisInfo> {
             max_relative_residual: crate::nonlinear::max_residual(&res, nonlinear.as_ref().map(|n| n.eigenmodes)),
             nonlinear,
             rigid_modes_dropped: s.rigid_modes_dropped,
+            free_motions: s.rigid()?.map_or_else(Vec::new, |r| {
+                // The part's size from its radius of gyration: ω is weighed against v at it.
+                let length = ((r.inertia[0][0] + r.inertia[1][1] + r.inertia[2][2]) / r.mass).sqrt();
+                crate::rigid_motions::describe(r.free.twists(), r.center, length)
+            }),
             static_correction_vertices: s.compliance()?.map_or(0, |(n, _)| n.len()),
             contact_radius_m: s.contact()?.map_or(0.0, |c| c.radius),
             felt_error: s.felt()?.as_ref().and_then(FeltInfo::of),

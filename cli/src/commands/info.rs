@@ -39,6 +39,14 @@ impl Args {
                 )
             });
             let supports = s.supports.as_ref().map_or(String::new(), |i| i.text());
+            // Which motions a part held in some directions only is free to make.
+            let free = if (1..6).contains(&s.rigid_modes_dropped) && !s.free_motions.is_empty() {
+                let words: Vec<String> = s.free_motions.iter().map(free_motion_text).collect();
+                format!(", free to {}", words.join(" and "))
+            } else {
+                String::new()
+            };
+            let supports = format!("{supports}{free}");
             let correction = format!("{contact}{correction}{felt}{supports}");
             let meshing = s
                 .meshing_strategy
@@ -78,5 +86,37 @@ impl Args {
             }
         }
         Ok(())
+    }
+}
+
+/// A free motion in words: "slide along (0, 0, 1)", "turn about (0, 0, 1) through (…) m".
+fn free_motion_text(m: &ves_pipeline::rigid_motions::FreeMotion) -> String {
+    use ves_pipeline::rigid_motions::FreeMotion;
+    // Directions to 4 decimals, points to 10 µm, so that an axis reads as the axis it is
+    // ("(1, 0, 0)", not "(1, 1.3e-16, -1.1e-16)").
+    let rounded = |d: &[f64; 3], decimals: usize| {
+        let r = |x: f64| {
+            let t = format!("{:.*}", decimals, x);
+            let t = t.trim_end_matches('0').trim_end_matches('.');
+            if t == "-0" { "0".to_string() } else { t.to_string() }
+        };
+        format!("({}, {}, {})", r(d[0]), r(d[1]), r(d[2]))
+    };
+    let (along, at) = (|d| rounded(d, 4), |p| rounded(p, 5));
+    match m {
+        FreeMotion::Slide { direction } => format!("slide along {}", along(direction)),
+        FreeMotion::Turn { direction, point } => {
+            format!("turn about {} through {} m", along(direction), at(point))
+        }
+        FreeMotion::Screw {
+            direction,
+            point,
+            pitch,
+        } => format!(
+            "screw about {} through {} m ({:.3e} m per radian)",
+            along(direction),
+            at(point),
+            pitch
+        ),
     }
 }
