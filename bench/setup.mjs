@@ -6,10 +6,10 @@
 // of a core busy, which would measure the browser, not the server.
 //
 // It waits for the first compute (cold: nothing cached) and its error estimate, then changes only
-// how the supports hold — every support along z only, clamped again, along x and z, then along z
-// only once more (a set-up computed before, served from its kept basis) — and asks for a
-// compute; each time from the request to the new hello and meshes (pullable), and to the
-// estimate. Prints one JSON object.
+// how the supports hold — every support along z only, along x and z, along y and z, then along
+// z only once more and clamped as at first (set-ups computed before, served from their kept
+// bases) — and asks for a compute; each time from the request to the new hello and meshes
+// (pullable), and to the estimate. Prints one JSON object.
 //
 // usage: node --experimental-websocket bench/setup.mjs URL
 import { KINDS, kindOf } from '../view/web/src/protocol.js';
@@ -46,7 +46,8 @@ try {
   const firstChecked = notes.find((n) => n.type === 'checked');
   const scene = JSON.parse(JSON.stringify(hello.setup.scene));
   const runs = [];
-  const sets = [['z only', ['z']], ['clamped', null], ['x and z', ['x', 'z']], ['z only again', ['z']]];
+  const sets = [['z only', ['z']], ['x and z', ['x', 'z']], ['y and z', ['y', 'z']], ['z only again', ['z']],
+    ['clamped again', null]];
   for (const [held, components] of sets) {
     for (const f of scene.fixed || []) {
       if (components) f.components = components; else delete f.components;
