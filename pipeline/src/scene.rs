@@ -411,6 +411,7 @@ struct RawFixed {
     components: Option<Vec<String>>,
     kind: Option<String>,
     stiffness: Option<f64>,
+    located: Option<bool>,
 }
 
 #[derive(Debug, Deserialize)]
@@ -481,9 +482,14 @@ pub enum SupportKind {
     /// (frictionless), by a stiff spring along each triangle's normal.
     Sliding,
     /// `"bearing"`: a cylindrical face held radially (the axis found from the face's normals),
-    /// free to turn about its axis, to tilt and to slide along it (a floating bearing), by stiff
-    /// springs. Holding the axial direction at every point of the ring would hold the tilt too.
-    Bearing,
+    /// free to turn about its axis and to tilt, by stiff springs; free to slide along it too (a
+    /// floating bearing) unless `located`, when a stiff spring holds the ring's mean axial
+    /// displacement (a located bearing: holding the axial direction at every point of the ring
+    /// would hold the tilt too).
+    Bearing {
+        /// Held along its axis too (`located = true`).
+        located: bool,
+    },
     /// `"elastic"`: springs of `stiffness` N/m³ (force per area per metre) along `components`.
     Elastic {
         /// N/m³.
@@ -1214,7 +1220,9 @@ fn support(i: usize, f: &RawFixed) -> Result<Support, String> {
     let kind = match (f.kind.as_deref(), f.stiffness) {
         (None | Some("clamped"), None) => SupportKind::Held,
         (Some("sliding"), None) => SupportKind::Sliding,
-        (Some("bearing"), None) => SupportKind::Bearing,
+        (Some("bearing"), None) => SupportKind::Bearing {
+            located: f.located.unwrap_or(false),
+        },
         (Some("elastic"), Some(k)) if k.is_finite() && k > 0.0 && k <= MAX_STIFFNESS => {
             SupportKind::Elastic { stiffness: k }
         }
@@ -1240,7 +1248,12 @@ fn support(i: usize, f: &RawFixed) -> Result<Support, String> {
             ));
         }
     };
-    if matches!(kind, SupportKind::Sliding | SupportKind::Bearing) && f.components.is_some() {
+    if f.located.is_some() && !matches!(kind, SupportKind::Bearing { .. }) {
+        return Err(format!(
+            "fixed[{i}].located: only a bearing is located; add kind = \"bearing\" or remove located"
+        ));
+    }
+    if matches!(kind, SupportKind::Sliding | SupportKind::Bearing { .. }) && f.components.is_some() {
         return Err(format!(
             "fixed[{i}].components: a {} support holds its own directions; remove components",
             f.kind.as_deref().unwrap_or_default()
@@ -1448,6 +1461,29 @@ force = [0.0, 0.0, -100.0]
 [gravity]
 acceleration = [0.0, 0.0, -9.81]
 "#;
+
+    /// A bearing may be located (held along its axis too); `located` on another kind is refused
+    /// with what to change.
+    #[test]
+    fn only_a_bearing_is_located() {
+        let dir = tempfile::tempdir().expect("tempdir");
+        std::fs::write(dir.path().join("x.step"), "ISO-10303-21;").expect("geometry stub");
+        let path = dir.path().join("s.toml");
+        let with = |lines: &str| Scene::parse(&path, &SCENE.replace("components = [\"x\", \"z\"]", lines));
+        let kind = |lines: &str| with(lines).expect("a bearing").fixed[0].kind;
+        assert_eq!(kind("kind = \"bearing\""), SupportKind::Bearing { located: false });
+        assert_eq!(
+            kind("kind = \"bearing\"\nlocated = true"),
+            SupportKind::Bearing { located: true }
+        );
+        for lines in ["located = true", "kind = \"sliding\"\nlocated = false"] {
+            let e = with(lines).expect_err(lines).to_string();
+            assert!(
+                e.contains("fixed[0].located: only a bearing is located; add kind = \"bearing\""),
+                "{e}"
+            );
+        }
+    }
 
     /// `geometry.unit` is optional for a STEP or IGES file (which carries its own unit) and
     /// required, with advice, for bare-number geometry (BREP).

@@ -365,7 +365,7 @@ pub fn springs(mesh: &Mesh, supports: &[Support], young: f64) -> Result<Vec<Vec<
                     unit(normal.get(&v).copied().unwrap_or_default())
                 }));
             }
-            SupportKind::Bearing => {
+            SupportKind::Bearing { located } => {
                 let (axis, centre) = cylinder_axis(mesh, &triangles);
                 // Radial only, node by node: turning about the axis stretches no spring, and
                 // holding the axial direction at every point of the ring would hold the shaft's
@@ -376,6 +376,17 @@ pub fn springs(mesh: &Mesh, supports: &[Support], young: f64) -> Result<Vec<Vec<
                     let along = d[0] * axis[0] + d[1] * axis[1] + d[2] * axis[2];
                     unit([0, 1, 2].map(|k| d[k] - along * axis[k]))
                 }));
+                if located {
+                    // The ring's mean axial displacement, as stiff as the radial springs over
+                    // the whole face.
+                    let area: f64 = triangles.iter().map(|&t| triangle_frame(mesh, t).2).sum();
+                    let ring = ring_nodes(mesh, &triangles, axis, centre);
+                    out.extend(crate::fem::springs::mean_along(
+                        &ring,
+                        axis,
+                        PENALTY * young / edge * area,
+                    ));
+                }
             }
             SupportKind::Elastic { stiffness } => {
                 let p: [[f64; 3]; 3] =
@@ -386,6 +397,49 @@ pub fn springs(mesh: &Mesh, supports: &[Support], young: f64) -> Result<Vec<Vec<
         each.push(out);
     }
     Ok(each)
+}
+
+/// Sectors of a located bearing's ring ([`ring_nodes`]).
+const RING_SECTORS: usize = 36;
+
+/// Nodes spread evenly around a cylindrical face: in each of [`RING_SECTORS`] sectors about the
+/// axis, the corner node nearest the face's middle along the axis (a face narrower than a full
+/// turn fills only its own sectors). At most 36 nodes, so their pairwise coupling stays small
+/// whatever the mesh.
+fn ring_nodes(mesh: &Mesh, triangles: &[usize], axis: [f64; 3], centre: [f64; 3]) -> Vec<u32> {
+    let dot = |a: [f64; 3], b: [f64; 3]| a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
+    let mut corners: Vec<u32> = triangles.iter().flat_map(|&t| mesh.surface[t]).collect();
+    corners.sort_unstable();
+    corners.dedup();
+    let at = |v: u32| {
+        let x = mesh.nodes[v as usize];
+        dot([0, 1, 2].map(|k| x[k] - centre[k]), axis)
+    };
+    let middle = corners.iter().map(|&v| at(v)).sum::<f64>() / corners.len().max(1) as f64;
+    // Two directions across the axis, for each node's angle about it.
+    let across = unit(if axis[0].abs() < 0.9 {
+        [0.0, -axis[2], axis[1]]
+    } else {
+        [-axis[2], 0.0, axis[0]]
+    });
+    let third = [
+        axis[1] * across[2] - axis[2] * across[1],
+        axis[2] * across[0] - axis[0] * across[2],
+        axis[0] * across[1] - axis[1] * across[0],
+    ];
+    let mut best: Vec<Option<(f64, u32)>> = vec![None; RING_SECTORS];
+    for &v in &corners {
+        let x = mesh.nodes[v as usize];
+        let d = [0, 1, 2].map(|k| x[k] - centre[k]);
+        let angle = dot(d, third).atan2(dot(d, across));
+        let sector = (((angle + std::f64::consts::PI) / std::f64::consts::TAU * RING_SECTORS as f64) as usize)
+            .min(RING_SECTORS - 1);
+        let off = (at(v) - middle).abs();
+        if best[sector].is_none_or(|(o, _)| off < o) {
+            best[sector] = Some((off, v));
+        }
+    }
+    best.into_iter().flatten().map(|(_, v)| v).collect()
 }
 
 /// The mean edge length of surface triangles, m.

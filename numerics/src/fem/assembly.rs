@@ -74,8 +74,8 @@ pub struct AssemblyError {
     pub det: f64,
 }
 
-/// The node-level lower-triangular pattern of the mesh's connectivity.
-pub fn node_graph(mesh: &Mesh) -> NodeGraph {
+/// The node-level lower-triangular pattern of the mesh's connectivity and of `springs`.
+pub fn node_graph(mesh: &Mesh, springs: &[super::springs::NodeSpring]) -> NodeGraph {
     let p = mesh.nodes_per_tet();
     let mut keys: Vec<u64> = mesh
         .tets
@@ -88,6 +88,9 @@ pub fn node_graph(mesh: &Mesh) -> NodeGraph {
             })
         })
         .collect();
+    // Springs mostly couple the nodes of one surface triangle, which share a tet; a located
+    // bearing's couples nodes around its ring, which do not.
+    keys.extend(springs.iter().map(|sp| ((sp.b as u64) << 32) | sp.a as u64));
     keys.par_sort_unstable();
     keys.dedup();
     let n = mesh.nodes.len();
@@ -257,7 +260,7 @@ fn assemble_inner(
     springs: &[super::springs::NodeSpring],
 ) -> Result<(Assembled, Moments), AssemblyError> {
     let lame = Lame::of(material);
-    let graph = node_graph(mesh);
+    let graph = node_graph(mesh, springs);
     let ne = mesh.tet_count();
     // One partial per thread, then summed into the first in a fixed order (the same sums on
     // every run: a basis must be reproducible to the last bit). Collecting twice as many and
@@ -279,7 +282,7 @@ fn assemble_inner(
         total.m.par_iter_mut().zip(&p.m).for_each(|(a, b)| *a += b);
         total.moments.add(&p.moments);
     }
-    // Springs couple nodes of one surface triangle, which share a tet: their blocks exist.
+    // Every spring's block is in the graph (made with them).
     for sp in springs {
         let blk = graph.block(sp.a, sp.b);
         for r in 0..3 {

@@ -135,7 +135,7 @@ impl<'t> Distributed<'t> {
         IN_SOLVE.store(true, SeqCst);
         let (n, size) = (dofs.free_count(), token.size());
         let numbering = if size > 1 {
-            let graph = crate::fem::assembly::node_graph(mesh);
+            let graph = crate::fem::assembly::node_graph(mesh, &[]);
             Numbering::from_parts(dofs, &crate::linsolve::node_parts(&graph, dofs, size), size)
         } else {
             Numbering::single(dofs)

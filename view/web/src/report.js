@@ -15,8 +15,10 @@ function supportText(f) {
   const where = f.faces ? `faces ${f.faces.join(', ')}`
     : f.plane ? `plane ${f.plane.axis} = ${plain(f.plane.value)} m`
       : f.box ? `box [${f.box.min.map(plain).join(', ')}]–[${f.box.max.map(plain).join(', ')}] m` : 'a region';
-  const how = f.held === 'elastic' ? `elastic, ${plain(f.stiffness)} N/m³`
-    : f.held ? f.held : f.components ? `along ${f.components.join(', ')}` : 'clamped';
+  // The scene's own keys (docs/scene.md): `kind`, `located`, `stiffness`, `components`.
+  const how = f.kind === 'elastic' ? `elastic, ${plain(f.stiffness)} N/m³`
+    : f.kind === 'bearing' ? (f.located ? 'located bearing' : 'bearing (floating)')
+      : f.kind && f.kind !== 'clamped' ? f.kind : f.components ? `along ${f.components.join(', ')}` : 'clamped';
   return `${where}: ${how}`;
 }
 

@@ -136,20 +136,24 @@ export function setupPanel(send, pick, faceMode, faceOf, light) {
       // How it holds (docs/scene.md, support kinds): all components, one, or a kind with its own
       // FE counterpart — sliding (the face's normal only), bearing (a cylindrical face: radial,
       // free to turn), elastic (springs of a stiffness per area).
-      const how = f.kind && f.kind !== 'clamped' ? f.kind : (f.components || ['x', 'y', 'z']).join(',');
+      const how = f.kind === 'bearing' && f.located ? 'located'
+        : f.kind && f.kind !== 'clamped' ? f.kind : (f.components || ['x', 'y', 'z']).join(',');
       const held = el('select', {}, ...[['x,y,z', 'clamped'], ['x', 'x only'], ['y', 'y only'], ['z', 'z only'],
-        ['sliding', 'sliding'], ['bearing', 'bearing'], ['elastic', 'elastic']]
+        ['sliding', 'sliding'], ['bearing', 'bearing'], ['located', 'located bearing'], ['elastic', 'elastic']]
         .map(([v, t]) => el('option', { value: v, textContent: t, selected: how === v })));
       // Short names keep the row one line wide at 280 px; what each does is in the tooltip.
       held.title = 'clamped: every component held · x/y/z only · sliding: the face\'s normal only · '
-        + 'bearing: a cylindrical face held radially, free to turn · elastic: a mount of the stiffness beside it (N/m³)';
+        + 'bearing: a cylindrical face held radially, free to turn, tilt and slide along its axis (floating) · '
+        + 'located bearing: held along its axis too, still free to turn and tilt · '
+        + 'elastic: a mount of the stiffness beside it (N/m³)';
       const stiffness = el('input', { type: 'number', step: 'any', min: '0', title: 'stiffness per area of the mount, N/m³',
         value: plain(f.stiffness || 1e9) });
       const unit = el('span', { textContent: ' N/m³' });
       const showStiffness = () => { stiffness.style.display = unit.style.display = held.value === 'elastic' ? '' : 'none'; };
       held.onchange = () => {
-        delete f.components; delete f.kind; delete f.stiffness;
+        delete f.components; delete f.kind; delete f.stiffness; delete f.located;
         if (['sliding', 'bearing', 'elastic'].includes(held.value)) f.kind = held.value;
+        else if (held.value === 'located') { f.kind = 'bearing'; f.located = true; }
         else if (held.value !== 'x,y,z') f.components = held.value.split(',');
         if (held.value === 'elastic') f.stiffness = Number(stiffness.value);
         showStiffness();
