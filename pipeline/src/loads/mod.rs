@@ -193,6 +193,9 @@ fn near_held(mesh: &crate::tet_mesh::Mesh, held: &[Vec<u32>]) -> crate::tet_mesh
     }
 }
 
+/// Bytes of the element forces made at once by [`modal_reactions`] (modes × DOFs × threads).
+const GROUP_BYTES: usize = 256 << 20;
+
 /// What each `[[fixed]]` support carries per unit of each mode's coordinate: the reactions of
 /// u = Φq are Σ_j q_j R_j, exactly those of the FE model in that displacement (K u at the DOFs
 /// a support removes, its springs' forces). How a session reports what the held faces carry.
@@ -269,16 +272,26 @@ pub fn modal_reactions(
     let springs = crate::supports::springs(mesh, &scene.fixed, scene.material.young).with_context(path)?;
     let lame = Lame::of(&scene.material);
     let nf = dofs.free_count();
-    let zero = vec![0.0; 3 * mesh.nodes.len()];
+    let n3 = 3 * mesh.nodes.len();
+    let zero = vec![0.0; n3];
     let near = near_held(mesh, &held);
-    let each: Vec<Vec<SupportReaction>> = (0..r)
-        .into_par_iter()
-        .map(|j| {
-            let u = dofs.expand(&modes.vectors[j * nf..(j + 1) * nf]);
-            let k_u = vector::internal_forces(&near, &lame, &u).map_err(degenerate)?;
-            Ok(support_reactions(mesh, &held, &springs, &u, &k_u, &zero))
-        })
-        .collect::<Result<_>>()?;
+    // The modes in groups whose element forces are made together (each element's matrices once
+    // per group); a group's partial sums, one per thread, stay within GROUP_BYTES.
+    let group = (GROUP_BYTES / (8 * n3 * rayon::current_num_threads()).max(1)).clamp(1, r);
+    let mut each: Vec<Vec<SupportReaction>> = Vec::with_capacity(r);
+    for start in (0..r).step_by(group) {
+        let us: Vec<Vec<f64>> = (start..(start + group).min(r))
+            .into_par_iter()
+            .map(|j| dofs.expand(&modes.vectors[j * nf..(j + 1) * nf]))
+            .collect();
+        let refs: Vec<&[f64]> = us.iter().map(Vec::as_slice).collect();
+        let k_us = vector::internal_forces_many(&near, &lame, &refs).map_err(degenerate)?;
+        each.par_extend(
+            us.par_iter()
+                .zip(&k_us)
+                .map(|(u, k_u)| support_reactions(mesh, &held, &springs, u, k_u, &zero)),
+        );
+    }
     let s = scene.fixed.len();
     let mut per_mode = vec![0.0; 6 * s * r];
     for (j, supports) in each.iter().enumerate() {

@@ -191,7 +191,7 @@ pub fn gravity_loads(mesh: &Mesh, lame: &Lame, g: [f64; 3]) -> Result<Vec<f64>, 
 
 fn gravity_with<S: Shape>(mesh: &Mesh, lame: &Lame, g: [f64; 3]) -> Result<Vec<f64>, element::BadJacobian> {
     let p = S::NODES;
-    sum_over_elements::<S>(mesh, lame, |t, em, f| {
+    sum_over_elements::<S>(mesh, lame, 1, |t, em, f| {
         for a in 0..p {
             let row: f64 = em.m[a * p..(a + 1) * p].iter().sum();
             for c in 0..3 {
@@ -201,52 +201,72 @@ fn gravity_with<S: Shape>(mesh: &Mesh, lame: &Lame, g: [f64; 3]) -> Result<Vec<f
     })
 }
 
-/// Σₑ of what `add` makes of each element's matrices, into a vector over every DOF (one
-/// partial per rayon task, then summed).
+/// Σₑ of what `add` makes of each element's matrices, into `width` vectors over every DOF side
+/// by side (`width · 3·nodes` values): one partial per thread over a fixed share of the
+/// elements, summed in a fixed order, so a run's sums are the next run's to the last bit.
 fn sum_over_elements<S: Shape>(
     mesh: &Mesh,
     lame: &Lame,
+    width: usize,
     add: impl Fn(&[u32], &element::ElementMatrices, &mut [f64]) + Sync,
 ) -> Result<Vec<f64>, element::BadJacobian> {
-    let n3 = 3 * mesh.nodes.len();
-    (0..mesh.tet_count())
+    let len = width * 3 * mesh.nodes.len();
+    let ne = mesh.tet_count();
+    let chunks = rayon::current_num_threads().clamp(1, ne.max(1));
+    let per = ne.div_ceil(chunks);
+    let partials = (0..chunks)
         .into_par_iter()
-        .try_fold(
-            || vec![0.0; n3],
-            |mut f, e| {
+        .map(|c| {
+            let mut f = vec![0.0; len];
+            for e in c * per..((c + 1) * per).min(ne) {
                 let t = mesh.tet(e);
                 let x: Vec<[f64; 3]> = t.iter().map(|&v| mesh.nodes[v as usize]).collect();
                 add(t, &element::element_matrices::<S>(&x, lame)?, &mut f);
-                Ok(f)
-            },
-        )
-        .try_reduce(
-            || vec![0.0; n3],
-            |mut a, b| {
-                a.iter_mut().zip(&b).for_each(|(x, y)| *x += y);
-                Ok(a)
-            },
-        )
+            }
+            Ok(f)
+        })
+        .collect::<Result<Vec<_>, _>>()?;
+    let mut partials = partials.into_iter();
+    let mut total = partials.next().unwrap_or_else(|| vec![0.0; len]);
+    for p in partials {
+        total.iter_mut().zip(&p).for_each(|(a, b)| *a += b);
+    }
+    Ok(total)
 }
 
 /// K u over all DOFs, supported ones included, element by element (the assembled K holds the
 /// free DOFs only): at a supported DOF, minus the applied load, it is the support's reaction.
 pub fn internal_forces(mesh: &Mesh, lame: &Lame, u: &[f64]) -> Result<Vec<f64>, element::BadJacobian> {
+    internal_forces_many(mesh, lame, &[u]).map(|f| f.into_iter().next().unwrap_or_default())
+}
+
+/// [`internal_forces`] of several fields (each `3·nodes` long) at once: each element's matrices
+/// made once for all of them, not once per field (a basis's modal reactions made them again for
+/// each of its modes).
+pub fn internal_forces_many(mesh: &Mesh, lame: &Lame, us: &[&[f64]]) -> Result<Vec<Vec<f64>>, element::BadJacobian> {
     match mesh.kind {
-        Kind::Tet4 => internal_with::<Tet4>(mesh, lame, u),
-        Kind::Tet10 => internal_with::<Tet10>(mesh, lame, u),
+        Kind::Tet4 => internal_with::<Tet4>(mesh, lame, us),
+        Kind::Tet10 => internal_with::<Tet10>(mesh, lame, us),
     }
 }
 
-fn internal_with<S: Shape>(mesh: &Mesh, lame: &Lame, u: &[f64]) -> Result<Vec<f64>, element::BadJacobian> {
-    let p3 = 3 * S::NODES;
-    sum_over_elements::<S>(mesh, lame, |t, em, f| {
-        let ue: Vec<f64> = (0..p3).map(|i| u[3 * t[i / 3] as usize + i % 3]).collect();
-        for i in 0..p3 {
-            let row = &em.k[i * p3..(i + 1) * p3];
-            f[3 * t[i / 3] as usize + i % 3] += row.iter().zip(&ue).map(|(k, v)| k * v).sum::<f64>();
+fn internal_with<S: Shape>(mesh: &Mesh, lame: &Lame, us: &[&[f64]]) -> Result<Vec<Vec<f64>>, element::BadJacobian> {
+    let (p3, n3) = (3 * S::NODES, 3 * mesh.nodes.len());
+    let all = sum_over_elements::<S>(mesh, lame, us.len(), |t, em, f| {
+        let dof = |i: usize| 3 * t[i / 3] as usize + i % 3;
+        // A 10-node tet's 30 DOFs at most.
+        let mut ue = [0.0; 30];
+        for (u, f) in us.iter().zip(f.chunks_mut(n3)) {
+            for (i, v) in ue.iter_mut().enumerate().take(p3) {
+                *v = u[dof(i)];
+            }
+            for i in 0..p3 {
+                let row = &em.k[i * p3..(i + 1) * p3];
+                f[dof(i)] += row.iter().zip(&ue[..p3]).map(|(k, v)| k * v).sum::<f64>();
+            }
         }
-    })
+    })?;
+    Ok(all.chunks(n3.max(1)).map(<[f64]>::to_vec).collect())
 }
 
 /// A load case that cannot be applied to the mesh.
@@ -327,6 +347,27 @@ mod tests {
             // A pressure of 1 Pa on the same unit face: 1 N along −x (into the part).
             let p = totals(&surface_loads(&mesh, &picked, Traction::Pressure(1.0)));
             assert!((p[0] + 1.0).abs() < 1e-12 && p[1].abs() < 1e-14, "{kind:?}: {p:?}");
+        }
+    }
+
+    /// Several fields at once give each field's own element forces to the last bit (the same
+    /// sums in the same order).
+    #[test]
+    fn many_fields_at_once_are_each_field_alone() {
+        for kind in [Kind::Tet4, Kind::Tet10] {
+            let mesh = cube(kind);
+            let lame = Lame::new(2.0e11, 0.3, 7850.0);
+            let n3 = 3 * mesh.nodes.len();
+            let fields: Vec<Vec<f64>> = (0..3)
+                .map(|j| (0..n3).map(|i| ((i * 7 + j * 13) % 11) as f64 * 1e-4 - 5e-4).collect())
+                .collect();
+            let refs: Vec<&[f64]> = fields.iter().map(Vec::as_slice).collect();
+            let together = internal_forces_many(&mesh, &lame, &refs).unwrap();
+            assert_eq!(together.len(), 3);
+            for (u, f) in fields.iter().zip(&together) {
+                assert_eq!(f, &internal_forces(&mesh, &lame, u).unwrap(), "{kind:?}");
+            }
+            assert!(together[0].iter().any(|v| v.abs() > 1.0), "{kind:?}: a field that strains");
         }
     }
 
