@@ -76,32 +76,41 @@ pub fn support_influence(
     // on support k's held DOFs (0 elsewhere) and K holds the elements and every spring. Asked
     // for first: 6 columns a support of every free DOF.
     let mut x = crate::memory::try_zeros::<f64>("the supports' influence solves", nf * 6 * s)?;
-    x.par_chunks_mut(nf.max(1))
-        .enumerate()
-        .try_for_each(|(col, out)| -> Result<()> {
-            let (k, c) = (col / 6, col % 6);
-            let mut w = vec![0.0; n3];
-            for &g in &held[k] {
-                let g = g as usize;
-                if owner[g] == k as u32 {
-                    w[g] = rigid_motion(c, centres[k], mesh.nodes[g / 3])[g % 3];
+    // A support's six columns together: the elements near the held nodes made once for them.
+    for (k, block) in x.chunks_mut((6 * nf).max(1)).enumerate() {
+        let ws: Vec<Vec<f64>> = (0..6)
+            .map(|c| {
+                let mut w = vec![0.0; n3];
+                for &g in &held[k] {
+                    let g = g as usize;
+                    if owner[g] == k as u32 {
+                        w[g] = rigid_motion(c, centres[k], mesh.nodes[g / 3])[g % 3];
+                    }
                 }
-            }
-            let mut rhs = crate::loads::vector::internal_forces(near, lame, &w).map_err(degenerate)?;
-            spring_forces(&all_springs, &w, |g, v| rhs[g] += v);
-            rhs.iter_mut().for_each(|v| *v = -*v);
-            // The ground of support k's springs moved by T_c pulls the part with K_s,k T_c.
-            if !springs[k].is_empty() {
-                let ground: Vec<f64> = (0..n3)
-                    .map(|g| rigid_motion(c, centres[k], mesh.nodes[g / 3])[g % 3])
-                    .collect();
-                spring_forces(&springs[k], &ground, |g, v| rhs[g] += v);
-            }
-            for (o, &g) in out.iter_mut().zip(&dofs.free) {
-                *o = rhs[g as usize];
-            }
-            Ok(())
-        })?;
+                w
+            })
+            .collect();
+        let refs: Vec<&[f64]> = ws.iter().map(Vec::as_slice).collect();
+        let k_ws = crate::loads::vector::internal_forces_many(near, lame, &refs).map_err(degenerate)?;
+        block
+            .par_chunks_mut(nf.max(1))
+            .zip(ws.par_iter().zip(k_ws))
+            .enumerate()
+            .for_each(|(c, (out, (w, mut rhs)))| {
+                spring_forces(&all_springs, w, |g, v| rhs[g] += v);
+                rhs.iter_mut().for_each(|v| *v = -*v);
+                // The ground of support k's springs moved by T_c pulls the part with K_s,k T_c.
+                if !springs[k].is_empty() {
+                    let ground: Vec<f64> = (0..n3)
+                        .map(|g| rigid_motion(c, centres[k], mesh.nodes[g / 3])[g % 3])
+                        .collect();
+                    spring_forces(&springs[k], &ground, |g, v| rhs[g] += v);
+                }
+                for (o, &g) in out.iter_mut().zip(&dofs.free) {
+                    *o = rhs[g as usize];
+                }
+            });
+    }
     chol.solve_many_in_place(&mut x, 6 * s);
     let mut nodes: Vec<u32> = mesh.surface.iter().flatten().copied().collect();
     nodes.sort_unstable();
