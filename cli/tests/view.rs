@@ -867,8 +867,13 @@ fn a_step_part_is_set_up_computed_and_pulled_in_the_page() {
     assert_eq!(kinds["elastic"]["stiffness"].as_f64(), Some(2e9), "{kinds}");
     assert_eq!(kinds["bearing"]["kind"], "bearing", "{kinds}");
     assert!(kinds["bearing"]["stiffness"].is_null(), "{kinds}");
+    assert!(kinds["bearing"]["located"].is_null(), "{kinds}");
+    assert_eq!(kinds["located"]["kind"], "bearing", "{kinds}");
+    assert_eq!(kinds["located"]["located"], true, "{kinds}");
     assert!(
-        kinds["clamped"]["kind"].is_null() && kinds["clamped"]["components"].is_null(),
+        kinds["clamped"]["kind"].is_null()
+            && kinds["clamped"]["components"].is_null()
+            && kinds["clamped"]["located"].is_null(),
         "{kinds}"
     );
 

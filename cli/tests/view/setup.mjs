@@ -53,6 +53,8 @@ try {
   const kinds = { elastic: await page.evaluate(() => window.ves.setup.scene().fixed[0]) };
   await holdBy.selectOption('bearing');
   kinds.bearing = await page.evaluate(() => window.ves.setup.scene().fixed[0]);
+  await holdBy.selectOption('located');
+  kinds.located = await page.evaluate(() => window.ves.setup.scene().fixed[0]);
   await holdBy.selectOption('x,y,z');
   kinds.clamped = await page.evaluate(() => window.ves.setup.scene().fixed[0]);
   await page.selectOption('#material', { label: 'aluminium 6061-T6' });
