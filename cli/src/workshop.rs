@@ -424,8 +424,8 @@ struct ComputeJob {
 /// engineer comparing how a part is held goes back and forth between a few.
 const KEPT: usize = 8;
 
-/// Bytes of kept bases at most (the newest is kept whatever its size): the mould's basis of 30
-/// modes is 0.1 GB.
+/// Bytes of kept bases at most (the newest is kept whatever its size): the mould's converged
+/// basis of 30 modes is 22 MB.
 const KEPT_BYTES: u64 = 2 << 30;
 
 /// What identifies a set-up for [`PartWorkshop::keep`]: the page's scene with every number
