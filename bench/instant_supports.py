@@ -6,7 +6,8 @@
 For each part: a free-body basis at a fixed mesh size (the page's starting scene is a free body),
 then three support sets chosen from the part's own CAD faces as a user would pick them — the
 largest planar face clamped, that face and the planar face farthest from it, and the largest
-bores as bearings (an elastic mount on the largest planar face where the part has no bore). The
+bores as bearings (an elastic mount on the largest planar face where the part has no bore) —
+and, where it has two bores, a fourth: the first located, the second floating. The
 sets are taken one after the other as in a session: each instant basis starts from the previous
 set's exact basis (`ves precompute SCENE --instant-from PREVIOUS`), and is compared with
 `ves precompute SCENE` on the same mesh (the mesh size is fixed, so both mesh alike):
@@ -141,6 +142,11 @@ def support_sets(faces):
         held = bores[:2]
         sets.append(("cylinders as bearings" if len(held) > 1 else "cylinder as bearing",
                      [{"faces": str(g), "kind": '"bearing"'} for g in held], [t for g in held for t in g]))
+        if len(held) > 1:
+            # A shaft's usual pair: the first located (held along its axis too), the other floating.
+            sets.append(("located bearing and a floating one",
+                         [{"faces": str(held[0]), "kind": '"bearing"', "located": "true"},
+                          {"faces": str(held[1]), "kind": '"bearing"'}], [t for g in held for t in g]))
     else:
         sets.append(("elastic mount (no cylinder)",
                      [{"faces": f"[{first}]", "kind": '"elastic"', "stiffness": "1e11"}], [first]))
