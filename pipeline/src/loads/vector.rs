@@ -367,7 +367,10 @@ mod tests {
             for (u, f) in fields.iter().zip(&together) {
                 assert_eq!(f, &internal_forces(&mesh, &lame, u).unwrap(), "{kind:?}");
             }
-            assert!(together[0].iter().any(|v| v.abs() > 1.0), "{kind:?}: a field that strains");
+            assert!(
+                together[0].iter().any(|v| v.abs() > 1.0),
+                "{kind:?}: a field that strains"
+            );
         }
     }
 
