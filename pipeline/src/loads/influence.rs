@@ -91,12 +91,12 @@ pub fn support_influence(
             })
             .collect();
         let refs: Vec<&[f64]> = ws.iter().map(Vec::as_slice).collect();
-        let k_ws = crate::loads::vector::internal_forces_many(near, lame, &refs).map_err(degenerate)?;
+        let mut k_ws = crate::loads::vector::internal_forces_many(near, lame, &refs).map_err(degenerate)?;
         block
             .par_chunks_mut(nf.max(1))
-            .zip(ws.par_iter().zip(k_ws))
+            .zip(ws.par_iter().zip(k_ws.par_chunks_mut(n3.max(1))))
             .enumerate()
-            .for_each(|(c, (out, (w, mut rhs)))| {
+            .for_each(|(c, (out, (w, rhs)))| {
                 spring_forces(&all_springs, w, |g, v| rhs[g] += v);
                 rhs.iter_mut().for_each(|v| *v = -*v);
                 // The ground of support k's springs moved by T_c pulls the part with K_s,k T_c.

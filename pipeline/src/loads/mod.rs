@@ -288,7 +288,7 @@ pub fn modal_reactions(
         let k_us = vector::internal_forces_many(&near, &lame, &refs).map_err(degenerate)?;
         each.par_extend(
             us.par_iter()
-                .zip(&k_us)
+                .zip(k_us.par_chunks(n3.max(1)))
                 .map(|(u, k_u)| support_reactions(mesh, &held, &springs, u, k_u, &zero)),
         );
     }

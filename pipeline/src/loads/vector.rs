@@ -237,22 +237,22 @@ fn sum_over_elements<S: Shape>(
 /// K u over all DOFs, supported ones included, element by element (the assembled K holds the
 /// free DOFs only): at a supported DOF, minus the applied load, it is the support's reaction.
 pub fn internal_forces(mesh: &Mesh, lame: &Lame, u: &[f64]) -> Result<Vec<f64>, element::BadJacobian> {
-    internal_forces_many(mesh, lame, &[u]).map(|f| f.into_iter().next().unwrap_or_default())
+    internal_forces_many(mesh, lame, &[u])
 }
 
-/// [`internal_forces`] of several fields (each `3·nodes` long) at once: each element's matrices
-/// made once for all of them, not once per field (a basis's modal reactions made them again for
-/// each of its modes).
-pub fn internal_forces_many(mesh: &Mesh, lame: &Lame, us: &[&[f64]]) -> Result<Vec<Vec<f64>>, element::BadJacobian> {
+/// [`internal_forces`] of several fields (each `3·nodes` long) at once, side by side in the
+/// result (field j at `j·3·nodes ..`): each element's matrices made once for all of them, not
+/// once per field (a basis's modal reactions made them again for each of its modes).
+pub fn internal_forces_many(mesh: &Mesh, lame: &Lame, us: &[&[f64]]) -> Result<Vec<f64>, element::BadJacobian> {
     match mesh.kind {
         Kind::Tet4 => internal_with::<Tet4>(mesh, lame, us),
         Kind::Tet10 => internal_with::<Tet10>(mesh, lame, us),
     }
 }
 
-fn internal_with<S: Shape>(mesh: &Mesh, lame: &Lame, us: &[&[f64]]) -> Result<Vec<Vec<f64>>, element::BadJacobian> {
+fn internal_with<S: Shape>(mesh: &Mesh, lame: &Lame, us: &[&[f64]]) -> Result<Vec<f64>, element::BadJacobian> {
     let (p3, n3) = (3 * S::NODES, 3 * mesh.nodes.len());
-    let all = sum_over_elements::<S>(mesh, lame, us.len(), |t, em, f| {
+    sum_over_elements::<S>(mesh, lame, us.len(), |t, em, f| {
         let dof = |i: usize| 3 * t[i / 3] as usize + i % 3;
         // A 10-node tet's 30 DOFs at most.
         let mut ue = [0.0; 30];
@@ -265,8 +265,7 @@ fn internal_with<S: Shape>(mesh: &Mesh, lame: &Lame, us: &[&[f64]]) -> Result<Ve
                 f[dof(i)] += row.iter().zip(&ue[..p3]).map(|(k, v)| k * v).sum::<f64>();
             }
         }
-    })?;
-    Ok(all.chunks(n3.max(1)).map(<[f64]>::to_vec).collect())
+    })
 }
 
 /// A load case that cannot be applied to the mesh.
@@ -363,12 +362,12 @@ mod tests {
                 .collect();
             let refs: Vec<&[f64]> = fields.iter().map(Vec::as_slice).collect();
             let together = internal_forces_many(&mesh, &lame, &refs).unwrap();
-            assert_eq!(together.len(), 3);
-            for (u, f) in fields.iter().zip(&together) {
-                assert_eq!(f, &internal_forces(&mesh, &lame, u).unwrap(), "{kind:?}");
+            assert_eq!(together.len(), 3 * n3);
+            for (u, f) in fields.iter().zip(together.chunks(n3)) {
+                assert_eq!(f, internal_forces(&mesh, &lame, u).unwrap(), "{kind:?}");
             }
             assert!(
-                together[0].iter().any(|v| v.abs() > 1.0),
+                together[..n3].iter().any(|v| v.abs() > 1.0),
                 "{kind:?}: a field that strains"
             );
         }
