@@ -157,9 +157,7 @@ pub fn describe(twists: &[[f64; 6]], center: [f64; 3], length: f64) -> Vec<FreeM
     // The combinations of the twists that turn nothing: the null space of their ω-Gram matrix,
     // measured against the whole twists' size.
     let turns = DMatrix::from_fn(k, k, |a, b| length * length * w(&twists[a]).dot(&w(&twists[b])));
-    let whole = DMatrix::from_fn(k, k, |a, b| {
-        v(&twists[a]).dot(&v(&twists[b])) + length * length * w(&twists[a]).dot(&w(&twists[b]))
-    });
+    let whole = DMatrix::from_fn(k, k, |a, b| v(&twists[a]).dot(&v(&twists[b]))) + &turns;
     let scale = whole.symmetric_eigenvalues().iter().fold(0.0f64, |a, &x| a.max(x));
     let eig = nalgebra::SymmetricEigen::new(turns);
     let combine = |y: nalgebra::DVectorView<'_, f64>| {

@@ -407,34 +407,25 @@ const RING_SECTORS: usize = 36;
 /// turn fills only its own sectors). At most 36 nodes, so their pairwise coupling stays small
 /// whatever the mesh.
 fn ring_nodes(mesh: &Mesh, triangles: &[usize], axis: [f64; 3], centre: [f64; 3]) -> Vec<u32> {
-    let dot = |a: [f64; 3], b: [f64; 3]| a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
+    use nalgebra::Vector3;
+    let (axis, centre) = (Vector3::from(axis), Vector3::from(centre));
     let mut corners: Vec<u32> = triangles.iter().flat_map(|&t| mesh.surface[t]).collect();
     corners.sort_unstable();
     corners.dedup();
-    let at = |v: u32| {
-        let x = mesh.nodes[v as usize];
-        dot([0, 1, 2].map(|k| x[k] - centre[k]), axis)
-    };
-    let middle = corners.iter().map(|&v| at(v)).sum::<f64>() / corners.len().max(1) as f64;
+    let from_centre = |v: u32| Vector3::from(mesh.nodes[v as usize]) - centre;
+    let middle = corners.iter().map(|&v| from_centre(v).dot(&axis)).sum::<f64>() / corners.len().max(1) as f64;
     // Two directions across the axis, for each node's angle about it.
-    let across = unit(if axis[0].abs() < 0.9 {
-        [0.0, -axis[2], axis[1]]
-    } else {
-        [-axis[2], 0.0, axis[0]]
-    });
-    let third = [
-        axis[1] * across[2] - axis[2] * across[1],
-        axis[2] * across[0] - axis[0] * across[2],
-        axis[0] * across[1] - axis[1] * across[0],
-    ];
+    let across = axis
+        .cross(&if axis.x.abs() < 0.9 { Vector3::x() } else { Vector3::y() })
+        .normalize();
+    let third = axis.cross(&across);
     let mut best: Vec<Option<(f64, u32)>> = vec![None; RING_SECTORS];
     for &v in &corners {
-        let x = mesh.nodes[v as usize];
-        let d = [0, 1, 2].map(|k| x[k] - centre[k]);
-        let angle = dot(d, third).atan2(dot(d, across));
+        let d = from_centre(v);
+        let angle = d.dot(&third).atan2(d.dot(&across));
         let sector = (((angle + std::f64::consts::PI) / std::f64::consts::TAU * RING_SECTORS as f64) as usize)
             .min(RING_SECTORS - 1);
-        let off = (at(v) - middle).abs();
+        let off = (d.dot(&axis) - middle).abs();
         if best[sector].is_none_or(|(o, _)| off < o) {
             best[sector] = Some((off, v));
         }

@@ -105,22 +105,20 @@ pub fn face_springs_along(mesh: &Mesh, triangles: &[usize], k: f64, dir: impl Fn
 /// axially without holding its tilt: a ring of nodes turned about a transverse axis moves
 /// forward on one side as much as back on the other, so their mean does not move.
 pub fn mean_along(nodes: &[u32], dir: [f64; 3], k: f64) -> Vec<NodeSpring> {
+    let mut nodes = nodes.to_vec();
+    nodes.sort_unstable();
+    nodes.dedup();
     let w = k / (nodes.len().max(1) as f64).powi(2);
-    let p: [[f64; 3]; 3] = std::array::from_fn(|r| std::array::from_fn(|c| w * dir[r] * dir[c]));
-    let mut sum: HashMap<(u32, u32), [[f64; 3]; 3]> = HashMap::new();
-    for &a in nodes {
-        for &b in nodes.iter().filter(|&&b| b <= a) {
-            // A node listed once couples with itself once: the diagonal block of (Σu)² is
-            // u_a², the off-diagonal pairs 2·u_a·u_b, half of it in each of K's two triangles.
-            let block = sum.entry((a, b)).or_insert([[0.0; 3]; 3]);
-            for r in 0..3 {
-                for c in 0..3 {
-                    block[r][c] += p[r][c];
-                }
-            }
-        }
-    }
-    sorted(sum)
+    let block: [[f64; 3]; 3] = std::array::from_fn(|r| std::array::from_fn(|c| w * dir[r] * dir[c]));
+    // Every pair a ≥ b once, in the order `sorted` gives: the diagonal block of (Σu)² is u_a²,
+    // the off-diagonal pairs 2·u_a·u_b, half of it in each of K's two triangles.
+    let mut out: Vec<NodeSpring> = nodes
+        .iter()
+        .enumerate()
+        .flat_map(|(i, &a)| nodes[..=i].iter().map(move |&b| NodeSpring { a, b, block }))
+        .collect();
+    out.sort_by_key(|s| (s.b, s.a));
+    out
 }
 
 /// k·A·∫NₐN_b dA/A · `direction(t)(a, b)` summed over `triangles` for every node pair (a ≥ b)
