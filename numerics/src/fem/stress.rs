@@ -6,27 +6,80 @@
 
 use super::element::{Kind, Lame, Shape, physical_gradients, tet4::Tet4, tet10::Tet10};
 use crate::tet_mesh::Mesh;
-use nalgebra::{Matrix3, Vector3};
+use nalgebra::Matrix3;
 use rayon::prelude::*;
 
 /// Voigt order of the six stress components, as the basis file names them.
 pub const COMPONENTS: &str = "xx yy zz yz xz xy";
 
-/// The stress of the `r` displacement fields `u` (each 3n, column `j` at `u[j·3n..]`) at every
-/// corner vertex, row-major [6·nv, r]: row 6i+k = component k (xx, yy, zz, yz, xz, xy) of
-/// vertex i, Pa per unit of the field. A tet whose Jacobian is not positive at a corner is left
-/// out of that vertex's average (the mesh checks keep there being none).
-pub fn vertex_stress(mesh: &Mesh, mat: &Lame, u: &[f64], r: usize) -> Vec<f64> {
-    vertex_stress_averaged(mesh, mat, u, r, Averaging::Volume)
+/// `r` displacement fields interleaved DOF by DOF: field `j` at full DOF `i` (3·node + c) is
+/// `values[i·r + j]`. An element reads its nodes' values of every field from a few contiguous
+/// rows; side by side (each field 3n long) it read 3·r scattered places per node, and the
+/// ribplate's recovery estimate (30 fields, 88k tets) spent most of its second there.
+#[derive(Clone, Debug, Default)]
+pub struct Fields {
+    /// The values, [3n, r] row-major.
+    pub values: Vec<f64>,
+    /// Fields.
+    pub r: usize,
+}
+
+impl Fields {
+    /// From separate fields of equal length.
+    pub fn from_each(fields: &[Vec<f64>]) -> Fields {
+        let r = fields.len();
+        let n3 = fields.first().map_or(0, Vec::len);
+        let mut values = vec![0.0; n3 * r];
+        for (j, field) in fields.iter().enumerate() {
+            for (i, v) in field.iter().enumerate().take(n3) {
+                values[i * r + j] = *v;
+            }
+        }
+        Fields { values, r }
+    }
+
+    /// From `r` fields over the free DOFs of `dofs` (column `j` at `reduced[j·nf..]`), zero at
+    /// the supported DOFs.
+    pub fn from_free(dofs: &super::Dofs, reduced: &[f64], r: usize) -> Fields {
+        let nf = dofs.free_count();
+        let mut values = vec![0.0; dofs.total * r];
+        for j in 0..r {
+            for (k, &i) in dofs.free.iter().enumerate() {
+                values[i as usize * r + j] = reduced[j * nf + k];
+            }
+        }
+        Fields { values, r }
+    }
+
+    /// The values of every field at full DOFs `3·node .. 3·node + 3`: x, y and z rows of r.
+    fn node(&self, node: usize) -> (&[f64], &[f64], &[f64]) {
+        let row = &self.values[3 * node * self.r..3 * (node + 1) * self.r];
+        let (x, yz) = row.split_at(self.r);
+        let (y, z) = yz.split_at(self.r);
+        (x, y, z)
+    }
+}
+
+/// The stress of the fields `u` at every corner vertex, row-major [6·nv, r]: row 6i+k =
+/// component k (xx, yy, zz, yz, xz, xy) of vertex i, Pa per unit of the field. A tet whose
+/// Jacobian is not positive at a corner is left out of that vertex's average (the mesh checks
+/// keep there being none).
+pub fn vertex_stress(mesh: &Mesh, mat: &Lame, u: &Fields) -> Vec<f64> {
+    vertex_stress_averaged(mesh, mat, u, Averaging::Volume)
 }
 
 /// The Cauchy stress of one displacement field `u` (3n) taken as large (St. Venant–Kirchhoff:
 /// σ = F S Fᵀ / det F, S = λ tr(E) I + 2μE), at every corner vertex, row-major [6·nv]: what a
 /// nonlinear model's load case reports. Corners where det F ≤ 0 are left out of the average.
 pub fn vertex_stress_cauchy(mesh: &Mesh, mat: &Lame, u: &[f64]) -> Vec<f64> {
+    // One field: interleaved is side by side.
+    let u = Fields {
+        values: u.to_vec(),
+        r: 1,
+    };
     match mesh.kind {
-        Kind::Tet4 => accumulate_with::<Tet4>(mesh, mat, u, 1, Averaging::Volume, true),
-        Kind::Tet10 => accumulate_with::<Tet10>(mesh, mat, u, 1, Averaging::Volume, true),
+        Kind::Tet4 => accumulate_with::<Tet4>(mesh, mat, &u, Averaging::Volume, true),
+        Kind::Tet10 => accumulate_with::<Tet10>(mesh, mat, &u, Averaging::Volume, true),
     }
 }
 
@@ -42,19 +95,16 @@ pub enum Averaging {
 }
 
 /// [`vertex_stress`] with a choice of averaging.
-pub fn vertex_stress_averaged(mesh: &Mesh, mat: &Lame, u: &[f64], r: usize, how: Averaging) -> Vec<f64> {
+pub fn vertex_stress_averaged(mesh: &Mesh, mat: &Lame, u: &Fields, how: Averaging) -> Vec<f64> {
     match mesh.kind {
-        Kind::Tet4 => accumulate::<Tet4>(mesh, mat, u, r, how),
-        Kind::Tet10 => accumulate::<Tet10>(mesh, mat, u, r, how),
+        Kind::Tet4 => accumulate_with::<Tet4>(mesh, mat, u, how, false),
+        Kind::Tet10 => accumulate_with::<Tet10>(mesh, mat, u, how, false),
     }
 }
 
-fn accumulate<S: Shape>(mesh: &Mesh, mat: &Lame, u: &[f64], r: usize, how: Averaging) -> Vec<f64> {
-    accumulate_with::<S>(mesh, mat, u, r, how, false)
-}
-
-fn accumulate_with<S: Shape>(mesh: &Mesh, mat: &Lame, u: &[f64], r: usize, how: Averaging, large: bool) -> Vec<f64> {
+fn accumulate_with<S: Shape>(mesh: &Mesh, mat: &Lame, u: &Fields, how: Averaging, large: bool) -> Vec<f64> {
     let nv = mesh.vertex_count;
+    let r = u.r;
     let threads = rayon::current_num_threads().max(1);
     let tets = mesh.tet_count();
     // Per thread: Σ w σ (6·nv·r) and Σ w (nv).
@@ -77,9 +127,10 @@ fn accumulate_with<S: Shape>(mesh: &Mesh, mat: &Lame, u: &[f64], r: usize, how: 
                 for corner in (0..4).filter(|&c| valid[c]) {
                     let v = t[corner] as usize;
                     weight[v] += volume;
+                    let rows = &mut sum[6 * v * r..6 * (v + 1) * r];
                     for j in 0..r {
                         for (k, value) in corners.at(corner, j).iter().enumerate() {
-                            sum[(6 * v + k) * r + j] += volume * value;
+                            rows[k * r + j] += volume * value;
                         }
                     }
                 }
@@ -104,12 +155,15 @@ fn accumulate_with<S: Shape>(mesh: &Mesh, mat: &Lame, u: &[f64], r: usize, how: 
 }
 
 /// The stress of `r` displacement fields at the four corners of one tet at a time (strain at a
-/// corner, σ = λ tr(ε) I + 2μ ε), with its scratch space.
+/// corner, σ = λ tr(ε) I + 2μ ε), with its scratch space. A 4-node tet's strain is constant:
+/// its corners share one evaluation.
 pub struct Corners<S: Shape> {
     r: usize,
     gl: Vec<[f64; 4]>,
     grad: Vec<[f64; 3]>,
-    /// [corner][field][component], Voigt order.
+    /// Per field, ∇u row-major.
+    h: Vec<[f64; 9]>,
+    /// [corner][field][component], Voigt order (corner 0 only for a 4-node tet).
     stress: Vec<[f64; 6]>,
     /// Cauchy stress of large displacements instead of the linear stress.
     large: bool,
@@ -117,64 +171,92 @@ pub struct Corners<S: Shape> {
 }
 
 impl<S: Shape> Corners<S> {
+    /// Whether the element's strain is constant (its shape functions linear).
+    const CONSTANT: bool = S::NODES == 4;
+
     /// Scratch space for `r` fields.
     pub fn new(r: usize) -> Self {
         Corners {
             r,
             gl: vec![[0.0; 4]; S::NODES],
             grad: vec![[0.0; 3]; S::NODES],
+            h: vec![[0.0; 9]; r],
             stress: vec![[0.0; 6]; 4 * r],
             large: false,
             shape: std::marker::PhantomData,
         }
     }
 
-    /// Evaluates tet `e` of `mesh` for the fields `u` (each 3n, field `j` at `u[j·3n..]`); a
-    /// corner whose Jacobian is not positive is reported false and left unset.
-    pub fn evaluate(&mut self, mesh: &Mesh, mat: &Lame, u: &[f64], e: usize) -> [bool; 4] {
-        let n3 = 3 * mesh.nodes.len();
+    /// Evaluates tet `e` of `mesh` for the fields `u`; a corner whose Jacobian is not positive
+    /// is reported false and left unset.
+    pub fn evaluate(&mut self, mesh: &Mesh, mat: &Lame, u: &Fields, e: usize) -> [bool; 4] {
+        debug_assert_eq!(u.r, self.r);
         let t = mesh.tet(e);
-        let x: Vec<[f64; 3]> = t.iter().map(|&n| mesh.nodes[n as usize]).collect();
+        let mut x = [[0.0; 3]; 10];
+        let x = &mut x[..t.len()];
+        for (xa, &n) in x.iter_mut().zip(t) {
+            *xa = mesh.nodes[n as usize];
+        }
         let mut valid = [false; 4];
-        for (corner, ok) in valid.iter_mut().enumerate() {
+        let evaluated = if Self::CONSTANT { 1 } else { 4 };
+        for corner in 0..evaluated {
             let mut l = [0.0; 4];
             l[corner] = 1.0;
             S::bary_gradients(l, &mut self.gl);
-            if physical_gradients(&x, &self.gl, &mut self.grad).is_err() {
+            if physical_gradients(x, &self.gl, &mut self.grad).is_err() {
                 continue;
             }
-            *ok = true;
+            valid[corner] = true;
+            // ∇u = Σ_a u_a ⊗ ∇N_a, every field at once.
+            self.h.iter_mut().for_each(|h| *h = [0.0; 9]);
+            for (&n, g) in t.iter().zip(&self.grad) {
+                let (ux, uy, uz) = u.node(n as usize);
+                for (j, h) in self.h.iter_mut().enumerate() {
+                    let (a, b, c) = (ux[j], uy[j], uz[j]);
+                    h[0] += a * g[0];
+                    h[1] += a * g[1];
+                    h[2] += a * g[2];
+                    h[3] += b * g[0];
+                    h[4] += b * g[1];
+                    h[5] += b * g[2];
+                    h[6] += c * g[0];
+                    h[7] += c * g[1];
+                    h[8] += c * g[2];
+                }
+            }
             for j in 0..self.r {
-                let uj = &u[j * n3..(j + 1) * n3];
-                // ∇u = Σ_a u_a ⊗ ∇N_a.
-                let h: Matrix3<f64> = t
-                    .iter()
-                    .zip(&self.grad)
-                    .map(|(&n, g)| {
-                        let n = n as usize;
-                        Vector3::new(uj[3 * n], uj[3 * n + 1], uj[3 * n + 2]) * Vector3::from(*g).transpose()
-                    })
-                    .sum();
+                let h = &self.h[j];
                 let s = if self.large {
-                    match super::stvk::cauchy(mat, &h) {
-                        Some(s) => s,
+                    match super::stvk::cauchy(mat, &Matrix3::from_row_slice(h)) {
+                        Some(s) => [s[(0, 0)], s[(1, 1)], s[(2, 2)], s[(1, 2)], s[(0, 2)], s[(0, 1)]],
                         None => {
-                            *ok = false;
+                            valid[corner] = false;
                             break;
                         }
                     }
                 } else {
-                    let eps = 0.5 * (h + h.transpose());
-                    Matrix3::identity() * (mat.lambda * eps.trace()) + eps * (2.0 * mat.mu)
+                    let tr = mat.lambda * (h[0] + h[4] + h[8]);
+                    [
+                        tr + 2.0 * mat.mu * h[0],
+                        tr + 2.0 * mat.mu * h[4],
+                        tr + 2.0 * mat.mu * h[8],
+                        mat.mu * (h[5] + h[7]),
+                        mat.mu * (h[2] + h[6]),
+                        mat.mu * (h[1] + h[3]),
+                    ]
                 };
-                self.stress[corner * self.r + j] = [s[(0, 0)], s[(1, 1)], s[(2, 2)], s[(1, 2)], s[(0, 2)], s[(0, 1)]];
+                self.stress[corner * self.r + j] = s;
             }
+        }
+        if Self::CONSTANT {
+            valid = [valid[0]; 4];
         }
         valid
     }
 
     /// The stress of field `j` at `corner` of the last tet evaluated.
     pub fn at(&self, corner: usize, j: usize) -> &[f64; 6] {
+        let corner = if Self::CONSTANT { 0 } else { corner };
         &self.stress[corner * self.r + j]
     }
 }
@@ -194,7 +276,7 @@ mod tests {
             // u = (a x + b y², a z, b x z): ε = [[a, b y, b z / 2], [b y, 0, a / 2], [b z / 2, a / 2, b x]] (sym).
             let field = |p: [f64; 3]| [a * p[0] + b * p[1] * p[1], a * p[2], b * p[0] * p[2]];
             let u: Vec<f64> = mesh.nodes.iter().flat_map(|&p| field(p)).collect();
-            let s = vertex_stress(&mesh, &mat, &u, 1);
+            let s = vertex_stress(&mesh, &mat, &Fields { values: u, r: 1 });
             for (i, p) in mesh.nodes[..mesh.vertex_count].iter().enumerate() {
                 let eps = Matrix3::new(
                     a,
@@ -216,6 +298,71 @@ mod tests {
                         s[6 * i + k],
                         want[k]
                     );
+                }
+            }
+        }
+    }
+
+    /// Fields interleaved give each field's stress as that field alone does, whichever way
+    /// they were interleaved (separate, or side by side over the free DOFs with zeros where
+    /// supported), on 4-node tets (one evaluation per tet) and 10-node ones (one per corner).
+    #[test]
+    fn fields_together_are_each_field_alone() {
+        let mat = Lame::new(2.0e11, 0.3, 7800.0);
+        for kind in [Kind::Tet4, Kind::Tet10] {
+            let mesh = Mesh::structured_box([3, 2, 2], 0.1, kind, |ijk, p| {
+                // Interior vertices moved: no two elements alike.
+                let s = if ijk.iter().all(|&i| i > 0) && ijk[0] < 3 && ijk[1] < 2 && ijk[2] < 2 {
+                    0.013
+                } else {
+                    0.0
+                };
+                [p[0] + s, p[1] - s, p[2] + 0.5 * s]
+            });
+            let n3 = 3 * mesh.nodes.len();
+            let fields: Vec<Vec<f64>> = (0..3)
+                .map(|j| {
+                    mesh.nodes
+                        .iter()
+                        .flat_map(|p| {
+                            let k = j as f64 + 1.0;
+                            [
+                                1e-3 * (k * p[0]).sin() * p[1],
+                                2e-3 * p[2].powi(2) * k,
+                                -1e-3 * p[0] * p[1] * p[2] / k,
+                            ]
+                        })
+                        .collect()
+                })
+                .collect();
+            let alone: Vec<Vec<f64>> = fields
+                .iter()
+                .map(|f| {
+                    vertex_stress(
+                        &mesh,
+                        &mat,
+                        &Fields {
+                            values: f.clone(),
+                            r: 1,
+                        },
+                    )
+                })
+                .collect();
+            let side_by_side: Vec<f64> = fields.iter().flatten().copied().collect();
+            // Every DOF free: the free numbering is the full one.
+            let dofs = super::super::Dofs::from_mask(&vec![false; n3]);
+            for together in [Fields::from_each(&fields), Fields::from_free(&dofs, &side_by_side, 3)] {
+                let s = vertex_stress(&mesh, &mat, &together);
+                for (j, a) in alone.iter().enumerate() {
+                    let scale = a.iter().fold(0.0_f64, |m, x| m.max(x.abs()));
+                    assert!(scale > 0.0);
+                    for (row, want) in a.iter().enumerate() {
+                        let got = s[row * 3 + j];
+                        assert!(
+                            (got - want).abs() <= 1e-12 * scale,
+                            "{kind:?} field {j} row {row}: {got} vs {want}"
+                        );
+                    }
                 }
             }
         }

@@ -9,7 +9,7 @@
 //! shares weighted by how far each mode is from the goal.
 
 use crate::fem::element::{Lame, Shape, tet4::Tet4, tet10::Tet10};
-use crate::fem::stress::{Corners, vertex_stress};
+use crate::fem::stress::{Corners, Fields, vertex_stress};
 use crate::mesh::field::SizeField;
 use crate::tet_mesh::Mesh;
 use rayon::prelude::*;
@@ -24,8 +24,9 @@ pub const EVEN_SHARE: f64 = 0.2;
 
 /// Per element `e` and field `j`, the share of field `j`'s indicated error in element `e`,
 /// row-major [tets, r] (each column sums to 1; an all-zero column when a field has no error).
-pub fn shares(mesh: &Mesh, mat: &Lame, u: &[f64], r: usize) -> Vec<f64> {
-    let mut eta = element_energies(mesh, mat, u, r);
+pub fn shares(mesh: &Mesh, mat: &Lame, u: &Fields) -> Vec<f64> {
+    let r = u.r;
+    let mut eta = element_energies(mesh, mat, u);
     for j in 0..r {
         let total: f64 = eta.iter().skip(j).step_by(r).sum();
         let inv = if total > 0.0 { 1.0 / total } else { 0.0 };
@@ -35,17 +36,18 @@ pub fn shares(mesh: &Mesh, mat: &Lame, u: &[f64], r: usize) -> Vec<f64> {
 }
 
 /// Per element `e` and field `j`, η²_ej (below), row-major [tets, r].
-pub fn element_energies(mesh: &Mesh, mat: &Lame, u: &[f64], r: usize) -> Vec<f64> {
+pub fn element_energies(mesh: &Mesh, mat: &Lame, u: &Fields) -> Vec<f64> {
     match mesh.kind {
-        crate::fem::element::Kind::Tet4 => element_errors::<Tet4>(mesh, mat, u, r),
-        crate::fem::element::Kind::Tet10 => element_errors::<Tet10>(mesh, mat, u, r),
+        crate::fem::element::Kind::Tet4 => element_errors::<Tet4>(mesh, mat, u),
+        crate::fem::element::Kind::Tet10 => element_errors::<Tet10>(mesh, mat, u),
     }
 }
 
 /// η²_ej = ∫_e (σ* − σ_h) : C⁻¹ : (σ* − σ_h) dV, the difference taken at the corners and
 /// interpolated linearly (exact for straight-sided 10-node tets, whose stress is linear).
-fn element_errors<S: Shape>(mesh: &Mesh, mat: &Lame, u: &[f64], r: usize) -> Vec<f64> {
-    let recovered = vertex_stress(mesh, mat, u, r);
+fn element_errors<S: Shape>(mesh: &Mesh, mat: &Lame, u: &Fields) -> Vec<f64> {
+    let r = u.r;
+    let recovered = vertex_stress(mesh, mat, u);
     let tets = mesh.tet_count();
     // Compliance form: x : C⁻¹ : y = (x:y − λ/(3λ + 2μ) tr x tr y) / 2μ, Voigt shear counted twice.
     let k = mat.lambda / (3.0 * mat.lambda + 2.0 * mat.mu);
@@ -247,14 +249,14 @@ mod tests {
             .iter()
             .flat_map(|p| [1e-3 * p[0] * p[1], 1e-3 * p[2] * p[2], 2e-3 * p[0]])
             .collect();
-        let eta = element_errors::<Tet10>(&mesh, &mat, &u, 1);
+        let eta = element_errors::<Tet10>(&mesh, &mat, &Fields { values: u, r: 1 });
         let energy: f64 = eta.iter().sum();
         assert!(energy < 1e-20, "a representable field shows an error of {energy:e}");
 
         // u_x = x³ on 4-node tets: the strain 3x² changes fastest at large x.
         let mesh = Mesh::structured_box([8, 1, 1], 0.1, crate::fem::element::Kind::Tet4, |_, p| p);
         let u: Vec<f64> = mesh.nodes.iter().flat_map(|p| [p[0].powi(3), 0.0, 0.0]).collect();
-        let s = shares(&mesh, &mat, &u, 1);
+        let s = shares(&mesh, &mat, &Fields { values: u, r: 1 });
         assert!((s.iter().sum::<f64>() - 1.0).abs() < 1e-12);
         let centre = |e: usize| mesh.tet(e)[..4].iter().map(|&v| mesh.nodes[v as usize][0]).sum::<f64>() / 4.0;
         let (near, far): (Vec<usize>, Vec<usize>) = (0..mesh.tet_count()).partition(|&e| centre(e) < 0.4);

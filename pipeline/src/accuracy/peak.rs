@@ -229,8 +229,8 @@ fn corner_von_mises(scene: &Scene, d: &Discretized) -> Result<Vec<Vec<f64>>> {
     let f = crate::loads::load_vectors(scene, d)?;
     let u = crate::loads::solve_static(d, &f)?;
     let r = u.len();
-    let fields: Vec<f64> = u.iter().flatten().copied().collect();
-    let stress = crate::fem::stress::vertex_stress(&d.mesh, &Lame::of(&scene.material), &fields, r);
+    let fields = crate::fem::stress::Fields::from_each(&u);
+    let stress = crate::fem::stress::vertex_stress(&d.mesh, &Lame::of(&scene.material), &fields);
     let nv = d.mesh.vertex_count;
     Ok((0..r)
         .map(|j| {

@@ -7,12 +7,13 @@
 
 use super::indicator;
 use crate::fem::element::Lame;
+use crate::fem::stress::Fields;
 use crate::tet_mesh::Mesh;
 
-/// Per field `j` of `u` (each 3n, field `j` at `u[j·3n..]`), its recovered error energy
-/// η²_j = Σ_e η²_ej.
-pub fn energies(mesh: &Mesh, mat: &Lame, u: &[f64], r: usize) -> Vec<f64> {
-    let eta = indicator::element_energies(mesh, mat, u, r);
+/// Per field `j` of `u`, its recovered error energy η²_j = Σ_e η²_ej.
+pub fn energies(mesh: &Mesh, mat: &Lame, u: &Fields) -> Vec<f64> {
+    let r = u.r;
+    let eta = indicator::element_energies(mesh, mat, u);
     let mut sum = vec![0.0; r];
     for row in eta.chunks_exact(r.max(1)) {
         sum.iter_mut().zip(row).for_each(|(s, x)| *s += x);
@@ -44,8 +45,7 @@ pub fn estimate(mesh: &Mesh, dofs: &crate::fem::Dofs, mat: &Lame, modes: &[f64],
     if r == 0 {
         return vec![f64::NAN; lambda.len()];
     }
-    let u: Vec<f64> = (0..r).flat_map(|j| dofs.expand(&modes[j * nf..(j + 1) * nf])).collect();
-    let energy = energies(mesh, mat, &u, r);
+    let energy = energies(mesh, mat, &Fields::from_free(dofs, modes, r));
     let mut out: Vec<f64> = energy
         .iter()
         .zip(lambda)
@@ -89,8 +89,8 @@ mod tests {
                 ]
             };
             let energy = |d: i32| {
-                let u: Vec<f64> = mesh.nodes.iter().flat_map(|p| field(p, d)).collect();
-                energies(&mesh, &mat, &u, 1)[0]
+                let values: Vec<f64> = mesh.nodes.iter().flat_map(|p| field(p, d)).collect();
+                energies(&mesh, &mat, &Fields { values, r: 1 })[0]
             };
             // The scale: the strain energy of a 1e-3 strain over the 0.3 m cube.
             let scale = mat.mu * 1e-6 * 0.027;

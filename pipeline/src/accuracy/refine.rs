@@ -559,11 +559,9 @@ fn local_field(
     let d = &current.d;
     let r = kept.min(current.modes.eigenvalues.len()).min(estimate.modes.len());
     let nf = d.dofs.free_count();
-    let u: Vec<f64> = (0..r)
-        .flat_map(|j| d.dofs.expand(&current.modes.vectors[j * nf..(j + 1) * nf]))
-        .collect();
+    let u = crate::fem::stress::Fields::from_free(&d.dofs, &current.modes.vectors[..r * nf], r);
     let lame = crate::fem::element::Lame::of(&scene.material);
-    let shares = super::indicator::shares(&d.mesh, &lame, &u, r);
+    let shares = super::indicator::shares(&d.mesh, &lame, &u);
     let errors: Vec<f64> = estimate.modes[..r].iter().map(|m| m.relative).collect();
     let rates: Vec<f64> = estimate.modes[..r].iter().map(|m| m.rate).collect();
     let next = super::indicator::next_field(&d.mesh, &shares, &errors, &rates, 0.7 * target)?;

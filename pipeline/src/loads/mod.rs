@@ -470,8 +470,8 @@ pub fn solve_loads(
     let u = solve_static_with(d, &f, factor)?;
     let r = f.len();
     // Stress of all cases at once: fields side by side, as the modal stress is recovered.
-    let fields: Vec<f64> = u.iter().flatten().copied().collect();
-    let stress = crate::fem::stress::vertex_stress(&d.mesh, &lame, &fields, r);
+    let fields = crate::fem::stress::Fields::from_each(&u);
+    let stress = crate::fem::stress::vertex_stress(&d.mesh, &lame, &fields);
     scene
         .loads
         .iter()

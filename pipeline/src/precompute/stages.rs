@@ -571,11 +571,9 @@ fn stress(scene: &Scene, solved: &Solved) -> Option<Vec<f64>> {
     let (dofs, modes) = (solved.problem.dofs(), &solved.modes);
     let r = modes.eigenvalues.len();
     let nf = dofs.free_count();
-    let u: Vec<f64> = (0..r)
-        .flat_map(|j| dofs.expand(&modes.vectors[j * nf..(j + 1) * nf]))
-        .collect();
+    let u = crate::fem::stress::Fields::from_free(dofs, &modes.vectors[..r * nf], r);
     let lame = crate::fem::element::Lame::of(&scene.material);
-    Some(crate::fem::stress::vertex_stress(solved.problem.mesh(), &lame, &u, r))
+    Some(crate::fem::stress::vertex_stress(solved.problem.mesh(), &lame, &u))
 }
 
 /// K's factor, made when a stage first asks for it and handed to the stages after it: the

@@ -8,7 +8,7 @@ use super::error::VerifyError;
 use super::reference::Solution;
 use super::tolerances::Tolerances;
 use crate::fem::element::Lame;
-use crate::fem::stress::{Averaging, vertex_stress_averaged};
+use crate::fem::stress::{Averaging, Fields, vertex_stress_averaged};
 use crate::linsolve::sym_matvec;
 use crate::modes::Modes;
 use crate::problem::Discretized;
@@ -243,8 +243,13 @@ fn stress_gaps(
         (diff / norm.max(f64::MIN_POSITIVE)).sqrt()
     };
     for (j, row) in rows.iter_mut().enumerate() {
-        let like = vertex_stress_averaged(&d.mesh, lame, &shapes[j], 1, Averaging::Arithmetic);
-        let stored = vertex_stress_averaged(&d.mesh, lame, &shapes[j], 1, Averaging::Volume);
+        // One field: interleaved is the field itself.
+        let shape = Fields {
+            values: shapes[j].clone(),
+            r: 1,
+        };
+        let like = vertex_stress_averaged(&d.mesh, lame, &shape, Averaging::Arithmetic);
+        let stored = vertex_stress_averaged(&d.mesh, lame, &shape, Averaging::Volume);
         row.stress_rel_diff = Some(gap(&like, j));
         row.stress_rel_diff_volume_weighted = Some(gap(&stored, j));
     }
