@@ -342,6 +342,11 @@ impl Cholesky {
         self.symbolic
     }
 
+    /// The symbolic analysis (ordering and structure).
+    pub fn symbolic(&self) -> &SymbolicCholesky<usize> {
+        &self.symbolic
+    }
+
     /// Parallelism of later solves (sequential by default).
     pub fn set_parallelism(&mut self, par: Par) {
         self.par = par;

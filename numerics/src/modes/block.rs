@@ -136,7 +136,7 @@ impl EigenSolver for BlockKrylov<'_> {
             vectors,
             factorize_s,
             eigensolve_s: t.elapsed().as_secs_f64(),
-            symbolic: Some(chol.into_symbolic()),
+            factored: Some(super::Factored::of(chol, sigma)),
             checked: None,
         })
     }

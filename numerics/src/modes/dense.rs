@@ -87,7 +87,7 @@ impl EigenSolver for Dense<'_> {
             vectors,
             factorize_s,
             eigensolve_s: t.elapsed().as_secs_f64(),
-            symbolic: None,
+            factored: None,
             checked: None,
         })
     }

@@ -105,7 +105,7 @@ impl EigenSolver for Distributed<'_> {
             vectors,
             factorize_s: e.setup_s,
             eigensolve_s: e.solve_s,
-            symbolic: None,
+            factored: None,
             checked: Some(super::Checked {
                 residuals: order.iter().map(|&i| e.residuals[i]).collect(),
                 gram: (0..k * k).map(|x| e.gram[order[x / k] * k + order[x % k]]).collect(),

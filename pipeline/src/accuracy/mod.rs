@@ -234,7 +234,10 @@ pub fn estimate(
             }
             let factor = COARSENING.powi(k as i32);
             match Solved::at(scene, voi, field, factor, fine.r, choice, true) {
-                Ok(s) => coarse.push(s),
+                Ok(mut s) => {
+                    s.modes.release_factor();
+                    coarse.push(s)
+                }
                 Err(e) => {
                     tracing::info!("error estimate: the mesh {factor}× coarser failed: {e:#}");
                     break;

@@ -220,6 +220,8 @@ pub fn refine(scene: &Scene, voi: Option<&Voi>, choice: SolverChoice, target: f6
                 scene.mesh.size = next_size;
             }
         }
+        // The next mesh is larger: this one's factor of K is not held beside it.
+        current.modes.release_factor();
         current = Solved::at(
             &scene,
             scaled_voi(next_size).as_ref(),

@@ -162,11 +162,11 @@ pub(super) fn solve_space_checked(
             progress::stage("meshing and assembling", 0.0)?;
             let problem = discretize(scene, voi, choice)?;
             progress::stage("eigen-solving", shares.solve)?;
-            let solved = released(|| solve(scene, problem, choice))?;
+            let mut solved = released(|| solve(scene, problem, choice))?;
             if later {
                 (solved, None, Estimated::default())
             } else {
-                let sturm = sturm_check(&solved, choice)?;
+                let sturm = sturm_check(&mut solved, choice)?;
                 progress::stage("estimating the error", shares.estimate)?;
                 let estimated = released(|| estimate(scene, voi, &solved, choice, prefetch))?;
                 (solved, sturm, estimated)
@@ -262,6 +262,11 @@ fn peak_stress(scene: &Scene, s: &mut SolvedSpace) -> Result<()> {
 /// `factor`: K's, when an earlier stage made it; dropped before the coarser meshes are made.
 fn felt(scene: &Scene, s: &mut SolvedSpace, factor: Option<crate::linsolve::Cholesky>) -> Result<()> {
     progress::stage("the felt compliance's truncation", 0.93)?;
+    // The solve's own factor of K, when it kept one; released here whatever happens.
+    let factor = match s.modes.factored.take() {
+        Some(modes::Factored::Stiffness(c)) => factor.or(Some(c)),
+        _ => factor,
+    };
     // A nonlinear model is felt through its own tangent; K on MPI ranks is not here.
     let Some(system) = s.system.as_ref().filter(|_| s.nonlinear.is_none()) else {
         return Ok(());
@@ -380,6 +385,7 @@ pub(super) fn check_later(scene: &Scene, s: &mut SolvedSpace, choice: SolverChoi
         .as_ref()
         .context("the checks after the solve need K and M, which were left on the MPI ranks")?;
     progress::stage("counting the eigenvalues below the last (Sturm)", 0.0)?;
+    room_for_sturm(&mut s.modes);
     let sturm = released(|| modes::sturm_count(system, &s.dofs, &s.modes))?;
     if let Some(c) = &sturm {
         advice::report_sturm(&s.name, c);
@@ -411,13 +417,13 @@ fn refined(
 ) -> Result<(Solved, Option<SturmCount>, Estimated)> {
     let r = refine::refine(scene, voi, choice, target)?;
     let last = r.last;
-    let solved = Solved {
+    let mut solved = Solved {
         mass: last.d.system.mass,
         problem: Problem::Here(last.d),
         modes: last.modes,
         ordering_s: last.ordering_s,
     };
-    let sturm = sturm_check(&solved, choice)?;
+    let sturm = sturm_check(&mut solved, choice)?;
     let estimated = Estimated {
         error: r.estimate,
         refinement: Some(r.steps),
@@ -492,10 +498,22 @@ fn solve(scene: &Scene, problem: Problem, choice: SolverChoice) -> Result<Solved
 /// (its factor's memory is free again, the error estimate's not yet taken). With SLEPc rank 0
 /// would factor the whole matrix again on its own (the memory MPI is there to share): left to
 /// SLEPc's checks.
-fn sturm_check(solved: &Solved, choice: SolverChoice) -> Result<Option<SturmCount>> {
+fn sturm_check(solved: &mut Solved, choice: SolverChoice) -> Result<Option<SturmCount>> {
+    room_for_sturm(&mut solved.modes);
     match solved.problem.here() {
         Some(d) if !choice.is_slepc() => Ok(modes::sturm_count(&d.system, &d.dofs, &solved.modes)?),
         _ => Ok(None),
+    }
+}
+
+/// The solve's factor of K, kept for the stages after it, released when the Sturm count's own
+/// factor (the same size) would not fit beside it.
+fn room_for_sturm(modes: &mut Modes) {
+    if let Some(c) = modes.factored.as_ref().and_then(|f| f.stiffness())
+        && crate::memory::ensure_fits("the Sturm count beside K's factor", 2 * 8 * c.factor_len() as u64).is_err()
+    {
+        tracing::debug!("K's factor released before the Sturm count: both would not fit");
+        modes.release_factor();
     }
 }
 
@@ -576,14 +594,16 @@ fn stress(scene: &Scene, solved: &Solved) -> Option<Vec<f64>> {
     Some(crate::fem::stress::vertex_stress(solved.problem.mesh(), &lame, &u))
 }
 
-/// K's factor, made when a stage first asks for it and handed to the stages after it: the
-/// static correction, the load cases, the supports' influence coefficients and the felt check
-/// each factorised K for itself before (on the mould held by two faces, two factorisations of
-/// 0.4 s where one serves). Made at the first request only, so a space whose stages need none
-/// makes none; a factorisation that fails is remembered as none, and each stage then makes its
-/// own and says why as before.
+/// K's factor, handed to the stages after the solve: the static correction, the load cases,
+/// the supports' influence coefficients and the felt check each factorised K for itself before
+/// (on the mould held by two faces, two factorisations of 0.4 s where one serves). A held
+/// part's solve (σ = 0) factorised K itself and keeps it ([`modes::Factored`]); otherwise it is
+/// made at the first request only, so a space whose stages need none makes none; a
+/// factorisation that fails is remembered as none, and each stage then makes its own and says
+/// why as before.
 struct SharedFactor<'a> {
     d: Option<&'a crate::problem::Discretized>,
+    solved_with: Option<&'a crate::linsolve::Cholesky>,
     made: std::cell::OnceCell<Option<crate::linsolve::Cholesky>>,
 }
 
@@ -591,11 +611,15 @@ impl<'a> SharedFactor<'a> {
     fn of(solved: &'a Solved) -> SharedFactor<'a> {
         SharedFactor {
             d: solved.problem.here(),
+            solved_with: solved.modes.factored.as_ref().and_then(|f| f.stiffness()),
             made: std::cell::OnceCell::new(),
         }
     }
 
     fn get(&self) -> Option<&crate::linsolve::Cholesky> {
+        if self.solved_with.is_some() {
+            return self.solved_with;
+        }
         let d = self.d?;
         self.made
             .get_or_init(|| match crate::linsolve::factor_stiffness(&d.system, &d.dofs) {
@@ -608,7 +632,8 @@ impl<'a> SharedFactor<'a> {
             .as_ref()
     }
 
-    /// The factor, if it was made (for a stage after the space is stored).
+    /// The factor, if it was made here (for a stage after the space is stored; the solve's own
+    /// goes with the modes).
     fn into_made(self) -> Option<crate::linsolve::Cholesky> {
         self.made.into_inner().flatten()
     }

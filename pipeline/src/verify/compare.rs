@@ -301,7 +301,7 @@ mod tests {
             sigma: 0.0,
             factorize_s: 0.0,
             eigensolve_s: 0.0,
-            symbolic: None,
+            factored: None,
         };
         let dir = tempfile::tempdir().expect("tempdir");
         let tol = Tolerances::same_discrete_problem(false);

@@ -276,7 +276,7 @@ pub fn discretize_basis(path: &Path, modes: Option<usize>) -> Result<(Discretize
         sigma,
         factorize_s: 0.0,
         eigensolve_s: 0.0,
-        symbolic: None,
+        factored: None,
     };
     Ok((d, ours))
 }
