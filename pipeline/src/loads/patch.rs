@@ -307,7 +307,12 @@ impl<'a> Surface<'a> {
     /// contact stage 2.1 s of a 9.8 s precompute).
     fn integrate(&self, t: usize, centre: [f64; 3], radius: f64, loads: &mut HashMap<u32, f64>) {
         let ids = &self.nodes[t];
-        let x: Vec<[f64; 3]> = ids.iter().map(|&v| self.mesh.nodes[v as usize]).collect();
+        let mut x = [[0.0; 3]; 6];
+        let x = &mut x[..ids.len().min(6)];
+        for (xa, &v) in x.iter_mut().zip(ids) {
+            *xa = self.mesh.nodes[v as usize];
+        }
+        let x = &*x;
         let [a, b, c] = self.corners(t);
         let longest = [sub(b, a), sub(c, b), sub(a, c)]
             .iter()
@@ -354,14 +359,14 @@ impl<'a> Surface<'a> {
                 Place::Rim
             }
         };
-        let mut w = vec![0.0; ids.len()];
+        let mut w = [0.0; 6];
         // The rule on cell `p` (reference points), of reference area `area`.
         let mut rule = |p: &[(f64, f64); 3], area: f64| {
             for &(s, r, weight) in &TRIANGLE_RULE {
                 let xi = p[0].0 + s * (p[1].0 - p[0].0) + r * (p[2].0 - p[0].0);
                 let eta = p[0].1 + s * (p[1].1 - p[0].1) + r * (p[2].1 - p[0].1);
-                let (da, n) = area_vector(&x, xi, eta);
-                let at: [f64; 3] = std::array::from_fn(|k| n.iter().zip(&x).map(|(na, xa)| na * xa[k]).sum());
+                let (da, n) = area_vector(x, xi, eta);
+                let at: [f64; 3] = std::array::from_fn(|k| n.iter().zip(x).map(|(na, xa)| na * xa[k]).sum());
                 let d = sub(at, centre);
                 let pressure = profile(dot(d, d) / (radius * radius));
                 if pressure == 0.0 {

@@ -71,28 +71,33 @@ pub(crate) fn triangle_nodes(mesh: &Mesh, picked: &[usize]) -> Vec<TriangleNodes
 }
 
 /// Shape functions of a 3- or 6-node triangle at (ξ, η), and their derivatives in ξ and η.
-fn triangle_shape(nodes: usize, xi: f64, eta: f64) -> (Vec<f64>, Vec<[f64; 2]>) {
+/// In arrays of six (zeros past a 3-node triangle's three): a contact patch evaluates this at
+/// every quadrature point of every cell, and two vectors allocated per point were a third of
+/// that stage.
+fn triangle_shape(nodes: usize, xi: f64, eta: f64) -> ([f64; 6], [[f64; 2]; 6]) {
     let l = [1.0 - xi - eta, xi, eta];
     let dl = [[-1.0, -1.0], [1.0, 0.0], [0.0, 1.0]];
+    let mut n = [0.0; 6];
+    let mut d = [[0.0; 2]; 6];
     if nodes == 3 {
-        return (l.to_vec(), dl.to_vec());
+        n[..3].copy_from_slice(&l);
+        d[..3].copy_from_slice(&dl);
+        return (n, d);
     }
-    let mut n = Vec::with_capacity(6);
-    let mut d = Vec::with_capacity(6);
     for i in 0..3 {
-        n.push(l[i] * (2.0 * l[i] - 1.0));
-        d.push(dl[i].map(|g| (4.0 * l[i] - 1.0) * g));
+        n[i] = l[i] * (2.0 * l[i] - 1.0);
+        d[i] = dl[i].map(|g| (4.0 * l[i] - 1.0) * g);
     }
-    for (a, b) in [(0, 1), (1, 2), (2, 0)] {
-        n.push(4.0 * l[a] * l[b]);
-        d.push([0, 1].map(|k| 4.0 * (l[b] * dl[a][k] + l[a] * dl[b][k])));
+    for (k, (a, b)) in [(0, 1), (1, 2), (2, 0)].into_iter().enumerate() {
+        n[3 + k] = 4.0 * l[a] * l[b];
+        d[3 + k] = [0, 1].map(|c| 4.0 * (l[b] * dl[a][c] + l[a] * dl[b][c]));
     }
     (n, d)
 }
 
 /// The area vector ∂x/∂ξ × ∂x/∂η of a triangle at (ξ, η) (outward for a surface triangle) and
-/// its shape function values there.
-pub(crate) fn area_vector(x: &[[f64; 3]], xi: f64, eta: f64) -> ([f64; 3], Vec<f64>) {
+/// its shape function values there (the first `x.len()` of six).
+pub(crate) fn area_vector(x: &[[f64; 3]], xi: f64, eta: f64) -> ([f64; 3], [f64; 6]) {
     let (n, d) = triangle_shape(x.len(), xi, eta);
     let mut g = [[0.0; 3]; 2];
     for (xa, da) in x.iter().zip(&d) {
@@ -115,7 +120,7 @@ pub(crate) fn area_vector(x: &[[f64; 3]], xi: f64, eta: f64) -> ([f64; 3], Vec<f
 fn integrate(x: &[[f64; 3]], mut each: impl FnMut(usize, f64, [f64; 3])) {
     for (xi, eta, w) in TRIANGLE_RULE {
         let (da, n) = area_vector(x, xi, eta);
-        for (a, na) in n.iter().enumerate() {
+        for (a, na) in n.iter().take(x.len()).enumerate() {
             each(a, 0.5 * w * na, da);
         }
     }
