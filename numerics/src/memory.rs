@@ -137,6 +137,16 @@ pub fn ensure_fits(what: &str, bytes: u64) -> Result<(), OutOfMemory> {
     }
 }
 
+/// `n` zeros written, not only allocated, for sums added into at scattered places: a calloc'd
+/// page is mapped on first touch, and read before it is written (`+=`) it faults twice (the
+/// shared zero page, then a copy on write that flushes the other cores' TLBs). On the
+/// ribplate's recovery estimate, 0.55–0.62 s calloc'd against 0.43–0.47 s written.
+pub fn written_zeros(n: usize) -> Vec<f64> {
+    let mut v = Vec::with_capacity(n);
+    v.resize(n, 0.0);
+    v
+}
+
 /// A zeroed vector of `len` values, or the error instead of an abort when memory is short
 /// ([`ensure_fits`] first, then a fallible reservation).
 pub fn try_zeros<T: Clone + Default>(what: &str, len: usize) -> Result<Vec<T>, OutOfMemory> {

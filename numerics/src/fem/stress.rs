@@ -115,7 +115,7 @@ fn accumulate_with<S: Shape>(mesh: &Mesh, mat: &Lame, u: &Fields, how: Averaging
             || {
                 let mut c = Corners::<S>::new(r);
                 c.large = large;
-                (written_zeros(6 * nv * r), vec![0.0; nv], c)
+                (crate::memory::written_zeros(6 * nv * r), vec![0.0; nv], c)
             },
             |(mut sum, mut weight, mut corners), e| {
                 let volume = match how {
@@ -152,15 +152,6 @@ fn accumulate_with<S: Shape>(mesh: &Mesh, mat: &Lame, u: &Fields, how: Averaging
         out[6 * v * r..6 * (v + 1) * r].iter_mut().for_each(|s| *s *= inv);
     }
     out
-}
-
-/// `n` zeros written, not only allocated: calloc'd pages are mapped on first touch, and
-/// read-then-written at scattered places (`+=`) each page faults twice (the shared zero page,
-/// then a copy on write that flushes the other cores' TLBs).
-fn written_zeros(n: usize) -> Vec<f64> {
-    let mut v = Vec::with_capacity(n);
-    v.resize(n, 0.0);
-    v
 }
 
 /// The stress of `r` displacement fields at the four corners of one tet at a time (strain at a

@@ -222,7 +222,7 @@ fn sum_over_elements<S: Shape>(
     let partials = (0..chunks)
         .into_par_iter()
         .map(|c| {
-            let mut f = vec![0.0; len];
+            let mut f = crate::memory::written_zeros(len);
             for e in c * per..((c + 1) * per).min(ne) {
                 let t = mesh.tet(e);
                 let x: Vec<[f64; 3]> = t.iter().map(|&v| mesh.nodes[v as usize]).collect();
