@@ -212,6 +212,44 @@ fn a_part_no_rung_can_mesh_gets_advice_that_works() {
     );
 }
 
+/// The crankshaft's 10-node mesh at 4 mm solves, but gmsh meshes its part at 9 mm (the error
+/// estimate's second coarser mesh) on no rung. The felt check asks for that same mesh again: it
+/// is refused at once with the first failure's message, not walked down the ladder a second
+/// time (3.5–3.8 s on this part, whose solve takes 0.2 s).
+#[test]
+fn a_coarser_mesh_no_rung_can_make_is_tried_once() {
+    let dir = tempfile::tempdir().expect("temp dir");
+    let step = Path::new(env!("CARGO_MANIFEST_DIR")).join("../cases/corpus/crankshaft.step");
+    let scene = dir.path().join("crank.toml");
+    std::fs::write(
+        &scene,
+        format!(
+            "name = \"crank\"\n[geometry]\nstep = {:?}\nunit = \"mm\"\n[material]\nyoung = 2.1e11\npoisson = 0.3\n\
+             density = 7850.0\n[mesh]\nsize = 0.004\norder = 2\n[[fixed]]\nfaces = [38, 39]\n[modes]\ncount = 10\n",
+            step.display().to_string()
+        ),
+    )
+    .expect("write");
+    let out = dir.path().join("crank.h5");
+    let o = std::process::Command::new(env!("CARGO_BIN_EXE_ves"))
+        .args(["precompute", scene.to_str().unwrap(), "-o", out.to_str().unwrap()])
+        .env("VES_LOG", "info")
+        .env("VES_CACHE_DIR", dir.path().join("cache"))
+        .output()
+        .expect("ves runs");
+    let err = stderr(&o);
+    assert!(o.status.success(), "{err}");
+    // One walk down the five rungs (made ahead beside the solve, or by the estimate), however
+    // many stages ask for that mesh.
+    assert_eq!(err.matches("meshing failed: ").count(), 5, "{err}");
+    assert!(err.contains("not tried again"), "{err}");
+    let felt = err
+        .lines()
+        .find(|l| l.contains("felt compliance's mesh error was not estimated"))
+        .unwrap_or_else(|| panic!("no felt warning: {err}"));
+    assert!(felt.contains("any of its 5 strategies"), "{felt}");
+}
+
 /// `mesh.smooth_curved = false` (the page's first look): the thin cone cover's 10-node tets that
 /// curving made invalid are all straightened at once, none by gmsh's smoother, and every element
 /// is valid either way; the two meshes are cached apart.

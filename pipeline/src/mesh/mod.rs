@@ -294,16 +294,33 @@ impl Part {
         }
     }
 
-    /// Meshes the bytes read, from a copy in a private directory.
+    /// Meshes the bytes read, from a copy in a private directory. An input whose every rung
+    /// failed earlier in this process fails again at once, with the same message.
     fn mesh(&mut self) -> Result<(Mesh, Meshing), MeshError> {
+        if let Some(message) = self.key.as_ref().and_then(failed_before) {
+            tracing::info!("meshing failed before in this run on every rung: not tried again");
+            return Err(MeshError::Geometry {
+                path: self.request.geometry.display().to_string(),
+                message,
+            });
+        }
         let (work, request) = self.private_copy()?;
-        if isolation::is_on() {
+        let walked = if isolation::is_on() {
             // Each rung runs in its own process: the ladder itself needs no gmsh.
             walk_ladder(&request, work.path())
         } else {
             let dir = work.path().to_path_buf();
             gmsh::on_gmsh_thread(move || walk_ladder(&request, &dir))
-        }
+        };
+        walked.map_err(|e| match e {
+            Ladder::Fatal(e) => e,
+            Ladder::Exhausted(e) => {
+                if let Some(key) = &self.key {
+                    remember_failure(key, e.cause());
+                }
+                e
+            }
+        })
     }
 
     /// A private directory holding the bytes read (once: they are not kept), and the request
@@ -456,9 +473,36 @@ const LADDER: [Rung; 5] = [
     },
 ];
 
+/// How the ladder failed.
+enum Ladder {
+    /// Something no rung changes (no solid, a size beyond the budget, a cancel): it ended there.
+    Fatal(MeshError),
+    /// Every rung failed to mesh.
+    Exhausted(MeshError),
+}
+
+/// Inputs (cache keys) whose every rung failed in this process, with the message said. The
+/// coarser meshes of a part gmsh cannot mesh at that size were walked down the ladder twice
+/// per precompute, by the error estimate and again by the felt check (3.5–3.8 s each on the
+/// crankshaft at 4 mm, whose solve took 0.2 s); only an exhausted ladder is remembered, never
+/// a fatal or passing error, and never across processes.
+static FAILED: std::sync::Mutex<Vec<(std::path::PathBuf, String)>> = std::sync::Mutex::new(Vec::new());
+
+fn failed_before(key: &std::path::PathBuf) -> Option<String> {
+    let failed = FAILED.lock().unwrap_or_else(std::sync::PoisonError::into_inner);
+    failed.iter().find(|(k, _)| k == key).map(|(_, m)| m.clone())
+}
+
+fn remember_failure(key: &std::path::Path, message: String) {
+    let mut failed = FAILED.lock().unwrap_or_else(std::sync::PoisonError::into_inner);
+    if !failed.iter().any(|(k, _)| k == key) {
+        failed.push((key.to_path_buf(), message));
+    }
+}
+
 /// Walks the ladder; a failure of gmsh's meshing or a degenerate element sends it one rung
 /// further, anything else (no solid, a size beyond the budget) ends it.
-fn walk_ladder(req: &Request, work: &std::path::Path) -> Result<(Mesh, Meshing), MeshError> {
+fn walk_ladder(req: &Request, work: &std::path::Path) -> Result<(Mesh, Meshing), Ladder> {
     let mut first: Option<(MeshError, Vec<String>)> = None;
     for (i, rung) in LADDER.iter().enumerate() {
         match isolation::attempt(req, i, &work.join(format!("rung{i}"))) {
@@ -478,7 +522,7 @@ fn walk_ladder(req: &Request, work: &std::path::Path) -> Result<(Mesh, Meshing),
                 }
                 return Ok((mesh, report));
             }
-            Err(Attempt::Fatal(e)) => return Err(e),
+            Err(Attempt::Fatal(e)) => return Err(Ladder::Fatal(e)),
             Err(Attempt::Retry(e, log)) => {
                 // gmsh's own words, for VES_LOG=info.
                 for line in &log {
@@ -495,10 +539,10 @@ fn walk_ladder(req: &Request, work: &std::path::Path) -> Result<(Mesh, Meshing),
     } else {
         ladder_advice(&e, &log, req)
     };
-    Err(MeshError::Geometry {
+    Err(Ladder::Exhausted(MeshError::Geometry {
         path: req.geometry.display().to_string(),
         message,
-    })
+    }))
 }
 
 /// Whether gmsh failed because its surface mesh crosses itself: tetgen's "PLC Error: A segment
