@@ -290,6 +290,21 @@ impl Modes {
         self.factored = self.factored.take().map(Factored::symbolic_only);
     }
 
+    /// Keeps the solve's factor of K for the stages after the solve only where memory is
+    /// plentiful: twice its size (it, and a factor of the same size made beside it, such as
+    /// the Sturm count's) at most a quarter of what is left. Kept, it raises a run's peak
+    /// while the stages between the solve and its last use run (the error estimate's coarser
+    /// solves); at scale it is released and made again when needed, as before.
+    pub fn release_factor_unless_plentiful(&mut self) {
+        if let Some(c) = self.factored.as_ref().and_then(Factored::stiffness) {
+            let both = 2 * 8 * c.factor_len() as u64;
+            if crate::memory::headroom_bytes().is_none_or(|free| both > free / 4) {
+                tracing::debug!("K's factor released after the solve: memory is not plentiful");
+                self.release_factor();
+            }
+        }
+    }
+
     /// Keeps the lowest `r` modes.
     pub fn truncate(&mut self, r: usize) {
         let old = self.eigenvalues.len();

@@ -494,7 +494,8 @@ impl Solved {
         let (at, voi, field) = coarser(scene, voi, field, factor);
         let d = discretize_with(&at, voi.as_ref(), field.as_ref(), quiet)?;
         let count = (kept + kept / 2 + 2).min(d.dofs.free_count() / 3).max(1);
-        let (modes, ordering_s) = modes::solve(d.space(), count, choice)?;
+        let (mut modes, ordering_s) = modes::solve(d.space(), count, choice)?;
+        modes.release_factor_unless_plentiful();
         Ok(Solved {
             size: d.meshing.size,
             d,

@@ -146,7 +146,7 @@ pub(super) fn solve_space_checked(
         !later && scene.mesh.error_estimate.on(),
         scene.static_correction.is_some(),
     );
-    let (mut solved, sturm, estimated) = match scene.mesh.target_error {
+    let (mut solved, estimated) = match scene.mesh.target_error {
         Some(target) => {
             progress::stage("meshing and solving until the estimate meets target_error", 0.0)?;
             refined(scene, voi, choice, target)?
@@ -163,13 +163,13 @@ pub(super) fn solve_space_checked(
             let problem = discretize(scene, voi, choice)?;
             progress::stage("eigen-solving", shares.solve)?;
             let mut solved = released(|| solve(scene, problem, choice))?;
+            solved.modes.release_factor_unless_plentiful();
             if later {
-                (solved, None, Estimated::default())
+                (solved, Estimated::default())
             } else {
-                let sturm = sturm_check(&mut solved, choice)?;
                 progress::stage("estimating the error", shares.estimate)?;
                 let estimated = released(|| estimate(scene, voi, &solved, choice, prefetch))?;
-                (solved, sturm, estimated)
+                (solved, estimated)
             }
         }
     };
@@ -201,11 +201,8 @@ pub(super) fn solve_space_checked(
     let (reactions, reactions_s) = timed(|| reactions(scene, voi, &solved, Influence::Made(&shared)));
     let reactions = reactions?;
     let factor = shared.into_made();
-    if let Some(s) = &sturm {
-        advice::report_sturm(&name, s);
-    }
     let after = AfterSolve {
-        sturm,
+        sturm: None,
         estimated,
         compliance,
         contact,
@@ -222,10 +219,31 @@ pub(super) fn solve_space_checked(
     };
     let mut space = store(name, voi, solved, after);
     if !later {
-        felt(scene, &mut space, factor)?;
+        felt_truncation(scene, &mut space, factor)?;
+        // After the last stage that solves with K's factor: the count's own factor (the same
+        // size) is never held beside it.
+        sturm_after(&mut space, choice)?;
+        felt_mesh_error(scene, &mut space)?;
         peak_stress(scene, &mut space)?;
     }
     Ok(space)
+}
+
+/// The Sturm count of a stored space: proof that no mode below the last one was skipped. With
+/// SLEPc, rank 0 would factor the whole matrix again on its own (the memory MPI is there to
+/// share): left to SLEPc's checks.
+fn sturm_after(s: &mut SolvedSpace, choice: SolverChoice) -> Result<()> {
+    let Some(system) = s.system.as_ref().filter(|_| !choice.is_slepc()) else {
+        return Ok(());
+    };
+    progress::stage("counting the eigenvalues below the last (Sturm)", 0.94)?;
+    let sturm = released(|| modes::sturm_count(system, &s.dofs, &s.modes))?;
+    if let Some(c) = &sturm {
+        advice::report_sturm(&s.name, c);
+    }
+    s.timings.sturm = sturm.as_ref().map_or(0.0, |c| c.seconds);
+    s.sturm = sturm;
+    Ok(())
 }
 
 /// The load cases' peak stresses studied on meshes refined around them
@@ -256,17 +274,35 @@ fn peak_stress(scene: &Scene, s: &mut SolvedSpace) -> Result<()> {
     Ok(())
 }
 
+/// The felt compliance's truncation and its mesh error.
+fn felt(scene: &Scene, s: &mut SolvedSpace, factor: Option<crate::linsolve::Cholesky>) -> Result<()> {
+    felt_truncation(scene, s, factor)?;
+    felt_mesh_error(scene, s)
+}
+
 /// The felt compliance's truncation (`accuracy::felt`), with its time. A check, not the basis:
 /// when it cannot be made (K's factor does not fit in memory) the basis is written without it
 /// and a warning says why.
-/// `factor`: K's, when an earlier stage made it; dropped before the coarser meshes are made.
-fn felt(scene: &Scene, s: &mut SolvedSpace, factor: Option<crate::linsolve::Cholesky>) -> Result<()> {
+/// `factor`: K's, when an earlier stage made it, or the solve's own (kept in the modes); its
+/// numbers are released here whatever happens, the solve's symbolic analysis kept for the
+/// Sturm count.
+fn felt_truncation(scene: &Scene, s: &mut SolvedSpace, factor: Option<crate::linsolve::Cholesky>) -> Result<()> {
     progress::stage("the felt compliance's truncation", 0.93)?;
-    // The solve's own factor of K, when it kept one; released here whatever happens.
-    let factor = match s.modes.factored.take() {
-        Some(modes::Factored::Stiffness(c)) => factor.or(Some(c)),
-        _ => factor,
+    let (factor, solves) = match s.modes.factored.take() {
+        Some(modes::Factored::Stiffness(c)) => (Some(c), true),
+        other => {
+            s.modes.factored = other;
+            (factor, false)
+        }
     };
+    let done = truncation(scene, s, factor.as_ref());
+    if let Some(c) = factor.filter(|_| solves) {
+        s.modes.factored = Some(modes::Factored::Symbolic(c.into_symbolic()));
+    }
+    done
+}
+
+fn truncation(scene: &Scene, s: &mut SolvedSpace, factor: Option<&crate::linsolve::Cholesky>) -> Result<()> {
     // A nonlinear model is felt through its own tangent; K on MPI ranks is not here.
     let Some(system) = s.system.as_ref().filter(|_| s.nonlinear.is_none()) else {
         return Ok(());
@@ -287,11 +323,10 @@ fn felt(scene: &Scene, s: &mut SolvedSpace, factor: Option<crate::linsolve::Chol
             })
             .collect(),
         radius: scene.contact_radius,
-        factor: factor.as_ref(),
+        factor,
     };
     let (felt, seconds) = timed(|| released(|| crate::accuracy::felt::truncation(&space)));
     drop(space);
-    drop(factor);
     match felt {
         Ok(f) => s.felt = f,
         Err(e) => tracing::warn!(
@@ -300,7 +335,11 @@ fn felt(scene: &Scene, s: &mut SolvedSpace, factor: Option<crate::linsolve::Chol
         ),
     }
     s.timings.felt_compliance = seconds;
-    // Its mesh error, on two coarser meshes of the whole part.
+    Ok(())
+}
+
+/// The felt compliance's mesh error, on two coarser meshes of the whole part.
+fn felt_mesh_error(scene: &Scene, s: &mut SolvedSpace) -> Result<()> {
     if let Some(f) = s.felt.as_mut().filter(|_| s.voi.is_none()) {
         progress::stage("the felt compliance's mesh error", 0.95)?;
         let fine = s.dofs.free_count();
@@ -385,7 +424,7 @@ pub(super) fn check_later(scene: &Scene, s: &mut SolvedSpace, choice: SolverChoi
         .as_ref()
         .context("the checks after the solve need K and M, which were left on the MPI ranks")?;
     progress::stage("counting the eigenvalues below the last (Sturm)", 0.0)?;
-    room_for_sturm(&mut s.modes);
+    s.modes.release_factor_unless_plentiful();
     let sturm = released(|| modes::sturm_count(system, &s.dofs, &s.modes))?;
     if let Some(c) = &sturm {
         advice::report_sturm(&s.name, c);
@@ -408,13 +447,9 @@ pub(super) fn check_later(scene: &Scene, s: &mut SolvedSpace, choice: SolverChoi
 }
 
 /// The `target_error` path: the refinement meshes, solves and estimates the space on finer
-/// meshes until the estimate meets the target; the Sturm check is made on its last mesh.
-fn refined(
-    scene: &Scene,
-    voi: Option<&Voi>,
-    choice: SolverChoice,
-    target: f64,
-) -> Result<(Solved, Option<SturmCount>, Estimated)> {
+/// meshes until the estimate meets the target (the Sturm count is made on its last mesh, after
+/// the stages that solve with K).
+fn refined(scene: &Scene, voi: Option<&Voi>, choice: SolverChoice, target: f64) -> Result<(Solved, Estimated)> {
     let r = refine::refine(scene, voi, choice, target)?;
     let last = r.last;
     let mut solved = Solved {
@@ -423,13 +458,13 @@ fn refined(
         modes: last.modes,
         ordering_s: last.ordering_s,
     };
-    let sturm = sturm_check(&mut solved, choice)?;
+    solved.modes.release_factor_unless_plentiful();
     let estimated = Estimated {
         error: r.estimate,
         refinement: Some(r.steps),
         seconds: r.overhead_s,
     };
-    Ok((solved, sturm, estimated))
+    Ok((solved, estimated))
 }
 
 /// Discretize: the mesh, the supports and (unless SLEPc's ranks assemble their own rows) K, M.
@@ -490,32 +525,6 @@ fn solve(scene: &Scene, problem: Problem, choice: SolverChoice) -> Result<Solved
                 modes: s.modes,
                 ordering_s: 0.0,
             })
-        }
-    }
-}
-
-/// Sturm check: proof that no mode below the last one was skipped, made right after the solve
-/// (its factor's memory is free again, the error estimate's not yet taken). With SLEPc rank 0
-/// would factor the whole matrix again on its own (the memory MPI is there to share): left to
-/// SLEPc's checks.
-fn sturm_check(solved: &mut Solved, choice: SolverChoice) -> Result<Option<SturmCount>> {
-    room_for_sturm(&mut solved.modes);
-    match solved.problem.here() {
-        Some(d) if !choice.is_slepc() => Ok(modes::sturm_count(&d.system, &d.dofs, &solved.modes)?),
-        _ => Ok(None),
-    }
-}
-
-/// The solve's factor of K, kept for the stages after it, released before the Sturm count
-/// unless both factors (the same size) take at most a quarter of what memory is left: kept, it
-/// raises the run's peak (the ribplate's 404 MB to 450–505 MB), which only spends memory where
-/// it is plentiful; at scale the factor is made again as before.
-fn room_for_sturm(modes: &mut Modes) {
-    if let Some(c) = modes.factored.as_ref().and_then(|f| f.stiffness()) {
-        let both = 2 * 8 * c.factor_len() as u64;
-        if crate::memory::headroom_bytes().is_none_or(|free| both > free / 4) {
-            tracing::debug!("K's factor released before the Sturm count: memory is not plentiful");
-            modes.release_factor();
         }
     }
 }
