@@ -295,9 +295,9 @@ impl Part {
     }
 
     /// Meshes the bytes read, from a copy in a private directory. An input whose every rung
-    /// failed earlier in this process fails again at once, with the same message.
+    /// failed earlier while a [`FailureMemory`] lives fails again at once, with the same message.
     fn mesh(&mut self) -> Result<(Mesh, Meshing), MeshError> {
-        if let Some(message) = self.key.as_ref().and_then(failed_before) {
+        if let Some(message) = self.key.as_deref().and_then(failed_before) {
             tracing::info!("meshing failed before in this run on every rung: not tried again");
             return Err(MeshError::Geometry {
                 path: self.request.geometry.display().to_string(),
@@ -481,22 +481,74 @@ enum Ladder {
     Exhausted(MeshError),
 }
 
-/// Inputs (cache keys) whose every rung failed in this process, with the message said. The
-/// coarser meshes of a part gmsh cannot mesh at that size were walked down the ladder twice
-/// per precompute, by the error estimate and again by the felt check (3.5–3.8 s each on the
-/// crankshaft at 4 mm, whose solve took 0.2 s); only an exhausted ladder is remembered, never
-/// a fatal or passing error, and never across processes.
-static FAILED: std::sync::Mutex<Vec<(std::path::PathBuf, String)>> = std::sync::Mutex::new(Vec::new());
+/// Inputs (cache keys) whose every rung failed, with the message said, while some
+/// [`FailureMemory`] lives. The coarser meshes of a part gmsh cannot mesh at that size were
+/// walked down the ladder twice per solve of a space, by the error estimate and again by the
+/// felt check (3.5–3.8 s each on the crankshaft at 4 mm, whose solve took 0.2 s). Only an
+/// exhausted ladder is remembered, never a fatal or passing error, and only for as long as the
+/// stages that ask for the same meshes run: a process that lives on (a Python session, the
+/// page's server) tries again the next time, when a failure that came from the machine (a
+/// meshing process killed) may be gone.
+#[derive(Default)]
+struct Failures {
+    /// Live [`FailureMemory`] guards.
+    scopes: usize,
+    failed: Vec<(std::path::PathBuf, String)>,
+}
 
-fn failed_before(key: &std::path::PathBuf) -> Option<String> {
-    let failed = FAILED.lock().unwrap_or_else(std::sync::PoisonError::into_inner);
-    failed.iter().find(|(k, _)| k == key).map(|(_, m)| m.clone())
+impl Failures {
+    fn enter(&mut self) {
+        self.scopes += 1;
+    }
+
+    fn leave(&mut self) {
+        self.scopes = self.scopes.saturating_sub(1);
+        if self.scopes == 0 {
+            self.failed.clear();
+        }
+    }
+
+    fn remember(&mut self, key: &std::path::Path, message: String) {
+        if self.scopes > 0 && !self.failed.iter().any(|(k, _)| k == key) {
+            self.failed.push((key.to_path_buf(), message));
+        }
+    }
+
+    fn before(&self, key: &std::path::Path) -> Option<String> {
+        self.failed.iter().find(|(k, _)| k == key).map(|(_, m)| m.clone())
+    }
+}
+
+static FAILED: std::sync::Mutex<Failures> = std::sync::Mutex::new(Failures {
+    scopes: 0,
+    failed: Vec::new(),
+});
+
+fn failures() -> std::sync::MutexGuard<'static, Failures> {
+    FAILED.lock().unwrap_or_else(std::sync::PoisonError::into_inner)
+}
+
+fn failed_before(key: &std::path::Path) -> Option<String> {
+    failures().before(key)
 }
 
 fn remember_failure(key: &std::path::Path, message: String) {
-    let mut failed = FAILED.lock().unwrap_or_else(std::sync::PoisonError::into_inner);
-    if !failed.iter().any(|(k, _)| k == key) {
-        failed.push((key.to_path_buf(), message));
+    failures().remember(key, message);
+}
+
+/// While it lives, a mesh every rung failed to make fails again at once when asked for again
+/// (see [`Failures`]); the last one dropped forgets them.
+pub struct FailureMemory(());
+
+/// Remembers exhausted ladders until the guard is dropped.
+pub fn remember_failures() -> FailureMemory {
+    failures().enter();
+    FailureMemory(())
+}
+
+impl Drop for FailureMemory {
+    fn drop(&mut self) {
+        failures().leave();
     }
 }
 
@@ -1109,6 +1161,26 @@ fn extract(session: &gmsh::Gmsh, kind: Kind, scale: f64, path: &str) -> Result<M
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// An exhausted ladder is remembered only while a scope lives, and forgotten with the last.
+    #[test]
+    fn failures_are_remembered_only_within_a_scope() {
+        let key = std::path::Path::new("k");
+        let mut f = Failures::default();
+        f.remember(key, "outside".into());
+        assert_eq!(f.before(key), None);
+        f.enter();
+        f.enter();
+        f.remember(key, "first".into());
+        f.remember(key, "second".into());
+        assert_eq!(f.before(key).as_deref(), Some("first"));
+        f.leave();
+        assert_eq!(f.before(key).as_deref(), Some("first"), "an inner scope ended");
+        f.leave();
+        assert_eq!(f.before(key), None);
+        f.leave();
+        assert_eq!(f.scopes, 0);
+    }
 
     /// The straightened tets add up: those gmsh left, plus the neighbours straightened after them.
     #[test]

@@ -139,6 +139,8 @@ pub(super) fn solve_space_checked(
     checks: Checks,
 ) -> Result<SolvedSpace> {
     let name = voi.map_or("global".to_string(), |v| v.name.clone());
+    // The estimate, the felt check and the prefetch ask for the same coarser meshes.
+    let _failures = crate::mesh::remember_failures();
     // `run_first` asks for them later only on a fixed mesh size (a refinement needs them).
     let later = checks == Checks::Later;
     debug_assert!(!later || scene.mesh.target_error.is_none());
@@ -419,6 +421,7 @@ pub(super) fn space_from_modes(
 /// and, when the scene asks for it, the error estimate (its coarser meshes, when needed, are
 /// solved here, after the part is pullable).
 pub(super) fn check_later(scene: &Scene, s: &mut SolvedSpace, choice: SolverChoice) -> Result<()> {
+    let _failures = crate::mesh::remember_failures();
     let system = s
         .system
         .as_ref()
