@@ -25,17 +25,34 @@ pub struct Fields {
 }
 
 impl Fields {
-    /// From separate fields of equal length.
-    pub fn from_each(fields: &[Vec<f64>]) -> Fields {
+    /// One field (interleaved, it is the field itself).
+    pub fn one(values: Vec<f64>) -> Fields {
+        Fields { values, r: 1 }
+    }
+
+    /// From separate fields of equal length (the first's).
+    pub fn from_each<F: AsRef<[f64]>>(fields: &[F]) -> Fields {
         let r = fields.len();
-        let n3 = fields.first().map_or(0, Vec::len);
+        let n3 = fields.first().map_or(0, |f| f.as_ref().len());
         let mut values = vec![0.0; n3 * r];
         for (j, field) in fields.iter().enumerate() {
-            for (i, v) in field.iter().enumerate().take(n3) {
+            for (i, v) in field.as_ref().iter().enumerate().take(n3) {
                 values[i * r + j] = *v;
             }
         }
         Fields { values, r }
+    }
+
+    /// The fields side by side again (field `j` at `j·3n ..`).
+    pub fn side_by_side(&self) -> Vec<f64> {
+        let n3 = self.values.len().checked_div(self.r).unwrap_or(0);
+        let mut out = vec![0.0; self.values.len()];
+        for (i, row) in self.values.chunks_exact(self.r.max(1)).enumerate() {
+            for (j, v) in row.iter().enumerate() {
+                out[j * n3 + i] = *v;
+            }
+        }
+        out
     }
 
     /// From `r` fields over the free DOFs of `dofs` (column `j` at `reduced[j·nf..]`), zero at
@@ -72,11 +89,7 @@ pub fn vertex_stress(mesh: &Mesh, mat: &Lame, u: &Fields) -> Vec<f64> {
 /// σ = F S Fᵀ / det F, S = λ tr(E) I + 2μE), at every corner vertex, row-major [6·nv]: what a
 /// nonlinear model's load case reports. Corners where det F ≤ 0 are left out of the average.
 pub fn vertex_stress_cauchy(mesh: &Mesh, mat: &Lame, u: &[f64]) -> Vec<f64> {
-    // One field: interleaved is side by side.
-    let u = Fields {
-        values: u.to_vec(),
-        r: 1,
-    };
+    let u = Fields::one(u.to_vec());
     match mesh.kind {
         Kind::Tet4 => accumulate_with::<Tet4>(mesh, mat, &u, Averaging::Volume, true),
         Kind::Tet10 => accumulate_with::<Tet10>(mesh, mat, &u, Averaging::Volume, true),
@@ -276,7 +289,7 @@ mod tests {
             // u = (a x + b y², a z, b x z): ε = [[a, b y, b z / 2], [b y, 0, a / 2], [b z / 2, a / 2, b x]] (sym).
             let field = |p: [f64; 3]| [a * p[0] + b * p[1] * p[1], a * p[2], b * p[0] * p[2]];
             let u: Vec<f64> = mesh.nodes.iter().flat_map(|&p| field(p)).collect();
-            let s = vertex_stress(&mesh, &mat, &Fields { values: u, r: 1 });
+            let s = vertex_stress(&mesh, &mat, &Fields::one(u));
             for (i, p) in mesh.nodes[..mesh.vertex_count].iter().enumerate() {
                 let eps = Matrix3::new(
                     a,
@@ -337,21 +350,13 @@ mod tests {
                 .collect();
             let alone: Vec<Vec<f64>> = fields
                 .iter()
-                .map(|f| {
-                    vertex_stress(
-                        &mesh,
-                        &mat,
-                        &Fields {
-                            values: f.clone(),
-                            r: 1,
-                        },
-                    )
-                })
+                .map(|f| vertex_stress(&mesh, &mat, &Fields::one(f.clone())))
                 .collect();
             let side_by_side: Vec<f64> = fields.iter().flatten().copied().collect();
             // Every DOF free: the free numbering is the full one.
             let dofs = super::super::Dofs::from_mask(&vec![false; n3]);
             for together in [Fields::from_each(&fields), Fields::from_free(&dofs, &side_by_side, 3)] {
+                assert_eq!(together.side_by_side(), side_by_side, "{kind:?}: interleaved and back");
                 let s = vertex_stress(&mesh, &mat, &together);
                 for (j, a) in alone.iter().enumerate() {
                     let scale = a.iter().fold(0.0_f64, |m, x| m.max(x.abs()));

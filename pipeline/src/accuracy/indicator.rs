@@ -249,14 +249,14 @@ mod tests {
             .iter()
             .flat_map(|p| [1e-3 * p[0] * p[1], 1e-3 * p[2] * p[2], 2e-3 * p[0]])
             .collect();
-        let eta = element_errors::<Tet10>(&mesh, &mat, &Fields { values: u, r: 1 });
+        let eta = element_errors::<Tet10>(&mesh, &mat, &Fields::one(u));
         let energy: f64 = eta.iter().sum();
         assert!(energy < 1e-20, "a representable field shows an error of {energy:e}");
 
         // u_x = x³ on 4-node tets: the strain 3x² changes fastest at large x.
         let mesh = Mesh::structured_box([8, 1, 1], 0.1, crate::fem::element::Kind::Tet4, |_, p| p);
         let u: Vec<f64> = mesh.nodes.iter().flat_map(|p| [p[0].powi(3), 0.0, 0.0]).collect();
-        let s = shares(&mesh, &mat, &Fields { values: u, r: 1 });
+        let s = shares(&mesh, &mat, &Fields::one(u));
         assert!((s.iter().sum::<f64>() - 1.0).abs() < 1e-12);
         let centre = |e: usize| mesh.tet(e)[..4].iter().map(|&v| mesh.nodes[v as usize][0]).sum::<f64>() / 4.0;
         let (near, far): (Vec<usize>, Vec<usize>) = (0..mesh.tet_count()).partition(|&e| centre(e) < 0.4);

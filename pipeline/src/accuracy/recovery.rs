@@ -90,7 +90,7 @@ mod tests {
             };
             let energy = |d: i32| {
                 let values: Vec<f64> = mesh.nodes.iter().flat_map(|p| field(p, d)).collect();
-                energies(&mesh, &mat, &Fields { values, r: 1 })[0]
+                energies(&mesh, &mat, &Fields::one(values))[0]
             };
             // The scale: the strain energy of a 1e-3 strain over the 0.3 m cube.
             let scale = mat.mu * 1e-6 * 0.027;

@@ -243,11 +243,7 @@ fn stress_gaps(
         (diff / norm.max(f64::MIN_POSITIVE)).sqrt()
     };
     for (j, row) in rows.iter_mut().enumerate() {
-        // One field: interleaved is the field itself.
-        let shape = Fields {
-            values: shapes[j].clone(),
-            r: 1,
-        };
+        let shape = Fields::one(shapes[j].clone());
         let like = vertex_stress_averaged(&d.mesh, lame, &shape, Averaging::Arithmetic);
         let stored = vertex_stress_averaged(&d.mesh, lame, &shape, Averaging::Volume);
         row.stress_rel_diff = Some(gap(&like, j));
