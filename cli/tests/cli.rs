@@ -58,6 +58,12 @@ fn good_scene_writes_a_basis_and_json_summary() {
     assert_eq!(err.matches("walls one element thick").count(), 1, "{err}");
     let modes = space["error_estimate"]["modes"].as_array().expect("modes");
     assert!(modes.iter().all(|m| m["reliable"] == false), "{modes:?}");
+    // Walls one element thick stay so on every coarser mesh: the Richardson estimate could not
+    // be taken, so the coarser meshes are not solved and every number is the recovery one.
+    let e = &space["error_estimate"];
+    assert_eq!(e["coarser_meshes"], "thin_walls", "{e}");
+    assert_eq!(e["levels"].as_array().map(Vec::len), Some(0), "{e}");
+    assert!(modes.iter().all(|m| m["rule"] == "recovery"), "{modes:?}");
 
     let o = ves(&["info", out.to_str().unwrap(), "--json"]);
     assert!(o.status.success());

@@ -89,6 +89,11 @@ pub enum CoarserMeshes {
     RecoveryFlagged,
     /// The recovery estimate vouched for every mode: none solved.
     NotNeeded,
+    /// The recovery estimate did not vouch for a mode, but most of the part is in walls one
+    /// element thick: they stay one element thick on every coarser mesh, so the Richardson
+    /// estimate is never taken there ([`choose`]) and the coarser meshes could not change a
+    /// number. None solved.
+    ThinWalls,
 }
 
 /// The estimate of a space.
@@ -201,8 +206,8 @@ pub fn combine(dofs: usize, frequencies_hz: &[f64], levels: &[Level], order: u8)
 
 /// Estimates the error of each of `fine`'s modes: the recovery estimate on `fine` itself and,
 /// when the scene's `mesh.error_estimate` is `"full"` or the recovery estimate does not vouch
-/// for every mode, the Richardson estimate from `fine`'s space meshed [`LEVELS`] times coarser
-/// and solved. A coarser mesh that fails (a size too large for the part) ends the sequence: the
+/// for every mode (and the walls are not one element thick: [`CoarserMeshes::ThinWalls`]), the
+/// Richardson estimate from `fine`'s space meshed [`LEVELS`] times coarser and solved. A coarser mesh that fails (a size too large for the part) ends the sequence: the
 /// estimate uses what was solved. None with neither estimate (or with the estimate off).
 pub fn estimate(
     scene: &Scene,
@@ -223,11 +228,13 @@ pub fn estimate(
         CoarserMeshes::Always
     } else if recovered.iter().all(|&c| c.is_finite() && vouched(c, trust)) && !recovered.is_empty() {
         CoarserMeshes::NotNeeded
+    } else if trust.thin && recovered.iter().all(|c| c.is_finite()) && !recovered.is_empty() {
+        CoarserMeshes::ThinWalls
     } else {
         CoarserMeshes::RecoveryFlagged
     };
     let mut coarse = Vec::new();
-    if coarser_meshes != CoarserMeshes::NotNeeded {
+    if matches!(coarser_meshes, CoarserMeshes::Always | CoarserMeshes::RecoveryFlagged) {
         for k in 1..=LEVELS {
             if crate::progress::cancelled() {
                 return None;

@@ -687,7 +687,10 @@ fn intersection_advice(e: &MeshError, log: &[String], req: &Request, work: &std:
         LADDER.len(),
         e.cause()
     );
-    if req.field.is_some() {
+    // A helper mesh's failure (an estimate's coarser mesh, a check's) is logged, not advice to
+    // act on: the trials below meshed the thin cone cover's coarser meshes at half their size,
+    // 4–5 s each, for a line no one reads.
+    if req.field.is_some() || req.quiet {
         return format!(
             "{head}: faces of the part intersect or overlap there, or lie closer than the mesh resolves; {repair}"
         );
@@ -791,7 +794,10 @@ fn attempt(req: &Request, rung: &Rung, phase: &mut dyn FnMut(&str)) -> Result<(M
         // gmsh stops at its first error, but the point and the face of a PLC error come in the
         // lines after it: the default rung (whose failure is reported) once more, to the end.
         Err(Attempt::Retry(e, log))
-            if e.cause().contains("PLC Error") && rung.name == LADDER[0].name && req.size_factor.is_none() =>
+            if e.cause().contains("PLC Error")
+                && rung.name == LADDER[0].name
+                && req.size_factor.is_none()
+                && !req.quiet =>
         {
             let log = match attempt_once(req, rung, phase, true) {
                 Err(Attempt::Retry(_, full)) => full,
