@@ -120,6 +120,39 @@ fn the_felt_compliance_carries_its_mesh_error() {
     );
 }
 
+/// A uniform refinement ends on a mesh of one size, and the felt compliance's mesh error is read
+/// from that size coarsened (as the frequency estimate's coarser meshes are), not from a size
+/// field of its vertices: the refined cantilever states at its probe the error the same scene
+/// states at a fixed `mesh.size` of the refinement's last size (the same meshes, so the same
+/// number). Before, a refined mesh's coarser meshes came from its vertex sizes through gmsh's
+/// size field: slower to mesh, and another number.
+#[test]
+fn a_uniform_refinement_states_the_felt_mesh_error_of_its_last_size() {
+    let scene = |mesh: &str| {
+        GOOD.replace("size = 0.05\norder = 1", &format!("{mesh}\norder = 2"))
+            .replace("count = 4", "count = 6")
+            + "[[probe]]\nat = [0.5, 0.05, 0.05]\nforce = [0.0, 0.0, -1.0]\n"
+    };
+    let (dir, path) = workdir(&scene("target_error = 0.02"));
+    let refined = precompute_json(&path, &dir.path().join("refined.h5"));
+    let steps = refined["spaces"][0]["refinements"]
+        .as_array()
+        .expect("refinements")
+        .clone();
+    assert!(steps.len() >= 2, "a refinement of one mesh tests nothing: {steps:?}");
+    let size = number(&steps[steps.len() - 1]["size"]);
+    let fixed_path = write_file(dir.path(), "fixed.toml", &scene(&format!("size = {size:?}")));
+    let fixed = precompute_json(&fixed_path, &dir.path().join("fixed.h5"));
+    let point = |json: &serde_json::Value| json["spaces"][0]["felt_compliance"]["points"][0].clone();
+    let (a, b) = (point(&refined), point(&fixed));
+    assert_eq!(
+        refined["spaces"][0]["dofs"], fixed["spaces"][0]["dofs"],
+        "not the same last mesh"
+    );
+    let (ea, eb) = (number(&a["mesh_error"]), number(&b["mesh_error"]));
+    assert!(ea > 0.0 && ((ea - eb) / eb).abs() < 1e-6, "refined {a}\nfixed size {b}");
+}
+
 /// A hand is told what it feels wrong at its own vertex (`felt/` in the file, `felt_error` in
 /// `ves session --json`). With the static correction the felt compliance is exact on the mesh at
 /// every vertex and at any mode count, and the mesh's own error is estimated at each vertex a
