@@ -1848,10 +1848,12 @@ fn session_reports_von_mises_and_the_safety_factor() {
 /// hits, and two more when the felt check's mesh error reads the same meshes), a second one of
 /// the same part with another material meshes nothing (five hits: the mesh and the two coarser
 /// ones twice, no new entries) and, on the same meshes, its frequencies scale exactly as √E;
-/// `VES_MESH_CACHE=off` stores nothing.
+/// `VES_MESH_CACHE=off` stores nothing. At 25 mm, two elements through the beam's 50 mm: at 50 mm
+/// its walls are one element thick and the estimate solves no coarser mesh.
 #[test]
 fn a_second_scenario_of_the_same_part_reuses_its_meshes() {
-    let (dir, path) = workdir(GOOD);
+    let good = GOOD.replace("size = 0.05", "size = 0.025");
+    let (dir, path) = workdir(&good);
     let cache = dir.path().join("cache");
     let run = |scene: &Path, extra: &[(&str, &str)]| {
         let mut c = Command::new(env!("CARGO_BIN_EXE_ves"));
@@ -1893,7 +1895,7 @@ fn a_second_scenario_of_the_same_part_reuses_its_meshes() {
     let stiffer = write_file(
         dir.path(),
         "stiff.toml",
-        &GOOD.replace("young = 2.1e11", "young = 8.4e11"),
+        &good.replace("young = 2.1e11", "young = 8.4e11"),
     );
     let (hits, g) = run(&stiffer, &[]);
     assert_eq!((hits, entries()), (5, 3));
