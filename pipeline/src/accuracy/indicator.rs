@@ -192,6 +192,10 @@ pub fn next_field(mesh: &Mesh, shares: &[f64], errors: &[f64], rates: &[f64], go
         .iter_mut()
         .filter(|s| !s.is_finite())
         .for_each(|s| *s = largest);
+    // The sizes as printed: a round-off in the indicator's sums changes no mesh.
+    at_vertex
+        .iter_mut()
+        .for_each(|s| *s = crate::mesh::field::rounded_size(*s));
     Some(NextField {
         field: SizeField::on(mesh, at_vertex),
         growth,

@@ -391,7 +391,7 @@ impl Next {
         };
         Next {
             local,
-            size: current.size * factor,
+            size: crate::mesh::field::rounded_size(current.size * factor),
             growth,
             unknowns: current.d.dofs.free_count() as f64 * growth,
             cost: NextCost::of(steps, growth, base),
