@@ -207,8 +207,9 @@ pub fn combine(dofs: usize, frequencies_hz: &[f64], levels: &[Level], order: u8)
 /// Estimates the error of each of `fine`'s modes: the recovery estimate on `fine` itself and,
 /// when the scene's `mesh.error_estimate` is `"full"` or the recovery estimate does not vouch
 /// for every mode (and the walls are not one element thick: [`CoarserMeshes::ThinWalls`]), the
-/// Richardson estimate from `fine`'s space meshed [`LEVELS`] times coarser and solved. A coarser mesh that fails (a size too large for the part) ends the sequence: the
-/// estimate uses what was solved. None with neither estimate (or with the estimate off).
+/// Richardson estimate from `fine`'s space meshed [`LEVELS`] times coarser and solved. A coarser
+/// mesh that fails (a size too large for the part) ends the sequence: the estimate uses what was
+/// solved. None with neither estimate (or with the estimate off).
 pub fn estimate(
     scene: &Scene,
     voi: Option<&Voi>,

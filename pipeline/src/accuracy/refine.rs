@@ -666,9 +666,8 @@ mod tests {
         assert_eq!(size_exponent(&[step(2e-3, 1000), step(1e-3, 1001)]), 1.0);
     }
 
-    /// The first mesh steps at the estimate's own rate; later ones at the rate the estimate fell
-    /// at over the last step (credited between 1 and 2); a mode whose estimate did not fall by
-    /// more than NOISE asks for at most twice the unknowns.
+    /// Where no rate was measured a step guesses a re-entrant edge's 4/3, never above the
+    /// element order's credited rate; a rate the coarser meshes measured stands.
     #[test]
     fn a_rate_not_measured_is_guessed_as_a_re_entrant_edges() {
         let mode = |measured_rate: Option<f64>, rate: f64| super::super::ModeEstimate {
@@ -693,6 +692,9 @@ mod tests {
         assert!((f - (0.035f64 / 0.073).powf(0.75)).abs() < 1e-12, "{f}");
     }
 
+    /// The first mesh steps at the estimate's own rate; later ones at the rate the estimate fell
+    /// at over the last step (credited between 1 and 2); a mode whose estimate did not fall by
+    /// more than NOISE asks for at most twice the unknowns.
     #[test]
     fn steps_follow_the_measured_fall_and_a_rise_in_the_noise_is_a_small_step() {
         // First mesh: 5 % at rate 2 towards 0.7 % asks (0.14)^(1/2).
