@@ -288,12 +288,15 @@ impl<'a> Surface<'a> {
                 }
             }
         }
-        let total: f64 = loads.values().sum();
+        // Summed in node order: a HashMap's order changes from run to run, and so did the
+        // weights' last bits (1.4e-16 between two runs of the ribplate).
+        let mut pairs: Vec<(u32, f64)> = loads.into_iter().collect();
+        pairs.sort_unstable_by_key(|p| p.0);
+        let total: f64 = pairs.iter().map(|p| p.1).sum();
         if total.is_nan() || total <= 0.0 {
             return None;
         }
-        let mut pairs: Vec<(u32, f64)> = loads.into_iter().map(|(a, w)| (a, w / total)).collect();
-        pairs.sort_unstable_by_key(|p| p.0);
+        pairs.iter_mut().for_each(|p| p.1 /= total);
         Some(Patch {
             nodes: pairs.iter().map(|p| p.0).collect(),
             weights: pairs.iter().map(|p| p.1).collect(),
@@ -360,12 +363,18 @@ impl<'a> Surface<'a> {
             }
         };
         let mut w = [0.0; 6];
+        // A 3-node triangle is flat: its area vector is the same at every point (the same bits
+        // as evaluated at each), and its shape functions are its barycentric coordinates.
+        let flat_da = (x.len() == 3).then(|| area_vector(x, 0.0, 0.0).0);
         // The rule on cell `p` (reference points), of reference area `area`.
         let mut rule = |p: &[(f64, f64); 3], area: f64| {
             for &(s, r, weight) in &TRIANGLE_RULE {
                 let xi = p[0].0 + s * (p[1].0 - p[0].0) + r * (p[2].0 - p[0].0);
                 let eta = p[0].1 + s * (p[1].1 - p[0].1) + r * (p[2].1 - p[0].1);
-                let (da, n) = area_vector(x, xi, eta);
+                let (da, n) = match flat_da {
+                    Some(da) => (da, [1.0 - xi - eta, xi, eta, 0.0, 0.0, 0.0]),
+                    None => area_vector(x, xi, eta),
+                };
                 let at: [f64; 3] = std::array::from_fn(|k| n.iter().zip(x).map(|(na, xa)| na * xa[k]).sum());
                 let d = sub(at, centre);
                 let pressure = profile(dot(d, d) / (radius * radius));
@@ -450,6 +459,24 @@ mod tests {
         // 40 × 40 × 10 mm, refined `cells` per 10 mm.
         let h = 0.01 / cells as f64;
         Mesh::structured_box([4 * cells, 4 * cells, cells], h, kind, |_, x| x)
+    }
+
+    /// The same patch twice is the same to the last bit (each HashMap hashes in its own order,
+    /// which summed the weights' total differently from one patch to the next).
+    #[test]
+    fn a_patch_is_the_same_to_the_last_bit_every_time() {
+        for kind in [Kind::Tet4, Kind::Tet10] {
+            let mesh = plate(kind, 4);
+            let s = Surface::new(&mesh);
+            let first = s.at_point([0.02, 0.02, 0.01], 0.005).expect("a patch").0;
+            assert!(first.nodes.len() > 8, "{}", first.nodes.len());
+            for _ in 0..20 {
+                let again = s.at_point([0.02, 0.02, 0.01], 0.005).expect("a patch").0;
+                assert_eq!(again.nodes, first.nodes);
+                let bits = |p: &Patch| p.weights.iter().map(|w| w.to_bits()).collect::<Vec<_>>();
+                assert_eq!(bits(&again), bits(&first), "{kind:?}");
+            }
+        }
     }
 
     #[test]
