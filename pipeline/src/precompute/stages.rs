@@ -356,18 +356,9 @@ fn felt_mesh_error(scene: &Scene, s: &mut SolvedSpace) -> Result<()> {
                 patches,
                 dofs: &s.dofs,
             });
-        // A uniform refinement ends on a mesh of one size: its coarser meshes are that size
-        // coarsened, as the frequency estimate's (gmsh meshes a size faster than a size field).
-        let uniform = (scene.mesh.target_error.is_some() && scene.mesh.refinement == crate::scene::Refinement::Uniform)
-            .then(|| {
-                let mut at = scene.clone();
-                at.mesh.size = s.meshing.size;
-                at.mesh.target_error = None;
-                at
-            });
-        let scene = uniform.as_ref().unwrap_or(scene);
+        let size = s.meshing.size;
         let (done, more) =
-            timed(|| released(|| crate::accuracy::felt::discretization(scene, &s.mesh, fine, f, everywhere)));
+            timed(|| released(|| crate::accuracy::felt::discretization(scene, &s.mesh, size, fine, f, everywhere)));
         if let Err(e) = done {
             tracing::warn!(
                 "space \"{}\": the felt compliance's mesh error was not estimated ({e:#})",
