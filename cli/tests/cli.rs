@@ -1270,20 +1270,8 @@ fn cantilever_case_json_cached(
     std::fs::copy(case.join("cantilever.step"), dir.path().join("cantilever.step")).unwrap();
     let scene = edit(std::fs::read_to_string(case.join("scene.toml")).unwrap());
     let path = write_file(dir.path(), "scene.toml", &scene);
-    let out = dir.path().join("b.h5");
-    let o = std::process::Command::new(env!("CARGO_BIN_EXE_ves"))
-        .args([
-            "precompute",
-            path.to_str().unwrap(),
-            "-o",
-            out.to_str().unwrap(),
-            "--json",
-        ])
-        .env("VES_CACHE_DIR", cache)
-        .output()
-        .expect("ves runs");
-    assert!(o.status.success(), "{}", stderr(&o));
-    (dir, last_json(&o))
+    let json = precompute_json_cached(&path, &dir.path().join("b.h5"), cache);
+    (dir, json)
 }
 
 fn refine_cantilever(extra: &str) -> (serde_json::Value, Vec<f64>, Vec<f64>, Vec<f64>) {

@@ -135,21 +135,8 @@ fn a_uniform_refinement_states_the_felt_mesh_error_of_its_last_size() {
     };
     let (dir, path) = workdir(&scene("target_error = 0.02"));
     // A cache of its own: a refinement remembered from another run would start on its last mesh.
-    let precompute_json = |scene: &std::path::Path, out: &std::path::Path| {
-        let o = std::process::Command::new(env!("CARGO_BIN_EXE_ves"))
-            .args([
-                "precompute",
-                scene.to_str().unwrap(),
-                "--json",
-                "-o",
-                out.to_str().unwrap(),
-            ])
-            .env("VES_CACHE_DIR", dir.path().join("cache"))
-            .output()
-            .expect("ves runs");
-        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-        last_json(&o)
-    };
+    let cache = dir.path().join("cache");
+    let precompute_json = |scene: &std::path::Path, out: &std::path::Path| precompute_json_cached(scene, out, &cache);
     let refined = precompute_json(&path, &dir.path().join("refined.h5"));
     let steps = refined["spaces"][0]["refinements"]
         .as_array()

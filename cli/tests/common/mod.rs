@@ -101,6 +101,24 @@ pub fn precompute_json_with(scene: &Path, out: &Path, extra: &[&str]) -> serde_j
     last_json(&o)
 }
 
+/// [`precompute_json`] with its own mesh cache `cache` (`VES_CACHE_DIR`): no mesh or refinement
+/// remembered by another test's run is used.
+pub fn precompute_json_cached(scene: &Path, out: &Path, cache: &Path) -> serde_json::Value {
+    let o = Command::new(env!("CARGO_BIN_EXE_ves"))
+        .args([
+            "precompute",
+            scene.to_str().unwrap(),
+            "-o",
+            out.to_str().unwrap(),
+            "--json",
+        ])
+        .env("VES_CACHE_DIR", cache)
+        .output()
+        .expect("ves runs");
+    assert!(o.status.success(), "{}: {}", scene.display(), stderr(&o));
+    last_json(&o)
+}
+
 /// `ves session BASIS --device script:SCRIPT --json`, which must succeed; its JSON.
 pub fn session_json(basis: &Path, script: &Path) -> serde_json::Value {
     session_json_with(basis, script, &[])
