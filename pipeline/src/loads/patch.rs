@@ -14,7 +14,7 @@
 //! [`MAX_TURN`] of the centre's normal and that come within the radius: it does not reach around
 //! a thin wall to the other side.
 
-use super::vector::{TRIANGLE_RULE, area_vector, triangle_nodes};
+use super::vector::{DEGREE_5_RULE, TRIANGLE_RULE, area_vector, triangle_nodes};
 use crate::tet_mesh::Mesh;
 use rayon::prelude::*;
 use std::collections::HashMap;
@@ -366,9 +366,9 @@ impl<'a> Surface<'a> {
         // A 3-node triangle is flat: its area vector is the same at every point (the same bits
         // as evaluated at each), and its shape functions are its barycentric coordinates.
         let flat_da = (x.len() == 3).then(|| area_vector(x, 0.0, 0.0).0);
-        // The rule on cell `p` (reference points), of reference area `area`.
-        let mut rule = |p: &[(f64, f64); 3], area: f64| {
-            for &(s, r, weight) in &TRIANGLE_RULE {
+        // The rule `points` on cell `p` (reference points), of reference area `area`.
+        let mut rule = |p: &[(f64, f64); 3], area: f64, points: &[(f64, f64, f64)]| {
+            for &(s, r, weight) in points {
                 let xi = p[0].0 + s * (p[1].0 - p[0].0) + r * (p[2].0 - p[0].0);
                 let eta = p[0].1 + s * (p[1].1 - p[0].1) + r * (p[2].1 - p[0].1);
                 let (da, n) = match flat_da {
@@ -395,17 +395,32 @@ impl<'a> Surface<'a> {
                 std::iter::once([(i, j), (i + 1, j), (i, j + 1)]).chain(inverted)
             })
         });
-        for cell in cells {
-            let p = cell.map(|(u, v)| (u as f64 * h, v as f64 * h));
-            match place(&p) {
-                Place::Outside => {}
-                Place::Inside => rule(&p, 0.5 * h * h),
-                Place::Rim => {
-                    let half = |i: usize, j: usize| ((p[i].0 + p[j].0) / 2.0, (p[i].1 + p[j].1) / 2.0);
-                    let (m01, m12, m20) = (half(0, 1), half(1, 2), half(2, 0));
-                    for q in [[p[0], m01, m20], [m01, p[1], m12], [m20, m12, p[2]], [m12, m20, m01]] {
-                        if place(&q) != Place::Outside {
-                            rule(&q, 0.125 * h * h);
+        // A flat 3-node triangle wholly inside the disk (its corners are: the disk is convex)
+        // carries a polynomial of degree 5 (the quartic pressure times a linear shape
+        // function): one degree-5 rule on the whole triangle is exact, where its m² cells took
+        // 6 points each.
+        let reach2 = [a, b, c]
+            .iter()
+            .map(|q| {
+                let d = sub(*q, centre);
+                dot(d, d)
+            })
+            .fold(0.0, f64::max);
+        if flat_da.is_some() && reach2 < radius * radius {
+            rule(&[(0.0, 0.0), (1.0, 0.0), (0.0, 1.0)], 0.5, &DEGREE_5_RULE);
+        } else {
+            for cell in cells {
+                let p = cell.map(|(u, v)| (u as f64 * h, v as f64 * h));
+                match place(&p) {
+                    Place::Outside => {}
+                    Place::Inside => rule(&p, 0.5 * h * h, &TRIANGLE_RULE),
+                    Place::Rim => {
+                        let half = |i: usize, j: usize| ((p[i].0 + p[j].0) / 2.0, (p[i].1 + p[j].1) / 2.0);
+                        let (m01, m12, m20) = (half(0, 1), half(1, 2), half(2, 0));
+                        for q in [[p[0], m01, m20], [m01, p[1], m12], [m20, m12, p[2]], [m12, m20, m01]] {
+                            if place(&q) != Place::Outside {
+                                rule(&q, 0.125 * h * h, &TRIANGLE_RULE);
+                            }
                         }
                     }
                 }

@@ -25,6 +25,31 @@ pub(crate) const TRIANGLE_RULE: [(f64, f64, f64); 6] = [
     (0.816_847_572_980_459, 0.091_576_213_509_771, 0.109_951_743_655_322),
 ];
 
+/// Radon's 7-point degree-5 rule on the reference triangle, as [`TRIANGLE_RULE`]: exact for a
+/// flat triangle's quartic pressure times its linear shape functions (a contact patch's
+/// triangle wholly inside the patch).
+pub(crate) const DEGREE_5_RULE: [(f64, f64, f64); 7] = [
+    (1.0 / 3.0, 1.0 / 3.0, 0.225),
+    (
+        0.101_286_507_323_456_3,
+        0.101_286_507_323_456_3,
+        0.125_939_180_544_827_2,
+    ),
+    (
+        0.797_426_985_353_087_3,
+        0.101_286_507_323_456_3,
+        0.125_939_180_544_827_2,
+    ),
+    (
+        0.101_286_507_323_456_3,
+        0.797_426_985_353_087_3,
+        0.125_939_180_544_827_2,
+    ),
+    (0.470_142_064_105_115, 0.470_142_064_105_115, 0.132_394_152_788_506_2),
+    (0.059_715_871_789_769_9, 0.470_142_064_105_115, 0.132_394_152_788_506_2),
+    (0.470_142_064_105_115, 0.059_715_871_789_769_9, 0.132_394_152_788_506_2),
+];
+
 /// One surface triangle's nodes: its three corners and, with 10-node tets, the mid-edge nodes of
 /// its edges (0,1), (1,2), (2,0).
 type TriangleNodes = Vec<u32>;
@@ -315,6 +340,38 @@ pub fn nodal_loads(mesh: &Mesh, lame: &Lame, case: &LoadCase, key: &str) -> Resu
 
 #[cfg(test)]
 mod tests {
+    /// Each rule integrates every monomial ξ^i η^j up to its degree exactly over the reference
+    /// triangle (∫ = i! j! / (i + j + 2)!), and not one degree beyond.
+    #[test]
+    fn triangle_rules_are_exact_to_their_degree() {
+        let fact = |n: u32| (1..=n).map(f64::from).product::<f64>();
+        let error = |rule: &[(f64, f64, f64)], i: u32, j: u32| {
+            let q: f64 = rule
+                .iter()
+                .map(|&(x, y, w)| 0.5 * w * x.powi(i as i32) * y.powi(j as i32))
+                .sum();
+            (q - fact(i) * fact(j) / fact(i + j + 2)).abs()
+        };
+        for (rule, degree) in [(&super::TRIANGLE_RULE[..], 4), (&super::DEGREE_5_RULE[..], 5)] {
+            for i in 0..=degree {
+                for j in 0..=degree - i {
+                    assert!(
+                        error(rule, i, j) < 1e-15,
+                        "degree {degree}: ξ^{i} η^{j} off by {:e}",
+                        error(rule, i, j)
+                    );
+                }
+            }
+            let beyond = (0..=degree + 1)
+                .map(|i| error(rule, i, degree + 1 - i))
+                .fold(0.0, f64::max);
+            assert!(
+                beyond > 1e-8,
+                "degree {degree} rule exact beyond its degree ({beyond:e})"
+            );
+        }
+    }
+
     use super::*;
 
     /// A unit cube of 2 × 2 × 2 cells, as 4- or 10-node tets.
