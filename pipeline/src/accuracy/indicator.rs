@@ -64,7 +64,7 @@ fn element_errors<S: Shape>(mesh: &Mesh, mat: &Lame, u: &Fields) -> Vec<f64> {
     // tet's row then put back in place.
     let order = mesh.tets_in_space_order();
     let mut ordered = vec![0.0; tets * r];
-    ordered.par_chunks_mut(r).zip(order.par_iter()).for_each_init(
+    ordered.par_chunks_mut(r.max(1)).zip(order.par_iter()).for_each_init(
         || (Corners::<S>::new(r), vec![0.0; 6 * r], vec![0.0; 6 * r], vec![0.0; r]),
         |(corners, diff, total, own), (out, &e)| {
             let e = e as usize;
