@@ -395,7 +395,7 @@ impl<'a> Surface<'a> {
                 std::iter::once([(i, j), (i + 1, j), (i, j + 1)]).chain(inverted)
             })
         });
-        // A flat 3-node triangle wholly inside the disk (its corners are: the disk is convex)
+        // A flat 3-node triangle wholly inside the patch's ball (its corners are: a ball is convex)
         // carries a polynomial of degree 5 (the quartic pressure times a linear shape
         // function): one degree-5 rule on the whole triangle is exact, where its m² cells took
         // 6 points each.
@@ -518,6 +518,58 @@ mod tests {
                 );
             }
         }
+    }
+
+    /// On 4-node tets (flat triangles: those wholly inside the patch take one degree-5 rule, the
+    /// rest cells) the weights are those of a brute-force integration of Nₐ p over the top face's
+    /// triangles: 96² centroid cells each, off the plate's symmetry so no error cancels.
+    #[test]
+    fn flat_triangle_weights_match_a_brute_force_integration() {
+        let (a, centre) = (0.005, [0.0213, 0.0187, 0.01]);
+        let mesh = plate(Kind::Tet4, 4);
+        let (p, _, _) = Surface::new(&mesh).at_point(centre, a).expect("a patch");
+        let mut brute: HashMap<u32, f64> = HashMap::new();
+        let n = 96;
+        for t in mesh
+            .surface
+            .iter()
+            .filter(|t| t.iter().all(|&v| (mesh.nodes[v as usize][2] - 0.01).abs() < 1e-12))
+        {
+            let x = t.map(|v| mesh.nodes[v as usize]);
+            let area = 0.5 * dot(cross(sub(x[1], x[0]), sub(x[2], x[0])), [0.0, 0.0, 1.0]).abs();
+            for i in 0..n {
+                for j in 0..n - i {
+                    // The upright cell's centroid, and the inverted one's beside it.
+                    let mut cells = vec![((i as f64 + 1.0 / 3.0) / n as f64, (j as f64 + 1.0 / 3.0) / n as f64)];
+                    if i + j + 1 < n {
+                        cells.push(((i as f64 + 2.0 / 3.0) / n as f64, (j as f64 + 2.0 / 3.0) / n as f64));
+                    }
+                    for (xi, eta) in cells {
+                        let l = [1.0 - xi - eta, xi, eta];
+                        let at: [f64; 3] = std::array::from_fn(|k| (0..3).map(|c| l[c] * x[c][k]).sum());
+                        let d = sub(at, centre);
+                        let pressure = profile(dot(d, d) / (a * a));
+                        for c in 0..3 {
+                            *brute.entry(t[c]).or_insert(0.0) += l[c] * pressure * area / (n * n) as f64;
+                        }
+                    }
+                }
+            }
+        }
+        let total: f64 = brute.values().sum();
+        for (node, w) in p.nodes.iter().zip(&p.weights) {
+            let want = brute.get(node).copied().unwrap_or(0.0) / total;
+            assert!(
+                (w - want).abs() < 2e-4 * p.weights.iter().fold(0.0, |m: f64, x| m.max(*x)),
+                "node {node}: {w} vs {want}"
+            );
+        }
+        let loaded: usize = brute.values().filter(|&&w| w > 0.0).count();
+        assert_eq!(
+            p.nodes.len(),
+            loaded,
+            "the patch loads other nodes than the pressure reaches"
+        );
     }
 
     #[test]
