@@ -85,14 +85,23 @@ pub fn vertex_stress(mesh: &Mesh, mat: &Lame, u: &Fields) -> Vec<f64> {
     vertex_stress_averaged(mesh, mat, u, Averaging::Volume)
 }
 
+/// [`vertex_stress`], the tets visited in `order` (a permutation of them: the caller's
+/// [`Mesh::tets_in_space_order`], made once for this and its own loop).
+pub fn vertex_stress_in_order(mesh: &Mesh, mat: &Lame, u: &Fields, order: &[u32]) -> Vec<f64> {
+    match mesh.kind {
+        Kind::Tet4 => accumulate_with::<Tet4>(mesh, mat, u, Averaging::Volume, false, order),
+        Kind::Tet10 => accumulate_with::<Tet10>(mesh, mat, u, Averaging::Volume, false, order),
+    }
+}
+
 /// The Cauchy stress of one displacement field `u` (3n) taken as large (St. Venant–Kirchhoff:
 /// σ = F S Fᵀ / det F, S = λ tr(E) I + 2μE), at every corner vertex, row-major [6·nv]: what a
 /// nonlinear model's load case reports. Corners where det F ≤ 0 are left out of the average.
 pub fn vertex_stress_cauchy(mesh: &Mesh, mat: &Lame, u: &[f64]) -> Vec<f64> {
     let u = Fields::one(u.to_vec());
     match mesh.kind {
-        Kind::Tet4 => accumulate_with::<Tet4>(mesh, mat, &u, Averaging::Volume, true),
-        Kind::Tet10 => accumulate_with::<Tet10>(mesh, mat, &u, Averaging::Volume, true),
+        Kind::Tet4 => accumulate_with::<Tet4>(mesh, mat, &u, Averaging::Volume, true, &mesh.tets_in_space_order()),
+        Kind::Tet10 => accumulate_with::<Tet10>(mesh, mat, &u, Averaging::Volume, true, &mesh.tets_in_space_order()),
     }
 }
 
@@ -110,17 +119,24 @@ pub enum Averaging {
 /// [`vertex_stress`] with a choice of averaging.
 pub fn vertex_stress_averaged(mesh: &Mesh, mat: &Lame, u: &Fields, how: Averaging) -> Vec<f64> {
     match mesh.kind {
-        Kind::Tet4 => accumulate_with::<Tet4>(mesh, mat, u, how, false),
-        Kind::Tet10 => accumulate_with::<Tet10>(mesh, mat, u, how, false),
+        Kind::Tet4 => accumulate_with::<Tet4>(mesh, mat, u, how, false, &mesh.tets_in_space_order()),
+        Kind::Tet10 => accumulate_with::<Tet10>(mesh, mat, u, how, false, &mesh.tets_in_space_order()),
     }
 }
 
-fn accumulate_with<S: Shape>(mesh: &Mesh, mat: &Lame, u: &Fields, how: Averaging, large: bool) -> Vec<f64> {
+/// The tets are visited in `order` (Morton order: their vertices' rows stay in cache).
+fn accumulate_with<S: Shape>(
+    mesh: &Mesh,
+    mat: &Lame,
+    u: &Fields,
+    how: Averaging,
+    large: bool,
+    order: &[u32],
+) -> Vec<f64> {
     let nv = mesh.vertex_count;
     let r = u.r;
     let threads = rayon::current_num_threads().max(1);
-    let tets = mesh.tet_count();
-    let order = mesh.tets_in_space_order();
+    let tets = order.len();
     // Per thread: Σ w σ (6·nv·r) and Σ w (nv).
     let (sum, weight) = order
         .par_iter()

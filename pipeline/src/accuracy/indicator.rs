@@ -9,7 +9,7 @@
 //! shares weighted by how far each mode is from the goal.
 
 use crate::fem::element::{Lame, Shape, tet4::Tet4, tet10::Tet10};
-use crate::fem::stress::{Corners, Fields, vertex_stress};
+use crate::fem::stress::{Corners, Fields, vertex_stress_in_order};
 use crate::mesh::field::SizeField;
 use crate::tet_mesh::Mesh;
 use rayon::prelude::*;
@@ -47,7 +47,9 @@ pub fn element_energies(mesh: &Mesh, mat: &Lame, u: &Fields) -> Vec<f64> {
 /// interpolated linearly (exact for straight-sided 10-node tets, whose stress is linear).
 fn element_errors<S: Shape>(mesh: &Mesh, mat: &Lame, u: &Fields) -> Vec<f64> {
     let r = u.r;
-    let recovered = vertex_stress(mesh, mat, u);
+    // Both loops walk the tets in Morton order (their vertices' rows then stay in cache).
+    let order = mesh.tets_in_space_order();
+    let recovered = vertex_stress_in_order(mesh, mat, u, &order);
     let tets = mesh.tet_count();
     // Compliance form: x : C⁻¹ : y = (x:y − λ/(3λ + 2μ) tr x tr y) / 2μ, Voigt shear counted
     // twice; `form(x, y, j)` of field j of two [6, r] blocks.
@@ -60,9 +62,7 @@ fn element_errors<S: Shape>(mesh: &Mesh, mat: &Lame, u: &Fields) -> Vec<f64> {
         (dot - k * tr(x) * tr(y)) * inv_2mu
     };
     let mut eta = vec![0.0; tets * r];
-    // Written in the tets' Morton order (their rows of `recovered` then stay in cache), each
-    // tet's row then put back in place.
-    let order = mesh.tets_in_space_order();
+    // Written in that order, each tet's row then put back in place.
     let mut ordered = vec![0.0; tets * r];
     ordered.par_chunks_mut(r.max(1)).zip(order.par_iter()).for_each_init(
         || (Corners::<S>::new(r), vec![0.0; 6 * r], vec![0.0; 6 * r], vec![0.0; r]),
