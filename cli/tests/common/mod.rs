@@ -83,28 +83,20 @@ pub fn precompute_json(scene: &Path, out: &Path) -> serde_json::Value {
 
 /// [`precompute_json`] with more flags.
 pub fn precompute_json_with(scene: &Path, out: &Path, extra: &[&str]) -> serde_json::Value {
-    let mut args = vec![
-        "precompute",
-        scene.to_str().unwrap(),
-        "-o",
-        out.to_str().unwrap(),
-        "--json",
-    ];
-    args.extend_from_slice(extra);
-    let o = ves(&args);
-    assert!(
-        o.status.success(),
-        "{}: {}",
-        scene.display(),
-        String::from_utf8_lossy(&o.stderr)
-    );
-    last_json(&o)
+    precompute_json_in(scene, out, extra, None)
 }
 
 /// [`precompute_json`] with its own mesh cache `cache` (`VES_CACHE_DIR`): no mesh or refinement
 /// remembered by another test's run is used.
 pub fn precompute_json_cached(scene: &Path, out: &Path, cache: &Path) -> serde_json::Value {
-    let o = Command::new(env!("CARGO_BIN_EXE_ves"))
+    precompute_json_in(scene, out, &[], Some(cache))
+}
+
+/// `ves precompute SCENE -o OUT --json EXTRA…`, in the mesh cache `cache` when given, which
+/// must succeed; its JSON.
+fn precompute_json_in(scene: &Path, out: &Path, extra: &[&str], cache: Option<&Path>) -> serde_json::Value {
+    let mut command = Command::new(env!("CARGO_BIN_EXE_ves"));
+    command
         .args([
             "precompute",
             scene.to_str().unwrap(),
@@ -112,10 +104,17 @@ pub fn precompute_json_cached(scene: &Path, out: &Path, cache: &Path) -> serde_j
             out.to_str().unwrap(),
             "--json",
         ])
-        .env("VES_CACHE_DIR", cache)
-        .output()
-        .expect("ves runs");
-    assert!(o.status.success(), "{}: {}", scene.display(), stderr(&o));
+        .args(extra);
+    if let Some(cache) = cache {
+        command.env("VES_CACHE_DIR", cache);
+    }
+    let o = command.output().expect("ves runs");
+    assert!(
+        o.status.success(),
+        "{}: {}",
+        scene.display(),
+        String::from_utf8_lossy(&o.stderr)
+    );
     last_json(&o)
 }
 
